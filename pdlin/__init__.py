@@ -1,0 +1,47 @@
+"""pdlin: implicit/static peridynamics on scipy sparse operators.
+
+The pipeline: points -> bonds -> model -> sparse operators -> boundary
+conditions -> solver -> fields -> files.
+"""
+
+from . import errors
+from .errors import ConvergenceError, FloatingBodyError
+from .fields import deformation_gradient, shape_tensor, small_strain
+from .geometry import Bonds, PointCloud, find_bonds, from_image, grid
+from .models import BondBased, Model
+from .operators import (
+    BodyForce,
+    Dirichlet,
+    TotalForce,
+    assemble_stiffness,
+    rigid_body_modes,
+    shadow_layer,
+)
+from .problem import StaticProblem, StaticResult, solve
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "errors",
+    "ConvergenceError",
+    "FloatingBodyError",
+    "PointCloud",
+    "Bonds",
+    "grid",
+    "from_image",
+    "find_bonds",
+    "BondBased",
+    "Model",
+    "assemble_stiffness",
+    "rigid_body_modes",
+    "Dirichlet",
+    "BodyForce",
+    "TotalForce",
+    "shadow_layer",
+    "StaticProblem",
+    "StaticResult",
+    "solve",
+    "deformation_gradient",
+    "shape_tensor",
+    "small_strain",
+]

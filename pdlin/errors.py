@@ -1,0 +1,76 @@
+"""Exception classes of pdlin.
+
+Every class subclasses a builtin (``ValueError``, ``TypeError`` or
+``RuntimeError``) so callers can catch either the specific pdlin error or the
+builtin one.  Messages name the argument, what was expected and what was
+received.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "PdlinError",
+    "InputError",
+    "InputTypeError",
+    "ShapeError",
+    "NonFiniteError",
+    "DuplicatePointError",
+    "NoNeighborsError",
+    "FloatingBodyError",
+    "ConvergenceError",
+    "SceneError",
+    "ModelError",
+]
+
+
+class PdlinError(Exception):
+    """Base class of every pdlin exception."""
+
+
+class InputError(PdlinError, ValueError):
+    """An argument has an invalid value."""
+
+
+class InputTypeError(PdlinError, TypeError):
+    """An argument has an invalid type."""
+
+
+class ShapeError(InputError):
+    """An array argument has the wrong shape."""
+
+
+class NonFiniteError(InputError):
+    """An array argument holds NaN or infinity."""
+
+
+class DuplicatePointError(InputError):
+    """Two points of a cloud coincide."""
+
+    def __init__(self, message: str, first: int, second: int) -> None:
+        super().__init__(message)
+        self.first = int(first)
+        self.second = int(second)
+
+
+class NoNeighborsError(InputError):
+    """A point has no bonds, so its equilibrium equation is empty."""
+
+
+class FloatingBodyError(InputError):
+    """Boundary conditions leave rigid-body motions free (singular stiffness)."""
+
+
+class ModelError(InputError):
+    """A model was asked for something it cannot represent."""
+
+
+class SceneError(InputError):
+    """A scene file is invalid; the message names the offending key."""
+
+
+class ConvergenceError(PdlinError, RuntimeError):
+    """An iterative solver did not reach its tolerance."""
+
+    def __init__(self, message: str, result: object | None = None) -> None:
+        super().__init__(message)
+        self.result = result

@@ -1,0 +1,482 @@
+"""Bonds (families) between points: neighbor search and per-bond arrays."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+
+from .._validation import as_float_array
+from ..errors import DuplicatePointError, InputError, NoNeighborsError, ShapeError
+from .cloud import PointCloud
+from .influence import InfluenceFunction, evaluate_influence
+
+__all__ = ["Bonds", "find_bonds", "resolve_horizon", "SHAPES"]
+
+log = logging.getLogger(__name__)
+
+SHAPES = ("sphere", "cube", "ellipsoid", "box")
+
+
+@dataclass(frozen=True, eq=False)
+class Bonds:
+    """Directed bonds of a point cloud in CSR order (both directions stored).
+
+    Bond ``b`` goes from point ``i[b]`` to point ``j[b]``; bonds of point
+    ``p`` are ``indptr[p]:indptr[p+1]`` with ``j`` increasing.
+
+    Attributes
+    ----------
+    n_points : int
+    i, j : (nb,) ndarray of int
+        Owner and neighbor of each bond.
+    xi : (nb, dim) ndarray
+        Reference bond vector ``x_j - x_i``.
+    length : (nb,) ndarray
+        ``|xi|``.
+    omega : (nb,) ndarray
+        Influence function value (symmetric: ``omega[b] == omega[reverse[b]]``).
+    volume_j : (nb,) ndarray
+        Volume of the neighbor (one-point quadrature, no partial volumes).
+    indptr : (n_points + 1,) ndarray
+        CSR row pointer over owners.
+    horizon : (n_points,) ndarray
+        Horizon of each point; a bond exists when
+        ``|xi| <= max(horizon[i], horizon[j])`` (the symmetric family rule).
+    shape : str
+        Neighborhood shape used.
+    influence : str or callable
+        Influence function used for ``omega``.
+    """
+
+    n_points: int
+    i: np.ndarray
+    j: np.ndarray
+    xi: np.ndarray
+    length: np.ndarray
+    omega: np.ndarray
+    volume_j: np.ndarray
+    indptr: np.ndarray
+    horizon: np.ndarray
+    shape: str = "sphere"
+    influence: Any = "constant"
+
+    @property
+    def n_bonds(self) -> int:
+        """Number of directed bonds."""
+        return int(self.i.size)
+
+    @property
+    def dim(self) -> int:
+        """Spatial dimension."""
+        return int(self.xi.shape[1])
+
+    @property
+    def family_size(self) -> np.ndarray:
+        """Number of bonds per point, ``(n_points,)``."""
+        return np.diff(self.indptr)
+
+    @property
+    def horizon_ij(self) -> np.ndarray:
+        """Bond horizon ``max(horizon[i], horizon[j])`` per bond."""
+        return np.maximum(self.horizon[self.i], self.horizon[self.j])
+
+    @cached_property
+    def reverse(self) -> np.ndarray:
+        """Index of the opposite bond ``j -> i`` for each bond ``i -> j``."""
+        nb = self.n_bonds
+        a = sp.csr_array(
+            (np.arange(nb, dtype=np.int64), self.j, self.indptr),
+            shape=(self.n_points, self.n_points),
+        )
+        t = a.T.tocsr()
+        t.sort_indices()
+        return np.asarray(t.data)
+
+    def adjacency(self) -> sp.csr_array:
+        """Boolean point adjacency matrix (n_points x n_points)."""
+        data = np.ones(self.n_bonds, dtype=bool)
+        return sp.csr_array((data, self.j, self.indptr), shape=(self.n_points,) * 2)
+
+    def per_point_sum(self, values: np.ndarray) -> np.ndarray:
+        """Sum bond values over each family: ``out[p] = sum_{b in p} values[b]``.
+
+        ``values`` may have trailing dimensions.
+        """
+        vals = np.asarray(values)
+        if vals.shape[0] != self.n_bonds:
+            raise ShapeError(f"values must have {self.n_bonds} rows, got {vals.shape}")
+        if vals.ndim == 1:
+            return np.bincount(self.i, weights=vals, minlength=self.n_points)
+        flat = vals.reshape(self.n_bonds, -1)
+        out = np.empty((self.n_points, flat.shape[1]))
+        for k in range(flat.shape[1]):
+            out[:, k] = np.bincount(self.i, weights=flat[:, k], minlength=self.n_points)
+        return out.reshape((self.n_points,) + vals.shape[1:])
+
+    def keep(self, mask: np.ndarray) -> Bonds:
+        """Return the bonds where ``mask`` is True (keep masks symmetric)."""
+        m = np.asarray(mask, dtype=bool)
+        if m.shape != (self.n_bonds,):
+            raise ShapeError(f"mask must have shape ({self.n_bonds},), got {m.shape}")
+        counts = np.bincount(self.i[m], minlength=self.n_points)
+        indptr = np.zeros(self.n_points + 1, dtype=np.int64)
+        np.cumsum(counts, out=indptr[1:])
+        return Bonds(
+            self.n_points,
+            self.i[m],
+            self.j[m],
+            self.xi[m],
+            self.length[m],
+            self.omega[m],
+            self.volume_j[m],
+            indptr,
+            self.horizon,
+            self.shape,
+            self.influence,
+        )
+
+    def nbytes(self) -> int:
+        """Memory held by the bond arrays in bytes."""
+        return int(
+            sum(
+                a.nbytes
+                for a in (
+                    self.i,
+                    self.j,
+                    self.xi,
+                    self.length,
+                    self.omega,
+                    self.volume_j,
+                    self.indptr,
+                )
+            )
+        )
+
+    def __repr__(self) -> str:
+        fs = self.family_size
+        return (
+            f"Bonds(n_points={self.n_points}, n_bonds={self.n_bonds}, family size "
+            f"{fs.min() if fs.size else 0}..{fs.max() if fs.size else 0}, shape={self.shape!r})"
+        )
+
+
+def resolve_horizon(
+    cloud: PointCloud, horizon: float | Sequence[float] | np.ndarray | None, ratio: float | None
+) -> np.ndarray:
+    """Per-point horizon from an absolute value, a ratio to the spacing, or the cloud."""
+    if horizon is not None and ratio is not None:
+        raise InputError("pass either horizon or ratio, not both")
+    if ratio is not None:
+        r = float(ratio)
+        if not np.isfinite(r) or r <= 0:
+            raise InputError(f"ratio must be > 0, got {ratio}")
+        if cloud.lattice is not None:
+            return np.full(cloud.n, r * float(np.max(cloud.lattice.spacing)))
+        return r * cloud.spacing
+    if horizon is None:
+        if cloud.horizon is None:
+            raise InputError(
+                "horizon must be given (argument horizon or ratio, or PointCloud.horizon), got None"
+            )
+        return np.asarray(cloud.horizon)
+    h = as_float_array(horizon, "horizon")
+    if h.ndim == 0:
+        if h <= 0:
+            raise InputError(f"horizon must be > 0, got {float(h)}")
+        return np.full(cloud.n, float(h))
+    if h.shape != (cloud.n,):
+        raise ShapeError(f"horizon must be a scalar or have shape ({cloud.n},), got {h.shape}")
+    if np.any(h <= 0):
+        k = int(np.flatnonzero(h <= 0)[0])
+        raise InputError(f"horizon must be > 0, got {h[k]} at point {k}")
+    return h
+
+
+def _shape_mask(
+    xi: np.ndarray, length: np.ndarray, hor: np.ndarray, shape: str, axes: np.ndarray | None, rtol: float
+) -> np.ndarray:
+    if shape == "sphere":
+        return length <= hor * (1.0 + rtol)
+    if shape == "cube":
+        return np.max(np.abs(xi), axis=1) <= hor * (1.0 + rtol)
+    assert axes is not None
+    if shape == "box":
+        return np.all(np.abs(xi) <= axes * (1.0 + rtol), axis=1)
+    # ellipsoid
+    return np.sum((xi / axes) ** 2, axis=1) <= (1.0 + rtol) ** 2
+
+
+def _segments_cross_2d(p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Vectorized test whether segments p-q (many) properly cross segment a-b."""
+
+    def orient(u: np.ndarray, v: np.ndarray, w: np.ndarray) -> np.ndarray:
+        return (v[..., 0] - u[..., 0]) * (w[..., 1] - u[..., 1]) - (v[..., 1] - u[..., 1]) * (
+            w[..., 0] - u[..., 0]
+        )
+
+    o1 = orient(p, q, a)
+    o2 = orient(p, q, b)
+    o3 = orient(a, b, p)
+    o4 = orient(a, b, q)
+    return (o1 * o2 < 0) & (o3 * o4 <= 0) | (o1 * o2 <= 0) & (o3 * o4 < 0)
+
+
+def _segments_cross_triangle(
+    p: np.ndarray, q: np.ndarray, tri: np.ndarray
+) -> np.ndarray:
+    """Vectorized segment p-q / triangle intersection (Moller-Trumbore)."""
+    v0, v1, v2 = tri
+    e1 = v1 - v0
+    e2 = v2 - v0
+    d = q - p
+    h = np.cross(d, e2)
+    a = h @ e1
+    ok = np.abs(a) > 1e-300
+    f = np.where(ok, 1.0 / np.where(ok, a, 1.0), 0.0)
+    s = p - v0
+    u = f * np.einsum("ij,ij->i", s, h)
+    qv = np.cross(s, e1)
+    v = f * np.einsum("ij,ij->i", d, qv)
+    t = f * (qv @ e2)
+    return ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < 1)
+
+
+def _crack_mask(points: np.ndarray, i: np.ndarray, j: np.ndarray, cracks: Any) -> np.ndarray:
+    """True for bonds that cross any crack (2D segments or 3D triangles)."""
+    dim = points.shape[1]
+    cr = as_float_array(cracks, "cracks")
+    if dim == 2:
+        if cr.ndim != 3 or cr.shape[1:] != (2, 2):
+            raise ShapeError(f"cracks in 2D must have shape (m, 2, 2) (segments), got {cr.shape}")
+    elif dim == 3:
+        if cr.ndim != 3 or cr.shape[1:] != (3, 3):
+            raise ShapeError(f"cracks in 3D must have shape (m, 3, 3) (triangles), got {cr.shape}")
+    else:
+        raise InputError("cracks are supported in 2D and 3D only, got a 1D cloud")
+    cut = np.zeros(i.size, dtype=bool)
+    p = points[i]
+    q = points[j]
+    for c in cr:  # loop over a handful of crack pieces, vectorized over bonds
+        if dim == 2:
+            cut |= _segments_cross_2d(p, q, c[0], c[1])
+        else:
+            cut |= _segments_cross_triangle(p, q, c)
+    return cut
+
+
+def _lattice_pairs(
+    cloud: PointCloud, hor: float, shape: str, axes: np.ndarray | None, rtol: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Directed bonds of a regular lattice from an integer stencil (already CSR sorted)."""
+    lat = cloud.lattice
+    assert lat is not None
+    dim = cloud.dim
+    h = np.asarray(lat.spacing, dtype=float)
+    if shape in ("sphere", "cube"):
+        reach = hor * (1.0 + rtol)
+    else:
+        assert axes is not None
+        reach = float(np.max(axes)) * (1.0 + rtol)
+    m = np.floor(reach / h).astype(int)
+    rng = [np.arange(-mk, mk + 1) for mk in m]
+    offs = np.stack([g.ravel() for g in np.meshgrid(*rng, indexing="ij")], axis=1)
+    offs = offs[np.any(offs != 0, axis=1)]
+    vec = offs * h
+    length = np.sqrt(np.sum(vec**2, axis=1))
+    keep = _shape_mask(vec, length, np.full(length.size, hor), shape, axes, rtol)
+    offs, vec, length = offs[keep], vec[keep], length[keep]
+    shp = np.array(lat.shape)
+    strides = np.array([int(np.prod(shp[k + 1 :])) for k in range(dim)], dtype=np.int64)
+    flat_off = offs @ strides
+    order = np.argsort(flat_off, kind="stable")
+    offs, vec, length, flat_off = offs[order], vec[order], length[order], flat_off[order]
+    n = cloud.n
+    flat_i = np.arange(n, dtype=np.int64) if lat.index is None else np.asarray(lat.index, np.int64)
+    multi = np.stack(np.unravel_index(flat_i, lat.shape), axis=1)
+    valid = np.ones((n, offs.shape[0]), dtype=bool)
+    for k in range(dim):
+        t = multi[:, k : k + 1] + offs[None, :, k]
+        valid &= (t >= 0) & (t < shp[k])
+    rows, cols = np.nonzero(valid)
+    jflat = flat_i[rows] + flat_off[cols]
+    if lat.index is None:
+        j = jflat
+    else:
+        lookup = np.full(int(np.prod(shp)), -1, dtype=np.int64)
+        lookup[flat_i] = np.arange(n)
+        j = lookup[jflat]
+        ok = j >= 0
+        rows, cols, j = rows[ok], cols[ok], j[ok]
+    return rows.astype(np.int64), j, vec[cols], length[cols]
+
+
+def _tree_pairs(
+    cloud: PointCloud, hor: np.ndarray, shape: str, axes: np.ndarray | None, rtol: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Directed bonds from a cKDTree radius search, sorted into CSR order."""
+    pts = cloud.points
+    n = cloud.n
+    tree = cKDTree(pts)
+    if shape == "cube":
+        pairs = tree.query_pairs(float(hor.max()) * (1 + rtol), p=np.inf, output_type="ndarray")
+    elif shape == "box":
+        assert axes is not None
+        pairs = tree.query_pairs(float(axes.max()) * (1 + rtol), p=np.inf, output_type="ndarray")
+    elif shape == "ellipsoid":
+        assert axes is not None
+        pairs = tree.query_pairs(float(axes.max()) * (1 + rtol), output_type="ndarray")
+    else:
+        pairs = tree.query_pairs(float(hor.max()) * (1 + rtol), output_type="ndarray")
+    a = pairs[:, 0].astype(np.int64)
+    b = pairs[:, 1].astype(np.int64)
+    xi = pts[b] - pts[a]
+    length = np.sqrt(np.einsum("ij,ij->i", xi, xi))
+    scale = float(np.max(np.ptp(pts, axis=0))) if n > 1 else 1.0
+    dup = length <= 1e-12 * max(scale, 1e-300)
+    if dup.any():
+        k = int(np.flatnonzero(dup)[0])
+        p0, p1 = int(min(a[k], b[k])), int(max(a[k], b[k]))
+        raise DuplicatePointError(
+            f"points must be distinct, got points {p0} and {p1} both at {pts[p0].tolist()}",
+            p0,
+            p1,
+        )
+    hij = np.maximum(hor[a], hor[b])
+    keep = _shape_mask(xi, length, hij, shape, axes, rtol)
+    a, b, xi, length = a[keep], b[keep], xi[keep], length[keep]
+    nb = 2 * a.size
+    ii = np.concatenate([a, b])
+    jj = np.concatenate([b, a])
+    # O(nb) counting sort through scipy's COO -> CSR conversion, then per-row sort by j
+    perm = sp.coo_array((np.arange(nb, dtype=np.int64), (ii, jj)), shape=(n, n)).tocsr()
+    perm.sort_indices()
+    order = np.asarray(perm.data)
+    xi_all = np.concatenate([xi, -xi])[order]
+    return ii[order], jj[order], xi_all, np.concatenate([length, length])[order]
+
+
+def find_bonds(
+    cloud: PointCloud,
+    horizon: float | Sequence[float] | np.ndarray | None = None,
+    *,
+    ratio: float | None = None,
+    shape: str = "sphere",
+    axes: Sequence[float] | None = None,
+    influence: str | InfluenceFunction = "constant",
+    cracks: Any = None,
+    exclude: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+    allow_isolated: bool = False,
+    rtol: float = 1e-9,
+    method: str = "auto",
+) -> Bonds:
+    """Find the bonds (families) of every point.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+    horizon : float or (n,) array_like, optional
+        Constant or per-point horizon delta_i.  ``j`` is in the family of
+        ``i`` when ``|x_j - x_i| <= max(delta_i, delta_j)`` (the symmetric
+        family rule of XOSB), so families are symmetric.  Defaults to
+        ``cloud.horizon``.
+    ratio : float, optional
+        Horizon as a multiple ``m`` of the spacing (``delta_i = m * h_i``,
+        with ``h_i = V_i ** (1/dim)``, or the lattice spacing for grids).
+    shape : {'sphere', 'cube', 'ellipsoid', 'box'}
+        Neighborhood shape: Euclidean ball, cube of half-width delta,
+        ellipsoid with semi-axes ``axes`` or box with half-widths ``axes``.
+    axes : (dim,) array_like of float, optional
+        Semi-axes / half-widths for 'ellipsoid' / 'box' (absolute lengths).
+    influence : str or callable
+        Influence function name (see
+        :data:`pdlin.geometry.influence.INFLUENCE_FUNCTIONS`) or
+        ``f(length, horizon_ij) -> omega``.
+    cracks : array_like, optional
+        Bonds crossing these are removed: 2D segments ``(m, 2, 2)`` or 3D
+        triangles ``(m, 3, 3)``.
+    exclude : callable, optional
+        ``exclude(x_i, x_j) -> bool mask`` of bonds to drop (both directions
+        are tested, a bond is dropped if either direction is flagged).
+    allow_isolated : bool
+        Allow points without any bond (default: raise NoNeighborsError).
+    rtol : float
+        Relative tolerance of the inclusive membership test.
+    method : {'auto', 'lattice', 'tree'}
+        'lattice' uses the integer stencil of a :func:`pdlin.grid` cloud
+        (exact bond vectors, no search); 'auto' picks it when possible.
+
+    Returns
+    -------
+    Bonds
+
+    Examples
+    --------
+    >>> import pdlin
+    >>> cloud = pdlin.grid((7, 7, 7))
+    >>> bonds = pdlin.find_bonds(cloud, 3.015)
+    >>> int(bonds.family_size.max())   # 122 neighbors inside a sphere of radius 3.015 h
+    122
+    """
+    if not isinstance(cloud, PointCloud):
+        raise InputError(f"cloud must be a PointCloud, got {type(cloud).__name__}")
+    hor = resolve_horizon(cloud, horizon, ratio)
+    if shape not in SHAPES:
+        raise InputError(f"shape must be one of {SHAPES}, got {shape!r}")
+    ax: np.ndarray | None = None
+    if shape in ("ellipsoid", "box"):
+        if axes is None:
+            raise InputError(f"axes must be given for shape={shape!r}, got None")
+        ax = as_float_array(axes, "axes")
+        if ax.shape != (cloud.dim,) or np.any(ax <= 0):
+            raise InputError(f"axes must be {cloud.dim} positive lengths, got {ax.tolist()}")
+        if not np.all(hor == hor[0]):
+            raise InputError(f"shape={shape!r} requires a constant horizon, got a per-point one")
+    elif axes is not None:
+        raise InputError(f"axes is only used with shape 'ellipsoid' or 'box', got shape={shape!r}")
+    uniform = bool(np.all(hor == hor[0]))
+    if method not in ("auto", "lattice", "tree"):
+        raise InputError(f"method must be 'auto', 'lattice' or 'tree', got {method!r}")
+    use_lattice = cloud.lattice is not None and uniform and method != "tree"
+    if method == "lattice" and not use_lattice:
+        raise InputError("method='lattice' needs a grid cloud and a constant horizon")
+    if use_lattice:
+        i, j, xi, length = _lattice_pairs(cloud, float(hor[0]), shape, ax, rtol)
+    else:
+        i, j, xi, length = _tree_pairs(cloud, hor, shape, ax, rtol)
+    drop = None
+    if cracks is not None:
+        drop = _crack_mask(cloud.points, i, j, cracks)
+    if exclude is not None:
+        m = np.asarray(exclude(cloud.points[i], cloud.points[j]), dtype=bool)
+        if m.shape != i.shape:
+            raise ShapeError(f"exclude must return a mask of shape {i.shape}, got {m.shape}")
+        drop = m if drop is None else drop | m
+    counts = np.bincount(i, minlength=cloud.n)
+    indptr = np.zeros(cloud.n + 1, dtype=np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    hij = np.maximum(hor[i], hor[j])
+    omega = evaluate_influence(influence, length, hij)
+    bonds = Bonds(
+        cloud.n, i, j, xi, length, omega, cloud.volumes[j], indptr, hor, shape, influence
+    )
+    if drop is not None and drop.any():
+        drop = drop | drop[bonds.reverse]
+        bonds = bonds.keep(~drop)
+    if not allow_isolated:
+        empty = np.flatnonzero(bonds.family_size == 0)
+        if empty.size:
+            raise NoNeighborsError(
+                f"every point needs at least one bond, got {empty.size} isolated point(s), "
+                f"first index {int(empty[0])} at {cloud.points[empty[0]].tolist()} "
+                f"(horizon {float(hor[empty[0]]):.4g}); increase the horizon or pass "
+                "allow_isolated=True"
+            )
+    log.debug("found %d bonds for %d points", bonds.n_bonds, cloud.n)
+    return bonds

@@ -1,0 +1,425 @@
+"""Point clouds: the discretization every pdlin model works on."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+
+from .._validation import as_float_array, check_finite
+from ..errors import InputError, ShapeError
+
+__all__ = ["PointCloud", "Lattice", "grid", "from_image"]
+
+
+@dataclass(frozen=True)
+class Lattice:
+    """Metadata of a regular cell-centred lattice (set by :func:`grid`).
+
+    Parameters
+    ----------
+    shape : tuple of int
+        Number of cells per axis.
+    spacing : (dim,) ndarray
+        Cell size per axis.
+    origin : (dim,) ndarray
+        Lower corner of the lattice box (not the first cell centre).
+    index : (n,) ndarray of int or None
+        Flat C-order lattice index of each point, or None when every cell
+        holds a point in C order.
+    """
+
+    shape: tuple[int, ...]
+    spacing: np.ndarray
+    origin: np.ndarray
+    index: np.ndarray | None = None
+
+
+def _as_index_array(value: Any, name: str, n: int) -> np.ndarray:
+    arr = np.asarray(value)
+    if arr.dtype == bool:
+        if arr.shape != (n,):
+            raise ShapeError(f"{name} boolean mask must have shape ({n},), got {arr.shape}")
+        return np.flatnonzero(arr)
+    if arr.size == 0:
+        return np.zeros(0, dtype=np.intp)
+    if not np.issubdtype(arr.dtype, np.integer):
+        raise InputError(f"{name} must hold integer point indices, got dtype {arr.dtype}")
+    arr = arr.ravel().astype(np.intp)
+    if arr.min() < 0 or arr.max() >= n:
+        raise InputError(
+            f"{name} must hold indices in [0, {n - 1}], got range [{arr.min()}, {arr.max()}]"
+        )
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class PointCloud:
+    """Material points with volumes, optional horizons, phases and named sets.
+
+    Parameters
+    ----------
+    points : (n, dim) array_like of float
+        Reference coordinates, ``dim`` in {1, 2, 3}.  A 1-D array is read as
+        ``n`` points on a line.
+    volumes : (n,) array_like of float or float
+        Volume (length in 1D, area in 2D) of each point; a scalar is
+        broadcast.  Must be > 0.
+    horizon : (n,) array_like of float or float, optional
+        Per-point horizon delta_i.  :func:`pdlin.find_bonds` uses it when no
+        horizon is passed there.
+    material : (n,) array_like of int, optional
+        Material / phase id of each point (default all 0).
+    sets : mapping of str to index array or boolean mask, optional
+        Named point sets (boundary faces, load patches, physical groups).
+    thickness : float, optional
+        Out-of-plane thickness of 2D bodies (default 1); loads and
+        reactions are reported per unit thickness times this value.
+    lattice : Lattice, optional
+        Regular-lattice metadata, enabling the stencil bond search.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> cloud = PointCloud(np.array([[0.0, 0.0], [1.0, 0.0]]), volumes=1.0)
+    >>> cloud.n, cloud.dim
+    (2, 2)
+    >>> PointCloud([[0.0], [np.nan]], volumes=1.0)
+    Traceback (most recent call last):
+    ...
+    pdlin.errors.NonFiniteError: points must be finite, got nan at index (1, 0)
+    """
+
+    points: np.ndarray
+    volumes: np.ndarray
+    horizon: np.ndarray | None = None
+    material: np.ndarray | None = None
+    sets: Mapping[str, np.ndarray] = field(default_factory=dict)
+    thickness: float = 1.0
+    lattice: Lattice | None = None
+
+    def __post_init__(self) -> None:
+        pts = as_float_array(self.points, "points")
+        if pts.ndim == 1:
+            pts = pts[:, None]
+        if pts.ndim != 2 or pts.shape[1] not in (1, 2, 3):
+            raise ShapeError(f"points must have shape (n, dim) with dim in 1..3, got {pts.shape}")
+        n = pts.shape[0]
+        if n == 0:
+            raise InputError("points must hold at least one point, got 0")
+        vol = as_float_array(self.volumes, "volumes")
+        if vol.ndim == 0:
+            vol = np.full(n, float(vol))
+        if vol.shape != (n,):
+            raise ShapeError(f"volumes must have shape ({n},) to match points, got {vol.shape}")
+        if np.any(vol <= 0):
+            k = int(np.flatnonzero(vol <= 0)[0])
+            raise InputError(f"volumes must be > 0, got {vol[k]} at point {k}")
+        hor = None
+        if self.horizon is not None:
+            hor = as_float_array(self.horizon, "horizon")
+            if hor.ndim == 0:
+                hor = np.full(n, float(hor))
+            if hor.shape != (n,):
+                raise ShapeError(f"horizon must have shape ({n},) or be a scalar, got {hor.shape}")
+            if np.any(hor <= 0):
+                k = int(np.flatnonzero(hor <= 0)[0])
+                raise InputError(f"horizon must be > 0, got {hor[k]} at point {k}")
+        mat = np.zeros(n, dtype=np.int64)
+        if self.material is not None:
+            m = np.asarray(self.material)
+            if m.ndim == 0:
+                m = np.full(n, m)
+            if m.shape != (n,):
+                raise ShapeError(f"material must have shape ({n},), got {m.shape}")
+            if not np.issubdtype(m.dtype, np.integer):
+                if np.issubdtype(m.dtype, np.floating):
+                    check_finite(m, "material")
+                if not np.all(np.asarray(m) == np.round(m)):
+                    raise InputError(f"material must hold integer ids, got dtype {m.dtype}")
+            mat = m.astype(np.int64)
+        sets = {}
+        for name, idx in dict(self.sets).items():
+            if not isinstance(name, str):
+                raise InputError(f"set names must be strings, got {name!r}")
+            sets[name] = _as_index_array(idx, f"sets[{name!r}]", n)
+        thick = float(self.thickness)
+        if not np.isfinite(thick) or thick <= 0:
+            raise InputError(f"thickness must be > 0, got {self.thickness}")
+        pts.setflags(write=False)
+        vol.setflags(write=False)
+        object.__setattr__(self, "points", pts)
+        object.__setattr__(self, "volumes", vol)
+        object.__setattr__(self, "horizon", hor)
+        object.__setattr__(self, "material", mat)
+        object.__setattr__(self, "sets", sets)
+        object.__setattr__(self, "thickness", thick)
+
+    @property
+    def n(self) -> int:
+        """Number of points."""
+        return int(self.points.shape[0])
+
+    @property
+    def dim(self) -> int:
+        """Spatial dimension (1, 2 or 3)."""
+        return int(self.points.shape[1])
+
+    @property
+    def ndof(self) -> int:
+        """Number of displacement degrees of freedom, ``n * dim``."""
+        return self.n * self.dim
+
+    @cached_property
+    def spacing(self) -> np.ndarray:
+        """Characteristic spacing per point, ``volume ** (1 / dim)``."""
+        return np.asarray(self.volumes ** (1.0 / self.dim))
+
+    @cached_property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper corners of the bounding box of the points."""
+        return self.points.min(axis=0), self.points.max(axis=0)
+
+    def point_set(self, name: str) -> np.ndarray:
+        """Return the indices of the named set, or raise a clear error."""
+        try:
+            return self.sets[name]
+        except KeyError:
+            known = ", ".join(sorted(self.sets)) or "none"
+            raise InputError(f"unknown point set {name!r}; known sets: {known}") from None
+
+    def select(
+        self,
+        where: str | Sequence[int] | np.ndarray | None = None,
+        *,
+        box: tuple[Sequence[float], Sequence[float]] | None = None,
+    ) -> np.ndarray:
+        """Resolve a set name, index array, mask or bounding box to indices.
+
+        Parameters
+        ----------
+        where : str or array_like, optional
+            A set name, an index array or a boolean mask.
+        box : (lower, upper), optional
+            Select points with ``lower <= x <= upper`` componentwise (use
+            ``-inf``/``inf`` for open sides).
+
+        Returns
+        -------
+        (m,) ndarray of int
+        """
+        if box is not None:
+            lo = np.asarray(box[0], dtype=float)
+            hi = np.asarray(box[1], dtype=float)
+            if lo.shape != (self.dim,) or hi.shape != (self.dim,):
+                raise ShapeError(
+                    f"box corners must have shape ({self.dim},), got {lo.shape} and {hi.shape}"
+                )
+            mask = np.all((self.points >= lo) & (self.points <= hi), axis=1)
+            idx = np.flatnonzero(mask)
+            if where is not None:
+                idx = np.intersect1d(idx, self.select(where))
+            return idx
+        if where is None:
+            return np.arange(self.n)
+        if isinstance(where, str):
+            return self.point_set(where)
+        return _as_index_array(where, "point selection", self.n)
+
+    def with_sets(self, **sets: Any) -> PointCloud:
+        """Return a copy with extra named point sets."""
+        merged = dict(self.sets)
+        merged.update(sets)
+        return self.replace(sets=merged)
+
+    def replace(self, **changes: Any) -> PointCloud:
+        """Return a copy with some fields replaced (validated again)."""
+        data = {
+            "points": self.points,
+            "volumes": self.volumes,
+            "horizon": self.horizon,
+            "material": self.material,
+            "sets": self.sets,
+            "thickness": self.thickness,
+            "lattice": self.lattice,
+        }
+        if "points" in changes and "lattice" not in changes:
+            data["lattice"] = None
+        data.update(changes)
+        return PointCloud(**data)
+
+    def subset(self, index: Sequence[int] | np.ndarray) -> PointCloud:
+        """Return the cloud restricted to ``index`` (sets are re-indexed)."""
+        idx = _as_index_array(index, "index", self.n)
+        new_of_old = np.full(self.n, -1, dtype=np.intp)
+        new_of_old[idx] = np.arange(idx.size)
+        sets = {}
+        for name, s in self.sets.items():
+            t = new_of_old[s]
+            sets[name] = t[t >= 0]
+        return PointCloud(
+            self.points[idx],
+            self.volumes[idx],
+            horizon=None if self.horizon is None else self.horizon[idx],
+            material=self.material[idx] if self.material is not None else None,
+            sets=sets,
+            thickness=self.thickness,
+        )
+
+    def __repr__(self) -> str:
+        return (
+            f"PointCloud(n={self.n}, dim={self.dim}, volume={self.volumes.sum():.6g}, "
+            f"sets={sorted(self.sets)})"
+        )
+
+
+_AXES = "xyz"
+
+
+def _face_sets(points: np.ndarray, lo: np.ndarray, hi: np.ndarray, h: np.ndarray) -> dict:
+    """Sets 'x-', 'x+', ... holding the outermost layer of a box of points."""
+    sets: dict[str, np.ndarray] = {}
+    for k in range(points.shape[1]):
+        tol = 0.5 * h[k]
+        sets[f"{_AXES[k]}-"] = np.flatnonzero(points[:, k] < lo[k] + tol)
+        sets[f"{_AXES[k]}+"] = np.flatnonzero(points[:, k] > hi[k] - tol)
+    return sets
+
+
+def grid(
+    shape: int | Sequence[int],
+    spacing: float | Sequence[float] = 1.0,
+    origin: Sequence[float] | None = None,
+    *,
+    horizon: float | None = None,
+    thickness: float = 1.0,
+) -> PointCloud:
+    """Cell-centred uniform grid of points in 1D, 2D or 3D.
+
+    Parameters
+    ----------
+    shape : int or sequence of int
+        Number of cells per axis; its length sets the dimension.
+    spacing : float or sequence of float
+        Cell size per axis (default 1).
+    origin : sequence of float, optional
+        Lower corner of the box; points sit at ``origin + (k + 1/2) h``.
+        Defaults to the zero vector.
+    horizon : float, optional
+        Constant horizon stored on the cloud.
+    thickness : float
+        Out-of-plane thickness for 2D bodies.
+
+    Returns
+    -------
+    PointCloud
+        Points in C order (last axis fastest) with volumes ``prod(h)`` and
+        the face sets ``'x-'``, ``'x+'``, ``'y-'``, ... (outermost layer).
+
+    Examples
+    --------
+    >>> cloud = grid((4, 2), spacing=0.5)
+    >>> cloud.points[:3]
+    array([[0.25, 0.25],
+           [0.25, 0.75],
+           [0.75, 0.25]])
+    >>> float(cloud.volumes[0]), sorted(cloud.sets)
+    (0.25, ['x+', 'x-', 'y+', 'y-'])
+    """
+    shp = (int(shape),) if np.isscalar(shape) else tuple(int(s) for s in shape)  # type: ignore[arg-type]
+    dim = len(shp)
+    if dim not in (1, 2, 3):
+        raise ShapeError(f"shape must have 1, 2 or 3 entries, got {shp}")
+    if any(s < 1 for s in shp):
+        raise InputError(f"shape entries must be >= 1, got {shp}")
+    h = np.broadcast_to(as_float_array(spacing, "spacing"), (dim,)).astype(float)
+    if np.any(h <= 0):
+        raise InputError(f"spacing must be > 0, got {h.tolist()}")
+    o = np.zeros(dim) if origin is None else as_float_array(origin, "origin")
+    if o.shape != (dim,):
+        raise ShapeError(f"origin must have shape ({dim},), got {o.shape}")
+    axes = [o[k] + (np.arange(shp[k]) + 0.5) * h[k] for k in range(dim)]
+    mesh = np.meshgrid(*axes, indexing="ij")
+    points = np.stack([m.ravel() for m in mesh], axis=1)
+    lo = o + 0.5 * h
+    hi = o + (np.array(shp) - 0.5) * h
+    return PointCloud(
+        points,
+        np.full(points.shape[0], float(np.prod(h))),
+        horizon=horizon,
+        sets=_face_sets(points, lo, hi, h),
+        thickness=thickness,
+        lattice=Lattice(shp, h, o),
+    )
+
+
+def from_image(
+    image: Any,
+    spacing: float | Sequence[float] = 1.0,
+    origin: Sequence[float] | None = None,
+    *,
+    void: int | None = None,
+    horizon: float | None = None,
+    thickness: float = 1.0,
+) -> PointCloud:
+    """Point cloud from a pixel/voxel array of phase ids (a microstructure).
+
+    Parameters
+    ----------
+    image : (nx,) or (nx, ny) or (nx, ny, nz) array_like of int
+        Phase id per cell; axis k of the array is spatial axis k.
+    spacing, origin, horizon, thickness
+        As in :func:`grid`.
+    void : int, optional
+        Phase id marking empty cells (no point is created there).
+
+    Returns
+    -------
+    PointCloud
+        One point per non-void cell, ``material`` set to the phase id and one
+        named set ``'phase<k>'`` per phase, plus the box face sets.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> img = np.array([[0, 1], [2, 1]])
+    >>> c = from_image(img, void=2)
+    >>> c.n, c.material.tolist(), sorted(c.sets)[:2]
+    (3, [0, 1, 1], ['phase0', 'phase1'])
+    """
+    img = np.asarray(image)
+    if img.ndim not in (1, 2, 3) or img.size == 0:
+        raise ShapeError(f"image must be a non-empty 1-D, 2-D or 3-D array, got shape {img.shape}")
+    if not np.issubdtype(img.dtype, np.integer):
+        if np.issubdtype(img.dtype, np.bool_):
+            img = img.astype(np.int64)
+        else:
+            imgf = np.asarray(img, dtype=float)
+            check_finite(imgf, "image")
+            if not np.all(imgf == np.round(imgf)):
+                raise InputError(f"image must hold integer phase ids, got dtype {img.dtype}")
+            img = imgf.astype(np.int64)
+    full = grid(img.shape, spacing, origin, horizon=horizon, thickness=thickness)
+    phases = img.ravel()
+    keep = np.ones(phases.size, dtype=bool) if void is None else phases != void
+    if not keep.any():
+        raise InputError(f"image holds only the void phase {void}; no points would be created")
+    idx = np.flatnonzero(keep)
+    sub = full.subset(idx)
+    sets = dict(sub.sets)
+    for p in np.unique(phases[idx]):
+        sets[f"phase{int(p)}"] = np.flatnonzero(phases[idx] == p)
+    lat = full.lattice
+    assert lat is not None
+    return PointCloud(
+        sub.points,
+        sub.volumes,
+        horizon=sub.horizon,
+        material=phases[idx],
+        sets=sets,
+        thickness=thickness,
+        lattice=Lattice(lat.shape, lat.spacing, lat.origin, index=idx),
+    )

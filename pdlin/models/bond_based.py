@@ -1,0 +1,360 @@
+"""Linearized bond-based peridynamics (and the nonlinear PMB force)."""
+
+from __future__ import annotations
+
+import logging
+import warnings
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from scipy import integrate
+
+from .._validation import as_float_array
+from ..errors import InputError, ModelError, ShapeError
+from ..geometry.bonds import Bonds
+from ..geometry.cloud import PointCloud
+from ..geometry.influence import influence_function
+from ..operators.assembly import pair_stiffness_bsr
+from .base import Model
+
+__all__ = ["BondBased", "implied_poisson_ratio", "standard_micromodulus"]
+
+log = logging.getLogger(__name__)
+
+_PLANES = ("stress", "strain")
+
+
+def implied_poisson_ratio(dim: int, plane: str = "stress") -> float:
+    """Poisson ratio fixed by bond-based PD (Cauchy relations).
+
+    1/4 in 3D and 2D plane strain, 1/3 in 2D plane stress; 1D has no
+    lateral response (returns 0).
+
+    Examples
+    --------
+    >>> implied_poisson_ratio(3), implied_poisson_ratio(2, "stress")
+    (0.25, 0.3333333333333333)
+    """
+    if dim == 3:
+        return 0.25
+    if dim == 2:
+        if plane not in _PLANES:
+            raise InputError(f"plane must be 'stress' or 'strain', got {plane!r}")
+        return 1.0 / 3.0 if plane == "stress" else 0.25
+    if dim == 1:
+        return 0.0
+    raise InputError(f"dim must be 1, 2 or 3, got {dim}")
+
+
+def _c1111(E: np.ndarray, dim: int, plane: str) -> np.ndarray:
+    """Axial modulus C_1111 of the isotropic material with the implied nu."""
+    nu = implied_poisson_ratio(dim, plane)
+    if dim == 1:
+        return E
+    if dim == 2 and plane == "stress":
+        return E / (1.0 - nu**2)
+    return E * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu))
+
+
+def _moment(influence: Any, horizon: float, dim: int) -> float:
+    """∫_0^δ ω(r) r^p dr with p = 1, 2, 3 for dim = 1, 2, 3."""
+    fn = influence_function(influence)
+    p = dim
+
+    def integrand(r: float) -> float:
+        return float(fn(np.array([r]), np.array([horizon]))[0]) * r**p
+
+    if influence == "constant":
+        return horizon ** (p + 1) / (p + 1)
+    val, _ = integrate.quad(integrand, 0.0, horizon, limit=200)
+    return float(val)
+
+
+def standard_micromodulus(
+    E: float | np.ndarray,
+    horizon: float | np.ndarray,
+    dim: int,
+    *,
+    plane: str = "stress",
+    thickness: float = 1.0,
+    influence: Any = "constant",
+) -> np.ndarray:
+    """Micromodulus matching E in the continuum limit (full spherical horizon).
+
+    Equates ``C_1111 = (c/2) ∫ ω ξ₁⁴/|ξ|³ dV`` with the isotropic
+    ``C_1111`` of the implied Poisson ratio.  For ω = 1 this gives the
+    standard constants: ``12E/(πδ⁴)`` (3D, = 18K/(πδ⁴)), ``9E/(πtδ³)``
+    (plane stress), ``48E/(5πtδ³)`` (plane strain), ``2E/(Aδ²)`` (1D, A =
+    cross-section passed as ``thickness``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> c = standard_micromodulus(1.0, 2.0, 3)
+    >>> bool(np.isclose(c, 12 / (np.pi * 2.0**4)))
+    True
+    """
+    Ea = np.asarray(E, dtype=float)
+    hor = np.asarray(horizon, dtype=float)
+    c11 = _c1111(Ea, dim, plane)
+    uniq, inv = np.unique(np.atleast_1d(hor), return_inverse=True)
+    mom = np.array([_moment(influence, float(h), dim) for h in uniq])[inv].reshape(hor.shape)
+    if dim == 3:
+        denom = 0.4 * np.pi * mom  # (1/2)(4π/5)
+    elif dim == 2:
+        denom = 0.375 * np.pi * thickness * mom  # (1/2)(3π/4) t
+    else:
+        denom = thickness * mom  # (1/2) * 2 A
+    return np.asarray(c11 / denom)
+
+
+class BondBased(Model):
+    """Linearized bond-based peridynamics with a micromodulus per bond.
+
+    Pair force density ``f = c ω s M`` (``s`` bond stretch, ``M`` the
+    bond direction); nodal stiffness blocks
+    ``K[i, j] = -c ω V_i V_j n nᵀ / |ξ|``.
+
+    Parameters
+    ----------
+    E : float or (n,) array_like, optional
+        Young's modulus (per point for graded materials).  Needed unless
+        ``micromodulus`` is given.
+    nu : float, optional
+        Poisson ratio requested by the user.  Bond-based PD implies
+        ν = 1/4 (3D, plane strain) or 1/3 (plane stress); another value
+        raises :class:`~pdlin.errors.ModelError` (or warns, see
+        ``nu_mismatch``).
+    plane : {'stress', 'strain'}
+        2D assumption.
+    micromodulus : float or (nb,) array_like, optional
+        Explicit micromodulus (scalar or one per directed bond, symmetric
+        over bond pairs), e.g. from :func:`pdlin.calibrate_micromoduli`.
+    average : {'arithmetic', 'harmonic'}
+        How a bond combines the per-point moduli of its two ends.
+    nu_mismatch : {'raise', 'warn'}
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin
+    >>> cloud = pdlin.grid((10,), spacing=0.1)
+    >>> bonds = pdlin.find_bonds(cloud, ratio=2.0)
+    >>> model = pdlin.BondBased(E=200e9)
+    >>> K = pdlin.assemble_stiffness(model, cloud, bonds)
+    >>> u = np.random.default_rng(0).normal(size=(10, 1))
+    >>> bool(np.allclose(K @ u.ravel(), -model.internal_force(cloud, bonds, u).ravel()))
+    True
+    >>> pdlin.BondBased(E=1.0, nu=0.3).check(3)
+    Traceback (most recent call last):
+    ...
+    pdlin.errors.ModelError: bond-based PD implies nu = 0.25 in 3D, got nu = 0.3; use nu=None or a state-based model (LPS) for other Poisson ratios
+    """
+
+    coupling_range = 1
+    symmetric = True
+
+    def __init__(
+        self,
+        E: float | np.ndarray | None = None,
+        *,
+        nu: float | None = None,
+        plane: str = "stress",
+        micromodulus: float | np.ndarray | None = None,
+        average: str = "arithmetic",
+        nu_mismatch: str = "raise",
+    ) -> None:
+        if E is None and micromodulus is None:
+            raise InputError("BondBased needs E or micromodulus, got neither")
+        self.E = None if E is None else as_float_array(E, "E")
+        if self.E is not None and np.any(self.E <= 0):
+            raise InputError(f"E must be > 0, got min {float(np.min(self.E))}")
+        if plane not in _PLANES:
+            raise InputError(f"plane must be 'stress' or 'strain', got {plane!r}")
+        if average not in ("arithmetic", "harmonic"):
+            raise InputError(f"average must be 'arithmetic' or 'harmonic', got {average!r}")
+        if nu_mismatch not in ("raise", "warn"):
+            raise InputError(f"nu_mismatch must be 'raise' or 'warn', got {nu_mismatch!r}")
+        self.nu = None if nu is None else float(nu)
+        self.plane = plane
+        self.average = average
+        self.nu_mismatch = nu_mismatch
+        self.micromodulus = None if micromodulus is None else as_float_array(micromodulus, "micromodulus")
+        if self.micromodulus is not None and np.any(self.micromodulus < 0):
+            raise InputError(
+                f"micromodulus must be >= 0 (energy positivity), got min {float(self.micromodulus.min())}"
+            )
+
+    # -- parameters -------------------------------------------------------
+    def implied_poisson_ratio(self, dim: int) -> float:
+        """Poisson ratio of this model in ``dim`` dimensions."""
+        return implied_poisson_ratio(dim, self.plane)
+
+    def check(self, dim: int) -> None:
+        """Validate the requested Poisson ratio against the implied one."""
+        if self.nu is None or dim == 1:
+            return
+        implied = self.implied_poisson_ratio(dim)
+        if abs(self.nu - implied) > 1e-12:
+            where = "3D" if dim == 3 else f"2D plane {self.plane}"
+            msg = (
+                f"bond-based PD implies nu = {implied:.4g} in {where}, got nu = {self.nu}; "
+                "use nu=None or a state-based model (LPS) for other Poisson ratios"
+            )
+            if self.nu_mismatch == "raise":
+                raise ModelError(msg)
+            warnings.warn(msg, stacklevel=3)
+
+    def bond_micromodulus(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
+        """Micromodulus per directed bond, ``(nb,)``."""
+        self.check(cloud.dim)
+        nb = bonds.n_bonds
+        if self.micromodulus is not None:
+            c = self.micromodulus
+            if c.ndim == 0:
+                return np.full(nb, float(c))
+            if c.shape != (nb,):
+                raise ShapeError(f"micromodulus must be a scalar or have shape ({nb},), got {c.shape}")
+            return c
+        assert self.E is not None
+        E = self.E
+        if E.ndim == 0:
+            Eb: np.ndarray | float = float(E)
+        else:
+            if E.shape != (cloud.n,):
+                raise ShapeError(f"E must be a scalar or have shape ({cloud.n},), got {E.shape}")
+            if self.average == "arithmetic":
+                Eb = 0.5 * (E[bonds.i] + E[bonds.j])
+            else:
+                Eb = 2.0 / (1.0 / E[bonds.i] + 1.0 / E[bonds.j])
+        hor = bonds.horizon
+        influence = getattr(bonds, "influence", "constant")
+        if np.all(hor == hor[0]):
+            cb = standard_micromodulus(
+                1.0, float(hor[0]), cloud.dim, plane=self.plane, thickness=cloud.thickness,
+                influence=influence,
+            ) * Eb
+            return np.broadcast_to(cb, (nb,)).astype(float)
+        cb = standard_micromodulus(
+            1.0, bonds.horizon_ij, cloud.dim, plane=self.plane, thickness=cloud.thickness,
+            influence=influence,
+        )
+        return np.asarray(cb * Eb, dtype=float)
+
+    def bond_stiffness(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
+        """Scalar bond stiffness ``k_b = c ω V_i V_j t / |ξ|`` (nodal units)."""
+        c = self.bond_micromodulus(cloud, bonds)
+        vol = _effective_volumes(cloud)
+        k = c * bonds.omega
+        k = k * vol[bonds.i]
+        k *= bonds.volume_j * _measure(cloud)
+        k /= bonds.length
+        return k
+
+    # -- operators ----------------------------------------------------------
+    def stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.bsr_array:
+        """Assembled BSR stiffness (see class docstring)."""
+        return pair_stiffness_bsr(bonds, self.bond_stiffness(cloud, bonds))
+
+    def internal_force(
+        self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, *, linear: bool = True
+    ) -> np.ndarray:
+        """Nodal internal force.
+
+        ``linear=True`` uses the linearized stretch ``n·η/|ξ|`` along the
+        reference direction (so ``f == -K u``); ``linear=False`` is the
+        prototype microelastic brittle (PMB) form with the exact stretch
+        ``(|ξ+η| - |ξ|)/|ξ|`` along the deformed direction.
+        """
+        d = cloud.dim
+        uu = _as_displacement(u, cloud.n, d)
+        k = self.bond_stiffness(cloud, bonds)
+        eta = uu[bonds.j] - uu[bonds.i]
+        if linear:
+            unit = bonds.xi / bonds.length[:, None]
+            tb = k * np.einsum("ij,ij->i", unit, eta)
+            vec = tb[:, None] * unit
+        else:
+            y = bonds.xi + eta
+            ly = np.sqrt(np.einsum("ij,ij->i", y, y))
+            if np.any(ly <= 0):
+                raise InputError("u collapses a bond to zero length; the PMB force is undefined")
+            stretch_len = ly - bonds.length  # = s |ξ|
+            tb = k * stretch_len
+            vec = tb[:, None] * (y / ly[:, None])
+        f = np.empty((cloud.n, d))
+        for a in range(d):
+            f[:, a] = np.bincount(bonds.i, weights=vec[:, a], minlength=cloud.n)
+        return f
+
+    def stress(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
+        """Per-point virial stress ``σ_i = ½ Σ_j c ω s (ξ⊗ξ/|ξ|) V_j``, ``(n, dim, dim)``.
+
+        Equals ``C_i : ε`` for affine fields, with ``C_i`` the point's
+        effective tensor (seed 004 Eq. 29), also at truncated families.
+        """
+        d = cloud.dim
+        uu = _as_displacement(u, cloud.n, d)
+        c = self.bond_micromodulus(cloud, bonds)
+        eta = uu[bonds.j] - uu[bonds.i]
+        unit = bonds.xi / bonds.length[:, None]
+        s_len = np.einsum("ij,ij->i", unit, eta)  # s |ξ|
+        w = 0.5 * c * bonds.omega * s_len * bonds.volume_j * _measure(cloud) / bonds.length
+        sig = np.empty((cloud.n, d, d))
+        for a in range(d):
+            for b in range(a, d):
+                v = np.bincount(bonds.i, weights=w * unit[:, a] * unit[:, b] * bonds.length, minlength=cloud.n)
+                sig[:, a, b] = v
+                sig[:, b, a] = v
+        return sig
+
+    def effective_tensor(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
+        """Per-point stiffness tensor ``C_ijkl = ½ Σ ω c ξ_iξ_jξ_kξ_l/|ξ|³ V_j`` ``(n, d, d, d, d)``."""
+        d = cloud.dim
+        c = self.bond_micromodulus(cloud, bonds)
+        unit = bonds.xi / bonds.length[:, None]
+        w = 0.5 * c * bonds.omega * bonds.volume_j * _measure(cloud) * bonds.length
+        out = np.empty((cloud.n, d, d, d, d))
+        import itertools
+
+        for idx in itertools.product(range(d), repeat=4):
+            srt = tuple(sorted(idx))
+            if srt != idx:
+                out[(slice(None),) + idx] = out[(slice(None),) + srt]
+                continue
+            prod = w * unit[:, idx[0]] * unit[:, idx[1]] * unit[:, idx[2]] * unit[:, idx[3]]
+            out[(slice(None),) + idx] = np.bincount(bonds.i, weights=prod, minlength=cloud.n)
+        return out
+
+    def describe(self) -> dict[str, Any]:
+        return {
+            "model": "BondBased",
+            "E": None if self.E is None or self.E.ndim else float(self.E),
+            "plane": self.plane,
+            "micromodulus": "per-bond" if self.micromodulus is not None and self.micromodulus.ndim else (
+                None if self.micromodulus is None else float(self.micromodulus)
+            ),
+        }
+
+
+def _measure(cloud: PointCloud) -> float:
+    """Out-of-plane measure: thickness (2D), cross-section area (1D), 1 (3D)."""
+    return 1.0 if cloud.dim == 3 else cloud.thickness
+
+
+def _effective_volumes(cloud: PointCloud) -> np.ndarray:
+    return np.asarray(cloud.volumes) * _measure(cloud)
+
+
+def _as_displacement(u: Any, n: int, d: int) -> np.ndarray:
+    arr = np.asarray(u, dtype=float)
+    if arr.size != n * d:
+        raise ShapeError(f"u must have {n * d} entries (shape ({n}, {d})), got shape {arr.shape}")
+    arr = arr.reshape(n, d)
+    if not np.all(np.isfinite(arr)):
+        raise InputError("u must be finite, got NaN or inf")
+    return arr
+
+
+_Callable = Callable  # re-export guard for type checkers

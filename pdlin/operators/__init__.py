@@ -1,0 +1,29 @@
+"""Operators: assembly, boundary conditions, loads, rigid-body modes."""
+
+from .assembly import assemble_stiffness, bond_pattern_bsr, pair_stiffness_bsr
+from .bc import (
+    BodyForce,
+    Dirichlet,
+    TotalForce,
+    check_constraints,
+    eliminate_dirichlet,
+    load_vector,
+    resolve_dirichlet,
+    shadow_layer,
+)
+from .rigid import rigid_body_modes
+
+__all__ = [
+    "assemble_stiffness",
+    "bond_pattern_bsr",
+    "pair_stiffness_bsr",
+    "Dirichlet",
+    "BodyForce",
+    "TotalForce",
+    "shadow_layer",
+    "resolve_dirichlet",
+    "load_vector",
+    "eliminate_dirichlet",
+    "check_constraints",
+    "rigid_body_modes",
+]

@@ -1,0 +1,420 @@
+"""Boundary conditions and loads, and their elimination from K u = f."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from .._validation import as_float_array
+from ..errors import FloatingBodyError, InputError, ShapeError
+from ..geometry.bonds import Bonds
+from ..geometry.cloud import PointCloud
+from .rigid import rigid_body_modes, rigid_mode_names
+
+__all__ = [
+    "Dirichlet",
+    "BodyForce",
+    "TotalForce",
+    "shadow_layer",
+    "resolve_dirichlet",
+    "load_vector",
+    "eliminate_dirichlet",
+    "check_constraints",
+    "parse_components",
+]
+
+Where = str | Sequence[int] | np.ndarray
+ValueSpec = float | Sequence[float] | np.ndarray | Callable[[np.ndarray], Any]
+
+_AX = {"x": 0, "y": 1, "z": 2}
+
+
+def parse_components(components: Any, dim: int) -> np.ndarray:
+    """Components as indices: None (all), 'x', 'xz', 0, [0, 2].
+
+    Examples
+    --------
+    >>> parse_components("xz", 3).tolist()
+    [0, 2]
+    """
+    if components is None:
+        return np.arange(dim)
+    if isinstance(components, str):
+        try:
+            comps = [_AX[ch] for ch in components.lower()]
+        except KeyError:
+            raise InputError(f"components must be letters from 'xyz', got {components!r}") from None
+    else:
+        comps = [int(c) for c in np.atleast_1d(components)]
+    arr = np.asarray(comps, dtype=np.intp)
+    if arr.size == 0 or arr.min() < 0 or arr.max() >= dim or np.unique(arr).size != arr.size:
+        raise InputError(f"components must be distinct axes in [0, {dim - 1}], got {components!r}")
+    return arr
+
+
+def _resolve_where(cloud: PointCloud, where: Any, what: str) -> np.ndarray:
+    idx = cloud.select(where)
+    if idx.size == 0:
+        raise InputError(f"{what} selects no points (where={where!r})")
+    return idx
+
+
+def _evaluate(value: Any, pts: np.ndarray, dim: int, name: str) -> np.ndarray:
+    """Value spec -> (m, dim) array."""
+    m = pts.shape[0]
+    if callable(value):
+        out = as_float_array(value(pts), f"{name} (callable result)")
+    else:
+        out = as_float_array(value, name)
+    if out.ndim == 0:
+        return np.full((m, dim), float(out))
+    if out.shape == (dim,):
+        return np.broadcast_to(out, (m, dim)).copy()
+    if out.shape == (m, dim):
+        return out
+    if dim == 1 and out.shape == (m,):
+        return out[:, None]
+    raise ShapeError(f"{name} must be a scalar, shape ({dim},) or ({m}, {dim}), got {out.shape}")
+
+
+@dataclass(frozen=True)
+class Dirichlet:
+    """Prescribed displacement on a point set.
+
+    Parameters
+    ----------
+    where : str or index array or mask
+        Point set name (e.g. ``'x-'``) or indices.
+    value : float, (dim,) array, (m, dim) array or callable
+        Displacement; a callable receives the ``(m, dim)`` reference points.
+    components : str or sequence of int, optional
+        Constrained components (default all), e.g. ``'x'`` or ``[0, 2]``.
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin
+    >>> cloud = pdlin.grid((3, 2))
+    >>> bc = Dirichlet.affine("x+", np.eye(2) + [[0.01, 0], [0, 0]], components="x")
+    >>> dofs, vals = resolve_dirichlet(cloud, [bc])
+    >>> dofs.tolist(), vals.round(4).tolist()
+    ([8, 10], [0.025, 0.025])
+    """
+
+    where: Any
+    value: Any = 0.0
+    components: Any = None
+
+    @classmethod
+    def affine(
+        cls,
+        where: Any,
+        F: Any,
+        *,
+        translation: Any = None,
+        center: Any = None,
+        components: Any = None,
+    ) -> Dirichlet:
+        """Affine field ``u = (F - I)(X - center) + translation``."""
+        Fm = as_float_array(F, "F", ndim=2)
+        if Fm.shape[0] != Fm.shape[1]:
+            raise ShapeError(f"F must be square (dim, dim), got {Fm.shape}")
+        d = Fm.shape[0]
+        H = Fm - np.eye(d)
+        c = np.zeros(d) if center is None else as_float_array(center, "center")
+        t = np.zeros(d) if translation is None else as_float_array(translation, "translation")
+        if c.shape != (d,) or t.shape != (d,):
+            raise ShapeError(f"center and translation must have shape ({d},)")
+
+        def field(x: np.ndarray) -> np.ndarray:
+            if x.shape[1] != d:
+                raise ShapeError(f"F is {d}x{d} but the cloud is {x.shape[1]}D")
+            return (x - c) @ H.T + t
+
+        return cls(where, field, components)
+
+
+@dataclass(frozen=True)
+class BodyForce:
+    """Body force density (force per unit volume) on a point set.
+
+    The nodal load is ``b(x_i) * V_i`` (times the thickness in 2D / the
+    cross-section in 1D).
+    """
+
+    where: Any
+    density: Any
+
+
+@dataclass(frozen=True)
+class TotalForce:
+    """A total force spread over a point set in proportion to point volume."""
+
+    where: Any
+    force: Any
+    weights: Any = field(default=None)
+
+
+def shadow_layer(
+    cloud: PointCloud,
+    F: Any,
+    depth: float,
+    *,
+    faces: Sequence[str] | None = None,
+    translation: Any = None,
+) -> tuple[Dirichlet, np.ndarray]:
+    """Inward fictitious boundary layer ("shadow particles") of given depth.
+
+    Points within ``depth`` (normally the horizon) of the bounding-box
+    faces carry the prescribed affine field ``u = (F - I) X + translation``;
+    only the remaining (real) points are solved for, and their horizons
+    are always complete on a box.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+    F : (dim, dim) array_like
+        Imposed deformation gradient.
+    depth : float
+        Layer thickness measured from the outermost points' cell faces.
+    faces : sequence of str, optional
+        Box faces carrying the layer, e.g. ``['x-', 'x+']`` (default all).
+
+    Returns
+    -------
+    (Dirichlet, shadow_indices)
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin
+    >>> cloud = pdlin.grid((10, 10), spacing=0.1)
+    >>> bc, shadow = shadow_layer(cloud, np.eye(2) * 1.001, depth=0.2)
+    >>> shadow.size   # 10x10 minus the 6x6 real core
+    64
+    """
+    d = cloud.dim
+    dep = float(depth)
+    if not np.isfinite(dep) or dep <= 0:
+        raise InputError(f"depth must be > 0, got {depth}")
+    lo, hi = cloud.bounds
+    half = 0.5 * np.asarray(cloud.lattice.spacing) if cloud.lattice is not None else 0.5 * float(
+        np.median(cloud.spacing)
+    ) * np.ones(d)
+    lo = lo - half
+    hi = hi + half
+    names = [f"{a}{s}" for a in "xyz"[:d] for s in "-+"] if faces is None else list(faces)
+    mask = np.zeros(cloud.n, dtype=bool)
+    for name in names:
+        if len(name) != 2 or name[0] not in "xyz"[:d] or name[1] not in "+-":
+            raise InputError(f"faces entries must look like 'x-' or 'z+', got {name!r}")
+        k = _AX[name[0]]
+        if name[1] == "-":
+            mask |= cloud.points[:, k] < lo[k] + dep
+        else:
+            mask |= cloud.points[:, k] > hi[k] - dep
+    idx = np.flatnonzero(mask)
+    if idx.size == 0:
+        raise InputError(f"shadow layer of depth {dep} holds no points")
+    return Dirichlet.affine(idx, F, translation=translation), idx
+
+
+def resolve_dirichlet(cloud: PointCloud, conditions: Sequence[Dirichlet]) -> tuple[np.ndarray, np.ndarray]:
+    """Collect prescribed DOFs and values; conflicting duplicates raise.
+
+    Returns
+    -------
+    dofs : (m,) sorted ndarray of int
+    values : (m,) ndarray
+    """
+    d = cloud.dim
+    all_dofs = []
+    all_vals = []
+    for k, bc in enumerate(conditions):
+        if not isinstance(bc, Dirichlet):
+            raise InputError(f"dirichlet[{k}] must be a pdlin Dirichlet, got {type(bc).__name__}")
+        idx = _resolve_where(cloud, bc.where, f"dirichlet[{k}]")
+        comps = parse_components(bc.components, d)
+        vals = _evaluate(bc.value, cloud.points[idx], d, f"dirichlet[{k}].value")
+        all_dofs.append((d * idx[:, None] + comps[None, :]).ravel())
+        all_vals.append(vals[:, comps].ravel())
+    if not all_dofs:
+        return np.zeros(0, dtype=np.intp), np.zeros(0)
+    dofs = np.concatenate(all_dofs)
+    vals = np.concatenate(all_vals)
+    order = np.argsort(dofs, kind="stable")
+    dofs, vals = dofs[order], vals[order]
+    same = np.flatnonzero(dofs[1:] == dofs[:-1])
+    if same.size:
+        tol = 1e-12 * max(1.0, float(np.max(np.abs(vals))))
+        bad = same[np.abs(vals[same + 1] - vals[same]) > tol]
+        if bad.size:
+            b = int(bad[0])
+            raise InputError(
+                f"dirichlet conditions conflict: dof {int(dofs[b])} (point {int(dofs[b]) // d}, "
+                f"component {int(dofs[b]) % d}) is prescribed as {vals[b]} and {vals[b + 1]}"
+            )
+        keep = np.ones(dofs.size, dtype=bool)
+        keep[same + 1] = False
+        dofs, vals = dofs[keep], vals[keep]
+    return dofs, vals
+
+
+def load_vector(cloud: PointCloud, loads: Sequence[Any]) -> np.ndarray:
+    """Nodal external force vector ``(n*dim,)`` from body forces and total forces."""
+    d = cloud.dim
+    f = np.zeros((cloud.n, d))
+    measure = 1.0 if d == 3 else cloud.thickness
+    for k, ld in enumerate(loads):
+        if isinstance(ld, BodyForce):
+            idx = _resolve_where(cloud, ld.where, f"loads[{k}]")
+            b = _evaluate(ld.density, cloud.points[idx], d, f"loads[{k}].density")
+            np.add.at(f, idx, b * (cloud.volumes[idx] * measure)[:, None])
+        elif isinstance(ld, TotalForce):
+            idx = _resolve_where(cloud, ld.where, f"loads[{k}]")
+            total = as_float_array(ld.force, f"loads[{k}].force")
+            if total.shape != (d,):
+                raise ShapeError(f"loads[{k}].force must have shape ({d},), got {total.shape}")
+            w = cloud.volumes[idx] if ld.weights is None else as_float_array(ld.weights, "weights")
+            if w.shape != idx.shape or np.any(w < 0) or w.sum() <= 0:
+                raise InputError(f"loads[{k}].weights must be {idx.size} non-negative numbers")
+            np.add.at(f, idx, np.outer(w / w.sum(), total))
+        else:
+            raise InputError(
+                f"loads[{k}] must be BodyForce or TotalForce, got {type(ld).__name__}"
+            )
+    return f.ravel()
+
+
+def check_constraints(
+    cloud: PointCloud,
+    bonds: Bonds | None,
+    dofs: np.ndarray,
+    *,
+    extra_modes: np.ndarray | None = None,
+) -> None:
+    """Raise :class:`FloatingBodyError` if rigid motions remain unconstrained.
+
+    Each bond-connected component must have its rigid-body modes removed
+    by the prescribed DOFs: the rows of the rigid-mode basis at the
+    constrained DOFs must have full column rank.
+
+    Parameters
+    ----------
+    extra_modes : (n*dim, k) array, optional
+        Alternative basis of the motions to check (e.g. modes compatible
+        with symmetry planes).
+    """
+    d = cloud.dim
+    if bonds is not None:
+        ncomp, labels = connected_components(bonds.adjacency(), directed=False)
+    else:
+        ncomp, labels = 1, np.zeros(cloud.n, dtype=np.intp)
+    constrained = np.zeros(cloud.n * d, dtype=bool)
+    constrained[dofs] = True
+    point_has = constrained.reshape(cloud.n, d).any(axis=1)
+    free_components = np.setdiff1d(np.arange(ncomp), np.unique(labels[point_has]))
+    if free_components.size:
+        c = int(free_components[0])
+        members = np.flatnonzero(labels == c)
+        raise FloatingBodyError(
+            f"the body is floating: {free_components.size} of {ncomp} bond-connected piece(s) "
+            f"have no prescribed displacement (first: {members.size} point(s) starting at index "
+            f"{int(members[0])}); add Dirichlet conditions or connect the pieces"
+        )
+    names = rigid_mode_names(d)
+    if ncomp > 50:
+        comps_to_check = np.unique(labels)[:50]
+    else:
+        comps_to_check = np.arange(ncomp)
+    for c in comps_to_check:
+        members = np.flatnonzero(labels == c) if ncomp > 1 else np.arange(cloud.n)
+        if extra_modes is not None and ncomp == 1:
+            B = extra_modes
+        else:
+            B = rigid_body_modes(cloud.points[members])
+            if ncomp > 1:
+                full = np.zeros((cloud.n * d, B.shape[1]))
+                rows = (d * members[:, None] + np.arange(d)).ravel()
+                full[rows] = B
+                B = full
+        Bc = B[constrained]
+        if B.shape[1] == 0:
+            continue
+        scale = np.linalg.norm(B, axis=0)
+        scale[scale == 0] = 1.0
+        Bc = Bc / scale
+        s = np.linalg.svd(Bc, compute_uv=False) if Bc.shape[0] else np.zeros(0)
+        rank = int(np.sum(s > 1e-10 * max(1.0, s.max() if s.size else 0.0)))
+        if rank < B.shape[1]:
+            # name the free motions: null space of Bc
+            _, _, vt = np.linalg.svd(Bc if Bc.shape[0] else np.zeros((1, B.shape[1])))
+            null = vt[rank:]
+            labels_free = []
+            for v in null:
+                k = int(np.argmax(np.abs(v)))
+                labels_free.append(names[k] if extra_modes is None and k < len(names) else f"mode {k}")
+            raise FloatingBodyError(
+                f"the stiffness matrix is singular: constraints leave {B.shape[1] - rank} rigid-body "
+                f"motion(s) free ({', '.join(sorted(set(labels_free)))}); "
+                f"{int(constrained.sum())} DOF(s) are prescribed"
+            )
+
+
+def eliminate_dirichlet(
+    K: sp.sparray, f: np.ndarray, dofs: np.ndarray, values: np.ndarray, *, inplace: bool = False
+) -> tuple[sp.sparray, np.ndarray]:
+    """Eliminate prescribed DOFs, keeping the matrix size and block structure.
+
+    Returns ``(A, b)`` where the prescribed rows and columns of ``K`` are
+    replaced by identity rows/columns scaled to the mean diagonal
+    (symmetric elimination: ``b_free = f_free - K_fc u_c``, ``b_c = s u_c``).
+    The free block equals the condensed matrix ``K_ff``, so ``A`` stays SPD
+    and BSR with blocksize dim, which AMG needs.
+
+    Parameters
+    ----------
+    K : sparse array (CSR or BSR)
+    f : (ndof,) ndarray
+    dofs, values : prescribed DOFs and values (see :func:`resolve_dirichlet`)
+    inplace : bool
+        Overwrite K's data (saves a copy of the largest array).
+    """
+    ndof = K.shape[0]
+    if f.shape != (ndof,):
+        raise ShapeError(f"f must have shape ({ndof},), got {f.shape}")
+    uc = np.zeros(ndof)
+    uc[dofs] = values
+    b = f - K @ uc
+    free = np.ones(ndof, dtype=bool)
+    free[dofs] = False
+    A = K if inplace else K.copy()
+    diag = K.diagonal()
+    s = float(np.mean(np.abs(diag[free]))) if free.any() else 1.0
+    if isinstance(A, sp.bsr_array | sp.bsr_matrix):
+        r, c = A.blocksize
+        brow = np.repeat(np.arange(A.shape[0] // r), np.diff(A.indptr))
+        fr = free.reshape(-1, r)[brow]  # (nblocks, r)
+        fc = free.reshape(-1, c)[A.indices]
+        A.data *= fr[:, :, None]
+        A.data *= fc[:, None, :]
+        # identity on prescribed diagonal entries
+        isdiag = brow == A.indices
+        pos = np.flatnonzero(isdiag)
+        rows = brow[pos]
+        for k in range(r):
+            fixed = ~free[r * rows + k]
+            A.data[pos[fixed], k, k] = s
+    else:
+        A = sp.csr_array(A)
+        rows = np.repeat(np.arange(ndof), np.diff(A.indptr))
+        keep = free[rows] & free[A.indices]
+        A.data = A.data * keep
+        A.eliminate_zeros()
+        A = A + sp.diags_array(np.where(free, 0.0, s), format="csr")
+        A = sp.csr_array(A)
+    b[~free] = s * uc[~free]
+    return A, b

@@ -1,0 +1,69 @@
+"""Rigid-body modes of a point cloud."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry.cloud import PointCloud
+
+__all__ = ["rigid_body_modes", "rigid_mode_names"]
+
+
+def rigid_mode_names(dim: int) -> list[str]:
+    """Names of the rigid-body modes returned by :func:`rigid_body_modes`."""
+    return {
+        1: ["translation x"],
+        2: ["translation x", "translation y", "rotation about z"],
+        3: [
+            "translation x",
+            "translation y",
+            "translation z",
+            "rotation about x",
+            "rotation about y",
+            "rotation about z",
+        ],
+    }[dim]
+
+
+def rigid_body_modes(cloud: PointCloud | np.ndarray, *, orthonormal: bool = False) -> np.ndarray:
+    """Infinitesimal rigid-body modes as columns, ``(n*dim, n_modes)``.
+
+    1 mode in 1D, 3 in 2D, 6 in 3D; rotations are taken about the centroid
+    so the columns are well conditioned (this is the near-null space
+    ``B`` handed to smoothed-aggregation AMG).
+
+    Parameters
+    ----------
+    cloud : PointCloud or (n, dim) array
+    orthonormal : bool
+        Orthonormalize the columns (QR).
+
+    Examples
+    --------
+    >>> import pdlin
+    >>> B = pdlin.rigid_body_modes(pdlin.grid((3, 3)))
+    >>> B.shape
+    (18, 3)
+    """
+    pts = cloud.points if isinstance(cloud, PointCloud) else np.asarray(cloud, dtype=float)
+    n, d = pts.shape
+    x = pts - pts.mean(axis=0)
+    nm = {1: 1, 2: 3, 3: 6}[d]
+    B = np.zeros((n, d, nm))
+    for k in range(d):
+        B[:, k, k] = 1.0
+    if d == 2:
+        B[:, 0, 2] = -x[:, 1]
+        B[:, 1, 2] = x[:, 0]
+    elif d == 3:
+        # rotation about x: (0, -z, y); about y: (z, 0, -x); about z: (-y, x, 0)
+        B[:, 1, 3] = -x[:, 2]
+        B[:, 2, 3] = x[:, 1]
+        B[:, 0, 4] = x[:, 2]
+        B[:, 2, 4] = -x[:, 0]
+        B[:, 0, 5] = -x[:, 1]
+        B[:, 1, 5] = x[:, 0]
+    B = B.reshape(n * d, nm)
+    if orthonormal:
+        B, _ = np.linalg.qr(B)
+    return B

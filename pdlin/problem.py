@@ -1,0 +1,292 @@
+"""Static problems and the ``solve`` verb."""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import InputError, InputTypeError
+from .fields import deformation_gradient, small_strain
+from .geometry.bonds import Bonds, find_bonds
+from .geometry.cloud import PointCloud
+from .models.base import Model
+from .operators.assembly import assemble_stiffness, estimate_bond_operator_bytes
+from .operators.bc import (
+    BodyForce,
+    Dirichlet,
+    TotalForce,
+    check_constraints,
+    eliminate_dirichlet,
+    load_vector,
+    resolve_dirichlet,
+)
+from .operators.rigid import rigid_body_modes
+from .solvers.linear import LinearSolveInfo, solve_linear
+
+__all__ = ["StaticProblem", "StaticResult", "solve"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class StaticProblem:
+    """A linear static peridynamic problem: data only.
+
+    Parameters
+    ----------
+    model : Model
+        Any pdlin model (:class:`pdlin.BondBased`, ...).
+    cloud : PointCloud
+    bonds : Bonds, optional
+        Precomputed bonds; otherwise built by :func:`pdlin.find_bonds` with
+        ``horizon`` and ``bond_options`` at solve time.
+    horizon : float or (n,) array, optional
+        Horizon used when ``bonds`` is None (default ``cloud.horizon``).
+    dirichlet : sequence of Dirichlet
+    loads : sequence of BodyForce / TotalForce
+    bond_options : mapping
+        Extra keyword arguments of :func:`pdlin.find_bonds`.
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin
+    >>> cloud = pdlin.grid((20,), spacing=0.05)
+    >>> prob = pdlin.StaticProblem(pdlin.BondBased(E=1.0), cloud, horizon=0.1,
+    ...     dirichlet=[pdlin.Dirichlet("x-", 0.0)], loads=[pdlin.TotalForce("x+", [1e-3])])
+    >>> res = pdlin.solve(prob, solver="direct")
+    >>> res.u.shape, res.relative_residual < 1e-10
+    ((20, 1), True)
+    """
+
+    model: Model
+    cloud: PointCloud
+    bonds: Bonds | None = None
+    horizon: Any = None
+    dirichlet: Sequence[Dirichlet] = ()
+    loads: Sequence[BodyForce | TotalForce] = ()
+    bond_options: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not hasattr(self.model, "stiffness") or not hasattr(self.model, "internal_force"):
+            raise InputTypeError(
+                f"model must be a pdlin model, got {type(self.model).__name__}"
+            )
+        if not isinstance(self.cloud, PointCloud):
+            raise InputTypeError(f"cloud must be a PointCloud, got {type(self.cloud).__name__}")
+        if self.bonds is not None and not isinstance(self.bonds, Bonds):
+            raise InputTypeError(f"bonds must be pdlin Bonds, got {type(self.bonds).__name__}")
+        if isinstance(self.dirichlet, Dirichlet):
+            object.__setattr__(self, "dirichlet", (self.dirichlet,))
+        if isinstance(self.loads, BodyForce | TotalForce):
+            object.__setattr__(self, "loads", (self.loads,))
+        object.__setattr__(self, "dirichlet", tuple(self.dirichlet))
+        object.__setattr__(self, "loads", tuple(self.loads))
+
+    def get_bonds(self) -> Bonds:
+        """The problem's bonds (built on demand when not given)."""
+        if self.bonds is not None:
+            return self.bonds
+        return find_bonds(self.cloud, self.horizon, **dict(self.bond_options))
+
+
+@dataclass
+class StaticResult:
+    """Solution of a :class:`StaticProblem`.
+
+    Attributes
+    ----------
+    u : (n, dim) ndarray
+        Displacements.
+    converged : bool
+    n_iter : int
+    residuals : list of float
+        Relative residual history of the linear solver.
+    relative_residual : float
+        True relative residual ``||b - A x|| / ||b||`` of the eliminated system.
+    timings : dict
+        Seconds spent in 'bonds', 'assembly', 'setup', 'solve' and 'total'.
+    reactions : (n, dim) ndarray
+        Nodal reaction forces (non-zero only on prescribed DOFs).
+    info : dict
+        Solver details (name, AMG levels and complexity, fill-in, ...).
+    """
+
+    problem: StaticProblem
+    bonds: Bonds
+    u: np.ndarray
+    converged: bool
+    n_iter: int
+    residuals: list[float]
+    relative_residual: float
+    timings: dict[str, float]
+    reactions: np.ndarray
+    prescribed_dofs: np.ndarray
+    info: dict[str, Any]
+    stiffness: sp.sparray | None = None
+
+    def deformation_gradient(self) -> np.ndarray:
+        """Nonlocal deformation gradient per point ``(n, dim, dim)``."""
+        return deformation_gradient(self.problem.cloud, self.bonds, self.u)
+
+    def strain(self) -> np.ndarray:
+        """Small strain per point ``(n, dim, dim)``."""
+        return small_strain(self.deformation_gradient())
+
+    def stress(self) -> np.ndarray:
+        """Model stress per point ``(n, dim, dim)`` (virial for bond-based models)."""
+        model = self.problem.model
+        if not hasattr(model, "stress"):
+            raise InputError(f"model {type(model).__name__} does not define a stress")
+        return model.stress(self.problem.cloud, self.bonds, self.u)
+
+    def reaction(self, where: Any) -> np.ndarray:
+        """Total reaction force on a point set ``(dim,)``."""
+        idx = self.problem.cloud.select(where)
+        return self.reactions[idx].sum(axis=0)
+
+    def fields(self) -> dict[str, np.ndarray]:
+        """All point fields as numpy arrays (for output)."""
+        out: dict[str, np.ndarray] = {
+            "displacement": self.u,
+            "reaction": self.reactions,
+            "family_size": self.bonds.family_size.astype(float),
+            "volume": np.asarray(self.problem.cloud.volumes),
+            "material": np.asarray(self.problem.cloud.material, dtype=float),
+        }
+        try:
+            F = self.deformation_gradient()
+            out["deformation_gradient"] = F.reshape(F.shape[0], -1)
+            out["strain"] = small_strain(F).reshape(F.shape[0], -1)
+        except InputError as exc:
+            log.warning("strain not written: %s", exc)
+        if hasattr(self.problem.model, "stress"):
+            s = self.stress()
+            out["stress"] = s.reshape(s.shape[0], -1)
+        return out
+
+    def summary(self) -> dict[str, Any]:
+        """Short plain-data summary (used by the CLI)."""
+        u = self.u
+        return {
+            "points": int(u.shape[0]),
+            "dim": int(u.shape[1]),
+            "bonds": int(self.bonds.n_bonds),
+            "solver": self.info.get("solver"),
+            "iterations": int(self.n_iter),
+            "relative_residual": float(self.relative_residual),
+            "max_abs_u": [float(v) for v in np.abs(u).max(axis=0)],
+            "timings": {k: round(v, 4) for k, v in self.timings.items()},
+        }
+
+
+def solve(
+    problem: StaticProblem,
+    solver: str = "auto",
+    *,
+    rtol: float = 1e-8,
+    maxiter: int | None = None,
+    amg_options: Mapping[str, Any] | None = None,
+    keep_stiffness: bool = False,
+    progress: Callable[[str], None] | None = None,
+) -> StaticResult:
+    """Assemble, constrain and solve a static problem; verify the residual.
+
+    Parameters
+    ----------
+    problem : StaticProblem
+    solver : str
+        'auto' (direct up to 5,000 DOFs, then AMG-CG), 'direct', 'amg-cg',
+        'cg', 'jacobi-cg', 'amg-gmres', 'ilu-gmres', 'gmres'.
+    rtol : float
+        Relative residual tolerance of iterative solvers.
+    maxiter : int, optional
+    amg_options : mapping, optional
+        Overrides of :data:`pdlin.solvers.AMG_DEFAULTS`.
+    keep_stiffness : bool
+        Keep the (unconstrained) stiffness matrix on the result.
+    progress : callable, optional
+        Called with a message at the start of each stage.
+
+    Returns
+    -------
+    StaticResult
+
+    Raises
+    ------
+    FloatingBodyError
+        When the conditions leave rigid-body motions free.
+    ConvergenceError
+        When the linear solver misses its tolerance.
+    """
+    if not isinstance(problem, StaticProblem):
+        raise InputTypeError(f"problem must be a StaticProblem, got {type(problem).__name__}")
+    say = progress or (lambda msg: None)
+    timings: dict[str, float] = {}
+    t_start = time.perf_counter()
+    cloud = problem.cloud
+    model = problem.model
+    d = cloud.dim
+
+    say("bonds")
+    t0 = time.perf_counter()
+    bonds = problem.get_bonds()
+    timings["bonds"] = time.perf_counter() - t0
+
+    dofs, vals = resolve_dirichlet(cloud, problem.dirichlet)
+    f_ext = load_vector(cloud, problem.loads)
+    check_constraints(cloud, bonds, dofs)
+
+    nblocks = model.estimate_nnz_blocks(cloud, bonds)
+    est = estimate_bond_operator_bytes(cloud.n, nblocks, d)
+    say(f"assembly (~{est / 1e9:.2f} GB for {nblocks * d * d:,} nonzeros)")
+    log.info("assembling K: %d blocks, ~%.3g GB", nblocks, est / 1e9)
+    t0 = time.perf_counter()
+    K = assemble_stiffness(model, cloud, bonds)
+    timings["assembly"] = time.perf_counter() - t0
+
+    A, b = eliminate_dirichlet(K, f_ext, dofs, vals, inplace=not keep_stiffness)
+    B = rigid_body_modes(cloud)
+    B[dofs] = 0.0
+    say(f"solve ({solver})")
+    lin: LinearSolveInfo = solve_linear(
+        A,
+        b,
+        solver,
+        rtol=rtol,
+        maxiter=maxiter,
+        near_null=B,
+        blocksize=d,
+        symmetric=getattr(model, "symmetric", True),
+        amg_options=dict(amg_options or {}),
+    )
+    timings["setup"] = lin.setup_time
+    timings["solve"] = lin.solve_time
+    x = lin.x
+    x[dofs] = vals
+    u = x.reshape(cloud.n, d)
+    # reactions: R = -(f_int + f_ext) on prescribed dofs, f_int = -K u (matrix-free)
+    f_int = model.internal_force(cloud, bonds, u, linear=True).ravel()
+    reac = np.zeros(cloud.n * d)
+    reac[dofs] = -(f_int[dofs] + f_ext[dofs])
+    timings["total"] = time.perf_counter() - t_start
+    info = {"solver": lin.solver, **lin.info, "model": model.describe()}
+    return StaticResult(
+        problem=problem,
+        bonds=bonds,
+        u=u,
+        converged=True,
+        n_iter=lin.n_iter,
+        residuals=lin.residuals,
+        relative_residual=lin.relative_residual,
+        timings=timings,
+        reactions=reac.reshape(cloud.n, d),
+        prescribed_dofs=dofs,
+        info=info,
+        stiffness=K if keep_stiffness else None,
+    )
