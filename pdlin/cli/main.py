@@ -1,0 +1,208 @@
+"""The ``pdlin`` command: ``run``, ``info``, ``sparsity``, ``examples``.
+
+Only this layer prints; the library logs.  ``main(argv)`` returns an exit
+code and can be called from tests.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import PdlinError
+
+__all__ = ["main"]
+
+
+class _Progress:
+    """Stage messages with elapsed time on stderr."""
+
+    def __init__(self, quiet: bool) -> None:
+        self.quiet = quiet
+        self.t0 = time.perf_counter()
+        self.last: str | None = None
+
+    def __call__(self, msg: str) -> None:
+        if self.quiet:
+            return
+        t = time.perf_counter() - self.t0
+        print(f"[{t:8.2f} s] {msg} ...", file=sys.stderr, flush=True)
+
+
+def _load(args: argparse.Namespace) -> Any:
+    from ..io.scene import builtin_scene, load_scene, scene_from_dict
+
+    if getattr(args, "example", None):
+        data, _ = builtin_scene(args.example)
+        return scene_from_dict(data, Path.cwd())
+    if not args.scene:
+        raise PdlinError("give a scene file or --example NAME")
+    return load_scene(args.scene)
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from ..io.results import write_result
+    from ..problem import solve
+
+    prog = _Progress(args.quiet)
+    prog("reading scene")
+    scene = _load(args)
+    solver = args.solver or scene.solver
+    result = solve(scene.problem, solver=solver, rtol=scene.rtol, maxiter=scene.maxiter,
+                   progress=prog)
+    out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.vtu"))
+    prog(f"writing {out}")
+    fields = result.fields()
+    if scene.fields:
+        missing = [f for f in scene.fields if f not in fields]
+        if missing:
+            raise PdlinError(f"output.fields: unknown field(s) {missing}; available {sorted(fields)}")
+        fields = {k: fields[k] for k in scene.fields}
+    from ..io.results import write_points
+
+    write_points(out, scene.cloud, fields) if scene.fields else write_result(out, result)
+    summary = result.summary()
+    summary["scene"] = scene.name
+    summary["output"] = str(out)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        u = summary["max_abs_u"]
+        print(f"scene        {scene.name}")
+        print(f"points       {summary['points']:,} ({summary['dim']}D), bonds {summary['bonds']:,}")
+        print(f"solver       {summary['solver']}: {summary['iterations']} iteration(s), "
+              f"relative residual {summary['relative_residual']:.2e}")
+        print("max |u|      " + ", ".join(f"{v:.6e}" for v in u))
+        t = summary["timings"]
+        print("time (s)     " + ", ".join(f"{k} {v:.3f}" for k, v in t.items()))
+        print(f"results      {out}")
+    return 0
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from ..geometry.bonds import find_bonds
+
+    path = Path(args.mesh)
+    if path.suffix == ".toml":
+        from ..io.scene import load_scene
+
+        scene = load_scene(path)
+        cloud = scene.cloud
+        bonds = scene.bonds()
+    else:
+        from ..geometry.mesh import read_mesh
+
+        cloud = read_mesh(path)
+        if args.horizon is not None:
+            bonds = find_bonds(cloud, args.horizon)
+        else:
+            bonds = find_bonds(cloud, ratio=args.ratio)
+    fs = bonds.family_size
+    h = bonds.horizon
+    vol = cloud.volumes
+    info = {
+        "points": cloud.n,
+        "dim": cloud.dim,
+        "total_volume": float(vol.sum()),
+        "volume_min_mean_max": [float(vol.min()), float(vol.mean()), float(vol.max())],
+        "bonds": bonds.n_bonds,
+        "bonds_per_point_min_mean_max": [int(fs.min()), float(fs.mean()), int(fs.max())],
+        "horizon_min_mean_max": [float(h.min()), float(h.mean()), float(h.max())],
+        "bounds": [cloud.bounds[0].tolist(), cloud.bounds[1].tolist()],
+        "sets": {k: int(v.size) for k, v in sorted(cloud.sets.items())},
+    }
+    if args.json:
+        print(json.dumps(info, indent=2))
+    else:
+        for k, v in info.items():
+            print(f"{k:30s} {v}")
+    return 0
+
+
+def _cmd_sparsity(args: argparse.Namespace) -> int:
+    from ..operators.sparsity import sparsity_report
+
+    scene = _load(args)
+    bonds = scene.bonds()
+    rep = sparsity_report(model=scene.model, cloud=scene.cloud, bonds=bonds)
+    if args.json:
+        print(json.dumps(rep.to_dict(), indent=2))
+    else:
+        print(rep)
+    return 0
+
+
+def _cmd_examples(args: argparse.Namespace) -> int:
+    from ..io.scene import builtin_scene, list_builtin_scenes
+
+    if args.show:
+        print(builtin_scene(args.show)[1])
+        return 0
+    for name in list_builtin_scenes():
+        print(name)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``pdlin`` command."""
+    p = argparse.ArgumentParser(prog="pdlin", description="Static peridynamics on sparse operators")
+    p.add_argument("-v", "--verbose", action="store_true", help="log library messages")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("run", help="solve a scene and write the results")
+    r.add_argument("scene", nargs="?", help="scene file (.toml)")
+    r.add_argument("--example", help="run a built-in example scene (see 'pdlin examples')")
+    r.add_argument("-o", "--output", help="results file (.vtu, .xdmf, .npz)")
+    r.add_argument("--solver", help="override the scene's solver")
+    r.add_argument("--json", action="store_true", help="print the summary as JSON")
+    r.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    r.set_defaults(func=_cmd_run)
+
+    i = sub.add_parser("info", help="points, volumes, bonds and horizons of a mesh or scene")
+    i.add_argument("mesh", help="mesh file readable by meshio, or a scene .toml")
+    i.add_argument("--ratio", type=float, default=3.015, help="horizon / spacing (default 3.015)")
+    i.add_argument("--horizon", type=float, help="absolute horizon (overrides --ratio)")
+    i.add_argument("--json", action="store_true")
+    i.set_defaults(func=_cmd_info)
+
+    s = sub.add_parser("sparsity", help="stiffness-matrix sparsity report of a scene")
+    s.add_argument("scene", nargs="?", help="scene file (.toml)")
+    s.add_argument("--example", help="use a built-in example scene")
+    s.add_argument("--json", action="store_true")
+    s.set_defaults(func=_cmd_sparsity)
+
+    e = sub.add_parser("examples", help="list the built-in example scenes")
+    e.add_argument("--show", metavar="NAME", help="print the scene file of an example")
+    e.set_defaults(func=_cmd_examples)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the exit code (0 ok, 2 bad input, 3 solver failure)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+    np.set_printoptions(precision=6)
+    from ..errors import ConvergenceError
+
+    try:
+        return int(args.func(args))
+    except ConvergenceError as exc:
+        print(f"pdlin: solver failed: {exc}", file=sys.stderr)
+        return 3
+    except (PdlinError, OSError) as exc:
+        print(f"pdlin: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,312 @@
+"""Scene files (TOML): geometry, material, model, horizon, BCs, loads, solver, output.
+
+A scene is plain data; :func:`load_scene` validates every key and builds
+the pdlin objects.  Errors name the offending key (``dirichlet[1].set``).
+See ``docs/scene.md`` for the full reference.
+"""
+
+from __future__ import annotations
+
+import difflib
+import sys
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import PdlinError, SceneError
+from ..geometry.bonds import Bonds, find_bonds
+from ..geometry.cloud import PointCloud, from_image, grid
+from ..models.base import Model
+from ..models.bond_based import BondBased
+from ..operators.bc import BodyForce, Dirichlet, TotalForce, shadow_layer
+from ..problem import StaticProblem
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = ["Scene", "load_scene", "scene_from_dict", "builtin_scene", "list_builtin_scenes", "MODELS"]
+
+_TOP = {"name", "geometry", "material", "model", "horizon", "dirichlet", "load", "shadow",
+        "symmetry", "solver", "output"}
+_GEOM = {
+    "grid": {"type", "shape", "spacing", "origin", "thickness"},
+    "mesh": {"type", "path", "thickness", "dim"},
+    "image": {"type", "path", "data", "spacing", "origin", "void", "thickness"},
+}
+_MATERIAL = {"E", "nu", "plane", "micromodulus"}
+_MODEL = {"type", "nu_mismatch", "average"}
+_HORIZON = {"value", "ratio", "shape", "axes", "influence", "cracks"}
+_DIRICHLET = {"set", "box", "points", "components", "value", "F", "translation", "center"}
+_LOAD = {"type", "set", "box", "points", "force", "density"}
+_SHADOW = {"F", "depth", "faces", "translation"}
+_SYMMETRY = {"axis", "position"}
+_SOLVER = {"name", "rtol", "maxiter"}
+_OUTPUT = {"path", "fields"}
+
+
+def _check_keys(table: Any, allowed: set[str], where: str) -> dict[str, Any]:
+    if not isinstance(table, Mapping):
+        raise SceneError(f"{where} must be a table, got {type(table).__name__}")
+    for key in table:
+        if key not in allowed:
+            hint = difflib.get_close_matches(str(key), sorted(allowed), n=1)
+            extra = f"; did you mean {hint[0]!r}?" if hint else f"; allowed keys: {sorted(allowed)}"
+            path = f"{where}.{key}" if where else str(key)
+            raise SceneError(f"unknown scene key {path!r}{extra}")
+    return dict(table)
+
+
+def _require(table: Mapping[str, Any], key: str, where: str) -> Any:
+    if key not in table:
+        raise SceneError(f"missing scene key {where}.{key}")
+    return table[key]
+
+
+def _build_model(cfg: Mapping[str, Any], material: Mapping[str, Any], dim: int) -> Model:
+    kind = cfg.get("type", "bond_based")
+    try:
+        builder = MODELS[kind]
+    except KeyError:
+        raise SceneError(f"model.type must be one of {sorted(MODELS)}, got {kind!r}") from None
+    return builder(cfg, material, dim)
+
+
+def _bond_based(cfg: Mapping[str, Any], material: Mapping[str, Any], dim: int) -> Model:
+    return BondBased(
+        E=material.get("E"),
+        nu=material.get("nu"),
+        plane=material.get("plane", "stress"),
+        micromodulus=material.get("micromodulus"),
+        average=cfg.get("average", "arithmetic"),
+        nu_mismatch=cfg.get("nu_mismatch", "raise"),
+    )
+
+
+#: model builders by scene name: ``builder(model_table, material_table, dim) -> Model``
+MODELS: dict[str, Callable[[Mapping[str, Any], Mapping[str, Any], int], Model]] = {
+    "bond_based": _bond_based,
+}
+
+
+@dataclass
+class Scene:
+    """A parsed scene: the problem plus how to solve it and where to write."""
+
+    name: str
+    problem: StaticProblem
+    solver: str = "auto"
+    rtol: float = 1e-8
+    maxiter: int | None = None
+    output: Path | None = None
+    fields: list[str] | None = None
+    base_dir: Path = field(default_factory=Path.cwd)
+
+    @property
+    def cloud(self) -> PointCloud:
+        return self.problem.cloud
+
+    @property
+    def model(self) -> Model:
+        return self.problem.model
+
+    def bonds(self) -> Bonds:
+        return self.problem.get_bonds()
+
+
+def _resolve_path(p: Any, base: Path, key: str) -> Path:
+    if not isinstance(p, str):
+        raise SceneError(f"{key} must be a path string, got {p!r}")
+    path = Path(p)
+    if not path.is_absolute():
+        path = base / path
+    if not path.exists():
+        raise SceneError(f"{key}: file not found: {path}")
+    return path
+
+
+def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
+    kind = cfg.get("type", "grid")
+    if kind not in _GEOM:
+        raise SceneError(f"geometry.type must be one of {sorted(_GEOM)}, got {kind!r}")
+    _check_keys(cfg, _GEOM[kind], "geometry")
+    thickness = float(cfg.get("thickness", 1.0))
+    if kind == "grid":
+        shape = _require(cfg, "shape", "geometry")
+        return grid(shape, cfg.get("spacing", 1.0), cfg.get("origin"), thickness=thickness)
+    if kind == "mesh":
+        path = _resolve_path(_require(cfg, "path", "geometry"), base, "geometry.path")
+        from ..geometry import mesh as mesh_mod  # lazy: meshio readers
+
+        kwargs: dict[str, Any] = {}
+        if "dim" in cfg:
+            kwargs["dim"] = int(cfg["dim"])
+        cloud = mesh_mod.read_mesh(path, **kwargs)
+        return cloud.replace(thickness=thickness) if thickness != 1.0 else cloud
+    # image
+    if "data" in cfg:
+        img = np.asarray(cfg["data"])
+    else:
+        path = _resolve_path(_require(cfg, "path", "geometry"), base, "geometry.path")
+        img = np.load(path)
+    return from_image(img, cfg.get("spacing", 1.0), cfg.get("origin"), void=cfg.get("void"),
+                      thickness=thickness)
+
+
+def _where(cfg: Mapping[str, Any], cloud: PointCloud, key: str) -> Any:
+    given = [k for k in ("set", "box", "points") if k in cfg]
+    if len(given) != 1:
+        raise SceneError(f"{key} needs exactly one of 'set', 'box', 'points', got {given or 'none'}")
+    k = given[0]
+    if k == "set":
+        name = cfg["set"]
+        if name not in cloud.sets:
+            raise SceneError(
+                f"{key}.set: unknown point set {name!r}; known sets: {sorted(cloud.sets)}"
+            )
+        return name
+    if k == "box":
+        box = cfg["box"]
+        try:
+            idx = cloud.select(box=(box[0], box[1]))
+        except (PdlinError, TypeError, IndexError) as exc:
+            raise SceneError(f"{key}.box must be [[lower...], [upper...]]: {exc}") from exc
+        if idx.size == 0:
+            raise SceneError(f"{key}.box selects no points")
+        return idx
+    return np.asarray(cfg["points"], dtype=np.intp)
+
+
+def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None) -> Scene:
+    """Build a :class:`Scene` from a parsed TOML mapping.
+
+    Examples
+    --------
+    >>> sc = scene_from_dict({
+    ...     "geometry": {"type": "grid", "shape": [20], "spacing": 0.05},
+    ...     "material": {"E": 1.0},
+    ...     "horizon": {"ratio": 3.015},
+    ...     "dirichlet": [{"set": "x-", "value": 0.0}],
+    ...     "load": [{"type": "total", "set": "x+", "force": [1e-3]}],
+    ... })
+    >>> sc.problem.cloud.n, sc.solver
+    (20, 'auto')
+    >>> scene_from_dict({"geometry": {"type": "grid", "shape": [4]}, "materal": {}})
+    Traceback (most recent call last):
+    ...
+    pdlin.errors.SceneError: unknown scene key 'materal'; did you mean 'material'?
+    """
+    base = Path(base_dir) if base_dir is not None else Path.cwd()
+    top = _check_keys(data, _TOP, "")
+    try:
+        cloud = _geometry(_require(top, "geometry", "scene"), base)
+        material = _check_keys(_require(top, "material", "scene"), _MATERIAL, "material")
+        model_cfg = _check_keys(top.get("model", {}), _MODEL, "model")
+        model = _build_model(model_cfg, material, cloud.dim)
+        hcfg = _check_keys(_require(top, "horizon", "scene"), _HORIZON, "horizon")
+        if ("value" in hcfg) == ("ratio" in hcfg):
+            raise SceneError("horizon needs exactly one of 'value' or 'ratio'")
+        bond_options: dict[str, Any] = {
+            k: hcfg[k] for k in ("shape", "axes", "influence", "cracks") if k in hcfg
+        }
+        if "ratio" in hcfg:
+            bond_options["ratio"] = float(hcfg["ratio"])
+        horizon = hcfg.get("value")
+        dirichlet: list[Dirichlet] = []
+        for k, bc in enumerate(top.get("dirichlet", [])):
+            key = f"dirichlet[{k}]"
+            bc = _check_keys(bc, _DIRICHLET, key)
+            where = _where(bc, cloud, key)
+            if "F" in bc:
+                if "value" in bc:
+                    raise SceneError(f"{key} takes 'value' or 'F', not both")
+                dirichlet.append(
+                    Dirichlet.affine(where, bc["F"], translation=bc.get("translation"),
+                                     center=bc.get("center"), components=bc.get("components"))
+                )
+            else:
+                dirichlet.append(Dirichlet(where, bc.get("value", 0.0), bc.get("components")))
+        if "shadow" in top:
+            sh = _check_keys(top["shadow"], _SHADOW, "shadow")
+            depth = sh.get("depth")
+            if depth is None:
+                hv = horizon if horizon is not None else float(bond_options.get("ratio", 0)) * float(
+                    np.max(cloud.lattice.spacing) if cloud.lattice is not None else np.median(cloud.spacing)
+                )
+                depth = float(np.max(hv))
+            bc_sh, _ = shadow_layer(cloud, _require(sh, "F", "shadow"), float(depth),
+                                    faces=sh.get("faces"), translation=sh.get("translation"))
+            dirichlet.append(bc_sh)
+        loads: list[BodyForce | TotalForce] = []
+        for k, ld in enumerate(top.get("load", [])):
+            key = f"load[{k}]"
+            ld = _check_keys(ld, _LOAD, key)
+            where = _where(ld, cloud, key)
+            kind = ld.get("type", "total")
+            if kind == "total":
+                loads.append(TotalForce(where, _require(ld, "force", key)))
+            elif kind == "body":
+                loads.append(BodyForce(where, _require(ld, "density", key)))
+            else:
+                raise SceneError(f"{key}.type must be 'total' or 'body', got {kind!r}")
+        extra: dict[str, Any] = {}
+        if "symmetry" in top:
+            from ..operators import symmetry as sym_mod  # written alongside the problem hook
+
+            planes = []
+            for k, s in enumerate(top["symmetry"]):
+                s = _check_keys(s, _SYMMETRY, f"symmetry[{k}]")
+                planes.append(sym_mod.SymmetryPlane(_require(s, "axis", f"symmetry[{k}]"),
+                                                    float(s.get("position", 0.0))))
+            extra["symmetry"] = tuple(planes)
+        problem = StaticProblem(model, cloud, horizon=horizon, dirichlet=dirichlet, loads=loads,
+                                bond_options=bond_options, **extra)
+        scfg = _check_keys(top.get("solver", {}), _SOLVER, "solver")
+        ocfg = _check_keys(top.get("output", {}), _OUTPUT, "output")
+    except SceneError:
+        raise
+    except PdlinError as exc:
+        raise SceneError(f"invalid scene: {exc}") from exc
+    out = ocfg.get("path")
+    return Scene(
+        name=str(top.get("name", "scene")),
+        problem=problem,
+        solver=str(scfg.get("name", "auto")),
+        rtol=float(scfg.get("rtol", 1e-8)),
+        maxiter=None if scfg.get("maxiter") is None else int(scfg["maxiter"]),
+        output=None if out is None else (Path(out) if Path(out).is_absolute() else base / out),
+        fields=ocfg.get("fields"),
+        base_dir=base,
+    )
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read and validate a TOML scene file (paths inside are relative to it)."""
+    p = Path(path)
+    if not p.exists():
+        raise SceneError(f"scene file not found: {p}")
+    try:
+        data = tomllib.loads(p.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{p}: invalid TOML: {exc}") from exc
+    return scene_from_dict(data, p.parent)
+
+
+def list_builtin_scenes() -> list[str]:
+    """Names of the example scenes shipped with pdlin."""
+    files = resources.files("pdlin") / "examples"
+    return sorted(f.name[:-5] for f in files.iterdir() if f.name.endswith(".toml"))
+
+
+def builtin_scene(name: str) -> tuple[dict[str, Any], str]:
+    """Parsed data and text of a built-in example scene."""
+    names = list_builtin_scenes()
+    if name not in names:
+        raise SceneError(f"unknown built-in scene {name!r}; available: {names}")
+    text = (resources.files("pdlin") / "examples" / f"{name}.toml").read_text()
+    return tomllib.loads(text), text
