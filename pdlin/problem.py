@@ -27,6 +27,7 @@ from .operators.bc import (
     resolve_dirichlet,
 )
 from .operators.rigid import rigid_body_modes
+from .operators.symmetry import SymmetryPlane, SymmetryReduction, symmetry_reduction
 from .solvers.linear import LinearSolveInfo, solve_linear
 
 __all__ = ["StaticProblem", "StaticResult", "solve"]
@@ -52,6 +53,11 @@ class StaticProblem:
     loads : sequence of BodyForce / TotalForce
     bond_options : mapping
         Extra keyword arguments of :func:`pdlin.find_bonds`.
+    symmetry : sequence of SymmetryPlane
+        Mirror planes: ``cloud`` is the half / quarter / eighth of a
+        symmetric body, and points near a plane bond to mirror images of
+        their neighbors (see :mod:`pdlin.operators.symmetry`).  Needs
+        ``horizon`` / ``bond_options`` rather than precomputed ``bonds``.
 
     Examples
     --------
@@ -71,6 +77,7 @@ class StaticProblem:
     dirichlet: Sequence[Dirichlet] = ()
     loads: Sequence[BodyForce | TotalForce] = ()
     bond_options: Mapping[str, Any] = field(default_factory=dict)
+    symmetry: Sequence[SymmetryPlane] = ()
 
     def __post_init__(self) -> None:
         if not hasattr(self.model, "stiffness") or not hasattr(self.model, "internal_force"):
@@ -87,6 +94,18 @@ class StaticProblem:
             object.__setattr__(self, "loads", (self.loads,))
         object.__setattr__(self, "dirichlet", tuple(self.dirichlet))
         object.__setattr__(self, "loads", tuple(self.loads))
+        sym = (self.symmetry,) if isinstance(self.symmetry, SymmetryPlane) else tuple(self.symmetry)
+        for k, p in enumerate(sym):
+            if not isinstance(p, SymmetryPlane):
+                raise InputTypeError(
+                    f"symmetry[{k}] must be a SymmetryPlane, got {type(p).__name__}"
+                )
+        if sym and self.bonds is not None:
+            raise InputError(
+                "bonds must be None with symmetry planes (they are found on the mirrored cloud); "
+                "pass horizon and bond_options instead, got precomputed Bonds"
+            )
+        object.__setattr__(self, "symmetry", sym)
 
     def get_bonds(self) -> Bonds:
         """The problem's bonds (built on demand when not given)."""
@@ -129,9 +148,14 @@ class StaticResult:
     prescribed_dofs: np.ndarray
     info: dict[str, Any]
     stiffness: sp.sparray | None = None
+    #: mirrored cloud, bonds and operators when the problem has symmetry planes
+    #: (``bonds`` then holds the real-real bonds only)
+    symmetry: SymmetryReduction | None = None
 
     def deformation_gradient(self) -> np.ndarray:
         """Nonlocal deformation gradient per point ``(n, dim, dim)``."""
+        if self.symmetry is not None:
+            return self.symmetry.deformation_gradient(self.u)
         return deformation_gradient(self.problem.cloud, self.bonds, self.u)
 
     def strain(self) -> np.ndarray:
@@ -143,6 +167,8 @@ class StaticResult:
         model = self.problem.model
         if not hasattr(model, "stress"):
             raise InputError(f"model {type(model).__name__} does not define a stress")
+        if self.symmetry is not None:
+            return self.symmetry.stress(self.u)
         return model.stress(self.problem.cloud, self.bonds, self.u)
 
     def reaction(self, where: Any) -> np.ndarray:
@@ -155,7 +181,9 @@ class StaticResult:
         out: dict[str, np.ndarray] = {
             "displacement": self.u,
             "reaction": self.reactions,
-            "family_size": self.bonds.family_size.astype(float),
+            "family_size": (
+                self.bonds if self.symmetry is None else self.symmetry
+            ).family_size.astype(float),
             "volume": np.asarray(self.problem.cloud.volumes),
             "material": np.asarray(self.problem.cloud.material, dtype=float),
         }
@@ -235,19 +263,31 @@ def solve(
 
     say("bonds")
     t0 = time.perf_counter()
-    bonds = problem.get_bonds()
+    red: SymmetryReduction | None = None
+    if problem.symmetry:
+        red = symmetry_reduction(
+            model, cloud, problem.symmetry, problem.horizon, problem.bond_options
+        )
+        bonds = red.real_bonds
+    else:
+        bonds = problem.get_bonds()
     timings["bonds"] = time.perf_counter() - t0
 
-    dofs, vals = resolve_dirichlet(cloud, problem.dirichlet)
-    f_ext = load_vector(cloud, problem.loads)
-    check_constraints(cloud, bonds, dofs)
+    if red is not None:
+        dofs, vals = resolve_dirichlet(cloud, (*problem.dirichlet, *red.dirichlet()))
+        f_ext = red.load_vector(problem.loads)
+        red.check_constraints(dofs)
+    else:
+        dofs, vals = resolve_dirichlet(cloud, problem.dirichlet)
+        f_ext = load_vector(cloud, problem.loads)
+        check_constraints(cloud, bonds, dofs)
 
     nblocks = model.estimate_nnz_blocks(cloud, bonds)
     est = estimate_bond_operator_bytes(cloud.n, nblocks, d)
     say(f"assembly (~{est / 1e9:.2f} GB for {nblocks * d * d:,} nonzeros)")
     log.info("assembling K: %d blocks, ~%.3g GB", nblocks, est / 1e9)
     t0 = time.perf_counter()
-    K = assemble_stiffness(model, cloud, bonds)
+    K = assemble_stiffness(model, cloud, bonds) if red is None else red.stiffness()
     timings["assembly"] = time.perf_counter() - t0
 
     A, b = eliminate_dirichlet(K, f_ext, dofs, vals, inplace=not keep_stiffness)
@@ -271,7 +311,10 @@ def solve(
     x[dofs] = vals
     u = x.reshape(cloud.n, d)
     # reactions: R = -(f_int + f_ext) on prescribed dofs, f_int = -K u (matrix-free)
-    f_int = model.internal_force(cloud, bonds, u, linear=True).ravel()
+    if red is None:
+        f_int = model.internal_force(cloud, bonds, u, linear=True).ravel()
+    else:
+        f_int = red.internal_force(u, linear=True).ravel()
     reac = np.zeros(cloud.n * d)
     reac[dofs] = -(f_int[dofs] + f_ext[dofs])
     timings["total"] = time.perf_counter() - t_start
@@ -289,4 +332,5 @@ def solve(
         prescribed_dofs=dofs,
         info=info,
         stiffness=K if keep_stiffness else None,
+        symmetry=red,
     )

@@ -187,7 +187,10 @@ class MirrorCloud:
     source : (n_aug,) ndarray of int
         Real point each augmented point is an image of (identity on reals).
     signs : (n_aug, dim) ndarray
-        Diagonal of the reflection ``R`` per point: ``u_aug = signs * u[source]``.
+        Diagonal of the reflection ``R`` per point: ``u_aug = signs * u[source]``;
+        0 for the normal component of points lying on a plane and of their
+        images (a symmetric field has none there), so ``P`` maps onto
+        symmetric fields.
     image : (n_aug,) ndarray of int
         Bit mask of the planes a point was reflected across (0 for reals).
     on_plane : (n_real, n_planes) ndarray of bool
@@ -411,6 +414,8 @@ def mirror_cloud(cloud: PointCloud, planes: Sequence[SymmetryPlane], reach: floa
         thickness=cloud.thickness,
     )
     signs = np.concatenate(sign_rows)
+    for k, p in enumerate(resolved):  # symmetric fields have no normal motion on a plane
+        signs[np.flatnonzero(on[source, k]), int(p.axis)] = 0.0
     signs.setflags(write=False)
     log.debug("mirror cloud: %d real points, %d ghosts", n, n_aug - n)
     return MirrorCloud(cloud, aug, source, signs, np.concatenate(image), on, tuple(resolved), rc)
@@ -435,6 +440,29 @@ def _expand_model(model: Any, mirror: MirrorCloud) -> Any:
         new.E = E[mirror.source]
         return new
     return model
+
+
+def _with_diagonal_blocks(K: sp.bsr_array) -> sp.bsr_array:
+    """Store every diagonal block (a point on all planes has an all-zero one).
+
+    Dirichlet elimination writes its scaled identity into the stored
+    diagonal blocks, so they must exist even when they are zero.
+    """
+    r = K.blocksize[0]
+    nbr = K.shape[0] // r
+    brow = np.repeat(np.arange(nbr), np.diff(K.indptr))
+    has = np.zeros(nbr, dtype=bool)
+    has[brow[K.indices == brow]] = True
+    missing = np.flatnonzero(~has)
+    if missing.size == 0:
+        return K
+    rows = np.concatenate([brow, missing])
+    cols = np.concatenate([K.indices, missing])
+    data = np.concatenate([K.data, np.zeros((missing.size, r, r))])
+    order = np.lexsort((cols, rows))
+    indptr = np.zeros(nbr + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rows, minlength=nbr), out=indptr[1:])
+    return sp.bsr_array((data[order], cols[order], indptr), shape=K.shape, blocksize=(r, r))
 
 
 @dataclass(frozen=True, eq=False)
@@ -517,7 +545,7 @@ class SymmetryReduction:
         K = sp.csr_array(K)
         K.sum_duplicates()
         K.sort_indices()
-        return sp.bsr_array(K, blocksize=(d, d))
+        return _with_diagonal_blocks(sp.bsr_array(K, blocksize=(d, d)))
 
     def internal_force(self, u: Any, *, linear: bool = True) -> np.ndarray:
         """Reduced internal force ``W Eᵀ f_aug(P u)``, ``(n_real, dim)``."""
