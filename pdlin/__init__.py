@@ -12,6 +12,7 @@ from .models import BondBased, Model
 from .operators import (
     BodyForce,
     Dirichlet,
+    SymmetryPlane,
     TotalForce,
     assemble_stiffness,
     rigid_body_modes,
@@ -38,6 +39,7 @@ __all__ = [
     "BodyForce",
     "TotalForce",
     "shadow_layer",
+    "SymmetryPlane",
     "StaticProblem",
     "StaticResult",
     "solve",

@@ -12,6 +12,13 @@ from .bc import (
     shadow_layer,
 )
 from .rigid import rigid_body_modes
+from .symmetry import (
+    MirrorCloud,
+    SymmetryPlane,
+    SymmetryReduction,
+    mirror_cloud,
+    symmetry_reduction,
+)
 
 __all__ = [
     "assemble_stiffness",
@@ -26,4 +33,9 @@ __all__ = [
     "eliminate_dirichlet",
     "check_constraints",
     "rigid_body_modes",
+    "SymmetryPlane",
+    "MirrorCloud",
+    "SymmetryReduction",
+    "mirror_cloud",
+    "symmetry_reduction",
 ]
