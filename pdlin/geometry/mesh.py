@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import os
+import pathlib
 from collections.abc import Mapping
 from typing import Any
 
@@ -284,6 +285,35 @@ def _field_names(field_data: Mapping[str, Any]) -> dict[tuple[int, int], str]:
     return names
 
 
+_TAG_DATA = ("gmsh:physical", "gmsh:geometrical", "cell_tags")
+_JOIN_CHARS = ("-", "_", "#", "+", "/")
+
+
+def _decode_set_data(key: str, data: Any, n_blocks: int) -> dict[str, list[np.ndarray]]:
+    """Cell sets from meshio's ``cell_sets_to_data`` encoding (used by VTU/VTK).
+
+    meshio stores the sets ``a, b, c`` as one integer cell-data array named
+    ``'a-b-c'`` (another join character when a name holds ``'-'``) whose
+    value is the set index of each cell, or -1 for cells in no set.
+    """
+    if key in _TAG_DATA or len(data) != n_blocks:
+        return {}
+    arrays = [np.asarray(d) for d in data]
+    if not all(a.ndim == 1 and a.dtype.kind in "iu" for a in arrays):
+        return {}
+    values = np.concatenate(arrays) if arrays else np.zeros(0, np.int64)
+    if values.size == 0:
+        return {}
+    char = next((c for c in _JOIN_CHARS if c in key), None)
+    names = key.split(char) if char else [key]
+    if any(not n for n in names) or len(set(names)) != len(names):
+        return {}
+    lo, hi = int(values.min()), int(values.max())
+    if lo < -1 or hi > len(names) - 1 or (len(names) == 1 and lo != -1):
+        return {}
+    return {n: [np.flatnonzero(a == v) for a in arrays] for v, n in enumerate(names)}
+
+
 def _incidence(rows: list[np.ndarray], n_nodes: int) -> sp.csr_array:
     """0/1 sparse matrix: one row per cell, ones at its (distinct) nodes."""
     counts = np.concatenate([np.full(r.shape[0], r.shape[1]) for r in rows])
@@ -311,10 +341,36 @@ def _as_mesh(source: Any, file_format: str | None) -> Any:
     path = os.fspath(source)
     if not os.path.isfile(path):
         raise InputError(f"mesh file {path!r} does not exist (or is not a file)")
-    try:
-        return meshio.read(path, file_format=file_format)
-    except Exception as exc:  # meshio raises ReadError, KeyError, ValueError, ...
-        raise InputError(f"could not read mesh file {path!r}: {type(exc).__name__}: {exc}") from exc
+    # meshio.read prints the error of every candidate format and calls sys.exit(1)
+    # when none fits, so try the candidates here and raise one clear error instead.
+    helpers = getattr(meshio, "_helpers", None)
+    readers = getattr(helpers, "reader_map", None)
+    guess = getattr(helpers, "_filetypes_from_path", None)
+    if readers is None or guess is None:  # pragma: no cover - other meshio versions
+        try:
+            return meshio.read(path, file_format=file_format)
+        except (Exception, SystemExit) as exc:
+            raise InputError(f"could not read mesh file {path!r}: {exc}") from None
+    if file_format is not None:
+        formats = [file_format]
+    else:
+        try:
+            formats = list(guess(pathlib.Path(path)))
+        except Exception as exc:
+            raise InputError(
+                f"mesh file {path!r} has an extension meshio does not know ({exc}); "
+                "pass file_format"
+            ) from None
+    failures = []
+    for fmt in formats:
+        if fmt not in readers:
+            raise InputError(f"file_format must be a meshio format name, got {fmt!r}")
+        try:
+            return readers[fmt](path)
+        except Exception as exc:  # meshio raises ReadError, KeyError, ValueError, ...
+            detail = f": {exc}" if str(exc) else " (file content does not match)"
+            failures.append(f"as {fmt}: {type(exc).__name__}{detail}")
+    raise InputError(f"could not read mesh file {path!r}: {'; '.join(failures)}")
 
 
 def read_mesh(
@@ -325,6 +381,7 @@ def read_mesh(
     boundary: str = "facet",
     material: str | None = None,
     thickness: float = 1.0,
+    sets_from_data: bool = True,
     file_format: str | None = None,
 ) -> PointCloud:
     """Point cloud with one point per mesh cell (centroid, exact measure).
@@ -355,6 +412,11 @@ def read_mesh(
         as the material id of each point.
     thickness : float
         Out-of-plane thickness stored on 2D clouds.
+    sets_from_data : bool
+        Also decode integer cell data written by meshio for formats without
+        cell sets (VTU, VTK): an array named ``'a-b-c'`` holding the set
+        index of each cell (-1 for none) becomes the sets ``a``, ``b``,
+        ``c``.  Such sets are disjoint (meshio keeps one set per cell).
     file_format : str, optional
         meshio format name when the file extension is ambiguous.
 
@@ -364,7 +426,8 @@ def read_mesh(
         Points in mesh order (cell blocks of dimension ``dim`` in order,
         cells in block order) with named ``sets`` from:
 
-        * meshio ``cell_sets`` (same name);
+        * meshio ``cell_sets`` (same name), also as decoded from cell data
+          (``sets_from_data``);
         * gmsh physical groups (``cell_data['gmsh:physical']``), named by
           ``field_data`` (``name: [tag, dim]``) or ``'physical<tag>'``
           (``'physical<tag>_dim<d>'`` for unnamed lower-dimensional groups).
@@ -490,7 +553,9 @@ def read_mesh(
     volumes = np.concatenate(measures)
     points = np.concatenate(centroids)
 
-    sets = _collect_sets(mesh, blocks, tdims, dim, top, point_offset, n_points, boundary)
+    sets = _collect_sets(
+        mesh, blocks, tdims, dim, top, point_offset, n_points, boundary, sets_from_data
+    )
 
     mat = None
     if material is not None:
@@ -514,8 +579,9 @@ def _collect_sets(
     point_offset: dict[int, int],
     n_points: int,
     boundary: str,
+    sets_from_data: bool,
 ) -> dict[str, np.ndarray]:
-    """Named point sets from cell_sets and gmsh physical groups."""
+    """Named point sets from cell_sets, encoded set data and gmsh physical groups."""
     direct: dict[str, list[np.ndarray]] = {}
     lower: dict[str, list[np.ndarray]] = {}
 
@@ -540,6 +606,13 @@ def _collect_sets(
         for k, idx in enumerate(members):
             if idx is not None:
                 add(str(name), k, np.asarray(idx, dtype=np.int64).ravel())
+
+    if sets_from_data:
+        for key, data in mesh.cell_data.items():
+            decoded = _decode_set_data(str(key), data, len(blocks))
+            for name, members in decoded.items():
+                for k, idx in enumerate(members):
+                    add(name, k, idx)
 
     phys = mesh.cell_data.get("gmsh:physical")
     if phys is not None:
