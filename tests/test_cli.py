@@ -1,0 +1,115 @@
+"""The pdlin command and scene files."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import meshio
+import numpy as np
+import pytest
+
+import pdlin
+from pdlin.cli.main import main
+from pdlin.errors import SceneError
+from pdlin.io.scene import list_builtin_scenes, load_scene
+
+SCENE = """
+name = "plate"
+[geometry]
+type = "grid"
+shape = [30, 10]
+spacing = 0.01
+[material]
+E = 70e9
+plane = "stress"
+[horizon]
+ratio = 3.015
+influence = "constant"
+[[dirichlet]]
+set = "x-"
+value = 0.0
+[[load]]
+type = "total"
+set = "x+"
+force = [1000.0, 0.0]
+[solver]
+name = "direct"
+[output]
+path = "out/plate.vtu"
+"""
+
+
+def _write(tmp_path: Path, text: str) -> Path:
+    p = tmp_path / "scene.toml"
+    p.write_text(text)
+    return p
+
+
+def test_run_writes_results_and_summary(tmp_path, capsys):
+    scene = _write(tmp_path, SCENE)
+    assert main(["run", str(scene), "--json", "-q"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["points"] == 300 and summary["solver"] == "direct"
+    assert summary["relative_residual"] < 1e-8
+    mesh = meshio.read(tmp_path / "out" / "plate.vtu")
+    assert mesh.point_data["displacement"].shape == (300, 3)
+    # the file holds the solution of the same problem solved through the API
+    res = pdlin.solve(load_scene(scene).problem, solver="direct")
+    np.testing.assert_allclose(mesh.point_data["displacement"][:, :2], res.u, rtol=1e-10)
+    np.testing.assert_allclose(mesh.point_data["reaction"][:, 0].sum(), -1000.0, rtol=1e-8)
+
+
+def test_run_builtin_example_listed():
+    assert "bar" in list_builtin_scenes()
+
+
+def test_run_npz_output(tmp_path):
+    scene = _write(tmp_path, SCENE)
+    out = tmp_path / "r.npz"
+    assert main(["run", str(scene), "-o", str(out), "-q"]) == 0
+    data = np.load(out)
+    assert data["displacement"].shape == (300, 2) and "strain" in data
+
+
+def test_unknown_key_names_the_key(tmp_path, capsys):
+    scene = _write(tmp_path, SCENE.replace("ratio = 3.015", "ratoi = 3.015"))
+    assert main(["run", str(scene), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown scene key 'horizon.ratoi'" in err and "did you mean 'ratio'" in err
+
+
+def test_bad_set_and_missing_key(tmp_path):
+    with pytest.raises(SceneError, match=r"dirichlet\[0\].set: unknown point set 'left'"):
+        load_scene(_write(tmp_path, SCENE.replace('set = "x-"', 'set = "left"')))
+    with pytest.raises(SceneError, match="missing scene key scene.material"):
+        load_scene(_write(tmp_path, SCENE.replace("[material]\nE = 70e9\nplane = \"stress\"\n", "")))
+
+
+def test_floating_scene_exit_code(tmp_path, capsys):
+    scene = _write(tmp_path, SCENE.replace('set = "x-"\nvalue = 0.0', 'set = "x-"\ncomponents = "x"\nvalue = 0.0'))
+    assert main(["run", str(scene), "-q"]) == 2
+    assert "rigid-body motion" in capsys.readouterr().err
+
+
+def test_info_on_scene_and_mesh(tmp_path, capsys):
+    scene = _write(tmp_path, SCENE)
+    assert main(["info", str(scene), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["points"] == 300
+    assert info["bonds_per_point_min_mean_max"][2] == 28  # 2D interior family at 3.015 h
+    # a tiny quad mesh through meshio
+    pts = np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [2, 1]], dtype=float)
+    mesh = meshio.Mesh(pts, [("quad", np.array([[0, 1, 4, 3], [1, 2, 5, 4]]))])
+    path = tmp_path / "m.vtu"
+    mesh.write(path)
+    assert main(["info", str(path), "--horizon", "1.5", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["points"] == 2 and info["total_volume"] == pytest.approx(2.0)
+
+
+def test_examples_command(capsys):
+    assert main(["examples"]) == 0
+    assert "bar" in capsys.readouterr().out
+    assert main(["examples", "--show", "bar"]) == 0
+    assert "[geometry]" in capsys.readouterr().out
