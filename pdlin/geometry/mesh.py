@@ -90,11 +90,11 @@ def _topological_dimension(cell_type: str) -> int | None:
     if linear in _TOPO_DIM:
         return _TOPO_DIM[linear]
     try:
-        import meshio
-
-        return int(meshio.topological_dimension[cell_type])
-    except (ImportError, KeyError):
+        from meshio._mesh import topological_dimension
+    except ImportError:  # pragma: no cover - other meshio versions
         return None
+    value = topological_dimension.get(cell_type)
+    return None if value is None else int(value)
 
 
 def _cross2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
