@@ -82,7 +82,8 @@ def plate_with_hole_mesh(
         ``'gmsh'`` meshes the plate with unstructured triangles (needs the
         optional gmsh package, ``pip install pdlin[meshing]``).
     mesh_size : float, optional
-        Target element size of the gmsh backend (default ``length / 50``).
+        Element size of the gmsh backend at the outer edges (default
+        ``length / 50``); it is four times smaller at the hole.
 
     Returns
     -------
@@ -213,14 +214,19 @@ def _plate_with_hole_gmsh(L: float, r: float, size: float) -> Any:  # pragma: no
             gmsh.model.addPhysicalGroup(pdim, tags, ptag, name=name)
         ptag, pdim = PLATE_WITH_HOLE_GROUPS["plate"]
         gmsh.model.addPhysicalGroup(pdim, surf, ptag, name="plate")
-        gmsh.option.setNumber("Mesh.MeshSizeMin", size)
+        # size at the hole = size / 4, growing linearly outwards (like the O-grid's q = 4)
+        gmsh.model.mesh.setSize(gmsh.model.getEntities(0), size)
+        hole_points = gmsh.model.getBoundary(
+            [(1, t) for t in groups["hole"]], combined=False, recursive=True
+        )
+        gmsh.model.mesh.setSize([p for p in hole_points if p[0] == 0], size / 4)
         gmsh.option.setNumber("Mesh.MeshSizeMax", size)
         gmsh.model.mesh.generate(2)
         with tempfile.TemporaryDirectory() as tmp:
             path = os.path.join(tmp, "plate.msh")
             gmsh.option.setNumber("Mesh.MshFileVersion", 2.2)
             gmsh.write(path)
-            mesh = meshio.read(path)
+            mesh = meshio.read(path, file_format="gmsh")
     finally:
         gmsh.model.remove()
         if init_here:
