@@ -8,6 +8,8 @@ from . import errors
 from .errors import ConvergenceError, FloatingBodyError
 from .fields import deformation_gradient, shape_tensor, small_strain
 from .geometry import Bonds, PointCloud, find_bonds, from_image, grid
+from .geometry.generators import plate_with_hole_mesh
+from .geometry.mesh import read_mesh
 from .models import BondBased, Model
 from .operators import (
     BodyForce,
@@ -30,6 +32,8 @@ __all__ = [
     "Bonds",
     "grid",
     "from_image",
+    "read_mesh",
+    "plate_with_hole_mesh",
     "find_bonds",
     "BondBased",
     "Model",

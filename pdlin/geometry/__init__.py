@@ -2,13 +2,17 @@
 
 from .bonds import SHAPES, Bonds, find_bonds, resolve_horizon
 from .cloud import Lattice, PointCloud, from_image, grid
+from .generators import plate_with_hole_mesh
 from .influence import INFLUENCE_FUNCTIONS, influence_function
+from .mesh import read_mesh
 
 __all__ = [
     "PointCloud",
     "Lattice",
     "grid",
     "from_image",
+    "read_mesh",
+    "plate_with_hole_mesh",
     "Bonds",
     "find_bonds",
     "resolve_horizon",
