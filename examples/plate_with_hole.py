@@ -2,7 +2,7 @@
 
 The XOSBPD plate example (spec 002, section 9.1) on its 7,680-cell O-grid:
 
-1. build the O-grid mesh with :func:`pdlin.geometry.generators.plate_with_hole_mesh`;
+1. build the O-grid mesh with :func:`pdlin.plate_with_hole_mesh`;
 2. write it to a temporary gmsh 2.2 ``.msh`` file with meshio and read it back
    with :func:`pdlin.read_mesh` (one point per quad, exact areas, the
    ``left``/``right``/``hole`` sets from the gmsh physical groups, and the
@@ -32,8 +32,6 @@ import meshio
 import numpy as np
 
 import pdlin
-from pdlin.geometry.generators import plate_with_hole_mesh
-from pdlin.geometry.mesh import read_mesh
 
 U0 = 5e-4  # m, spec 002 section 9.1
 E = 70e9  # Pa, spec 002 section 9.1
@@ -42,11 +40,11 @@ HORIZON_RATIO = 3.01  # delta_i = 3.01 sqrt(A_i), spec 002 section 2
 
 def build_cloud(n_ang: int = 32, n_rad: int = 60) -> pdlin.PointCloud:
     """O-grid mesh -> temporary .msh file -> point cloud with horizons."""
-    mesh = plate_with_hole_mesh(n_ang, n_rad)
+    mesh = pdlin.plate_with_hole_mesh(n_ang, n_rad)
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "plate_with_hole.msh")
         meshio.write(path, mesh, file_format="gmsh22", binary=False)
-        return read_mesh(path, horizon_ratio=HORIZON_RATIO)
+        return pdlin.read_mesh(path, horizon_ratio=HORIZON_RATIO)
 
 
 def _nearest_to_axis(cloud: pdlin.PointCloud, name: str) -> np.ndarray:
