@@ -21,7 +21,9 @@ def graded_bar_1d(N: int = 200, m: int = 3) -> dict[str, float]:
     exact = 1e-3 * np.log1p(x)
     shadow = np.r_[np.arange(m), np.arange(cloud.n - m, cloud.n)]
     problem = pdlin.StaticProblem(
-        pdlin.BondBased(E=1.0 + x), cloud, horizon=(m + 0.015) * h,
+        pdlin.BondBased(E=1.0 + x),
+        cloud,
+        horizon=(m + 0.015) * h,
         dirichlet=[pdlin.Dirichlet(shadow, exact[shadow, None])],
     )
     res = pdlin.solve(problem, solver="direct")
@@ -58,7 +60,9 @@ def main(plot: bool = False) -> dict[str, object]:
     if plot:
         import matplotlib.pyplot as plt
 
-        plt.plot([r["N"] for r in out["graded_1d"]], [r["max_rel_error"] for r in out["graded_1d"]], "o-")  # type: ignore[union-attr]
+        plt.plot(
+            [r["N"] for r in out["graded_1d"]], [r["max_rel_error"] for r in out["graded_1d"]], "o-"
+        )  # type: ignore[union-attr]
         plt.xscale("log")
         plt.yscale("log")
         plt.xlabel("N")

@@ -83,11 +83,14 @@ def test_bad_set_and_missing_key(tmp_path):
     with pytest.raises(SceneError, match=r"dirichlet\[0\].set: unknown point set 'left'"):
         load_scene(_write(tmp_path, SCENE.replace('set = "x-"', 'set = "left"')))
     with pytest.raises(SceneError, match="missing scene key scene.material"):
-        load_scene(_write(tmp_path, SCENE.replace("[material]\nE = 70e9\nplane = \"stress\"\n", "")))
+        load_scene(_write(tmp_path, SCENE.replace('[material]\nE = 70e9\nplane = "stress"\n', "")))
 
 
 def test_floating_scene_exit_code(tmp_path, capsys):
-    scene = _write(tmp_path, SCENE.replace('set = "x-"\nvalue = 0.0', 'set = "x-"\ncomponents = "x"\nvalue = 0.0'))
+    scene = _write(
+        tmp_path,
+        SCENE.replace('set = "x-"\nvalue = 0.0', 'set = "x-"\ncomponents = "x"\nvalue = 0.0'),
+    )
     assert main(["run", str(scene), "-q"]) == 2
     assert "rigid-body motion" in capsys.readouterr().err
 

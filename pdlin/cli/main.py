@@ -56,15 +56,18 @@ def _cmd_run(args: argparse.Namespace) -> int:
     prog("reading scene")
     scene = _load(args)
     solver = args.solver or scene.solver
-    result = solve(scene.problem, solver=solver, rtol=scene.rtol, maxiter=scene.maxiter,
-                   progress=prog)
+    result = solve(
+        scene.problem, solver=solver, rtol=scene.rtol, maxiter=scene.maxiter, progress=prog
+    )
     out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.vtu"))
     prog(f"writing {out}")
     fields = result.fields()
     if scene.fields:
         missing = [f for f in scene.fields if f not in fields]
         if missing:
-            raise PdlinError(f"output.fields: unknown field(s) {missing}; available {sorted(fields)}")
+            raise PdlinError(
+                f"output.fields: unknown field(s) {missing}; available {sorted(fields)}"
+            )
         fields = {k: fields[k] for k in scene.fields}
     from ..io.results import write_points
 
@@ -78,8 +81,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         u = summary["max_abs_u"]
         print(f"scene        {scene.name}")
         print(f"points       {summary['points']:,} ({summary['dim']}D), bonds {summary['bonds']:,}")
-        print(f"solver       {summary['solver']}: {summary['iterations']} iteration(s), "
-              f"relative residual {summary['relative_residual']:.2e}")
+        print(
+            f"solver       {summary['solver']}: {summary['iterations']} iteration(s), "
+            f"relative residual {summary['relative_residual']:.2e}"
+        )
         print("max |u|      " + ", ".join(f"{v:.6e}" for v in u))
         t = summary["timings"]
         print("time (s)     " + ", ".join(f"{k} {v:.3f}" for k, v in t.items()))
@@ -189,8 +194,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit code (0 ok, 2 bad input, 3 solver failure)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
-                        format="%(levelname)s %(name)s: %(message)s")
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING,
+        format="%(levelname)s %(name)s: %(message)s",
+    )
     np.set_printoptions(precision=6)
     from ..errors import ConvergenceError
 

@@ -237,7 +237,7 @@ class PointCloud:
 
     def replace(self, **changes: Any) -> PointCloud:
         """Return a copy with some fields replaced (validated again)."""
-        data = {
+        data: dict[str, Any] = {
             "points": self.points,
             "volumes": self.volumes,
             "horizon": self.horizon,
@@ -329,7 +329,10 @@ def grid(
     >>> float(cloud.volumes[0]), sorted(cloud.sets)
     (0.25, ['x+', 'x-', 'y+', 'y-'])
     """
-    shp = (int(shape),) if np.isscalar(shape) else tuple(int(s) for s in shape)  # type: ignore[arg-type]
+    if isinstance(shape, int | np.integer):
+        shp: tuple[int, ...] = (int(shape),)
+    else:
+        shp = tuple(int(s) for s in shape)
     dim = len(shp)
     if dim not in (1, 2, 3):
         raise ShapeError(f"shape must have 1, 2 or 3 entries, got {shp}")
@@ -349,7 +352,7 @@ def grid(
     return PointCloud(
         points,
         np.full(points.shape[0], float(np.prod(h))),
-        horizon=horizon,
+        horizon=None if horizon is None else np.full(points.shape[0], float(horizon)),
         sets=_face_sets(points, lo, hi, h),
         thickness=thickness,
         lattice=Lattice(shp, h, o),

@@ -63,7 +63,8 @@ def influence_function(spec: str | InfluenceFunction) -> InfluenceFunction:
             return INFLUENCE_FUNCTIONS[spec]
         except KeyError:
             raise InputError(
-                f"influence must be one of {sorted(INFLUENCE_FUNCTIONS)} or a callable, got {spec!r}"
+                f"influence must be one of {sorted(INFLUENCE_FUNCTIONS)} or a callable, "
+                f"got {spec!r}"
             ) from None
     raise InputTypeError(f"influence must be a string or a callable, got {type(spec).__name__}")
 

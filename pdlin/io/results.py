@@ -65,7 +65,8 @@ def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any])
         data[name] = arr
     p.parent.mkdir(parents=True, exist_ok=True)
     if suffix == ".npz":
-        np.savez_compressed(p, points=cloud.points, volumes=cloud.volumes, **data)
+        arrays = {"points": np.asarray(cloud.points), "volumes": np.asarray(cloud.volumes), **data}
+        np.savez_compressed(p, **arrays)  # type: ignore[arg-type]
         return p
     import meshio
 

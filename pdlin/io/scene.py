@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import PdlinError, SceneError
-from ..geometry.bonds import Bonds, find_bonds
+from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud, from_image, grid
 from ..models.base import Model
 from ..models.bond_based import BondBased
@@ -30,10 +30,28 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["Scene", "load_scene", "scene_from_dict", "builtin_scene", "list_builtin_scenes", "MODELS"]
+__all__ = [
+    "Scene",
+    "load_scene",
+    "scene_from_dict",
+    "builtin_scene",
+    "list_builtin_scenes",
+    "MODELS",
+]
 
-_TOP = {"name", "geometry", "material", "model", "horizon", "dirichlet", "load", "shadow",
-        "symmetry", "solver", "output"}
+_TOP = {
+    "name",
+    "geometry",
+    "material",
+    "model",
+    "horizon",
+    "dirichlet",
+    "load",
+    "shadow",
+    "symmetry",
+    "solver",
+    "output",
+}
 _GEOM = {
     "grid": {"type", "shape", "spacing", "origin", "thickness"},
     "mesh": {"type", "path", "thickness", "dim"},
@@ -154,14 +172,17 @@ def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
     else:
         path = _resolve_path(_require(cfg, "path", "geometry"), base, "geometry.path")
         img = np.load(path)
-    return from_image(img, cfg.get("spacing", 1.0), cfg.get("origin"), void=cfg.get("void"),
-                      thickness=thickness)
+    return from_image(
+        img, cfg.get("spacing", 1.0), cfg.get("origin"), void=cfg.get("void"), thickness=thickness
+    )
 
 
 def _where(cfg: Mapping[str, Any], cloud: PointCloud, key: str) -> Any:
     given = [k for k in ("set", "box", "points") if k in cfg]
     if len(given) != 1:
-        raise SceneError(f"{key} needs exactly one of 'set', 'box', 'points', got {given or 'none'}")
+        raise SceneError(
+            f"{key} needs exactly one of 'set', 'box', 'points', got {given or 'none'}"
+        )
     k = given[0]
     if k == "set":
         name = cfg["set"]
@@ -226,8 +247,13 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
                 if "value" in bc:
                     raise SceneError(f"{key} takes 'value' or 'F', not both")
                 dirichlet.append(
-                    Dirichlet.affine(where, bc["F"], translation=bc.get("translation"),
-                                     center=bc.get("center"), components=bc.get("components"))
+                    Dirichlet.affine(
+                        where,
+                        bc["F"],
+                        translation=bc.get("translation"),
+                        center=bc.get("center"),
+                        components=bc.get("components"),
+                    )
                 )
             else:
                 dirichlet.append(Dirichlet(where, bc.get("value", 0.0), bc.get("components")))
@@ -235,12 +261,24 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
             sh = _check_keys(top["shadow"], _SHADOW, "shadow")
             depth = sh.get("depth")
             if depth is None:
-                hv = horizon if horizon is not None else float(bond_options.get("ratio", 0)) * float(
-                    np.max(cloud.lattice.spacing) if cloud.lattice is not None else np.median(cloud.spacing)
+                hv = (
+                    horizon
+                    if horizon is not None
+                    else float(bond_options.get("ratio", 0))
+                    * float(
+                        np.max(cloud.lattice.spacing)
+                        if cloud.lattice is not None
+                        else np.median(cloud.spacing)
+                    )
                 )
                 depth = float(np.max(hv))
-            bc_sh, _ = shadow_layer(cloud, _require(sh, "F", "shadow"), float(depth),
-                                    faces=sh.get("faces"), translation=sh.get("translation"))
+            bc_sh, _ = shadow_layer(
+                cloud,
+                _require(sh, "F", "shadow"),
+                float(depth),
+                faces=sh.get("faces"),
+                translation=sh.get("translation"),
+            )
             dirichlet.append(bc_sh)
         loads: list[BodyForce | TotalForce] = []
         for k, ld in enumerate(top.get("load", [])):
@@ -261,11 +299,21 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
             planes = []
             for k, s in enumerate(top["symmetry"]):
                 s = _check_keys(s, _SYMMETRY, f"symmetry[{k}]")
-                planes.append(sym_mod.SymmetryPlane(_require(s, "axis", f"symmetry[{k}]"),
-                                                    float(s.get("position", 0.0))))
+                planes.append(
+                    sym_mod.SymmetryPlane(
+                        _require(s, "axis", f"symmetry[{k}]"), float(s.get("position", 0.0))
+                    )
+                )
             extra["symmetry"] = tuple(planes)
-        problem = StaticProblem(model, cloud, horizon=horizon, dirichlet=dirichlet, loads=loads,
-                                bond_options=bond_options, **extra)
+        problem = StaticProblem(
+            model,
+            cloud,
+            horizon=horizon,
+            dirichlet=dirichlet,
+            loads=loads,
+            bond_options=bond_options,
+            **extra,
+        )
         scfg = _check_keys(top.get("solver", {}), _SOLVER, "solver")
         ocfg = _check_keys(top.get("output", {}), _OUTPUT, "output")
     except SceneError:

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
+import itertools
 import logging
 import warnings
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -146,10 +146,10 @@ class BondBased(Model):
     >>> u = np.random.default_rng(0).normal(size=(10, 1))
     >>> bool(np.allclose(K @ u.ravel(), -model.internal_force(cloud, bonds, u).ravel()))
     True
-    >>> pdlin.BondBased(E=1.0, nu=0.3).check(3)
+    >>> pdlin.BondBased(E=1.0, nu=0.3).check(3)  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    pdlin.errors.ModelError: bond-based PD implies nu = 0.25 in 3D, got nu = 0.3; use nu=None or a state-based model (LPS) for other Poisson ratios
+    pdlin.errors.ModelError: bond-based PD implies nu = 0.25 in 3D, got nu = 0.3; ...
     """
 
     coupling_range = 1
@@ -180,10 +180,13 @@ class BondBased(Model):
         self.plane = plane
         self.average = average
         self.nu_mismatch = nu_mismatch
-        self.micromodulus = None if micromodulus is None else as_float_array(micromodulus, "micromodulus")
+        self.micromodulus = (
+            None if micromodulus is None else as_float_array(micromodulus, "micromodulus")
+        )
         if self.micromodulus is not None and np.any(self.micromodulus < 0):
             raise InputError(
-                f"micromodulus must be >= 0 (energy positivity), got min {float(self.micromodulus.min())}"
+                "micromodulus must be >= 0 (energy positivity), "
+                f"got min {float(self.micromodulus.min())}"
             )
 
     # -- parameters -------------------------------------------------------
@@ -215,7 +218,9 @@ class BondBased(Model):
             if c.ndim == 0:
                 return np.full(nb, float(c))
             if c.shape != (nb,):
-                raise ShapeError(f"micromodulus must be a scalar or have shape ({nb},), got {c.shape}")
+                raise ShapeError(
+                    f"micromodulus must be a scalar or have shape ({nb},), got {c.shape}"
+                )
             return c
         assert self.E is not None
         E = self.E
@@ -231,13 +236,24 @@ class BondBased(Model):
         hor = bonds.horizon
         influence = getattr(bonds, "influence", "constant")
         if np.all(hor == hor[0]):
-            cb = standard_micromodulus(
-                1.0, float(hor[0]), cloud.dim, plane=self.plane, thickness=cloud.thickness,
-                influence=influence,
-            ) * Eb
+            cb = (
+                standard_micromodulus(
+                    1.0,
+                    float(hor[0]),
+                    cloud.dim,
+                    plane=self.plane,
+                    thickness=cloud.thickness,
+                    influence=influence,
+                )
+                * Eb
+            )
             return np.broadcast_to(cb, (nb,)).astype(float)
         cb = standard_micromodulus(
-            1.0, bonds.horizon_ij, cloud.dim, plane=self.plane, thickness=cloud.thickness,
+            1.0,
+            bonds.horizon_ij,
+            cloud.dim,
+            plane=self.plane,
+            thickness=cloud.thickness,
             influence=influence,
         )
         return np.asarray(cb * Eb, dtype=float)
@@ -304,20 +320,24 @@ class BondBased(Model):
         sig = np.empty((cloud.n, d, d))
         for a in range(d):
             for b in range(a, d):
-                v = np.bincount(bonds.i, weights=w * unit[:, a] * unit[:, b] * bonds.length, minlength=cloud.n)
+                v = np.bincount(
+                    bonds.i, weights=w * unit[:, a] * unit[:, b] * bonds.length, minlength=cloud.n
+                )
                 sig[:, a, b] = v
                 sig[:, b, a] = v
         return sig
 
     def effective_tensor(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
-        """Per-point stiffness tensor ``C_ijkl = ½ Σ ω c ξ_iξ_jξ_kξ_l/|ξ|³ V_j`` ``(n, d, d, d, d)``."""
+        """Per-point stiffness tensor ``C_ijkl = ½ Σ ω c ξ_iξ_jξ_kξ_l/|ξ|³ V_j``.
+
+        Shape ``(n, d, d, d, d)``; seed 004 Eq. 29 over the point's actual
+        (possibly truncated) family.
+        """
         d = cloud.dim
         c = self.bond_micromodulus(cloud, bonds)
         unit = bonds.xi / bonds.length[:, None]
         w = 0.5 * c * bonds.omega * bonds.volume_j * _measure(cloud) * bonds.length
         out = np.empty((cloud.n, d, d, d, d))
-        import itertools
-
         for idx in itertools.product(range(d), repeat=4):
             srt = tuple(sorted(idx))
             if srt != idx:
@@ -332,9 +352,9 @@ class BondBased(Model):
             "model": "BondBased",
             "E": None if self.E is None or self.E.ndim else float(self.E),
             "plane": self.plane,
-            "micromodulus": "per-bond" if self.micromodulus is not None and self.micromodulus.ndim else (
-                None if self.micromodulus is None else float(self.micromodulus)
-            ),
+            "micromodulus": "per-bond"
+            if self.micromodulus is not None and self.micromodulus.ndim
+            else (None if self.micromodulus is None else float(self.micromodulus)),
         }
 
 
@@ -356,5 +376,3 @@ def _as_displacement(u: Any, n: int, d: int) -> np.ndarray:
         raise InputError("u must be finite, got NaN or inf")
     return arr
 
-
-_Callable = Callable  # re-export guard for type checkers

@@ -201,9 +201,11 @@ def shadow_layer(
     if not np.isfinite(dep) or dep <= 0:
         raise InputError(f"depth must be > 0, got {depth}")
     lo, hi = cloud.bounds
-    half = 0.5 * np.asarray(cloud.lattice.spacing) if cloud.lattice is not None else 0.5 * float(
-        np.median(cloud.spacing)
-    ) * np.ones(d)
+    half = (
+        0.5 * np.asarray(cloud.lattice.spacing)
+        if cloud.lattice is not None
+        else 0.5 * float(np.median(cloud.spacing)) * np.ones(d)
+    )
     lo = lo - half
     hi = hi + half
     names = [f"{a}{s}" for a in "xyz"[:d] for s in "-+"] if faces is None else list(faces)
@@ -222,7 +224,9 @@ def shadow_layer(
     return Dirichlet.affine(idx, F, translation=translation), idx
 
 
-def resolve_dirichlet(cloud: PointCloud, conditions: Sequence[Dirichlet]) -> tuple[np.ndarray, np.ndarray]:
+def resolve_dirichlet(
+    cloud: PointCloud, conditions: Sequence[Dirichlet]
+) -> tuple[np.ndarray, np.ndarray]:
     """Collect prescribed DOFs and values; conflicting duplicates raise.
 
     Returns
@@ -283,9 +287,7 @@ def load_vector(cloud: PointCloud, loads: Sequence[Any]) -> np.ndarray:
                 raise InputError(f"loads[{k}].weights must be {idx.size} non-negative numbers")
             np.add.at(f, idx, np.outer(w / w.sum(), total))
         else:
-            raise InputError(
-                f"loads[{k}] must be BodyForce or TotalForce, got {type(ld).__name__}"
-            )
+            raise InputError(f"loads[{k}] must be BodyForce or TotalForce, got {type(ld).__name__}")
     return f.ravel()
 
 
@@ -356,9 +358,12 @@ def check_constraints(
             labels_free = []
             for v in null:
                 k = int(np.argmax(np.abs(v)))
-                labels_free.append(names[k] if extra_modes is None and k < len(names) else f"mode {k}")
+                labels_free.append(
+                    names[k] if extra_modes is None and k < len(names) else f"mode {k}"
+                )
             raise FloatingBodyError(
-                f"the stiffness matrix is singular: constraints leave {B.shape[1] - rank} rigid-body "
+                "the stiffness matrix is singular: constraints leave "
+                f"{B.shape[1] - rank} rigid-body "
                 f"motion(s) free ({', '.join(sorted(set(labels_free)))}); "
                 f"{int(constrained.sum())} DOF(s) are prescribed"
             )

@@ -63,7 +63,7 @@ def rigid_body_modes(cloud: PointCloud | np.ndarray, *, orthonormal: bool = Fals
         B[:, 2, 4] = -x[:, 0]
         B[:, 0, 5] = -x[:, 1]
         B[:, 1, 5] = x[:, 0]
-    B = B.reshape(n * d, nm)
+    modes = B.reshape(n * d, nm)
     if orthonormal:
-        B, _ = np.linalg.qr(B)
-    return B
+        modes, _ = np.linalg.qr(modes)
+    return modes

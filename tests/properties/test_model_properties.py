@@ -20,8 +20,9 @@ def _jittered(dim: int, n: int, seed: int = 1) -> pdlin.PointCloud:
     rng = np.random.default_rng(seed)
     c = pdlin.grid((n,) * dim, spacing=1.0 / n)
     pts = c.points + rng.uniform(-0.2, 0.2, c.points.shape) / n
-    return pdlin.PointCloud(pts, c.volumes * rng.uniform(0.8, 1.2, c.n),
-                            horizon=rng.uniform(2.0, 3.2, c.n) / n)
+    return pdlin.PointCloud(
+        pts, c.volumes * rng.uniform(0.8, 1.2, c.n), horizon=rng.uniform(2.0, 3.2, c.n) / n
+    )
 
 
 def _case_1d() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
@@ -110,16 +111,16 @@ def test_positive_energy_on_non_rigid_fields(case, rng):
         u -= B @ (B.T @ u)
         e = u @ (K @ u)
         assert e > 0
-        np.testing.assert_allclose(model.energy(cloud, bonds, u.reshape(cloud.n, -1)), 0.5 * e,
-                                   rtol=1e-12)
+        np.testing.assert_allclose(
+            model.energy(cloud, bonds, u.reshape(cloud.n, -1)), 0.5 * e, rtol=1e-12
+        )
 
 
 def test_internal_force_matches_stiffness(case, rng):
     model, cloud, bonds, K = case
     u = rng.normal(size=(cloud.n, cloud.dim))
     f = model.internal_force(cloud, bonds, u)
-    np.testing.assert_allclose(K @ u.ravel(), -f.ravel(), rtol=1e-12,
-                               atol=1e-12 * np.abs(f).max())
+    np.testing.assert_allclose(K @ u.ravel(), -f.ravel(), rtol=1e-12, atol=1e-12 * np.abs(f).max())
 
 
 def test_nonlinear_force_linearizes_to_K(case, rng):

@@ -76,21 +76,28 @@ def test_floating_body_messages():
     c = pdlin.grid((6, 4), spacing=0.1)
     m = pdlin.BondBased(E=1.0)
     with pytest.raises(FloatingBodyError, match=r"1 rigid-body motion\(s\) free \(translation y\)"):
-        pdlin.solve(pdlin.StaticProblem(m, c, horizon=0.2, dirichlet=[pdlin.Dirichlet("x-", 0.0, "x")]))
+        pdlin.solve(
+            pdlin.StaticProblem(m, c, horizon=0.2, dirichlet=[pdlin.Dirichlet("x-", 0.0, "x")])
+        )
     with pytest.raises(FloatingBodyError, match="no prescribed displacement"):
         pdlin.solve(pdlin.StaticProblem(m, c, horizon=0.2))
     # two disconnected pieces, only one constrained
     pts = np.r_[c.points, c.points + [5.0, 0.0]]
     two = pdlin.PointCloud(pts, 0.01)
     with pytest.raises(FloatingBodyError, match="1 of 2 bond-connected piece"):
-        pdlin.solve(pdlin.StaticProblem(m, two, horizon=0.2,
-                                        dirichlet=[pdlin.Dirichlet(np.arange(24), 0.0)]))
+        pdlin.solve(
+            pdlin.StaticProblem(
+                m, two, horizon=0.2, dirichlet=[pdlin.Dirichlet(np.arange(24), 0.0)]
+            )
+        )
 
 
 def test_reactions_balance_loads():
     c = pdlin.grid((20, 6), spacing=0.05)
     prob = pdlin.StaticProblem(
-        pdlin.BondBased(E=1e9), c, horizon=3.015 * 0.05,
+        pdlin.BondBased(E=1e9),
+        c,
+        horizon=3.015 * 0.05,
         dirichlet=[pdlin.Dirichlet("x-", 0.0)],
         loads=[pdlin.TotalForce("x+", [1e3, -2e2])],
     )
@@ -102,7 +109,9 @@ def test_reactions_balance_loads():
 def test_poisson_ratio_check():
     c = pdlin.grid((5, 5))
     with pytest.raises(ModelError, match="implies nu = 0.3333 in 2D plane stress, got nu = 0.25"):
-        pdlin.BondBased(E=1.0, nu=0.25, plane="stress").bond_micromodulus(c, pdlin.find_bonds(c, 2.0))
+        pdlin.BondBased(E=1.0, nu=0.25, plane="stress").bond_micromodulus(
+            c, pdlin.find_bonds(c, 2.0)
+        )
     with pytest.warns(UserWarning, match="implies nu"):
         pdlin.BondBased(E=1.0, nu=0.3, nu_mismatch="warn").check(3)
     pdlin.BondBased(E=1.0, nu=0.25, plane="strain").check(2)
@@ -115,14 +124,17 @@ def test_standard_micromoduli_closed_forms():
     # seed 004 Eq. / spec 004 2.6: 12E/(pi d^4) (3D), 9E/(pi t d^3) (plane stress),
     # 48E/(5 pi t d^3) (plane strain); 1D: 2E/(A d^2)
     np.testing.assert_allclose(standard_micromodulus(1.0, d, 3), 12 / (np.pi * d**4))
-    np.testing.assert_allclose(standard_micromodulus(1.0, d, 2, thickness=0.5),
-                               9 / (np.pi * 0.5 * d**3))
-    np.testing.assert_allclose(standard_micromodulus(1.0, d, 2, plane="strain"),
-                               48 / (5 * np.pi * d**3))
+    np.testing.assert_allclose(
+        standard_micromodulus(1.0, d, 2, thickness=0.5), 9 / (np.pi * 0.5 * d**3)
+    )
+    np.testing.assert_allclose(
+        standard_micromodulus(1.0, d, 2, plane="strain"), 48 / (5 * np.pi * d**3)
+    )
     np.testing.assert_allclose(standard_micromodulus(1.0, d, 1, thickness=2.0), 2 / (2.0 * d**2))
     # omega = delta/r in 3D: int_0^d (d/r) r^3 dr = d^4/3 -> c = 1.2 E / (0.4 pi d^4 / 3)
-    np.testing.assert_allclose(standard_micromodulus(1.0, d, 3, influence="delta_over_r"),
-                               9 / (np.pi * d**4))
+    np.testing.assert_allclose(
+        standard_micromodulus(1.0, d, 3, influence="delta_over_r"), 9 / (np.pi * d**4)
+    )
 
 
 def test_continuum_limit_of_effective_tensor():

@@ -21,7 +21,9 @@ def _bar_1d(N: int, m: int, E0: float, sigma: float, graded: bool, solver: str =
         exact = sigma / E0 * x
     shadow = np.r_[np.arange(m), np.arange(cloud.n - m, cloud.n)]
     prob = pdlin.StaticProblem(
-        pdlin.BondBased(E=E), cloud, horizon=(m + 0.015) * h,
+        pdlin.BondBased(E=E),
+        cloud,
+        horizon=(m + 0.015) * h,
         dirichlet=[pdlin.Dirichlet(shadow, exact[shadow, None])],
     )
     res = pdlin.solve(prob, solver=solver, rtol=1e-12)
@@ -92,9 +94,14 @@ def test_spec004_static_uniaxial_tension_analytical_micromodulus():
     np.testing.assert_allclose(model.bond_micromodulus(cloud, bonds)[0], 20.5310e9, rtol=1e-5)
     top = cloud.point_set("z+")
     prob = pdlin.StaticProblem(
-        model, cloud, bonds,
-        dirichlet=[pdlin.Dirichlet("z-", 0.0, "z"), pdlin.Dirichlet("x-", 0.0, "x"),
-                   pdlin.Dirichlet("y-", 0.0, "y")],
+        model,
+        cloud,
+        bonds,
+        dirichlet=[
+            pdlin.Dirichlet("z-", 0.0, "z"),
+            pdlin.Dirichlet("x-", 0.0, "x"),
+            pdlin.Dirichlet("y-", 0.0, "y"),
+        ],
         loads=[pdlin.TotalForce(top, [0.0, 0.0, 1e6 * top.size])],  # 1 MN per top particle
     )
     res = pdlin.solve(prob, solver="amg-cg", rtol=1e-11)
