@@ -23,6 +23,7 @@ from __future__ import annotations
 import copy
 import logging
 import operator
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -105,7 +106,7 @@ class SymmetryPlane:
             if isinstance(ax, bool | np.bool_):
                 raise InputTypeError(f"axis must be an int or 'x'/'y'/'z', got {ax!r}")
             try:
-                k = operator.index(ax)  # type: ignore[arg-type]
+                k = operator.index(ax)
             except TypeError:
                 raise InputTypeError(
                     f"axis must be an int or 'x'/'y'/'z', got {type(ax).__name__}"
@@ -290,7 +291,9 @@ class MirrorCloud:
         )
 
 
-def mirror_cloud(cloud: PointCloud, planes: Sequence[SymmetryPlane], reach: float) -> MirrorCloud:
+def mirror_cloud(
+    cloud: PointCloud, planes: Sequence[SymmetryPlane] | SymmetryPlane, reach: float
+) -> MirrorCloud:
     """Add ghost images of every point within ``reach`` of the symmetry planes.
 
     For each non-empty subset ``S`` of the planes, every real point closer
@@ -302,7 +305,7 @@ def mirror_cloud(cloud: PointCloud, planes: Sequence[SymmetryPlane], reach: floa
     ----------
     cloud : PointCloud
         The modelled part; all points on one side of each plane.
-    planes : sequence of SymmetryPlane
+    planes : SymmetryPlane or sequence of them
         At most one plane per axis.
     reach : float
         Coupling reach of the model: its largest horizon times its
@@ -440,6 +443,15 @@ def _expand_model(model: Any, mirror: MirrorCloud) -> Any:
         new.E = E[mirror.source]
         return new
     return model
+
+
+def _name_modes(text: str, names: list[str]) -> str:
+    """Replace check_constraints' 'mode k' (column k of extra_modes) by its name."""
+
+    def name(match: re.Match[str]) -> str:
+        return names[int(match.group(1))]
+
+    return re.sub(r"\bmode (\d+)\b", name, text)
 
 
 def _with_diagonal_blocks(K: sp.bsr_array) -> sp.bsr_array:
@@ -636,11 +648,12 @@ class SymmetryReduction:
             try:
                 check_constraints(sub, None, local, extra_modes=modes)
             except FloatingBodyError as exc:
-                listing = ", ".join(f"mode {k} = {nm}" for k, nm in enumerate(names))
-                piece = "" if ncomp == 1 else f" in piece {c} of {ncomp}"
+                # check_constraints calls the columns of extra_modes 'mode k'
+                msg = _name_modes(str(exc), names)
+                piece = "" if ncomp == 1 else f" of piece {c} (of {ncomp})"
                 raise FloatingBodyError(
-                    f"{exc}; with symmetry planes {planes} the rigid motions left to "
-                    f"constrain{piece} are: {listing}"
+                    f"{msg}; the symmetry planes {planes} leave these rigid motions{piece} "
+                    f"to constrain: {', '.join(names)}"
                 ) from exc
 
     def deformation_gradient(self, u: Any) -> np.ndarray:
