@@ -116,3 +116,40 @@ def test_examples_command(capsys):
     assert "bar" in capsys.readouterr().out
     assert main(["examples", "--show", "bar"]) == 0
     assert "[geometry]" in capsys.readouterr().out
+
+
+def test_image_scene_with_per_phase_modulus(tmp_path):
+    img = np.zeros((12, 6), dtype=int)
+    img[6:, :] = 1  # right half is phase 1
+    np.save(tmp_path / "micro.npy", img)
+    text = """
+[geometry]
+type = "image"
+path = "micro.npy"
+spacing = 0.1
+[material]
+E = { "0" = 1.0e9, "1" = 4.0e9 }
+[horizon]
+ratio = 2.015
+[[dirichlet]]
+set = "x-"
+value = 0.0
+[[load]]
+type = "total"
+set = "x+"
+force = [100.0, 0.0]
+"""
+    sc = load_scene(_write(tmp_path, text))
+    E = sc.model.E
+    np.testing.assert_array_equal(E[sc.cloud.point_set("phase1")], 4.0e9)
+    np.testing.assert_array_equal(E[sc.cloud.point_set("phase0")], 1.0e9)
+    res = pdlin.solve(sc.problem, solver="direct")
+    # the stiffer half stretches less: mean strain ratio close to the modulus ratio 4
+    eps = res.strain()[:, 0, 0]
+    x = sc.cloud.points[:, 0]
+    soft = eps[(x > 0.25) & (x < 0.45)].mean()
+    stiff = eps[(x > 0.75) & (x < 0.95)].mean()
+    assert 3.0 < soft / stiff < 5.0
+    bad = text.replace('E = { "0" = 1.0e9, "1" = 4.0e9 }', 'E = { "0" = 1.0e9 }')
+    with pytest.raises(SceneError, match=r"material.E has no value for phase\(s\) \[1\]"):
+        load_scene(_write(tmp_path, bad))

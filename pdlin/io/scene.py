@@ -86,18 +86,41 @@ def _require(table: Mapping[str, Any], key: str, where: str) -> Any:
     return table[key]
 
 
-def _build_model(cfg: Mapping[str, Any], material: Mapping[str, Any], dim: int) -> Model:
+def _build_model(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud) -> Model:
     kind = cfg.get("type", "bond_based")
     try:
         builder = MODELS[kind]
     except KeyError:
         raise SceneError(f"model.type must be one of {sorted(MODELS)}, got {kind!r}") from None
-    return builder(cfg, material, dim)
+    return builder(cfg, material, cloud)
 
 
-def _bond_based(cfg: Mapping[str, Any], material: Mapping[str, Any], dim: int) -> Model:
+def per_phase(value: Any, cloud: PointCloud, key: str) -> Any:
+    """A material constant given as a number, or a table ``{"<phase id>" = value}``.
+
+    Tables are mapped onto points through ``cloud.material``; every phase
+    present in the cloud must be listed.
+    """
+    if not isinstance(value, Mapping):
+        return value
+    try:
+        table = {int(k): float(v) for k, v in value.items()}
+    except (TypeError, ValueError) as exc:
+        raise SceneError(f"{key} table must map integer phase ids to numbers: {exc}") from exc
+    phases = np.unique(cloud.material)
+    missing = [int(p) for p in phases if int(p) not in table]
+    if missing:
+        raise SceneError(f"{key} has no value for phase(s) {missing} present in the geometry")
+    lut = np.zeros(int(phases.max()) + 1)
+    for k, v in table.items():
+        if 0 <= k < lut.size:
+            lut[k] = v
+    return lut[cloud.material]
+
+
+def _bond_based(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud) -> Model:
     return BondBased(
-        E=material.get("E"),
+        E=per_phase(material.get("E"), cloud, "material.E"),
         nu=material.get("nu"),
         plane=material.get("plane", "stress"),
         micromodulus=material.get("micromodulus"),
@@ -106,8 +129,8 @@ def _bond_based(cfg: Mapping[str, Any], material: Mapping[str, Any], dim: int) -
     )
 
 
-#: model builders by scene name: ``builder(model_table, material_table, dim) -> Model``
-MODELS: dict[str, Callable[[Mapping[str, Any], Mapping[str, Any], int], Model]] = {
+#: model builders by scene name: ``builder(model_table, material_table, cloud) -> Model``
+MODELS: dict[str, Callable[[Mapping[str, Any], Mapping[str, Any], PointCloud], Model]] = {
     "bond_based": _bond_based,
 }
 
@@ -228,7 +251,7 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         cloud = _geometry(_require(top, "geometry", "scene"), base)
         material = _check_keys(_require(top, "material", "scene"), _MATERIAL, "material")
         model_cfg = _check_keys(top.get("model", {}), _MODEL, "model")
-        model = _build_model(model_cfg, material, cloud.dim)
+        model = _build_model(model_cfg, material, cloud)
         hcfg = _check_keys(_require(top, "horizon", "scene"), _HORIZON, "horizon")
         if ("value" in hcfg) == ("ratio" in hcfg):
             raise SceneError("horizon needs exactly one of 'value' or 'ratio'")
