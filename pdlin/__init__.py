@@ -14,11 +14,14 @@ from .models import BondBased, Model
 from .operators import (
     BodyForce,
     Dirichlet,
+    SparsityReport,
     SymmetryPlane,
     TotalForce,
     assemble_stiffness,
+    plot_spy,
     rigid_body_modes,
     shadow_layer,
+    sparsity_report,
 )
 from .problem import StaticProblem, StaticResult, solve
 
@@ -44,6 +47,9 @@ __all__ = [
     "TotalForce",
     "shadow_layer",
     "SymmetryPlane",
+    "sparsity_report",
+    "SparsityReport",
+    "plot_spy",
     "StaticProblem",
     "StaticResult",
     "solve",

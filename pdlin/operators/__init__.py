@@ -1,4 +1,4 @@
-"""Operators: assembly, boundary conditions, loads, rigid-body modes."""
+"""Operators: assembly, boundary conditions, loads, rigid-body modes, sparsity reports."""
 
 from .assembly import assemble_stiffness, bond_pattern_bsr, pair_stiffness_bsr
 from .bc import (
@@ -12,6 +12,7 @@ from .bc import (
     shadow_layer,
 )
 from .rigid import rigid_body_modes
+from .sparsity import SparsityReport, coupling_pattern, plot_spy, sparsity_report
 from .symmetry import (
     MirrorCloud,
     SymmetryPlane,
@@ -33,6 +34,10 @@ __all__ = [
     "eliminate_dirichlet",
     "check_constraints",
     "rigid_body_modes",
+    "SparsityReport",
+    "sparsity_report",
+    "coupling_pattern",
+    "plot_spy",
     "SymmetryPlane",
     "MirrorCloud",
     "SymmetryReduction",
