@@ -98,7 +98,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     cloud = build_cloud(args.n_ang, args.n_rad)
     result = solve_plate(cloud)
     u = result.u
-    summary = {
+    summary: dict[str, Any] = {
         "points": cloud.n,
         "family_size": [int(result.bonds.family_size.min()), int(result.bonds.family_size.max())],
         "solver": result.info.get("solver"),
@@ -125,7 +125,7 @@ def _plot(cloud: pdlin.PointCloud, u: np.ndarray) -> None:  # pragma: no cover -
     except ImportError as exc:
         raise ImportError("--plot needs matplotlib: pip install pdlin[plotting]") from exc
     fig, ax = plt.subplots(figsize=(6, 5))
-    sc = ax.scatter(*cloud.points.T, c=u[:, 0], s=4, cmap="viridis")
+    sc = ax.scatter(cloud.points[:, 0], cloud.points[:, 1], c=u[:, 0], s=4, cmap="viridis")
     fig.colorbar(sc, ax=ax, label="u_x [m]")
     ax.set_aspect("equal")
     ax.set_title("plate with hole: u_x")

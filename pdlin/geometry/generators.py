@@ -139,8 +139,8 @@ def plate_with_hole_mesh(
     points = np.stack([x.ravel(), y.ravel()], axis=1)  # node (l, a) -> l * n_ring + a
     points[np.abs(points) < 1e-15 * L] = 0.0
 
-    ll, aa = np.meshgrid(np.arange(nr), a, indexing="ij")
-    ll, aa = ll.ravel(), aa.ravel()
+    layer, angle = np.meshgrid(np.arange(nr), a, indexing="ij")
+    ll, aa = layer.ravel(), angle.ravel()
     a1 = (aa + 1) % n_ring
     # counterclockwise: outwards along the ray, then on to the next angle
     quads = np.stack(

@@ -210,6 +210,63 @@ def test_mixed_2d_mesh_and_boundary_rules() -> None:
     assert read_mesh(mesh, boundary="node").sets["bottom-right"].tolist() == [0, 1, 2]
 
 
+def _mixed_3d_mesh() -> meshio.Mesh:
+    """Hex [0,1]^3, wedge over triangle (1,0),(2,0),(1,1) x [0,1], tetra on top of the hex."""
+    pts = np.array(
+        [
+            [0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
+            [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1],
+            [2, 0, 0], [2, 0, 1], [0, 0, 2],
+        ],
+        dtype=float,
+    )
+    return meshio.Mesh(
+        pts,
+        [
+            ("hexahedron", [[0, 1, 2, 3, 4, 5, 6, 7]]),
+            ("wedge", [[1, 8, 2, 5, 9, 6]]),
+            ("tetra", [[4, 5, 7, 10]]),
+            ("quad", [[0, 3, 7, 4], [1, 2, 6, 5]]),  # faces x = 0 and x = 1
+            ("triangle", [[8, 2, 6]]),  # unnamed group 4: nodes of the wedge (not a face)
+        ],
+        cell_data={
+            "gmsh:physical": [[1], [1], [1], [2, 3], [4]],
+            "gmsh:geometrical": [[1], [1], [1], [2, 3], [4]],
+        },
+        field_data={
+            "solid": np.array([1, 3]),
+            "x0": np.array([2, 2]),
+            "x1": np.array([3, 2]),
+        },
+    )
+
+
+def test_mixed_3d_mesh_and_boundary_faces(tmp_path: Path) -> None:
+    mesh = _mixed_3d_mesh()
+    cloud = read_mesh(mesh)
+    assert cloud.dim == 3
+    # hand computation: cube 1, right prism (1/2 x 1) = 1/2, tetra with legs 1, 1, 1 = 1/6
+    np.testing.assert_allclose(cloud.volumes, [1.0, 0.5, 1 / 6], rtol=1e-15)
+    np.testing.assert_allclose(
+        cloud.points, [[0.5, 0.5, 0.5], [4 / 3, 1 / 3, 0.5], [0.25, 0.25, 1.25]], rtol=1e-15
+    )
+    assert cloud.sets["solid"].tolist() == [0, 1, 2]
+    # facet rule: the x = 0 face belongs to the hex only, the x = 1 face to hex and wedge
+    assert cloud.sets["x0"].tolist() == [0]
+    assert cloud.sets["x1"].tolist() == [0, 1]
+    assert cloud.sets["physical4_dim2"].tolist() == [1]  # all three nodes are wedge nodes
+    # node rule: the tetra touches the x = 0 face at nodes 4 and 7
+    assert read_mesh(mesh, boundary="node").sets["x0"].tolist() == [0, 2]
+    # the same through a gmsh 2.2 file
+    path = tmp_path / "mixed.msh"
+    meshio.write(path, mesh, file_format="gmsh22", binary=False)
+    back = read_mesh(path)
+    np.testing.assert_allclose(back.volumes, cloud.volumes, rtol=1e-15)
+    assert {k: v.tolist() for k, v in back.sets.items()} == {
+        k: v.tolist() for k, v in cloud.sets.items()
+    }
+
+
 def test_dim_option_selects_lower_dimensional_cells() -> None:
     pts = np.array([[0.0, 0.0], [1.0, 0.0], [3.0, 0.0], [0.0, 1.0]])
     mesh = meshio.Mesh(pts, [("triangle", [[0, 1, 3]]), ("line", [[0, 1], [1, 2]])])
