@@ -464,3 +464,36 @@ def test_on_plane_tolerance_and_per_point_modulus():
         bond_options={"ratio": RATIO}, symmetry=[Y],
     ), solver="direct")
     assert rel(res.u, ref.u[idx]) < ROUNDOFF
+
+
+class TwoHorizonBondBased(pdlin.BondBased):
+    """Bond-based operator declared with the coupling range of state-based models."""
+
+    coupling_range = 2
+
+
+def test_ghost_layer_depth_follows_coupling_range_and_per_point_horizon():
+    full = centered_grid((12, 10))
+    # per-point horizon, symmetric about y = 0: 3.015 h, or 2.015 h for |y| > 3
+    hor_full = np.where(np.abs(full.points[:, 1]) > 3.0, 2.015, RATIO)
+    kw = dict(
+        dirichlet=[pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", [0.01, 0.0])],
+        loads=[pdlin.BodyForce(None, symmetric_body_force)],
+    )
+    ref = pdlin.solve(
+        pdlin.StaticProblem(pdlin.BondBased(E=1.0), full, horizon=hor_full, **kw),
+        solver="direct",
+    )
+    idx = part(full, [Y])
+    depth = {}
+    for model in (pdlin.BondBased(E=1.0), TwoHorizonBondBased(E=1.0)):
+        res = pdlin.solve(pdlin.StaticProblem(
+            model, full.subset(idx), horizon=hor_full[idx], symmetry=[Y], **kw
+        ), solver="direct")
+        assert rel(res.u, ref.u[idx]) < ROUNDOFF
+        depth[model.coupling_range] = res.symmetry.mirror
+    # reach = coupling_range x largest horizon (3.015): rows within 3.015 / 6.03 of y = 0
+    assert depth[1].reach == pytest.approx(RATIO)
+    assert depth[2].reach == pytest.approx(2 * RATIO)
+    assert depth[1].n_ghosts == 12 * 3  # rows y = 0.5, 1.5, 2.5
+    assert depth[2].n_ghosts == 12 * 5  # the whole half (y <= 4.5 < 6.03)
