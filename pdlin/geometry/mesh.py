@@ -195,10 +195,10 @@ def cell_measures(
     >>> import numpy as np
     >>> square = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0]])
     >>> area, centroid = cell_measures(square, [[0, 1, 2, 3]], "quad")
-    >>> area, centroid
-    (array([2.]), array([[1. , 0.5]]))
-    >>> cell_measures(square, [[0, 3, 2, 1]], "quad")[0]  # clockwise: negative
-    array([-2.])
+    >>> area.tolist(), centroid.tolist()
+    ([2.0], [[1.0, 0.5]])
+    >>> cell_measures(square, [[0, 3, 2, 1]], "quad")[0].tolist()  # clockwise: negative
+    [-2.0]
     """
     if cell_type not in _LINEAR:
         raise InputError(
@@ -456,11 +456,10 @@ def read_mesh(
     ...                          ("line", [[1, 4]])],
     ...                    cell_sets={"bottom": [[], [], [0]]})
     >>> cloud = read_mesh(mesh, horizon_ratio=3.0)
-    >>> cloud.points
-    array([[0.5       , 0.5       ],
-           [1.33333333, 0.33333333]])
-    >>> cloud.volumes, cloud.sets["bottom"]
-    (array([1. , 0.5]), array([1]))
+    >>> cloud.points.round(4).tolist()
+    [[0.5, 0.5], [1.3333, 0.3333]]
+    >>> cloud.volumes.tolist(), cloud.sets["bottom"].tolist()
+    ([1.0, 0.5], [1])
     """
     mesh = _as_mesh(source, file_format)
     if boundary not in ("facet", "node"):
