@@ -153,3 +153,57 @@ force = [100.0, 0.0]
     bad = text.replace('E = { "0" = 1.0e9, "1" = 4.0e9 }', 'E = { "0" = 1.0e9 }')
     with pytest.raises(SceneError, match=r"material.E has no value for phase\(s\) \[1\]"):
         load_scene(_write(tmp_path, bad))
+
+
+def test_scene_with_symmetry_planes_matches_full_model(tmp_path):
+    full = """
+[geometry]
+type = "grid"
+shape = [16, 9]
+spacing = 0.1
+origin = [-0.8, -0.45]
+[material]
+E = 1.0e9
+[horizon]
+ratio = 3.015
+[[dirichlet]]
+set = "x-"
+components = "x"
+value = -1e-4
+[[dirichlet]]
+set = "x+"
+components = "x"
+value = 1e-4
+[[dirichlet]]
+box = [[-1.0, -0.01], [1.0, 0.01]]
+components = "y"
+value = 0.0
+[solver]
+name = "direct"
+"""
+    # points on the plane y = 0 (odd count): the quarter keeps them, with u_y = 0 imposed
+    # by the symmetry plane itself
+    quarter = full.replace("shape = [16, 9]", "shape = [8, 5]").replace(
+        "origin = [-0.8, -0.45]", "origin = [0.0, -0.05]"
+    )
+    quarter = quarter.split("[[dirichlet]]")[0] + (
+        '[[dirichlet]]\nset = "x+"\ncomponents = "x"\nvalue = 1e-4\n'
+        '[[symmetry]]\naxis = "x"\nposition = 0.0\n[[symmetry]]\naxis = "y"\nposition = 0.0\n'
+        '[solver]\nname = "direct"\n'
+    )
+    p_full = tmp_path / "full.toml"
+    p_full.write_text(full)
+    p_q = tmp_path / "quarter.toml"
+    p_q.write_text(quarter)
+    sf, sq = load_scene(p_full), load_scene(p_q)
+    rf = pdlin.solve(sf.problem, solver="direct")
+    rq = pdlin.solve(sq.problem, solver="direct")
+    # the quarter's points are the full model's points with x > 0 and y > 0
+    pf = sf.cloud.points
+    sel = np.flatnonzero((pf[:, 0] > 0) & (pf[:, 1] > -1e-9))
+    order = np.lexsort((pf[sel, 1], pf[sel, 0]))
+    pq = sq.cloud.points
+    oq = np.lexsort((pq[:, 1], pq[:, 0]))
+    np.testing.assert_allclose(pf[sel][order], pq[oq])
+    # the full model's u_y = 0 on the line y = 0 is what the symmetry implies there
+    np.testing.assert_allclose(rq.u[oq], rf.u[sel][order], rtol=1e-9, atol=1e-12)

@@ -63,7 +63,7 @@ _HORIZON = {"value", "ratio", "shape", "axes", "influence", "cracks"}
 _DIRICHLET = {"set", "box", "points", "components", "value", "F", "translation", "center"}
 _LOAD = {"type", "set", "box", "points", "force", "density"}
 _SHADOW = {"F", "depth", "faces", "translation"}
-_SYMMETRY = {"axis", "position"}
+_SYMMETRY = {"axis", "position", "side"}
 _SOLVER = {"name", "rtol", "maxiter"}
 _OUTPUT = {"path", "fields"}
 
@@ -317,14 +317,16 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
                 raise SceneError(f"{key}.type must be 'total' or 'body', got {kind!r}")
         extra: dict[str, Any] = {}
         if "symmetry" in top:
-            from ..operators import symmetry as sym_mod  # written alongside the problem hook
+            from ..operators import symmetry as sym_mod
 
             planes = []
             for k, s in enumerate(top["symmetry"]):
                 s = _check_keys(s, _SYMMETRY, f"symmetry[{k}]")
                 planes.append(
                     sym_mod.SymmetryPlane(
-                        _require(s, "axis", f"symmetry[{k}]"), float(s.get("position", 0.0))
+                        _require(s, "axis", f"symmetry[{k}]"),
+                        float(s.get("position", 0.0)),
+                        side=s.get("side"),
                     )
                 )
             extra["symmetry"] = tuple(planes)
