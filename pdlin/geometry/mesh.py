@@ -507,7 +507,15 @@ def read_mesh(
             f"mesh points must have at least {dim} coordinates for dim={dim} cells, "
             f"got shape {allpts.shape}"
         )
-    used = np.unique(np.concatenate([np.asarray(blocks[k].data).ravel() for k in top]))
+    used = np.zeros(allpts.shape[0], dtype=bool)
+    for k in top:
+        con = np.asarray(blocks[k].data).ravel()
+        if con.size and (con.min() < 0 or con.max() >= allpts.shape[0]):
+            raise InputError(
+                f"cell block {k} ({blocks[k].type}) must hold node indices in "
+                f"[0, {allpts.shape[0] - 1}], got range [{con.min()}, {con.max()}]"
+            )
+        used[con] = True
     if allpts.shape[1] > dim:
         extra = allpts[used][:, dim:]
         spread = np.ptp(extra, axis=0)
@@ -639,7 +647,10 @@ def _collect_sets(
             rows = np.repeat(np.arange(shared.shape[0]), np.diff(shared.indptr))
             hit = shared.data >= (need[rows] if boundary == "facet" else 1)
             parts.append(shared.indices[hit].astype(np.int64))
-        idx = np.unique(np.concatenate(parts)) if parts else np.zeros(0, np.int64)
+        member = np.zeros(n_points, dtype=bool)
+        for part in parts:
+            member[part] = True
+        idx = np.flatnonzero(member)
         if idx.size == 0:
             log.warning("read_mesh: set %r has no adjacent cells of dimension %d", name, dim)
         sets[name] = idx

@@ -327,6 +327,13 @@ def test_degenerate_cell_names_index() -> None:
         read_mesh(mesh)
 
 
+def test_node_index_out_of_range() -> None:
+    pts = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    mesh = meshio.Mesh(pts, [("triangle", [[0, 1, 3]])])  # node 3 does not exist
+    with pytest.raises(InputError, match=r"cell block 0 \(triangle\).*got range \[0, 3\]"):
+        read_mesh(mesh)
+
+
 def test_bow_tie_quad_rejected() -> None:
     pts = np.array([[0.0, 0.0], [3.0, 0.0], [0.0, 1.0], [1.0, 3.0], [0.0, -2.0]])
     # cell 2 = (0,0),(3,0),(0,1),(1,3): edges 1-2 and 3-0 cross at (0.3, 0.9);
