@@ -15,8 +15,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from ..errors import PdlinError
 
 __all__ = ["main"]
@@ -198,7 +196,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
-    np.set_printoptions(precision=6)
     from ..errors import ConvergenceError
 
     try:
