@@ -200,7 +200,12 @@ def resolve_horizon(
 
 
 def _shape_mask(
-    xi: np.ndarray, length: np.ndarray, hor: np.ndarray, shape: str, axes: np.ndarray | None, rtol: float
+    xi: np.ndarray,
+    length: np.ndarray,
+    hor: np.ndarray,
+    shape: str,
+    axes: np.ndarray | None,
+    rtol: float,
 ) -> np.ndarray:
     if shape == "sphere":
         return length <= hor * (1.0 + rtol)
@@ -298,23 +303,31 @@ def _lattice_pairs(
     order = np.argsort(flat_off, kind="stable")
     offs, vec, length, flat_off = offs[order], vec[order], length[order], flat_off[order]
     n = cloud.n
+    noff = offs.shape[0]
     flat_i = np.arange(n, dtype=np.int64) if lat.index is None else np.asarray(lat.index, np.int64)
-    multi = np.stack(np.unravel_index(flat_i, lat.shape), axis=1)
-    valid = np.ones((n, offs.shape[0]), dtype=bool)
+    multi = np.unravel_index(flat_i, lat.shape)
+    # validity of each (point, offset) pair from small per-axis tables
+    # (coordinate value x offset) gathered by the point's grid coordinate:
+    # bool gathers instead of int64 arithmetic on (n, noff) arrays
+    valid = np.ones((n, noff), dtype=bool)
     for k in range(dim):
-        t = multi[:, k : k + 1] + offs[None, :, k]
-        valid &= (t >= 0) & (t < shp[k])
-    rows, cols = np.nonzero(valid)
-    jflat = flat_i[rows] + flat_off[cols]
+        c = np.arange(shp[k])[:, None] + offs[None, :, k]
+        valid &= ((c >= 0) & (c < shp[k]))[multi[k]]
+    del multi
+    q = np.flatnonzero(valid)  # row-major: bonds come out CSR-sorted by (i, j)
+    del valid
+    rows = q // noff
+    cols = q - rows * noff
+    del q
     if lat.index is None:
-        j = jflat
+        j = rows + flat_off[cols]
     else:
         lookup = np.full(int(np.prod(shp)), -1, dtype=np.int64)
         lookup[flat_i] = np.arange(n)
-        j = lookup[jflat]
+        j = lookup[flat_i[rows] + flat_off[cols]]
         ok = j >= 0
         rows, cols, j = rows[ok], cols[ok], j[ok]
-    return rows.astype(np.int64), j, vec[cols], length[cols]
+    return rows, j, vec[cols], length[cols]
 
 
 def _tree_pairs(
@@ -461,7 +474,7 @@ def find_bonds(
     counts = np.bincount(i, minlength=cloud.n)
     indptr = np.zeros(cloud.n + 1, dtype=np.int64)
     np.cumsum(counts, out=indptr[1:])
-    hij = np.maximum(hor[i], hor[j])
+    hij = np.full(i.size, hor[0]) if uniform else np.maximum(hor[i], hor[j])
     omega = evaluate_influence(influence, length, hij)
     bonds = Bonds(
         cloud.n, i, j, xi, length, omega, cloud.volumes[j], indptr, hor, shape, influence
