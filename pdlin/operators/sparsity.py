@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -103,7 +102,8 @@ class SparsityReport:
         Why the fill-in was not measured.
     memory_csr_bytes, memory_bsr_bytes : int
         Bytes of ``K`` as CSR and as BSR (values, indices, row pointer).
-    bytes_per_nnz_csr, bytes_per_nnz_bsr : float
+    bytes_per_nnz_csr, bytes_per_nnz_bsr : float or None
+        Memory per stored entry (None for an empty matrix).
     bytes_per_bond_csr, bytes_per_bond_bsr : float or None
         Memory per directed bond.
     symmetry : float or None
@@ -160,8 +160,8 @@ class SparsityReport:
     fill_skipped: str | None
     memory_csr_bytes: int
     memory_bsr_bytes: int
-    bytes_per_nnz_csr: float
-    bytes_per_nnz_bsr: float
+    bytes_per_nnz_csr: float | None
+    bytes_per_nnz_bsr: float | None
     bytes_per_bond_csr: float | None
     bytes_per_bond_bsr: float | None
     symmetry: float | None
@@ -250,7 +250,9 @@ class SparsityReport:
             return str(v)
 
         def fill(v: int | None) -> str:
-            return "-" if v is None else f"{v:,} ({v / self.nnz:.2f} x nnz)"
+            if v is None:
+                return "-"
+            return f"{v:,} ({v / self.nnz:.2f} x nnz)" if self.nnz else f"{v:,}"
 
         rows: list[tuple[str, str]] = [
             ("source", self.source),
@@ -284,12 +286,12 @@ class SparsityReport:
             (
                 "memory CSR bytes (per nnz, per bond)",
                 f"{self.memory_csr_bytes:,} "
-                f"({self.bytes_per_nnz_csr:.2f}, {num(self.bytes_per_bond_csr)})",
+                f"({num(self.bytes_per_nnz_csr)}, {num(self.bytes_per_bond_csr)})",
             ),
             (
                 "memory BSR bytes (per nnz, per bond)",
                 f"{self.memory_bsr_bytes:,} "
-                f"({self.bytes_per_nnz_bsr:.2f}, {num(self.bytes_per_bond_bsr)})",
+                f"({num(self.bytes_per_nnz_bsr)}, {num(self.bytes_per_bond_bsr)})",
             ),
             ("symmetry ||K-K^T||_F/||K||_F", num(self.symmetry)),
             (
@@ -820,8 +822,14 @@ def sparsity_report(
         notes.append("numerical quantities need K: pass K or numeric=True")
     else:
         t = time.perf_counter()
-        Kc = sp.csr_array(Kmat)
-        Kc.sum_duplicates()
+        if model is not None:  # K assembled here (numeric=True); the K form built Kc above
+            Kc = sp.csr_array(Kmat)
+            Kc.sum_duplicates()
+            if Kc.nnz != nnz:
+                notes.append(
+                    f"assembled K stores {Kc.nnz} entries, the pattern from the bonds "
+                    f"(coupling_range {hops}) predicts {nnz}"
+                )
         nnz_numeric = int(np.count_nonzero(Kc.data))
         nrm = float(spla.norm(Kc, "fro"))
         asym = float(spla.norm(Kc - Kc.T, "fro"))
@@ -896,8 +904,8 @@ def sparsity_report(
         fill_skipped=fill_skipped,
         memory_csr_bytes=int(mem_csr),
         memory_bsr_bytes=int(mem_bsr),
-        bytes_per_nnz_csr=mem_csr / nnz if nnz else math.nan,
-        bytes_per_nnz_bsr=mem_bsr / nnz if nnz else math.nan,
+        bytes_per_nnz_csr=mem_csr / nnz if nnz else None,
+        bytes_per_nnz_bsr=mem_bsr / nnz if nnz else None,
         bytes_per_bond_csr=None if not n_bonds else mem_csr / n_bonds,
         bytes_per_bond_bsr=None if not n_bonds else mem_bsr / n_bonds,
         symmetry=symmetry,

@@ -391,3 +391,30 @@ def test_plot_spy_names_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "matplotlib.pyplot", None)
     with pytest.raises(ImportError, match=r"pip install pdlin\[plotting\]"):
         pdlin.plot_spy(sp.eye_array(3))
+
+
+def test_numeric_model_form_flags_a_wrong_coupling_range() -> None:
+    class _ClaimsTwoHops(pdlin.BondBased):
+        coupling_range = 2  # wrong on purpose: its K is one-hop
+
+    cloud = pdlin.grid((6, 6))
+    bonds = pdlin.find_bonds(cloud, 1.5)
+    r = _report(cloud, bonds, model=_ClaimsTwoHops(E=1.0), numeric=True, fill_limit=0)
+    K = pdlin.assemble_stiffness(pdlin.BondBased(E=1.0), cloud, bonds)
+    assert f"assembled K stores {K.nnz} entries" in " ".join(r.notes)
+    ok = _report(cloud, bonds, numeric=True, fill_limit=0)
+    assert not any("assembled K stores" in n for n in ok.notes)
+
+
+def test_fixed_dofs_mask_equals_indices_and_empty_matrix() -> None:
+    cloud, _, K = _chain(8)
+    mask = np.zeros(8, dtype=bool)
+    mask[[0, 7]] = True
+    a = pdlin.sparsity_report(K, fixed_dofs=mask)
+    b = pdlin.sparsity_report(K, fixed_dofs=np.array([0, 7]))
+    assert a == b and a.n_fixed == 2
+    # an all-zero matrix: no entries, nothing to factor sensibly, but a valid report
+    r = pdlin.sparsity_report(sp.csr_array((4, 4)), fill_limit=0)
+    assert r.nnz == 0 and r.bytes_per_nnz_csr is None and r.zero_modes == 4
+    json.dumps(r.to_dict(), allow_nan=False)
+    assert "nnz stored / numeric" in str(r)
