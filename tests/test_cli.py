@@ -207,3 +207,14 @@ name = "direct"
     np.testing.assert_allclose(pf[sel][order], pq[oq])
     # the full model's u_y = 0 on the line y = 0 is what the symmetry implies there
     np.testing.assert_allclose(rq.u[oq], rf.u[sel][order], rtol=1e-9, atol=1e-12)
+
+
+def test_sparsity_command(tmp_path, capsys):
+    scene = _write(tmp_path, SCENE)
+    assert main(["sparsity", str(scene), "--json", "--numeric"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    sc = load_scene(scene)
+    K = pdlin.assemble_stiffness(sc.model, sc.cloud, sc.bonds())
+    assert rep["nnz"] == K.nnz  # the pattern predicted from the bonds equals the assembled one
+    assert main(["sparsity", str(scene)]) == 0
+    assert "nnz" in capsys.readouterr().out

@@ -135,7 +135,13 @@ def _cmd_sparsity(args: argparse.Namespace) -> int:
 
     scene = _load(args)
     bonds = scene.bonds()
-    rep = sparsity_report(model=scene.model, cloud=scene.cloud, bonds=bonds)
+    rep = sparsity_report(
+        model=scene.model,
+        cloud=scene.cloud,
+        bonds=bonds,
+        numeric=args.numeric,
+        fill_limit=args.fill_limit,
+    )
     if args.json:
         print(json.dumps(rep.to_dict(), indent=2))
     else:
@@ -180,6 +186,17 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("scene", nargs="?", help="scene file (.toml)")
     s.add_argument("--example", help="use a built-in example scene")
     s.add_argument("--json", action="store_true")
+    s.add_argument(
+        "--numeric",
+        action="store_true",
+        help="assemble K for symmetry, diagonal dominance and conditioning",
+    )
+    s.add_argument(
+        "--fill-limit",
+        type=int,
+        default=5000,
+        help="measure factorization fill-in up to this many DOFs (default 5000)",
+    )
     s.set_defaults(func=_cmd_sparsity)
 
     e = sub.add_parser("examples", help="list the built-in example scenes")
