@@ -17,28 +17,36 @@ __all__ = [
 ]
 
 
-def _per_point_outer(bonds: Bonds, w: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _per_point_outer(
+    owner: np.ndarray, n: int, w: np.ndarray, a: np.ndarray, b: np.ndarray
+) -> np.ndarray:
     """out[p] = Σ_{bonds of p} w a ⊗ b, vectorized with one bincount per entry."""
-    n, d = bonds.n_points, bonds.dim
+    d = a.shape[1]
     out = np.empty((n, d, d))
     for r in range(d):
         wa = w * a[:, r]
         for c in range(d):
-            out[:, r, c] = np.bincount(bonds.i, weights=wa * b[:, c], minlength=n)
+            out[:, r, c] = np.bincount(owner, weights=wa * b[:, c], minlength=n)
     return out
 
 
 def shape_tensor(bonds: Bonds) -> np.ndarray:
     """Shape tensors ``K_i = Σ_j ω ξ⊗ξ V_j``, ``(n, dim, dim)``."""
     w = bonds.omega * bonds.volume_j
-    return _per_point_outer(bonds, w, bonds.xi, bonds.xi)
+    return _per_point_outer(bonds.i, bonds.n_points, w, bonds.xi, bonds.xi)
 
 
-def deformation_gradient(cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
+def deformation_gradient(
+    cloud: PointCloud, bonds: Bonds, u: np.ndarray, *, n_owners: int | None = None
+) -> np.ndarray:
     """Nonlocal deformation gradient ``F_i = I + [Σ ω η⊗ξ V_j] K_i⁻¹``.
 
     Exact for affine displacement fields at every point whose shape tensor
     is invertible, boundary points included.
+
+    ``n_owners`` restricts the evaluation to the first points (bonds are
+    owner-sorted), e.g. the real points of a cloud extended by mirror
+    images; the result then has ``n_owners`` rows.
 
     Examples
     --------
@@ -55,7 +63,11 @@ def deformation_gradient(cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.n
     if uu.size != cloud.n * d:
         raise ShapeError(f"u must have shape ({cloud.n}, {d}), got {uu.shape}")
     uu = uu.reshape(cloud.n, d)
-    K = shape_tensor(bonds)
+    n = cloud.n if n_owners is None else int(n_owners)
+    end = int(bonds.indptr[n])
+    i, j, xi = bonds.i[:end], bonds.j[:end], bonds.xi[:end]
+    w = bonds.omega[:end] * bonds.volume_j[:end]
+    K = _per_point_outer(i, n, w, xi, xi)
     det = np.linalg.det(K)
     scale = np.einsum("nii->n", K) ** d / d**d
     bad = np.flatnonzero(np.abs(det) <= 1e-12 * np.maximum(scale, 1e-300))
@@ -64,8 +76,8 @@ def deformation_gradient(cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.n
             f"shape tensor is singular at {bad.size} point(s) (first {int(bad[0])}, "
             f"{int(bonds.family_size[bad[0]])} bonds): its family does not span {d}D"
         )
-    eta = uu[bonds.j] - uu[bonds.i]
-    N = _per_point_outer(bonds, bonds.omega * bonds.volume_j, eta, bonds.xi)
+    eta = uu[j] - uu[i]
+    N = _per_point_outer(i, n, w, eta, xi)
     Kinv = np.linalg.inv(K)
     return np.eye(d)[None] + N @ Kinv
 

@@ -42,6 +42,7 @@ from ..errors import (
     NoNeighborsError,
     ShapeError,
 )
+from ..fields import deformation_gradient
 from ..geometry.bonds import Bonds, find_bonds, resolve_horizon
 from ..geometry.cloud import PointCloud
 from .assembly import assemble_stiffness
@@ -663,28 +664,7 @@ class SymmetryReduction:
         to the full model's value on the shared points.
         """
         m = self.mirror
-        n, d = m.n_real, m.dim
-        ua = self.expand(u)
-        b = self.bonds
-        end = int(b.indptr[n])
-        i, j, xi = b.i[:end], b.j[:end], b.xi[:end]
-        w = b.omega[:end] * b.volume_j[:end]
-        eta = ua[j] - ua[i]
-        K = np.empty((n, d, d))
-        N = np.empty((n, d, d))
-        for r in range(d):  # dim x dim entries, vectorized over bonds
-            for c in range(d):
-                K[:, r, c] = np.bincount(i, weights=w * xi[:, r] * xi[:, c], minlength=n)
-                N[:, r, c] = np.bincount(i, weights=w * eta[:, r] * xi[:, c], minlength=n)
-        det = np.linalg.det(K)
-        scale = np.einsum("nii->n", K) ** d / d**d
-        bad = np.flatnonzero(np.abs(det) <= 1e-12 * np.maximum(scale, 1e-300))
-        if bad.size:
-            raise InputError(
-                f"shape tensor is singular at {bad.size} point(s) (first {int(bad[0])}): "
-                f"its family does not span {d}D"
-            )
-        return np.eye(d)[None] + N @ np.linalg.inv(K)
+        return deformation_gradient(m.cloud, self.bonds, self.expand(u), n_owners=m.n_real)
 
     def stress(self, u: Any) -> np.ndarray:
         """Model stress at the real points using ghost bonds, ``(n_real, d, d)``."""
