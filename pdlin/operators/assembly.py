@@ -90,17 +90,31 @@ def pair_stiffness_bsr(
     nb = bonds.n_bonds
     if coef.shape != (nb,):
         raise ShapeError(f"coef must have shape ({nb},), got {coef.shape}")
-    indptr, indices, bond_pos, diag_pos = bond_pattern_bsr(bonds)
-    data = np.empty((nb + n, d, d))
     bptr = np.asarray(bonds.indptr, dtype=np.int64)
-    # rows are processed in chunks of about _CHUNK bonds: the per-bond
-    # blocks k n nᵀ are formed once in a cache-sized buffer, copied to their
-    # BSR slots as whole dim x dim blocks and summed per row (the bonds of
-    # a row are contiguous) for the diagonal block
+    idt = _index_dtype(nb + n)
+    indptr = (bptr + np.arange(n + 1, dtype=np.int64)).astype(idt)
+    indices = np.empty(nb + n, dtype=idt)
+    data = np.empty((nb + n, d, d))
+    # rows are processed in chunks of about _CHUNK bonds: the block pattern
+    # (bond_pattern_bsr's positions, chunk by chunk: no global position
+    # arrays), the per-bond blocks k n nᵀ formed once in a cache-sized
+    # buffer and copied to their BSR slots as whole dim x dim blocks, and
+    # their per-row sums (the bonds of a row are contiguous) for the
+    # diagonal block
     starts = np.searchsorted(bptr, np.arange(0, nb, _CHUNK), side="right") - 1
-    row_edges = np.unique(np.concatenate([starts, [n]]))
+    row_edges = np.unique(np.concatenate([[0], starts, [n]]))  # empty rows stay covered
     for r0, r1 in zip(row_edges[:-1], row_edges[1:], strict=True):
         b0, b1 = int(bptr[r0]), int(bptr[r1])
+        owner = bonds.i[b0:b1] - r0
+        jj = bonds.j[b0:b1]
+        upper = jj > bonds.i[b0:b1]
+        bond_pos = np.arange(b0, b1, dtype=np.int64)
+        bond_pos += bonds.i[b0:b1]
+        bond_pos += upper
+        nless = np.bincount(owner[~upper], minlength=r1 - r0)
+        diag_pos = bptr[r0:r1] + np.arange(r0, r1, dtype=np.int64) + nless
+        indices[bond_pos] = jj
+        indices[diag_pos] = np.arange(r0, r1)
         if directions is None:
             unit_t = (bonds.xi[b0:b1] * (1.0 / bonds.length[b0:b1])[:, None]).T
         else:
@@ -113,16 +127,15 @@ def pair_stiffness_bsr(
         for a in range(d):  # exact symmetry: K[i, j] block b,a reuses entry a,b
             for b in range(a + 1, d):
                 blk_t[b, a] = blk_t[a, b]
-        data[bond_pos[b0:b1]] = blk_t.transpose(2, 0, 1)
+        data[bond_pos] = blk_t.transpose(2, 0, 1)
         # diagonal: sequential per-row sums (np.bincount) of the bond blocks
-        owner = bonds.i[b0:b1] - r0
         dsum = np.empty((r1 - r0, d, d))
         for a in range(d):
             for b in range(a, d):
                 dsum[:, a, b] = np.bincount(owner, weights=blk_t[a, b], minlength=r1 - r0)
                 dsum[:, b, a] = dsum[:, a, b]
         np.negative(dsum, out=dsum)
-        data[diag_pos[r0:r1]] = dsum
+        data[diag_pos] = dsum
     return sp.bsr_array((data, indices, indptr), shape=(n * d, n * d), blocksize=(d, d))
 
 
