@@ -5,6 +5,7 @@ conditions -> solver -> fields -> files.
 """
 
 from . import errors
+from .calibration import CalibrationResult, calibrate_micromoduli
 from .errors import ConvergenceError, FloatingBodyError
 from .fields import deformation_gradient, shape_tensor, small_strain
 from .geometry import Bonds, PointCloud, find_bonds, from_image, grid
@@ -56,4 +57,6 @@ __all__ = [
     "deformation_gradient",
     "shape_tensor",
     "small_strain",
+    "calibrate_micromoduli",
+    "CalibrationResult",
 ]

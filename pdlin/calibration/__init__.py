@@ -1,0 +1,30 @@
+"""Micromodulus calibration for anisotropic bond-based peridynamics (spec 004).
+
+:func:`calibrate_micromoduli` fits one micromodulus per bond so that a bond
+family (or every family of a cloud) reproduces a target stiffness tensor in
+the Frobenius norm; :func:`lattice_family` builds single lattice families.
+"""
+
+from .calibrate import (
+    METHODS,
+    QP_SOLVERS,
+    CalibrationResult,
+    calibrate_micromoduli,
+    design_matrix,
+    max_lower_bound,
+)
+from .lattices import LATTICES, Family, equiangle_rotation, lattice_family, reflection
+
+__all__ = [
+    "calibrate_micromoduli",
+    "CalibrationResult",
+    "Family",
+    "lattice_family",
+    "design_matrix",
+    "max_lower_bound",
+    "equiangle_rotation",
+    "reflection",
+    "LATTICES",
+    "METHODS",
+    "QP_SOLVERS",
+]
