@@ -1,0 +1,443 @@
+"""The eight elastic symmetry classes: constructors, symmetry groups, invariance tests.
+
+Constructors return 6×6 plain-Voigt matrices in the material frame of spec 004 §1.3:
+monoclinic mirror plane z = 0; orthotropic, tetragonal and cubic axes along e₁, e₂, e₃;
+trigonal, tetragonal and transversely isotropic axis e₃; trigonal mirror normal e₁
+(spec erratum E4: normals e₁ and ½e₁ ± (√3/2)e₂, sign pattern ``C14 = -C24 = C56``).
+Every constructor checks that the result is positive definite.
+
+=======================  ====================================  =========  ===========
+class                    group generators (spec §1.3)          constants  with Cauchy
+=======================  ====================================  =========  ===========
+triclinic                I, -I                                 21         15
+monoclinic               I, -I, R(e₃)                          13         9
+orthotropic              I, -I, R(e₁), R(e₂), R(e₃)            9          6
+trigonal                 I, -I, R(e₁), R(½e₁ ± (√3/2)e₂), 3-fold about e₃   6   4
+tetragonal               orthotropic + R((e₁ ± e₂)/√2)         6          4
+transversely isotropic   I, -I, R(e₃), R(a e₁ + b e₂) (any)    5          3
+cubic                    R(e_i), R((e_i ± e_j)/√2)             3          2
+isotropic                all Q                                 2          1
+=======================  ====================================  =========  ===========
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import InputError, ShapeError
+from .tensors import (
+    _finite_scalar,
+    _to_tensor,
+    check_stiffness,
+    reflection,
+    rotate,
+    rotation_matrix,
+)
+
+__all__ = [
+    "triclinic",
+    "monoclinic",
+    "orthotropic",
+    "trigonal",
+    "tetragonal",
+    "transversely_isotropic",
+    "cubic",
+    "isotropic",
+    "SYMMETRY_CLASSES",
+    "N_CONSTANTS",
+    "N_CONSTANTS_CAUCHY",
+    "symmetry_group",
+    "symmetry_distance",
+    "is_symmetric_under",
+]
+
+FloatArray = NDArray[np.float64]
+
+
+def _build(name: str, **entries: Any) -> FloatArray:
+    """Symmetric 6×6 Voigt matrix from entries named ``Cab`` (1-based, a ≤ b)."""
+    C = np.zeros((6, 6))
+    for key, value in entries.items():
+        a, b = int(key[1]) - 1, int(key[2]) - 1
+        v = _finite_scalar(value, key)
+        C[a, b] = C[b, a] = v
+    return check_stiffness(C, f"C ({name})")
+
+
+def triclinic(C: ArrayLike) -> FloatArray:
+    """Triclinic stiffness: any symmetric positive definite 6×6 Voigt matrix (21 constants).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> triclinic(np.eye(6)).shape
+    (6, 6)
+    >>> triclinic(np.eye(3))  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    pdlin.errors.ShapeError: C must be a 6x6 Voigt matrix, got shape (3, 3)
+    """
+    arr = np.asarray(C, dtype=np.float64) if not isinstance(C, np.ndarray) else C
+    if np.shape(arr) != (6, 6):
+        raise ShapeError(f"C must be a 6x6 Voigt matrix, got shape {np.shape(arr)}")
+    return np.array(check_stiffness(arr, "C"), dtype=np.float64)
+
+
+def monoclinic(
+    C11: float, C22: float, C33: float, C12: float, C13: float, C23: float,
+    C44: float, C55: float, C66: float, C16: float, C26: float, C36: float, C45: float,
+) -> FloatArray:  # fmt: skip
+    """Monoclinic stiffness, mirror plane z = 0 (13 constants).
+
+    Entries with an odd number of indices 3 vanish (C14, C15, C24, C25, C34, C35, C46, C56).
+
+    Examples
+    --------
+    >>> C = monoclinic(135, 13, 269, 19, 54, 15, 14, 66, 18, 42, 6, 18, 25)  # CoTeO4, spec §3
+    >>> float(C[0, 5]), float(C[3, 4]), float(C[0, 3])
+    (42.0, 25.0, 0.0)
+    """
+    return _build(
+        "monoclinic", C11=C11, C22=C22, C33=C33, C12=C12, C13=C13, C23=C23,
+        C44=C44, C55=C55, C66=C66, C16=C16, C26=C26, C36=C36, C45=C45,
+    )  # fmt: skip
+
+
+def orthotropic(
+    C11: float, C22: float, C33: float, C12: float, C13: float, C23: float,
+    C44: float, C55: float, C66: float,
+) -> FloatArray:  # fmt: skip
+    """Orthotropic stiffness, mirror planes normal to e₁, e₂, e₃ (9 constants).
+
+    Examples
+    --------
+    >>> orthotropic(143, 3, 102, 1, 37, 3, 2, 46, 1)[:3, :3].tolist()   # Te2W, spec §3
+    [[143.0, 1.0, 37.0], [1.0, 3.0, 3.0], [37.0, 3.0, 102.0]]
+    """
+    return _build(
+        "orthotropic", C11=C11, C22=C22, C33=C33, C12=C12, C13=C13, C23=C23,
+        C44=C44, C55=C55, C66=C66,
+    )  # fmt: skip
+
+
+def trigonal(C11: float, C33: float, C12: float, C13: float, C14: float, C44: float) -> FloatArray:
+    """Trigonal stiffness, 3-fold axis e₃, mirror normal e₁ (6 constants).
+
+    ``C22 = C11``, ``C23 = C13``, ``C55 = C44``, ``C24 = -C14``, ``C56 = C14``,
+    ``C66 = (C11 - C12)/2`` (spec Eq. 65 as corrected, erratum E4).
+
+    Examples
+    --------
+    >>> C = trigonal(464, 493, 159, 141, -45, 125)       # Ta2C, spec §3 (C66 152.5, not 153)
+    >>> float(C[0, 3]), float(C[1, 3]), float(C[4, 5]), float(C[5, 5])
+    (-45.0, 45.0, -45.0, 152.5)
+    """
+    return _build(
+        "trigonal", C11=C11, C22=C11, C33=C33, C12=C12, C13=C13, C23=C13, C14=C14,
+        C24=-_finite_scalar(C14, "C14"), C44=C44, C55=C44, C56=C14,
+        C66=0.5 * (_finite_scalar(C11, "C11") - _finite_scalar(C12, "C12")),
+    )  # fmt: skip
+
+
+def tetragonal(
+    C11: float, C33: float, C12: float, C13: float, C44: float, C66: float
+) -> FloatArray:
+    """Tetragonal stiffness, 4-fold axis e₃, mirrors e₁, e₂, e₃, (e₁ ± e₂)/√2 (6 constants).
+
+    Examples
+    --------
+    >>> C = tetragonal(212, 179, 70, 58, 58, 85)          # Si, spec §3
+    >>> float(C[1, 1]), float(C[1, 2]), float(C[4, 4]), float(C[5, 5])
+    (212.0, 58.0, 58.0, 85.0)
+    """
+    return _build(
+        "tetragonal", C11=C11, C22=C11, C33=C33, C12=C12, C13=C13, C23=C13,
+        C44=C44, C55=C44, C66=C66,
+    )  # fmt: skip
+
+
+def transversely_isotropic(
+    C11: float, C33: float, C12: float, C13: float, C44: float
+) -> FloatArray:
+    """Transversely isotropic stiffness, axis e₃ (5 constants; ``C66 = (C11 - C12)/2``).
+
+    Examples
+    --------
+    >>> float(transversely_isotropic(499, 714, 177, 235, 241)[5, 5])   # MoN, spec §3
+    161.0
+    """
+    return _build(
+        "transversely isotropic", C11=C11, C22=C11, C33=C33, C12=C12, C13=C13, C23=C13,
+        C44=C44, C55=C44,
+        C66=0.5 * (_finite_scalar(C11, "C11") - _finite_scalar(C12, "C12")),
+    )  # fmt: skip
+
+
+def cubic(C11: float, C12: float, C44: float) -> FloatArray:
+    """Cubic stiffness, axes e₁, e₂, e₃ (3 constants).
+
+    Examples
+    --------
+    >>> C = cubic(252, 145, 142)                                      # spinel, spec §3
+    >>> float(C[2, 2]), float(C[0, 2]), float(C[3, 3])
+    (252.0, 145.0, 142.0)
+    """
+    return _build(
+        "cubic", C11=C11, C22=C11, C33=C11, C12=C12, C13=C12, C23=C12,
+        C44=C44, C55=C44, C66=C44,
+    )  # fmt: skip
+
+
+def _lame_from(given: dict[str, float]) -> tuple[float, float]:
+    """(λ, μ) from any two of E, ν, λ, G (= μ), K."""
+    g = given
+    keys = frozenset(g)
+    if keys == {"lam", "G"}:
+        return g["lam"], g["G"]
+    if keys == {"E", "nu"}:
+        E, nu = g["E"], g["nu"]
+        if nu <= -1.0 or nu >= 0.5:
+            raise InputError(f"nu must be in (-1, 0.5), got {nu}")
+        return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
+    if keys == {"K", "G"}:
+        return g["K"] - 2.0 * g["G"] / 3.0, g["G"]
+    if keys == {"E", "G"}:
+        E, G = g["E"], g["G"]
+        if G == 0.0 or 3.0 * G == E:
+            raise InputError(f"E and G must give a finite nu, got E = {E}, G = {G}")
+        return G * (E - 2.0 * G) / (3.0 * G - E), G
+    if keys == {"E", "K"}:
+        E, K = g["E"], g["K"]
+        if 9.0 * K == E:
+            raise InputError(f"E and K must satisfy E != 9K, got E = {E}, K = {K}")
+        G = 3.0 * K * E / (9.0 * K - E)
+        return K - 2.0 * G / 3.0, G
+    if keys == {"K", "nu"}:
+        K, nu = g["K"], g["nu"]
+        if nu <= -1.0 or nu >= 0.5:
+            raise InputError(f"nu must be in (-1, 0.5), got {nu}")
+        G = 3.0 * K * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu))
+        return K - 2.0 * G / 3.0, G
+    if keys == {"G", "nu"}:
+        G, nu = g["G"], g["nu"]
+        if nu >= 0.5:
+            raise InputError(f"nu must be < 0.5, got {nu}")
+        return 2.0 * G * nu / (1.0 - 2.0 * nu), G
+    if keys == {"lam", "nu"}:
+        lam, nu = g["lam"], g["nu"]
+        if nu == 0.0:
+            raise InputError("lam and nu cannot fix the moduli when nu = 0, give another pair")
+        return lam, lam * (1.0 - 2.0 * nu) / (2.0 * nu)
+    if keys == {"lam", "K"}:
+        return g["lam"], 1.5 * (g["K"] - g["lam"])
+    # keys == {"E", "lam"}
+    E, lam = g["E"], g["lam"]
+    R = np.sqrt(E * E + 9.0 * lam * lam + 2.0 * E * lam)
+    return lam, float(E - 3.0 * lam + R) / 4.0
+
+
+def isotropic(
+    E: float | None = None,
+    nu: float | None = None,
+    *,
+    lam: float | None = None,
+    mu: float | None = None,
+    K: float | None = None,
+    G: float | None = None,
+) -> FloatArray:
+    """Isotropic stiffness from exactly two of E, ν, λ, μ (= G), K.
+
+    ``C11 = λ + 2μ``, ``C12 = λ``, ``C44 = μ``.
+
+    Raises
+    ------
+    InputError
+        Not exactly two moduli given (``mu`` and ``G`` are the same modulus), or moduli
+        that do not give a positive definite tensor (need K > 0, G > 0).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> C = isotropic(E=86.0, nu=0.25)                   # Pyroceram 9608, spec §3
+    >>> round(float(C[0, 0]), 6), round(float(C[0, 1]), 6), round(float(C[3, 3]), 6)
+    (103.2, 34.4, 34.4)
+    >>> bool(np.allclose(isotropic(K=57.3333333333333, G=34.4), C))
+    True
+    """
+    if mu is not None and G is not None:
+        raise InputError(f"give mu or G (the same shear modulus), not both: mu = {mu}, G = {G}")
+    passed = {"E": E, "nu": nu, "lam": lam, "mu": mu, "K": K, "G": G}
+    names = [k for k, v in passed.items() if v is not None]
+    if len(names) != 2:
+        raise InputError(
+            "isotropic needs exactly two of E, nu, lam, mu (or G), K, "
+            f"got {len(names)}: {', '.join(names) or 'none'}"
+        )
+    given = {("G" if k == "mu" else k): _finite_scalar(passed[k], k) for k in names}
+    lam_, mu_ = _lame_from(given)
+    return _build(
+        "isotropic", C11=lam_ + 2 * mu_, C22=lam_ + 2 * mu_, C33=lam_ + 2 * mu_,
+        C12=lam_, C13=lam_, C23=lam_, C44=mu_, C55=mu_, C66=mu_,
+    )  # fmt: skip
+
+
+#: Class name → constructor, from most to least anisotropic (spec §1.3).
+SYMMETRY_CLASSES: dict[str, Callable[..., FloatArray]] = {
+    "triclinic": triclinic,
+    "monoclinic": monoclinic,
+    "orthotropic": orthotropic,
+    "trigonal": trigonal,
+    "tetragonal": tetragonal,
+    "transversely_isotropic": transversely_isotropic,
+    "cubic": cubic,
+    "isotropic": isotropic,
+}
+
+#: Independent elastic constants per class (spec §1.3, "classical").
+N_CONSTANTS: dict[str, int] = {
+    "triclinic": 21, "monoclinic": 13, "orthotropic": 9, "trigonal": 6, "tetragonal": 6,
+    "transversely_isotropic": 5, "cubic": 3, "isotropic": 2,
+}  # fmt: skip
+
+#: Independent constants once the Cauchy relations are imposed (spec §1.3).
+N_CONSTANTS_CAUCHY: dict[str, int] = {
+    "triclinic": 15, "monoclinic": 9, "orthotropic": 6, "trigonal": 4, "tetragonal": 4,
+    "transversely_isotropic": 3, "cubic": 2, "isotropic": 1,
+}  # fmt: skip
+
+# Generic angles (irrational multiples of π) for the continuous groups.
+_GENERIC_ANGLE = 1.0
+_GENERIC_AXES = ((0.3, 0.5, 0.8), (-0.7, 0.2, 0.4))
+
+
+def _frame(n_axis: ArrayLike) -> FloatArray:
+    """Smallest rotation R with R e₃ = n (n normalized); R(−e₃) is a π turn about e₁."""
+    n = np.asarray(n_axis, dtype=np.float64)
+    if n.shape != (3,):
+        raise ShapeError(f"n_axis must have shape (3,), got {n.shape}")
+    norm = float(np.linalg.norm(n))
+    if not np.isfinite(norm) or norm == 0.0:
+        raise InputError(f"n_axis must be a finite nonzero vector, got {n.tolist()}")
+    n = n / norm
+    e3 = np.array([0.0, 0.0, 1.0])
+    c = float(n @ e3)
+    axis = np.cross(e3, n)
+    s = float(np.linalg.norm(axis))
+    if s < 1e-14:
+        return np.eye(3) if c > 0 else rotation_matrix([1.0, 0.0, 0.0], np.pi)
+    return rotation_matrix(axis, float(np.arctan2(s, c)))
+
+
+def symmetry_group(name: str, n_axis: ArrayLike = (0, 0, 1)) -> list[FloatArray]:
+    """Orthogonal 3×3 matrices generating the symmetry group of a class (spec §1.3).
+
+    The reflections ``R(n) = I - 2 n⊗n`` (and, for trigonal, the 2π/3 turns about e₃) of
+    the spec table, for the material frame of the constructors.  Continuous groups
+    (transversely isotropic, isotropic) are represented by generators at generic angles
+    whose closure is dense in the group, so invariance under the returned list is
+    invariance under the whole group.  With ``n_axis``, the material axis e₃ is turned
+    onto ``n_axis`` by the smallest rotation ``R`` and every element is conjugated,
+    ``R Q Rᵀ``: the group of ``rotate(C, R)``.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`SYMMETRY_CLASSES`.
+    n_axis : (3,) array_like of float
+        Direction of the material axis (monoclinic mirror normal, trigonal/tetragonal/
+        transversely isotropic axis).
+
+    Returns
+    -------
+    list of (3, 3) ndarray
+
+    Examples
+    --------
+    >>> from pdlin.constitutive import cubic
+    >>> C = cubic(252.0, 145.0, 142.0)
+    >>> all(is_symmetric_under(C, Q) for Q in symmetry_group("cubic"))
+    True
+    >>> len(symmetry_group("orthotropic"))
+    5
+    """
+    if name not in SYMMETRY_CLASSES:
+        raise InputError(f"name must be one of {sorted(SYMMETRY_CLASSES)}, got {name!r}")
+    I3 = np.eye(3)
+    e1, e2, e3 = I3
+    base = [I3, -I3]
+    r = np.sqrt(0.5)
+    if name == "triclinic":
+        group = base
+    elif name == "monoclinic":
+        group = base + [reflection(e3)]
+    elif name == "orthotropic":
+        group = base + [reflection(e1), reflection(e2), reflection(e3)]
+    elif name == "trigonal":
+        h = np.sqrt(3.0) / 2.0
+        group = base + [
+            reflection(e1),
+            reflection([0.5, h, 0.0]),
+            reflection([0.5, -h, 0.0]),
+            rotation_matrix(e3, 2.0 * np.pi / 3.0),
+            rotation_matrix(e3, 4.0 * np.pi / 3.0),
+        ]
+    elif name == "tetragonal":
+        group = base + [
+            reflection(e1), reflection(e2), reflection(e3),
+            reflection([r, r, 0.0]), reflection([r, -r, 0.0]),
+        ]  # fmt: skip
+    elif name == "transversely_isotropic":
+        t = _GENERIC_ANGLE
+        group = base + [
+            reflection(e3), reflection(e1), reflection(e2),
+            reflection([np.cos(t), np.sin(t), 0.0]),
+            rotation_matrix(e3, t),
+        ]  # fmt: skip
+    elif name == "cubic":
+        group = [I3, -I3] + [reflection(e) for e in (e1, e2, e3)]
+        for a, b in ((e1, e2), (e2, e3), (e1, e3)):
+            group += [reflection(r * (a + b)), reflection(r * (a - b))]
+    else:  # isotropic
+        group = base + [reflection(e1), reflection(np.array(_GENERIC_AXES[0]))]
+        group += [rotation_matrix(ax, _GENERIC_ANGLE) for ax in _GENERIC_AXES]
+    R = _frame(n_axis)
+    return [R @ Q @ R.T for Q in group]
+
+
+def symmetry_distance(C: ArrayLike, Q: ArrayLike) -> float:
+    """Relative change ``‖Q∗C - C‖_F / ‖C‖_F`` (full-tensor Frobenius norm).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from pdlin.constitutive import material
+    >>> round(symmetry_distance(material("trigonal"), reflection([0, 1, 0])), 2)  # spec E4
+    0.35
+    """
+    T, _, _ = _to_tensor(C, "C")
+    norm = float(np.linalg.norm(T))
+    if norm == 0.0:
+        raise InputError("C must be nonzero to measure a relative symmetry distance, got C = 0")
+    return float(np.linalg.norm(rotate(T, Q) - T)) / norm
+
+
+def is_symmetric_under(C: ArrayLike, Q: ArrayLike, rtol: float = 1e-10) -> bool:
+    """Whether ``Q`` is a symmetry of ``C``: ``symmetry_distance(C, Q) <= rtol``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from pdlin.constitutive import material
+    >>> C = material("trigonal")                      # printed Ta2C: C66 = 153, not 152.5
+    >>> is_symmetric_under(C, reflection([1, 0, 0]))
+    True
+    >>> is_symmetric_under(C, rotation_matrix([0, 0, 1], 2 * np.pi / 3))
+    False
+    >>> is_symmetric_under(C, rotation_matrix([0, 0, 1], 2 * np.pi / 3), rtol=2e-3)
+    True
+    """
+    return symmetry_distance(C, Q) <= rtol
