@@ -4,7 +4,7 @@ The pipeline: points -> bonds -> model -> sparse operators -> boundary
 conditions -> solver -> fields -> files.
 """
 
-from . import errors
+from . import constitutive, errors
 from .calibration import CalibrationResult, calibrate_micromoduli
 from .errors import ConvergenceError, FloatingBodyError
 from .fields import deformation_gradient, shape_tensor, small_strain
@@ -30,6 +30,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "errors",
+    "constitutive",
     "ConvergenceError",
     "FloatingBodyError",
     "PointCloud",
