@@ -81,10 +81,9 @@ def triclinic(C: ArrayLike) -> FloatArray:
     ...
     pdlin.errors.ShapeError: C must be a 6x6 Voigt matrix, got shape (3, 3)
     """
-    arr = np.asarray(C, dtype=np.float64) if not isinstance(C, np.ndarray) else C
-    if np.shape(arr) != (6, 6):
-        raise ShapeError(f"C must be a 6x6 Voigt matrix, got shape {np.shape(arr)}")
-    return np.array(check_stiffness(arr, "C"), dtype=np.float64)
+    if np.shape(C) != (6, 6):
+        raise ShapeError(f"C must be a 6x6 Voigt matrix, got shape {np.shape(C)}")
+    return np.array(check_stiffness(C, "C"), dtype=np.float64)
 
 
 def monoclinic(

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import doctest
 import inspect
 import itertools
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -607,3 +609,13 @@ def test_material_lookup():
     assert not pc.MATERIALS["cubic"][0].flags.writeable
     with pytest.raises(InputError, match="name must be one of .* got 'unobtainium'"):
         pc.material("unobtainium")
+
+
+def test_docs_examples_run():
+    """The examples of docs/constitutive.md are doctests; keep them true."""
+    path = Path(__file__).resolve().parents[2] / "docs" / "constitutive.md"
+    res = doctest.testfile(
+        str(path), module_relative=False, optionflags=doctest.NORMALIZE_WHITESPACE
+    )
+    assert res.attempted >= 15
+    assert res.failed == 0
