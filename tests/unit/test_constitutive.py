@@ -389,6 +389,12 @@ def test_cauchy_projection_is_orthogonal_projection(n):
     # totally symmetric: invariant under every permutation of the four indices
     for perm in itertools.permutations(range(4)):
         np.testing.assert_allclose(TP.transpose(perm), TP, rtol=1e-14)
+    # equals the total symmetrization (C_ijkl + C_ikjl + C_iljk)/3 of spec §2.3 and the
+    # mean over all 24 index permutations (independent of the Voigt pair formula)
+    tot = (T + np.einsum("ikjl->ijkl", T) + np.einsum("iljk->ijkl", T)) / 3
+    np.testing.assert_allclose(TP, tot, rtol=1e-14)
+    mean24 = sum(T.transpose(p) for p in itertools.permutations(range(4))) / 24
+    np.testing.assert_allclose(TP, mean24, rtol=1e-14)
     # full-tensor input gives the full-tensor result
     np.testing.assert_allclose(pc.cauchy_projection(T), TP, rtol=1e-14)
 
