@@ -414,7 +414,7 @@ def _qp_osqp(Q: np.ndarray, d: np.ndarray, lb: np.ndarray) -> _QPOut:
         P, np.zeros(n), A, lo, hi, eps_abs=1e-10, eps_rel=1e-10, polishing=True,
         max_iter=200000, verbose=False,
     )
-    res = s.solve()
+    res = s.solve(raise_error=False)
     status = str(res.info.status)
     x = np.asarray(res.x) if status.startswith("solved") else None
     return _QPOut(x, status, "osqp")
@@ -528,6 +528,9 @@ def _solve_family(
     first, inv, counts = _merge_columns(Xw)
     sk = np.sqrt(counts.astype(float))
     A = Xw[:, first] * sk[None, :]  # reduced system in t = sqrt(k) c
+    # zero columns (omega = 0) do not enter the fit: c = max(bound, 0) there
+    nonzero = np.any(A != 0.0, axis=0)
+    A = np.where(nonzero[None, :], A, 0.0)
     U, s, Vt = np.linalg.svd(A, full_matrices=False)
     smax = float(s[0]) if s.size else 0.0
     rank = int(np.sum(s > rcond * smax)) if smax > 0 else 0
@@ -539,6 +542,7 @@ def _solve_family(
         )
     Ur, sr, Vr = U[:, :rank], s[:rank], Vt[:rank]
     t_ls = Vr.T @ ((Ur.T @ bw) / sr)
+    t_ls[~nonzero] = 0.0
     lt = lower_bound * sk
     dirs = _directions_mod_sign(fam.xi, np.abs(Xw).max(axis=0) > 0)
     msgs: list[str] = []
@@ -555,7 +559,7 @@ def _solve_family(
     kkt = {"equality": 0.0, "bound": 0.0, "stationarity": 0.0, "dual": 0.0}
     t = t_ls
     c_ls = (t_ls / sk)[inv]
-    if c_ls.min() < lower_bound:
+    if c_ls[nonzero[inv]].min() < lower_bound:
         if method == "min-norm":
             status = "negative"
             msgs.append(
@@ -600,6 +604,9 @@ def _solve_family(
                 t = np.maximum(t, lt)
                 kkt = _kkt(t, Q, d, lt, scale)
     c_red = t / sk
+    if status in ("qp", "nnls-qp"):
+        c_red = np.maximum(c_red, lower_bound)  # remove round-off below the bound
+    c_red[~nonzero] = max(lower_bound, 0.0) if status != "negative" else 0.0
     c = c_red[inv]
     if status in ("infeasible", "failed") and raise_on_infeasible:
         raise InputError("calibration " + status + ": " + "; ".join(msgs))
