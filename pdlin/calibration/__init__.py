@@ -14,6 +14,7 @@ from .calibrate import (
     max_lower_bound,
 )
 from .lattices import LATTICES, Family, equiangle_rotation, lattice_family, reflection
+from .plotting import plot_micromoduli
 
 __all__ = [
     "calibrate_micromoduli",
@@ -24,6 +25,7 @@ __all__ = [
     "max_lower_bound",
     "equiangle_rotation",
     "reflection",
+    "plot_micromoduli",
     "LATTICES",
     "METHODS",
     "QP_SOLVERS",

@@ -655,6 +655,7 @@ def _solve_family(
         weighting=weighting,
         method=method,
         time=time.perf_counter() - t0,
+        extra={"family": fam, "singular_values": s},
     )
 
 

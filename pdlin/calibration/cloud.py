@@ -194,7 +194,8 @@ def calibrate_bonds(
     nb_ = float(np.sqrt(np.sum(m * b**2)))
     err = np.sqrt(np.sum(m * (vec - b) ** 2, axis=1)) / nb_
     change = np.sqrt(np.sum(m * (vec - owner_vec) ** 2, axis=1)) / nb_
-    pair_change = float(np.nanmax(change)) if n else 0.0
+    fin = np.isfinite(change)
+    pair_change = float(change[fin].max()) if fin.any() else float("nan")
     worst = max(fam_results, key=lambda r: _STATUS_RANK.get(r.status, 9))
     n_bad = sum(r.status in ("infeasible", "failed") for r in fam_results)
     msgs = [
@@ -250,5 +251,5 @@ def calibrate_bonds(
         time=time.perf_counter() - t0,
         families=fam_results,
         family_of_point=fam_index,
-        pair_change=pair_change if boundary == "calibrate" else float(np.nanmax(err)),
+        pair_change=pair_change if boundary == "calibrate" else 0.0,
     )
