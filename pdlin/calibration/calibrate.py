@@ -53,92 +53,33 @@ def _upper(nv: int) -> tuple[np.ndarray, np.ndarray]:
 
 def _multiplicity(dim: int) -> np.ndarray:
     """Multiplicity of each upper-triangle Voigt entry in the full tensor (spec §2.1)."""
-    nd = dim  # number of normal Voigt components
-    a, b = _upper(len(_VOIGT[dim]))
-    ma = np.where(a < nd, 1, 2)
-    mb = np.where(b < nd, 1, 2)
-    return (ma * mb * np.where(a == b, 1, 2)).astype(float)
+    from ..constitutive import frobenius_multiplicity
 
-
-def _voigt_from_tensor(T: np.ndarray, dim: int) -> np.ndarray:
-    pairs = _VOIGT[dim]
-    nv = len(pairs)
-    out = np.empty((nv, nv))
-    for p, (i, j) in enumerate(pairs):
-        for q, (k, m) in enumerate(pairs):
-            out[p, q] = T[i, j, k, m]
-    return out
-
-
-def _tensor_from_voigt(V: np.ndarray, dim: int) -> np.ndarray:
-    pairs = _VOIGT[dim]
-    out = np.empty((dim,) * 4)
-    idx = {}
-    for p, (i, j) in enumerate(pairs):
-        idx[(i, j)] = idx[(j, i)] = p
-    for i, j, k, m in itertools.product(range(dim), repeat=4):
-        out[i, j, k, m] = V[idx[(i, j)], idx[(k, m)]]
-    return out
-
-
-def _plane_reduce(C: np.ndarray, plane: str) -> np.ndarray:
-    """2D target from a 3D Voigt tensor (spec 004 §2.7)."""
-    p = [0, 1, 5]
-    if plane == "strain":
-        return C[np.ix_(p, p)].copy()
-    o = [2, 3, 4]
-    return C[np.ix_(p, p)] - C[np.ix_(p, o)] @ np.linalg.solve(C[np.ix_(o, o)], C[np.ix_(o, p)])
+    return frobenius_multiplicity(dim).astype(float)
 
 
 def _check_target(C: Any, dim: int, plane: str) -> np.ndarray:
-    """Validate the target and return it as a (nv, nv) Voigt matrix for ``dim``."""
-    arr = as_float_array(C, "C")
-    if arr.shape in ((3, 3, 3, 3), (2, 2, 2, 2)):
-        d = arr.shape[0]
-        perms = (arr.transpose(1, 0, 2, 3), arr.transpose(0, 1, 3, 2), arr.transpose(2, 3, 0, 1))
-        scale = float(np.abs(arr).max())
-        bad = max(float(np.abs(arr - p).max()) for p in perms)
-        if bad > 1e-10 * max(scale, 1e-300):
-            raise InputError(
-                "C must have minor and major symmetry (C_ijkl = C_jikl = C_ijlk = C_klij), "
-                f"got a maximum asymmetry of {bad:.3g} (max |C| = {scale:.3g})"
-            )
-        arr = _voigt_from_tensor(arr, d)
-    elif arr.shape == (6, 6):
-        d = 3
-    elif arr.shape == (3, 3):
-        d = 2
-    else:
-        raise ShapeError(
-            "C must be a Voigt matrix (6, 6) (3D) or (3, 3) (2D), or a tensor (3, 3, 3, 3) or "
-            f"(2, 2, 2, 2), got shape {arr.shape}"
-        )
-    scale = float(np.abs(arr).max())
-    if scale == 0.0:
-        raise InputError("C must be positive definite, got the zero tensor")
-    asym = float(np.abs(arr - arr.T).max())
-    if asym > 1e-10 * scale:
-        i, j = np.unravel_index(int(np.argmax(np.abs(arr - arr.T))), arr.shape)
-        raise InputError(
-            f"C must be symmetric, got C[{i},{j}] = {arr[i, j]:.6g} != C[{j},{i}] = "
-            f"{arr[j, i]:.6g}"
-        )
+    """Validate the target and return it as a (nv, nv) Voigt matrix for ``dim``.
+
+    Shape, finiteness, symmetry and positive definiteness are checked by
+    :func:`pdlin.constitutive.check_stiffness`.
+    """
+    from ..constitutive import check_stiffness, plane_strain, plane_stress, tensor_to_voigt
+
+    arr = check_stiffness(C, "C")
+    if arr.ndim == 4:
+        arr = tensor_to_voigt(arr)
     arr = 0.5 * (arr + arr.T)
-    nd = d
-    sc = np.where(np.arange(arr.shape[0]) < nd, 1.0, np.sqrt(2.0))
-    ev = np.linalg.eigvalsh(arr * sc[:, None] * sc[None, :])
-    if ev.min() <= 1e-12 * ev.max():
-        raise InputError(
-            "C must be positive definite (stable elastic tensor), got Mandel eigenvalues "
-            f"min {ev.min():.6g}, max {ev.max():.6g}"
-        )
+    d = 3 if arr.shape == (6, 6) else 2
     if d == dim:
         return arr
     if d == 3 and dim == 2:
         if plane not in ("stress", "strain"):
             raise InputError(f"plane must be 'stress' or 'strain', got {plane!r}")
-        return _plane_reduce(arr, plane)
-    raise ShapeError(f"C is a 2D tensor {arr.shape} but the bond family is {dim}D")
+        return plane_stress(arr) if plane == "stress" else plane_strain(arr)
+    raise ShapeError(
+        f"C is a 2D stiffness {arr.shape} but the bond family is {dim}D; pass a (6, 6) target"
+    )
 
 
 def _voigt_vector(V: np.ndarray) -> np.ndarray:

@@ -14,8 +14,8 @@ from pdlin.calibration import (
     design_matrix,
     lattice_family,
 )
-from pdlin.calibration.calibrate import _tensor_from_voigt, _voigt_from_tensor
 from pdlin.calibration.cloud import group_families
+from pdlin.constitutive import tensor_to_voigt, voigt_to_tensor
 from pdlin.errors import InputError, InputTypeError, NonFiniteError, ShapeError
 
 
@@ -57,7 +57,7 @@ def test_design_matrix_matches_eq29_and_energy(rng):
     X = design_matrix(xi, om, vol, weighting="voigt")
     assert X.shape == (21, 40)
     T = _eq29(xi, om, vol, c)
-    V = _voigt_from_tensor(T, 3)
+    V = tensor_to_voigt(T)
     a, b = np.triu_indices(6)
     np.testing.assert_allclose(X @ c, V[a, b], rtol=1e-12)  # V3: X c = Voigt(Eq. 29)
     # V1: Eq. 29 is fully symmetric
@@ -79,7 +79,7 @@ def test_frobenius_weighting_equals_81_row_least_squares(rng):
     L = fam.length
     w = 0.5 * fam.omega * fam.volume / L**3
     X81 = np.einsum("n,ni,nj,nk,nl->ijkln", w, fam.xi, fam.xi, fam.xi, fam.xi).reshape(81, -1)
-    b81 = _tensor_from_voigt(TRICLINIC, 3).ravel()
+    b81 = voigt_to_tensor(TRICLINIC).ravel()
     c81 = np.linalg.lstsq(X81, b81, rcond=1e-12)[0]  # minimum-norm least squares
     np.testing.assert_allclose(res.micromoduli, c81, rtol=1e-9, atol=1e-12)
     # and it differs from the unweighted Voigt system (spec §7: use a non-Cauchy target)
@@ -92,7 +92,7 @@ def test_merged_columns_equal_plain_pseudo_inverse():
     fam = lattice_family(3, 2.0)
     res = calibrate_micromoduli(TRICLINIC, fam, method="min-norm")
     X = design_matrix(fam.xi, fam.omega, fam.volume)
-    b = _voigt_from_tensor(_tensor_from_voigt(TRICLINIC, 3), 3)[np.triu_indices(6)]
+    b = tensor_to_voigt(voigt_to_tensor(TRICLINIC))[np.triu_indices(6)]
     m = np.array([1, 2, 2, 4, 4, 4, 1, 2, 4, 4, 4, 1, 4, 4, 4, 4, 8, 8, 4, 8, 4])  # spec §2.1
     c = np.linalg.pinv(X, rcond=1e-12) @ (b * np.sqrt(m))
     np.testing.assert_allclose(res.micromoduli, c, rtol=1e-10, atol=1e-12)
@@ -130,7 +130,7 @@ def test_array_input_equals_family_input():
     b = calibrate_micromoduli(TRICLINIC, fam.xi, omega=fam.omega, volume=1.0)
     np.testing.assert_array_equal(a.micromoduli, b.micromoduli)
     # tensor input equals Voigt input
-    c = calibrate_micromoduli(_tensor_from_voigt(TRICLINIC, 3), fam)
+    c = calibrate_micromoduli(voigt_to_tensor(TRICLINIC), fam)
     np.testing.assert_allclose(c.micromoduli, a.micromoduli, rtol=1e-14)
 
 
@@ -157,7 +157,7 @@ def test_cloud_calibration_flows_into_bond_based_effective_tensor():
     np.testing.assert_array_equal(res.micromoduli, res.micromoduli[bonds.reverse])  # symmetric
     model = pdlin.BondBased(micromodulus=res.micromoduli)
     T = model.effective_tensor(cloud, bonds)
-    V = np.stack([_voigt_from_tensor(t, 3) for t in T])
+    V = np.stack([tensor_to_voigt(t) for t in T])
     np.testing.assert_allclose(V, res.tensor, rtol=0, atol=1e-10 * np.abs(C).max())
     centre = int(np.flatnonzero(np.all(cloud.points == 4.5, axis=1))[0])
     single = calibrate_micromoduli(C, lattice_family(3, 2.0))
@@ -184,7 +184,7 @@ def test_cloud_2d_thickness_matches_bond_based():
     res = calibrate_micromoduli(C, bonds, thickness=0.1, method="robust")
     model = pdlin.BondBased(micromodulus=res.micromoduli)
     T = model.effective_tensor(cloud, bonds)
-    V = np.stack([_voigt_from_tensor(t, 2) for t in T])
+    V = np.stack([tensor_to_voigt(t) for t in T])
     np.testing.assert_allclose(V, res.tensor, rtol=0, atol=1e-10 * np.abs(C).max())
 
 
@@ -246,12 +246,12 @@ def test_cloud_infeasible_families_carry_nan():
 @pytest.mark.parametrize(
     "C, err, match",
     [
-        (np.ones((5, 5)), ShapeError, "C must be a Voigt matrix"),
+        (np.ones((5, 5)), ShapeError, r"C must have shape \(6, 6\)"),
         (np.triu(_iso()) + 0.0, InputError, "C must be symmetric"),
         (_iso() * 0.0, InputError, "positive definite"),
         (_iso(1.0, 2.0, 1.0), InputError, "positive definite"),
         (np.where(np.eye(6) > 0, np.nan, _iso()), NonFiniteError, "C must be finite"),
-        (np.array([[1.0, 0, 0], [0, 1, 0], [0, 0, 1]]), ShapeError, "2D tensor"),
+        (np.array([[1.0, 0, 0], [0, 1, 0], [0, 0, 1]]), ShapeError, "2D stiffness"),
     ],
 )
 def test_bad_target(C, err, match):
@@ -260,9 +260,9 @@ def test_bad_target(C, err, match):
 
 
 def test_bad_tensor_symmetry():
-    T = _tensor_from_voigt(_iso(), 3)
+    T = voigt_to_tensor(_iso())
     T[0, 1, 0, 0] += 1.0
-    with pytest.raises(InputError, match="minor and major symmetry"):
+    with pytest.raises(InputError, match="C must have minor symmetry"):
         calibrate_micromoduli(T, lattice_family(3, 2.0))
 
 

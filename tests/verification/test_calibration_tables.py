@@ -20,7 +20,7 @@ from pdlin.calibration import (
     max_lower_bound,
     reflection,
 )
-from pdlin.calibration.calibrate import _tensor_from_voigt, _voigt_from_tensor
+from pdlin.constitutive import tensor_to_voigt, voigt_to_tensor
 
 
 def _voigt(text: str) -> np.ndarray:
@@ -80,14 +80,14 @@ TABLE1 = {
 
 def _sym(C: np.ndarray) -> np.ndarray:
     """Total symmetrization (spec 004 §2.3), computed independently of the library."""
-    T = _tensor_from_voigt(C, 3)
+    T = voigt_to_tensor(C)
     S = (T + T.transpose(0, 2, 1, 3) + T.transpose(0, 3, 2, 1)) / 3.0
-    return _voigt_from_tensor(S, 3)
+    return tensor_to_voigt(S)
 
 
 def _rotate(C: np.ndarray, Q: np.ndarray) -> np.ndarray:
-    T = _tensor_from_voigt(C, 3)
-    return _voigt_from_tensor(np.einsum("pi,qj,rk,sl,ijkl->pqrs", Q, Q, Q, Q, T), 3)
+    T = voigt_to_tensor(C)
+    return tensor_to_voigt(np.einsum("pi,qj,rk,sl,ijkl->pqrs", Q, Q, Q, Q, T))
 
 
 @pytest.fixture(scope="module")
@@ -146,8 +146,8 @@ def test_result_is_cauchy_projection(name, table1):
     Cs = _sym(MATERIALS[name])
     np.testing.assert_allclose(table1[name].tensor, Cs, rtol=0, atol=1e-9 * np.abs(Cs).max())
     # the error is the Frobenius distance from the Cauchy subspace (spec §2.3)
-    T = _tensor_from_voigt(MATERIALS[name], 3)
-    dist = np.linalg.norm(T - _tensor_from_voigt(Cs, 3)) / np.linalg.norm(T)
+    T = voigt_to_tensor(MATERIALS[name])
+    dist = np.linalg.norm(T - voigt_to_tensor(Cs)) / np.linalg.norm(T)
     np.testing.assert_allclose(table1[name].relative_error, dist, rtol=1e-9, atol=1e-14)
 
 
@@ -545,6 +545,20 @@ def test_spec004_static_uniaxial_tension_calibrated():
 def test_all_index_permutations_of_achieved_tensor(table1):
     # V1-style: the calibrated tensor is fully symmetric (Cauchy) for every class
     for r in table1.values():
-        T = _tensor_from_voigt(r.tensor, 3)
+        T = voigt_to_tensor(r.tensor)
         for perm in itertools.permutations(range(4)):
             np.testing.assert_allclose(T.transpose(perm), T, atol=1e-12 * np.abs(T).max())
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_library_materials_and_cauchy_projection_agree(name, table1):
+    from pdlin.constitutive import cauchy_distance, cauchy_projection, material
+
+    # the spec §3 matrices typed above equal pdlin.constitutive's copies
+    np.testing.assert_array_equal(material(name), MATERIALS[name])
+    # the calibrated tensor is pdlin.constitutive.cauchy_projection (spec §2.3)
+    P = cauchy_projection(MATERIALS[name])
+    np.testing.assert_allclose(table1[name].tensor, P, rtol=0, atol=1e-9 * np.abs(P).max())
+    np.testing.assert_allclose(
+        table1[name].relative_error, cauchy_distance(MATERIALS[name]), rtol=1e-9, atol=1e-14
+    )
