@@ -7,6 +7,7 @@ import time
 from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..errors import InputError
 from ..geometry.bonds import Bonds
@@ -45,7 +46,9 @@ def _hash_rows(q: np.ndarray, seed: int) -> np.ndarray:
     return h
 
 
-def group_families(bonds: Bonds, rel: float = 1e-9) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def group_families(
+    bonds: Bonds, rel: float = 1e-9, *, return_types: bool = False
+) -> tuple[np.ndarray, ...]:
     """Group the points of a cloud by identical families.
 
     Two families are identical when they hold the same multiset of bonds
@@ -60,6 +63,9 @@ def group_families(bonds: Bonds, rel: float = 1e-9) -> tuple[np.ndarray, np.ndar
     order : (nb,) ndarray of int
         Bond permutation sorting each family by bond type, so position ``k``
         of two identical families holds the same bond type.
+    bond_type, type_first : (nb,), (ntype,) ndarray of int
+        Only with ``return_types``: type id of each bond (same ``xi``,
+        ``omega``, ``volume_j``) and one bond per type.
 
     Examples
     --------
@@ -83,8 +89,9 @@ def group_families(bonds: Bonds, rel: float = 1e-9) -> tuple[np.ndarray, np.ndar
     _, first, btype = np.unique(h, return_index=True, return_inverse=True)
     btype = btype.ravel()
     if not np.array_equal(q, q[first[btype]]):  # hash collision: exact (slower) grouping
-        _, btype = np.unique(q, axis=0, return_inverse=True)
+        _, first, btype = np.unique(q, axis=0, return_index=True, return_inverse=True)
         btype = btype.ravel()
+    del q, h
     ntype = int(btype.max()) + 1 if nb else 0
     rng = np.random.default_rng(7)
     r1 = rng.integers(0, 2**63, size=ntype, dtype=np.uint64)
@@ -113,6 +120,8 @@ def group_families(bonds: Bonds, rel: float = 1e-9) -> tuple[np.ndarray, np.ndar
         raise InputError(  # pragma: no cover - 128-bit hash collision
             "family grouping failed verification (hash collision); please report"
         )
+    if return_types:
+        return family_of_point, representative, order, btype, first
     return family_of_point, representative, order
 
 
@@ -129,7 +138,7 @@ def calibrate_bonds(
     t0 = time.perf_counter()
     dim = bonds.dim
     nv = len(_VOIGT[dim])
-    fam_of_pt, reps, order = group_families(bonds)
+    fam_of_pt, reps, order, btype, tfirst = group_families(bonds, return_types=True)
     ng = reps.size
     size = np.diff(bonds.indptr)
     if ng == 0:
@@ -176,17 +185,19 @@ def calibrate_bonds(
         c = 0.5 * (c_owner + c_owner[bonds.reverse]) if pair_rule == "mean" else c_owner
         fam_results = tuple(results[g] for g in range(ng))
         fam_index = fam_of_pt
-    # achieved per-point tensors with the final micromoduli
-    X = design_matrix(bonds.xi, bonds.omega, bonds.volume_j, thickness, weighting="voigt")
+    # achieved per-point tensors with the final micromoduli: (n x ntype) sparse sums of c
+    # times the design column of each bond type (no (21 x nb) intermediate)
+    Xt = design_matrix(
+        bonds.xi[tfirst], bonds.omega[tfirst], bonds.volume_j[tfirst], thickness,
+        weighting="voigt",
+    ).T
     n = bonds.n_points
-    vec = np.empty((n, X.shape[0]))
-    owner_vec = np.empty((n, X.shape[0]))
     finite = np.isfinite(c)
     c0 = np.where(finite, c, 0.0)
     co = np.where(np.isfinite(c_owner), c_owner, 0.0) if boundary == "calibrate" else c0
-    for r in range(X.shape[0]):  # 21 (2D: 6) rows
-        vec[:, r] = np.bincount(bonds.i, weights=X[r] * c0, minlength=n)
-        owner_vec[:, r] = np.bincount(bonds.i, weights=X[r] * co, minlength=n)
+    shape = (n, tfirst.size)
+    vec = sp.csr_array((c0, (bonds.i, btype)), shape=shape) @ Xt
+    owner_vec = sp.csr_array((co, (bonds.i, btype)), shape=shape) @ Xt
     bad_pt = np.bincount(bonds.i, weights=(~finite).astype(float), minlength=n) > 0
     vec[bad_pt] = np.nan
     m = _multiplicity(dim)

@@ -334,3 +334,14 @@ def test_plot_micromoduli(tmp_path):
     ax3.figure.savefig(tmp_path / "c.png")
     with pytest.raises(InputError, match="family"):
         plot_micromoduli(r3, lattice_family(3, 2.0))
+
+
+def test_docs_examples():
+    """The examples of docs/calibration.md are doctests; keep them true."""
+    import doctest
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "docs" / "calibration.md"
+    flags = doctest.NORMALIZE_WHITESPACE
+    res = doctest.testfile(str(path), module_relative=False, optionflags=flags)
+    assert res.attempted > 5 and res.failed == 0
