@@ -569,8 +569,19 @@ def _solve_family(
             )
     zthr = zero_tol * (float(np.nanmax(np.abs(c))) if valid and c.size else 1.0)
     n_zero = int(np.sum(np.abs(c - lower_bound) <= zthr)) if valid else 0
-    if not msgs:
-        msgs.append(f"rank {rank}; calibrated ({status})")
+    if rank == cauchy_dim:
+        msgs.insert(0, f"rank {rank} (full)")
+    if status == "step1":
+        msgs.append(
+            f"step 1: the minimum-norm least-squares micromoduli are all >= {lower_bound:g}"
+        )
+    elif status in ("qp", "nnls-qp"):
+        msgs.append(
+            f"step 2 (QP): {n_zero} micromoduli at the bound {lower_bound:g}, the fitted tensor "
+            "kept"
+        )
+    if status in ("step1", "qp") and rank == cauchy_dim and weighting == "frobenius":
+        msgs.append("the achieved tensor is the Cauchy projection of C")
     return CalibrationResult(
         micromoduli=c,
         tensor=_voigt_matrix(ach, nv),
@@ -767,7 +778,7 @@ def calibrate_micromoduli(
         raise InputError(f"lower_bound must be finite, got {lower_bound!r}")
     if lb < 0 and method != "min-norm":
         log.warning("lower_bound %g < 0 allows negative micromoduli (unstable bonds)", lb)
-    opts = dict(
+    opts: dict[str, Any] = dict(
         weighting=weighting,
         lower_bound=lb,
         method=method,

@@ -173,7 +173,7 @@ def calibrate_bonds(
         c = np.full(bonds.n_bonds, float(np.mean(cf)))
         both = inner_bond & (fam_of_pt[bonds.j] == g_full)
         c[both] = c_owner[both]
-        fam_results = (results[g_full],)
+        fam_results: tuple[CalibrationResult, ...] = (results[g_full],)
         fam_index = np.where(fam_of_pt == g_full, 0, -1)
     else:
         offs = np.zeros(ng + 1, dtype=np.int64)

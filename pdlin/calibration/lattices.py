@@ -43,9 +43,9 @@ class Family:
         Human-readable origin, used in calibration messages.
     """
 
-    xi: np.ndarray
-    omega: np.ndarray
-    volume: np.ndarray
+    xi: Any
+    omega: Any
+    volume: Any
     thickness: float = 1.0
     description: str = ""
 
