@@ -63,8 +63,9 @@ SOLVERS = ("auto", "direct", "amg-cg", "cg", "jacobi-cg", "ilu-gmres", "amg-gmre
 #: * ``smooth`` level 0 ``None``: the tentative prolongator is used on the
 #:   dense fine level.  Smoothing it, even with the filtered matrix,
 #:   multiplies the cost of the Galerkin product ``Pᵀ K P`` by the ~120
-#:   bonds per row (pyamg defaults: ~900 mat-vecs of setup) for about 2
-#:   fewer iterations.  The coarse operators are local (about 5³ block
+#:   bonds per row: 120-400 mat-vecs of setup in the variants tried
+#:   (pyamg's defaults: ~240 on an 8,192-point bar) for a third fewer
+#:   iterations (12 vs 18 on a 2,000-point bar).  The coarse operators are local (about 5³ block
 #:   neighbours), so deeper levels use the usual smoothed aggregation with
 #:   ``θ = 0`` and filtered Jacobi prolongator smoothing.
 #: * ``improve_candidates`` None: the rigid-body modes are exact near-null
@@ -73,14 +74,16 @@ SOLVERS = ("auto", "direct", "amg-cg", "cg", "jacobi-cg", "ilu-gmres", "amg-gmre
 #:   (dim x dim) Jacobi with weight ``omega / rho(D⁻¹A)`` (rho from four
 #:   power steps).  With the zero initial guess of a preconditioner the
 #:   pre-smoothing step needs no mat-vec, so a cycle costs two fine
-#:   mat-vecs plus about 5 % on the coarse levels.  Gauss-Seidel on BSR
+#:   mat-vecs plus about 5 % on the coarse levels; it also returns ``A z``
+#:   (:meth:`AMGHierarchy.apply_with_product`), so CG and GMRES need no
+#:   mat-vec of their own: ~2.5 mat-vecs per iteration.  Gauss-Seidel on BSR
 #:   costs about 3 mat-vecs per sweep in pyamg (CSR: 1.1) for no fewer
 #:   iterations; Chebyshev of degree 2 saves 1-3 iterations but costs
 #:   more than it saves.
 #: * ``cycle`` ``'W'``: coarse levels hold ~3 % of the fine nonzeros, so
 #:   visiting them twice is nearly free and brings the iteration count
 #:   close to the exact two-grid one (14 vs 16 for a V-cycle, 3D, 16k
-#:   points).
+#:   points; exact coarse solve: 12-13).
 #: * ``max_coarse`` 150 block rows: the coarsest level is solved by a dense
 #:   Cholesky (LU) factorization of at most ~1,000 unknowns.
 AMG_DEFAULTS: dict[str, Any] = {
