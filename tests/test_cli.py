@@ -218,3 +218,92 @@ def test_sparsity_command(tmp_path, capsys):
     assert rep["nnz"] == K.nnz  # the pattern predicted from the bonds equals the assembled one
     assert main(["sparsity", str(scene)]) == 0
     assert "nnz" in capsys.readouterr().out
+
+
+CALIBRATION = """
+name = "ti"
+[target]
+class = "transversely_isotropic"
+constants = { C11 = 499.0, C33 = 542.0, C12 = 166.0, C13 = 239.0, C44 = 239.0 }
+[family]
+dim = 3
+horizon = 6.0
+influence = "delta_over_r"
+[calibration]
+method = "two-step"
+[output]
+path = "c.npz"
+"""
+
+
+def test_calibrate_command(tmp_path, capsys):
+    from pdlin import constitutive as cst
+
+    p = tmp_path / "target.toml"
+    p.write_text(CALIBRATION)
+    assert main(["calibrate", str(p), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["status"] == "step1" and summary["bonds"] == 924  # spec 004 V4
+    C = cst.transversely_isotropic(499.0, 542.0, 166.0, 239.0, 239.0)
+    assert summary["relative_error"] == pytest.approx(cst.cauchy_distance(C), rel=1e-9)
+    data = np.load(tmp_path / "c.npz")
+    assert data["micromoduli"].shape == (924,) and np.all(data["micromoduli"] >= 0)
+    assert main(["calibrate", str(p), "-o", str(tmp_path / "c.csv")]) == 0
+    assert (tmp_path / "c.csv").read_text().startswith("xi0,xi1,xi2,omega,volume,c")
+
+
+def test_calibrate_infeasible_and_bad_target(tmp_path, capsys):
+    p = tmp_path / "t.toml"
+    # spec 004 4.2: monoclinic at delta = 2 has no nonnegative solution
+    p.write_text(
+        CALIBRATION.replace(
+            'class = "transversely_isotropic"\nconstants = '
+            "{ C11 = 499.0, C33 = 542.0, C12 = 166.0, C13 = 239.0, "
+            "C44 = 239.0 }",
+            'material = "monoclinic"',
+        )
+        .replace("horizon = 6.0", "horizon = 2.0")
+        .replace('influence = "delta_over_r"', 'influence = "constant"')
+    )
+    assert main(["calibrate", str(p), "--json"]) == 4
+    assert json.loads(capsys.readouterr().out)["status"] == "infeasible"
+    p.write_text(CALIBRATION.replace("C44 = 239.0", "C44 = -239.0"))
+    assert main(["calibrate", str(p)]) == 2
+    assert "positive definite" in capsys.readouterr().err
+
+
+def test_scene_with_calibrated_material(tmp_path):
+    text = """
+[geometry]
+type = "grid"
+shape = [12, 12, 12]
+[material.calibration]
+method = "two-step"
+boundary = "bulk"
+[material.calibration.target]
+material = "cubic"
+[horizon]
+value = 3.0
+influence = "delta_over_r"
+[shadow]
+F = [[1.0001, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+[solver]
+name = "amg-cg"
+rtol = 1e-12
+"""
+    sc = load_scene(_write(tmp_path, text))
+    assert sc.calibration.status in ("step1", "qp")  # both reach the least-squares fit
+    res = pdlin.solve(sc.problem, solver="amg-cg", rtol=1e-12)
+    # shadow layer of depth 3 h on all faces; the 6^3 real core is strained affinely
+    p = sc.cloud.points
+    core = np.all((p > 3) & (p < 9), axis=1)
+    np.testing.assert_allclose(res.strain()[core][:, 0, 0], 1e-4, rtol=1e-8)
+    with pytest.raises(SceneError, match="material.E and material.calibration exclude"):
+        load_scene(
+            _write(
+                tmp_path,
+                text.replace(
+                    "[material.calibration]\n", "[material]\nE = 1.0\n[material.calibration]\n"
+                ),
+            )
+        )

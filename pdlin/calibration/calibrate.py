@@ -36,7 +36,7 @@ METHODS = ("two-step", "robust", "min-norm")
 QP_SOLVERS = ("clarabel", "osqp", "cvxpy")
 _WEIGHTINGS = ("frobenius", "voigt")
 _PAIR_RULES = ("mean", "owner")
-_BOUNDARY_RULES = ("calibrate", "interior-mean")
+_BOUNDARY_RULES = ("calibrate", "interior-mean", "bulk")
 
 # Voigt index -> tensor index pair (spec 004 §1.2 / §2.7)
 _VOIGT = {3: ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)), 2: ((0, 0), (1, 1), (0, 1))}
@@ -719,11 +719,15 @@ def calibrate_micromoduli(
         :class:`pdlin.BondBased` requires), or the owner's value ('owner',
         in general not symmetric).  The effect on the achieved tensors is
         reported as ``pair_change``.
-    boundary : {'calibrate', 'interior-mean'}
+    boundary : {'calibrate', 'interior-mean', 'bulk'}
         Cloud input: 'calibrate' calibrates every distinct (also truncated)
         family; 'interior-mean' calibrates only the complete family (the
         largest one) and gives every bond touching a point with another
-        family the mean complete-family value (spec 004 §4.7 [S]).
+        family the mean complete-family value (spec 004 §4.7 [S]); 'bulk'
+        calibrates only the complete family and gives every bond the value
+        of its bond vector there (a homogeneous material, ``c = c(ξ)``;
+        interior points reproduce the target exactly, truncated families
+        show the usual PD surface effect).
     raise_on_infeasible : bool
         Raise :class:`~pdlin.errors.InputError` instead of returning status
         'infeasible' (with NaN micromoduli).

@@ -143,7 +143,7 @@ def calibrate_bonds(
     size = np.diff(bonds.indptr)
     if ng == 0:
         raise InputError("bonds must hold at least one bond, got an empty family for every point")
-    if boundary == "interior-mean":
+    if boundary in ("interior-mean", "bulk"):
         full_size = size[reps]
         counts = np.bincount(fam_of_pt[fam_of_pt >= 0], minlength=ng)
         # the complete family: largest bond count (ties: the most frequent)
@@ -164,7 +164,27 @@ def calibrate_bonds(
         )
         results[g] = _solve_family(target, fam, **opts)
     pos = np.arange(bonds.n_bonds) - bonds.indptr[bonds.i]
-    if boundary == "interior-mean":
+    if boundary == "bulk":
+        # every bond takes the bulk family's value of its bond type (c as a function of xi)
+        g_full = todo[0]
+        p = int(reps[g_full])
+        sel = order[bonds.indptr[p] : bonds.indptr[p + 1]]
+        lut = np.full(tfirst.size, np.nan)
+        lut[btype[sel]] = results[g_full].micromoduli
+        c = lut[btype]
+        missing = ~np.isfinite(c) & np.isfinite(lut).any()
+        if np.any(missing):
+            k = int(np.flatnonzero(missing)[0])
+            raise InputError(
+                f"boundary='bulk' needs every bond to occur in the complete family, got "
+                f"{int(missing.sum())} bond(s) without a match (first: bond {k}, "
+                f"xi = {bonds.xi[k].tolist()}); use boundary='calibrate'"
+            )
+        c = 0.5 * (c + c[bonds.reverse])
+        c_owner = c
+        fam_results: tuple[CalibrationResult, ...] = (results[g_full],)
+        fam_index = np.where(fam_of_pt == g_full, 0, -1)
+    elif boundary == "interior-mean":
         g_full = todo[0]
         cf = results[g_full].micromoduli
         c_owner = np.empty(bonds.n_bonds)
@@ -173,7 +193,7 @@ def calibrate_bonds(
         c = np.full(bonds.n_bonds, float(np.mean(cf)))
         both = inner_bond & (fam_of_pt[bonds.j] == g_full)
         c[both] = c_owner[both]
-        fam_results: tuple[CalibrationResult, ...] = (results[g_full],)
+        fam_results = (results[g_full],)
         fam_index = np.where(fam_of_pt == g_full, 0, -1)
     else:
         offs = np.zeros(ng + 1, dtype=np.int64)
@@ -188,7 +208,10 @@ def calibrate_bonds(
     # achieved per-point tensors with the final micromoduli: (n x ntype) sparse sums of c
     # times the design column of each bond type (no (21 x nb) intermediate)
     Xt = design_matrix(
-        bonds.xi[tfirst], bonds.omega[tfirst], bonds.volume_j[tfirst], thickness,
+        bonds.xi[tfirst],
+        bonds.omega[tfirst],
+        bonds.volume_j[tfirst],
+        thickness,
         weighting="voigt",
     ).T
     n = bonds.n_points
@@ -222,6 +245,11 @@ def calibrate_bonds(
     if boundary == "calibrate":
         msgs.append(
             f"pair rule {pair_rule!r}: max relative change of a point's tensor {pair_change:.3g}"
+        )
+    elif boundary == "bulk":
+        msgs.append(
+            "boundary 'bulk': every bond carries the complete family's value of its bond "
+            "vector (a homogeneous material); truncated families fit the target only in part"
         )
     else:
         msgs.append(

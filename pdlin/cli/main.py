@@ -15,6 +15,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..errors import PdlinError
 
 __all__ = ["main"]
@@ -72,6 +74,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     write_points(out, scene.cloud, fields) if scene.fields else write_result(out, result)
     summary = result.summary()
     summary["scene"] = scene.name
+    if scene.calibration is not None:
+        summary["calibration"] = _calibration_summary(scene.calibration)
     summary["output"] = str(out)
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -87,6 +91,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
         t = summary["timings"]
         print("time (s)     " + ", ".join(f"{k} {v:.3f}" for k, v in t.items()))
         print(f"results      {out}")
+        if scene.calibration is not None:
+            cal = summary["calibration"]
+            print(
+                f"calibration  {cal['status']}, max relative tensor error "
+                f"{cal['relative_error']:.3e}"
+            )
     return 0
 
 
@@ -149,6 +159,71 @@ def _cmd_sparsity(args: argparse.Namespace) -> int:
     return 0
 
 
+def _calibration_summary(res: Any) -> dict[str, Any]:
+    err = np.asarray(res.relative_error, dtype=float)
+    return {
+        "status": res.status,
+        "relative_error": float(err.max()) if err.ndim else float(err),
+        "rank": int(res.rank) if np.ndim(res.rank) == 0 else None,
+        "bonds": int(res.n_bonds),
+        "c_min_max_mean": [float(res.c_min), float(res.c_max), float(res.c_mean)],
+        "zero_micromoduli": int(res.n_zero),
+        "zero_threshold": float(res.zero_threshold),
+        "message": res.message,
+        "time_s": round(float(res.time), 4),
+    }
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from ..io.targets import load_calibration
+
+    job = load_calibration(args.target)
+    res = job.run()
+    out = Path(args.output) if args.output else job.output
+    summary = _calibration_summary(res)
+    summary["name"] = job.name
+    if out is not None:
+        fam = job.family
+        out.parent.mkdir(parents=True, exist_ok=True)
+        if out.suffix == ".csv":
+            cols = [
+                np.asarray(fam.xi),
+                np.asarray(fam.omega)[:, None],
+                np.asarray(fam.volume)[:, None],
+                np.asarray(res.micromoduli)[:, None],
+            ]
+            head = ",".join([f"xi{k}" for k in range(fam.dim)] + ["omega", "volume", "c"])
+            np.savetxt(out, np.hstack(cols), delimiter=",", header=head, comments="")
+        elif out.suffix == ".npz":
+            np.savez(
+                out,
+                xi=np.asarray(fam.xi),
+                omega=np.asarray(fam.omega),
+                volume=np.asarray(fam.volume),
+                micromoduli=np.asarray(res.micromoduli),
+                tensor=np.asarray(res.tensor),
+                target=np.asarray(res.target),
+            )
+        else:
+            raise PdlinError(f"output path must end with .npz or .csv, got {str(out)!r}")
+        summary["output"] = str(out)
+    if job.plot is not None and not args.no_plot:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        from ..calibration import plot_micromoduli
+
+        ax = plot_micromoduli(res, job.family)
+        ax.figure.savefig(job.plot, dpi=120)
+        summary["plot"] = str(job.plot)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        for k, v in summary.items():
+            print(f"{k:18s} {v}")
+    return 0 if res.status not in ("infeasible", "failed") else 4
+
+
 def _cmd_examples(args: argparse.Namespace) -> int:
     from ..io.scene import builtin_scene, list_builtin_scenes
 
@@ -199,6 +274,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     s.set_defaults(func=_cmd_sparsity)
 
+    c = sub.add_parser("calibrate", help="calibrate anisotropic bond micromoduli to a target")
+    c.add_argument("target", help="calibration file (.toml): [target], [family], [calibration]")
+    c.add_argument("-o", "--output", help="micromoduli file (.npz or .csv)")
+    c.add_argument("--json", action="store_true")
+    c.add_argument("--no-plot", action="store_true", help="skip the plot named in the file")
+    c.set_defaults(func=_cmd_calibrate)
+
     e = sub.add_parser("examples", help="list the built-in example scenes")
     e.add_argument("--show", metavar="NAME", help="print the scene file of an example")
     e.set_defaults(func=_cmd_examples)
@@ -206,7 +288,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit code (0 ok, 2 bad input, 3 solver failure)."""
+    """Entry point; returns the exit code.
+
+    0 ok, 2 bad input, 3 solver failure, 4 infeasible calibration target.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(

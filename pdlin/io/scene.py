@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import PdlinError, SceneError
-from ..geometry.bonds import Bonds
+from ..geometry.bonds import Bonds, find_bonds
 from ..geometry.cloud import PointCloud, from_image, grid
 from ..models.base import Model
 from ..models.bond_based import BondBased
@@ -57,7 +57,16 @@ _GEOM = {
     "mesh": {"type", "path", "thickness", "dim"},
     "image": {"type", "path", "data", "spacing", "origin", "void", "thickness"},
 }
-_MATERIAL = {"E", "nu", "plane", "micromodulus"}
+_MATERIAL = {"E", "nu", "plane", "micromodulus", "calibration"}
+_CALIBRATION = {
+    "target",
+    "method",
+    "lower_bound",
+    "weighting",
+    "qp_solver",
+    "boundary",
+    "pair_rule",
+}
 _MODEL = {"type", "nu_mismatch", "average"}
 _HORIZON = {"value", "ratio", "shape", "axes", "influence", "cracks"}
 _DIRICHLET = {"set", "box", "points", "components", "value", "F", "translation", "center"}
@@ -107,7 +116,8 @@ def per_phase(value: Any, cloud: PointCloud, key: str) -> Any:
         table = {int(k): float(v) for k, v in value.items()}
     except (TypeError, ValueError) as exc:
         raise SceneError(f"{key} table must map integer phase ids to numbers: {exc}") from exc
-    phases = np.unique(cloud.material)
+    mat = np.asarray(cloud.material)
+    phases = np.unique(mat)
     missing = [int(p) for p in phases if int(p) not in table]
     if missing:
         raise SceneError(f"{key} has no value for phase(s) {missing} present in the geometry")
@@ -115,7 +125,7 @@ def per_phase(value: Any, cloud: PointCloud, key: str) -> Any:
     for k, v in table.items():
         if 0 <= k < lut.size:
             lut[k] = v
-    return lut[cloud.material]
+    return lut[mat]
 
 
 def _bond_based(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud) -> Model:
@@ -147,6 +157,8 @@ class Scene:
     output: Path | None = None
     fields: list[str] | None = None
     base_dir: Path = field(default_factory=Path.cwd)
+    #: result of ``[material.calibration]`` (anisotropic micromoduli), if any
+    calibration: Any = None
 
     @property
     def cloud(self) -> PointCloud:
@@ -251,7 +263,6 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         cloud = _geometry(_require(top, "geometry", "scene"), base)
         material = _check_keys(_require(top, "material", "scene"), _MATERIAL, "material")
         model_cfg = _check_keys(top.get("model", {}), _MODEL, "model")
-        model = _build_model(model_cfg, material, cloud)
         hcfg = _check_keys(_require(top, "horizon", "scene"), _HORIZON, "horizon")
         if ("value" in hcfg) == ("ratio" in hcfg):
             raise SceneError("horizon needs exactly one of 'value' or 'ratio'")
@@ -261,6 +272,14 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         if "ratio" in hcfg:
             bond_options["ratio"] = float(hcfg["ratio"])
         horizon = hcfg.get("value")
+        bonds = None
+        calibration = None
+        if "calibration" in material:
+            model, bonds, calibration = _calibrated_model(
+                material, model_cfg, cloud, horizon, bond_options, "symmetry" in top
+            )
+        else:
+            model = _build_model(model_cfg, material, cloud)
         dirichlet: list[Dirichlet] = []
         for k, bc in enumerate(top.get("dirichlet", [])):
             key = f"dirichlet[{k}]"
@@ -333,6 +352,7 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         problem = StaticProblem(
             model,
             cloud,
+            bonds,
             horizon=horizon,
             dirichlet=dirichlet,
             loads=loads,
@@ -355,7 +375,46 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         output=None if out is None else (Path(out) if Path(out).is_absolute() else base / out),
         fields=ocfg.get("fields"),
         base_dir=base,
+        calibration=calibration,
     )
+
+
+def _calibrated_model(
+    material: Mapping[str, Any],
+    model_cfg: Mapping[str, Any],
+    cloud: PointCloud,
+    horizon: Any,
+    bond_options: Mapping[str, Any],
+    has_symmetry: bool,
+) -> tuple[Model, Bonds, Any]:
+    """Bond-based model with micromoduli calibrated to ``material.calibration.target``."""
+    from ..calibration import calibrate_micromoduli
+    from .targets import target_from_table
+
+    if model_cfg.get("type", "bond_based") != "bond_based":
+        raise SceneError("material.calibration needs model.type = 'bond_based'")
+    if has_symmetry:
+        raise SceneError(
+            "material.calibration cannot be combined with [[symmetry]] planes (per-bond "
+            "micromoduli are calibrated on the part's own bonds)"
+        )
+    for key in ("E", "micromodulus"):
+        if key in material:
+            raise SceneError(f"material.{key} and material.calibration exclude each other")
+    cal = _check_keys(material["calibration"], _CALIBRATION, "material.calibration")
+    target = target_from_table(
+        _require(cal, "target", "material.calibration"), "material.calibration.target"
+    )
+    bonds = find_bonds(cloud, horizon, **dict(bond_options))
+    opts = {k: cal[k] for k in cal if k != "target"}
+    opts.setdefault("method", "robust")
+    res = calibrate_micromoduli(
+        target, bonds, thickness=cloud.thickness, plane=material.get("plane", "stress"), **opts
+    )
+    if res.status in ("infeasible", "failed") or not np.all(np.isfinite(res.micromoduli)):
+        raise SceneError(f"material.calibration failed ({res.status}): {res.message}")
+    model = BondBased(micromodulus=res.micromoduli, plane=material.get("plane", "stress"))
+    return model, bonds, res
 
 
 def load_scene(path: str | Path) -> Scene:

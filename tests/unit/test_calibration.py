@@ -345,3 +345,25 @@ def test_docs_examples():
     flags = doctest.NORMALIZE_WHITESPACE
     res = doctest.testfile(str(path), module_relative=False, optionflags=flags)
     assert res.attempted > 5 and res.failed == 0
+
+
+def test_bulk_boundary_rule_gives_c_of_xi_and_exact_interior():
+    import pdlin
+    from pdlin import constitutive as cst
+
+    C = cst.material("transversely_isotropic")
+    cloud = pdlin.grid((9, 9, 9))
+    bonds = pdlin.find_bonds(cloud, 3.0, influence="delta_over_r")
+    res = pdlin.calibrate_micromoduli(C, bonds, boundary="bulk")
+    fam = pdlin.calibration.lattice_family(3, 3.0, influence="delta_over_r")
+    ref = pdlin.calibrate_micromoduli(C, fam)
+    # every bond carries the single-family value of its bond vector
+    lut = {tuple(np.round(x).astype(int)): c for x, c in zip(fam.xi, ref.micromoduli, strict=True)}
+    expect = np.array([lut[tuple(np.round(x).astype(int))] for x in bonds.xi])
+    np.testing.assert_allclose(res.micromoduli, expect, rtol=1e-12)
+    np.testing.assert_allclose(res.micromoduli, res.micromoduli[bonds.reverse], rtol=0)
+    centre = int(np.ravel_multi_index((4, 4, 4), (9, 9, 9)))
+    # interior tensor = the Cauchy projection of the target (spec 004 section 2.3)
+    P = cst.cauchy_projection(C)
+    np.testing.assert_allclose(res.tensor[centre], P, rtol=1e-9, atol=1e-12 * np.abs(P).max())
+    assert res.relative_error[centre] == pytest.approx(cst.cauchy_distance(C), rel=1e-9)
