@@ -25,7 +25,8 @@ For each size the script prints one table row:
 Run ``python benchmarks/bench_bond_based.py --quick`` for a small table
 (about a minute) or without arguments for the full one (several minutes;
 3D up to 2.5e5 points, 2D up to 1e6 points).  ``--large`` adds a 3D bar
-of 5e5 points.  The last lines estimate the largest 3D problem fitting in
+of 5e5 points; ``--m2`` / ``--m3`` replace the sizes (e.g. ``--dims 3
+--m3 63`` for the 5e5-point bar alone).  The last lines estimate the largest 3D problem fitting in
 the machine's memory from the measured peak bytes per bond.
 """
 
@@ -220,6 +221,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true", help="small sizes only (about a minute)")
     p.add_argument("--large", action="store_true", help="add a 3D bar of 5e5 points")
     p.add_argument("--dims", type=int, nargs="+", default=[2, 3], choices=[2, 3])
+    p.add_argument("--m2", type=int, nargs="+", help="2D sizes m (plate 2m x m)")
+    p.add_argument("--m3", type=int, nargs="+", help="3D sizes m (bar 2m x m x m)")
     p.add_argument("--repeat", type=int, default=2, help="bonds+assembly repetitions")
     p.add_argument("--memory-gb", type=float, default=24.0, help="memory of the target machine")
     args = p.parse_args(argv)
@@ -233,6 +236,10 @@ def main(argv: list[str] | None = None) -> int:
             sizes[3].append(63)
         args.jacobi_max = {2: 3.3e5, 3: 1.3e5}
         args.direct_max = {2: 4.0e4, 3: 2.0e3}
+    if args.m2:
+        sizes[2] = args.m2
+    if args.m3:
+        sizes[3] = args.m3
     print(
         f"# pdlin bond-based benchmark, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
         f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
