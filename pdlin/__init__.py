@@ -11,7 +11,7 @@ from .fields import deformation_gradient, shape_tensor, small_strain
 from .geometry import Bonds, PointCloud, find_bonds, from_image, grid
 from .geometry.generators import plate_with_hole_mesh
 from .geometry.mesh import read_mesh
-from .models import BondBased, Model
+from .models import LPS, XOSB, BondBased, Model
 from .operators import (
     BodyForce,
     Dirichlet,
@@ -41,6 +41,8 @@ __all__ = [
     "plate_with_hole_mesh",
     "find_bonds",
     "BondBased",
+    "LPS",
+    "XOSB",
     "Model",
     "assemble_stiffness",
     "rigid_body_modes",

@@ -2,5 +2,14 @@
 
 from .base import Model
 from .bond_based import BondBased, implied_poisson_ratio, standard_micromodulus
+from .lps import LPS
+from .xosb import XOSB
 
-__all__ = ["Model", "BondBased", "implied_poisson_ratio", "standard_micromodulus"]
+__all__ = [
+    "Model",
+    "BondBased",
+    "implied_poisson_ratio",
+    "standard_micromodulus",
+    "LPS",
+    "XOSB",
+]

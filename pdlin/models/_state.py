@@ -1,0 +1,674 @@
+"""Shared machinery of the ordinary state-based models (LPS / OSBPD and XOSB).
+
+Notation follows spec 002 (sections 3-7).  Per ordered bond ``b = (i -> j)``:
+
+- ``e_b = n_b · (u_j - u_i)`` (linearized) or ``|Y| - r`` (nonlinear);
+- ``θ_i = Σ_b a_b e_b`` with ``a_b = ω^h_b r_b V_j``;
+- ``e^d_b = e_b - θ_i r_b / n_d``;
+- paper force state ``t_b = κ ω̃^h r θ_i + 2μ ω̃^d e^d_b``;
+- energy force state ``t^E_b = κ θ_i ω^h r + 2μ ω̃^d e^d_b - (2μ ω^h r / n_d) Z_i``,
+  ``Z_i = Σ_k ω̃^d r e^d V_k``;
+- nodal force ``f_i = Σ_b V_i V_j (t_b + t_rev(b)) M_b``, i.e. ``f = -B(M)ᵀ (w ⊙ t)``.
+
+The linearized stiffness (``f = -K u``) is assembled with one sparse product
+``K = Xᵀ Y`` of stacked point-level operators (spec 002 §7):
+
+- energy: ``K_E = Θᵀ diag(κV + s) Θ - ΓᵀΘ - ΘᵀΓ + Bᵀ diag(w c) B`` with
+  ``Γ = Pᵀ diag(w c r / n_d) B`` and ``s_i = Σ_b w c r² / n_d²``
+  (the expansion of ``Θᵀ diag(κV) Θ + Hᵀ diag(w c) H``);
+- paper: ``K_p = Γ_βᵀ Θ + Bᵀ diag(w c) B`` with ``Γ_β = Pᵀ diag(w β) B``.
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .._validation import as_float_array
+from ..errors import InputError, ModelError, ShapeError
+from ..geometry.bonds import Bonds
+from ..geometry.cloud import PointCloud
+from .base import Model
+
+__all__ = [
+    "bulk_shear_moduli",
+    "analytic_weighted_volume",
+    "StateWeights",
+    "OrdinaryStateBased",
+    "basis_h",
+    "basis_d",
+    "TARGET_H",
+    "TARGET_D",
+]
+
+log = logging.getLogger(__name__)
+
+#: bonds per preprocessing / assembly chunk
+_CHUNK = 1 << 17
+
+_PLANES = ("stress", "strain")
+_LINEARIZATIONS = ("energy", "paper")
+
+#: right-hand sides r of the constraint systems (spec 002 §4 table)
+TARGET_H = {2: np.array([1.0, 1.0, 0.0]), 3: np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])}
+TARGET_D = {
+    2: np.array([1.5, 1.5, 0.5, 0.0, 0.0]),
+    3: np.array([1.5, 1.5, 1.5, 0.5, 0.5, 0.5] + [0.0] * 9),
+}
+
+
+def bulk_shear_moduli(E: Any, nu: float, dim: int, plane: str = "stress") -> tuple[Any, Any]:
+    """Bulk modulus κ and shear modulus μ of spec 002 Eq. 66.
+
+    ``κ = E/(3(1-2ν))`` (3D), ``E/(2(1+ν)(1-2ν))`` (plane strain),
+    ``E/(2(1-ν))`` (plane stress); ``μ = E/(2(1+ν))``.
+
+    Examples
+    --------
+    >>> k, m = bulk_shear_moduli(70e9, 0.33, 2, "stress")
+    >>> round(k / 1e9, 3), round(m / 1e9, 3)
+    (52.239, 26.316)
+    """
+    mu = E / (2.0 * (1.0 + nu))
+    if dim == 3:
+        kappa = E / (3.0 * (1.0 - 2.0 * nu))
+    elif dim == 2:
+        if plane == "stress":
+            kappa = E / (2.0 * (1.0 - nu))
+        elif plane == "strain":
+            kappa = E / (2.0 * (1.0 + nu) * (1.0 - 2.0 * nu))
+        else:
+            raise InputError(f"plane must be 'stress' or 'strain', got {plane!r}")
+    else:
+        raise ModelError(f"ordinary state-based models need dim 2 or 3, got dim {dim}")
+    return kappa, mu
+
+
+def analytic_weighted_volume(horizon: Any, dim: int) -> np.ndarray:
+    """Weighted volume ``m = ∫ ω r² dV`` of a full ball with ω = 1 (spec 002 Eq. 25).
+
+    ``πδ⁴/2`` in 2D, ``4πδ⁵/5`` in 3D.
+
+    Examples
+    --------
+    >>> float(analytic_weighted_volume(1.0, 2)), float(analytic_weighted_volume(1.0, 3))
+    (1.5707963267948966, 2.5132741228718345)
+    """
+    h = np.asarray(horizon, dtype=float)
+    if dim == 2:
+        return np.pi * h**4 / 2.0
+    if dim == 3:
+        return 4.0 * np.pi * h**5 / 5.0
+    raise ModelError(f"ordinary state-based models need dim 2 or 3, got dim {dim}")
+
+
+def basis_h(x: np.ndarray) -> np.ndarray:
+    """Hydrostatic basis ξ̂^h (spec 002 §4), ``(m, 3)`` in 2D, ``(m, 6)`` in 3D."""
+    if x.shape[1] == 2:
+        x0, x1 = x[:, 0], x[:, 1]
+        return np.stack([x0 * x0, x1 * x1, x0 * x1], axis=1)
+    x0, x1, x2 = x[:, 0], x[:, 1], x[:, 2]
+    return np.stack([x0 * x0, x1 * x1, x2 * x2, x0 * x1, x1 * x2, x2 * x0], axis=1)
+
+
+def basis_d(x: np.ndarray) -> np.ndarray:
+    """Deviatoric basis ξ̂^d (spec 002 §4), ``(m, 5)`` in 2D, ``(m, 15)`` in 3D."""
+    r2 = np.einsum("ij,ij->i", x, x)
+    if x.shape[1] == 2:
+        x0, x1 = x[:, 0], x[:, 1]
+        cols = [x0**4, x1**4, x0**2 * x1**2, x0**3 * x1, x1**3 * x0]
+    else:
+        x0, x1, x2 = x[:, 0], x[:, 1], x[:, 2]
+        cols = [
+            x0**4,
+            x1**4,
+            x2**4,
+            x0**2 * x1**2,
+            x1**2 * x2**2,
+            x2**2 * x0**2,
+            x0**3 * x1,
+            x0**3 * x2,
+            x1**3 * x0,
+            x1**3 * x2,
+            x2**3 * x0,
+            x2**3 * x1,
+            x0**2 * x1 * x2,
+            x1**2 * x0 * x2,
+            x2**2 * x0 * x1,
+        ]
+    return np.stack(cols, axis=1) / r2[:, None]
+
+
+@dataclass(frozen=True, eq=False)
+class StateWeights:
+    """Per-bond influence weights of an ordinary state-based model.
+
+    Attributes
+    ----------
+    omega_h, omega_d : (nb,) ndarray
+        Corrected (XOSB) or spherical (LPS) hydrostatic / deviatoric weights.
+    omega_h_s, omega_d_s : (nb,) ndarray
+        Spherical weights ``n_d ω/m_i`` and ``n_d(n_d+2) ω/(2 m_i)``.
+    omega_h_force, omega_d_force : (nb,) ndarray
+        Weights ω̃ used in the force state (spherical at fallback points).
+    fallback : (n,) ndarray of bool
+        Points whose family has some ω^h < 0 (spec 002 §5).
+    singular : (n,) ndarray of bool
+        Points whose λ system was singular or ill-conditioned (min-norm λ used).
+    cond_h, cond_d : (n,) ndarray
+        Condition numbers of the scaled Gram matrices (NaN for LPS).
+    weighted_volume : (n,) ndarray
+        ``m_i`` used by the spherical weights.
+    """
+
+    omega_h: np.ndarray
+    omega_d: np.ndarray
+    omega_h_s: np.ndarray
+    omega_d_s: np.ndarray
+    omega_h_force: np.ndarray
+    omega_d_force: np.ndarray
+    fallback: np.ndarray
+    singular: np.ndarray
+    cond_h: np.ndarray
+    cond_d: np.ndarray
+    weighted_volume: np.ndarray
+
+    @property
+    def fallback_points(self) -> np.ndarray:
+        """Indices of the fallback points."""
+        return np.flatnonzero(self.fallback)
+
+
+def _row_chunks(indptr: np.ndarray, chunk: int = _CHUNK) -> list[tuple[int, int]]:
+    """Ranges of owner rows holding about ``chunk`` bonds each (rows never split)."""
+    n = indptr.size - 1
+    nb = int(indptr[-1])
+    starts = np.searchsorted(indptr, np.arange(0, max(nb, 1), chunk), side="right") - 1
+    edges = np.unique(np.concatenate([[0], np.clip(starts, 0, n), [n]]))
+    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+
+
+def _selector(indptr: np.ndarray, r0: int, r1: int) -> sp.csr_array:
+    """Owner selector Pᵀ restricted to rows r0:r1 (rows x bonds of the chunk)."""
+    b0 = int(indptr[r0])
+    ptr = np.asarray(indptr[r0 : r1 + 1] - b0, dtype=np.int64)
+    m = int(ptr[-1])
+    return sp.csr_array((np.ones(m), np.arange(m), ptr), shape=(r1 - r0, m))
+
+
+def _solve_batched(
+    gram: np.ndarray, rhs: np.ndarray, max_cond: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Solve ``A_i λ_i = R_i`` for a stack; min-norm λ where cond(A_i) > max_cond.
+
+    Uses a batched symmetric eigendecomposition, which gives the condition
+    number and the pseudo-inverse from one factorization.
+    """
+    lam, vec = np.linalg.eigh(gram)
+    top = np.maximum(lam[:, -1], np.finfo(float).tiny)
+    low = lam[:, 0]
+    cond = np.where(low > 0, top / np.where(low > 0, low, 1.0), np.inf)
+    bad = ~(cond <= max_cond)
+    cut = np.where(bad, 1e-10, 0.0)[:, None] * top[:, None]
+    keep = lam > cut
+    inv = np.where(keep, 1.0 / np.where(keep, lam, 1.0), 0.0)
+    proj = np.einsum("nkl,nk->nl", vec, rhs)
+    sol = np.einsum("nkl,nl->nk", vec, proj * inv)
+    return sol, cond, bad
+
+
+def compute_weights(
+    cloud: PointCloud,
+    bonds: Bonds,
+    *,
+    corrections: bool,
+    weighted_volume: str,
+    unit_influence: bool = False,
+    fallback: bool = True,
+    max_cond: float = 1e10,
+) -> StateWeights:
+    """Spherical and (optionally) corrected influence weights (spec 002 §3-5).
+
+    Vectorized and chunked over owner rows: Gram entries are accumulated by
+    a sparse owner-selector product per chunk, the small systems are solved
+    in batches, and no ``nb x k x k`` array is formed.
+    """
+    d = cloud.dim
+    n = cloud.n
+    nb = bonds.n_bonds
+    omega = np.ones(nb) if unit_influence else np.asarray(bonds.omega, dtype=float)
+    r = bonds.length
+    vj = bonds.volume_j
+    if weighted_volume == "analytic":
+        infl = getattr(bonds, "influence", "constant")
+        if not unit_influence and not (isinstance(infl, str) and infl == "constant"):
+            raise ModelError(
+                "weighted_volume='analytic' needs the constant influence function (ω = 1), "
+                f"got influence={infl!r}; use weighted_volume='discrete'"
+            )
+        m = analytic_weighted_volume(bonds.horizon, d)
+    elif weighted_volume == "discrete":
+        m = np.bincount(bonds.i, weights=omega * r * r * vj, minlength=n)
+        if np.any(m <= 0):
+            k = int(np.flatnonzero(m <= 0)[0])
+            raise ModelError(f"weighted volume must be > 0 at every point, got 0 at point {k}")
+    else:
+        raise InputError(
+            f"weighted_volume must be 'analytic' or 'discrete', got {weighted_volume!r}"
+        )
+    mb = m[bonds.i]
+    wh_s = d * omega / mb
+    wd_s = d * (d + 2) * omega / (2.0 * mb)
+    cond_h = np.full(n, np.nan)
+    cond_d = np.full(n, np.nan)
+    singular = np.zeros(n, dtype=bool)
+    if not corrections:
+        fb = np.zeros(n, dtype=bool)
+        return StateWeights(wh_s, wd_s, wh_s, wd_s, wh_s, wd_s, fb, singular, cond_h, cond_d, m)
+    wh = np.empty(nb)
+    wd = np.empty(nb)
+    indptr = np.asarray(bonds.indptr, dtype=np.int64)
+    scale = np.asarray(bonds.horizon, dtype=float)
+    th, td = TARGET_H[d], TARGET_D[d]
+    for r0, r1 in _row_chunks(indptr):
+        b0, b1 = int(indptr[r0]), int(indptr[r1])
+        own = bonds.i[b0:b1]
+        s = scale[own]
+        xt = bonds.xi[b0:b1] / s[:, None]
+        sel = _selector(indptr, r0, r1)
+        v = vj[b0:b1]
+        s2 = s * s
+        for which, phi, target, ws, out, cnd in (
+            ("h", basis_h(xt), th, wh_s[b0:b1], wh, cond_h),
+            ("d", basis_d(xt), td, wd_s[b0:b1], wd, cond_d),
+        ):
+            k = phi.shape[1]
+            iu, ju = np.triu_indices(k)
+            pv = phi * v[:, None]
+            gram_u = sel @ (phi[:, iu] * pv[:, ju])  # (rows, k(k+1)/2)
+            gram = np.empty((r1 - r0, k, k))
+            gram[:, iu, ju] = gram_u
+            gram[:, ju, iu] = gram_u
+            rhs = target[None, :] - sel @ (pv * (s2 * ws)[:, None])
+            lam, cond, bad = _solve_batched(gram, rhs, max_cond)
+            cnd[r0:r1] = cond
+            singular[r0:r1] |= bad
+            out[b0:b1] = ws + np.einsum("bk,bk->b", phi, lam[own - r0]) / s2
+            del which
+    if singular.any():
+        idx = np.flatnonzero(singular)
+        warnings.warn(
+            f"XOSB: {idx.size} point(s) have a singular or ill-conditioned λ system "
+            f"(cond > {max_cond:g}), first index {int(idx[0])}; minimum-norm λ used. "
+            "Perturb the horizon slightly or change the influence function.",
+            stacklevel=3,
+        )
+    neg = np.bincount(bonds.i, weights=(wh < 0).astype(float), minlength=n) > 0
+    fb = neg if fallback else np.zeros(n, dtype=bool)
+    if fb.any():
+        log.info("XOSB fallback (some ω^h < 0) at %d point(s)", int(fb.sum()))
+        fbb = fb[bonds.i]
+        whf = np.where(fbb, wh_s, wh)
+        wdf = np.where(fbb, wd_s, wd)
+    else:
+        whf, wdf = wh, wd
+    return StateWeights(wh, wd, wh_s, wd_s, whf, wdf, fb, singular, cond_h, cond_d, m)
+
+
+def _point_operator(
+    bonds: Bonds, coef: np.ndarray, unit: np.ndarray, n: int, d: int
+) -> sp.csr_array:
+    """``Pᵀ diag(coef) B`` as an ``n x n·d`` CSR array (row i = Σ_{b∈i} coef_b B_b)."""
+    nb = bonds.n_bonds
+    cn = coef[:, None] * unit  # (nb, d)
+    diag = np.empty((n, d))
+    for k in range(d):
+        diag[:, k] = -np.bincount(bonds.i, weights=cn[:, k], minlength=n)
+    rows = np.concatenate([np.repeat(bonds.i, d), np.repeat(np.arange(n), d)])
+    cols = np.concatenate(
+        [
+            (d * bonds.j[:, None] + np.arange(d)).ravel(),
+            (d * np.arange(n)[:, None] + np.arange(d)).ravel(),
+        ]
+    )
+    data = np.concatenate([cn.ravel(), diag.ravel()])
+    del nb
+    out = sp.coo_array((data, (rows, cols)), shape=(n, n * d)).tocsr()
+    out.sum_duplicates()
+    return out
+
+
+def _bond_operator(bonds: Bonds, unit: np.ndarray, n: int, d: int) -> sp.csr_array:
+    """``B`` (nb x n·d): row b = -n_bᵀ at the owner, +n_bᵀ at the neighbor."""
+    nb = bonds.n_bonds
+    cols = np.concatenate(
+        [d * bonds.i[:, None] + np.arange(d), d * bonds.j[:, None] + np.arange(d)], axis=1
+    )
+    data = np.concatenate([-unit, unit], axis=1)
+    indptr = np.arange(0, 2 * d * nb + 1, 2 * d, dtype=np.int64)
+    return sp.csr_array((data.ravel(), cols.ravel(), indptr), shape=(nb, n * d))
+
+
+def _as_displacement(u: Any, n: int, d: int) -> np.ndarray:
+    arr = np.asarray(u, dtype=float)
+    if arr.size != n * d:
+        raise ShapeError(f"u must have {n * d} entries (shape ({n}, {d})), got shape {arr.shape}")
+    arr = arr.reshape(n, d)
+    if not np.all(np.isfinite(arr)):
+        raise InputError("u must be finite, got NaN or inf")
+    return arr
+
+
+class OrdinaryStateBased(Model):
+    """Common base of :class:`pdlin.LPS` and :class:`pdlin.XOSB` (not public)."""
+
+    coupling_range = 2
+    _corrections = False
+
+    def __init__(
+        self,
+        E: Any,
+        nu: float,
+        *,
+        plane: str = "stress",
+        linearization: str = "energy",
+        weighted_volume: str = "analytic",
+        fallback: bool = True,
+        unit_influence: bool = False,
+        max_cond: float = 1e10,
+    ) -> None:
+        self.E = as_float_array(E, "E")
+        if self.E.ndim > 1 or np.any(self.E <= 0):
+            raise InputError(f"E must be a positive scalar or (n,) array, got {E!r}")
+        try:
+            self.nu = float(nu)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"nu must be a number in (-1, 0.5), got {nu!r}") from exc
+        if not -1.0 < self.nu < 0.5:
+            raise InputError(f"nu must be in (-1, 0.5), got {self.nu}")
+        if plane not in _PLANES:
+            raise InputError(f"plane must be 'stress' or 'strain', got {plane!r}")
+        if linearization not in _LINEARIZATIONS:
+            raise InputError(f"linearization must be 'energy' or 'paper', got {linearization!r}")
+        if weighted_volume not in ("analytic", "discrete"):
+            raise InputError(
+                f"weighted_volume must be 'analytic' or 'discrete', got {weighted_volume!r}"
+            )
+        self.plane = plane
+        self.linearization = linearization
+        self.weighted_volume = weighted_volume
+        self.fallback = bool(fallback)
+        self.unit_influence = bool(unit_influence)
+        self.max_cond = float(max_cond)
+        self.symmetric = linearization == "energy"
+        self._cache: tuple[int, int, StateWeights] | None = None
+
+    # -- material ------------------------------------------------------------
+    def moduli(self, dim: int) -> tuple[Any, Any]:
+        """Bulk and shear moduli ``(κ, μ)`` (scalars or per point) for ``dim``."""
+        return bulk_shear_moduli(self.E, self.nu, dim, self.plane)
+
+    def weights(self, cloud: PointCloud, bonds: Bonds) -> StateWeights:
+        """Influence weights of this model on ``bonds`` (cached for the last pair)."""
+        if cloud.dim not in (2, 3):
+            raise ModelError(f"{type(self).__name__} needs a 2D or 3D cloud, got dim {cloud.dim}")
+        if bonds.n_points != cloud.n or bonds.dim != cloud.dim:
+            raise ShapeError(
+                f"bonds were built for {bonds.n_points} points in {bonds.dim}D, "
+                f"got a cloud of {cloud.n} points in {cloud.dim}D"
+            )
+        if self._cache is not None and self._cache[:2] == (id(cloud), id(bonds)):
+            return self._cache[2]
+        w = compute_weights(
+            cloud,
+            bonds,
+            corrections=self._corrections,
+            weighted_volume=self.weighted_volume,
+            unit_influence=self.unit_influence,
+            fallback=self.fallback,
+            max_cond=self.max_cond,
+        )
+        self._cache = (id(cloud), id(bonds), w)
+        return w
+
+    def _coefficients(self, cloud: PointCloud, bonds: Bonds) -> dict[str, Any]:
+        d = cloud.dim
+        w = self.weights(cloud, bonds)
+        kappa, mu = self.moduli(d)
+        vol = np.asarray(cloud.volumes, dtype=float)
+        meas = 1.0 if d == 3 else float(cloud.thickness)
+        kap = np.broadcast_to(kappa, (cloud.n,)).astype(float)
+        mub = np.broadcast_to(mu, (cloud.n,))[bonds.i]
+        r = bonds.length
+        return {
+            "w": vol[bonds.i] * bonds.volume_j * meas,
+            "a": w.omega_h * r * bonds.volume_j,
+            "c": 2.0 * mub * w.omega_d_force,
+            "kh": kap[bonds.i] * w.omega_h_force * r,  # κ ω̃^h r
+            "kth": kap[bonds.i] * w.omega_h * r,  # κ ω^h r (energy)
+            "kV": kap * vol * meas,
+            "d": d,
+        }
+
+    # -- kinematics ----------------------------------------------------------
+    def _extension(
+        self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, linear: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
+        uu = _as_displacement(u, cloud.n, cloud.dim)
+        eta = uu[bonds.j] - uu[bonds.i]
+        if linear:
+            unit = bonds.xi / bonds.length[:, None]
+            return np.einsum("ij,ij->i", unit, eta), unit
+        y = bonds.xi + eta
+        ly = np.sqrt(np.einsum("ij,ij->i", y, y))
+        if np.any(ly <= 0):
+            raise InputError("u collapses a bond to zero length; the force state is undefined")
+        return ly - bonds.length, y / ly[:, None]
+
+    def dilatation(
+        self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, *, linear: bool = True
+    ) -> np.ndarray:
+        """Dilatation ``θ_i = Σ_j ω^h r e V_j`` (corrected ω^h), ``(n,)``."""
+        e, _ = self._extension(cloud, bonds, u, linear)
+        w = self.weights(cloud, bonds)
+        return np.bincount(
+            bonds.i, weights=w.omega_h * bonds.length * bonds.volume_j * e, minlength=cloud.n
+        )
+
+    def strain_energy_density(
+        self,
+        cloud: PointCloud,
+        bonds: Bonds,
+        u: np.ndarray,
+        *,
+        linear: bool = True,
+        force_weights: bool = False,
+    ) -> np.ndarray:
+        """``W_i = κθ²/2 + μ Σ_j ω^d (e^d)² V_j`` (spec 002 Eq. 22), ``(n,)``.
+
+        ``force_weights=True`` uses ω̃^d (spherical at fallback points), the
+        energy whose Hessian is ``K_E``.
+        """
+        d = cloud.dim
+        e, _ = self._extension(cloud, bonds, u, linear)
+        w = self.weights(cloud, bonds)
+        kappa, mu = self.moduli(d)
+        theta = np.bincount(
+            bonds.i, weights=w.omega_h * bonds.length * bonds.volume_j * e, minlength=cloud.n
+        )
+        ed = e - theta[bonds.i] * bonds.length / d
+        wd = w.omega_d_force if force_weights else w.omega_d
+        dev = np.bincount(bonds.i, weights=wd * ed * ed * bonds.volume_j, minlength=cloud.n)
+        return 0.5 * kappa * theta**2 + mu * dev
+
+    def force_state(
+        self,
+        cloud: PointCloud,
+        bonds: Bonds,
+        u: np.ndarray,
+        *,
+        linear: bool = True,
+        variant: str | None = None,
+    ) -> np.ndarray:
+        """Scalar force state ``t_b`` per ordered bond (``paper`` or ``energy``)."""
+        t, _, _ = self._force_state(cloud, bonds, u, linear, variant or self.linearization)
+        return t
+
+    def _force_state(
+        self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, linear: bool, variant: str
+    ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+        co = self._coefficients(cloud, bonds)
+        d = co["d"]
+        e, unit = self._extension(cloud, bonds, u, linear)
+        theta = np.bincount(bonds.i, weights=co["a"] * e, minlength=cloud.n)
+        thb = theta[bonds.i]
+        ed = e - thb * bonds.length / d
+        cd = co["c"] * ed
+        if variant == "paper":
+            t = co["kh"] * thb + cd
+        else:
+            z = np.bincount(bonds.i, weights=cd * bonds.length * bonds.volume_j, minlength=cloud.n)
+            t = (co["kth"] * thb + cd) - (co["a"] / bonds.volume_j / d) * z[bonds.i]
+        return t, unit, co
+
+    def internal_force(
+        self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, *, linear: bool = True
+    ) -> np.ndarray:
+        """Nodal internal force ``f_i = Σ_j V_iV_j (t_ij + t_ji) M_ij``, ``(n, dim)``.
+
+        ``linear=True`` uses ``e = n·η`` along the reference direction, so
+        ``f == -K u``; ``linear=False`` uses ``e = |ξ+η| - |ξ|`` and the
+        deformed direction ``M``.  The force state is the paper's (Eq. 70)
+        or the energy-consistent one, per ``linearization``.
+        """
+        t, unit, co = self._force_state(cloud, bonds, u, linear, self.linearization)
+        d = cloud.dim
+        tw = co["w"] * t
+        tw = tw + tw[bonds.reverse]
+        f = np.empty((cloud.n, d))
+        for k in range(d):
+            f[:, k] = np.bincount(bonds.i, weights=tw * unit[:, k], minlength=cloud.n)
+        return f
+
+    def stress(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
+        """Per-point stress ``σ_i = Σ_j t_ij n_ij ⊗ ξ_ij V_j`` (paper t), ``(n, d, d)``.
+
+        Equals ``κ tr ε I + 2μ ε^d`` for affine ``u`` at non-fallback XOSB
+        points (spec 002 §4, stress consistency).
+        """
+        t, unit, _ = self._force_state(cloud, bonds, u, True, "paper")
+        d = cloud.dim
+        out = np.empty((cloud.n, d, d))
+        g = t * bonds.volume_j
+        for a in range(d):
+            for b in range(d):
+                out[:, a, b] = np.bincount(
+                    bonds.i, weights=g * unit[:, a] * bonds.xi[:, b], minlength=cloud.n
+                )
+        return out
+
+    # -- operators -----------------------------------------------------------
+    def _factors(self, cloud: PointCloud, bonds: Bonds) -> dict[str, Any]:
+        co = self._coefficients(cloud, bonds)
+        d, n = cloud.dim, cloud.n
+        unit = bonds.xi / bonds.length[:, None]
+        B = _bond_operator(bonds, unit, n, d)
+        return {"B": B, "unit": unit, **co}
+
+    def stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.bsr_array:
+        """Assembled linearized stiffness (BSR, blocksize dim), ``f = -K u``.
+
+        One sparse product ``Xᵀ Y`` of stacked point-level operators (see the
+        module docstring); ``K_E`` for ``linearization='energy'``, ``K_p`` for
+        ``'paper'``.
+        """
+        d, n = cloud.dim, cloud.n
+        co = self._coefficients(cloud, bonds)
+        unit = bonds.xi / bonds.length[:, None]
+        r = bonds.length
+        wc = co["w"] * co["c"]
+        B = _bond_operator(bonds, unit, n, d)
+        theta_op = _point_operator(bonds, co["a"], unit, n, d)
+        Bw = sp.csr_array((B.data * np.repeat(wc, 2 * d), B.indices, B.indptr), shape=B.shape)
+        if self.linearization == "energy":
+            gam = _point_operator(bonds, wc * r / d, unit, n, d)
+            s = np.bincount(bonds.i, weights=wc * r * r / d**2, minlength=n)
+            g = sp.dia_array((co["kV"] + s, 0), shape=(n, n))
+            X = sp.vstack([theta_op, gam, B], format="csr")
+            Y = sp.vstack([g @ theta_op - gam, -theta_op, Bw], format="csr")
+            del gam
+        else:
+            wb = co["w"] * r * (co["kh"] / r - co["c"] / d)  # w β
+            gam_b = _point_operator(bonds, wb, unit, n, d)
+            X = sp.vstack([gam_b, B], format="csr")
+            Y = sp.vstack([theta_op, Bw], format="csr")
+            del gam_b
+        del B, Bw, theta_op
+        Xt = X.T.tocsr()
+        del X
+        K = Xt @ Y
+        del Xt, Y
+        Kb = sp.bsr_array(K.tobsr(blocksize=(d, d)))
+        del K
+        Kb.sort_indices()
+        return Kb
+
+    def operator(self, cloud: PointCloud, bonds: Bonds) -> spla.LinearOperator:
+        """Matrix-free ``K`` as a :class:`~scipy.sparse.linalg.LinearOperator`.
+
+        Products use the factors ``B`` (nb x n·dim, 2·dim entries per row)
+        and per-bond coefficients only: ``K u = Bᵀ (w ⊙ t(Bu))``; memory is
+        O(nb) instead of the O(two-hop) of the assembled matrix.
+        """
+        d, n = cloud.dim, cloud.n
+        co = self._coefficients(cloud, bonds)
+        unit = bonds.xi / bonds.length[:, None]
+        B = _bond_operator(bonds, unit, n, d)
+        Bt = B.T.tocsr()
+        own = bonds.i
+        r = bonds.length
+        a, c, w = co["a"], co["c"], co["w"]
+        paper = self.linearization == "paper"
+        kh = co["kh"] if paper else co["kth"]
+        zc = a / bonds.volume_j / d
+        rv = r * bonds.volume_j
+
+        def matvec(x: np.ndarray) -> np.ndarray:
+            e = B @ np.ravel(x)
+            theta = np.bincount(own, weights=a * e, minlength=n)[own]
+            cd = c * (e - theta * r / d)
+            t = kh * theta + cd
+            if not paper:
+                t -= zc * np.bincount(own, weights=cd * rv, minlength=n)[own]
+            return Bt @ (w * t)
+
+        return spla.LinearOperator((n * d, n * d), matvec=matvec, dtype=float)
+
+    def estimate_nnz_blocks(self, cloud: PointCloud, bonds: Bonds) -> int:
+        """Blocks of K without assembling it: nnz of the pattern of (A + I)²."""
+        n = cloud.n
+        adj = sp.csr_array(
+            (np.ones(bonds.n_bonds, dtype=np.float32), bonds.j, bonds.indptr), shape=(n, n)
+        ) + sp.eye_array(n, dtype=np.float32, format="csr")
+        total = 0
+        for r0, r1 in _row_chunks(np.asarray(adj.indptr, dtype=np.int64), 1 << 22):
+            total += int((adj[r0:r1] @ adj).nnz)
+        return total
+
+    def describe(self) -> dict[str, Any]:
+        return {
+            "model": type(self).__name__,
+            "E": float(self.E) if self.E.ndim == 0 else "per-point",
+            "nu": self.nu,
+            "plane": self.plane,
+            "linearization": self.linearization,
+            "weighted_volume": self.weighted_volume,
+            "corrections": self._corrections,
+            "fallback": self.fallback,
+        }

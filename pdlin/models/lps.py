@@ -1,0 +1,78 @@
+"""Linear peridynamic solid (LPS / ordinary state-based OSBPD) with spherical weights."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ._state import OrdinaryStateBased, analytic_weighted_volume, bulk_shear_moduli
+
+__all__ = ["LPS", "bulk_shear_moduli", "analytic_weighted_volume"]
+
+
+class LPS(OrdinaryStateBased):
+    """Ordinary state-based peridynamics with spherical influence weights (LPS, OSBPD).
+
+    ``θ_i = (n_d/m_i) Σ_j ω r e V_j``, ``e^d = e - θ r / n_d`` and
+    ``W_i = κθ²/2 + μ Σ_j ω^d (e^d)² V_j`` with ``ω^d = n_d(n_d+2) ω/(2 m_i)``
+    (spec 002 §3, the OSBPD baseline of XOSB).  Linearized, ``f = -K u``.
+
+    Parameters
+    ----------
+    E : float or (n,) array_like
+        Young's modulus (per point for graded materials).
+    nu : float
+        Poisson ratio in (-1, 0.5); any value (unlike bond-based PD).
+    plane : {'stress', 'strain'}
+        2D assumption: ``κ = E/(2(1-ν))`` or ``E/(2(1+ν)(1-2ν))``.
+    weighted_volume : {'analytic', 'discrete'}
+        ``m_i = πδ⁴/2`` (2D) / ``4πδ⁵/5`` (3D) of the owner's horizon, or the
+        discrete ``m_i = Σ_j ω r² V_j``.
+    peridigm : bool
+        Peridigm's convention: discrete ``m_i`` with ω = 1 (the bonds'
+        influence values are ignored), no surface correction.  Implies
+        ``weighted_volume='discrete'``.
+    linearization : {'energy', 'paper'}
+        ``'energy'`` (default): ``K`` is the Hessian of ``Σ V_i W_i``
+        (symmetric).  ``'paper'``: the force state of spec 002 Eq. 70.  The
+        two coincide with discrete ``m`` (then ``Σ ω^d r e^d V = 0``).
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin
+    >>> cloud = pdlin.grid((8, 8), spacing=0.1)
+    >>> bonds = pdlin.find_bonds(cloud, ratio=3.015)
+    >>> model = pdlin.LPS(E=1.0, nu=0.3, plane="strain")
+    >>> K = pdlin.assemble_stiffness(model, cloud, bonds)
+    >>> K.shape, K.blocksize, model.coupling_range, model.symmetric
+    ((128, 128), (2, 2), 2, True)
+    >>> u = np.random.default_rng(0).normal(size=(cloud.n, 2))
+    >>> bool(np.allclose(K @ u.ravel(), -model.internal_force(cloud, bonds, u).ravel()))
+    True
+    """
+
+    _corrections = False
+
+    def __init__(
+        self,
+        E: Any,
+        nu: float,
+        *,
+        plane: str = "stress",
+        weighted_volume: str = "analytic",
+        peridigm: bool = False,
+        linearization: str = "energy",
+    ) -> None:
+        super().__init__(
+            E,
+            nu,
+            plane=plane,
+            linearization=linearization,
+            weighted_volume="discrete" if peridigm else weighted_volume,
+            unit_influence=bool(peridigm),
+        )
+        self.peridigm = bool(peridigm)
+
+    def describe(self) -> dict[str, Any]:
+        out = super().describe()
+        out["peridigm"] = self.peridigm
+        return out
