@@ -12,6 +12,16 @@ from .geometry import Bonds, PointCloud, find_bonds, from_image, grid
 from .geometry.generators import plate_with_hole_mesh
 from .geometry.mesh import read_mesh
 from .models import LPS, XOSB, BondBased, Model
+from .models.weights import (
+    HigherOrderWeights,
+    WeightStatus,
+    as_influence,
+    gradient_exactness_order,
+    gradient_symbol,
+    higher_order_weights,
+    moment_weights,
+    weights_table,
+)
 from .operators import (
     BodyForce,
     Dirichlet,
@@ -62,4 +72,12 @@ __all__ = [
     "small_strain",
     "calibrate_micromoduli",
     "CalibrationResult",
+    "higher_order_weights",
+    "weights_table",
+    "HigherOrderWeights",
+    "WeightStatus",
+    "as_influence",
+    "moment_weights",
+    "gradient_symbol",
+    "gradient_exactness_order",
 ]

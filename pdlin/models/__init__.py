@@ -3,6 +3,21 @@
 from .base import Model
 from .bond_based import BondBased, implied_poisson_ratio, standard_micromodulus
 from .lps import LPS
+from .weights import (
+    HigherOrderWeights,
+    MomentWeights,
+    WeightStatus,
+    as_influence,
+    gradient_exactness_order,
+    gradient_symbol,
+    higher_order_weights,
+    lattice_moment,
+    lattice_shells,
+    moment_weights,
+    nocontrol_weights,
+    symbol_extremes,
+    weights_table,
+)
 from .xosb import XOSB
 
 __all__ = [
@@ -12,4 +27,17 @@ __all__ = [
     "standard_micromodulus",
     "LPS",
     "XOSB",
+    "HigherOrderWeights",
+    "MomentWeights",
+    "WeightStatus",
+    "higher_order_weights",
+    "weights_table",
+    "lattice_shells",
+    "nocontrol_weights",
+    "as_influence",
+    "lattice_moment",
+    "gradient_exactness_order",
+    "gradient_symbol",
+    "symbol_extremes",
+    "moment_weights",
 ]
