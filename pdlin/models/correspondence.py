@@ -1,0 +1,898 @@
+"""Correspondence (non-ordinary state-based) peridynamics on sparse operators.
+
+The model is linear small strain (spec 000 §8, spec 003 §2): a nonlocal
+displacement gradient per *gradient point* (a particle, or a stress point
+of a particle), ``∇u_g = Σ_b (u_b - u_a) ⊗ c_gb`` with
+``c_gb = ω_ab V_b K_g⁻¹ ξ_ab`` (spec 000 §3), Cauchy stress
+``σ_g = C_a : ε_g`` used in place of ``P``, and the energy
+``Π = ½ Σ_g w_g V_a ε_g : C_a : ε_g``.  The stiffness is therefore
+
+``K = Gᵀ blockdiag(w_g V_a C_a) G``
+
+with ``G`` the sparse gradient operator (``n_gp·d²`` x ``n·d``); it is
+symmetric PSD for any sign of the weights.  Zero-energy-mode controls:
+``'none'``, ``'higher_order'`` (spec 000), ``'penalty'`` (a bond-based
+penalty on the non-affine part of each bond) and ``'stress_points'``
+(spec 003).  See ``docs/correspondence.md``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .._validation import as_float_array
+from ..constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
+from ..errors import InputError, ModelError, ShapeError
+from ..fields import _per_point_outer
+from ..geometry.bonds import Bonds
+from ..geometry.cloud import PointCloud
+from .base import Model
+from .bond_based import BondBased, _c1111
+
+__all__ = [
+    "Correspondence",
+    "CONTROLS",
+    "gradient_operator",
+    "voigt_projector",
+    "intact_shape_tensor",
+    "shadow_real_counts",
+]
+
+log = logging.getLogger(__name__)
+
+#: zero-energy-mode controls accepted by :class:`Correspondence`
+CONTROLS = ("none", "higher_order", "penalty", "stress_points")
+
+#: stress-point cases (spec 003 §4.1): sign vector s of SP1's bonds, per dimension
+_SP_CASES: dict[int, np.ndarray] = {
+    1: np.array([[1]]),
+    2: np.array([[1, 1], [1, -1]]),
+    3: np.array([[1, 1, 1], [1, 1, -1], [1, -1, 1], [-1, 1, 1]]),
+}
+
+#: default byte budget of an assembled K (beyond it :meth:`Correspondence.plan`
+#: chooses the matrix-free operator)
+DEFAULT_MAX_BYTES = 4 * 1024**3
+
+
+# ---------------------------------------------------------------------------
+# operators
+
+
+def voigt_projector(dim: int) -> np.ndarray:
+    """Map ``vec(∇u)`` (row-major ``(i, j)`` → ``d*i + j``) to Voigt strain.
+
+    Engineering shear: 2D ``[ε11, ε22, γ12]``, 3D
+    ``[ε11, ε22, ε33, γ23, γ13, γ12]`` (the order of
+    :mod:`pdlin.constitutive`).  ``Pᵀ C P`` is the full tensor ``C_ijkl``
+    acting on ``vec(∇u)``.
+
+    Examples
+    --------
+    >>> voigt_projector(2).tolist()
+    [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], [0.0, 1.0, 1.0, 0.0]]
+    """
+    pairs = {1: ((0, 0),), 2: ((0, 0), (1, 1), (0, 1)),
+             3: ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))}  # fmt: skip
+    if dim not in pairs:
+        raise InputError(f"dim must be 1, 2 or 3, got {dim}")
+    P = np.zeros((len(pairs[dim]), dim * dim))
+    for a, (i, j) in enumerate(pairs[dim]):
+        P[a, dim * i + j] = 1.0
+        P[a, dim * j + i] = 1.0
+    return P
+
+
+def _coefficients(
+    owner_b: np.ndarray,
+    n_gp: int,
+    omega: np.ndarray,
+    volume_j: np.ndarray,
+    xi: np.ndarray,
+    kinv_override: Mapping[int, np.ndarray] | None = None,
+    override_rows: np.ndarray | None = None,
+    override_kinv: np.ndarray | None = None,
+) -> np.ndarray:
+    """Bond coefficients ``c_b = ω V_j K_g⁻¹ ξ`` (nb, d); K_g from the gradient point's bonds."""
+    d = xi.shape[1]
+    w = omega * volume_j
+    K = _per_point_outer(owner_b, n_gp, w, xi, xi)  # the shape tensor of pdlin.fields
+    if override_rows is not None and override_rows.size:
+        assert override_kinv is not None
+        K[override_rows] = np.linalg.inv(override_kinv)
+    tr = np.abs(np.einsum("nii->n", K))
+    det = np.linalg.det(K)
+    bad = np.flatnonzero(~(np.abs(det) > 1e-12 * np.maximum(tr / d, 1e-300) ** d))
+    if bad.size:
+        raise ModelError(
+            f"shape tensor must be invertible at every gradient point, got {bad.size} singular "
+            f"one(s) (first: gradient point {int(bad[0])}); its bonds do not span {d}D "
+            "(isolated points, one-point-wide strips, or weights with Ω = 0)"
+        )
+    Kinv = np.linalg.inv(K)
+    if override_rows is not None and override_rows.size:
+        Kinv[override_rows] = override_kinv
+    return w[:, None] * np.einsum("bij,bj->bi", Kinv[owner_b], xi)
+
+
+def _gradient_csr(
+    gp_owner: np.ndarray,
+    gp_of_bond: np.ndarray,
+    j: np.ndarray,
+    c: np.ndarray,
+    n_points: int,
+) -> sp.csr_array:
+    """Assemble G (n_gp·d² x n·d) from bond coefficients; round-off diagonals snapped to 0."""
+    d = c.shape[1]
+    n_gp = gp_owner.size
+    nb = j.size
+    # diagonal -Σ_b c_gb per gradient point; exact zero on intact (symmetric) horizons
+    diag = np.empty((n_gp, d))
+    scale = np.empty((n_gp, d))
+    for q in range(d):
+        diag[:, q] = -np.bincount(gp_of_bond, weights=c[:, q], minlength=n_gp)
+        scale[:, q] = np.bincount(gp_of_bond, weights=np.abs(c[:, q]), minlength=n_gp)
+    diag[np.abs(diag) <= 64 * np.finfo(float).eps * scale] = 0.0
+    comp = np.arange(d)
+    # entries (g, i, q) -> row (g*d + i)*d + q, column j*d + i, value c_q
+    rows_b = (gp_of_bond[:, None, None] * d + comp[None, :, None]) * d + comp[None, None, :]
+    cols_b = np.broadcast_to((j[:, None] * d + comp[None, :])[:, :, None], (nb, d, d))
+    vals_b = np.broadcast_to(c[:, None, :], (nb, d, d))
+    rows_g = (np.arange(n_gp)[:, None, None] * d + comp[None, :, None]) * d + comp[None, None, :]
+    cols_g = np.broadcast_to((gp_owner[:, None] * d + comp[None, :])[:, :, None], (n_gp, d, d))
+    vals_g = np.broadcast_to(diag[:, None, :], (n_gp, d, d))
+    keep = vals_g.ravel() != 0.0
+    rows = np.concatenate([rows_b.ravel(), rows_g.ravel()[keep]])
+    cols = np.concatenate([cols_b.ravel(), cols_g.ravel()[keep]])
+    vals = np.concatenate([vals_b.ravel(), vals_g.ravel()[keep]])
+    G = sp.coo_array((vals, (rows, cols)), shape=(n_gp * d * d, n_points * d)).tocsr()
+    G.sum_duplicates()
+    return sp.csr_array(G)
+
+
+def gradient_operator(
+    cloud: PointCloud, bonds: Bonds, omega: np.ndarray | None = None
+) -> sp.csr_array:
+    """Sparse nonlocal gradient ``G``: ``(G @ u.ravel()).reshape(n, d, d) = ∇u``.
+
+    ``G_j[a, b] = c_ab,j`` and ``G_j[a, a] = -Σ_b c_ab,j`` with
+    ``c_ab = ω_ab V_b K_a⁻¹ ξ_ab`` (spec 000 §3); rows are ordered
+    ``(a, i, j)`` for ``∂u_i/∂X_j`` and columns are interleaved DOFs.
+    ``G u`` equals ``pdlin.deformation_gradient(cloud, bonds, u) - I``, so it
+    is exact for affine fields wherever ``K_a`` is invertible.  Diagonals
+    that vanish up to round-off (intact horizons) are stored as exact zeros.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+    bonds : Bonds
+    omega : (nb,) array_like, optional
+        Weights replacing ``bonds.omega`` (may be negative, e.g. the
+        higher-order sets of spec 000).
+
+    Returns
+    -------
+    scipy.sparse.csr_array of shape (n*d*d, n*d)
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin
+    >>> cloud = pdlin.grid((5, 4), spacing=0.1)
+    >>> bonds = pdlin.find_bonds(cloud, ratio=2.0)
+    >>> G = gradient_operator(cloud, bonds)
+    >>> H = np.array([[1e-3, 2e-3], [-4e-3, 5e-4]])
+    >>> grad = (G @ (cloud.points @ H.T).ravel()).reshape(cloud.n, 2, 2)
+    >>> bool(np.allclose(grad, H, atol=1e-14))
+    True
+    """
+    om = bonds.omega if omega is None else as_float_array(omega, "omega")
+    if om.shape != (bonds.n_bonds,):
+        raise ShapeError(f"omega must have shape ({bonds.n_bonds},), got {om.shape}")
+    c = _coefficients(bonds.i, cloud.n, om, bonds.volume_j, bonds.xi)
+    return _gradient_csr(np.arange(cloud.n), bonds.i, bonds.j, c, cloud.n)
+
+
+def intact_shape_tensor(cloud: PointCloud, bonds: Bonds, omega_fn: Any) -> np.ndarray:
+    """Shape tensor of a complete lattice horizon, ``(d, d)``.
+
+    Built from the integer stencil ``|p h| <= δ`` of a :func:`pdlin.grid`
+    cloud with uniform spacing, volume and horizon; ``omega_fn(length,
+    horizon)`` gives the weights.  Shadow particles use it (spec 000 §7).
+    """
+    lat = cloud.lattice
+    if lat is None:
+        raise ModelError("a shadow layer needs a pdlin.grid cloud (lattice metadata), got none")
+    hs = np.asarray(lat.spacing, dtype=float)
+    hor = np.asarray(bonds.horizon, dtype=float)
+    if not (np.allclose(hs, hs[0], rtol=1e-12) and np.allclose(hor, hor[0], rtol=1e-12)):
+        raise ModelError("a shadow layer needs equal spacing on every axis and a constant horizon")
+    vol = np.asarray(cloud.volumes)
+    if not np.allclose(vol, vol[0], rtol=1e-12):
+        raise ModelError("a shadow layer needs uniform point volumes")
+    d = cloud.dim
+    delta = float(hor[0])
+    m = int(np.floor(delta * (1 + 1e-9) / hs[0]))
+    rng = np.arange(-m, m + 1)
+    offs = np.stack([g.ravel() for g in np.meshgrid(*([rng] * d), indexing="ij")], axis=1)
+    offs = offs[np.any(offs != 0, axis=1)]
+    vec = offs * hs[0]
+    length = np.sqrt(np.sum(vec**2, axis=1))
+    keep = length <= delta * (1 + 1e-9)
+    vec, length = vec[keep], length[keep]
+    om = np.asarray(omega_fn(length, np.full(length.size, delta)), dtype=float)
+    return np.einsum("b,bi,bj->ij", om * vol[0], vec, vec)
+
+
+def shadow_real_counts(cloud: PointCloud, shadow: np.ndarray) -> np.ndarray:
+    """Number of real (non-shadow) lattice positions along each axis, ``(d,)``."""
+    lat = cloud.lattice
+    if lat is None:
+        raise ModelError("shadow_real_counts needs a pdlin.grid cloud, got no lattice metadata")
+    real = np.ones(cloud.n, dtype=bool)
+    real[shadow] = False
+    if not real.any():
+        return np.zeros(cloud.dim, dtype=int)
+    idx = np.arange(cloud.n) if lat.index is None else np.asarray(lat.index)
+    multi = np.unravel_index(idx[real], lat.shape)
+    return np.array([np.unique(mk).size for mk in multi])
+
+
+# ---------------------------------------------------------------------------
+# the model
+
+
+@dataclasses.dataclass(frozen=True)
+class _Plan:
+    gp_owner: np.ndarray  # (n_gp,) particle of each gradient point
+    gp_of_bond: np.ndarray  # (nb,) gradient point owning each bond
+    weight: np.ndarray  # (n_gp,) w_g
+    energy: np.ndarray  # (n_gp,) bool: carries energy (False for shadow points)
+    omega: np.ndarray  # (nb,) weights used
+    G: sp.csr_array  # (n_gp*d*d, n*d)
+    D: np.ndarray  # (n_gp, d*d, d*d) w V C_ijkl (0 for energy-free points)
+    Cv: np.ndarray  # (n_gp, nv, nv) Voigt stiffness of the owner
+
+
+class Correspondence(Model):
+    """Linear correspondence (NOSB) peridynamics with zero-energy-mode controls.
+
+    Parameters
+    ----------
+    C : array_like, optional
+        Voigt stiffness (plain Voigt, :mod:`pdlin.constitutive` order):
+        ``(6, 6)`` (reduced in 2D by ``plane``), ``(3, 3)`` 2D in-plane,
+        ``(1, 1)`` or scalar in 1D; or one per point ``(n, nv, nv)``; or a
+        mapping / sequence of them per material id (``cloud.material``).
+    E, nu : float or (n,) array_like, optional
+        Isotropic alternative to ``C`` (``E`` may vary per point; 1D uses
+        ``E`` only).
+    plane : {'stress', 'strain'}
+        2D reduction of 3D data.
+    control : {'none', 'higher_order', 'penalty', 'stress_points'}
+        * ``'none'``: the bonds' ω (e.g. ``influence='inverse'`` for the
+          LAMMPS-PD ω = 1/|ξ|, or ``'constant'``).
+        * ``'higher_order'``: the model re-weights the bonds of a
+          :func:`pdlin.grid` cloud with
+          ``pdlin.higher_order_weights(dim, δ/h)`` (spec 000 §6; negative
+          weights allowed).  Build the bonds with ``find_bonds(cloud,
+          ratio=m)`` (any influence: it is replaced).
+        * ``'penalty'``: adds ``½ Σ_b ½ penalty k_b |z_b|²`` with
+          ``z_b = u_j - u_i - ∇u_i ξ_b`` (non-affine part of bond b) and
+          ``k_b = c ω V_i V_j / |ξ|`` the bond stiffness of
+          :class:`pdlin.BondBased` with the modulus ``E_eq`` whose
+          bond-based ``C_1111`` equals the mean axial modulus of ``C_i``:
+          ``penalty = 1`` resists non-affine motion like a bond-based
+          material of the same stiffness (full vector, not projected).
+        * ``'stress_points'``: spec 003 (nearest-neighbour axis bonds):
+          two stress points per full-horizon particle, one per boundary
+          particle, ``w_s = ½``.
+    penalty : float
+        Dimensionless penalty coefficient (``control='penalty'``).
+    influence : callable, optional
+        ``ω(length, horizon)`` overriding the bonds' weights (e.g. a
+        hand-made weight set); with ``'higher_order'`` it replaces the
+        generated set.
+    shadow : (m,) array_like of int, optional
+        Shadow particles (spec 000 §7, e.g. from :func:`pdlin.shadow_layer`):
+        they carry no energy, and their gradient rows use the intact-lattice
+        shape tensor; their prescribed stress enters through
+        :meth:`shadow_loads`.
+    seed : int
+        Seed of the stress-point case generator.
+    case : int, optional
+        One fixed stress-point case for every particle (default: random).
+    sp_weight : float
+        Stress-point weight ``w_s`` (½: passes the patch test and gives
+        exact 1D reactions, spec 003 §4.3; 1 is the paper's literal scheme).
+    max_bytes : int
+        Budget of an assembled K; beyond it :meth:`plan` picks the
+        matrix-free operator.
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin
+    >>> cloud = pdlin.grid((8, 8), spacing=0.1)
+    >>> bonds = pdlin.find_bonds(cloud, ratio=2.0)
+    >>> model = pdlin.Correspondence(E=1.0, nu=0.25, plane="strain")
+    >>> K = pdlin.assemble_stiffness(model, cloud, bonds)
+    >>> u = np.random.default_rng(0).normal(size=(cloud.n, 2))
+    >>> bool(np.allclose(K @ u.ravel(), -model.internal_force(cloud, bonds, u).ravel()))
+    True
+    """
+
+    coupling_range = 2
+    symmetric = True
+
+    def __init__(
+        self,
+        C: Any = None,
+        *,
+        E: Any = None,
+        nu: float | None = None,
+        plane: str = "stress",
+        control: str = "none",
+        penalty: float = 1.0,
+        influence: Any = None,
+        shadow: Any = None,
+        seed: int = 0,
+        case: int | None = None,
+        sp_weight: float = 0.5,
+        max_bytes: int = DEFAULT_MAX_BYTES,
+    ) -> None:
+        if (C is None) == (E is None):
+            raise InputError(
+                "Correspondence needs exactly one of C (Voigt stiffness) or E (with nu), "
+                f"got {'both' if C is not None else 'neither'}"
+            )
+        if control not in CONTROLS:
+            raise InputError(f"control must be one of {CONTROLS}, got {control!r}")
+        if plane not in ("stress", "strain"):
+            raise InputError(f"plane must be 'stress' or 'strain', got {plane!r}")
+        pen = float(penalty)
+        if not np.isfinite(pen) or pen < 0:
+            raise InputError(f"penalty must be a finite number >= 0, got {penalty!r}")
+        if influence is not None and not callable(influence):
+            raise InputError(f"influence must be a callable ω(length, horizon), got {influence!r}")
+        if not float(sp_weight) > 0:
+            raise InputError(f"sp_weight must be > 0, got {sp_weight}")
+        if case is not None and control != "stress_points":
+            raise InputError(f"case is only used with control='stress_points', got {control!r}")
+        self.C = C
+        self.E = None if E is None else as_float_array(E, "E")
+        if self.E is not None and np.any(self.E <= 0):
+            raise InputError(f"E must be > 0, got min {float(np.min(self.E))}")
+        self.nu = None if nu is None else float(nu)
+        self.plane = plane
+        self.control = control
+        self.penalty = pen
+        self.influence = influence
+        self.shadow = None if shadow is None else np.unique(np.asarray(shadow, dtype=np.intp))
+        self.seed = int(seed)
+        self.case = None if case is None else int(case)
+        self.sp_weight = float(sp_weight)
+        self.max_bytes = int(max_bytes)
+        self._cache: tuple[int, int, _Plan] | None = None
+        #: how the last :meth:`plan` decided to apply K ('assembled' / 'matrix-free') and why
+        self.assembly: dict[str, Any] = {}
+
+    # -- material --------------------------------------------------------
+    def voigt_stiffness(self, cloud: PointCloud) -> np.ndarray:
+        """Per-point Voigt stiffness ``(n, nv, nv)`` in the cloud's dimension."""
+        d, n = cloud.dim, cloud.n
+        nv = {1: 1, 2: 3, 3: 6}[d]
+        if self.E is not None:
+            E = self.E
+            if E.ndim and E.shape != (n,):
+                raise ShapeError(f"E must be a scalar or have shape ({n},), got {E.shape}")
+            if d == 1:
+                base = np.ones((1, 1))
+            else:
+                if self.nu is None:
+                    raise InputError(f"nu must be given with E in {d}D, got None")
+                base = (
+                    isotropic(E=1.0, nu=self.nu)
+                    if d == 3
+                    else isotropic_2d(1.0, self.nu, plane=self.plane)
+                )
+            Eb = np.broadcast_to(E, (n,))
+            return Eb[:, None, None] * base[None]
+        C = self.C
+        if isinstance(C, Mapping) or (
+            isinstance(C, Sequence)
+            and not isinstance(C, np.ndarray)
+            and len(C) > 0
+            and np.ndim(C[0]) == 2
+            and np.ndim(C) == 3
+            and cloud.material is not None
+            and len(C) != n
+        ):
+            mats = np.asarray(cloud.material, dtype=np.intp)
+            keys = np.unique(mats)
+            table = {}
+            for k in keys:
+                try:
+                    table[int(k)] = self._one_voigt(C[int(k)], d, f"C[{int(k)}]")
+                except (KeyError, IndexError):
+                    raise InputError(
+                        f"C must give a stiffness for every material id of the cloud, "
+                        f"got none for id {int(k)}"
+                    ) from None
+            out = np.empty((n, nv, nv))
+            for k, v in table.items():
+                out[mats == k] = v
+            return out
+        arr = np.asarray(C, dtype=float)
+        if arr.ndim == 3:
+            if arr.shape[0] != n:
+                raise ShapeError(f"per-point C must have shape ({n}, {nv}, {nv}), got {arr.shape}")
+            if arr.shape[1:] == (nv, nv):
+                for k in np.unique(arr.reshape(n, -1), axis=0, return_index=True)[1][:64]:
+                    check_stiffness(arr[k], f"C[{int(k)}]")
+                return arr
+            return np.stack([self._one_voigt(a, d, f"C[{k}]") for k, a in enumerate(arr)])
+        return np.broadcast_to(self._one_voigt(arr, d, "C"), (n, nv, nv))
+
+    def _one_voigt(self, C: Any, d: int, name: str) -> np.ndarray:
+        arr = np.asarray(C, dtype=float)
+        if d == 1:
+            if arr.size != 1 or not arr.ravel()[0] > 0:
+                raise InputError(f"{name} must be a positive scalar or (1, 1) in 1D, got {arr!r}")
+            return arr.reshape(1, 1)
+        if d == 2 and arr.shape == (6, 6):
+            return plane_stress(arr) if self.plane == "stress" else plane_strain(arr)
+        want = (3, 3) if d == 2 else (6, 6)
+        if arr.shape != want:
+            raise ShapeError(
+                f"{name} must be a Voigt matrix of shape {want} in {d}D, got {arr.shape}"
+            )
+        return check_stiffness(arr, name)
+
+    # -- weights ----------------------------------------------------------
+    def bond_weights(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
+        """The ω used per bond, ``(nb,)`` (higher-order sets may be negative)."""
+        fn = self._omega_fn(cloud, bonds)
+        if fn is None:
+            return np.asarray(bonds.omega, dtype=float)
+        om = np.asarray(fn(bonds.length, bonds.horizon_ij), dtype=float)
+        return np.broadcast_to(om, bonds.length.shape).astype(float)
+
+    def _omega_fn(self, cloud: PointCloud, bonds: Bonds) -> Any:
+        if self.influence is not None:
+            return self.influence
+        if self.control != "higher_order":
+            return None
+        lat = cloud.lattice
+        if lat is None or not np.allclose(lat.spacing, lat.spacing[0], rtol=1e-12):
+            raise ModelError(
+                "control='higher_order' needs a pdlin.grid cloud with equal spacing on every "
+                "axis, got " + ("no lattice" if lat is None else f"spacing {lat.spacing}")
+            )
+        h = float(lat.spacing[0])
+        hor = np.asarray(bonds.horizon)
+        if not np.allclose(hor, hor[0], rtol=1e-12):
+            raise ModelError("control='higher_order' needs a constant horizon, got a per-point one")
+        ratio = float(hor[0]) / h
+        try:
+            from .weights import as_influence, higher_order_weights
+        except ImportError:
+            if abs(ratio - 1.0) < 1e-6:  # δ = h: the only shell, weight 1 (spec 000 §6 Table)
+                return lambda length, horizon: np.ones_like(length)
+            raise ModelError(
+                f"control='higher_order' at δ/h = {ratio:g} needs pdlin.models.weights "
+                "(not available); pass influence= with a weight set"
+            ) from None
+        return as_influence(higher_order_weights(cloud.dim, ratio), h)
+
+    # -- gradient points --------------------------------------------------
+    def _gradient_points(
+        self, cloud: PointCloud, bonds: Bonds
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        n = cloud.n
+        if self.control != "stress_points":
+            return np.arange(n), bonds.i, np.ones(n)
+        d = cloud.dim
+        xi = bonds.xi
+        absx = np.abs(xi)
+        axis = np.argmax(absx, axis=1)
+        sign = np.sign(xi[np.arange(bonds.n_bonds), axis]).astype(int)
+        off_axis = absx.sum(axis=1) - absx[np.arange(bonds.n_bonds), axis]
+        if np.any(off_axis > 1e-9 * bonds.length):
+            raise ModelError(
+                "control='stress_points' needs nearest-neighbour axis bonds (spec 003), got "
+                "diagonal bonds; use find_bonds(cloud, ratio=1.0)"
+            )
+        slot = np.bincount(bonds.i * 2 * d + 2 * axis + (sign > 0), minlength=2 * d * n)
+        if slot.max(initial=0) > 1:
+            raise ModelError(
+                "control='stress_points' needs at most one bond per axis direction, got more "
+                "(horizon larger than the spacing); use find_bonds(cloud, ratio=1.0)"
+            )
+        full = bonds.family_size == 2 * d
+        cases = _SP_CASES[d]
+        if self.case is None:
+            chosen = np.random.default_rng(self.seed).integers(0, cases.shape[0], n)
+        else:
+            if not 0 <= self.case < cases.shape[0]:
+                raise InputError(
+                    f"case must be in [0, {cases.shape[0] - 1}] in {d}D, got {self.case}"
+                )
+            chosen = np.full(n, self.case)
+        n_sp = np.where(full, 2, 1)
+        base = np.zeros(n, dtype=np.intp)
+        np.cumsum(n_sp[:-1], out=base[1:])
+        second = full[bonds.i] & (sign != cases[chosen[bonds.i], axis])
+        gp_of_bond = base[bonds.i] + second
+        gp_owner = np.repeat(np.arange(n), n_sp)
+        return gp_owner, gp_of_bond, np.full(gp_owner.size, self.sp_weight)
+
+    # -- assembly plan ----------------------------------------------------
+    def _plan(self, cloud: PointCloud, bonds: Bonds) -> _Plan:
+        key = (id(cloud), id(bonds))
+        if self._cache is not None and self._cache[:2] == key:
+            return self._cache[2]
+        if bonds.n_points != cloud.n or bonds.dim != cloud.dim:
+            raise ShapeError(
+                f"bonds were built for {bonds.n_points} points in {bonds.dim}D, "
+                f"got a cloud of {cloud.n} points in {cloud.dim}D"
+            )
+        d, n = cloud.dim, cloud.n
+        omega = self.bond_weights(cloud, bonds)
+        gp_owner, gp_of_bond, w = self._gradient_points(cloud, bonds)
+        n_gp = gp_owner.size
+        energy = np.ones(n_gp, dtype=bool)
+        rows = None
+        kinv = None
+        if self.shadow is not None:
+            if self.control == "stress_points":
+                raise ModelError("shadow layers are not supported with control='stress_points'")
+            if self.shadow.size and (self.shadow.min() < 0 or self.shadow.max() >= n):
+                raise InputError(f"shadow must hold point indices in [0, {n - 1}]")
+            energy[self.shadow] = False
+            fn = self._omega_fn(cloud, bonds)
+            if fn is None:
+                from ..geometry.influence import influence_function
+
+                fn = influence_function(bonds.influence)
+            rows = self.shadow
+            kinv = np.linalg.inv(intact_shape_tensor(cloud, bonds, fn))
+        c = _coefficients(
+            gp_of_bond, n_gp, omega, bonds.volume_j, bonds.xi,
+            override_rows=rows, override_kinv=kinv,
+        )  # fmt: skip
+        G = _gradient_csr(gp_owner, gp_of_bond, bonds.j, c, n)
+        Cv = self.voigt_stiffness(cloud)[gp_owner]
+        P = voigt_projector(d)
+        vol = np.asarray(cloud.volumes) * (1.0 if d == 3 else cloud.thickness)
+        scale = w * vol[gp_owner] * energy
+        D = np.einsum("ai,gab,bj->gij", P, Cv, P) * scale[:, None, None]
+        plan = _Plan(gp_owner, gp_of_bond, w, energy, omega, G, D, Cv)
+        self._cache = (key[0], key[1], plan)
+        return plan
+
+    def gradient(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
+        """Displacement gradient per gradient point ``(n_gp, d, d)``."""
+        p = self._plan(cloud, bonds)
+        uu = _as_u(u, cloud)
+        return (p.G @ uu.ravel()).reshape(-1, cloud.dim, cloud.dim)
+
+    def gradient_matrix(self, cloud: PointCloud, bonds: Bonds) -> sp.csr_array:
+        """The gradient operator G of the model (gradient points x DOFs)."""
+        return self._plan(cloud, bonds).G
+
+    def stress_points(self, cloud: PointCloud, bonds: Bonds) -> dict[str, np.ndarray]:
+        """Bookkeeping of the gradient points: ``owner``, ``bond_owner``, ``weight``."""
+        p = self._plan(cloud, bonds)
+        return {"owner": p.gp_owner, "bond_owner": p.gp_of_bond, "weight": p.weight}
+
+    # -- operators -----------------------------------------------------------
+    def _dblock(self, p: _Plan) -> sp.bsr_array:
+        n_gp, q, _ = p.D.shape
+        ar = np.arange(n_gp + 1, dtype=np.int32)
+        return sp.bsr_array((p.D, ar[:-1], ar), shape=(n_gp * q, n_gp * q), blocksize=(q, q))
+
+    def _penalty_parts(
+        self, cloud: PointCloud, bonds: Bonds, p: _Plan
+    ) -> tuple[sp.csr_array, np.ndarray]:
+        """Z (nb·d x n·d) with z_b = u_j - u_i - ∇u_i ξ_b, and per-row penalty stiffness."""
+        d, n, nb = cloud.dim, cloud.n, bonds.n_bonds
+        comp = np.arange(d)
+        rows = (np.arange(nb)[:, None] * d + comp).ravel()
+        E = sp.csr_array(
+            (
+                np.concatenate([np.ones(nb * d), -np.ones(nb * d)]),
+                (
+                    np.concatenate([rows, rows]),
+                    np.concatenate([(bonds.j[:, None] * d + comp).ravel(),
+                                    (bonds.i[:, None] * d + comp).ravel()]),
+                ),
+            ),
+            shape=(nb * d, n * d),
+        )  # fmt: skip
+        g = p.gp_of_bond
+        # X: row (b, k) -> gp row (g, k, q) with value ξ_q
+        xr = np.broadcast_to(rows.reshape(nb, d)[:, :, None], (nb, d, d)).ravel()
+        xc = ((g[:, None, None] * d + comp[None, :, None]) * d + comp[None, None, :]).ravel()
+        xv = np.broadcast_to(bonds.xi[:, None, :], (nb, d, d)).ravel()
+        X = sp.csr_array((xv, (xr, xc)), shape=(nb * d, p.G.shape[0]))
+        Z = sp.csr_array(E - X @ p.G)
+        Cv = self.voigt_stiffness(cloud)
+        axial = np.einsum("nkk->n", Cv[:, :d, :d]) / d
+        e_eq = axial / _c1111(np.ones(1), d, self.plane)[0]
+        bb = BondBased(E=e_eq, plane=self.plane)
+        k = 0.5 * self.penalty * bb.bond_stiffness(cloud, dataclasses.replace(bonds, omega=p.omega))
+        k = k * p.energy[bonds.i]
+        return Z, np.repeat(k, d)
+
+    def stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.bsr_array:
+        """Assembled ``K = Gᵀ blockdiag(w V C) G`` (+ penalty), BSR with blocksize dim."""
+        p = self._plan(cloud, bonds)
+        d = cloud.dim
+        self.plan(cloud, bonds)
+        if self.assembly.get("path") == "matrix-free":
+            log.warning("assembling K beyond the byte budget: %s", self.assembly["reason"])
+        Gt = sp.csr_array(p.G.T)
+        K = sp.csr_array(Gt @ sp.csr_array(self._dblock(p) @ p.G))
+        if self.control == "penalty" and self.penalty > 0:
+            Z, k = self._penalty_parts(cloud, bonds, p)
+            K = sp.csr_array(K + sp.csr_array(Z.T) @ sp.csr_array(Z * k[:, None]))
+        K = sp.csr_array(0.5 * (K + K.T))
+        K.eliminate_zeros()
+        # keep every diagonal block stored (energy-free shadow points may have empty
+        # rows; Dirichlet elimination writes its identity into stored diagonals)
+        Kc = K.tocoo()
+        nd = K.shape[0]
+        ar = np.arange(nd)
+        Kc = sp.coo_array(
+            (np.concatenate([Kc.data, np.zeros(nd)]),
+             (np.concatenate([Kc.row, ar]), np.concatenate([Kc.col, ar]))),
+            shape=K.shape,
+        )  # fmt: skip
+        return sp.bsr_array(Kc.tocsr(), blocksize=(d, d))
+
+    def apply(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
+        """Matrix-free ``K u`` through G (and Z for the penalty), ``(n*d,)``."""
+        p = self._plan(cloud, bonds)
+        d = cloud.dim
+        x = np.asarray(u, dtype=float).reshape(-1)
+        grad = (p.G @ x).reshape(-1, d * d)
+        s = np.einsum("gij,gj->gi", p.D, grad).ravel()
+        out = np.asarray(p.G.T @ s)
+        if self.control == "penalty" and self.penalty > 0:
+            Z, k = self._penalty_parts(cloud, bonds, p)
+            out = out + Z.T @ (k * (Z @ x))
+        return out
+
+    def linear_operator(self, cloud: PointCloud, bonds: Bonds) -> spla.LinearOperator:
+        """Matrix-free ``K`` as a :class:`scipy.sparse.linalg.LinearOperator`."""
+        p = self._plan(cloud, bonds)
+        nd = cloud.n * cloud.dim
+        if self.control == "penalty" and self.penalty > 0:
+            Z, k = self._penalty_parts(cloud, bonds, p)
+        else:
+            Z, k = None, None
+        G, Gt = p.G, sp.csr_array(p.G.T)
+        D = p.D
+        d2 = cloud.dim**2
+
+        def mv(x: np.ndarray) -> np.ndarray:
+            x = np.asarray(x, dtype=float).reshape(-1)
+            s = np.einsum("gij,gj->gi", D, (G @ x).reshape(-1, d2)).ravel()
+            out = np.asarray(Gt @ s)
+            if Z is not None:
+                out = out + Z.T @ (k * (Z @ x))
+            return out
+
+        return spla.LinearOperator((nd, nd), matvec=mv, rmatvec=mv, dtype=float)
+
+    def surrogate_stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.bsr_array:
+        """Bond-based K of the same bonds (ω ≥ 0) and equivalent modulus: a preconditioner base."""
+        d = cloud.dim
+        Cv = self.voigt_stiffness(cloud)
+        axial = np.einsum("nkk->n", Cv[:, :d, :d]) / d
+        e_eq = axial / _c1111(np.ones(1), d, self.plane)[0]
+        b = dataclasses.replace(bonds, omega=np.abs(self.bond_weights(cloud, bonds)))
+        return BondBased(E=e_eq, plane=self.plane).stiffness(cloud, b)
+
+    def plan(self, cloud: PointCloud, bonds: Bonds) -> dict[str, Any]:
+        """Decide between assembled K and the matrix-free operator (also in ``self.assembly``).
+
+        The estimate counts the two-hop block pattern (:meth:`estimate_nnz_blocks`)
+        and the intermediate products; beyond ``max_bytes`` the matrix-free
+        path (``K x = Gᵀ(D(G x))``, preconditioned with AMG on
+        :meth:`surrogate_stiffness`) is chosen.
+        """
+        d = cloud.dim
+        nblk = self.estimate_nnz_blocks(cloud, bonds)
+        est = int(nblk * (8 * d * d + 4) * 3)  # K plus the two product temporaries
+        if est <= self.max_bytes:
+            info = {"path": "assembled", "reason": f"~{est / 1e9:.3g} GB <= budget "
+                    f"{self.max_bytes / 1e9:.3g} GB", "nnz_blocks": nblk, "bytes": est}  # fmt: skip
+        else:
+            info = {"path": "matrix-free", "reason": f"~{est / 1e9:.3g} GB > budget "
+                    f"{self.max_bytes / 1e9:.3g} GB", "nnz_blocks": nblk, "bytes": est}  # fmt: skip
+        log.info("correspondence K: %s (%s)", info["path"], info["reason"])
+        self.assembly = info
+        return info
+
+    def estimate_nnz_blocks(self, cloud: PointCloud, bonds: Bonds) -> int:
+        """Upper bound of the dim x dim blocks of K: the two-hop pattern.
+
+        On a lattice: interior points x the size of the stencil difference
+        set ``{q - p}``; otherwise the number of points within twice the
+        largest horizon of each point (cKDTree counts).
+        """
+        lat = cloud.lattice
+        n = cloud.n
+        hor = np.asarray(bonds.horizon)
+        if lat is not None and np.allclose(hor, hor[0]):
+            h = np.asarray(lat.spacing, dtype=float)
+            m = np.floor(hor[0] * (1 + 1e-9) / h).astype(int)
+            axes = [np.arange(-k, k + 1) for k in m]
+            offs = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+            offs = offs[np.sqrt(np.sum((offs * h) ** 2, axis=1)) <= hor[0] * (1 + 1e-9)]
+            diff = np.unique((offs[:, None, :] - offs[None, :, :]).reshape(-1, cloud.dim), axis=0)
+            return int(min(n, diff.shape[0]) * n)
+        from scipy.spatial import cKDTree
+
+        counts = cKDTree(cloud.points).query_ball_point(
+            cloud.points, 2.0 * float(hor.max()) * (1 + 1e-9), return_length=True
+        )
+        return int(np.sum(counts))
+
+    def internal_force(
+        self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, *, linear: bool = True
+    ) -> np.ndarray:
+        """Nodal internal force ``f = -Gᵀ vec(w V σ)`` (small strain: ``f = -K u``).
+
+        The model is linear small strain (spec 000 §8), so ``linear=False``
+        returns the same force.
+        """
+        uu = _as_u(u, cloud)
+        return -self.apply(cloud, bonds, uu).reshape(cloud.n, cloud.dim)
+
+    def stress(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
+        """Cauchy stress per particle ``(n, d, d)``: the mean over its stress points."""
+        p = self._plan(cloud, bonds)
+        d = cloud.dim
+        grad = self.gradient(cloud, bonds, u).reshape(-1, d * d)
+        P = voigt_projector(d)
+        sv = np.einsum("gab,gb->ga", p.Cv, grad @ P.T)
+        sig = (sv @ P).reshape(-1, d, d)
+        cnt = np.bincount(p.gp_owner, minlength=cloud.n).astype(float)
+        out = np.empty((cloud.n, d, d))
+        for a in range(d):
+            for b in range(d):
+                out[:, a, b] = np.bincount(p.gp_owner, weights=sig[:, a, b], minlength=cloud.n)
+        return out / cnt[:, None, None]
+
+    def shadow_loads(
+        self,
+        cloud: PointCloud,
+        bonds: Bonds,
+        *,
+        F: Any = None,
+        stress: Any = None,
+    ) -> np.ndarray:
+        """Nodal force of the prescribed shadow stress on the real points, ``(n, d)``.
+
+        ``-(Σ_j G_jᵀ (V σ_S,:j))`` with the shadow rows of G built from the
+        intact shape tensor (spec 000 §7); add it to the external load
+        (e.g. as a :class:`pdlin.BodyForce` on the real points, see
+        :func:`shadow_problem`).  Give the shadow stress directly
+        (``stress``, ``(m, d, d)`` or ``(d, d)``) or through ``F``
+        (``σ = C : ε(F)`` with each shadow particle's own C).
+        """
+        if self.shadow is None:
+            raise ModelError("shadow_loads needs a model built with shadow=indices, got None")
+        p = self._plan(cloud, bonds)
+        d = cloud.dim
+        m = self.shadow.size
+        if (F is None) == (stress is None):
+            raise InputError("shadow_loads needs exactly one of F or stress")
+        P = voigt_projector(d)
+        if F is not None:
+            Fm = as_float_array(F, "F")
+            if Fm.shape != (d, d):
+                raise ShapeError(f"F must have shape ({d}, {d}), got {Fm.shape}")
+            H = (Fm - np.eye(d)).ravel()
+            sv = np.einsum("gab,b->ga", p.Cv[self.shadow], P @ H)
+            sig = sv @ P  # vec layout with both shear entries
+        else:
+            s = as_float_array(stress, "stress")
+            if s.shape == (d, d):
+                s = np.broadcast_to(s, (m, d, d))
+            if s.shape != (m, d, d):
+                raise ShapeError(
+                    f"stress must have shape ({m}, {d}, {d}) or ({d}, {d}), got {s.shape}"
+                )
+            sig = s.reshape(m, d * d)
+        vol = np.asarray(cloud.volumes) * (1.0 if d == 3 else cloud.thickness)
+        full = np.zeros((p.gp_owner.size, d * d))
+        full[self.shadow] = sig * vol[self.shadow, None]  # shadow gp index = point index
+        return -np.asarray(p.G.T @ full.ravel()).reshape(cloud.n, d)
+
+    def describe(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "model": "Correspondence",
+            "control": self.control,
+            "plane": self.plane,
+            "shadow": None if self.shadow is None else int(self.shadow.size),
+        }
+        if self.control == "penalty":
+            out["penalty"] = self.penalty
+        if self.control == "stress_points":
+            out.update(seed=self.seed, case=self.case, sp_weight=self.sp_weight)
+        if self.assembly:
+            out["assembly"] = self.assembly.get("path")
+        return out
+
+
+def shadow_problem(
+    model: Correspondence,
+    cloud: PointCloud,
+    bonds: Bonds,
+    F: Any,
+    *,
+    depth: float | None = None,
+    allow_odd: bool = False,
+) -> Any:
+    """Static problem with a shadow layer of depth δ prescribed to the affine field of ``F``.
+
+    Returns a :class:`pdlin.StaticProblem` whose model is ``model`` with
+    ``shadow`` set, whose Dirichlet condition is :func:`pdlin.shadow_layer`
+    and whose load is the shadow-stress force :meth:`Correspondence.shadow_loads`
+    (spec 000 §7).  Odd real counts along an axis make K_RR singular
+    (spec 000 §4 parity rule) and raise unless ``allow_odd``.
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin
+    >>> from pdlin.models.correspondence import shadow_problem
+    >>> cloud = pdlin.grid((12, 12), spacing=0.1)
+    >>> bonds = pdlin.find_bonds(cloud, ratio=2.0)
+    >>> C = pdlin.constitutive.isotropic_2d(1.0, 0.3, plane="strain")
+    >>> F = np.eye(2) + [[0.02, 0.005], [0.003, -0.01]]
+    >>> prob = shadow_problem(pdlin.Correspondence(C), cloud, bonds, F)
+    >>> res = pdlin.solve(prob, solver="direct")
+    >>> bool(np.abs(res.u - cloud.points @ (F - np.eye(2)).T).max() < 1e-12)
+    True
+    """
+    from ..operators.bc import BodyForce, shadow_layer
+    from ..problem import StaticProblem
+
+    dep = float(np.max(bonds.horizon)) if depth is None else float(depth)
+    bc, shadow = shadow_layer(cloud, F, dep)
+    counts = shadow_real_counts(cloud, shadow)
+    if not allow_odd and np.any(counts % 2 == 1):
+        raise ModelError(
+            f"real particle counts per axis must be even with a shadow layer (K_RR is singular "
+            f"otherwise, spec 000 §4), got {counts.tolist()}; pass allow_odd=True to proceed"
+        )
+    params = dict(model.__dict__)
+    m2 = Correspondence.__new__(Correspondence)
+    m2.__dict__.update(params)
+    m2.shadow = np.asarray(shadow, dtype=np.intp)
+    m2._cache = None
+    m2.assembly = {}
+    f = m2.shadow_loads(cloud, bonds, F=F)
+    real = np.setdiff1d(np.arange(cloud.n), shadow)
+    vol = np.asarray(cloud.volumes) * (1.0 if cloud.dim == 3 else cloud.thickness)
+    load = BodyForce(real, f[real] / vol[real, None])
+    return StaticProblem(m2, cloud, bonds, dirichlet=[bc], loads=[load])
+
+
+def _as_u(u: Any, cloud: PointCloud) -> np.ndarray:
+    arr = np.asarray(u, dtype=float)
+    if arr.size != cloud.n * cloud.dim:
+        raise ShapeError(
+            f"u must have {cloud.n * cloud.dim} entries (shape ({cloud.n}, {cloud.dim})), "
+            f"got shape {arr.shape}"
+        )
+    return arr.reshape(cloud.n, cloud.dim)
