@@ -11,7 +11,7 @@ from .fields import deformation_gradient, shape_tensor, small_strain
 from .geometry import Bonds, PointCloud, find_bonds, from_image, grid
 from .geometry.generators import plate_with_hole_mesh
 from .geometry.mesh import read_mesh
-from .models import LPS, XOSB, BondBased, Model
+from .models import LPS, XOSB, BondBased, Correspondence, Model, shadow_problem
 from .models.weights import (
     HigherOrderWeights,
     WeightStatus,
@@ -53,6 +53,8 @@ __all__ = [
     "BondBased",
     "LPS",
     "XOSB",
+    "Correspondence",
+    "shadow_problem",
     "Model",
     "assemble_stiffness",
     "rigid_body_modes",

@@ -2,6 +2,7 @@
 
 from .base import Model
 from .bond_based import BondBased, implied_poisson_ratio, standard_micromodulus
+from .correspondence import Correspondence, gradient_operator, shadow_problem
 from .lps import LPS
 from .weights import (
     HigherOrderWeights,
@@ -27,6 +28,9 @@ __all__ = [
     "standard_micromodulus",
     "LPS",
     "XOSB",
+    "Correspondence",
+    "gradient_operator",
+    "shadow_problem",
     "HigherOrderWeights",
     "MomentWeights",
     "WeightStatus",
