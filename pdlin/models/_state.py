@@ -50,7 +50,7 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 #: bonds per preprocessing / assembly chunk
-_CHUNK = 1 << 17
+_CHUNK = 1 << 16
 
 _PLANES = ("stress", "strain")
 _LINEARIZATIONS = ("energy", "paper")
@@ -108,41 +108,77 @@ def analytic_weighted_volume(horizon: Any, dim: int) -> np.ndarray:
     raise ModelError(f"ordinary state-based models need dim 2 or 3, got dim {dim}")
 
 
+def _basis_h_t(x: np.ndarray) -> np.ndarray:
+    """Hydrostatic basis from component-major ``x`` ``(d, m)``: ``(k, m)``."""
+    if x.shape[0] == 2:
+        x0, x1 = x
+        return np.stack([x0 * x0, x1 * x1, x0 * x1])
+    x0, x1, x2 = x
+    return np.stack([x0 * x0, x1 * x1, x2 * x2, x0 * x1, x1 * x2, x2 * x0])
+
+
+def _basis_d_t(x: np.ndarray) -> np.ndarray:
+    """Deviatoric basis from component-major ``x`` ``(d, m)``: ``(k, m)``."""
+    inv_r2 = 1.0 / np.einsum("im,im->m", x, x)
+    if x.shape[0] == 2:
+        x0, x1 = x
+        a, b = x0 * x0, x1 * x1
+        cols = [a * a, b * b, a * b, a * x0 * x1, b * x1 * x0]
+    else:
+        x0, x1, x2 = x
+        a, b, c = x0 * x0, x1 * x1, x2 * x2
+        cols = [
+            a * a,
+            b * b,
+            c * c,
+            a * b,
+            b * c,
+            c * a,
+            a * x0 * x1,
+            a * x0 * x2,
+            b * x1 * x0,
+            b * x1 * x2,
+            c * x2 * x0,
+            c * x2 * x1,
+            a * x1 * x2,
+            b * x0 * x2,
+            c * x0 * x1,
+        ]
+    out = np.stack(cols)
+    out *= inv_r2
+    return out
+
+
 def basis_h(x: np.ndarray) -> np.ndarray:
-    """Hydrostatic basis ξ̂^h (spec 002 §4), ``(m, 3)`` in 2D, ``(m, 6)`` in 3D."""
-    if x.shape[1] == 2:
-        x0, x1 = x[:, 0], x[:, 1]
-        return np.stack([x0 * x0, x1 * x1, x0 * x1], axis=1)
-    x0, x1, x2 = x[:, 0], x[:, 1], x[:, 2]
-    return np.stack([x0 * x0, x1 * x1, x2 * x2, x0 * x1, x1 * x2, x2 * x0], axis=1)
+    """Hydrostatic basis ξ̂^h (spec 002 §4), ``(m, 3)`` in 2D, ``(m, 6)`` in 3D.
+
+    Examples
+    --------
+    >>> basis_h(np.array([[1.0, 2.0]]))
+    array([[1., 4., 2.]])
+    """
+    return _basis_h_t(np.asarray(x, dtype=float).T).T
 
 
 def basis_d(x: np.ndarray) -> np.ndarray:
-    """Deviatoric basis ξ̂^d (spec 002 §4), ``(m, 5)`` in 2D, ``(m, 15)`` in 3D."""
-    r2 = np.einsum("ij,ij->i", x, x)
-    if x.shape[1] == 2:
-        x0, x1 = x[:, 0], x[:, 1]
-        cols = [x0**4, x1**4, x0**2 * x1**2, x0**3 * x1, x1**3 * x0]
-    else:
-        x0, x1, x2 = x[:, 0], x[:, 1], x[:, 2]
-        cols = [
-            x0**4,
-            x1**4,
-            x2**4,
-            x0**2 * x1**2,
-            x1**2 * x2**2,
-            x2**2 * x0**2,
-            x0**3 * x1,
-            x0**3 * x2,
-            x1**3 * x0,
-            x1**3 * x2,
-            x2**3 * x0,
-            x2**3 * x1,
-            x0**2 * x1 * x2,
-            x1**2 * x0 * x2,
-            x2**2 * x0 * x1,
-        ]
-    return np.stack(cols, axis=1) / r2[:, None]
+    """Deviatoric basis ξ̂^d (spec 002 §4), ``(m, 5)`` in 2D, ``(m, 15)`` in 3D.
+
+    Examples
+    --------
+    >>> basis_d(np.array([[1.0, 1.0]]))
+    array([[0.5, 0.5, 0.5, 0.5, 0.5]])
+    """
+    return _basis_d_t(np.asarray(x, dtype=float).T).T
+
+
+def _segment_sum(x: np.ndarray, ptr: np.ndarray) -> np.ndarray:
+    """Sums of ``x[:, ptr[r]:ptr[r+1]]`` over contiguous segments: ``(k, rows)``."""
+    rows = ptr.size - 1
+    out = np.zeros((x.shape[0], rows))
+    nonempty = ptr[1:] > ptr[:-1]
+    if nonempty.any():
+        out[:, nonempty] = np.add.reduceat(x, ptr[:-1][nonempty], axis=1)
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -192,14 +228,6 @@ def _row_chunks(indptr: np.ndarray, chunk: int = _CHUNK) -> list[tuple[int, int]
     starts = np.searchsorted(indptr, np.arange(0, max(nb, 1), chunk), side="right") - 1
     edges = np.unique(np.concatenate([[0], np.clip(starts, 0, n), [n]]))
     return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)]
-
-
-def _selector(indptr: np.ndarray, r0: int, r1: int) -> sp.csr_array:
-    """Owner selector Pᵀ restricted to rows r0:r1 (rows x bonds of the chunk)."""
-    b0 = int(indptr[r0])
-    ptr = np.asarray(indptr[r0 : r1 + 1] - b0, dtype=np.int64)
-    m = int(ptr[-1])
-    return sp.csr_array((np.ones(m), np.arange(m), ptr), shape=(r1 - r0, m))
 
 
 def _solve_batched(
@@ -278,29 +306,29 @@ def compute_weights(
     th, td = TARGET_H[d], TARGET_D[d]
     for r0, r1 in _row_chunks(indptr):
         b0, b1 = int(indptr[r0]), int(indptr[r1])
-        own = bonds.i[b0:b1]
-        s = scale[own]
-        xt = bonds.xi[b0:b1] / s[:, None]
-        sel = _selector(indptr, r0, r1)
+        loc = bonds.i[b0:b1] - r0
+        ptr = indptr[r0 : r1 + 1] - b0
+        s = scale[bonds.i[b0:b1]]
+        xt = bonds.xi[b0:b1].T / s  # component-major (d, m), scaled by the owner's δ
         v = vj[b0:b1]
         s2 = s * s
-        for which, phi, target, ws, out, cnd in (
-            ("h", basis_h(xt), th, wh_s[b0:b1], wh, cond_h),
-            ("d", basis_d(xt), td, wd_s[b0:b1], wd, cond_d),
+        for phi, target, ws, out, cnd in (
+            (_basis_h_t(xt), th, wh_s[b0:b1], wh, cond_h),
+            (_basis_d_t(xt), td, wd_s[b0:b1], wd, cond_d),
         ):
-            k = phi.shape[1]
+            k = phi.shape[0]
             iu, ju = np.triu_indices(k)
-            pv = phi * v[:, None]
-            gram_u = sel @ (phi[:, iu] * pv[:, ju])  # (rows, k(k+1)/2)
+            pv = phi * v
+            gram_u = _segment_sum(phi[iu] * pv[ju], ptr).T  # (rows, k(k+1)/2)
             gram = np.empty((r1 - r0, k, k))
             gram[:, iu, ju] = gram_u
             gram[:, ju, iu] = gram_u
-            rhs = target[None, :] - sel @ (pv * (s2 * ws)[:, None])
+            rhs = target[None, :] - _segment_sum(pv * (s2 * ws), ptr).T
             lam, cond, bad = _solve_batched(gram, rhs, max_cond)
             cnd[r0:r1] = cond
             singular[r0:r1] |= bad
-            out[b0:b1] = ws + np.einsum("bk,bk->b", phi, lam[own - r0]) / s2
-            del which
+            corr = np.einsum("km,km->m", phi, lam.T[:, loc])
+            out[b0:b1] = ws + corr / s2
     if singular.any():
         idx = np.flatnonzero(singular)
         warnings.warn(
@@ -342,6 +370,22 @@ def _point_operator(
     out = sp.coo_array((data, (rows, cols)), shape=(n, n * d)).tocsr()
     out.sum_duplicates()
     return out
+
+
+def _segment_max(x: np.ndarray, indptr: np.ndarray) -> np.ndarray:
+    """Per-owner maximum of non-negative bond values (0 for empty families)."""
+    ptr = np.asarray(indptr, dtype=np.int64)
+    out = np.zeros(ptr.size - 1)
+    nonempty = ptr[1:] > ptr[:-1]
+    if nonempty.any():
+        out[nonempty] = np.maximum.reduceat(x, ptr[:-1][nonempty])
+    return out
+
+
+def _take_rows(rows_op: sp.csr_array, rows: np.ndarray, n: int) -> sp.csr_array:
+    """Scatter the rows of ``rows_op`` back to positions ``rows`` of an n-row array."""
+    sel = sp.csr_array((np.ones(rows.size), (rows, np.arange(rows.size))), shape=(n, rows.size))
+    return sel @ rows_op
 
 
 def _bond_operator(bonds: Bonds, unit: np.ndarray, n: int, d: int) -> sp.csr_array:
@@ -597,12 +641,32 @@ class OrdinaryStateBased(Model):
         theta_op = _point_operator(bonds, co["a"], unit, n, d)
         Bw = sp.csr_array((B.data * np.repeat(wc, 2 * d), B.indices, B.indptr), shape=B.shape)
         if self.linearization == "energy":
-            gam = _point_operator(bonds, wc * r / d, unit, n, d)
+            gcoef = wc * r / d
             s = np.bincount(bonds.i, weights=wc * r * r / d**2, minlength=n)
-            g = sp.dia_array((co["kV"] + s, 0), shape=(n, n))
-            X = sp.vstack([theta_op, gam, B], format="csr")
-            Y = sp.vstack([g @ theta_op - gam, -theta_op, Bw], format="csr")
-            del gam
+            # owners whose row Γ_i is ρ_i Θ_i (spherical weights: LPS, fallback-free
+            # families with ω^d ∝ ω^h) fold -ΓᵀΘ - ΘᵀΓ into the diagonal weight:
+            # one product Θᵀ diag(g) Θ instead of three row blocks
+            a = co["a"]
+            rho = np.bincount(bonds.i, weights=gcoef * a, minlength=n)
+            den = np.bincount(bonds.i, weights=a * a, minlength=n)
+            rho = np.divide(rho, den, out=np.zeros(n), where=den > 0)
+            dev = np.abs(gcoef - rho[bonds.i] * a)
+            gmax = _segment_max(np.abs(gcoef), bonds.indptr)
+            devmax = _segment_max(dev, bonds.indptr)
+            prop = devmax <= 1e-14 * gmax
+            g = co["kV"] + s - 2.0 * np.where(prop, rho, 0.0)
+            gdiag = sp.dia_array((g, 0), shape=(n, n))
+            if prop.all():
+                X = sp.vstack([theta_op, B], format="csr")
+                Y = sp.vstack([gdiag @ theta_op, Bw], format="csr")
+            else:
+                rows = np.flatnonzero(~prop)
+                gam = _point_operator(bonds, gcoef, unit, n, d)[rows]
+                X = sp.vstack([theta_op, gam, B], format="csr")
+                Y = sp.vstack(
+                    [gdiag @ theta_op - _take_rows(gam, rows, n), -theta_op[rows], Bw], format="csr"
+                )
+                del gam
         else:
             wb = co["w"] * r * (co["kh"] / r - co["c"] / d)  # w β
             gam_b = _point_operator(bonds, wb, unit, n, d)
