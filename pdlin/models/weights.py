@@ -529,7 +529,7 @@ class LatticeInfluence:
             first = float(length[bad].ravel()[0])
             raise InputError(
                 f"length must be a lattice bond length sqrt(s)*h with h = {self.h:g} and s in "
-                f"{self.shells.astype(int).tolist()} ({self.label}), got {first:.17g} "
+                f"{self.shells.astype(int).tolist()} ({self.label}), got {first} "
                 f"(= sqrt({first * first / (self.h * self.h):.12g}) h)"
             )
         return self.values[idx]
@@ -727,8 +727,10 @@ def _offsets_float(
     d, shells = _weights_and_points(weights, dim)
     p = np.concatenate([pts.astype(np.int64) for _, _, pts in shells], axis=0)
     w = np.concatenate([np.full(len(pts), float(om)) for _, om, pts in shells])
-    omega = float(np.sum(w * p[:, 0] ** 2))
-    if omega == 0.0:
+    terms = w * p[:, 0] ** 2
+    omega = float(np.sum(terms))
+    exact_zero = isinstance(weights, HigherOrderWeights) and weights.Omega == 0
+    if exact_zero or abs(omega) <= 1e-14 * float(np.sum(np.abs(terms))):
         raise ModelError("Omega must be nonzero for the gradient symbol, got Omega = 0")
     return d, p.astype(np.float64), w, omega
 
@@ -912,8 +914,10 @@ class MomentWeights:
     n_conditions : int
         Number of moment conditions (multi-indices of degree 3..order+1).
     shape_tensor_ratio : (n_families,) ndarray
-        ``lambda_min / lambda_max`` of ``K = sum omega V xi (x) xi`` per family;
-        <= 0 (or tiny) means the corrected family has no usable shape tensor.
+        ``lambda_min`` of the corrected ``K = sum omega V xi (x) xi`` divided by
+        ``lambda_max`` of the base ``K`` (lengths scaled per family); <= 0 or
+        tiny means the corrected family has no usable shape tensor (e.g. only
+        ``omega = 0`` satisfies the conditions).
     """
 
     omega: np.ndarray
@@ -921,6 +925,16 @@ class MomentWeights:
     rank: np.ndarray
     n_conditions: int
     shape_tensor_ratio: np.ndarray
+
+
+def _family_tensor(wv: np.ndarray, xs: np.ndarray, fam: np.ndarray, nf: int) -> np.ndarray:
+    """``(nf, d, d)`` per-family sums of ``wv xi (x) xi``."""
+    d = xs.shape[1]
+    k = np.zeros((nf, d, d))
+    for i in range(d):
+        for j in range(d):
+            k[:, i, j] = np.bincount(fam, weights=wv * xs[:, i] * xs[:, j], minlength=nf)
+    return k
 
 
 def _multi_indices(dim: int, degrees: range) -> list[tuple[int, ...]]:
@@ -1053,14 +1067,11 @@ def moment_weights(
         else:
             eta = eta0
         omega[b0:b1] = eta[lf, pos[b0:b1]] / sq
-        # shape tensor of the corrected family
-        k = np.zeros((f1 - f0, d, d))
-        wv = omega[b0:b1] * vol[b0:b1]
-        for i in range(d):
-            for j in range(d):
-                k[:, i, j] = np.bincount(lf, weights=wv * xs[:, i] * xs[:, j], minlength=f1 - f0)
-        ev = np.linalg.eigvalsh(k)
-        top = np.max(np.abs(ev), axis=1)
+        # smallest eigenvalue of the corrected shape tensor relative to the base one
+        ev, ev0 = (
+            np.linalg.eigvalsh(_family_tensor(wt * vol[b0:b1], xs, lf, f1 - f0))
+            for wt in (omega[b0:b1], om0[b0:b1])
+        )
+        top = np.max(np.abs(ev0), axis=1)
         ratio[f0:f1] = np.where(top > 0, ev[:, 0] / np.where(top > 0, top, 1.0), 0.0)
     return MomentWeights(omega, residual, rank, len(alphas), ratio)
-
