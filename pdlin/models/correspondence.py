@@ -772,6 +772,19 @@ class Correspondence(Model):
                 out[:, a, b] = np.bincount(p.gp_owner, weights=sig[:, a, b], minlength=cloud.n)
         return out / cnt[:, None, None]
 
+    def strain(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
+        """Small strain per particle ``(n, d, d)``: the mean over its stress points."""
+        p = self._plan(cloud, bonds)
+        d = cloud.dim
+        grad = self.gradient(cloud, bonds, u)
+        eps = 0.5 * (grad + np.swapaxes(grad, 1, 2))
+        cnt = np.bincount(p.gp_owner, minlength=cloud.n).astype(float)
+        out = np.empty((cloud.n, d, d))
+        for a in range(d):
+            for b in range(d):
+                out[:, a, b] = np.bincount(p.gp_owner, weights=eps[:, a, b], minlength=cloud.n)
+        return out / cnt[:, None, None]
+
     def shadow_loads(
         self,
         cloud: PointCloud,

@@ -1,0 +1,155 @@
+"""1D graded-modulus bar with the correspondence model (spec 000 §10.A, spec 003 §7.1).
+
+Bar of length 1, E = E₀ on x ≤ ½ and E₀[1 + 2√2 (x - ½)^{-½}]⁻¹ beyond,
+u(0) = 0, u(1) = 0.005; exact u = αx + βH(x - ½)√(x - ½), σ ≡ 1e-3.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+import pdlin
+
+ALPHA = 1e-3  # spec 000 §10.A / spec 003 §7.1
+BETA = 4e-3 * np.sqrt(2.0)
+U_END = 0.005
+SIGMA = 1e-3
+
+
+def modulus(x: np.ndarray) -> np.ndarray:
+    r = np.clip(x - 0.5, 1e-300, None)
+    return np.where(x <= 0.5, 1.0, 1.0 / (1.0 + 2.0 * np.sqrt(2.0) / np.sqrt(r)))
+
+
+def u_exact(x: np.ndarray) -> np.ndarray:
+    return ALPHA * x + BETA * np.sqrt(np.clip(x - 0.5, 0.0, None))
+
+
+def eps_exact(x: np.ndarray) -> np.ndarray:
+    r = np.clip(x - 0.5, 1e-300, None)
+    return np.where(x <= 0.5, ALPHA, ALPHA + BETA / (2.0 * np.sqrt(r)))
+
+
+def shadow_bar(N: int, m: int, control: str, influence: str = "constant") -> float:
+    """Spec 000 §10.A defaults: x_i = (i - ½)/N, outward shadow layer of m = δ/h
+    particles per end with exact u and σ = 1e-3; returns max |u - u_ex| (real)."""
+    cloud = pdlin.grid((N + 2 * m,), spacing=1.0 / N, origin=[-m / N])
+    bonds = pdlin.find_bonds(cloud, ratio=float(m), influence=influence)
+    x = cloud.points[:, 0]
+    shadow = np.r_[0:m, N + m : N + 2 * m]
+    model = pdlin.Correspondence(E=modulus(x), control=control, shadow=shadow)
+    f = model.shadow_loads(cloud, bonds, stress=np.full((2 * m, 1, 1), SIGMA))
+    real = np.arange(m, N + m)
+    prob = pdlin.StaticProblem(
+        model,
+        cloud,
+        bonds,
+        dirichlet=[pdlin.Dirichlet(shadow, u_exact(x[shadow])[:, None])],
+        loads=[pdlin.BodyForce(real, f[real] / cloud.volumes[real, None])],
+    )
+    res = pdlin.solve(prob, solver="direct")
+    return float(np.abs(res.u[real, 0] - u_exact(x[real])).max())
+
+
+# spec 000 §10.A error table [REF], N = 500 (S = singular K_RR: not listed)
+TABLE_500 = {
+    (1, "higher_order", "constant"): 1.96e-4,
+    (2, "higher_order", "constant"): 1.51e-4,
+    (3, "higher_order", "constant"): 1.32e-4,
+    (4, "higher_order", "constant"): 1.21e-4,
+    (2, "none", "inverse"): 5.38e-4,
+    (4, "none", "inverse"): 4.53e-3,
+}
+
+
+@pytest.mark.parametrize("key", sorted(TABLE_500), ids=str)
+def test_spec_000_bar_errors_n500(key):
+    m, control, infl = key
+    err = shadow_bar(500, m, control, infl)
+    assert err == pytest.approx(TABLE_500[key], rel=0.01)  # V16/V17: ± 1 %
+
+
+def test_spec_000_bar_no_control_is_worse_than_ho():
+    # V17: no control (ω = 1/|ξ|) error >= 3x the HO error at equal δ (N = 500, 2h and 4h)
+    for m in (2, 4):
+        assert shadow_bar(500, m, "none", "inverse") >= 3 * shadow_bar(500, m, "higher_order")
+
+
+@pytest.mark.slow
+def test_spec_000_bar_ho_rates():
+    # spec 000 §10.A: HO errors monotone in δ and ∝ N^{-1/2} (ratio 1.41 ± 0.05 per doubling, V16)
+    table = {  # [REF] rows N = 250, 1000, 2000 for δ = h, HO 2h, 3h, 4h
+        250: (2.77e-4, 2.13e-4, 1.86e-4, 1.72e-4),
+        1000: (1.39e-4, 1.06e-4, 9.30e-5, 8.55e-5),
+        2000: (9.80e-5, 7.53e-5, 6.58e-5, 6.04e-5),
+    }
+    for N, row in table.items():
+        errs = [shadow_bar(N, m, "higher_order") for m in (1, 2, 3, 4)]
+        np.testing.assert_allclose(errs, row, rtol=0.01)
+        assert all(a > b for a, b in zip(errs[:-1], errs[1:], strict=True))
+    for m in (1, 2, 3, 4):
+        ratio = shadow_bar(1000, m, "higher_order") / shadow_bar(2000, m, "higher_order")
+        assert abs(ratio - 1.41) <= 0.05
+
+
+def node_bar(n: int, control: str) -> tuple[np.ndarray, np.ndarray, Any, Any]:
+    """Spec 003 §7.1: node layout x_i = (i - 1)/(n - 1), u_1 = 0, u_n = u_end."""
+    h = 1.0 / (n - 1)
+    cloud = pdlin.grid((n,), spacing=h, origin=[-0.5 * h])
+    bonds = pdlin.find_bonds(cloud, ratio=1.0)
+    x = cloud.points[:, 0]
+    model = pdlin.Correspondence(E=modulus(x), control=control, seed=0)
+    prob = pdlin.StaticProblem(
+        model, cloud, bonds,
+        dirichlet=[pdlin.Dirichlet([0], 0.0), pdlin.Dirichlet([n - 1], U_END)],
+    )  # fmt: skip
+    res = pdlin.solve(prob, solver="direct")
+    return x, res.u[:, 0], res, (model, cloud, bonds)
+
+
+# spec 003 §7.1 reference table [REF]: SP a_u (x <= ½), SP rel-L2, no-control rel-L2,
+# no-control a_u at x_2
+SP_TABLE = {
+    100: (8.491e-2, 4.537e-2, 3.524e-2, 0.509),
+    200: (5.891e-2, 3.164e-2, 2.466e-2, 0.506),
+    500: (3.667e-2, 1.975e-2, 1.548e-2, 0.504),
+    1000: (2.574e-2, 1.388e-2, 1.091e-2, 0.503),
+}
+
+
+@pytest.mark.parametrize("n", sorted(SP_TABLE))
+def test_spec_003_bar_table(n):
+    au_sp, l2_sp, l2_none, au2_none = SP_TABLE[n]
+    x, u, res, (model, cloud, bonds) = node_bar(n, "stress_points")
+    ue = u_exact(x)
+    E = modulus(x)
+    # V14: SP closed form u_i = u_end Σ_{k<i}(E_k + E_{k+1})⁻¹ / Σ_k (E_k + E_{k+1})⁻¹
+    inv = 1.0 / (E[:-1] + E[1:])
+    closed = U_END * np.r_[0.0, np.cumsum(inv)] / inv.sum()
+    assert np.abs(u - closed).max() < 1e-10 * U_END
+    left = (x <= 0.5) & (ue != 0)
+    a_u = np.abs((u[left] - ue[left]) / ue[left])
+    assert np.ptp(a_u) < 1e-10  # V15: constant on x <= ½
+    assert np.abs(np.diff(u[x <= 0.5], 2)).max() < 1e-12 * U_END  # V15: linear
+    assert a_u.mean() == pytest.approx(au_sp, rel=0.01)
+    assert np.linalg.norm(u - ue) / np.linalg.norm(ue) == pytest.approx(l2_sp, rel=0.01)
+    # reactions with w = ½: R = σ_num A, σ_num/σ_ex = 1 + a_u (spec 003 §7.1)
+    assert res.reactions[-1, 0] == pytest.approx(SIGMA * (1 + au_sp), rel=0.01)
+    assert res.reactions[0, 0] == pytest.approx(-res.reactions[-1, 0], rel=1e-10)
+    x, u0, _, _ = node_bar(n, "none")
+    assert np.linalg.norm(u0 - ue) / np.linalg.norm(ue) == pytest.approx(l2_none, rel=0.01)
+    assert abs((u0[1] - ue[1]) / ue[1]) == pytest.approx(au2_none, rel=0.01)
+    # spec 003 §10: SP does NOT have the smaller L2 error here; its benefit is no oscillation
+    assert np.abs(np.diff((u0 - ue)[x <= 0.5], 2)).max() / U_END > 5e-3  # V16 oscillation
+
+
+def test_spec_003_jump_strains_n500():
+    # V17: SP ε/ε_ex = 1.544 and 0.393 at the two particles straddling x = ½ (n = 500)
+    x, u, res, (model, cloud, bonds) = node_bar(500, "stress_points")
+    eps = model.strain(cloud, bonds, u[:, None])[:, 0, 0]
+    k = int(np.searchsorted(x, 0.5))
+    ratios = eps[[k - 1, k]] / eps_exact(x[[k - 1, k]])
+    np.testing.assert_allclose(ratios, [1.544, 0.393], rtol=0.01)
