@@ -1,0 +1,126 @@
+"""The model property table, rows for the ordinary state-based models LPS and XOSB.
+
+The model-independent checks are imported from ``test_model_properties`` and run on the
+``case`` fixture defined here.  Two checks are restated instead of imported:
+
+- positive energy: the paper linearization ``K_p`` is nonsymmetric and not an energy
+  Hessian (spec 002 §6), so it is exempt (as from the symmetry test);
+- zero force of affine fields: state-based ``K`` couples points two horizons apart
+  (``coupling_range = 2``), so a point's force is exact only when its neighbours' families
+  are complete too: the inner region is two horizons deep.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import pytest
+from test_model_properties import (  # noqa: F401  (imported tests run on this module's cases)
+    _jittered,
+    test_deformation_gradient_exact_for_affine_fields,
+    test_internal_force_matches_stiffness,
+    test_nonlinear_force_linearizes_to_K,
+    test_rigid_body_modes_in_null_space,
+    test_shape_and_blocks,
+    test_symmetric,
+)
+
+import pdlin
+
+
+def _lps_2d_stress() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = pdlin.grid((16, 15), spacing=0.1)
+    return pdlin.LPS(E=70e9, nu=0.3, plane="stress"), c, pdlin.find_bonds(c, ratio=3.015)
+
+
+def _lps_2d_strain_peridigm() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = pdlin.grid((15, 16), spacing=0.5)
+    b = pdlin.find_bonds(c, ratio=3.015)
+    return pdlin.LPS(E=3.0, nu=0.45, plane="strain", peridigm=True), c, b
+
+
+def _lps_3d() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = pdlin.grid((11, 11, 11), spacing=0.25)
+    return pdlin.LPS(E=1.0, nu=0.3), c, pdlin.find_bonds(c, ratio=2.01)
+
+
+def _xosb_2d_energy() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = pdlin.grid((16, 14), spacing=0.1)
+    return pdlin.XOSB(E=70e9, nu=0.33), c, pdlin.find_bonds(c, ratio=3.01)
+
+
+def _xosb_2d_paper_strain() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = pdlin.grid((16, 15), spacing=0.1)
+    m = pdlin.XOSB(E=2.0, nu=0.45, plane="strain", linearization="paper")
+    return m, c, pdlin.find_bonds(c, ratio=3.01)
+
+
+def _xosb_2d_variable_horizon() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = _jittered(2, 14)
+    return pdlin.XOSB(E=5.0, nu=0.3), c, pdlin.find_bonds(c)
+
+
+def _xosb_3d_energy() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = pdlin.grid((7, 7, 6), spacing=0.25)
+    return pdlin.XOSB(E=1.0, nu=0.3), c, pdlin.find_bonds(c, ratio=3.01)
+
+
+def _xosb_3d_paper_jittered() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = _jittered(3, 6)
+    return pdlin.XOSB(E=1.0, nu=0.45, linearization="paper"), c, pdlin.find_bonds(c)
+
+
+CASES: dict[str, Callable[[], tuple[Any, pdlin.PointCloud, pdlin.Bonds]]] = {
+    "lps-2d-stress": _lps_2d_stress,
+    "lps-2d-strain-peridigm": _lps_2d_strain_peridigm,
+    "lps-3d": _lps_3d,
+    "xosb-2d-energy": _xosb_2d_energy,
+    "xosb-2d-paper-strain": _xosb_2d_paper_strain,
+    "xosb-2d-variable-horizon": _xosb_2d_variable_horizon,
+    "xosb-3d-energy": _xosb_3d_energy,
+    "xosb-3d-paper-jittered": _xosb_3d_paper_jittered,
+}
+
+
+@pytest.fixture(params=sorted(CASES), scope="module")
+def case(request):
+    model, cloud, bonds = CASES[request.param]()
+    K = pdlin.assemble_stiffness(model, cloud, bonds)
+    return model, cloud, bonds, K
+
+
+def test_declared_coupling_range(case):
+    model, cloud, bonds, K = case
+    assert model.coupling_range == 2
+    assert model.estimate_nnz_blocks(cloud, bonds) == K.nnz // cloud.dim**2
+
+
+def test_positive_energy_on_non_rigid_fields(case, rng):
+    model, cloud, bonds, K = case
+    if not model.symmetric:
+        pytest.skip("K_p is not an energy Hessian (spec 002 §6)")
+    B = pdlin.rigid_body_modes(cloud, orthonormal=True)
+    for _ in range(5):
+        u = rng.normal(size=cloud.ndof)
+        u -= B @ (B.T @ u)
+        e = u @ (K @ u)
+        assert e > 0
+        np.testing.assert_allclose(
+            model.energy(cloud, bonds, u.reshape(cloud.n, -1)), 0.5 * e, rtol=1e-12
+        )
+
+
+def test_affine_fields_give_zero_force_two_horizons_inside(case, rng):
+    model, cloud, bonds, K = case
+    d = cloud.dim
+    H = rng.normal(size=(d, d)) * 1e-3
+    u = cloud.points @ H.T
+    f = model.internal_force(cloud, bonds, u)
+    lo, hi = cloud.bounds
+    reach = 2 * bonds.horizon.max() * (1 + 1e-9) + 0.5 * cloud.spacing.max()
+    inner = np.all((cloud.points - lo > reach) & (hi - cloud.points > reach), axis=1)
+    if bonds.horizon.min() != bonds.horizon.max() or not inner.any():
+        pytest.skip("no points two horizons inside a uniform lattice in this case")
+    assert np.abs(f[inner]).max() <= 1e-12 * np.abs(f).max()
