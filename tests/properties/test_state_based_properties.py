@@ -47,7 +47,7 @@ def _lps_3d() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
 
 
 def _xosb_2d_energy() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
-    c = pdlin.grid((16, 14), spacing=0.1)
+    c = pdlin.grid((16, 15), spacing=0.1)
     return pdlin.XOSB(E=70e9, nu=0.33), c, pdlin.find_bonds(c, ratio=3.01)
 
 
