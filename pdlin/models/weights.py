@@ -32,6 +32,7 @@ import logging
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from fractions import Fraction
 from functools import cache
 from types import MappingProxyType
 from typing import Any, Union
@@ -416,7 +417,9 @@ def higher_order_weights(dim: int, horizon_ratio: float) -> HigherOrderWeights:
     Raises
     ------
     InputError
-        ``dim`` not in {1, 2, 3} or ``horizon_ratio`` not a number > 0.
+        ``dim`` not in {1, 2, 3} or ``horizon_ratio`` not a finite number > 0.
+    InputTypeError
+        ``dim`` not an int or ``horizon_ratio`` not a real number.
     NoNeighborsError
         ``horizon_ratio < 1``: the horizon holds no lattice neighbour.
 
@@ -678,6 +681,8 @@ def gradient_exactness_order(
     Parameters
     ----------
     weights : HigherOrderWeights or mapping of int to number
+        Exact values (int, Fraction, sympy Rational) are compared exactly;
+        floats with a relative tolerance of 1e-12.
     dim : int, optional
         Required when ``weights`` is a mapping.
     max_degree : int
@@ -693,7 +698,10 @@ def gradient_exactness_order(
     6
     """
     d, shells = _weights_and_points(weights, dim)
-    exact = isinstance(weights, HigherOrderWeights)
+    exact = all(
+        isinstance(w, (int, np.integer, Fraction, sympy.Rational)) and not isinstance(w, bool)
+        for _, w, _ in shells
+    )
     omega = sum((w * _monomial_row((pts,), (2,) + (0,) * (d - 1))[0] for _, w, pts in shells), 0)
     if omega == 0:
         raise ModelError("Omega must be nonzero for the gradient to exist, got Omega = 0")

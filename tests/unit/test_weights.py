@@ -350,8 +350,10 @@ def test_gradient_exactness_order_equals_order(row):
 def test_gradient_exactness_order_detects_perturbation_and_float_sets():
     r = higher_order_weights(2, 3)
     w = dict(r.weights)
-    w[9] = w[9] + sympy.Rational(1, 10**6)  # break the O(h^6) conditions slightly
-    assert gradient_exactness_order(w, dim=2) == 2
+    w[9] = w[9] + sympy.Rational(1, 10**12)  # break the O(h^6) conditions slightly
+    assert gradient_exactness_order(w, dim=2) == 2  # exact comparison sees 1e-12
+    # Fractions are exact too: the 1D δ = 2h set of paper Table 1
+    assert gradient_exactness_order({1: Fraction(1), 4: Fraction(-1, 16)}, dim=1) == 4
     # the 'no control' set omega = 1/|xi| is only second order (spec §4, §13 V5)
     assert gradient_exactness_order(nocontrol_weights(2, 3), dim=2) == 2
     with pytest.raises(ModelError, match="Omega"):
