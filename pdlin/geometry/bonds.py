@@ -386,6 +386,7 @@ def find_bonds(
     cracks: Any = None,
     exclude: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
     allow_isolated: bool = False,
+    allow_negative_influence: bool = False,
     rtol: float = 1e-9,
     method: str = "auto",
 ) -> Bonds:
@@ -419,6 +420,10 @@ def find_bonds(
         are tested, a bond is dropped if either direction is flagged).
     allow_isolated : bool
         Allow points without any bond (default: raise NoNeighborsError).
+    allow_negative_influence : bool
+        Accept negative influence values (higher-order correspondence
+        weights, :func:`pdlin.higher_order_weights`); bond-based models
+        refuse bonds with negative stiffness.
     rtol : float
         Relative tolerance of the inclusive membership test.
     method : {'auto', 'lattice', 'tree'}
@@ -475,7 +480,7 @@ def find_bonds(
     indptr = np.zeros(cloud.n + 1, dtype=np.int64)
     np.cumsum(counts, out=indptr[1:])
     hij = np.full(i.size, hor[0]) if uniform else np.maximum(hor[i], hor[j])
-    omega = evaluate_influence(influence, length, hij)
+    omega = evaluate_influence(influence, length, hij, allow_negative=allow_negative_influence)
     bonds = Bonds(
         cloud.n, i, j, xi, length, omega, cloud.volumes[j], indptr, hor, shape, influence
     )

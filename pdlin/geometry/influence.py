@@ -70,12 +70,17 @@ def influence_function(spec: str | InfluenceFunction) -> InfluenceFunction:
 
 
 def evaluate_influence(
-    spec: str | InfluenceFunction, length: np.ndarray, horizon: np.ndarray
+    spec: str | InfluenceFunction,
+    length: np.ndarray,
+    horizon: np.ndarray,
+    *,
+    allow_negative: bool = False,
 ) -> np.ndarray:
     """Evaluate an influence function on bonds and check the result.
 
-    Negative or non-finite values raise: a user callable that returns them
-    would make the model unstable or produce NaN.
+    Non-finite values always raise.  Negative values raise unless
+    ``allow_negative`` (higher-order correspondence weights are negative by
+    design; for bond-based and state-based models they would be unstable).
     """
     fn = influence_function(spec)
     omega = np.asarray(fn(length, horizon), dtype=np.float64)
@@ -83,8 +88,10 @@ def evaluate_influence(
         omega = np.broadcast_to(omega, length.shape).copy()
     if omega.size and not np.all(np.isfinite(omega)):
         raise NonFiniteError(f"influence function returned non-finite values ({spec!r})")
-    if omega.size and omega.min() < 0:
+    if omega.size and omega.min() < 0 and not allow_negative:
         raise InputError(
-            f"influence function must be >= 0 inside the horizon, got min {omega.min():.3g}"
+            f"influence function must be >= 0 inside the horizon, got min {omega.min():.3g} "
+            "(pass allow_negative_influence=True for signed weights such as higher-order "
+            "correspondence weights)"
         )
     return omega

@@ -266,6 +266,13 @@ class BondBased(Model):
         k = k * vol[bonds.i]
         k *= bonds.volume_j * _measure(cloud)
         k /= bonds.length
+        if k.size and k.min() < 0:
+            b = int(np.argmin(k))
+            raise ModelError(
+                f"bond stiffness c*omega must be >= 0 (energy positivity), got {k[b]:.3g} at "
+                f"bond {b} (omega {bonds.omega[b]:.3g}); signed influence weights belong to "
+                "correspondence models"
+            )
         return k
 
     # -- operators ----------------------------------------------------------

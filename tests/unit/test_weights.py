@@ -601,16 +601,18 @@ def test_as_influence_with_find_bonds_delta_h():
     np.testing.assert_array_equal(bonds.omega, 1.0)  # paper Table 2, δ = h
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="find_bonds/evaluate_influence reject negative ω; HO weights are negative (spec §2)",
-)
 def test_as_influence_with_find_bonds_negative_weights():
     cloud = pdlin.grid((8, 8))
     h = float(np.max(cloud.lattice.spacing))
     r = higher_order_weights(2, 2)
-    bonds = pdlin.find_bonds(cloud, ratio=2.0, influence=as_influence(r, h))
+    with pytest.raises(InputError, match="allow_negative_influence=True"):
+        pdlin.find_bonds(cloud, ratio=2.0, influence=as_influence(r, h))
+    bonds = pdlin.find_bonds(
+        cloud, ratio=2.0, influence=as_influence(r, h), allow_negative_influence=True
+    )
     assert np.isclose(bonds.omega.min(), -1 / 16)  # paper Table 2, ω_3 at δ = 2h
+    with pytest.raises(pdlin.errors.ModelError, match="energy positivity"):
+        pdlin.assemble_stiffness(pdlin.BondBased(micromodulus=1.0), cloud, bonds)
 
 
 # --------------------------------------------------------------------------- bad input
