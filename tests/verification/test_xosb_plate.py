@@ -1,0 +1,159 @@
+"""Spec 002 §9.1 / §11 C2: plate with a central hole, XOSBPD vs OSBPD vs a Q4 FE reference.
+
+Setup (spec 002 §9.1, reconstructed [S]): square L = 1 m, hole r = 0.1 m, plane stress,
+E = 70 GPa, ν = 0.33, u_x = 0 / u0 = 5e-4 m on the left / right edges; the PD mesh is the
+7,680-quad O-grid (4 x 32 x 60), δ_i = 3.01 √A_i.  PD boundary condition "B": the FE
+displacement (both components) prescribed on the 64 particles of the outermost radial layer
+of the left and right blocks.  Metric: max over the ring (first radial layer, 128 particles)
+of |u_PD - u_FE| / range_ring(u_FE), per component.
+
+FE reference: our own Q4 plane-stress solve (2 x 2 Gauss, vectorized assembly, spsolve) on
+the O-grid 4 x 64 x 120, i.e. 2x coarser than the spec's 4 x 128 x 240 reference; the spec
+states that the 2x coarser mesh differs by 1.05e-4 max|u| (§9.1).  It is checked against the
+spec's FE hole-edge values (§9.1 table) before use.  FE values at the PD centroids are
+interpolated linearly (Delaunay) from the FE nodes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from scipy.interpolate import LinearNDInterpolator
+
+import pdlin
+
+E, NU, U0 = 70e9, 0.33, 5e-4  # spec 002 §9.1 [P]
+
+
+def _q4_plane_stress(points: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """Nodal displacements of the §9.1 FE problem (vectorized Q4 assembly, direct solve)."""
+    n = points.shape[0]
+    ne = quads.shape[0]
+    c = E / (1 - NU**2) * np.array([[1, NU, 0], [NU, 1, 0], [0, 0, (1 - NU) / 2]])
+    g = 1 / np.sqrt(3)
+    xe = points[quads]  # (ne, 4, 2)
+    ke = np.zeros((ne, 8, 8))
+    for xi, eta in ((-g, -g), (g, -g), (g, g), (-g, g)):
+        dn = 0.25 * np.array(
+            [
+                [-(1 - eta), (1 - eta), (1 + eta), -(1 + eta)],
+                [-(1 - xi), -(1 + xi), (1 + xi), (1 - xi)],
+            ]
+        )  # (2, 4) derivatives in the reference square
+        jac = np.einsum("ak,ekb->eab", dn, xe)  # (ne, 2, 2)
+        det = jac[:, 0, 0] * jac[:, 1, 1] - jac[:, 0, 1] * jac[:, 1, 0]
+        dx = np.linalg.solve(jac, np.broadcast_to(dn, (ne, 2, 4)))  # (ne, 2, 4)
+        bm = np.zeros((ne, 3, 8))
+        bm[:, 0, 0::2] = dx[:, 0]
+        bm[:, 1, 1::2] = dx[:, 1]
+        bm[:, 2, 0::2] = dx[:, 1]
+        bm[:, 2, 1::2] = dx[:, 0]
+        ke += np.einsum("eai,ab,ebj,e->eij", bm, c, bm, np.abs(det))
+    dofs = (2 * quads[:, :, None] + np.arange(2)).reshape(ne, 8)
+    rows = np.broadcast_to(dofs[:, :, None], (ne, 8, 8)).ravel()
+    cols = np.broadcast_to(dofs[:, None, :], (ne, 8, 8)).ravel()
+    k = sp.coo_array((ke.ravel(), (rows, cols)), shape=(2 * n, 2 * n)).tocsr()
+    x, y = points[:, 0], points[:, 1]
+    left = np.flatnonzero(np.isclose(x, -0.5))
+    right = np.flatnonzero(np.isclose(x, 0.5))
+    mid = np.flatnonzero(np.isclose(np.abs(x), 0.5) & np.isclose(y, 0.0))
+    assert mid.size == 2
+    fixed = np.concatenate([2 * left, 2 * right, 2 * mid + 1])
+    vals = np.concatenate([np.zeros(left.size), np.full(right.size, U0), np.zeros(2)])
+    u = np.zeros(2 * n)
+    u[fixed] = vals
+    free = np.setdiff1d(np.arange(2 * n), fixed)
+    rhs = -k[free][:, fixed] @ vals
+    u[free] = spla.spsolve(k[free][:, free].tocsc(), rhs)
+    return u.reshape(n, 2)
+
+
+@pytest.fixture(scope="module")
+def fe():
+    mesh = pdlin.plate_with_hole_mesh(64, 120)
+    quads = next(c.data for c in mesh.cells if c.type == "quad")
+    pts = np.asarray(mesh.points[:, :2], dtype=float)
+    u = _q4_plane_stress(pts, quads)
+    return pts, u
+
+
+@pytest.fixture(scope="module")
+def plate():
+    cloud = pdlin.read_mesh(pdlin.plate_with_hole_mesh())  # 4 x 32 x 60 = 7,680 particles
+    bonds = pdlin.find_bonds(cloud, ratio=3.01)
+    return cloud, bonds
+
+
+def _ring_and_strips(cloud: pdlin.PointCloud) -> tuple[np.ndarray, np.ndarray]:
+    x, y = cloud.points.T
+    rad = np.hypot(x, y)
+    ring = np.argsort(rad)[:128]  # first radial layer: 4 x 32 particles (spec §9.1)
+    side = np.flatnonzero(np.abs(x) > np.abs(y))
+    right = side[np.argsort(-x[side])[:32]]  # outermost radial layer of the right block
+    left = side[np.argsort(x[side])[:32]]
+    return ring, np.concatenate([left, right])
+
+
+@pytest.mark.slow
+def test_fe_reference_matches_spec_hole_edge_values(fe):
+    pts, u = fe
+    on_hole = np.isclose(np.hypot(*pts.T), 0.1)
+    beta = np.degrees(np.arctan2(pts[:, 1], pts[:, 0])) % 360
+    # FE on the hole edge r = 0.1 (β: u_x, u_y in m), spec 002 §9.1 table
+    table = {
+        0: (3.9003e-4, 0.0),
+        45: (3.4932e-4, -3.3438e-5),
+        90: (2.5000e-4, -4.7804e-5),
+        135: (1.5068e-4, -3.3438e-5),
+        180: (1.0997e-4, 0.0),
+    }
+    scale = np.abs(u).max()
+    for b, ref in table.items():
+        k = np.flatnonzero(on_hole & np.isclose(beta, b, atol=1e-6))
+        assert k.size == 1
+        # 2x coarser FE mesh: differs by ~1.05e-4 max|u| (spec §9.1); allow 5e-4
+        assert np.abs(u[k[0]] - ref).max() <= 5e-4 * scale
+
+
+@pytest.mark.slow
+def test_c2_plate_with_hole_bc_b(fe, plate):
+    pts, u_fe = fe
+    cloud, bonds = plate
+    interp = LinearNDInterpolator(pts, u_fe)
+    u_ref = interp(cloud.points)
+    assert np.all(np.isfinite(u_ref))
+    ring, strips = _ring_and_strips(cloud)
+    bc = [pdlin.Dirichlet(strips, u_ref[strips])]
+    rng_ring = np.ptp(u_ref[ring], axis=0)
+    # FE ring ranges: u_x 2.8042e-4 m, u_y 9.6945e-5 m (spec §9.1); ours within 1%
+    np.testing.assert_allclose(rng_ring, [2.8042e-4, 9.6945e-5], rtol=1e-2)
+
+    def ring_error(model, solver):
+        res = pdlin.solve(
+            pdlin.StaticProblem(model, cloud, bonds=bonds, dirichlet=bc), solver=solver, rtol=1e-10
+        )
+        err = np.abs(res.u[ring] - u_ref[ring]).max(axis=0) / rng_ring
+        return err, res.u
+
+    err_xo, u_xo = ring_error(pdlin.XOSB(E, NU, linearization="paper"), "amg-gmres")
+    err_xe, u_xe = ring_error(pdlin.XOSB(E, NU), "amg-cg")
+    err_os, u_os = ring_error(pdlin.LPS(E, NU, linearization="paper"), "amg-gmres")
+    # XOSBPD ring max error ≤ 2% (u_x), ≤ 4% (u_y) (spec §11 C2; [REF] 0.95% / 2.2%)
+    assert err_xo[0] <= 0.02 and err_xo[1] <= 0.04
+    assert err_xe[0] <= 0.02 and err_xe[1] <= 0.04  # energy variant [REF] 1.00% / 2.26%
+    # OSBPD ring u_y error ≥ 4x XOSBPD's (spec §11 C2; [REF] 14.5% vs 2.2%)
+    assert err_os[1] >= 4 * err_xo[1]
+    # at β ≈ 90°: -5.0e-5 < u_y^XO < -4.6e-5 and u_y^OS < -5.5e-5 (spec §11 C2)
+    beta = np.degrees(np.arctan2(cloud.points[ring, 1], cloud.points[ring, 0]))
+    top = ring[np.argmin(np.abs(beta - 88.6))]
+    assert -5.0e-5 < u_xo[top, 1] < -4.6e-5
+    assert u_os[top, 1] < -5.5e-5
+    # ring values at β = 88.6°: XO u_y -4.9414e-5, OS u_y -6.2508e-5, XO u_x 2.5339e-4 m
+    # (spec §9.1 table [REF]; FE reference differences allow 1%)
+    assert abs(beta[np.argmin(np.abs(beta - 88.6))] - 88.6) < 0.05
+    np.testing.assert_allclose(u_xo[top], [2.5339e-4, -4.9414e-5], rtol=1e-2)
+    np.testing.assert_allclose(u_os[top, 1], -6.2508e-5, rtol=1e-2)
+    # energy and paper variants agree within 0.5% max|u| (spec §11 C2; [REF] 2.3e-3)
+    assert np.abs(u_xe - u_xo).max() <= 5e-3 * np.abs(u_xo).max()
