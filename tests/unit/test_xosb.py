@@ -487,3 +487,15 @@ def test_bad_arguments():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         pdlin.XOSB(1.0, 0.3, weighted_volume="discrete").weights(c2, b2)
+
+
+def test_docs_examples():
+    """The examples of docs/state_based.md are doctests; keep them true."""
+    import doctest
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "docs" / "state_based.md"
+    res = doctest.testfile(
+        str(path), module_relative=False, optionflags=doctest.NORMALIZE_WHITESPACE
+    )
+    assert res.attempted >= 7 and res.failed == 0

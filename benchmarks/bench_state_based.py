@@ -1,0 +1,243 @@
+"""Performance of the ordinary state-based models (LPS, XOSB; spec 002).
+
+Rows (each in a forked child process, so ``peak`` is that configuration's own peak RSS):
+
+* ``weights``: XOSB preprocessing (per-point λ solves of the scaled 3x3/6x6 and 5x5/15x15
+  Gram systems, fallback flags), million directed bonds per second;
+* ``asm``: assembly of ``K`` (energy ``K_E`` / paper ``K_p``) by one sparse product of
+  stacked point-level operators, time and ``nnz/row`` (uniform interior at δ = 3.01 Δ:
+  210 in 2D, 2,487 in 3D, spec 002 §7);
+* solves of a plate / cube clamped on x- and pulled (u_x prescribed) on x+, relative
+  residual 1e-8: SuperLU (``direct``), AMG-CG on ``K_E``, AMG-GMRES on ``K_p``
+  (iterations in brackets);
+* ``mf-cg``: matrix-free CG on the :meth:`operator` of ``K_E`` (products from ``B`` and
+  per-bond coefficients, O(bonds) memory), preconditioned by smoothed-aggregation AMG of
+  the one-hop bond-based stiffness (a surrogate, spec 002 §7 suggestion).
+
+``--anchor N`` runs the Peridigm anchor problem of the issue: a cell-centred N³ cube,
+δ = 3.015 h, ``LPS(peridigm=True)``, x- face clamped, x+ face pulled (u_x prescribed),
+through both the assembled path (``pdlin.solve``, AMG-CG) and the matrix-free path; the
+target is N = 30 assembled and solved in ≤ 15 s with ≤ 4.5 GB peak.
+
+Run ``python benchmarks/bench_state_based.py --quick`` (about a minute) or without
+arguments (several minutes); times are wall-clock seconds on a shared machine, CPU time
+in brackets where it differs.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import multiprocessing as mp  # noqa: E402
+import platform  # noqa: E402
+import resource  # noqa: E402
+import time  # noqa: E402
+from typing import Any  # noqa: E402
+
+import numpy as np  # noqa: E402
+import scipy.sparse.linalg as spla  # noqa: E402
+
+import pdlin  # noqa: E402
+from pdlin.operators.bc import eliminate_dirichlet, resolve_dirichlet  # noqa: E402
+from pdlin.solvers.linear import amg_hierarchy  # noqa: E402
+
+
+def _clock() -> tuple[float, float]:
+    return time.perf_counter(), time.process_time()
+
+
+def _since(t: tuple[float, float]) -> tuple[float, float]:
+    return time.perf_counter() - t[0], time.process_time() - t[1]
+
+
+def _problem(shape: tuple[int, ...], model: Any) -> tuple[Any, Any, Any]:
+    cloud = pdlin.grid(shape, spacing=1.0 / shape[0])
+    bonds = pdlin.find_bonds(cloud, ratio=3.01)
+    bc = [pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", 1e-3, components="x")]
+    return cloud, bonds, pdlin.StaticProblem(model, cloud, bonds=bonds, dirichlet=bc)
+
+
+def matrix_free_solve(model: Any, cloud: Any, bonds: Any, dirichlet: Any, rtol: float = 1e-8):
+    """CG on the matrix-free K_E (free DOFs) with AMG of the one-hop bond-based surrogate."""
+    d = cloud.dim
+    ndof = cloud.ndof
+    dofs, vals = resolve_dirichlet(cloud, dirichlet)
+    free = np.ones(ndof, dtype=bool)
+    free[dofs] = False
+    op = model.operator(cloud, bonds)
+    uc = np.zeros(ndof)
+    uc[dofs] = vals
+    b = -(op @ uc)
+    b[~free] = 0.0
+
+    def mv(x: np.ndarray) -> np.ndarray:
+        y = op @ (x * free)
+        y[~free] = x[~free]
+        return y
+
+    A = spla.LinearOperator((ndof, ndof), matvec=mv, dtype=float)
+    sur = pdlin.BondBased(E=float(model.E)).stiffness(cloud, bonds)
+    As, _ = eliminate_dirichlet(sur, np.zeros(ndof), dofs, np.zeros(dofs.size), inplace=True)
+    near = pdlin.rigid_body_modes(cloud)
+    near[dofs] = 0.0
+    t = _clock()
+    ml = amg_hierarchy(As, near, blocksize=d)
+    setup = _since(t)
+    its = [0]
+
+    def cb(_: np.ndarray) -> None:
+        its[0] += 1
+
+    t = _clock()
+    x, info = spla.cg(A, b, rtol=rtol, M=ml.aspreconditioner(), maxiter=2000, callback=cb)
+    solve = _since(t)
+    res = np.linalg.norm(A @ x - b) / np.linalg.norm(b)
+    return x + uc, {"setup": setup, "solve": solve, "iters": its[0], "res": res, "info": info}
+
+
+def _row(shape: tuple[int, ...], solvers: tuple[str, ...], mf: bool) -> dict[str, Any]:
+    out: dict[str, Any] = {"shape": shape}
+    warm = pdlin.grid(shape[:1] * len(shape) if len(shape) == 2 else (5, 5, 5), spacing=1.0)
+    pdlin.XOSB(1.0, 0.3).stiffness(warm, pdlin.find_bonds(warm, ratio=3.01))  # imports, caches
+    cloud, bonds, _ = _problem(shape, pdlin.XOSB(1.0, 0.3))
+    out["n"] = cloud.n
+    out["nb"] = bonds.n_bonds
+    for lin in ("energy", "paper"):
+        model = pdlin.XOSB(1e9, 0.3, linearization=lin)
+        t = _clock()
+        w = model.weights(cloud, bonds)
+        if lin == "energy":
+            out["weights"] = _since(t)
+            out["fallback"] = int(w.fallback.sum())
+        t = _clock()
+        nblk = model.estimate_nnz_blocks(cloud, bonds)
+        out[f"est_{lin}"] = _since(t)
+        t = _clock()
+        K = model.stiffness(cloud, bonds)
+        out[f"asm_{lin}"] = _since(t)
+        d = cloud.dim
+        assert nblk == K.nnz // d**2
+        out["nnz_row"] = K.nnz / cloud.ndof
+        centre = int(np.argmin(np.linalg.norm(cloud.points - cloud.points.mean(0), axis=1)))
+        Kc = K.tocsr()
+        out["nnz_row_centre"] = int(np.diff(Kc.indptr)[centre * d])
+        del K, Kc
+        prob = pdlin.StaticProblem(
+            model,
+            cloud,
+            bonds=bonds,
+            dirichlet=[pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", 1e-3, components="x")],
+        )
+        for s in solvers:
+            if (lin == "paper" and s == "amg-cg") or (lin == "energy" and s == "amg-gmres"):
+                continue
+            t = _clock()
+            res = pdlin.solve(prob, solver=s, rtol=1e-8)
+            out[f"{s}_{lin}"] = (*_since(t), res.n_iter)
+        if mf and lin == "energy":
+            t = _clock()
+            _, info = matrix_free_solve(model, cloud, bonds, prob.dirichlet)
+            out["mf"] = (*_since(t), info["iters"])
+    out["peak"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
+    return out
+
+
+def _anchor(n: int, assembled: bool) -> dict[str, Any]:
+    out: dict[str, Any] = {"N": n}
+    t_all = _clock()
+    cloud = pdlin.grid((n,) * 3, spacing=1.0 / n)
+    bonds = pdlin.find_bonds(cloud, ratio=3.015)
+    out["bonds"] = _since(t_all)
+    out["nb"] = bonds.n_bonds
+    model = pdlin.LPS(1e9, 0.3, peridigm=True)
+    bc = [pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", 1e-3, components="x")]
+    if assembled:
+        out["est_blocks"] = model.estimate_nnz_blocks(cloud, bonds)
+        res = pdlin.solve(
+            pdlin.StaticProblem(model, cloud, bonds=bonds, dirichlet=bc), solver="amg-cg", rtol=1e-8
+        )
+        out["timings"] = {k: round(v, 2) for k, v in res.timings.items()}
+        out["iters"] = res.n_iter
+        out["u_max"] = float(np.abs(res.u).max())
+    else:
+        u, info = matrix_free_solve(model, cloud, bonds, bc)
+        out["mf"] = {
+            k: (tuple(round(x, 2) for x in v) if isinstance(v, tuple) else v)
+            for k, v in info.items()
+        }
+        out["u_max"] = float(np.abs(u).max())
+    out["total"] = _since(t_all)
+    out["peak_GB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
+    return out
+
+
+def _in_child(fn: Any, *args: Any) -> Any:
+    ctx = mp.get_context("fork")
+    with ctx.Pool(1) as pool:
+        return pool.apply(fn, args)
+
+
+def _fmt(t: Any) -> str:
+    if t is None:
+        return "-"
+    if len(t) == 3:
+        return f"{t[0]:.2f} ({t[2]})"
+    return f"{t[0]:.2f}"
+
+
+def main(argv: list[str] | None = None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--quick", action="store_true")
+    p.add_argument("--anchor", type=int, default=0, help="run the N^3 Peridigm anchor only")
+    p.add_argument("--no-assembled", action="store_true", help="anchor: matrix-free only")
+    args = p.parse_args(argv)
+    print(
+        f"# pdlin {pdlin.__version__}, Python {platform.python_version()}, "
+        f"{os.cpu_count()} cores, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}"
+    )
+    if args.anchor:
+        if not args.no_assembled:
+            print("assembled:", _in_child(_anchor, args.anchor, True))
+        print("matrix-free:", _in_child(_anchor, args.anchor, False))
+        return
+    if args.quick:
+        sizes = [
+            ((60, 30), ("direct", "amg-cg", "amg-gmres")),
+            ((10, 10, 10), ("direct", "amg-cg", "amg-gmres")),
+        ]
+    else:
+        sizes = [
+            ((100, 50), ("direct", "amg-cg", "amg-gmres")),
+            ((200, 100), ("direct", "amg-cg", "amg-gmres")),
+            ((400, 200), ("amg-cg", "amg-gmres")),
+            ((12, 12, 12), ("direct", "amg-cg", "amg-gmres")),
+            ((16, 16, 16), ("amg-cg", "amg-gmres")),
+            ((20, 20, 20), ("amg-cg", "amg-gmres")),
+        ]
+    hdr = (
+        "| shape | points | bonds | fallback | weights s (Mb/s) | asm K_E s | asm K_p s | "
+        "nnz/row (centre) | direct K_E | direct K_p | AMG-CG K_E | AMG-GMRES K_p | "
+        "mf-CG K_E | peak GB |"
+    )
+    print(hdr)
+    print("|" + "---|" * (hdr.count("|") - 1))
+    for shape, solvers in sizes:
+        r = _in_child(_row, shape, solvers, True)
+        wt = r["weights"][0]
+        print(
+            f"| {'x'.join(map(str, shape))} | {r['n']:,} | {r['nb']:,} | {r['fallback']} | "
+            f"{wt:.2f} ({r['nb'] / wt / 1e6:.1f}) | {r['asm_energy'][0]:.2f} | "
+            f"{r['asm_paper'][0]:.2f} | {r['nnz_row']:.0f} ({r['nnz_row_centre']}) | "
+            f"{_fmt(r.get('direct_energy'))} | {_fmt(r.get('direct_paper'))} | "
+            f"{_fmt(r.get('amg-cg_energy'))} | {_fmt(r.get('amg-gmres_paper'))} | "
+            f"{_fmt(r.get('mf'))} | {r['peak']:.2f} |",
+            flush=True,
+        )
+
+
+if __name__ == "__main__":
+    main()
