@@ -674,12 +674,14 @@ class OrdinaryStateBased(Model):
             Y = sp.vstack([theta_op, Bw], format="csr")
             del gam_b
         del B, Bw, theta_op
-        Xt = X.T.tocsr()
+        # block product: (d x 1) blocks of Xᵀ times (1 x d) blocks of Y give the d x d
+        # blocks of K directly (faster than a scalar CSR product + tobsr)
+        Xt = sp.bsr_array(X.T.tocsr().tobsr(blocksize=(d, 1)))
         del X
-        K = Xt @ Y
-        del Xt, Y
-        Kb = sp.bsr_array(K.tobsr(blocksize=(d, d)))
-        del K
+        Yb = sp.bsr_array(Y.tobsr(blocksize=(1, d)))
+        del Y
+        Kb = sp.bsr_array(Xt @ Yb)
+        del Xt, Yb
         Kb.sort_indices()
         return Kb
 
