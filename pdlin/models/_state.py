@@ -451,7 +451,7 @@ class OrdinaryStateBased(Model):
         self.unit_influence = bool(unit_influence)
         self.max_cond = float(max_cond)
         self.symmetric = linearization == "energy"
-        self._cache: tuple[int, int, StateWeights] | None = None
+        self._cache: tuple[PointCloud, Bonds, StateWeights] | None = None
 
     # -- material ------------------------------------------------------------
     def moduli(self, dim: int) -> tuple[Any, Any]:
@@ -467,7 +467,7 @@ class OrdinaryStateBased(Model):
                 f"bonds were built for {bonds.n_points} points in {bonds.dim}D, "
                 f"got a cloud of {cloud.n} points in {cloud.dim}D"
             )
-        if self._cache is not None and self._cache[:2] == (id(cloud), id(bonds)):
+        if self._cache is not None and self._cache[0] is cloud and self._cache[1] is bonds:
             return self._cache[2]
         w = compute_weights(
             cloud,
@@ -478,7 +478,8 @@ class OrdinaryStateBased(Model):
             fallback=self.fallback,
             max_cond=self.max_cond,
         )
-        self._cache = (id(cloud), id(bonds), w)
+        # strong references: an id() key could be reused by a new object after GC
+        self._cache = (cloud, bonds, w)
         return w
 
     def _coefficients(self, cloud: PointCloud, bonds: Bonds) -> dict[str, Any]:
