@@ -518,3 +518,22 @@ def test_solve_matrix_free_matches_direct(pre, rng):
         np.testing.assert_allclose(
             res.reactions, ref.reactions, atol=1e-9 * np.abs(ref.reactions).max()
         )
+
+
+@pytest.mark.slow
+def test_lambda_max_ratio_ho3h_spec_000_v20():
+    # spec 000 §11 [REF]: 6³ real, λ = 1, μ = 0.5, h = 1: λ_max(K_RR) 4.87 (δ = h), 217 (HO 3h)
+    C = isotropic(lam=1.0, mu=0.5)
+    lmax = {}
+    for m in (1, 3):
+        cloud = pdlin.grid((6 + 2 * m,) * 3, spacing=1.0)
+        bonds = pdlin.find_bonds(cloud, ratio=float(m))
+        _, shadow = shadow_layer(cloud, np.eye(3), float(m))
+        model = pdlin.Correspondence(C, control="higher_order", shadow=shadow)
+        K = pdlin.assemble_stiffness(model, cloud, bonds)
+        real = np.setdiff1d(np.arange(cloud.n), shadow)
+        dofs = (3 * real[:, None] + np.arange(3)).ravel()
+        lmax[m] = count_zero_modes(K, n_rigid=0, dofs=dofs, dense_limit=0, k=3).lambda_max
+    assert lmax[1] == pytest.approx(4.87, rel=0.01)
+    assert lmax[3] == pytest.approx(217.0, rel=0.01)
+    assert lmax[3] / lmax[1] == pytest.approx(44.6, rel=0.02)  # V20: ± 2 %
