@@ -537,3 +537,12 @@ def test_lambda_max_ratio_ho3h_spec_000_v20():
     assert lmax[1] == pytest.approx(4.87, rel=0.01)
     assert lmax[3] == pytest.approx(217.0, rel=0.01)
     assert lmax[3] / lmax[1] == pytest.approx(44.6, rel=0.02)  # V20: ± 2 %
+
+
+def test_docs_page_examples():
+    import doctest
+    from pathlib import Path
+
+    page = Path(__file__).resolve().parents[2] / "docs" / "correspondence.md"
+    res = doctest.testfile(str(page), module_relative=False, optionflags=doctest.ELLIPSIS)
+    assert res.attempted > 0 and res.failed == 0
