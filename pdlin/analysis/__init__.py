@@ -6,6 +6,7 @@ from .zero_energy import (
     checkerboard_energy_ratio,
     compare_controls,
     count_zero_modes,
+    periodic_lattice_bonds,
 )
 
 __all__ = [
@@ -14,4 +15,5 @@ __all__ = [
     "count_zero_modes",
     "checkerboard_energy_ratio",
     "compare_controls",
+    "periodic_lattice_bonds",
 ]

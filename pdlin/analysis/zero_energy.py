@@ -36,6 +36,7 @@ __all__ = [
     "count_zero_modes",
     "checkerboard_energy_ratio",
     "compare_controls",
+    "periodic_lattice_bonds",
 ]
 
 log = logging.getLogger(__name__)
@@ -153,6 +154,64 @@ def count_zero_modes(
     n_zero = int(np.sum(ev <= tol * lmax))
     return ZeroEnergyReport(
         n_zero, int(n_rigid), n_zero - int(n_rigid), ev[: max(n_zero + 5, 10)], lmax, method, tol
+    )
+
+
+def periodic_lattice_bonds(cloud: PointCloud, ratio: float, influence: Any = "constant") -> Bonds:
+    """Bonds of a fully periodic lattice (every family intact), for symbol/kernel studies.
+
+    ``cloud`` must be a complete :func:`pdlin.grid` with equal spacing ``h``; point ``a``
+    bonds to ``a + p (mod n)`` for every integer offset ``|p| h <= ratio h`` with the
+    unwrapped bond vector ``ξ = p h``.  Each axis needs more than ``2 floor(ratio)`` points
+    (no neighbour twice).  On such a lattice the kernel of K is the periodic nullity of
+    spec 000 §4 / spec 003 V4.
+
+    Examples
+    --------
+    >>> import pdlin
+    >>> cloud = pdlin.grid((24,), spacing=1.0)
+    >>> b = periodic_lattice_bonds(cloud, 2.0, influence="inverse")
+    >>> K = pdlin.assemble_stiffness(pdlin.Correspondence(E=1.0), cloud, b)
+    >>> count_zero_modes(K, n_rigid=0).n_zero   # spec 000 §4: no control 2h, n = 24 -> 4
+    4
+    """
+    from ..geometry.influence import evaluate_influence
+
+    lat = cloud.lattice
+    if lat is None or lat.index is not None:
+        raise ModelError("periodic_lattice_bonds needs a complete pdlin.grid cloud")
+    h = np.asarray(lat.spacing, dtype=float)
+    if not np.allclose(h, h[0], rtol=1e-12):
+        raise ModelError(f"periodic_lattice_bonds needs equal spacing, got {h.tolist()}")
+    r = float(ratio)
+    if not r > 0:
+        raise InputError(f"ratio must be > 0, got {ratio}")
+    d = cloud.dim
+    m = int(np.floor(r * (1 + 1e-9)))
+    shape = np.asarray(lat.shape)
+    if np.any(shape <= 2 * m):
+        raise InputError(
+            f"every axis needs more than {2 * m} points for ratio {r:g}, got shape {lat.shape}"
+        )
+    rng = np.arange(-m, m + 1)
+    offs = np.stack([g.ravel() for g in np.meshgrid(*([rng] * d), indexing="ij")], axis=1)
+    offs = offs[np.any(offs != 0, axis=1)]
+    offs = offs[np.sqrt(np.sum(offs.astype(float) ** 2, axis=1)) <= r * (1 + 1e-9)]
+    n = cloud.n
+    multi = np.stack(np.unravel_index(np.arange(n), lat.shape), axis=1)  # (n, d)
+    jm = (multi[:, None, :] + offs[None, :, :]) % shape  # (n, no, d)
+    j = np.ravel_multi_index(tuple(jm.reshape(-1, d).T), lat.shape)
+    i = np.repeat(np.arange(n), offs.shape[0])
+    xi = np.tile(offs * h[0], (n, 1))
+    order = np.lexsort((j, i))
+    i, j, xi = i[order], j[order], xi[order]
+    length = np.sqrt(np.sum(xi**2, axis=1))
+    hor = np.full(n, r * h[0])
+    omega = evaluate_influence(influence, length, np.full(length.size, r * h[0]))
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(i, minlength=n), out=indptr[1:])
+    return Bonds(
+        n, i, j, xi, length, omega, np.asarray(cloud.volumes)[j], indptr, hor, "sphere", influence
     )
 
 

@@ -546,3 +546,25 @@ def test_docs_page_examples():
     page = Path(__file__).resolve().parents[2] / "docs" / "correspondence.md"
     res = doctest.testfile(str(page), module_relative=False, optionflags=doctest.ELLIPSIS)
     assert res.attempted > 0 and res.failed == 0
+
+
+@pytest.mark.parametrize("dim,n,control,ratio,infl,nullity", [
+    # spec 003 V4: periodic nullity, no control d·2^d = 2 / 8 / 24, stress points d = 1 / 2 / 3
+    (1, 24, "none", 1.0, "constant", 2), (2, 8, "none", 1.0, "constant", 8),
+    (3, 4, "none", 1.0, "constant", 24), (1, 24, "stress_points", 1.0, "constant", 1),
+    (2, 8, "stress_points", 1.0, "constant", 2), (3, 4, "stress_points", 1.0, "constant", 3),
+    # spec 000 §4 / V8: scalar kernel 2^d for HO (K: d·2^d); 1D n = 24 none (1/|ξ|) 2h: 4, 3h: 6
+    (1, 24, "higher_order", 2.0, "constant", 2), (1, 24, "higher_order", 3.0, "constant", 2),
+    (1, 24, "higher_order", 4.0, "constant", 2), (2, 12, "higher_order", 2.0, "constant", 8),
+    (2, 12, "higher_order", 3.0, "constant", 8), (3, 8, "higher_order", 2.0, "constant", 24),
+    (1, 24, "none", 2.0, "inverse", 4), (1, 24, "none", 3.0, "inverse", 6),
+])  # fmt: skip
+def test_periodic_lattice_nullity(dim, n, control, ratio, infl, nullity):
+    from pdlin.analysis import periodic_lattice_bonds
+
+    cloud = pdlin.grid((n,) * dim, spacing=1.0)
+    bonds = periodic_lattice_bonds(cloud, ratio, influence=infl)
+    assert np.all(bonds.family_size == bonds.family_size[0])
+    model = pdlin.Correspondence(E=1.0, nu=0.3 if dim > 1 else None, control=control)
+    K = pdlin.assemble_stiffness(model, cloud, bonds)
+    assert count_zero_modes(K, n_rigid=0).n_zero == nullity
