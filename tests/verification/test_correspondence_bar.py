@@ -153,3 +153,49 @@ def test_spec_003_jump_strains_n500():
     k = int(np.searchsorted(x, 0.5))
     ratios = eps[[k - 1, k]] / eps_exact(x[[k - 1, k]])
     np.testing.assert_allclose(ratios, [1.544, 0.393], rtol=0.01)
+
+
+# --- spec 000 §10.C, 2D analogue: soft disk in a Mg matrix (not a bar, same verification set) ---
+
+# [REF] spec 000 §10.C "2D analogue": u_x raw / u_x filt / u_y filt in µm, row y = index 24
+PRECIPITATE_2D = {
+    (1, "higher_order", "constant"): (26.3, 2.60, 0.218),
+    (2, "higher_order", "constant"): (23.8, 2.17, 0.275),
+    (2, "none", "inverse"): (64.5, 8.16, 5.29),
+    (3, "higher_order", "constant"): (25.2, 1.89, 0.133),
+    (3, "none", "inverse"): (91.1, 50.4, 13.8),
+}
+
+
+def _precipitate_2d(m: int, control: str, influence: str) -> tuple[float, float, float]:
+    from pdlin.constitutive import plane_strain, transversely_isotropic
+
+    # spec 000 §8 Mg matrix (GPa, c ∥ z), precipitate r_c = 0.1; 48², 3 mm, disk d = 0.875 mm
+    Cm = plane_strain(transversely_isotropic(C11=59.3, C33=61.5, C12=25.7, C13=21.4, C44=16.4))
+    n, h = 48, 3.0 / 48
+    cloud = pdlin.grid((n, n), spacing=h)
+    inside = np.linalg.norm(cloud.points - 1.5, axis=1) <= 0.875 / 2
+    cloud = cloud.replace(material=inside.astype(int))
+    bonds = pdlin.find_bonds(cloud, ratio=float(m), influence=influence)
+    F = np.eye(2) + 0.02 * np.diag([1.0, -0.5])
+    model = pdlin.Correspondence({0: Cm, 1: 0.1 * Cm}, plane="strain", control=control)
+    prob = pdlin.shadow_problem(model, cloud, bonds, F)
+    res = pdlin.solve(prob, solver="direct")
+    row = np.flatnonzero(np.abs(cloud.points[:, 1] - 24.5 * h) < 1e-9)
+    row = np.setdiff1d(row, prob.model.shadow)
+    ux, uy = 1e3 * res.u[row, 0], 1e3 * res.u[row, 1]  # mm -> µm
+
+    def filt(v: np.ndarray) -> float:  # 2-point average annihilates θ = π
+        return float(np.abs(np.diff(0.5 * (v[1:] + v[:-1]), 2)).max())
+
+    return float(np.abs(np.diff(ux, 2)).max()), filt(ux), filt(uy)
+
+
+def test_spec_000_precipitate_2d():
+    got = {key: _precipitate_2d(*key) for key in PRECIPITATE_2D}
+    for key, want in PRECIPITATE_2D.items():
+        np.testing.assert_allclose(got[key], want, rtol=0.02)  # V18: ± 2 % (3 digits printed)
+    ho = {m: got[(m, "higher_order", "constant")][1] for m in (1, 2, 3)}
+    assert ho[2] <= 1.25 * ho[1] and ho[3] <= 1.25 * ho[1]  # V18: filt(HO) <= 1.25 filt(δ = h)
+    for m in (2, 3):  # V18: filt(none) >= 3 filt(HO) at equal δ
+        assert got[(m, "none", "inverse")][1] >= 3 * ho[m]
