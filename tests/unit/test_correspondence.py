@@ -568,3 +568,29 @@ def test_periodic_lattice_nullity(dim, n, control, ratio, infl, nullity):
     model = pdlin.Correspondence(E=1.0, nu=0.3 if dim > 1 else None, control=control)
     K = pdlin.assemble_stiffness(model, cloud, bonds)
     assert count_zero_modes(K, n_rigid=0).n_zero == nullity
+
+
+@pytest.mark.parametrize("ratio,control,infl,err_h01,order", [
+    # spec 000 §13 V5: h = 0.1 errors (± 1 %) and orders 2/4/6 (HO h/2h/3h), 2 (none, 1/|ξ|)
+    (1.0, "higher_order", "constant", 1.79e-3, 2), (2.0, "higher_order", "constant", 3.57e-6, 4),
+    (3.0, "higher_order", "constant", 7.64e-9, 6), (2.0, "none", "inverse", 4.45e-3, 2),
+    (3.0, "none", "inverse", 9.94e-3, 2),
+])  # fmt: skip
+def test_gradient_convergence_spec_000_v5(ratio, control, infl, err_h01, order):
+    p = np.array([0.3, 0.2])
+    X, Y = p
+    exact = np.array([
+        [np.cos(X) * np.cos(0.7 * Y), -0.7 * np.sin(X) * np.sin(0.7 * Y)],
+        [0.3 * np.exp(0.3 * X) * np.sin(Y), np.exp(0.3 * X) * np.cos(Y)],
+    ])  # fmt: skip
+    errs = []
+    for h in (0.2, 0.1, 0.05):
+        cloud = pdlin.grid((17, 17), spacing=h, origin=p - 8.5 * h)  # a particle at p
+        bonds = pdlin.find_bonds(cloud, ratio=ratio, influence=infl)
+        x, y = cloud.points.T
+        u = np.c_[np.sin(x) * np.cos(0.7 * y), np.exp(0.3 * x) * np.sin(y)]
+        a = int(np.argmin(np.linalg.norm(cloud.points - p, axis=1)))
+        grad = pdlin.Correspondence(E=1.0, nu=0.3, control=control).gradient(cloud, bonds, u)
+        errs.append(np.abs(grad[a] - exact).max())
+    assert errs[1] == pytest.approx(err_h01, rel=0.01)
+    assert np.log2(errs[1] / errs[2]) == pytest.approx(order, abs=0.05)
