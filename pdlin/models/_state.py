@@ -675,15 +675,19 @@ class OrdinaryStateBased(Model):
             Y = sp.vstack([theta_op, Bw], format="csr")
             del gam_b
         del B, Bw, theta_op
-        # block product: (d x 1) blocks of Xᵀ times (1 x d) blocks of Y give the d x d
-        # blocks of K directly (faster than a scalar CSR product + tobsr)
-        Xt = sp.bsr_array(X.T.tocsr().tobsr(blocksize=(d, 1)))
-        del X
-        Yb = sp.bsr_array(Y.tobsr(blocksize=(1, d)))
+        # block product: (d x 1) blocks of Yᵀ times (1 x d) blocks of X give the d x d
+        # blocks of Kᵀ directly (faster than a scalar CSR product + tobsr); the final
+        # O(nnz) block transpose returns K with sorted block indices (cheaper than a sort)
+        Yt = sp.bsr_array(Y.T.tocsr().tobsr(blocksize=(d, 1)))
         del Y
-        Kb = sp.bsr_array(Xt @ Yb)
-        del Xt, Yb
-        Kb.sort_indices()
+        Xb = sp.bsr_array(X.tobsr(blocksize=(1, d)))
+        del X
+        Kt = sp.bsr_array(Yt @ Xb)
+        del Yt, Xb
+        Kb = sp.bsr_array(Kt.transpose())
+        del Kt
+        if not Kb.has_sorted_indices:
+            Kb.sort_indices()
         return Kb
 
     def operator(self, cloud: PointCloud, bonds: Bonds) -> spla.LinearOperator:
