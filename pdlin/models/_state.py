@@ -50,7 +50,7 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 #: bonds per preprocessing / assembly chunk
-_CHUNK = 1 << 16
+_CHUNK = 1 << 14
 
 _PLANES = ("stress", "strain")
 _LINEARIZATIONS = ("energy", "paper")
@@ -169,6 +169,15 @@ def basis_d(x: np.ndarray) -> np.ndarray:
     array([[0.5, 0.5, 0.5, 0.5, 0.5]])
     """
     return _basis_d_t(np.asarray(x, dtype=float).T).T
+
+
+def _buffer(store: dict[int, np.ndarray], shape: tuple[int, int]) -> np.ndarray:
+    """A reusable (rows, cols) work array (grown when a larger chunk needs it)."""
+    buf = store.get(shape[0])
+    if buf is None or buf.shape[1] < shape[1]:
+        buf = np.empty((shape[0], max(shape[1], _CHUNK)))
+        store[shape[0]] = buf
+    return buf[:, : shape[1]]
 
 
 def _segment_sum(x: np.ndarray, ptr: np.ndarray) -> np.ndarray:
@@ -304,6 +313,7 @@ def compute_weights(
     indptr = np.asarray(bonds.indptr, dtype=np.int64)
     scale = np.asarray(bonds.horizon, dtype=float)
     th, td = TARGET_H[d], TARGET_D[d]
+    buffers: dict[int, np.ndarray] = {}
     for r0, r1 in _row_chunks(indptr):
         b0, b1 = int(indptr[r0]), int(indptr[r1])
         loc = bonds.i[b0:b1] - r0
@@ -319,7 +329,14 @@ def compute_weights(
             k = phi.shape[0]
             iu, ju = np.triu_indices(k)
             pv = phi * v
-            gram_u = _segment_sum(phi[iu] * pv[ju], ptr).T  # (rows, k(k+1)/2)
+            # products of the distinct pairs (p, q >= p), row by row into a reused buffer
+            # (fresh large temporaries cost more in first-touch page faults than in flops)
+            prod = _buffer(buffers, (iu.size, phi.shape[1]))
+            off = 0
+            for a in range(k):
+                np.multiply(phi[a], pv[a:], out=prod[off : off + k - a])
+                off += k - a
+            gram_u = _segment_sum(prod, ptr).T  # (rows, k(k+1)/2)
             gram = np.empty((r1 - r0, k, k))
             gram[:, iu, ju] = gram_u
             gram[:, ju, iu] = gram_u
