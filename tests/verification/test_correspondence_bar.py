@@ -199,3 +199,25 @@ def test_spec_000_precipitate_2d():
     assert ho[2] <= 1.25 * ho[1] and ho[3] <= 1.25 * ho[1]  # V18: filt(HO) <= 1.25 filt(δ = h)
     for m in (2, 3):  # V18: filt(none) >= 3 filt(HO) at equal δ
         assert got[(m, "none", "inverse")][1] >= 3 * ho[m]
+
+
+@pytest.mark.slow
+def test_spec_000_precipitate_3d_symmetry():
+    # spec 000 §10.C / V19: 24³, δ = h, the mean of the 8 particles around X_c equals
+    # H X_c = (30, -15, -15) µm for every r_c (symmetry argument; measured ~20 s per solve)
+    from pdlin.constitutive import transversely_isotropic
+
+    C = transversely_isotropic(C11=59.3, C33=61.5, C12=25.7, C13=21.4, C44=16.4)
+    n, h = 24, 3.0 / 24
+    cloud = pdlin.grid((n, n, n), spacing=h)
+    inside = np.linalg.norm(cloud.points - 1.5, axis=1) <= 0.875 / 2
+    cloud = cloud.replace(material=inside.astype(int))
+    bonds = pdlin.find_bonds(cloud, ratio=1.0)
+    F = np.eye(3) + 0.02 * np.diag([1.0, -0.5, -0.5])
+    centre = np.flatnonzero(np.all(np.abs(cloud.points - 1.5) < h, axis=1))
+    assert centre.size == 8
+    for rc in (1e-1, 1e-3, 1e-5):
+        model = pdlin.Correspondence({0: C, 1: rc * C}, control="higher_order")
+        res = pdlin.solve(pdlin.shadow_problem(model, cloud, bonds, F), solver="direct")
+        mean = 1e3 * res.u[centre].mean(axis=0)  # mm -> µm
+        np.testing.assert_allclose(mean, [30.0, -15.0, -15.0], atol=1e-8 * 30.0)
