@@ -62,6 +62,12 @@ def _xosb_2d_variable_horizon() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
     return pdlin.XOSB(E=5.0, nu=0.3), c, pdlin.find_bonds(c)
 
 
+def _xosb_2d_graded_e() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = pdlin.grid((15, 12), spacing=0.1)
+    E = np.random.default_rng(4).uniform(1.0, 5.0, c.n)  # per-point modulus (graded)
+    return pdlin.XOSB(E=E, nu=0.3, plane="strain"), c, pdlin.find_bonds(c, ratio=3.01)
+
+
 def _xosb_3d_energy() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
     c = pdlin.grid((7, 7, 6), spacing=0.25)
     return pdlin.XOSB(E=1.0, nu=0.3), c, pdlin.find_bonds(c, ratio=3.01)
@@ -79,6 +85,7 @@ CASES: dict[str, Callable[[], tuple[Any, pdlin.PointCloud, pdlin.Bonds]]] = {
     "xosb-2d-energy": _xosb_2d_energy,
     "xosb-2d-paper-strain": _xosb_2d_paper_strain,
     "xosb-2d-variable-horizon": _xosb_2d_variable_horizon,
+    "xosb-2d-graded-E": _xosb_2d_graded_e,
     "xosb-3d-energy": _xosb_3d_energy,
     "xosb-3d-paper-jittered": _xosb_3d_paper_jittered,
 }
