@@ -61,6 +61,25 @@ def _case_3d_per_bond_micromodulus() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds
     return pdlin.BondBased(micromodulus=cb), c, b
 
 
+def _case_corr_2d_none() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    from pdlin import constitutive as cst
+
+    c = pdlin.grid((16, 14), spacing=0.1)
+    C = cst.plane_strain(cst.material("transversely_isotropic"))
+    return pdlin.Correspondence(C, control="none"), c, pdlin.find_bonds(c, ratio=2.015)
+
+
+def _case_corr_3d_higher_order() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = pdlin.grid((12, 12, 11), spacing=0.2)
+    model = pdlin.Correspondence(E=1.0, nu=0.3, control="higher_order")
+    return model, c, pdlin.find_bonds(c, ratio=2.0)
+
+
+def _case_corr_2d_penalty_jittered() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = _jittered(2, 10)
+    return pdlin.Correspondence(E=2.0, nu=0.25, control="penalty"), c, pdlin.find_bonds(c)
+
+
 CASES: dict[str, Callable[[], tuple[Any, pdlin.PointCloud, pdlin.Bonds]]] = {
     "bb-1d": _case_1d,
     "bb-2d-stress": _case_2d_stress,
@@ -68,6 +87,9 @@ CASES: dict[str, Callable[[], tuple[Any, pdlin.PointCloud, pdlin.Bonds]]] = {
     "bb-3d": _case_3d,
     "bb-2d-variable-horizon-graded": _case_2d_variable_horizon,
     "bb-3d-per-bond-micromodulus": _case_3d_per_bond_micromodulus,
+    "corr-2d-none-anisotropic": _case_corr_2d_none,
+    "corr-3d-higher-order": _case_corr_3d_higher_order,
+    "corr-2d-penalty-jittered": _case_corr_2d_penalty_jittered,
 }
 
 
@@ -139,9 +161,11 @@ def test_affine_fields_give_zero_force_on_complete_families(case, rng):
     H = rng.normal(size=(d, d)) * 1e-3
     u = cloud.points @ H.T
     f = model.internal_force(cloud, bonds, u)
-    # complete family: the point is at least one (max) horizon inside the box
+    # complete family (and complete neighbour families for two-hop models): the point is
+    # at least coupling_range horizons inside the box
     lo, hi = cloud.bounds
-    reach = bonds.horizon.max() * (1 + 1e-9) + 0.5 * cloud.spacing.max()
+    hops = getattr(model, "coupling_range", 1)
+    reach = hops * bonds.horizon.max() * (1 + 1e-9) + 0.5 * cloud.spacing.max()
     inner = np.all((cloud.points - lo > reach) & (hi - cloud.points > reach), axis=1)
     if bonds.horizon.min() != bonds.horizon.max() or not inner.any():
         pytest.skip("no lattice-complete families in this case")
