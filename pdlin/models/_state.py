@@ -207,7 +207,8 @@ class StateWeights:
     singular : (n,) ndarray of bool
         Points whose λ system was singular or ill-conditioned (min-norm λ used).
     cond_h, cond_d : (n,) ndarray
-        Condition numbers of the scaled Gram matrices (NaN for LPS).
+        Condition numbers of the scaled Gram matrices: 1-norm (2-norm where a system
+        went through the eigendecomposition path), NaN for LPS.
     weighted_volume : (n,) ndarray
         ``m_i`` used by the spherical weights.
     """
@@ -239,14 +240,10 @@ def _row_chunks(indptr: np.ndarray, chunk: int = _CHUNK) -> list[tuple[int, int]
     return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)]
 
 
-def _solve_batched(
+def _solve_eigh(
     gram: np.ndarray, rhs: np.ndarray, max_cond: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Solve ``A_i λ_i = R_i`` for a stack; min-norm λ where cond(A_i) > max_cond.
-
-    Uses a batched symmetric eigendecomposition, which gives the condition
-    number and the pseudo-inverse from one factorization.
-    """
+    """Eigendecomposition path: 2-norm condition, minimum-norm λ where it is too large."""
     lam, vec = np.linalg.eigh(gram)
     top = np.maximum(lam[:, -1], np.finfo(float).tiny)
     low = lam[:, 0]
@@ -257,6 +254,33 @@ def _solve_batched(
     inv = np.where(keep, 1.0 / np.where(keep, lam, 1.0), 0.0)
     proj = np.einsum("nkl,nk->nl", vec, rhs)
     sol = np.einsum("nkl,nl->nk", vec, proj * inv)
+    return sol, cond, bad
+
+
+def _solve_batched(
+    gram: np.ndarray, rhs: np.ndarray, max_cond: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Solve the stack ``A_i λ_i = R_i``; minimum-norm λ where ``A_i`` is ill-conditioned.
+
+    Batched Cholesky (positive definiteness) and inverse give λ and the 1-norm condition
+    number ``‖A‖₁‖A⁻¹‖₁``; systems above ``max_cond`` (and every system of a batch whose
+    Cholesky fails) go through a symmetric eigendecomposition, whose pseudo-inverse gives
+    the minimum-norm λ.  Returns ``(λ, cond, bad)``.
+    """
+    if gram.shape[0] == 0:
+        return np.zeros_like(rhs), np.zeros(0), np.zeros(0, dtype=bool)
+    try:
+        np.linalg.cholesky(gram)  # raises if any system is not positive definite
+        inv = np.linalg.inv(gram)
+    except np.linalg.LinAlgError:
+        return _solve_eigh(gram, rhs, max_cond)
+    norm_a = np.abs(gram).sum(axis=1).max(axis=1)
+    norm_inv = np.abs(inv).sum(axis=1).max(axis=1)
+    cond = norm_a * norm_inv
+    bad = ~(cond <= max_cond)
+    sol = np.einsum("nkl,nl->nk", inv, rhs)
+    if bad.any():
+        sol[bad], cond[bad], _ = _solve_eigh(gram[bad], rhs[bad], 0.0)
     return sol, cond, bad
 
 
