@@ -57,7 +57,7 @@ _GEOM = {
     "mesh": {"type", "path", "thickness", "dim"},
     "image": {"type", "path", "data", "spacing", "origin", "void", "thickness"},
 }
-_MATERIAL = {"E", "nu", "plane", "micromodulus", "calibration"}
+_MATERIAL = {"E", "nu", "plane", "micromodulus", "calibration", "stiffness"}
 _CALIBRATION = {
     "target",
     "method",
@@ -67,7 +67,24 @@ _CALIBRATION = {
     "boundary",
     "pair_rule",
 }
-_MODEL = {"type", "nu_mismatch", "average"}
+_MODEL = {
+    "type",
+    "nu_mismatch",
+    "average",
+    "linearization",
+    "weighted_volume",
+    "peridigm",
+    "fallback",
+    "control",
+    "penalty",
+    "seed",
+}
+_MODEL_KEYS = {
+    "bond_based": {"type", "nu_mismatch", "average"},
+    "lps": {"type", "linearization", "weighted_volume", "peridigm"},
+    "xosb": {"type", "linearization", "weighted_volume", "fallback"},
+    "correspondence": {"type", "control", "penalty", "seed"},
+}
 _HORIZON = {"value", "ratio", "shape", "axes", "influence", "cracks"}
 _DIRICHLET = {"set", "box", "points", "components", "value", "F", "translation", "center"}
 _LOAD = {"type", "set", "box", "points", "force", "density"}
@@ -101,7 +118,47 @@ def _build_model(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: Poi
         builder = MODELS[kind]
     except KeyError:
         raise SceneError(f"model.type must be one of {sorted(MODELS)}, got {kind!r}") from None
+    if kind in _MODEL_KEYS:
+        _check_keys(cfg, _MODEL_KEYS[kind], "model")
     return builder(cfg, material, cloud)
+
+
+def _no_keys(material: Mapping[str, Any], keys: tuple[str, ...], kind: str) -> None:
+    for k in keys:
+        if k in material:
+            raise SceneError(f"material.{k} is not used by model.type = {kind!r}")
+
+
+def _state_based(kind: str) -> Callable[[Mapping[str, Any], Mapping[str, Any], PointCloud], Model]:
+    def build(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud) -> Model:
+        from ..models import LPS, XOSB
+
+        _no_keys(material, ("micromodulus", "stiffness"), kind)
+        E = per_phase(_require(material, "E", "material"), cloud, "material.E")
+        nu = _require(material, "nu", "material")
+        opts = {k: cfg[k] for k in cfg if k != "type"}
+        cls = LPS if kind == "lps" else XOSB
+        return cls(E, float(nu), plane=material.get("plane", "stress"), **opts)
+
+    return build
+
+
+def _correspondence(
+    cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud
+) -> Model:
+    from ..models import Correspondence
+    from .targets import target_from_table
+
+    _no_keys(material, ("micromodulus",), "correspondence")
+    opts = {k: cfg[k] for k in cfg if k != "type"}
+    plane = material.get("plane", "stress")
+    if "stiffness" in material:
+        if "E" in material:
+            raise SceneError("material.E and material.stiffness exclude each other")
+        C = target_from_table(material["stiffness"], "material.stiffness")
+        return Correspondence(C, plane=plane, **opts)
+    E = per_phase(_require(material, "E", "material"), cloud, "material.E")
+    return Correspondence(E=E, nu=material.get("nu"), plane=plane, **opts)
 
 
 def per_phase(value: Any, cloud: PointCloud, key: str) -> Any:
@@ -142,6 +199,9 @@ def _bond_based(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: Poin
 #: model builders by scene name: ``builder(model_table, material_table, cloud) -> Model``
 MODELS: dict[str, Callable[[Mapping[str, Any], Mapping[str, Any], PointCloud], Model]] = {
     "bond_based": _bond_based,
+    "lps": _state_based("lps"),
+    "xosb": _state_based("xosb"),
+    "correspondence": _correspondence,
 }
 
 
@@ -299,6 +359,7 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
                 )
             else:
                 dirichlet.append(Dirichlet(where, bc.get("value", 0.0), bc.get("components")))
+        shadow_loads: list[Any] = []
         if "shadow" in top:
             sh = _check_keys(top["shadow"], _SHADOW, "shadow")
             depth = sh.get("depth")
@@ -314,15 +375,32 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
                     )
                 )
                 depth = float(np.max(hv))
-            bc_sh, _ = shadow_layer(
-                cloud,
-                _require(sh, "F", "shadow"),
-                float(depth),
-                faces=sh.get("faces"),
-                translation=sh.get("translation"),
-            )
-            dirichlet.append(bc_sh)
-        loads: list[BodyForce | TotalForce] = []
+            from ..models.correspondence import Correspondence, shadow_problem
+
+            if isinstance(model, Correspondence):
+                # correspondence shadow particles use the intact-lattice shape tensor and act
+                # through their prescribed stress (spec 000 section 7)
+                if sh.get("faces") is not None or sh.get("translation") is not None:
+                    raise SceneError(
+                        "shadow.faces/translation are not supported for correspondence"
+                    )
+                bonds = bonds if bonds is not None else find_bonds(cloud, horizon, **bond_options)
+                sp_prob = shadow_problem(
+                    model, cloud, bonds, _require(sh, "F", "shadow"), depth=float(depth)
+                )
+                model = sp_prob.model
+                dirichlet.extend(sp_prob.dirichlet)
+                shadow_loads = list(sp_prob.loads)
+            else:
+                bc_sh, _ = shadow_layer(
+                    cloud,
+                    _require(sh, "F", "shadow"),
+                    float(depth),
+                    faces=sh.get("faces"),
+                    translation=sh.get("translation"),
+                )
+                dirichlet.append(bc_sh)
+        loads: list[BodyForce | TotalForce] = list(shadow_loads)
         for k, ld in enumerate(top.get("load", [])):
             key = f"load[{k}]"
             ld = _check_keys(ld, _LOAD, key)
