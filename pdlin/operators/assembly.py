@@ -25,7 +25,7 @@ log = logging.getLogger(__name__)
 _CHUNK = 1 << 16
 
 
-def _index_dtype(n: int) -> type:
+def _index_dtype(n: int) -> type[np.signedinteger]:
     return np.int32 if n < np.iinfo(np.int32).max else np.int64
 
 
@@ -57,8 +57,8 @@ def bond_pattern_bsr(bonds: Bonds) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     bond_pos += upper
     ar = np.arange(n, dtype=np.int64)
     diag_pos = bonds.indptr[:-1] + ar + nless
-    indptr = (bonds.indptr + np.arange(n + 1, dtype=np.int64)).astype(idt)
-    indices = np.empty(nb + n, dtype=idt)
+    indptr: np.ndarray = (bonds.indptr + np.arange(n + 1, dtype=np.int64)).astype(idt)
+    indices: np.ndarray = np.empty(nb + n, dtype=idt)
     indices[bond_pos] = j
     indices[diag_pos] = ar
     return indptr, indices, bond_pos, diag_pos
@@ -92,8 +92,8 @@ def pair_stiffness_bsr(
         raise ShapeError(f"coef must have shape ({nb},), got {coef.shape}")
     bptr = np.asarray(bonds.indptr, dtype=np.int64)
     idt = _index_dtype(nb + n)
-    indptr = (bptr + np.arange(n + 1, dtype=np.int64)).astype(idt)
-    indices = np.empty(nb + n, dtype=idt)
+    indptr: np.ndarray = (bptr + np.arange(n + 1, dtype=np.int64)).astype(idt)
+    indices: np.ndarray = np.empty(nb + n, dtype=idt)
     data = np.empty((nb + n, d, d))
     # rows are processed in chunks of about _CHUNK bonds: the block pattern
     # (bond_pattern_bsr's positions, chunk by chunk: no global position
