@@ -297,7 +297,7 @@ def compute_weights(
     """Spherical and (optionally) corrected influence weights (spec 002 §3-5).
 
     Vectorized and chunked over owner rows: Gram entries are accumulated by
-    a sparse owner-selector product per chunk, the small systems are solved
+    segment sums over the owner-sorted bonds per chunk, the small systems are solved
     in batches, and no ``nb x k x k`` array is formed.
     """
     d = cloud.dim
@@ -394,7 +394,6 @@ def _point_operator(
     bonds: Bonds, coef: np.ndarray, unit: np.ndarray, n: int, d: int
 ) -> sp.csr_array:
     """``Pᵀ diag(coef) B`` as an ``n x n·d`` CSR array (row i = Σ_{b∈i} coef_b B_b)."""
-    nb = bonds.n_bonds
     cn = coef[:, None] * unit  # (nb, d)
     diag = np.empty((n, d))
     for k in range(d):
@@ -407,7 +406,6 @@ def _point_operator(
         ]
     )
     data = np.concatenate([cn.ravel(), diag.ravel()])
-    del nb
     out = sp.coo_array((data, (rows, cols)), shape=(n, n * d)).tocsr()
     out.sum_duplicates()
     return out
@@ -660,13 +658,6 @@ class OrdinaryStateBased(Model):
         return out
 
     # -- operators -----------------------------------------------------------
-    def _factors(self, cloud: PointCloud, bonds: Bonds) -> dict[str, Any]:
-        co = self._coefficients(cloud, bonds)
-        d, n = cloud.dim, cloud.n
-        unit = bonds.xi / bonds.length[:, None]
-        B = _bond_operator(bonds, unit, n, d)
-        return {"B": B, "unit": unit, **co}
-
     def stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.bsr_array:
         """Assembled linearized stiffness (BSR, blocksize dim), ``f = -K u``.
 
