@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -10,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from .errors import InputError, InputTypeError
 from .fields import deformation_gradient, small_strain
@@ -81,9 +83,7 @@ class StaticProblem:
 
     def __post_init__(self) -> None:
         if not hasattr(self.model, "stiffness") or not hasattr(self.model, "internal_force"):
-            raise InputTypeError(
-                f"model must be a pdlin model, got {type(self.model).__name__}"
-            )
+            raise InputTypeError(f"model must be a pdlin model, got {type(self.model).__name__}")
         if not isinstance(self.cloud, PointCloud):
             raise InputTypeError(f"cloud must be a PointCloud, got {type(self.cloud).__name__}")
         if self.bonds is not None and not isinstance(self.bonds, Bonds):
@@ -222,6 +222,7 @@ def solve(
     amg_options: Mapping[str, Any] | None = None,
     keep_stiffness: bool = False,
     progress: Callable[[str], None] | None = None,
+    operator: str = "auto",
 ) -> StaticResult:
     """Assemble, constrain and solve a static problem; verify the residual.
 
@@ -240,6 +241,16 @@ def solve(
         Keep the (unconstrained) stiffness matrix on the result.
     progress : callable, optional
         Called with a message at the start of each stage.
+    operator : {'assembled', 'matrix-free', 'auto'}
+        'assembled' builds the sparse K; 'matrix-free' applies K through the
+        model's factored operator (``model.operator``) and builds the
+        preconditioner ('amg-cg', 'jacobi-cg', 'amg-gmres', ...) from the
+        model's assembled one-hop ``surrogate_stiffness``; 'auto' picks
+        matrix-free for models coupling two horizons in 3D (where the
+        assembled K has ~2,500 nonzeros per row and assembly dominates) or
+        when the assembled K would exceed 40 % of the machine's memory.
+        ``result.info['operator']`` and ``['operator_reason']`` say which
+        path ran and why.
 
     Returns
     -------
@@ -284,15 +295,28 @@ def solve(
 
     nblocks = model.estimate_nnz_blocks(cloud, bonds)
     est = estimate_bond_operator_bytes(cloud.n, nblocks, d)
-    say(f"assembly (~{est / 1e9:.2f} GB for {nblocks * d * d:,} nonzeros)")
-    log.info("assembling K: %d blocks, ~%.3g GB", nblocks, est / 1e9)
-    t0 = time.perf_counter()
-    K = assemble_stiffness(model, cloud, bonds) if red is None else red.stiffness()
-    timings["assembly"] = time.perf_counter() - t0
-
-    A, b = eliminate_dirichlet(K, f_ext, dofs, vals, inplace=not keep_stiffness)
+    path, reason = _choose_operator(
+        operator, model, cloud, solver, est, red is not None, keep_stiffness
+    )
     B = rigid_body_modes(cloud)
     B[dofs] = 0.0
+    symmetric = getattr(model, "symmetric", True)
+    K: Any = None
+    if path == "assembled":
+        say(f"assembly (~{est / 1e9:.2f} GB for {nblocks * d * d:,} nonzeros)")
+        log.info("assembling K: %d blocks, ~%.3g GB", nblocks, est / 1e9)
+        t0 = time.perf_counter()
+        K = assemble_stiffness(model, cloud, bonds) if red is None else red.stiffness()
+        timings["assembly"] = time.perf_counter() - t0
+        A, b = eliminate_dirichlet(K, f_ext, dofs, vals, inplace=not keep_stiffness)
+        precond = None
+    else:
+        say(f"matrix-free operator ({reason})")
+        t0 = time.perf_counter()
+        A, b, precond = _matrix_free_system(model, cloud, bonds, f_ext, dofs, vals)
+        timings["assembly"] = time.perf_counter() - t0
+        if solver == "auto":
+            solver = "amg-cg" if symmetric else "amg-gmres"
     say(f"solve ({solver})")
     lin: LinearSolveInfo = solve_linear(
         A,
@@ -302,8 +326,9 @@ def solve(
         maxiter=maxiter,
         near_null=B,
         blocksize=d,
-        symmetric=getattr(model, "symmetric", True),
+        symmetric=symmetric,
         amg_options=dict(amg_options or {}),
+        preconditioner_matrix=precond,
     )
     timings["setup"] = lin.setup_time
     timings["solve"] = lin.solve_time
@@ -318,7 +343,13 @@ def solve(
     reac = np.zeros(cloud.n * d)
     reac[dofs] = -(f_int[dofs] + f_ext[dofs])
     timings["total"] = time.perf_counter() - t_start
-    info = {"solver": lin.solver, **lin.info, "model": model.describe()}
+    info = {
+        "solver": lin.solver,
+        **lin.info,
+        "model": model.describe(),
+        "operator": path,
+        "operator_reason": reason,
+    }
     return StaticResult(
         problem=problem,
         bonds=bonds,
@@ -331,6 +362,90 @@ def solve(
         reactions=reac.reshape(cloud.n, d),
         prescribed_dofs=dofs,
         info=info,
-        stiffness=K if keep_stiffness else None,
+        stiffness=K if keep_stiffness and K is not None else None,
         symmetry=red,
     )
+
+
+_OPERATORS = ("assembled", "matrix-free", "auto")
+
+
+def _choose_operator(
+    operator: str,
+    model: Model,
+    cloud: PointCloud,
+    solver: str,
+    est_bytes: int,
+    symmetry: bool,
+    keep_stiffness: bool = False,
+) -> tuple[str, str]:
+    """Assembled or matrix-free K, and why."""
+    if operator not in _OPERATORS:
+        raise InputError(f"operator must be one of {_OPERATORS}, got {operator!r}")
+    if operator == "assembled":
+        return "assembled", "requested"
+    if operator == "auto" and keep_stiffness:
+        return "assembled", "keep_stiffness=True needs the assembled K"
+    if symmetry:
+        if operator == "matrix-free":
+            raise InputError("operator='matrix-free' does not support symmetry planes yet")
+        return "assembled", "symmetry planes need the assembled reduction"
+    if operator == "matrix-free":
+        if solver == "direct":
+            raise InputError("solver 'direct' needs the assembled K; use operator='assembled'")
+        return "matrix-free", "requested"
+    if solver == "direct":
+        return "assembled", "the direct solver needs the assembled K"
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
+        total = 0
+    if total and est_bytes > 0.4 * total:
+        return "matrix-free", (
+            f"assembled K would take ~{est_bytes / 1e9:.1f} GB, over 40 % of "
+            f"{total / 1e9:.0f} GB of memory"
+        )
+    if getattr(model, "coupling_range", 1) >= 2 and cloud.dim == 3:
+        return "matrix-free", (
+            "K couples points two horizons apart in 3D: the factored product is cheaper "
+            "than assembling it"
+        )
+    return "assembled", f"assembled K fits (~{est_bytes / 1e9:.2f} GB)"
+
+
+def _matrix_free_system(
+    model: Model,
+    cloud: PointCloud,
+    bonds: Bonds,
+    f_ext: np.ndarray,
+    dofs: np.ndarray,
+    vals: np.ndarray,
+) -> tuple[spla.LinearOperator, np.ndarray, sp.sparray]:
+    """Eliminated matrix-free system and the eliminated surrogate preconditioner matrix.
+
+    Prescribed rows and columns become ``s * I`` in both, with ``s`` the mean
+    free diagonal of the surrogate, so they have the same structure as the
+    assembled elimination of :func:`~pdlin.operators.bc.eliminate_dirichlet`.
+    """
+    ndof = cloud.ndof
+    op = model.operator(cloud, bonds)
+    sur = model.surrogate_stiffness(cloud, bonds)
+    free = np.ones(ndof, dtype=bool)
+    free[dofs] = False
+    P, _ = eliminate_dirichlet(sur, np.zeros(ndof), dofs, np.zeros(dofs.size), inplace=True)
+    diag = sur.diagonal()
+    s = float(np.mean(np.abs(diag[free]))) if free.any() else 1.0
+    uc = np.zeros(ndof)
+    uc[dofs] = vals
+    b = f_ext - op @ uc
+    b[~free] = s * uc[~free]
+    fmask = free.astype(float)
+
+    def mv(x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float).reshape(-1)
+        y = np.asarray(op @ (x * fmask), dtype=float)
+        y[~free] = s * x[~free]
+        return y
+
+    A = spla.LinearOperator((ndof, ndof), matvec=mv, rmatvec=mv, dtype=float)
+    return A, b, P

@@ -7,7 +7,9 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
+from ..errors import ModelError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
 
@@ -41,6 +43,28 @@ class Model(ABC):
         self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, *, linear: bool = True
     ) -> np.ndarray:
         """Nodal internal force ``(n, dim)`` for displacement ``u`` ``(n, dim)``."""
+
+    def operator(self, cloud: PointCloud, bonds: Bonds) -> spla.LinearOperator:
+        """``K`` as a :class:`~scipy.sparse.linalg.LinearOperator`.
+
+        The default wraps the assembled stiffness; models whose K couples
+        two horizons override it with a matrix-free product.
+        """
+        return spla.aslinearoperator(self.stiffness(cloud, bonds))
+
+    def surrogate_stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.sparray:
+        """Assembled one-hop matrix spectrally close to K, used to precondition
+        the matrix-free path (default: the bond-based stiffness with the
+        model's ``E`` on the same bonds)."""
+        from .bond_based import BondBased
+
+        E = getattr(self, "E", None)
+        if E is None:
+            raise ModelError(
+                f"{type(self).__name__} has no surrogate stiffness for the matrix-free path "
+                "(define surrogate_stiffness or use operator='assembled')"
+            )
+        return BondBased(E=E, plane=getattr(self, "plane", "stress")).stiffness(cloud, bonds)
 
     def energy(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> float:
         """Linearized strain energy ``½ uᵀ K u`` (matrix-free where possible)."""

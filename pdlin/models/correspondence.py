@@ -723,6 +723,10 @@ class Correspondence(Model):
 
         return spla.LinearOperator((nd, nd), matvec=mv, rmatvec=mv, dtype=float)
 
+    def operator(self, cloud: PointCloud, bonds: Bonds) -> spla.LinearOperator:
+        """Matrix-free ``K`` (the :class:`~pdlin.models.base.Model` interface name)."""
+        return self.linear_operator(cloud, bonds)
+
     def surrogate_stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.bsr_array:
         """Bond-based K of the same bonds (ω ≥ 0) and equivalent modulus: a preconditioner base."""
         d = cloud.dim

@@ -550,6 +550,7 @@ def solve_linear(
     x0: np.ndarray | None = None,
     amg_options: dict[str, Any] | None = None,
     check_rtol: float | None = None,
+    preconditioner_matrix: sp.sparray | None = None,
 ) -> LinearSolveInfo:
     """Solve ``A x = b`` and verify the true residual.
 
@@ -573,6 +574,10 @@ def solve_linear(
     check_rtol : float, optional
         Tolerance of the final true-residual check (default ``10 * rtol``
         for iterative solvers, ``1e-8`` for direct).
+    preconditioner_matrix : sparse array, optional
+        Build the AMG / Jacobi / ILU preconditioner from this matrix instead
+        of ``A`` (e.g. an assembled one-hop surrogate when ``A`` is a
+        matrix-free ``LinearOperator``).
 
     Returns
     -------
@@ -601,7 +606,19 @@ def solve_linear(
         maxiter = max(200, min(n, 5000))
     residuals: list[float] = []
     info: dict[str, Any] = {}
+    P = A if preconditioner_matrix is None else preconditioner_matrix
+    if P.shape != A.shape:
+        raise InputError(f"preconditioner_matrix must have shape {A.shape}, got {P.shape}")
+    if solver in ("direct", "ilu-gmres", "amg-cg", "amg-gmres", "jacobi-cg") and not (
+        sp.issparse(P)
+    ):
+        raise InputError(
+            f"solver {solver!r} needs an assembled matrix; A is a {type(A).__name__}: pass "
+            "preconditioner_matrix or use 'cg' / 'gmres'"
+        )
     if solver == "direct":
+        if not sp.issparse(A):
+            raise InputError("solver 'direct' needs an assembled matrix, got a LinearOperator")
         t0 = time.perf_counter()
         lu = DirectSolver(A, symmetric=symmetric)
         t1 = time.perf_counter()
@@ -629,16 +646,17 @@ def solve_linear(
     MA: Any = None
     if solver in ("amg-cg", "amg-gmres"):
         ml = amg_hierarchy(
-            A, near_null, blocksize=blocksize, symmetric=symmetric, **(amg_options or {})
+            P, near_null, blocksize=blocksize, symmetric=symmetric, **(amg_options or {})
         )
         M = ml.apply
-        MA = ml.apply_with_product
+        # the cycle's fused product A z is only valid when the hierarchy is built on A
+        MA = ml.apply_with_product if P is A else None
         info["levels"] = len(ml.levels)
         info["operator_complexity"] = ml.operator_complexity()
         info["grid_complexity"] = ml.grid_complexity()
         info["level_sizes"] = [int(lev.A.shape[0]) for lev in ml.levels]
     elif solver == "jacobi-cg":
-        d = A.diagonal()
+        d = P.diagonal()
         if np.any(d <= 0):
             raise InputError(
                 "A must have a positive diagonal for jacobi-cg, got a non-positive entry"
@@ -646,19 +664,24 @@ def solve_linear(
         inv = 1.0 / d
         M = inv.__mul__
     elif solver == "ilu-gmres":
-        ilu = spla.spilu(sp.csc_matrix(A), drop_tol=1e-4, fill_factor=10)
+        ilu = spla.spilu(sp.csc_matrix(P), drop_tol=1e-4, fill_factor=10)
         M = ilu.solve
     t1 = time.perf_counter()
     c1 = time.process_time()
     if solver.endswith("cg"):
-        x, flag = _pcg(
-            A, b, M, x0=x0, rtol=rtol, maxiter=maxiter, residuals=residuals, MA=MA
-        )
+        x, flag = _pcg(A, b, M, x0=x0, rtol=rtol, maxiter=maxiter, residuals=residuals, MA=MA)
         rel = residuals
     else:
         x, flag = _gmres(
-            A, b, M, x0=x0, rtol=rtol, restart=min(100, maxiter), maxiter=maxiter,
-            residuals=residuals, MA=MA,
+            A,
+            b,
+            M,
+            x0=x0,
+            rtol=rtol,
+            restart=min(100, maxiter),
+            maxiter=maxiter,
+            residuals=residuals,
+            MA=MA,
         )
         rel = residuals
     t2 = time.perf_counter()
@@ -792,6 +815,7 @@ def _pcg(
     residuals[:] = [nr]
     if nr <= rtol:
         return x, 0
+
     def precondition(res: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         if MA is not None:
             zz, Azz = MA(res)
