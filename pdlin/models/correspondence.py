@@ -951,7 +951,9 @@ def solve_matrix_free(
     :meth:`Correspondence.surrogate_stiffness` (the bond-based K of the
     same bonds, ``'jacobi'``, default), smoothed-aggregation AMG on that
     surrogate (``'amg'``) or nothing (``'none'``).  The true residual is
-    checked; a miss raises :class:`~pdlin.errors.ConvergenceError`.
+    checked; a miss raises :class:`~pdlin.errors.ConvergenceError`.  This is
+    ``pdlin.solve(problem, solver=..., operator="matrix-free")`` with the
+    preconditioner named the Correspondence way.
 
     Measured (20³ cube, shadow layer, HO weights, rtol 1e-10; iterations
     none / jacobi / amg): δ = h 111 / 111 / 275, 2h 103 / 103 / 219,
@@ -977,95 +979,24 @@ def solve_matrix_free(
     >>> bool(np.allclose(res.u, ref.u, rtol=1e-7, atol=1e-9 * np.abs(ref.u).max()))
     True
     """
-    import time
+    from ..problem import solve
 
-    from ..errors import ConvergenceError
-    from ..operators.bc import (
-        check_constraints,
-        eliminate_dirichlet,
-        load_vector,
-        resolve_dirichlet,
-    )
-    from ..operators.rigid import rigid_body_modes
-    from ..problem import StaticResult
-    from ..solvers.linear import amg_hierarchy
-
-    if preconditioner not in ("amg", "jacobi", "none"):
+    solvers = {"amg": "amg-cg", "jacobi": "jacobi-cg", "none": "cg"}
+    if preconditioner not in solvers:
         raise InputError(
             f"preconditioner must be 'amg', 'jacobi' or 'none', got {preconditioner!r}"
         )
-    model = problem.model
-    if not isinstance(model, Correspondence):
-        raise InputError(f"problem.model must be a Correspondence, got {type(model).__name__}")
-    t_start = time.perf_counter()
-    cloud = problem.cloud
-    d = cloud.dim
-    bonds = problem.get_bonds()
-    dofs, vals = resolve_dirichlet(cloud, problem.dirichlet)
-    f_ext = load_vector(cloud, problem.loads)
-    check_constraints(cloud, bonds, dofs)
-    nd = cloud.n * d
-    free = np.ones(nd, dtype=bool)
-    free[dofs] = False
-    t0 = time.perf_counter()
-    op = model.linear_operator(cloud, bonds)
-    uc = np.zeros(nd)
-    uc[dofs] = vals
-    b = (f_ext - op @ uc)[free]
-
-    def mv(x: np.ndarray) -> np.ndarray:
-        full = np.zeros(nd)
-        full[free] = x
-        return np.asarray(op @ full)[free]
-
-    A = spla.LinearOperator((int(free.sum()),) * 2, matvec=mv, dtype=float)
-    M = None
-    info: dict[str, Any] = {"solver": f"matrix-free cg ({preconditioner})"}
-    if preconditioner != "none":
-        S = model.surrogate_stiffness(cloud, bonds)
-        Se, _ = eliminate_dirichlet(S, np.zeros(nd), dofs, np.zeros(dofs.size))
-        if preconditioner == "amg":
-            B = rigid_body_modes(cloud)
-            B[dofs] = 0.0
-            P = amg_hierarchy(Se, B, blocksize=d).aspreconditioner()
-        else:
-            diag = Se.diagonal()
-            P = spla.LinearOperator((nd, nd), matvec=lambda r: r / diag, dtype=float)
-
-        def pv(r: np.ndarray) -> np.ndarray:
-            full = np.zeros(nd)
-            full[free] = r
-            return np.asarray(P @ full)[free]
-
-        M = spla.LinearOperator(A.shape, matvec=pv, dtype=float)
-    setup = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    residuals: list[float] = []
-    bn = float(np.linalg.norm(b)) or 1.0
-
-    def cb(xk: np.ndarray) -> None:
-        residuals.append(float(np.linalg.norm(b - mv(xk))) / bn)
-
-    x, _ = spla.cg(A, b, rtol=rtol, maxiter=maxiter, M=M, callback=cb)
-    solve_t = time.perf_counter() - t0
-    rel = float(np.linalg.norm(b - mv(x))) / bn
-    u = uc.copy()
-    u[free] = x
-    if rel > 10 * rtol:
-        raise ConvergenceError(
-            f"matrix-free CG must reach rtol = {rtol:g}, got relative residual {rel:.3g} after "
-            f"{len(residuals)} iterations"
+    if not isinstance(problem.model, Correspondence):
+        raise InputError(
+            f"problem.model must be a Correspondence, got {type(problem.model).__name__}"
         )
-    f_int = -(op @ u)
-    reac = np.zeros(nd)
-    reac[dofs] = -(f_int[dofs] + f_ext[dofs])
-    info.update(model=model.describe(), assembly="matrix-free")
-    timings = {"setup": setup, "solve": solve_t, "total": time.perf_counter() - t_start}
-    return StaticResult(
-        problem=problem, bonds=bonds, u=u.reshape(cloud.n, d), converged=True,
-        n_iter=len(residuals), residuals=residuals, relative_residual=rel, timings=timings,
-        reactions=reac.reshape(cloud.n, d), prescribed_dofs=dofs, info=info,
-    )  # fmt: skip
+    return solve(
+        problem,
+        solver=solvers[preconditioner],
+        rtol=rtol,
+        maxiter=maxiter,
+        operator="matrix-free",
+    )
 
 
 def _as_u(u: Any, cloud: PointCloud) -> np.ndarray:
