@@ -7,7 +7,6 @@ See ``docs/scene.md`` for the full reference.
 
 from __future__ import annotations
 
-import difflib
 import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -24,6 +23,7 @@ from ..models.base import Model
 from ..models.bond_based import BondBased
 from ..operators.bc import BodyForce, Dirichlet, TotalForce, shadow_layer
 from ..problem import StaticProblem
+from ._keys import check_keys
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -95,15 +95,7 @@ _OUTPUT = {"path", "fields"}
 
 
 def _check_keys(table: Any, allowed: set[str], where: str) -> dict[str, Any]:
-    if not isinstance(table, Mapping):
-        raise SceneError(f"{where} must be a table, got {type(table).__name__}")
-    for key in table:
-        if key not in allowed:
-            hint = difflib.get_close_matches(str(key), sorted(allowed), n=1)
-            extra = f"; did you mean {hint[0]!r}?" if hint else f"; allowed keys: {sorted(allowed)}"
-            path = f"{where}.{key}" if where else str(key)
-            raise SceneError(f"unknown scene key {path!r}{extra}")
-    return dict(table)
+    return check_keys(table, allowed, where, what="scene key")
 
 
 def _require(table: Mapping[str, Any], key: str, where: str) -> Any:

@@ -13,7 +13,6 @@ optionally rotated by ``rotation = [[...], ...]`` (an orthogonal matrix,
 
 from __future__ import annotations
 
-import difflib
 import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -23,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import PdlinError, SceneError
+from ._keys import check_keys
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -57,15 +57,7 @@ _TOP = {"name", "target", "family", "calibration", "output"}
 
 
 def _keys(table: Any, allowed: set[str], where: str) -> dict[str, Any]:
-    if not isinstance(table, Mapping):
-        raise SceneError(f"{where} must be a table, got {type(table).__name__}")
-    for key in table:
-        if key not in allowed:
-            hint = difflib.get_close_matches(str(key), sorted(allowed), n=1)
-            extra = f"; did you mean {hint[0]!r}?" if hint else f"; allowed keys: {sorted(allowed)}"
-            path = f"{where}.{key}" if where else str(key)
-            raise SceneError(f"unknown key {path!r}{extra}")
-    return dict(table)
+    return check_keys(table, allowed, where)
 
 
 def target_from_table(table: Mapping[str, Any], where: str = "target") -> np.ndarray:
