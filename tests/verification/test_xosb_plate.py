@@ -18,70 +18,21 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from scipy.interpolate import LinearNDInterpolator
 
 import pdlin
-from pdlin.operators.bc import eliminate_dirichlet
-from pdlin.solvers import solve_linear
+from pdlin.verification.fem import plate_extension_q4
 
 E, NU, U0 = 70e9, 0.33, 5e-4  # spec 002 §9.1 [P]
 
 
 def _q4_plane_stress(points: np.ndarray, quads: np.ndarray, solver: str = "lu") -> np.ndarray:
-    """Nodal displacements of the §9.1 FE problem (vectorized Q4 assembly).
+    """Nodal displacements of the §9.1 FE problem (pdlin.verification.fem, vectorized Q4).
 
     ``solver='lu'``: SuperLU on the free DOFs; ``'amg'``: pdlin's AMG-CG to 1e-12 (for the
     fine 4 x 128 x 240 mesh).
     """
-    n = points.shape[0]
-    ne = quads.shape[0]
-    c = E / (1 - NU**2) * np.array([[1, NU, 0], [NU, 1, 0], [0, 0, (1 - NU) / 2]])
-    g = 1 / np.sqrt(3)
-    xe = points[quads]  # (ne, 4, 2)
-    ke = np.zeros((ne, 8, 8))
-    for xi, eta in ((-g, -g), (g, -g), (g, g), (-g, g)):
-        dn = 0.25 * np.array(
-            [
-                [-(1 - eta), (1 - eta), (1 + eta), -(1 + eta)],
-                [-(1 - xi), -(1 + xi), (1 + xi), (1 - xi)],
-            ]
-        )  # (2, 4) derivatives in the reference square
-        jac = np.einsum("ak,ekb->eab", dn, xe)  # (ne, 2, 2)
-        det = jac[:, 0, 0] * jac[:, 1, 1] - jac[:, 0, 1] * jac[:, 1, 0]
-        dx = np.linalg.solve(jac, np.broadcast_to(dn, (ne, 2, 4)))  # (ne, 2, 4)
-        bm = np.zeros((ne, 3, 8))
-        bm[:, 0, 0::2] = dx[:, 0]
-        bm[:, 1, 1::2] = dx[:, 1]
-        bm[:, 2, 0::2] = dx[:, 1]
-        bm[:, 2, 1::2] = dx[:, 0]
-        ke += np.einsum("eai,ab,ebj,e->eij", bm, c, bm, np.abs(det))
-    dofs = (2 * quads[:, :, None] + np.arange(2)).reshape(ne, 8)
-    rows = np.broadcast_to(dofs[:, :, None], (ne, 8, 8)).ravel()
-    cols = np.broadcast_to(dofs[:, None, :], (ne, 8, 8)).ravel()
-    k = sp.coo_array((ke.ravel(), (rows, cols)), shape=(2 * n, 2 * n)).tocsr()
-    x, y = points[:, 0], points[:, 1]
-    left = np.flatnonzero(np.isclose(x, -0.5))
-    right = np.flatnonzero(np.isclose(x, 0.5))
-    mid = np.flatnonzero(np.isclose(np.abs(x), 0.5) & np.isclose(y, 0.0))
-    assert mid.size == 2
-    fixed = np.concatenate([2 * left, 2 * right, 2 * mid + 1])
-    vals = np.concatenate([np.zeros(left.size), np.full(right.size, U0), np.zeros(2)])
-    u = np.zeros(2 * n)
-    u[fixed] = vals
-    if solver == "amg":
-        a, b = eliminate_dirichlet(k.tobsr(blocksize=(2, 2)), np.zeros(2 * n), fixed, vals)
-        modes = pdlin.rigid_body_modes(points)
-        modes[fixed] = 0.0
-        info = solve_linear(a, b, "amg-cg", rtol=1e-12, near_null=modes, blocksize=2)
-        u = info.x
-        u[fixed] = vals
-        return u.reshape(n, 2)
-    free = np.setdiff1d(np.arange(2 * n), fixed)
-    rhs = -k[free][:, fixed] @ vals
-    u[free] = spla.spsolve(k[free][:, free].tocsc(), rhs)
-    return u.reshape(n, 2)
+    return plate_extension_q4(points, quads, E, NU, U0, solver=solver)
 
 
 @pytest.fixture(scope="module")
