@@ -19,6 +19,7 @@ MODULES = [
     "pdlin.constitutive",
     "pdlin.calibration",
     "pdlin.analysis",
+    "pdlin.verification",
     "pdlin.io",
 ]
 
