@@ -12,6 +12,14 @@ from .geometry import Bonds, PointCloud, find_bonds, from_image, grid
 from .geometry.generators import plate_with_hole_mesh
 from .geometry.mesh import read_mesh
 from .models import LPS, XOSB, BondBased, Correspondence, Model, shadow_problem
+from .models.damage import (
+    bond_stretch,
+    break_bonds,
+    critical_stretch,
+    damage_index,
+    drop_isolated,
+    isolated_points,
+)
 from .models.weights import (
     HigherOrderWeights,
     WeightStatus,
@@ -82,4 +90,10 @@ __all__ = [
     "moment_weights",
     "gradient_symbol",
     "gradient_exactness_order",
+    "critical_stretch",
+    "bond_stretch",
+    "break_bonds",
+    "damage_index",
+    "isolated_points",
+    "drop_isolated",
 ]

@@ -3,6 +3,14 @@
 from .base import Model
 from .bond_based import BondBased, implied_poisson_ratio, standard_micromodulus
 from .correspondence import Correspondence, gradient_operator, shadow_problem
+from .damage import (
+    bond_stretch,
+    break_bonds,
+    critical_stretch,
+    damage_index,
+    drop_isolated,
+    isolated_points,
+)
 from .lps import LPS
 from .weights import (
     HigherOrderWeights,
@@ -44,4 +52,10 @@ __all__ = [
     "gradient_symbol",
     "symbol_extremes",
     "moment_weights",
+    "critical_stretch",
+    "bond_stretch",
+    "break_bonds",
+    "damage_index",
+    "isolated_points",
+    "drop_isolated",
 ]
