@@ -1,12 +1,30 @@
-"""Key checking shared by scene and calibration files (internal)."""
+"""TOML reading and key checking shared by scene and calibration files (internal)."""
 
 from __future__ import annotations
 
 import difflib
+import sys
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 from ..errors import SceneError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+
+def read_toml(path: str | Path, what: str) -> tuple[dict[str, Any], Path]:
+    """Parsed TOML file and its folder; a missing file or bad TOML raises SceneError."""
+    p = Path(path)
+    if not p.exists():
+        raise SceneError(f"{what} file not found: {p}")
+    try:
+        return tomllib.loads(p.read_text()), p.parent
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{p}: invalid TOML: {exc}") from exc
 
 
 def check_keys(table: Any, allowed: set[str], where: str, *, what: str = "key") -> dict[str, Any]:

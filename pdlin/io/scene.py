@@ -23,7 +23,7 @@ from ..models.base import Model
 from ..models.bond_based import BondBased
 from ..operators.bc import BodyForce, Dirichlet, TotalForce, shadow_layer
 from ..problem import StaticProblem
-from ._keys import check_keys
+from ._keys import check_keys, read_toml
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -489,14 +489,8 @@ def _calibrated_model(
 
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a TOML scene file (paths inside are relative to it)."""
-    p = Path(path)
-    if not p.exists():
-        raise SceneError(f"scene file not found: {p}")
-    try:
-        data = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{p}: invalid TOML: {exc}") from exc
-    return scene_from_dict(data, p.parent)
+    data, base = read_toml(path, "scene")
+    return scene_from_dict(data, base)
 
 
 def list_builtin_scenes() -> list[str]:

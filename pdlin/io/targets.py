@@ -22,12 +22,12 @@ from typing import Any
 import numpy as np
 
 from ..errors import PdlinError, SceneError
-from ._keys import check_keys
+from ._keys import check_keys, read_toml
 
 if sys.version_info >= (3, 11):
-    import tomllib
+    pass
 else:  # pragma: no cover
-    import tomli as tomllib
+    pass
 
 __all__ = ["target_from_table", "CalibrationJob", "load_calibration", "calibration_from_dict"]
 
@@ -194,11 +194,5 @@ def calibration_from_dict(
 
 def load_calibration(path: str | Path) -> CalibrationJob:
     """Read and validate a calibration TOML file."""
-    p = Path(path)
-    if not p.exists():
-        raise SceneError(f"calibration file not found: {p}")
-    try:
-        data = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{p}: invalid TOML: {exc}") from exc
-    return calibration_from_dict(data, p.parent)
+    data, base = read_toml(path, "calibration")
+    return calibration_from_dict(data, base)
