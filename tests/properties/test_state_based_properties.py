@@ -1,13 +1,9 @@
 """The model property table, rows for the ordinary state-based models LPS and XOSB.
 
 The model-independent checks are imported from ``test_model_properties`` and run on the
-``case`` fixture defined here.  Two checks are restated instead of imported:
-
-- positive energy: the paper linearization ``K_p`` is nonsymmetric and not an energy
-  Hessian (spec 002 §6), so it is exempt (as from the symmetry test);
-- zero force of affine fields: state-based ``K`` couples points two horizons apart
-  (``coupling_range = 2``), so a point's force is exact only when its neighbours' families
-  are complete too: the inner region is two horizons deep.
+``case`` fixture defined here (they skip the energy and symmetry checks for the
+nonsymmetric paper linearization ``K_p``, spec 002 §6, and test affine fields
+``coupling_range`` horizons inside the body).
 """
 
 from __future__ import annotations
@@ -19,9 +15,11 @@ import numpy as np
 import pytest
 from test_model_properties import (  # noqa: F401  (imported tests run on this module's cases)
     _jittered,
+    test_affine_fields_give_zero_force_on_complete_families,
     test_deformation_gradient_exact_for_affine_fields,
     test_internal_force_matches_stiffness,
     test_nonlinear_force_linearizes_to_K,
+    test_positive_energy_on_non_rigid_fields,
     test_rigid_body_modes_in_null_space,
     test_shape_and_blocks,
     test_symmetric,
@@ -102,32 +100,3 @@ def test_declared_coupling_range(case):
     model, cloud, bonds, K = case
     assert model.coupling_range == 2
     assert model.estimate_nnz_blocks(cloud, bonds) == K.nnz // cloud.dim**2
-
-
-def test_positive_energy_on_non_rigid_fields(case, rng):
-    model, cloud, bonds, K = case
-    if not model.symmetric:
-        pytest.skip("K_p is not an energy Hessian (spec 002 §6)")
-    B = pdlin.rigid_body_modes(cloud, orthonormal=True)
-    for _ in range(5):
-        u = rng.normal(size=cloud.ndof)
-        u -= B @ (B.T @ u)
-        e = u @ (K @ u)
-        assert e > 0
-        np.testing.assert_allclose(
-            model.energy(cloud, bonds, u.reshape(cloud.n, -1)), 0.5 * e, rtol=1e-12
-        )
-
-
-def test_affine_fields_give_zero_force_two_horizons_inside(case, rng):
-    model, cloud, bonds, K = case
-    d = cloud.dim
-    H = rng.normal(size=(d, d)) * 1e-3
-    u = cloud.points @ H.T
-    f = model.internal_force(cloud, bonds, u)
-    lo, hi = cloud.bounds
-    reach = 2 * bonds.horizon.max() * (1 + 1e-9) + 0.5 * cloud.spacing.max()
-    inner = np.all((cloud.points - lo > reach) & (hi - cloud.points > reach), axis=1)
-    if bonds.horizon.min() != bonds.horizon.max() or not inner.any():
-        pytest.skip("no points two horizons inside a uniform lattice in this case")
-    assert np.abs(f[inner]).max() <= 1e-12 * np.abs(f).max()
