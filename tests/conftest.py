@@ -9,3 +9,29 @@ import pytest
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20261121)
+
+
+@pytest.fixture
+def spec004_tension():
+    """Spec 004 §4.7 uniaxial tension of the 24³ cube (Δ = 1, centres at 0..23).
+
+    Returns ``build(model, cloud, bonds) -> StaticProblem``: u_z = 0 on z = 0, u_x = 0 on
+    x = 0, u_y = 0 on y = 0 (DOF elimination) and +z force 1 MN per top-layer particle.
+    """
+    import pdlin
+
+    def build(model, cloud, bonds):
+        top = cloud.point_set("z+")
+        return pdlin.StaticProblem(
+            model,
+            cloud,
+            bonds,
+            dirichlet=[
+                pdlin.Dirichlet("z-", 0.0, "z"),
+                pdlin.Dirichlet("x-", 0.0, "x"),
+                pdlin.Dirichlet("y-", 0.0, "y"),
+            ],
+            loads=[pdlin.TotalForce(top, [0.0, 0.0, 1e6 * top.size])],  # 1 MN per top particle
+        )
+
+    return build

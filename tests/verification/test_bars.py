@@ -86,24 +86,13 @@ def test_bar_3d_shadow_layer_uniaxial_exact_interior():
 
 
 @pytest.mark.slow
-def test_spec004_static_uniaxial_tension_analytical_micromodulus():
+def test_spec004_static_uniaxial_tension_analytical_micromodulus(spec004_tension):
     """Spec 004 section 4.7: 24^3 cube, delta = 2, analytical c = 18K/(pi delta^4)."""
     cloud = pdlin.grid((24, 24, 24), spacing=1.0, origin=(-0.5, -0.5, -0.5))
     bonds = pdlin.find_bonds(cloud, 2.0)
     model = pdlin.BondBased(E=86e9)  # Pyroceram, nu = 1/4: c = 20.5310 GPa/m^4 (spec 004)
     np.testing.assert_allclose(model.bond_micromodulus(cloud, bonds)[0], 20.5310e9, rtol=1e-5)
-    top = cloud.point_set("z+")
-    prob = pdlin.StaticProblem(
-        model,
-        cloud,
-        bonds,
-        dirichlet=[
-            pdlin.Dirichlet("z-", 0.0, "z"),
-            pdlin.Dirichlet("x-", 0.0, "x"),
-            pdlin.Dirichlet("y-", 0.0, "y"),
-        ],
-        loads=[pdlin.TotalForce(top, [0.0, 0.0, 1e6 * top.size])],  # 1 MN per top particle
-    )
+    prob = spec004_tension(model, cloud, bonds)
     res = pdlin.solve(prob, solver="amg-cg", rtol=1e-11)
     p = cloud.points
     inner = np.all((p >= 2) & (p <= 21), axis=1)

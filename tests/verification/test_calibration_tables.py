@@ -490,7 +490,7 @@ def test_triangular_nearest_neighbour_constant_c():
 
 # --- §4.7 static uniaxial tension --------------------------------------------------------
 @pytest.mark.slow
-def test_spec004_static_uniaxial_tension_calibrated():
+def test_spec004_static_uniaxial_tension_calibrated(spec004_tension):
     cloud = pdlin.grid((24, 24, 24), spacing=1.0, origin=(-0.5, -0.5, -0.5))
     bonds = pdlin.find_bonds(cloud, 2.0)  # omega = 1 (spec §4.7)
     C = MATERIALS["isotropic"] * 1e9  # Pa
@@ -502,18 +502,7 @@ def test_spec004_static_uniaxial_tension_calibrated():
         [10.9333, 19.9876, 20.2271, 21.8667, 26.3272],  # §4.7 [REF] values and their mean
     )
     model = pdlin.BondBased(micromodulus=cal.micromoduli)
-    top = cloud.point_set("z+")
-    prob = pdlin.StaticProblem(
-        model,
-        cloud,
-        bonds,
-        dirichlet=[
-            pdlin.Dirichlet("z-", 0.0, "z"),
-            pdlin.Dirichlet("x-", 0.0, "x"),
-            pdlin.Dirichlet("y-", 0.0, "y"),
-        ],
-        loads=[pdlin.TotalForce(top, [0.0, 0.0, 1e6 * top.size])],  # 1 MN per top particle
-    )
+    prob = spec004_tension(model, cloud, bonds)
     res = pdlin.solve(prob, solver="amg-cg", rtol=1e-11)
     p = cloud.points
     inner = np.all((p >= 2) & (p <= 21), axis=1)
