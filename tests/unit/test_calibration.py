@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import pdlin
+from pdlin import constitutive as cst
 from pdlin.calibration import (
     Family,
     calibrate_micromoduli,
@@ -28,17 +29,7 @@ def _iso(c11: float = 103.2, c12: float = 34.4, c44: float = 34.4) -> np.ndarray
 
 
 # triclinic KIO3, spec 004 §3 Eq. 50 (a non-Cauchy target that discriminates weightings)
-TRICLINIC = np.array(
-    [
-        [43, 11, 13, 1, -2, 2],
-        [11, 35, 12, 3, -1, 3],
-        [13, 12, 43, 2, -2, 1],
-        [1, 3, 2, 13, 0, 0],
-        [-2, -1, -2, 0, 13, 1],
-        [2, 3, 1, 0, 1, 12],
-    ],
-    dtype=float,
-)
+TRICLINIC = np.array(cst.material("triclinic"))
 
 
 def _eq29(xi, omega, volume, c, thickness=1.0):
@@ -349,7 +340,6 @@ def test_docs_examples():
 
 def test_bulk_boundary_rule_gives_c_of_xi_and_exact_interior():
     import pdlin
-    from pdlin import constitutive as cst
 
     C = cst.material("transversely_isotropic")
     cloud = pdlin.grid((9, 9, 9))
