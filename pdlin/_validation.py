@@ -40,3 +40,13 @@ def positive_scalar(value: Any, name: str) -> float:
     if not np.isfinite(v) or v <= 0.0:
         raise InputError(f"{name} must be > 0, got {v}")
     return v
+
+
+def as_displacement(u: Any, n: int, d: int) -> np.ndarray:
+    """``u`` as a finite ``(n, d)`` float array (any shape with ``n * d`` entries)."""
+    arr = np.asarray(u, dtype=float)
+    if arr.size != n * d:
+        raise ShapeError(f"u must have {n * d} entries (shape ({n}, {d})), got shape {arr.shape}")
+    arr = arr.reshape(n, d)
+    check_finite(arr, "u")
+    return arr

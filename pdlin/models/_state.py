@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .._validation import as_float_array
+from .._validation import as_displacement, as_float_array
 from ..errors import InputError, ModelError, ShapeError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
@@ -438,15 +438,6 @@ def _bond_operator(bonds: Bonds, unit: np.ndarray, n: int, d: int) -> sp.csr_arr
     return sp.csr_array((data.ravel(), cols.ravel(), indptr), shape=(nb, n * d))
 
 
-def _as_displacement(u: Any, n: int, d: int) -> np.ndarray:
-    arr = np.asarray(u, dtype=float)
-    if arr.size != n * d:
-        raise ShapeError(f"u must have {n * d} entries (shape ({n}, {d})), got shape {arr.shape}")
-    arr = arr.reshape(n, d)
-    if not np.all(np.isfinite(arr)):
-        raise InputError("u must be finite, got NaN or inf")
-    return arr
-
 
 class OrdinaryStateBased(Model):
     """Common base of :class:`pdlin.LPS` and :class:`pdlin.XOSB` (not public)."""
@@ -544,7 +535,7 @@ class OrdinaryStateBased(Model):
     def _extension(
         self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, linear: bool
     ) -> tuple[np.ndarray, np.ndarray]:
-        uu = _as_displacement(u, cloud.n, cloud.dim)
+        uu = as_displacement(u, cloud.n, cloud.dim)
         eta = uu[bonds.j] - uu[bonds.i]
         if linear:
             unit = bonds.xi / bonds.length[:, None]

@@ -11,7 +11,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy import integrate
 
-from .._validation import as_float_array
+from .._validation import as_displacement, as_float_array
 from ..errors import InputError, ModelError, ShapeError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
@@ -291,7 +291,7 @@ class BondBased(Model):
         ``(|ξ+η| - |ξ|)/|ξ|`` along the deformed direction.
         """
         d = cloud.dim
-        uu = _as_displacement(u, cloud.n, d)
+        uu = as_displacement(u, cloud.n, d)
         k = self.bond_stiffness(cloud, bonds)
         eta = uu[bonds.j] - uu[bonds.i]
         if linear:
@@ -318,7 +318,7 @@ class BondBased(Model):
         effective tensor (seed 004 Eq. 29), also at truncated families.
         """
         d = cloud.dim
-        uu = _as_displacement(u, cloud.n, d)
+        uu = as_displacement(u, cloud.n, d)
         c = self.bond_micromodulus(cloud, bonds)
         eta = uu[bonds.j] - uu[bonds.i]
         unit = bonds.xi / bonds.length[:, None]
@@ -373,13 +373,4 @@ def _measure(cloud: PointCloud) -> float:
 def _effective_volumes(cloud: PointCloud) -> np.ndarray:
     return np.asarray(cloud.volumes) * _measure(cloud)
 
-
-def _as_displacement(u: Any, n: int, d: int) -> np.ndarray:
-    arr = np.asarray(u, dtype=float)
-    if arr.size != n * d:
-        raise ShapeError(f"u must have {n * d} entries (shape ({n}, {d})), got shape {arr.shape}")
-    arr = arr.reshape(n, d)
-    if not np.all(np.isfinite(arr)):
-        raise InputError("u must be finite, got NaN or inf")
-    return arr
 

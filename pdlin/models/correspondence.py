@@ -27,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .._validation import as_float_array
+from .._validation import as_displacement, as_float_array
 from ..constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
 from ..errors import InputError, ModelError, ShapeError
 from ..fields import _per_point_outer
@@ -1000,10 +1000,4 @@ def solve_matrix_free(
 
 
 def _as_u(u: Any, cloud: PointCloud) -> np.ndarray:
-    arr = np.asarray(u, dtype=float)
-    if arr.size != cloud.n * cloud.dim:
-        raise ShapeError(
-            f"u must have {cloud.n * cloud.dim} entries (shape ({cloud.n}, {cloud.dim})), "
-            f"got shape {arr.shape}"
-        )
-    return arr.reshape(cloud.n, cloud.dim)
+    return as_displacement(u, cloud.n, cloud.dim)
