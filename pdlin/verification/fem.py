@@ -1,9 +1,13 @@
-"""Small linear-elastic Q4 finite-element solver, used as a verification reference.
+"""Small linear-elastic Q4 and Hex8 finite-element solvers, used as verification references.
 
 A vectorized bilinear-quadrilateral (Q4) assembly with 2 x 2 Gauss quadrature for plane
 stress or plane strain, and a direct (SuperLU) or AMG-CG solve with prescribed nodal
 displacements.  It is the FE reference of spec 002 §9.1 (plate with a central hole) used by
 ``tests/verification/test_xosb_plate.py`` and ``examples/plate_with_hole_xosb.py``.
+
+Its 3D counterpart is the trilinear hexahedron (Hex8, 2 x 2 x 2 Gauss, isotropic), the
+reference of spec 003 §7.3 (R3D brick, nodes at the particles) and spec 002 §9.2 (extruded
+plate with a hole): :func:`hex8_stiffness` and :func:`solve_hex8`.
 
 It is a verification utility, not part of pdlin's peridynamic API: no body forces, no
 tractions, a single homogeneous isotropic material, and no checks beyond positive Jacobians.
@@ -17,7 +21,16 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-__all__ = ["q4_stiffness", "solve_q4", "plate_extension_q4", "evaluate_q4"]
+from ..errors import ConvergenceError, InputError, ShapeError
+
+__all__ = [
+    "q4_stiffness",
+    "solve_q4",
+    "plate_extension_q4",
+    "evaluate_q4",
+    "hex8_stiffness",
+    "solve_hex8",
+]
 
 _GAUSS = 1.0 / np.sqrt(3.0)
 
@@ -322,3 +335,222 @@ def evaluate_q4(points: Any, quads: Any, u: Any, xq: Any, *, candidates: int = 8
         raise ValueError(f"{int(np.sum(found < 0))} query points are outside the mesh")
     nv = 0.25 * (1 + sx * ref[:, :1]) * (1 + sy * ref[:, 1:])  # (m, 4)
     return np.einsum("mk,mk...->m...", nv, vals[q[found]])
+
+
+# Reference-cube corner signs of the meshio / VTK 'hexahedron' node ordering:
+# bottom face (zeta = -1) counter-clockwise seen from +z, then the top face (zeta = +1).
+_HEX8_SIGNS = np.array(
+    [
+        [-1, -1, -1],
+        [1, -1, -1],
+        [1, 1, -1],
+        [-1, 1, -1],
+        [-1, -1, 1],
+        [1, -1, 1],
+        [1, 1, 1],
+        [-1, 1, 1],
+    ],
+    dtype=float,
+)
+
+
+def _elasticity_3d(E: float, nu: float) -> np.ndarray:
+    """6 x 6 isotropic Voigt elasticity, order [xx, yy, zz, yz, xz, xy], engineering shear."""
+    E = float(E)
+    nu = float(nu)
+    if not np.isfinite(E) or E <= 0:
+        raise InputError(f"E must be > 0, got {E}")
+    if not -1.0 < nu < 0.5:
+        raise InputError(f"nu must be in (-1, 0.5), got {nu}")
+    lam = E * nu / ((1 + nu) * (1 - 2 * nu))
+    mu = E / (2 * (1 + nu))
+    c = np.zeros((6, 6))
+    c[:3, :3] = lam
+    c[np.arange(3), np.arange(3)] += 2 * mu
+    c[np.arange(3, 6), np.arange(3, 6)] = mu
+    return c
+
+
+def hex8_stiffness(points: Any, hexes: Any, E: float, nu: float) -> sp.csr_array:
+    """Global stiffness matrix of a trilinear hexahedron (Hex8) mesh, 2 x 2 x 2 Gauss.
+
+    The assembly is vectorized over elements (a loop over the 8 Gauss points only) and
+    goes through a COO intermediate, like :func:`q4_stiffness`.
+
+    Parameters
+    ----------
+    points : (n, 3) array_like of float
+        Node coordinates (a meshio mesh's ``points``).
+    hexes : (ne, 8) array_like of int
+        Node indices of each hexahedron in meshio / VTK ``'hexahedron'`` order: the bottom
+        face counter-clockwise seen from the top, then the top face in the same order.
+        Mirrored (left-handed) elements are accepted: ``|det J|`` is used.
+    E, nu : float
+        Young's modulus (> 0) and Poisson's ratio (in (-1, 0.5)); 3D isotropic elasticity.
+
+    Returns
+    -------
+    scipy.sparse.csr_array
+        ``(3n, 3n)`` symmetric stiffness; DOF ``3 i + c`` is component ``c`` of node ``i``.
+
+    Raises
+    ------
+    pdlin.errors.ShapeError
+        If ``points`` is not ``(n, 3)`` or ``hexes`` not ``(ne, 8)``.
+    pdlin.errors.InputError
+        If an element index is out of range, or the Jacobian determinant of an element is
+        zero or changes sign between its Gauss points (degenerate or tangled element).
+
+    Examples
+    --------
+    One unit cube: the stiffness annihilates the six rigid-body modes.
+
+    >>> import numpy as np
+    >>> pts = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
+    ...                 [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], dtype=float)
+    >>> k = hex8_stiffness(pts, [list(range(8))], E=1.0, nu=0.3)
+    >>> k.shape
+    (24, 24)
+    >>> rot_z = np.column_stack([-pts[:, 1], pts[:, 0], np.zeros(8)]).ravel()
+    >>> float(np.abs(k @ rot_z).max()) < 1e-14
+    True
+    """
+    pts = np.asarray(points, dtype=float)
+    h = np.asarray(hexes, dtype=np.intp)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ShapeError(f"points must have shape (n, 3), got {pts.shape}")
+    if h.ndim != 2 or h.shape[1] != 8:
+        raise ShapeError(f"hexes must have shape (ne, 8), got {h.shape}")
+    n, ne = pts.shape[0], h.shape[0]
+    if ne and (h.min() < 0 or h.max() >= n):
+        raise InputError(f"hexes must index points in [0, {n}), got [{h.min()}, {h.max()}]")
+    c = _elasticity_3d(E, nu)
+    xe = pts[h]  # (ne, 8, 3)
+    ke = np.zeros((ne, 24, 24))
+    sign = np.zeros(ne)
+    for gp in _HEX8_SIGNS / np.sqrt(3.0):
+        # dN_a/dxi_k = s_ak / 8 * prod_{l != k} (1 + s_al xi_l)
+        f = 1.0 + _HEX8_SIGNS * gp  # (8, 3)
+        dn = np.empty((3, 8))
+        dn[0] = _HEX8_SIGNS[:, 0] * f[:, 1] * f[:, 2] / 8
+        dn[1] = _HEX8_SIGNS[:, 1] * f[:, 0] * f[:, 2] / 8
+        dn[2] = _HEX8_SIGNS[:, 2] * f[:, 0] * f[:, 1] / 8
+        jac = np.einsum("ka,eal->ekl", dn, xe)  # (ne, 3, 3): d x_l / d xi_k
+        det = np.linalg.det(jac)
+        bad = (det == 0) | (sign * det < 0)
+        if np.any(bad):
+            raise InputError(
+                f"hexes must have a Jacobian of one sign; element {int(np.argmax(bad))} "
+                "is degenerate or tangled (check the 'hexahedron' node order)"
+            )
+        sign = np.sign(det)
+        dx = np.linalg.solve(jac, np.broadcast_to(dn, (ne, 3, 8)))  # (ne, 3, 8)
+        bm = np.zeros((ne, 6, 24))
+        for k in range(3):
+            bm[:, k, k::3] = dx[:, k]
+        bm[:, 3, 1::3] = dx[:, 2]  # gamma_yz
+        bm[:, 3, 2::3] = dx[:, 1]
+        bm[:, 4, 0::3] = dx[:, 2]  # gamma_xz
+        bm[:, 4, 2::3] = dx[:, 0]
+        bm[:, 5, 0::3] = dx[:, 1]  # gamma_xy
+        bm[:, 5, 1::3] = dx[:, 0]
+        ke += np.einsum("eai,ab,ebj,e->eij", bm, c, bm, np.abs(det), optimize=True)
+    dofs = (3 * h[:, :, None] + np.arange(3)).reshape(ne, 24)
+    rows = np.broadcast_to(dofs[:, :, None], (ne, 24, 24)).ravel()
+    cols = np.broadcast_to(dofs[:, None, :], (ne, 24, 24)).ravel()
+    return sp.coo_array((ke.ravel(), (rows, cols)), shape=(3 * n, 3 * n)).tocsr()
+
+
+def solve_hex8(
+    points: Any,
+    hexes: Any,
+    E: float,
+    nu: float,
+    fixed: Any,
+    values: Any,
+    *,
+    solver: str = "lu",
+    rtol: float = 1e-12,
+) -> np.ndarray:
+    """Nodal displacements of a Hex8 mesh with prescribed DOFs and no external forces.
+
+    The 3D counterpart of :func:`solve_q4` (same arguments, without ``plane``).
+
+    Parameters
+    ----------
+    points, hexes, E, nu
+        As in :func:`hex8_stiffness`.
+    fixed : (m,) array_like of int
+        Prescribed DOFs (``3 * node + component``); they must remove the rigid-body modes.
+    values : float or (m,) array_like
+        Their values.
+    solver : {'lu', 'amg'}
+        ``'lu'``: SuperLU on the free DOFs; ``'amg'``: pdlin's AMG-CG (smoothed
+        aggregation with the six rigid-body modes as near-null space, BSR blocks 3 x 3) to
+        ``rtol``, for meshes too large for a direct solve.
+    rtol : float
+        Relative residual tolerance of ``'amg'``.
+
+    Returns
+    -------
+    (n, 3) ndarray
+        Nodal displacements.
+
+    Raises
+    ------
+    pdlin.errors.InputError
+        On an unknown ``solver``, or ``fixed`` out of range.
+    pdlin.errors.ConvergenceError
+        If the true relative residual of the free equations exceeds ``1e-8`` (``'lu'``)
+        or ``10 rtol`` (``'amg'``).
+
+    Examples
+    --------
+    Uniaxial tension of two unit cubes along x: exact ``u_y = -nu u0 y / L``.
+
+    >>> import numpy as np
+    >>> pts = np.array([[x, y, z] for z in (0, 1) for y in (0, 1) for x in (0, 1, 2)], float)
+    >>> hexes = [[0, 1, 4, 3, 6, 7, 10, 9], [1, 2, 5, 4, 7, 8, 11, 10]]
+    >>> x0 = np.flatnonzero(pts[:, 0] == 0)
+    >>> x2 = np.flatnonzero(pts[:, 0] == 2)
+    >>> fixed = np.concatenate([3 * x0, 3 * x2, [1, 2, 11]])  # + u_y, u_z node 0, u_z node 3
+    >>> vals = np.concatenate([np.zeros(4), np.full(4, 0.02), np.zeros(3)])
+    >>> u = solve_hex8(pts, hexes, 1.0, 0.25, fixed, vals)
+    >>> np.round(u[11], 6)  # node (2, 1, 1)
+    array([ 0.02  , -0.0025, -0.0025])
+    """
+    pts = np.asarray(points, dtype=float)
+    k = hex8_stiffness(pts, hexes, E, nu)
+    n = pts.shape[0]
+    fixed = np.asarray(fixed, dtype=np.intp).ravel()
+    if fixed.size and (fixed.min() < 0 or fixed.max() >= 3 * n):
+        raise InputError(f"fixed must be DOFs in [0, {3 * n}), got [{fixed.min()}, {fixed.max()}]")
+    vals = np.broadcast_to(np.asarray(values, dtype=float), fixed.shape).copy()
+    u = np.zeros(3 * n)
+    u[fixed] = vals
+    if solver == "amg":
+        import pdlin
+        from pdlin.operators.bc import eliminate_dirichlet
+        from pdlin.solvers import solve_linear
+
+        a, b = eliminate_dirichlet(k.tobsr(blocksize=(3, 3)), np.zeros(3 * n), fixed, vals)
+        modes = pdlin.rigid_body_modes(pts)
+        modes[fixed] = 0.0
+        info = solve_linear(a, b, "amg-cg", rtol=rtol, near_null=modes, blocksize=3)
+        u = np.array(info.x, dtype=float)  # solve_linear verified the true residual
+        u[fixed] = vals
+        return u.reshape(n, 3)
+    if solver != "lu":
+        raise InputError(f"solver must be 'lu' or 'amg', got {solver!r}")
+    free = np.setdiff1d(np.arange(3 * n), fixed)
+    kff = k[free][:, free].tocsc()
+    rhs = -(k[free][:, fixed] @ vals)
+    u[free] = spla.spsolve(kff, rhs)
+    res = float(np.linalg.norm(kff @ u[free] - rhs))
+    scale = float(np.linalg.norm(rhs))
+    if not np.isfinite(res) or res > 1e-8 * max(scale, np.finfo(float).tiny):
+        raise ConvergenceError(
+            f"Hex8 direct solve: relative residual {res / max(scale, 1e-300):.3e} > 1e-8 "
+            "(do the fixed DOFs remove the rigid-body modes?)"
+        )
+    return u.reshape(n, 3)
