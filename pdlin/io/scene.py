@@ -77,13 +77,14 @@ _MODEL = {
     "fallback",
     "control",
     "penalty",
+    "coefficient",
     "seed",
 }
 _MODEL_KEYS = {
     "bond_based": {"type", "nu_mismatch", "average"},
     "lps": {"type", "linearization", "weighted_volume", "peridigm"},
     "xosb": {"type", "linearization", "weighted_volume", "fallback"},
-    "correspondence": {"type", "control", "penalty", "seed"},
+    "correspondence": {"type", "control", "penalty", "coefficient", "seed"},
 }
 _HORIZON = {"value", "ratio", "shape", "axes", "influence", "cracks"}
 _DIRICHLET = {"set", "box", "points", "components", "value", "F", "translation", "center"}

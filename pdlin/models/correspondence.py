@@ -12,8 +12,10 @@ of a particle), ``∇u_g = Σ_b (u_b - u_a) ⊗ c_gb`` with
 with ``G`` the sparse gradient operator (``n_gp·d²`` x ``n·d``); it is
 symmetric PSD for any sign of the weights.  Zero-energy-mode controls:
 ``'none'``, ``'higher_order'`` (spec 000), ``'penalty'`` (a bond-based
-penalty on the non-affine part of each bond) and ``'stress_points'``
-(spec 003).  See ``docs/correspondence.md``.
+penalty on the non-affine part of each bond), ``'stress_points'``
+(spec 003 §4) and the baseline control forces ``'springs'`` and
+``'ads'`` (averaged displacement state, spec 003 §3).  See
+``docs/correspondence.md``.
 """
 
 from __future__ import annotations
@@ -50,7 +52,10 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 #: zero-energy-mode controls accepted by :class:`Correspondence`
-CONTROLS = ("none", "higher_order", "penalty", "stress_points")
+CONTROLS = ("none", "higher_order", "penalty", "stress_points", "springs", "ads")
+
+#: default dimensionless coefficient C̃ of the 'springs' and 'ads' controls
+DEFAULT_CONTROL_COEFFICIENT = 0.1
 
 #: stress-point cases (spec 003 §4.1): sign vector s of SP1's bonds, per dimension
 _SP_CASES: dict[int, np.ndarray] = {
@@ -277,7 +282,7 @@ class Correspondence(Model):
         ``E`` only).
     plane : {'stress', 'strain'}
         2D reduction of 3D data.
-    control : {'none', 'higher_order', 'penalty', 'stress_points'}
+    control : {'none', 'higher_order', 'penalty', 'stress_points', 'springs', 'ads'}
         * ``'none'``: the bonds' ω (e.g. ``influence='inverse'`` for the
           LAMMPS-PD ω = 1/|ξ|, or ``'constant'``).
         * ``'higher_order'``: the model re-weights the bonds of a
@@ -295,6 +300,27 @@ class Correspondence(Model):
         * ``'stress_points'``: spec 003 (nearest-neighbour axis bonds):
           two stress points per full-horizon particle, one per boundary
           particle, ``w_s = ½``.
+        * ``'springs'``: spec 003 Eq. 7, the force state
+          ``T_a⟨ξ_ij⟩ = C1 ω (u_j - u_i)`` (full vector) added to every
+          bond: ``K_a`` is the graph Laplacian ⊗ I_d with bond weight
+          ``2 C1 ω V_i V_j``.
+        * ``'ads'``: spec 003 Eq. 8, the averaged displacement state
+          ``T_a,i = C2 Σ_k ω V_k (u_k - u_i)`` (one vector per particle):
+          ``K_a = C2 diag(V) Lap_V Lap_ωV``.  Symmetric for constant ω
+          (the spec's ω = 1) and any V; nonsymmetric for varying ω
+          (``model.symmetric`` is False until a plan shows constant ω).
+
+        Springs and ADS use one gradient point per particle (as
+        ``'none'``); see :meth:`control_constants` for ``C1``, ``C2``.
+    coefficient : float, optional
+        Dimensionless ``C̃ >= 0`` of ``'springs'`` / ``'ads'`` (default
+        0.1).  ``C1 = C̃ E_ref / (2 V_ref h_ref²)`` and
+        ``C2 = C̃ E_ref / (V_ref² h_ref²)`` with ``E_ref`` the largest mean
+        axial modulus ``max_i tr(C_i[:d, :d])/d``, ``V_ref`` the mean point
+        volume (with thickness / cross-section) and ``h_ref`` the mean
+        nearest-bond length; on a uniform 1D chain this is exactly
+        ``C̃ (E A / h) Lap0`` (springs) and ``C̃ (E A / h) Lap0²`` (ADS) of
+        spec 003 §3.  The paper's C1/C2 (Table 1) are not transferable.
     penalty : float
         Dimensionless penalty coefficient (``control='penalty'``).
     influence : callable, optional
@@ -304,8 +330,11 @@ class Correspondence(Model):
     shadow : (m,) array_like of int, optional
         Shadow particles (spec 000 §7, e.g. from :func:`pdlin.shadow_layer`):
         they carry no energy, and their gradient rows use the intact-lattice
-        shape tensor; their prescribed stress enters through
-        :meth:`shadow_loads`.
+        shape tensor (with stress points: the intact one-bond-per-axis
+        tensor of a stress point, ``ω V h² I``); their prescribed stress
+        enters through :meth:`shadow_loads`.  Springs and ADS keep the
+        spring bonds of shadow particles and set the ADS vector of a
+        shadow particle to that of the affine continuation, 0.
     seed : int
         Seed of the stress-point case generator.
     case : int, optional
@@ -347,6 +376,7 @@ class Correspondence(Model):
         case: int | None = None,
         sp_weight: float = 0.5,
         max_bytes: int = DEFAULT_MAX_BYTES,
+        coefficient: float | None = None,
     ) -> None:
         if (C is None) == (E is None):
             raise InputError(
@@ -366,6 +396,13 @@ class Correspondence(Model):
             raise InputError(f"sp_weight must be > 0, got {sp_weight}")
         if case is not None and control != "stress_points":
             raise InputError(f"case is only used with control='stress_points', got {control!r}")
+        if coefficient is not None and control not in ("springs", "ads"):
+            raise InputError(
+                f"coefficient is only used with control='springs' or 'ads', got {control!r}"
+            )
+        coef = DEFAULT_CONTROL_COEFFICIENT if coefficient is None else float(coefficient)
+        if not (np.isfinite(coef) and coef >= 0):
+            raise InputError(f"coefficient must be a finite number >= 0, got {coefficient!r}")
         self.C = C
         self.E = None if E is None else as_float_array(E, "E")
         if self.E is not None and np.any(self.E <= 0):
@@ -379,7 +416,10 @@ class Correspondence(Model):
         self.seed = int(seed)
         self.case = None if case is None else int(case)
         self.sp_weight = float(sp_weight)
+        self.coefficient = coef
         self.max_bytes = int(max_bytes)
+        #: whether K is symmetric: False for 'ads' until a plan shows a constant ω
+        self.symmetric = control != "ads"
         self._cache: tuple[PointCloud, Bonds, _Plan] | None = None
         #: how the last :meth:`plan` decided to apply K ('assembled' / 'matrix-free') and why
         self.assembly: dict[str, Any] = {}
@@ -547,18 +587,24 @@ class Correspondence(Model):
         rows = None
         kinv = None
         if self.shadow is not None:
-            if self.control == "stress_points":
-                raise ModelError("shadow layers are not supported with control='stress_points'")
             if self.shadow.size and (self.shadow.min() < 0 or self.shadow.max() >= n):
-                raise InputError(f"shadow must hold point indices in [0, {n - 1}]")
-            energy[self.shadow] = False
+                raise InputError(
+                    f"shadow must hold point indices in [0, {n - 1}], got "
+                    f"[{int(self.shadow.min())}, {int(self.shadow.max())}]"
+                )
+            is_shadow = np.zeros(n, dtype=bool)
+            is_shadow[self.shadow] = True
+            rows = np.flatnonzero(is_shadow[gp_owner])
+            energy[rows] = False
             fn = self._omega_fn(cloud, bonds)
             if fn is None:
                 from ..geometry.influence import influence_function
 
                 fn = influence_function(bonds.influence)
-            rows = self.shadow
-            kinv = np.linalg.inv(intact_shape_tensor(cloud, bonds, fn))
+            K_int = intact_shape_tensor(cloud, bonds, fn)
+            if self.control == "stress_points":
+                K_int = 0.5 * K_int  # one bond per axis (nearest-neighbour lattice, §4.2)
+            kinv = np.linalg.inv(K_int)
         c = _coefficients(
             gp_of_bond, n_gp, omega, bonds.volume_j, bonds.xi,
             override_rows=rows, override_kinv=kinv,
@@ -570,6 +616,8 @@ class Correspondence(Model):
         scale = w * vol[gp_owner] * energy
         D = np.einsum("ai,gab,bj->gij", P, Cv, P) * scale[:, None, None]
         plan = _Plan(gp_owner, gp_of_bond, w, energy, omega, G, D, Cv)
+        if self.control == "ads":  # S N is symmetric for constant ω, any V (see the docs)
+            self.symmetric = bool(np.allclose(omega, omega[0], rtol=1e-12))
         self._cache = (cloud, bonds, plan)
         return plan
 
@@ -667,8 +715,126 @@ class Correspondence(Model):
         GtY = sp.csr_array(Gt @ Y)
         return sp.csr_array(L - GtY - GtY.T + Gt @ sp.csr_array(Mb @ p.G))
 
+    # -- springs / ADS (spec 003 §3) ----------------------------------------
+    def control_constants(self, cloud: PointCloud, bonds: Bonds) -> dict[str, float]:
+        """Constants of the ``'springs'`` / ``'ads'`` control forces (spec 003 §3).
+
+        Returns ``{'coefficient': C̃, 'E_ref', 'V_ref', 'h_ref', 'C1', 'C2'}``
+        with ``E_ref = max_i tr(C_i[:d, :d])/d`` (the largest mean axial
+        modulus; ``E`` in 1D), ``V_ref`` the mean point volume (times the
+        thickness in 2D / cross-section in 1D), ``h_ref`` the mean over points
+        of the shortest bond length (the spacing on a lattice),
+        ``C1 = C̃ E_ref / (2 V_ref h_ref²)`` and
+        ``C2 = C̃ E_ref / (V_ref² h_ref²)``.  On a uniform nearest-neighbour
+        chain (``V = A h``, ω = 1) the springs add ``C̃ (E A / h) Lap0`` and
+        ADS ``C̃ (E A / h) Lap0²`` (spec 003 §3, ``Lap0`` the chain graph
+        Laplacian); in 2D/3D both scale like ``E_ref V_ref / h_ref²``, the
+        stiffness of one bond of a bond-based material.
+
+        Examples
+        --------
+        >>> import pdlin
+        >>> cloud = pdlin.grid((11,), spacing=0.1)
+        >>> bonds = pdlin.find_bonds(cloud, ratio=1.0)
+        >>> m = pdlin.Correspondence(E=2.0, control="springs", coefficient=0.5)
+        >>> c = m.control_constants(cloud, bonds)
+        >>> round(2 * c["C1"] * c["V_ref"] ** 2, 12)   # C̃ E A / h = 0.5 * 2 / 0.1
+        10.0
+        """
+        d = cloud.dim
+        Cv = self.voigt_stiffness(cloud)
+        e_ref = float(np.max(np.einsum("nkk->n", Cv[:, :d, :d]) / d))
+        vol = np.asarray(cloud.volumes, dtype=float) * (1.0 if d == 3 else cloud.thickness)
+        v_ref = float(np.mean(vol))
+        shortest = np.full(cloud.n, np.inf)
+        np.minimum.at(shortest, bonds.i, bonds.length)
+        has = np.isfinite(shortest)
+        if not has.any():
+            raise ModelError("springs/ADS controls need bonds, got a cloud without any")
+        h_ref = float(np.mean(shortest[has]))
+        c = self.coefficient
+        return {
+            "coefficient": c,
+            "E_ref": e_ref,
+            "V_ref": v_ref,
+            "h_ref": h_ref,
+            "C1": c * e_ref / (2.0 * v_ref * h_ref**2),
+            "C2": c * e_ref / (v_ref**2 * h_ref**2),
+        }
+
+    def _laplacian(
+        self, cloud: PointCloud, bonds: Bonds, w: np.ndarray, rows: np.ndarray | None = None
+    ) -> sp.csr_array:
+        """``(Lap_w u)_i = Σ_b w_b (u_i - u_j)`` over the bonds of i, ⊗ I_d; ``rows``: keep only."""
+        n, d = cloud.n, cloud.dim
+        i, j = bonds.i, bonds.j
+        if rows is not None:
+            keep = rows[i]
+            i, j, w = i[keep], j[keep], w[keep]
+        L = sp.coo_array(
+            (np.concatenate([w, -w]), (np.concatenate([i, i]), np.concatenate([i, j]))),
+            shape=(n, n),
+        ).tocsr()
+        return sp.csr_array(sp.kron(L, sp.eye_array(d), format="csr"))
+
+    def _control_factors(
+        self, cloud: PointCloud, bonds: Bonds, p: _Plan
+    ) -> tuple[sp.csr_array, sp.csr_array] | None:
+        """The springs / ADS stiffness as a product ``S @ N`` of one-hop matrices (or None).
+
+        Springs: ``S = Σ_b C1 ω V_i V_j (e_i - e_j)(e_i - e_j)ᵀ ⊗ I``, ``N = I``
+        (every bond, shadow ones too).  ADS: ``S = C2 diag(V) Lap_V``,
+        ``N = Lap_ωV`` with the rows of shadow particles zeroed (their
+        averaged displacement state is that of the affine continuation, 0).
+        """
+        if self.control not in ("springs", "ads") or self.coefficient == 0:
+            return None
+        d = cloud.dim
+        c = self.control_constants(cloud, bonds)
+        vol = np.asarray(cloud.volumes, dtype=float) * (1.0 if d == 3 else cloud.thickness)
+        vi, vj = vol[bonds.i], vol[bonds.j]
+        nd = cloud.n * d
+        if self.control == "springs":
+            k = c["C1"] * p.omega * vi * vj
+            i, j = bonds.i, bonds.j
+            Ls = sp.coo_array(
+                (np.concatenate([k, k, -k, -k]),
+                 (np.concatenate([i, j, i, j]), np.concatenate([i, j, j, i]))),
+                shape=(cloud.n, cloud.n),
+            ).tocsr()  # fmt: skip
+            S = sp.csr_array(sp.kron(Ls, sp.eye_array(d), format="csr"))
+            return S, sp.csr_array(sp.eye_array(nd, format="csr"))
+        S = self._laplacian(cloud, bonds, c["C2"] * vi * vj)  # diag(V) Lap_V, symmetric
+        rows = None
+        if self.shadow is not None:
+            rows = np.ones(cloud.n, dtype=bool)
+            rows[self.shadow] = False
+        N = self._laplacian(cloud, bonds, p.omega * vj, rows)
+        return S, N
+
+    def _control_matrix(self, cloud: PointCloud, bonds: Bonds, p: _Plan) -> sp.csr_array | None:
+        """Assembled springs / ADS stiffness ``S N`` (None for the other controls)."""
+        f = self._control_factors(cloud, bonds, p)
+        if f is None:
+            return None
+        S, N = f
+        return S if self.control == "springs" else sp.csr_array(S @ N)
+
+    def _control_products(
+        self, cloud: PointCloud, bonds: Bonds, p: _Plan
+    ) -> tuple[Any, Any] | None:
+        """Matrix-free ``x -> S N x`` and its transpose (None for the other controls)."""
+        f = self._control_factors(cloud, bonds, p)
+        if f is None:
+            return None
+        S, N = f
+        if self.control == "springs":
+            return (lambda x: S @ x), (lambda x: S @ x)
+        Nt = sp.csr_array(N.T)
+        return (lambda x: S @ (N @ x)), (lambda x: Nt @ (S @ x))
+
     def stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.bsr_array:
-        """Assembled ``K = Gᵀ blockdiag(w V C) G`` (+ penalty), BSR with blocksize dim."""
+        """Assembled ``K = Gᵀ blockdiag(w V C) G`` (+ penalty / springs / ADS), BSR (dim blocks)."""
         p = self._plan(cloud, bonds)
         d = cloud.dim
         self.plan(cloud, bonds)
@@ -679,6 +845,9 @@ class Correspondence(Model):
         if self.control == "penalty" and self.penalty > 0:
             K = sp.csr_array(K + self._penalty_matrix(cloud, bonds, p))
         K = sp.csr_array(0.5 * (K + K.T))
+        Ka = self._control_matrix(cloud, bonds, p)
+        if Ka is not None:  # springs / ADS (ADS may be nonsymmetric: added unsymmetrized)
+            K = sp.csr_array(K + Ka)
         K.eliminate_zeros()
         # keep every diagonal block stored (energy-free shadow points may have empty
         # rows; Dirichlet elimination writes its identity into stored diagonals)
@@ -712,6 +881,7 @@ class Correspondence(Model):
         G, Gt = p.G, sp.csr_array(p.G.T)
         D = p.D
         d2 = cloud.dim**2
+        extra = self._control_products(cloud, bonds, p)  # springs / ADS: (S N x, Nᵀ S x)
 
         def mv(x: np.ndarray) -> np.ndarray:
             x = np.asarray(x, dtype=float).reshape(-1)
@@ -719,9 +889,17 @@ class Correspondence(Model):
             out = np.asarray(Gt @ s)
             if k is not None:
                 out = out + self._penalty_force(cloud, bonds, p, k, x)
+            if extra is not None:
+                out = out + extra[0](x)
             return out
 
-        return spla.LinearOperator((nd, nd), matvec=mv, rmatvec=mv, dtype=float)
+        def rmv(x: np.ndarray) -> np.ndarray:
+            if extra is None:
+                return mv(x)
+            x = np.asarray(x, dtype=float).reshape(-1)
+            return mv(x) - extra[0](x) + extra[1](x)
+
+        return spla.LinearOperator((nd, nd), matvec=mv, rmatvec=rmv, dtype=float)
 
     def operator(self, cloud: PointCloud, bonds: Bonds) -> spla.LinearOperator:
         """Matrix-free ``K`` (the :class:`~pdlin.models.base.Model` interface name)."""
@@ -831,8 +1009,9 @@ class Correspondence(Model):
     ) -> np.ndarray:
         """Nodal force of the prescribed shadow stress on the real points, ``(n, d)``.
 
-        ``-(Σ_j G_jᵀ (V σ_S,:j))`` with the shadow rows of G built from the
-        intact shape tensor (spec 000 §7); add it to the external load
+        ``-(Σ_j G_jᵀ (w V σ_S,:j))`` over the gradient points of the shadow
+        particles (stress points: ``w = w_s``), whose rows of G are built from
+        the intact shape tensor (spec 000 §7); add it to the external load
         (e.g. as a :class:`pdlin.BodyForce` on the real points, see
         :func:`shadow_problem`).  Give the shadow stress directly
         (``stress``, ``(m, d, d)`` or ``(d, d)``) or through ``F``
@@ -851,7 +1030,7 @@ class Correspondence(Model):
             if Fm.shape != (d, d):
                 raise ShapeError(f"F must have shape ({d}, {d}), got {Fm.shape}")
             H = (Fm - np.eye(d)).ravel()
-            sv = np.einsum("gab,b->ga", p.Cv[self.shadow], P @ H)
+            sv = np.einsum("gab,b->ga", self.voigt_stiffness(cloud)[self.shadow], P @ H)
             sig = sv @ P  # vec layout with both shear entries
         else:
             s = as_float_array(stress, "stress")
@@ -864,7 +1043,10 @@ class Correspondence(Model):
             sig = s.reshape(m, d * d)
         vol = np.asarray(cloud.volumes) * (1.0 if d == 3 else cloud.thickness)
         full = np.zeros((p.gp_owner.size, d * d))
-        full[self.shadow] = sig * vol[self.shadow, None]  # shadow gp index = point index
+        rows = np.flatnonzero(~p.energy)  # gradient points of shadow particles
+        owner = p.gp_owner[rows]
+        wv = p.weight[rows] * vol[owner]
+        full[rows] = sig[np.searchsorted(self.shadow, owner)] * wv[:, None]
         return -np.asarray(p.G.T @ full.ravel()).reshape(cloud.n, d)
 
     def describe(self) -> dict[str, Any]:
@@ -878,6 +1060,8 @@ class Correspondence(Model):
             out["penalty"] = self.penalty
         if self.control == "stress_points":
             out.update(seed=self.seed, case=self.case, sp_weight=self.sp_weight)
+        if self.control in ("springs", "ads"):
+            out["coefficient"] = self.coefficient
         if self.assembly:
             out["assembly"] = self.assembly.get("path")
         return out
@@ -898,7 +1082,8 @@ def shadow_problem(
     ``shadow`` set, whose Dirichlet condition is :func:`pdlin.shadow_layer`
     and whose load is the shadow-stress force :meth:`Correspondence.shadow_loads`
     (spec 000 §7).  Odd real counts along an axis make K_RR singular
-    (spec 000 §4 parity rule) and raise unless ``allow_odd``.
+    (spec 000 §4 parity rule) and raise unless ``allow_odd``; stress points,
+    springs and ADS couple the sublattices and are exempt.
 
     Examples
     --------
@@ -919,7 +1104,9 @@ def shadow_problem(
     dep = float(np.max(bonds.horizon)) if depth is None else float(depth)
     bc, shadow = shadow_layer(cloud, F, dep)
     counts = shadow_real_counts(cloud, shadow)
-    if not allow_odd and np.any(counts % 2 == 1):
+    # stress points and springs / ADS couple the sublattices: no parity rule
+    decoupled = model.control not in ("stress_points", "springs", "ads")
+    if decoupled and not allow_odd and np.any(counts % 2 == 1):
         raise ModelError(
             f"real particle counts per axis must be even with a shadow layer (K_RR is singular "
             f"otherwise, spec 000 §4), got {counts.tolist()}; pass allow_odd=True to proceed"
