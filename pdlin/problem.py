@@ -223,6 +223,7 @@ def solve(
     keep_stiffness: bool = False,
     progress: Callable[[str], None] | None = None,
     operator: str = "auto",
+    preconditioner: Model | None = None,
 ) -> StaticResult:
     """Assemble, constrain and solve a static problem; verify the residual.
 
@@ -251,6 +252,15 @@ def solve(
         when the assembled K would exceed 40 % of the machine's memory.
         ``result.info['operator']`` and ``['operator_reason']`` say which
         path ran and why.
+    preconditioner : Model, optional
+        Build the preconditioner ('amg-cg', 'amg-gmres', 'ilu-gmres',
+        'jacobi-cg') from the assembled stiffness of this model on the same
+        cloud, bonds and Dirichlet conditions instead of from the operator
+        being solved (or its surrogate).  Typical use: the nonsymmetric
+        force-state linearization ``K_p`` of :class:`~pdlin.XOSB` /
+        :class:`~pdlin.LPS` (``linearization='paper'``) solved by GMRES with
+        the AMG of the symmetric energy-consistent ``K_E`` (spec 002 §11 B8).
+        ``result.info['preconditioner']`` names the model used.
 
     Returns
     -------
@@ -317,6 +327,8 @@ def solve(
         timings["assembly"] = time.perf_counter() - t0
         if solver == "auto":
             solver = "amg-cg" if symmetric else "amg-gmres"
+    if preconditioner is not None:
+        precond = _preconditioner_matrix(preconditioner, cloud, bonds, red, dofs)
     say(f"solve ({solver})")
     lin: LinearSolveInfo = solve_linear(
         A,
@@ -350,6 +362,8 @@ def solve(
         "operator": path,
         "operator_reason": reason,
     }
+    if preconditioner is not None:
+        info["preconditioner"] = preconditioner.describe()
     return StaticResult(
         problem=problem,
         bonds=bonds,
@@ -411,6 +425,30 @@ def _choose_operator(
             "than assembling it"
         )
     return "assembled", f"assembled K fits (~{est_bytes / 1e9:.2f} GB)"
+
+
+def _preconditioner_matrix(
+    pmodel: Any,
+    cloud: PointCloud,
+    bonds: Bonds,
+    red: SymmetryReduction | None,
+    dofs: np.ndarray,
+) -> sp.sparray:
+    """Assembled stiffness of ``pmodel`` with the problem's Dirichlet elimination."""
+    if not isinstance(pmodel, Model):
+        raise InputTypeError(
+            f"preconditioner must be a pdlin model (BondBased, LPS, XOSB, Correspondence), "
+            f"got {type(pmodel).__name__}"
+        )
+    if red is not None:
+        raise InputError(
+            "preconditioner= needs a problem without symmetry planes, got "
+            f"{len(red.planes)} plane(s)"
+        )
+    Kp = assemble_stiffness(pmodel, cloud, bonds)
+    ndof = cloud.ndof
+    P, _ = eliminate_dirichlet(Kp, np.zeros(ndof), dofs, np.zeros(dofs.size), inplace=True)
+    return P
 
 
 def _matrix_free_system(

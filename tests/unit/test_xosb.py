@@ -15,7 +15,7 @@ import pytest
 import scipy.sparse as sp
 
 import pdlin
-from pdlin.errors import InputError, ModelError
+from pdlin.errors import InputError, InputTypeError, ModelError
 from pdlin.models._state import TARGET_D, TARGET_H, basis_d, basis_h, bulk_shear_moduli
 
 # -- clouds ------------------------------------------------------------------
@@ -475,6 +475,31 @@ def test_static_problem_solvers_agree_with_direct(lin, solver):
     ref = pdlin.solve(prob, solver="direct")
     res = pdlin.solve(prob, solver=solver, rtol=1e-10)
     assert np.abs(res.u - ref.u).max() <= 1e-7 * np.abs(ref.u).max()
+
+
+def test_b8_gmres_on_k_p_with_amg_of_k_e():
+    """Spec 002 §11 B8 on a 2x coarser O-grid hole plate (the full 7,680-cell check is in
+    tests/verification/test_xosb_plate.py): GMRES + AMG(K_E) on K_p in ≤ 40 iterations."""
+    cloud = pdlin.read_mesh(pdlin.plate_with_hole_mesh(16, 30))
+    bonds = pdlin.find_bonds(cloud, ratio=3.01)
+    x, y = cloud.points.T
+    left, right = np.argsort(x)[:16], np.argsort(-x)[:16]  # outermost radial layers (§9.1)
+    pin = left[np.argmin(np.abs(y[left]))]
+    bc = [
+        pdlin.Dirichlet(left, 0.0, components="x"),
+        pdlin.Dirichlet(right, 5e-4, components="x"),  # u0 = 5e-4 m (spec 002 §9.1)
+        pdlin.Dirichlet([pin], 0.0, components="y"),
+    ]
+    model = pdlin.XOSB(70e9, 0.33, linearization="paper")
+    prob = pdlin.StaticProblem(model, cloud, bonds=bonds, dirichlet=bc)
+    ref = pdlin.solve(prob, solver="direct")
+    res = pdlin.solve(prob, solver="amg-gmres", rtol=1e-10, preconditioner=pdlin.XOSB(70e9, 0.33))
+    assert res.info["preconditioner"]["linearization"] == "energy"
+    assert res.n_iter <= 40  # spec 002 §11 B8: ≤ 40 [REF 19]
+    # both match LU to 1e-8 (spec 002 §11 B8)
+    assert np.abs(res.u - ref.u).max() <= 1e-8 * np.abs(ref.u).max()
+    with pytest.raises(InputTypeError, match="preconditioner must be a pdlin model"):
+        pdlin.solve(prob, solver="amg-gmres", preconditioner="energy")  # type: ignore[arg-type]
 
 
 def test_cg_refuses_paper_variant():
