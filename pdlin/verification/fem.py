@@ -354,21 +354,15 @@ _HEX8_SIGNS = np.array(
 )
 
 
-def _elasticity_3d(E: float, nu: float) -> np.ndarray:
-    """6 x 6 isotropic Voigt elasticity, order [xx, yy, zz, yz, xz, xy], engineering shear."""
+def _lame(E: float, nu: float) -> tuple[float, float]:
+    """Lamé constants (lambda, mu) of 3D isotropic elasticity, with argument checks."""
     E = float(E)
     nu = float(nu)
     if not np.isfinite(E) or E <= 0:
         raise InputError(f"E must be > 0, got {E}")
     if not -1.0 < nu < 0.5:
         raise InputError(f"nu must be in (-1, 0.5), got {nu}")
-    lam = E * nu / ((1 + nu) * (1 - 2 * nu))
-    mu = E / (2 * (1 + nu))
-    c = np.zeros((6, 6))
-    c[:3, :3] = lam
-    c[np.arange(3), np.arange(3)] += 2 * mu
-    c[np.arange(3, 6), np.arange(3, 6)] = mu
-    return c
+    return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
 
 
 def hex8_stiffness(points: Any, hexes: Any, E: float, nu: float) -> sp.csr_array:
@@ -424,11 +418,13 @@ def hex8_stiffness(points: Any, hexes: Any, E: float, nu: float) -> sp.csr_array
     n, ne = pts.shape[0], h.shape[0]
     if ne and (h.min() < 0 or h.max() >= n):
         raise InputError(f"hexes must index points in [0, {n}), got [{h.min()}, {h.max()}]")
-    c = _elasticity_3d(E, nu)
+    lam, mu = _lame(E, nu)
     xe = pts[h]  # (ne, 8, 3)
-    ke = np.zeros((ne, 24, 24))
+    # isotropic B^T C B without forming B: for nodes a, b and components i, j,
+    # k_(a i)(b j) = sum_gp |det J| (lam N_a,i N_b,j + mu N_a,j N_b,i + mu delta_ij N_a,k N_b,k)
+    grads = np.empty((ne, 8, 8, 3))  # (element, Gauss point, node, component) * sqrt|det J|
     sign = np.zeros(ne)
-    for gp in _HEX8_SIGNS / np.sqrt(3.0):
+    for p, gp in enumerate(_HEX8_SIGNS / np.sqrt(3.0)):
         # dN_a/dxi_k = s_ak / 8 * prod_{l != k} (1 + s_al xi_l)
         f = 1.0 + _HEX8_SIGNS * gp  # (8, 3)
         dn = np.empty((3, 8))
@@ -445,16 +441,13 @@ def hex8_stiffness(points: Any, hexes: Any, E: float, nu: float) -> sp.csr_array
             )
         sign = np.sign(det)
         dx = np.linalg.solve(jac, np.broadcast_to(dn, (ne, 3, 8)))  # (ne, 3, 8)
-        bm = np.zeros((ne, 6, 24))
-        for k in range(3):
-            bm[:, k, k::3] = dx[:, k]
-        bm[:, 3, 1::3] = dx[:, 2]  # gamma_yz
-        bm[:, 3, 2::3] = dx[:, 1]
-        bm[:, 4, 0::3] = dx[:, 2]  # gamma_xz
-        bm[:, 4, 2::3] = dx[:, 0]
-        bm[:, 5, 0::3] = dx[:, 1]  # gamma_xy
-        bm[:, 5, 1::3] = dx[:, 0]
-        ke += np.einsum("eai,ab,ebj,e->eij", bm, c, bm, np.abs(det), optimize=True)
+        grads[:, p] = dx.transpose(0, 2, 1) * np.sqrt(np.abs(det))[:, None, None]
+    g = grads.reshape(ne, 8, 24)
+    outer = np.matmul(g.transpose(0, 2, 1), g).reshape(ne, 8, 3, 8, 3)  # sum_gp N_a,i N_b,j
+    dot = np.einsum("eaibi->eab", outer)  # sum_gp grad N_a . grad N_b
+    ke = lam * outer + mu * outer.transpose(0, 3, 2, 1, 4)
+    ke += mu * dot[:, :, None, :, None] * np.eye(3)[None, None, :, None, :]
+    ke = ke.reshape(ne, 24, 24)
     dofs = (3 * h[:, :, None] + np.arange(3)).reshape(ne, 24)
     rows = np.broadcast_to(dofs[:, :, None], (ne, 24, 24)).ravel()
     cols = np.broadcast_to(dofs[:, None, :], (ne, 24, 24)).ravel()
