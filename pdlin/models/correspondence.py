@@ -554,7 +554,12 @@ class Correspondence(Model):
         full = bonds.family_size == 2 * d
         cases = _SP_CASES[d]
         if self.case is None:
-            chosen = np.random.default_rng(self.seed).integers(0, cases.shape[0], n)
+            # one draw per full-horizon particle, in point order (the convention of the
+            # spec 003 reference implementation, so seeded results are comparable)
+            chosen = np.zeros(n, dtype=np.intp)
+            chosen[full] = np.random.default_rng(self.seed).integers(
+                0, cases.shape[0], int(full.sum())
+            )
         else:
             if not 0 <= self.case < cases.shape[0]:
                 raise InputError(
