@@ -53,6 +53,8 @@ def plate_with_hole_mesh(
     grading: float = 4.0,
     backend: str = "ogrid",
     mesh_size: float | None = None,
+    layers: int | None = None,
+    depth: float | None = None,
 ) -> Any:
     """Square plate with a central circular hole as a :class:`meshio.Mesh`.
 
@@ -84,6 +86,13 @@ def plate_with_hole_mesh(
     mesh_size : float, optional
         Element size of the gmsh backend at the outer edges (default
         ``length / 50``); it is four times smaller at the hole.
+    layers : int, optional
+        Extrude the O-grid into ``layers`` uniform layers of hexahedra
+        through ``z in [0, depth]`` (the 3D block with a hole of spec 002,
+        section 9.2: ``layers=8, depth=0.3``).  Default: the 2D mesh.
+        Only with ``backend='ogrid'``; needs ``depth``.
+    depth : float, optional
+        Thickness of the extruded block (required with ``layers``).
 
     Returns
     -------
@@ -98,6 +107,16 @@ def plate_with_hole_mesh(
         :data:`PLATE_WITH_HOLE_GROUPS`), which survive ``.msh`` and ``.vtu``
         files; :func:`pdlin.read_mesh` maps both to the same point sets.
 
+        With ``layers``: 3D points (node ``(k, p)`` of layer ``k`` is
+        ``k * n_2d + p``, ``p`` the 2D node), one ``hexahedron`` block
+        (meshio node order, layer-major: cell ``k * 4 n_ang n_rad + c`` is 2D
+        cell ``c`` in layer ``k``) and one ``quad`` block of the boundary
+        faces.  The groups ``hole``, ``right``, ``top``, ``left``, ``bottom``
+        (the lateral faces) and ``back`` / ``front`` (``z = 0`` / ``z =
+        depth``) are ``cell_sets`` on the adjacent hexahedra and gmsh
+        physical groups of dimension 2 on the faces (tags 1-5, 7, 8; tag 6,
+        dimension 3, is the ``block``).
+
     Examples
     --------
     >>> mesh = plate_with_hole_mesh(4, 3)
@@ -105,6 +124,14 @@ def plate_with_hole_mesh(
     ('quad', 48, 32)
     >>> [len(mesh.cell_sets[k][0]) for k in ("hole", "right", "top", "left", "bottom")]
     [16, 4, 4, 4, 4]
+
+    Extruded into 2 layers of hexahedra, 0.3 deep:
+
+    >>> block = plate_with_hole_mesh(4, 3, layers=2, depth=0.3)
+    >>> block.points.shape, block.cells[0].type, len(block.cells[0])
+    ((192, 3), 'hexahedron', 96)
+    >>> [len(block.cell_sets[k][0]) for k in ("hole", "right", "back", "front")]
+    [32, 8, 48, 48]
     """
     try:
         import meshio
@@ -117,6 +144,16 @@ def plate_with_hole_mesh(
     q = _positive_float(grading, "grading")
     if r >= L / 2:
         raise InputError(f"radius must be < length / 2 = {L / 2}, got {r}")
+    if layers is None:
+        if depth is not None:
+            raise InputError(f"depth needs layers (the number of extruded layers), got {depth!r}")
+    else:
+        nl = _positive_int(layers, "layers")
+        if depth is None:
+            raise InputError("layers needs depth (the thickness of the extruded block), got None")
+        dz = _positive_float(depth, "depth")
+        if backend != "ogrid":
+            raise InputError(f"layers needs backend='ogrid', got {backend!r}")
     if backend == "gmsh":
         size = L / 50 if mesh_size is None else _positive_float(mesh_size, "mesh_size")
         return _plate_with_hole_gmsh(L, r, size)
@@ -164,6 +201,8 @@ def plate_with_hole_mesh(
     line_tags = np.zeros(lines.shape[0], dtype=np.int64)
     for name, idx in line_sets.items():
         line_tags[idx] = PLATE_WITH_HOLE_GROUPS[name][0]
+    if layers is not None:
+        return _extrude(points, quads, lines, line_tags, quad_sets, nl, dz)
     quad_tags = np.full(quads.shape[0], PLATE_WITH_HOLE_GROUPS["plate"][0], dtype=np.int64)
     return meshio.Mesh(
         points,
@@ -174,6 +213,67 @@ def plate_with_hole_mesh(
         },
         field_data={k: np.array(v) for k, v in PLATE_WITH_HOLE_GROUPS.items()},
         cell_sets=cell_sets,
+    )
+
+
+#: gmsh physical groups of the extruded block: name -> (tag, dim).
+_BLOCK_WITH_HOLE_GROUPS: dict[str, tuple[int, int]] = {
+    **{name: (tag, 2) for name, (tag, _) in PLATE_WITH_HOLE_GROUPS.items() if name != "plate"},
+    "block": (6, 3),
+    "back": (7, 2),
+    "front": (8, 2),
+}
+
+
+def _extrude(
+    points: np.ndarray,
+    quads: np.ndarray,
+    lines: np.ndarray,
+    line_tags: np.ndarray,
+    quad_sets: dict[str, np.ndarray],
+    layers: int,
+    depth: float,
+) -> Any:
+    """Extrude the 2D O-grid into ``layers`` uniform layers of hexahedra (z in [0, depth])."""
+    import meshio
+
+    n2, nq = points.shape[0], quads.shape[0]
+    z = np.linspace(0.0, depth, layers + 1)
+    pts3 = np.column_stack(
+        [np.tile(points, (layers + 1, 1)), np.repeat(z, n2)]
+    )  # node (k, p) -> k * n2 + p
+    off = (np.arange(layers) * n2)[:, None, None]  # (layers, 1, 1)
+    # meshio order: the counter-clockwise bottom quad, then the same quad one layer up
+    hexes = np.concatenate([quads[None] + off, quads[None] + off + n2], axis=2).reshape(-1, 8)
+    # lateral faces: each boundary line swept through the layers (outward normals not needed)
+    side = np.concatenate([lines[None] + off, lines[None, :, ::-1] + off + n2], axis=2).reshape(
+        -1, 4
+    )
+    side_tags = np.tile(line_tags, layers)
+    faces = np.concatenate([side, quads[:, ::-1], quads + layers * n2])
+    face_tags = np.concatenate(
+        [
+            side_tags,
+            np.full(nq, _BLOCK_WITH_HOLE_GROUPS["back"][0], dtype=np.int64),
+            np.full(nq, _BLOCK_WITH_HOLE_GROUPS["front"][0], dtype=np.int64),
+        ]
+    )
+    layer_off = (np.arange(layers) * nq)[:, None]
+    hex_sets = {name: (idx[None] + layer_off).ravel() for name, idx in quad_sets.items()}
+    hex_sets["back"] = np.arange(nq)
+    hex_sets["front"] = (layers - 1) * nq + np.arange(nq)
+    empty = np.zeros(0, dtype=np.int64)
+    names = ("hole", "right", "top", "left", "bottom", "back", "front")
+    hex_tags = np.full(hexes.shape[0], _BLOCK_WITH_HOLE_GROUPS["block"][0], dtype=np.int64)
+    return meshio.Mesh(
+        pts3,
+        [("hexahedron", hexes), ("quad", faces)],
+        cell_data={
+            "gmsh:physical": [hex_tags, face_tags],
+            "gmsh:geometrical": [hex_tags, face_tags],
+        },
+        field_data={k: np.array(v) for k, v in _BLOCK_WITH_HOLE_GROUPS.items()},
+        cell_sets={name: [hex_sets[name], empty] for name in names},
     )
 
 
