@@ -175,6 +175,37 @@ def _anchor(n: int, assembled: bool) -> dict[str, Any]:
     return out
 
 
+def _large(shape: tuple[int, ...], paper: bool) -> dict[str, Any]:
+    """Matrix-free XOSB solve at sizes where the assembled K is not worth building.
+
+    ``pdlin.solve(operator="matrix-free")``: CG on the energy ``K_E`` (or GMRES on the paper
+    ``K_p`` with the same bond-based AMG surrogate preconditioner), x- clamped, x+ pulled.
+    """
+    out: dict[str, Any] = {"shape": shape}
+    t_all = _clock()
+    cloud = pdlin.grid(shape, spacing=1.0 / shape[0])
+    bonds = pdlin.find_bonds(cloud, ratio=3.01)
+    out["bonds"] = _since(t_all)
+    out["n"], out["nb"] = cloud.n, bonds.n_bonds
+    model = pdlin.XOSB(1e9, 0.3, linearization="paper" if paper else "energy")
+    t = _clock()
+    model.weights(cloud, bonds)
+    out["weights"] = _since(t)
+    bc = [pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", 1e-3, components="x")]
+    prob = pdlin.StaticProblem(model, cloud, bonds=bonds, dirichlet=bc)
+    t = _clock()
+    res = pdlin.solve(
+        prob, solver="amg-gmres" if paper else "amg-cg", operator="matrix-free", rtol=1e-8
+    )
+    out["solve_total"] = _since(t)
+    out["timings"] = {k: round(v, 2) for k, v in res.timings.items()}
+    out["iters"] = res.n_iter
+    out["res"] = res.relative_residual
+    out["total"] = _since(t_all)
+    out["peak"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
+    return out
+
+
 def _in_child(fn: Any, *args: Any) -> Any:
     ctx = mp.get_context("fork")
     with ctx.Pool(1) as pool:
@@ -194,6 +225,11 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--quick", action="store_true")
     p.add_argument("--anchor", type=int, default=0, help="run the N^3 Peridigm anchor only")
     p.add_argument("--no-assembled", action="store_true", help="anchor: matrix-free only")
+    p.add_argument(
+        "--large",
+        action="store_true",
+        help="matrix-free XOSB plates up to 10^6 points (2D) and a 40^3 cube",
+    )
     args = p.parse_args(argv)
     print(
         f"# pdlin {pdlin.__version__}, Python {platform.python_version()}, "
@@ -203,6 +239,29 @@ def main(argv: list[str] | None = None) -> None:
         if not args.no_assembled:
             print("assembled:", _in_child(_anchor, args.anchor, True))
         print("matrix-free:", _in_child(_anchor, args.anchor, False))
+        return
+    if args.large:
+        print(
+            "| shape | points | bonds | paper K_p? | bonds s | λ weights s | operator + "
+            "AMG(surrogate) setup s | solve s | iterations | rel. residual | total s | peak GB |"
+        )
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+        for shape, paper in [
+            ((500, 500), False),
+            ((500, 500), True),
+            ((710, 710), False),
+            ((1000, 1000), False),
+            ((40, 40, 40), False),
+        ]:
+            r = _in_child(_large, shape, paper)
+            tm = r["timings"]
+            print(
+                f"| {'x'.join(map(str, shape))} | {r['n']:,} | {r['nb']:,} | {paper} | "
+                f"{r['bonds'][0]:.2f} | {r['weights'][0]:.2f} | "
+                f"{tm.get('assembly', 0) + tm.get('setup', 0):.2f} | {tm.get('solve', 0):.2f} | "
+                f"{r['iters']} | {r['res']:.1e} | {r['total'][0]:.2f} | {r['peak']:.2f} |",
+                flush=True,
+            )
         return
     if args.quick:
         sizes = [
