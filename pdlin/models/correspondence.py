@@ -64,6 +64,50 @@ _SP_CASES: dict[int, np.ndarray] = {
     3: np.array([[1, 1, 1], [1, 1, -1], [1, -1, 1], [-1, 1, 1]]),
 }
 
+#: smallest eigenvalue ratio λ_min/λ_max of a half-family shape tensor for which a
+#: particle gets two stress points (nearest-neighbour interior particles: 1)
+SP_MIN_RATIO = 1e-2
+
+
+def _half_space(xi: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Bonds owned by stress point 1 of case ``s``: ``s·ξ > 0``, ties by orthogonal vectors.
+
+    ``ξ`` and ``-ξ`` always land on different sides, so the two halves of a point-symmetric
+    family are mirror images (each holds half of its shape tensor).
+    """
+    d = xi.shape[1]
+    basis = [np.asarray(s, dtype=float)]
+    if d >= 2:
+        t = np.zeros(d)
+        t[0], t[1] = -s[1], s[0]
+        if d == 3:
+            t[2] = 0.0
+        basis.append(t)
+    if d == 3:
+        basis.append(np.cross(basis[0], basis[1]))
+    tol = 1e-9 * np.linalg.norm(xi, axis=1)
+    key = np.zeros(xi.shape[0])
+    undecided = np.ones(xi.shape[0], dtype=bool)
+    for v in basis:
+        proj = xi @ v
+        take = undecided & (np.abs(proj) > tol * np.linalg.norm(v))
+        key[take] = proj[take]
+        undecided &= ~take
+    return key > 0
+
+
+def _well_conditioned(bonds: Bonds, omega_v: np.ndarray, mask: np.ndarray, n: int) -> np.ndarray:
+    """Per point: the shape tensor of its bonds in ``mask`` has λ_min/λ_max ≥ SP_MIN_RATIO."""
+    d = bonds.xi.shape[1]
+    xi = bonds.xi[mask]
+    outer = (omega_v[mask, None, None] * xi[:, :, None] * xi[:, None, :]).reshape(-1, d * d)
+    K = np.zeros((n, d * d))
+    for k in range(d * d):
+        K[:, k] = np.bincount(bonds.i[mask], weights=outer[:, k], minlength=n)
+    lam = np.linalg.eigvalsh(K.reshape(n, d, d))
+    return lam[:, 0] >= SP_MIN_RATIO * np.maximum(lam[:, -1], 1e-300)
+
+
 #: default byte budget of an assembled K (beyond it :meth:`Correspondence.plan`
 #: chooses the matrix-free operator)
 DEFAULT_MAX_BYTES = 4 * 1024**3
@@ -297,9 +341,14 @@ class Correspondence(Model):
           bond-based ``C_1111`` equals the mean axial modulus of ``C_i``:
           ``penalty = 1`` resists non-affine motion like a bond-based
           material of the same stiffness (full vector, not projected).
-        * ``'stress_points'``: spec 003 (nearest-neighbour axis bonds):
-          two stress points per full-horizon particle, one per boundary
-          particle, ``w_s = ½``.
+        * ``'stress_points'``: spec 003: two stress points per full-horizon
+          particle, one per boundary particle, ``w_s = ½``.  Stress point 1
+          of case ``s`` owns the bonds with ``s·ξ > 0`` (ties broken by
+          orthogonal vectors), stress point 2 the rest: for nearest-neighbour
+          axis bonds this is the paper's ``{s_k e_k} / {-s_k e_k}`` split, for
+          larger horizons pdlin's half-space extension.  A particle gets two
+          stress points when both halves have well-conditioned shape tensors
+          (``λ_min/λ_max ≥ SP_MIN_RATIO``) for every case.
         * ``'springs'``: spec 003 Eq. 7, the force state
           ``T_a⟨ξ_ij⟩ = C1 ω (u_j - u_i)`` (full vector) added to every
           bond: ``K_a`` is the graph Laplacian ⊗ I_d with bond weight
@@ -535,23 +584,17 @@ class Correspondence(Model):
         if self.control != "stress_points":
             return np.arange(n), bonds.i, np.ones(n)
         d = cloud.dim
-        xi = bonds.xi
-        absx = np.abs(xi)
-        axis = np.argmax(absx, axis=1)
-        sign = np.sign(xi[np.arange(bonds.n_bonds), axis]).astype(int)
-        off_axis = absx.sum(axis=1) - absx[np.arange(bonds.n_bonds), axis]
-        if np.any(off_axis > 1e-9 * bonds.length):
-            raise ModelError(
-                "control='stress_points' needs nearest-neighbour axis bonds (spec 003), got "
-                "diagonal bonds; use find_bonds(cloud, ratio=1.0)"
+        cases = _SP_CASES[d]
+        # SP1 of case s owns the bonds with s·ξ > 0 (ties broken by the next vectors of an
+        # orthogonal basis); for nearest-neighbour axis bonds this is spec 003's
+        # {s_k e_k} / {-s_k e_k} split, for larger horizons its half-space extension
+        first = np.stack([_half_space(bonds.xi, s) for s in cases])  # (n_cases, nb)
+        omega_v = self.bond_weights(cloud, bonds) * bonds.volume_j
+        full = np.ones(n, dtype=bool)
+        for side in first:  # a handful of cases: both halves well conditioned in every case
+            full &= _well_conditioned(bonds, omega_v, side, n) & _well_conditioned(
+                bonds, omega_v, ~side, n
             )
-        slot = np.bincount(bonds.i * 2 * d + 2 * axis + (sign > 0), minlength=2 * d * n)
-        if slot.max(initial=0) > 1:
-            raise ModelError(
-                "control='stress_points' needs at most one bond per axis direction, got more "
-                "(horizon larger than the spacing); use find_bonds(cloud, ratio=1.0)"
-            )
-        full = bonds.family_size == 2 * d
         cases = _SP_CASES[d]
         if self.case is None:
             # one draw per full-horizon particle, in point order (the convention of the
@@ -569,7 +612,7 @@ class Correspondence(Model):
         n_sp = np.where(full, 2, 1)
         base = np.zeros(n, dtype=np.intp)
         np.cumsum(n_sp[:-1], out=base[1:])
-        second = full[bonds.i] & (sign != cases[chosen[bonds.i], axis])
+        second = full[bonds.i] & ~first[chosen[bonds.i], np.arange(bonds.n_bonds)]
         gp_of_bond = base[bonds.i] + second
         gp_owner = np.repeat(np.arange(n), n_sp)
         return gp_owner, gp_of_bond, np.full(gp_owner.size, self.sp_weight)

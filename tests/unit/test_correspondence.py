@@ -219,6 +219,9 @@ def test_thickness_scales_K():
     (2, 20, 3.0, "higher_order", "constant"), (2, 20, 2.0, "none", "inverse"),
     (2, 20, 2.0, "penalty", "constant"), (3, 10, 1.0, "none", "constant"),
     (3, 10, 2.0, "higher_order", "constant"), (3, 10, 2.0, "penalty", "inverse"),
+    # stress points beyond nearest neighbours (half-space split, pdlin's extension)
+    (1, 28, 3.0, "stress_points", "constant"), (2, 20, 2.0, "stress_points", "constant"),
+    (2, 20, 3.0, "stress_points", "inverse"), (3, 10, 2.0, "stress_points", "inverse"),
 ])  # fmt: skip
 def test_patch_test_with_shadow_layer_is_exact(dim, n, ratio, control, infl, rng):
     # spec 000 §7 / V14: intact shadow K, prescribed shadow stress: exact to < 1e-12
@@ -393,6 +396,38 @@ def test_stress_point_bookkeeping(dim, shape):
     np.testing.assert_array_equal(same, info["bond_owner"])  # seeded: reproducible
 
 
+@pytest.mark.parametrize("dim,ratio", [(2, 2.0), (2, 3.0), (3, 2.0)])
+def test_stress_points_beyond_nearest_neighbours(dim, ratio):
+    """Half-space split: s·ξ > 0 to SP1, ξ and -ξ always on different sides."""
+    cloud = pdlin.grid((9,) * dim, spacing=1.0)
+    bonds = pdlin.find_bonds(cloud, ratio=ratio)
+    model = pdlin.Correspondence(E=1.0, nu=0.3, control="stress_points", seed=3)
+    info = model.stress_points(cloud, bonds)
+    owner, bond_owner = info["owner"], info["bond_owner"]
+    assert np.array_equal(owner[bond_owner], bonds.i)  # every bond owned by an SP of its point
+    n_sp = np.bincount(owner, minlength=cloud.n)
+    complete = bonds.family_size == bonds.family_size.max()
+    assert np.all(n_sp[complete] == 2)  # complete families: two stress points
+    # each SP of a complete family holds exactly one of every ±ξ pair: half the bonds and
+    # a zero bond sum (mirror halves), hence half of the point's shape tensor
+    per_sp = np.bincount(bond_owner, minlength=owner.size)
+    first = np.zeros(cloud.n, dtype=np.intp)
+    np.cumsum(n_sp[:-1], out=first[1:])
+    k = np.flatnonzero(complete)
+    np.testing.assert_array_equal(per_sp[first[k]], bonds.family_size[k] // 2)
+    np.testing.assert_array_equal(per_sp[first[k] + 1], bonds.family_size[k] // 2)
+    half_sum = np.stack(
+        [np.bincount(bond_owner, weights=bonds.xi[:, a], minlength=owner.size) for a in range(dim)],
+        axis=1,
+    )
+    np.testing.assert_allclose(half_sum[first[k]], -half_sum[first[k] + 1], atol=1e-12)
+    # the affine patch holds at every point (each SP's gradient is exact for affine u)
+    rng = np.random.default_rng(0)
+    H = rng.normal(size=(dim, dim))
+    grads = model.gradient(cloud, bonds, cloud.points @ H.T)
+    np.testing.assert_allclose(grads, np.broadcast_to(H, grads.shape), atol=1e-12)
+
+
 def test_1d_interior_stencils_spec_003_v6():
     # spec 003 V6: rows of V⁻¹K (E = h = 1): none [-¼, 0, ½, 0, -¼]; SP [-1, 2, -1]; w=1 [-2, 4, -2]
     cloud = pdlin.grid((15,), spacing=1.0)
@@ -461,8 +496,6 @@ def test_errors():
         pdlin.Correspondence(np.eye(4)).stiffness(cloud, bonds)
     with pytest.raises(InputError, match="positive definite"):
         pdlin.Correspondence(np.diag([1.0, -1.0, 1.0])).stiffness(cloud, bonds)
-    with pytest.raises(ModelError, match="nearest-neighbour axis bonds"):
-        pdlin.Correspondence(E=1.0, nu=0.3, control="stress_points").stiffness(cloud, bonds)
     with pytest.raises(InputError, match="case is only used"):
         pdlin.Correspondence(E=1.0, nu=0.3, case=1)
     line = pdlin.PointCloud(np.c_[np.arange(5.0), np.zeros(5)], volumes=1.0)
@@ -560,6 +593,10 @@ def test_docs_page_examples():
     (1, 24, "higher_order", 4.0, "constant", 2), (2, 12, "higher_order", 2.0, "constant", 8),
     (2, 12, "higher_order", 3.0, "constant", 8), (3, 8, "higher_order", 2.0, "constant", 24),
     (1, 24, "none", 2.0, "inverse", 4), (1, 24, "none", 3.0, "inverse", 6),
+    # stress points with the half-space split beyond nearest neighbours: translations only
+    # (measured; no control at the same horizons: 6 / 8 / 16 / 24)
+    (1, 24, "stress_points", 3.0, "inverse", 1), (2, 12, "stress_points", 3.0, "inverse", 2),
+    (2, 12, "stress_points", 1.415, "constant", 2), (3, 6, "stress_points", 2.0, "constant", 3),
 ])  # fmt: skip
 def test_periodic_lattice_nullity(dim, n, control, ratio, infl, nullity):
     from pdlin.analysis import periodic_lattice_bonds
