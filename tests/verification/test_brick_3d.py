@@ -12,10 +12,21 @@ calibrated on that grid.
 
 AMG: ``amg_options={"strength": ("symmetric", {"theta": 0.0})}`` (pyamg's default strength
 measure).  pdlin's default block-relative strength, tuned for wide horizons, needs 352 (no
-control) / 107 (SP) iterations here and a 7-11 s setup, versus 329 / 91 and < 1 s.
+control) / 107 (SP) iterations here and a 7-11 s setup, versus 330 / 91 and < 1 s.
+
+pdlin's AMG-CG is not reproducible on these problems: pyamg estimates spectral radii from
+numpy's *global* random state, and for some states the resulting preconditioner is
+indefinite (CG breakdown, ``ConvergenceError``); measured 2026-11-21 on the coarse brick,
+3 to 4 of 8 consecutive solves failed, with pdlin's default options too.
+``test_amg_cg_does_not_depend_on_the_global_random_state`` records that as a strict xfail;
+the other tests fix the global state (restored afterwards) so that they are reproducible,
+and the coarse brick uses the direct solver.
 """
 
 from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -26,6 +37,7 @@ from pdlin.verification.fem import solve_hex8
 E, NU = 1000.0, 0.3  # MPa; spec 003 §7.3 [P]
 EPS0 = 0.01  # ε0 = Δ/d = 0.4 mm / 40 mm, spec 003 §7.3 R3D [S]
 AMG = {"strength": ("symmetric", {"theta": 0.0})}
+SEED = 1  # numpy global random state for pyamg's setup (see the module docstring)
 
 
 def _node_grid_hexes(shape: tuple[int, int, int]) -> np.ndarray:
@@ -47,19 +59,36 @@ def _node_grid_hexes(shape: tuple[int, int, int]) -> np.ndarray:
     )
 
 
-def _r3d(n_xy: int, n_z: int) -> dict:
-    """Solve the R3D brick on an n_xy x n_xy x n_z node grid: FE and both PD controls."""
+@contextlib.contextmanager
+def _global_random_state(seed: int) -> Iterator[None]:
+    """Fix numpy's global random state (used by pyamg's setup), then restore it."""
+    saved = np.random.get_state()  # noqa: NPY002 - pyamg draws from the legacy global state
+    np.random.seed(seed)  # noqa: NPY002
+    try:
+        yield
+    finally:
+        np.random.set_state(saved)  # noqa: NPY002
+
+
+def _dirichlet_problem(n_xy: int, n_z: int) -> tuple:
     h = 80.0 / (n_xy - 1)
     assert np.isclose(h * (n_z - 1), 40.0)
     # pdlin.grid is cell-centred: shift by h/2 so the nodes sit at 0, h, ..., 80
     cloud = pdlin.grid((n_xy, n_xy, n_z), spacing=h, origin=(-h / 2,) * 3)
     p = cloud.points
-    bonds = pdlin.find_bonds(cloud, ratio=1.0)  # nearest neighbours (spec 003 §2)
     side = np.flatnonzero(
         np.isclose(p[:, 0], 0) | np.isclose(p[:, 0], 80) | np.isclose(p[:, 1], 0)
         | np.isclose(p[:, 1], 80)
     )  # fmt: skip
     ub = np.column_stack([EPS0 * (p[:, 0] - 40), EPS0 * (p[:, 1] - 40), np.zeros(cloud.n)])
+    return cloud, side, ub
+
+
+def _r3d(n_xy: int, n_z: int, solver: str) -> dict:
+    """Solve the R3D brick on an n_xy x n_xy x n_z node grid: FE and both PD controls."""
+    cloud, side, ub = _dirichlet_problem(n_xy, n_z)
+    p = cloud.points
+    bonds = pdlin.find_bonds(cloud, ratio=1.0)  # nearest neighbours (spec 003 §2)
     fixed = (3 * side[:, None] + np.arange(3)).ravel()
     u_fe = solve_hex8(p, _node_grid_hexes((n_xy, n_xy, n_z)), E, NU, fixed, ub[side].ravel(),
                       solver="amg")  # fmt: skip
@@ -68,7 +97,7 @@ def _r3d(n_xy: int, n_z: int) -> dict:
         model = pdlin.Correspondence(E=E, nu=NU, control=control, seed=0)
         res = pdlin.solve(
             pdlin.StaticProblem(model, cloud, bonds, dirichlet=[pdlin.Dirichlet(side, ub[side])]),
-            solver="amg-cg",
+            solver=solver,
             rtol=1e-10,
             amg_options=AMG,
         )
@@ -85,16 +114,18 @@ def _rel_l2(u: np.ndarray, ref: np.ndarray) -> float:
 
 @pytest.fixture(scope="module")
 def r3d_small():
-    return _r3d(17, 9)
+    with _global_random_state(0):  # the Hex8 reference uses AMG-CG
+        return _r3d(17, 9, "direct")
 
 
 @pytest.fixture(scope="module")
 def r3d():
-    return _r3d(33, 17)
+    with _global_random_state(SEED):
+        return _r3d(33, 17, "amg-cg")
 
 
 def test_r3d_coarse_brick(r3d_small):
-    """h = 5 mm (17 x 17 x 9): the V22 ordering with bounds calibrated on this grid."""
+    """h = 5 mm (17 x 17 x 9, direct solves): V22 ordering, bounds calibrated on this grid."""
     s = r3d_small
     fe, none, sp = s["fe"], s["none"].u, s["stress_points"].u
     mid = s["line"][np.isclose(s["cloud"].points[s["line"], 1], 40)][0]
@@ -102,18 +133,14 @@ def test_r3d_coarse_brick(r3d_small):
     # (2026-11-21): the coarse Hex8 is within 1%
     assert fe[mid, 2] == pytest.approx(0.1850, rel=1e-2)
     err_none, err_sp = _rel_l2(none, fe), _rel_l2(sp, fe)
-    # measured 2026-11-21: rel-L2 SP 2.687e-2, no control 6.109e-2 (calibrated bounds; at
+    # measured 2026-11-21: rel-L2 SP 2.678e-2, no control 6.109e-2 (calibrated bounds; at
     # h = 2.5 the spec 003 §7.3 [REF] values are 1.14e-2 / 3.23e-2)
     assert err_sp <= 3.0e-2
     assert err_none >= 5.0e-2
     assert err_sp <= 0.5 * err_none
-    # measured 2026-11-21: w(y = 40) SP 0.18770, no control 0.20159 (rel. to FE +0.9% / +8.4%)
+    # measured 2026-11-21: w(y = 40) SP 0.18761, no control 0.20159 (rel. to FE +0.9% / +8.4%)
     assert abs(sp[mid, 2] / fe[mid, 2] - 1) <= 0.02
     assert none[mid, 2] / fe[mid, 2] - 1 >= 0.05
-    # AMG-CG iterations to 1e-10, measured 2026-11-21: SP 84, no control 159
-    # (spec 003 V22 asks ≤ 150 at h = 2.5; see test_v22_no_control_amg_iterations)
-    assert s["stress_points"].n_iter <= 150
-    assert s["none"].n_iter <= 300
 
 
 @pytest.mark.slow
@@ -127,7 +154,7 @@ def test_v22_r3d_brick(r3d):
     )
     assert info["owner"].size == 32928
     # V22: global rel-L2(u) SP ≤ 1.5e-2, no control ≥ 2.5e-2 (spec 003 §9 V22;
-    # [REF] 1.14e-2 / 3.23e-2, §7.3; measured 2026-11-21: 1.140e-2 / 3.228e-2)
+    # [REF] 1.14e-2 / 3.23e-2, §7.3; measured 2026-11-21: 1.139e-2 / 3.228e-2)
     err_sp, err_none = _rel_l2(sp.u, fe), _rel_l2(none.u, fe)
     assert err_sp <= 1.5e-2
     assert err_none >= 2.5e-2
@@ -139,33 +166,53 @@ def test_v22_r3d_brick(r3d):
     # FE w(y = 40) = 0.1850 mm on x = 40, z = 0 (spec 003 §7.3 [REF]; measured 0.184994)
     assert fe[mid, 2] == pytest.approx(0.1850, rel=1e-2)
     # PD w(y = 40): SP 0.1860, no control 0.1928 (spec 003 §7.3 [REF];
-    # measured 2026-11-21: 0.186043 / 0.192758); SP depends on the random cases, allow 1%
+    # measured 2026-11-21: 0.186035 / 0.192758); SP depends on the random cases, allow 1%
     assert sp.u[mid, 2] == pytest.approx(0.1860, rel=1e-2)
     assert none.u[mid, 2] == pytest.approx(0.1928, rel=1e-2)
     # line max a_w for 10 < y < 70: no control 4.2e-2 vs SP 2.0e-2 (spec 003 §7.3 [REF];
-    # measured 2026-11-21: 4.197e-2 / 1.711e-2)
+    # measured 2026-11-21: 4.197e-2 / 2.040e-2)
     inner = line[(y > 10) & (y < 70)]
 
     def max_aw(u: np.ndarray) -> float:
         return float(np.abs(u[inner, 2] / fe[inner, 2] - 1).max())
 
     assert max_aw(none.u) == pytest.approx(4.2e-2, rel=0.1)
-    assert max_aw(sp.u) <= 2.5e-2
+    assert max_aw(sp.u) == pytest.approx(2.0e-2, rel=0.1)
     # the no-control sawtooth at the first line particle y = 2.5: FE 0.0681, SP 0.0562, no
-    # control 0.0411 (spec 003 §7.3 [REF]; measured 2026-11-21: 0.06806 / 0.05729 / 0.04107)
+    # control 0.0411 (spec 003 §7.3 [REF]; measured 2026-11-21: 0.06806 / 0.05622 / 0.04107)
     first = line[np.isclose(y, 2.5)][0]
     assert fe[first, 2] == pytest.approx(0.0681, rel=1e-2)
     assert none.u[first, 2] == pytest.approx(0.0411, rel=2e-2)
-    assert sp.u[first, 2] == pytest.approx(0.0562, rel=5e-2)  # seed dependent
+    assert sp.u[first, 2] == pytest.approx(0.0562, rel=2e-2)  # depends on the random cases
 
 
 @pytest.mark.slow
 @pytest.mark.xfail(
     strict=True,
     reason="spec 003 V22 asks AMG-CG ≤ 150 iterations also without control (spec REF: 48 to "
-    "1e-12); pdlin's AMG (Jacobi relaxation only) needs 329 to 1e-10 (352 with its default "
+    "1e-12); pdlin's AMG (Jacobi relaxation only) needs 330 to 1e-10 (352 with its default "
     "strength), while pyamg's default SA with symmetric Gauss-Seidel needs 41 (measured "
     "2026-11-21)",
 )
 def test_v22_no_control_amg_iterations(r3d):
     assert r3d["none"].n_iter <= 150  # spec 003 §9 V22
+
+
+@pytest.mark.xfail(
+    strict=True,
+    raises=pdlin.ConvergenceError,
+    reason="pdlin's AMG-CG depends on numpy's global random state (pyamg's spectral-radius "
+    "estimates) and breaks down (indefinite preconditioner) for some states; measured "
+    "2026-11-21: global seeds 1-3 converge in 78-79 iterations, seed 0 fails",
+)
+def test_amg_cg_does_not_depend_on_the_global_random_state():
+    cloud, side, ub = _dirichlet_problem(17, 9)
+    bonds = pdlin.find_bonds(cloud, ratio=1.0)
+    model = pdlin.Correspondence(E=E, nu=NU, control="stress_points", seed=0)
+    problem = pdlin.StaticProblem(model, cloud, bonds, dirichlet=[pdlin.Dirichlet(side, ub[side])])
+    iters = []
+    for seed in range(4):
+        with _global_random_state(seed):
+            iters.append(pdlin.solve(problem, solver="amg-cg", rtol=1e-10).n_iter)
+    # every random state must give a convergent solve (spec 003 V22: ≤ 150 iterations)
+    assert max(iters) <= 150
