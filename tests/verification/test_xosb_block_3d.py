@@ -127,6 +127,13 @@ def test_extruded_ogrid_is_a_valid_hex8_mesh():
     vol = np.einsum("ei,ei->e", np.cross(p[:, 1] - p[:, 0], p[:, 3] - p[:, 0]), p[:, 4] - p[:, 0])
     assert np.all(vol > 0)
     hex8_stiffness(mesh.points, hexes, E, NU)  # positive Jacobians at all Gauss points
+    # the 'quad' block is exactly the boundary: the hexahedron faces owned by one cell
+    local = [[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]]
+    faces = np.sort(hexes[:, local].reshape(-1, 4), axis=1)
+    uniq, count = np.unique(faces, axis=0, return_counts=True)
+    boundary = np.sort(mesh.cells_dict["quad"], axis=1)
+    np.testing.assert_array_equal(np.unique(boundary, axis=0), uniq[count == 1])
+    assert boundary.shape[0] == uniq[count == 1].shape[0]
     cloud = pdlin.read_mesh(mesh)
     # volume of the polygonal block: 0.3 (1 - area of the 32-gon inscribed in r = 0.1)
     polygon = 0.5 * 32 * 0.1**2 * np.sin(2 * np.pi / 32)
