@@ -299,6 +299,30 @@ def shadow_real_counts(cloud: PointCloud, shadow: np.ndarray) -> np.ndarray:
 # the model
 
 
+def _with_diagonal_blocks(K: sp.sparray, d: int) -> sp.bsr_array:
+    """``K`` as BSR with every diagonal block stored (explicit zeros where empty).
+
+    Energy-free shadow points may have empty rows; Dirichlet elimination writes its identity
+    into stored diagonal entries.
+    """
+    Kb = sp.bsr_array(K, blocksize=(d, d))
+    nrow = Kb.shape[0] // d
+    rows = np.repeat(np.arange(nrow), np.diff(Kb.indptr))
+    has = np.zeros(nrow, dtype=bool)
+    has[rows[Kb.indices == rows]] = True
+    if has.all():
+        return Kb
+    Kc = sp.coo_array(Kb)
+    nd = Kb.shape[0]
+    ar = np.arange(nd)
+    Kc = sp.coo_array(
+        (np.concatenate([Kc.data, np.zeros(nd)]),
+         (np.concatenate([Kc.row, ar]), np.concatenate([Kc.col, ar]))),
+        shape=Kb.shape,
+    )  # fmt: skip
+    return sp.bsr_array(Kc.tocsr(), blocksize=(d, d))
+
+
 @dataclasses.dataclass(frozen=True)
 class _Plan:
     gp_owner: np.ndarray  # (n_gp,) particle of each gradient point
@@ -888,26 +912,44 @@ class Correspondence(Model):
         self.plan(cloud, bonds)
         if self.assembly.get("path") == "matrix-free":
             log.warning("assembling K beyond the byte budget: %s", self.assembly["reason"])
-        Gt = sp.csr_array(p.G.T)
-        K = sp.csr_array(Gt @ sp.csr_array(self._dblock(p) @ p.G))
+        K = self._core_stiffness(cloud, p)
+        extra = None
         if self.control == "penalty" and self.penalty > 0:
-            K = sp.csr_array(K + self._penalty_matrix(cloud, bonds, p))
-        K = sp.csr_array(0.5 * (K + K.T))
+            Kp = self._penalty_matrix(cloud, bonds, p)
+            extra = 0.5 * (Kp + Kp.T)  # symmetric up to round-off: symmetrized like the core
         Ka = self._control_matrix(cloud, bonds, p)
         if Ka is not None:  # springs / ADS (ADS may be nonsymmetric: added unsymmetrized)
-            K = sp.csr_array(K + Ka)
-        K.eliminate_zeros()
-        # keep every diagonal block stored (energy-free shadow points may have empty
-        # rows; Dirichlet elimination writes its identity into stored diagonals)
-        Kc = K.tocoo()
-        nd = K.shape[0]
-        ar = np.arange(nd)
-        Kc = sp.coo_array(
-            (np.concatenate([Kc.data, np.zeros(nd)]),
-             (np.concatenate([Kc.row, ar]), np.concatenate([Kc.col, ar]))),
-            shape=K.shape,
-        )  # fmt: skip
-        return sp.bsr_array(Kc.tocsr(), blocksize=(d, d))
+            extra = Ka
+        if extra is not None:
+            K = sp.bsr_array(sp.csr_array(K) + sp.csr_array(extra), blocksize=(d, d))
+        return _with_diagonal_blocks(K, d)
+
+    def _core_stiffness(self, cloud: PointCloud, p: _Plan) -> sp.bsr_array:
+        """``Bᵀ blockdiag(w V C) B`` in BSR arithmetic: B = P_sym G with (n_v x d) blocks.
+
+        One block per (gradient point, point) pair, Voigt-size material blocks, and a
+        (d x d)-block result: 2-3x faster than the CSR product of the d²-row G.
+        """
+        d = cloud.dim
+        q = d * d
+        Gb = sp.bsr_array(p.G, blocksize=(q, d))
+        P = voigt_projector(d)
+        nv = P.shape[0]
+        Bdata = np.einsum("vr,brc->bvc", P, Gb.data)
+        n_gp = p.Cv.shape[0]
+        B = sp.bsr_array(
+            (Bdata, Gb.indices, Gb.indptr), shape=(n_gp * nv, p.G.shape[1]), blocksize=(nv, d)
+        )
+        vol = np.asarray(cloud.volumes) * (1.0 if d == 3 else cloud.thickness)
+        scale = p.weight * vol[p.gp_owner] * p.energy
+        ar = np.arange(n_gp + 1, dtype=np.int32)
+        Db = sp.bsr_array(
+            (p.Cv * scale[:, None, None], ar[:-1], ar),
+            shape=(n_gp * nv, n_gp * nv),
+            blocksize=(nv, nv),
+        )
+        K = sp.bsr_array(B.T @ (Db @ B))
+        return sp.bsr_array(0.5 * (K + K.T), blocksize=(d, d))
 
     def apply(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
         """Matrix-free ``K u`` through G (and the bonds for the penalty), ``(n*d,)``."""
@@ -954,13 +996,29 @@ class Correspondence(Model):
         return self.linear_operator(cloud, bonds)
 
     def surrogate_stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.bsr_array:
-        """Bond-based K of the same bonds (ω ≥ 0) and equivalent modulus: a preconditioner base."""
+        """One-hop preconditioner base: bond-based K plus half its graph Laplacian ⊗ I.
+
+        The bond-based stiffness of the same bonds (ω ≥ 0, equivalent modulus) resists only
+        bond stretch: with nearest-neighbour axis bonds it has shear mechanisms, and its
+        AMG then breaks CG down on the correspondence operator.  Adding ``½ L ⊗ I_d``, ``L``
+        the graph Laplacian with the bond stiffnesses as weights (springs acting on the full
+        vector, like the correspondence operator), removes them and, measured, cuts the
+        AMG-CG iterations of the matrix-free solve (3D brick with stress points: breakdown
+        → 52; 14³ higher-order δ = 2h: 156 → 75; 2D penalty: 32 → 26).
+        """
         d = cloud.dim
         Cv = self.voigt_stiffness(cloud)
         axial = np.einsum("nkk->n", Cv[:, :d, :d]) / d
         e_eq = axial / _c1111(np.ones(1), d, self.plane)[0]
         b = dataclasses.replace(bonds, omega=np.abs(self.bond_weights(cloud, bonds)))
-        return BondBased(E=e_eq, plane=self.plane).stiffness(cloud, b)
+        K = sp.bsr_array(BondBased(E=e_eq, plane=self.plane).stiffness(cloud, b))
+        n = cloud.n
+        rows = np.repeat(np.arange(n), np.diff(K.indptr))
+        off = rows != K.indices
+        k_b = -np.einsum("bii->b", K.data[off])  # bond stiffness: -trace of its block
+        W = sp.csr_array((k_b, (rows[off], K.indices[off])), shape=(n, n))
+        L = sp.diags_array(np.asarray(W.sum(axis=1)).ravel()) - W
+        return sp.bsr_array(K + 0.5 * sp.kron(L, sp.eye_array(d), format="bsr"), blocksize=(d, d))
 
     def plan(self, cloud: PointCloud, bonds: Bonds) -> dict[str, Any]:
         """Decide between assembled K and the matrix-free operator (also in ``self.assembly``).

@@ -525,7 +525,15 @@ def amg_hierarchy(
     opts.setdefault("coarse_solver", "pinv")
     if not symmetric:
         opts.setdefault("symmetry", "nonsymmetric")
-    ml = pyamg.smoothed_aggregation_solver(M, B=B, **opts)
+    # pyamg's setup draws its spectral-radius start vectors from numpy's global random
+    # state: seed it (and restore the caller's state) so that a hierarchy, and hence the
+    # iteration count of a solve, does not depend on what ran before
+    state = np.random.get_state()  # noqa: NPY002 - pyamg reads the legacy global state
+    np.random.seed(0)  # noqa: NPY002
+    try:
+        ml = pyamg.smoothed_aggregation_solver(M, B=B, **opts)
+    finally:
+        np.random.set_state(state)  # noqa: NPY002
     return AMGHierarchy(ml, cycle=cycle, relax=relax, symmetric=symmetric)
 
 

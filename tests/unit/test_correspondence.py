@@ -479,7 +479,16 @@ def test_plan_switches_to_matrix_free_and_surrogate():
     assert small.describe()["assembly"] == "matrix-free"
     S = small.surrogate_stiffness(cloud, bonds)
     assert S.shape == (cloud.ndof, cloud.ndof)
-    assert np.abs(S @ pdlin.rigid_body_modes(cloud)).max() < 1e-10 * np.abs(S.data).max()
+    assert np.abs(S - S.T).max() <= 1e-14 * np.abs(S.data).max()
+    # translations are exact zero modes; the ½ L ⊗ I springs resist rotations (by design:
+    # they remove the shear mechanisms of axis-only bonds), so rotations are not
+    rb = pdlin.rigid_body_modes(cloud)
+    assert np.abs(S @ rb[:, :2]).max() < 1e-10 * np.abs(S.data).max()
+    assert np.abs(S @ rb[:, 2]).max() > 1e-3 * np.abs(S.data).max()
+    # nearest-neighbour axis bonds: the surrogate has no mechanisms beyond translations
+    nn = pdlin.find_bonds(cloud, ratio=1.0)
+    ev = np.linalg.eigvalsh(small.surrogate_stiffness(cloud, nn).toarray())
+    assert np.sum(ev < 1e-10 * ev[-1]) == 2
 
 
 # -- errors ----------------------------------------------------------------------------------
