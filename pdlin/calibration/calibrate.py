@@ -255,9 +255,7 @@ class CalibrationResult:
 # quartic forms (rank messages)
 # ---------------------------------------------------------------------------
 def _quartic_exponents(dim: int) -> list[tuple[int, ...]]:
-    return sorted(
-        (e for e in itertools.product(range(5), repeat=dim) if sum(e) == 4), reverse=True
-    )
+    return sorted((e for e in itertools.product(range(5), repeat=dim) if sum(e) == 4), reverse=True)
 
 
 def _format_poly(coef: np.ndarray, exps: list[tuple[int, ...]]) -> str:
@@ -266,9 +264,7 @@ def _format_poly(coef: np.ndarray, exps: list[tuple[int, ...]]) -> str:
     for cf, e in zip(coef, exps, strict=True):
         if abs(cf) < 1e-9:
             continue
-        mono = "*".join(
-            names[k] + (f"^{p}" if p > 1 else "") for k, p in enumerate(e) if p > 0
-        )
+        mono = "*".join(names[k] + (f"^{p}" if p > 1 else "") for k, p in enumerate(e) if p > 0)
         mag = abs(cf)
         s = mono if abs(mag - 1) < 1e-9 else f"{mag:.4g}*{mono}"
         terms.append(("-" if cf < 0 else "+", s))
@@ -352,8 +348,16 @@ def _qp_osqp(Q: np.ndarray, d: np.ndarray, lb: np.ndarray) -> _QPOut:
     hi = np.concatenate([d, np.full(n, np.inf)])
     s = osqp.OSQP()
     s.setup(
-        P, np.zeros(n), A, lo, hi, eps_abs=1e-10, eps_rel=1e-10, polishing=True,
-        max_iter=200000, verbose=False,
+        P,
+        np.zeros(n),
+        A,
+        lo,
+        hi,
+        eps_abs=1e-10,
+        eps_rel=1e-10,
+        polishing=True,
+        max_iter=200000,
+        verbose=False,
     )
     res = s.solve(raise_error=False)
     status = str(res.info.status)
@@ -478,8 +482,7 @@ def _solve_family(
     cauchy_dim = _CAUCHY_DIM[dim]
     if rank == 0:
         raise InputError(
-            "bonds must carry stiffness, got a family whose design matrix is zero "
-            "(all omega == 0?)"
+            "bonds must carry stiffness, got a family whose design matrix is zero (all omega == 0?)"
         )
     Ur, sr, Vr = U[:, :rank], s[:rank], Vt[:rank]
     t_ls = Vr.T @ ((Ur.T @ bw) / sr)
@@ -615,8 +618,10 @@ def _kkt(t: np.ndarray, Q: np.ndarray, d: np.ndarray, lt: np.ndarray, scale: flo
     eq = float(np.linalg.norm(Q @ t - d)) / max(float(np.linalg.norm(d)), 1e-300)
     bound = float(max(0.0, np.max(lt - t))) / scale
     free = t > lt + 1e-9 * scale
-    lam = np.linalg.lstsq(Q[:, free].T, t[free], rcond=None)[0] if free.any() else np.zeros(
-        Q.shape[0]
+    lam = (
+        np.linalg.lstsq(Q[:, free].T, t[free], rcond=None)[0]
+        if free.any()
+        else np.zeros(Q.shape[0])
     )
     stat = float(np.linalg.norm(t[free] - Q[:, free].T @ lam)) / max(
         float(np.linalg.norm(t)), 1e-300
@@ -862,4 +867,3 @@ def max_lower_bound(
     if res.status != 0:
         raise InputError(f"the bound LP did not solve: {res.message}")
     return float(res.x[-1] * scale)
-

@@ -233,9 +233,7 @@ def _segments_cross_2d(p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.ndarra
     return (o1 * o2 < 0) & (o3 * o4 <= 0) | (o1 * o2 <= 0) & (o3 * o4 < 0)
 
 
-def _segments_cross_triangle(
-    p: np.ndarray, q: np.ndarray, tri: np.ndarray
-) -> np.ndarray:
+def _segments_cross_triangle(p: np.ndarray, q: np.ndarray, tri: np.ndarray) -> np.ndarray:
     """Vectorized segment p-q / triangle intersection (Moller-Trumbore)."""
     v0, v1, v2 = tri
     e1 = v1 - v0
@@ -481,9 +479,7 @@ def find_bonds(
     np.cumsum(counts, out=indptr[1:])
     hij = np.full(i.size, hor[0]) if uniform else np.maximum(hor[i], hor[j])
     omega = evaluate_influence(influence, length, hij, allow_negative=allow_negative_influence)
-    bonds = Bonds(
-        cloud.n, i, j, xi, length, omega, cloud.volumes[j], indptr, hor, shape, influence
-    )
+    bonds = Bonds(cloud.n, i, j, xi, length, omega, cloud.volumes[j], indptr, hor, shape, influence)
     if drop is not None and drop.any():
         drop = drop | drop[bonds.reverse]
         bonds = bonds.keep(~drop)

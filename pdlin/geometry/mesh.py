@@ -154,9 +154,7 @@ def _faces_measure(x: np.ndarray, cell_type: str) -> tuple[np.ndarray, np.ndarra
     return vol, mom / safe[:, None]
 
 
-def cell_measures(
-    points: Any, cells: Any, cell_type: str
-) -> tuple[np.ndarray, np.ndarray]:
+def cell_measures(points: Any, cells: Any, cell_type: str) -> tuple[np.ndarray, np.ndarray]:
     """Signed measure and centroid of every cell of one type.
 
     Parameters
@@ -218,9 +216,7 @@ def cell_measures(
         )
     if nc > 0:
         if con.shape[1] < nc:
-            raise ShapeError(
-                f"{cell_type!r} cells need at least {nc} nodes, got shape {con.shape}"
-            )
+            raise ShapeError(f"{cell_type!r} cells need at least {nc} nodes, got shape {con.shape}")
         con = con[:, :nc]
     elif con.shape[1] < 3:
         raise ShapeError(f"polygon cells need at least 3 nodes, got shape {con.shape}")
@@ -319,9 +315,7 @@ def _incidence(rows: list[np.ndarray], n_nodes: int) -> sp.csr_array:
     counts = np.concatenate([np.full(r.shape[0], r.shape[1]) for r in rows])
     cols = np.concatenate([r.ravel() for r in rows]).astype(np.int64)
     row = np.repeat(np.arange(counts.size), counts)
-    m = sp.coo_array(
-        (np.ones(cols.size), (row, cols)), shape=(counts.size, n_nodes)
-    ).tocsr()
+    m = sp.coo_array((np.ones(cols.size), (row, cols)), shape=(counts.size, n_nodes)).tocsr()
     m.sum_duplicates()
     m.data[:] = 1.0
     return m

@@ -438,7 +438,6 @@ def _bond_operator(bonds: Bonds, unit: np.ndarray, n: int, d: int) -> sp.csr_arr
     return sp.csr_array((data.ravel(), cols.ravel(), indptr), shape=(nb, n * d))
 
 
-
 class OrdinaryStateBased(Model):
     """Common base of :class:`pdlin.LPS` and :class:`pdlin.XOSB` (not public)."""
 

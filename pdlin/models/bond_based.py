@@ -372,5 +372,3 @@ def _measure(cloud: PointCloud) -> float:
 
 def _effective_volumes(cloud: PointCloud) -> np.ndarray:
     return np.asarray(cloud.volumes) * _measure(cloud)
-
-

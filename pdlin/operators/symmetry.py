@@ -629,9 +629,7 @@ class SymmetryReduction:
         n, d = m.n_real, m.dim
         dofs = np.asarray(dofs, dtype=np.intp)
         n_aug = m.cloud.n
-        S = sp.csr_array(
-            (np.ones(n_aug), m.source, np.arange(n_aug + 1)), shape=(n_aug, n)
-        )
+        S = sp.csr_array((np.ones(n_aug), m.source, np.arange(n_aug + 1)), shape=(n_aug, n))
         A = S.T @ sp.csr_array(self.bonds.adjacency(), dtype=float) @ S
         ncomp, labels = connected_components(A, directed=False)
         if ncomp > 200:
@@ -742,9 +740,7 @@ def symmetry_reduction(
     mirror = mirror_cloud(cloud, planes, int(cr) * bond_reach)
     if opts.get("cracks") is not None:
         opts["cracks"] = mirror.mirror_cracks(opts["cracks"])
-    bonds = find_bonds(
-        mirror.cloud, hor[mirror.source], allow_isolated=True, method="tree", **opts
-    )
+    bonds = find_bonds(mirror.cloud, hor[mirror.source], allow_isolated=True, method="tree", **opts)
     if not allow_isolated:
         fs = np.diff(bonds.indptr[: cloud.n + 1])
         empty = np.flatnonzero(fs == 0)

@@ -67,8 +67,11 @@ def test_unit_square_four_quads_through_read_mesh() -> None:
     x, y = np.meshgrid([0.0, 0.5, 1.0], [0.0, 0.5, 1.0], indexing="ij")
     pts = np.stack([x.ravel(), y.ravel(), np.zeros(9)], axis=1)  # z = 0 -> 2D cloud
     node = np.arange(9).reshape(3, 3)
-    quads = [[node[i, j], node[i + 1, j], node[i + 1, j + 1], node[i, j + 1]]
-             for i in range(2) for j in range(2)]
+    quads = [
+        [node[i, j], node[i + 1, j], node[i + 1, j + 1], node[i, j + 1]]
+        for i in range(2)
+        for j in range(2)
+    ]
     cloud = read_mesh(meshio.Mesh(pts, [("quad", quads)]))
     assert cloud.dim == 2
     # hand computation: 2x2 cells of side 1/2
@@ -133,9 +136,7 @@ def test_random_warped_hexahedra_match_trilinear_quadrature() -> None:
 
 def test_wedge_right_prism_and_affine_image() -> None:
     # meshio/gmsh wedge order: triangle (0, 1, 2) counterclockwise seen from (3, 4, 5)
-    ref = np.array(
-        [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [0, 1, 1]], dtype=float
-    )
+    ref = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [0, 1, 1]], dtype=float)
     vol, cen = cell_measures(ref, [list(range(6))], "wedge")
     # hand computation: triangle area 1/2 times height 1; centroid (1/3, 1/3, 1/2)
     np.testing.assert_allclose(vol, [0.5], rtol=1e-15)
@@ -185,9 +186,7 @@ def test_quadratic_cells_use_corner_nodes() -> None:
 
 def test_mixed_2d_mesh_and_boundary_rules() -> None:
     # unit square: quad [0,1/2]x[0,1] + two triangles on [1/2,1]x[0,1]; bottom line tagged
-    pts = np.array(
-        [[0, 0], [0.5, 0], [1, 0], [0, 1], [0.5, 1], [1, 1]], dtype=float
-    )
+    pts = np.array([[0, 0], [0.5, 0], [1, 0], [0, 1], [0.5, 1], [1, 1]], dtype=float)
     mesh = meshio.Mesh(
         pts,
         [
@@ -214,9 +213,17 @@ def _mixed_3d_mesh() -> meshio.Mesh:
     """Hex [0,1]^3, wedge over triangle (1,0),(2,0),(1,1) x [0,1], tetra on top of the hex."""
     pts = np.array(
         [
-            [0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
-            [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1],
-            [2, 0, 0], [2, 0, 1], [0, 0, 2],
+            [0, 0, 0],
+            [1, 0, 0],
+            [1, 1, 0],
+            [0, 1, 0],
+            [0, 0, 1],
+            [1, 0, 1],
+            [1, 1, 1],
+            [0, 1, 1],
+            [2, 0, 0],
+            [2, 0, 1],
+            [0, 0, 2],
         ],
         dtype=float,
     )
@@ -388,7 +395,12 @@ def test_ogrid_sets_sit_on_their_edges() -> None:
     cloud = read_mesh(plate_with_hole_mesh(8, 10))
     # 4 blocks x 8 angular cells, one ring of 32 cells around the hole
     assert {k: v.size for k, v in cloud.sets.items()} == {
-        "hole": 32, "right": 8, "top": 8, "left": 8, "bottom": 8, "plate": 320,
+        "hole": 32,
+        "right": 8,
+        "top": 8,
+        "left": 8,
+        "bottom": 8,
+        "plate": 320,
     }
     x, y = cloud.points.T
     assert np.all(x[cloud.sets["right"]] > 0.45) and np.all(x[cloud.sets["left"]] < -0.45)
@@ -416,8 +428,11 @@ def test_ogrid_spec_geometry() -> None:
 
 @pytest.mark.parametrize(
     ("suffix", "options"),
-    [(".vtu", {}), (".msh", {"file_format": "gmsh22", "binary": False}),
-     (".msh", {"file_format": "gmsh22", "binary": True})],
+    [
+        (".vtu", {}),
+        (".msh", {"file_format": "gmsh22", "binary": False}),
+        (".msh", {"file_format": "gmsh22", "binary": True}),
+    ],
 )
 def test_file_round_trip_preserves_sets(tmp_path: Path, suffix: str, options: dict) -> None:
     ref = read_mesh(plate_with_hole_mesh(8, 6))

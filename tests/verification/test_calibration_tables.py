@@ -481,8 +481,9 @@ def test_triangular_nearest_neighbour_constant_c():
 
     C = design_matrix(fam.xi, fam.omega, fam.volume, weighting="voigt").sum(axis=1)
     # rows (11, 12, 16, 22, 26, 66)
-    np.testing.assert_allclose(C[[0, 1, 2, 3, 4, 5]], [0.974279, 0.974279 / 3, 0, 0.974279,
-                                                         0, 0.974279 / 3], atol=1e-6)
+    np.testing.assert_allclose(
+        C[[0, 1, 2, 3, 4, 5]], [0.974279, 0.974279 / 3, 0, 0.974279, 0, 0.974279 / 3], atol=1e-6
+    )
     # calibrating the isotropic tensor gives the constant c back
     r = calibrate_micromoduli(np.array([[3.0, 1, 0], [1, 3, 0], [0, 0, 1]]) * 0.974279 / 3, fam)
     np.testing.assert_allclose(r.micromoduli, 1.0, rtol=1e-6)

@@ -183,13 +183,18 @@ def test_plate_with_points_on_planes(odd_plate_full, planes):
         dl.append(pdlin.Dirichlet("x-", -0.01, components="x"))
     if 1 not in axes:  # no plane y = 0: the user still removes the y translation
         pts = cloud.points
-        dl.append(pdlin.Dirichlet(
-            np.flatnonzero((np.abs(pts[:, 1]) < 1e-9) & (pts[:, 0] > 6.0)), 0.0, components="y"
-        ))
+        dl.append(
+            pdlin.Dirichlet(
+                np.flatnonzero((np.abs(pts[:, 1]) < 1e-9) & (pts[:, 0] > 6.0)), 0.0, components="y"
+            )
+        )
     prob = pdlin.StaticProblem(
-        pdlin.BondBased(E=1.0), cloud, dirichlet=dl,
+        pdlin.BondBased(E=1.0),
+        cloud,
+        dirichlet=dl,
         loads=[pdlin.BodyForce(None, symmetric_body_force)],
-        bond_options={"ratio": RATIO}, symmetry=planes,
+        bond_options={"ratio": RATIO},
+        symmetry=planes,
     )
     res = pdlin.solve(prob, solver="direct", keep_stiffness=True)
     mirror = res.symmetry.mirror
@@ -217,7 +222,8 @@ def test_plate_with_points_on_planes(odd_plate_full, planes):
 def block_full():
     full = centered_grid((10, 8, 6))
     prob = pdlin.StaticProblem(
-        pdlin.BondBased(E=1.0), full,
+        pdlin.BondBased(E=1.0),
+        full,
         dirichlet=[pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", 0.0)],
         loads=[pdlin.BodyForce(None, symmetric_body_force)],
         bond_options={"ratio": RATIO},
@@ -225,18 +231,19 @@ def block_full():
     return full, pdlin.solve(prob, solver="direct")
 
 
-@pytest.mark.parametrize(
-    "planes", [[X], [X, Y], [X, Y, Z]], ids=["half", "quarter", "eighth"]
-)
+@pytest.mark.parametrize("planes", [[X], [X, Y], [X, Y, Z]], ids=["half", "quarter", "eighth"])
 def test_block_reduced_matches_full(block_full, planes):
     full, ref = block_full
     idx = part(full, planes)
     cloud = full.subset(idx)
     # the only condition a user of the reduced model gives: the clamped x+ face
     prob = pdlin.StaticProblem(
-        pdlin.BondBased(E=1.0), cloud, dirichlet=[pdlin.Dirichlet("x+", 0.0)],
+        pdlin.BondBased(E=1.0),
+        cloud,
+        dirichlet=[pdlin.Dirichlet("x+", 0.0)],
         loads=[pdlin.BodyForce(None, symmetric_body_force)],
-        bond_options={"ratio": RATIO}, symmetry=planes,
+        bond_options={"ratio": RATIO},
+        symmetry=planes,
     )
     res = pdlin.solve(prob, solver="direct", keep_stiffness=True)
     assert rel(res.u, ref.u[idx]) < ROUNDOFF
@@ -256,23 +263,33 @@ def test_free_eighth_of_a_block_needs_no_constraints():
     y_axis = np.flatnonzero(on[:, 0] & on[:, 2] & (pts[:, 1] > 0.5) & (pts[:, 1] < 1.5))
     # 3-2-1 support met by the symmetric solution: it vanishes at the center,
     # has no y, z motion on the x axis and no z motion on the y axis
-    ref = pdlin.solve(pdlin.StaticProblem(
-        pdlin.BondBased(E=1.0), full,
-        dirichlet=[
-            pdlin.Dirichlet(center, 0.0),
-            pdlin.Dirichlet(x_axis, 0.0, components="yz"),
-            pdlin.Dirichlet(y_axis, 0.0, components="z"),
-        ],
-        loads=[pdlin.TotalForce("x+", [F, 0, 0]), pdlin.TotalForce("x-", [-F, 0, 0])],
-        bond_options={"ratio": RATIO},
-    ), solver="direct")
+    ref = pdlin.solve(
+        pdlin.StaticProblem(
+            pdlin.BondBased(E=1.0),
+            full,
+            dirichlet=[
+                pdlin.Dirichlet(center, 0.0),
+                pdlin.Dirichlet(x_axis, 0.0, components="yz"),
+                pdlin.Dirichlet(y_axis, 0.0, components="z"),
+            ],
+            loads=[pdlin.TotalForce("x+", [F, 0, 0]), pdlin.TotalForce("x-", [-F, 0, 0])],
+            bond_options={"ratio": RATIO},
+        ),
+        solver="direct",
+    )
     idx = part(full, [X, Y, Z])
-    res = pdlin.solve(pdlin.StaticProblem(
-        pdlin.BondBased(E=1.0), full.subset(idx),
-        # x+ face cut into quarters by y = 0 and z = 0
-        loads=[pdlin.TotalForce("x+", [F / 4, 0, 0])],
-        bond_options={"ratio": RATIO}, symmetry=[X, Y, Z],
-    ), solver="direct", keep_stiffness=True)
+    res = pdlin.solve(
+        pdlin.StaticProblem(
+            pdlin.BondBased(E=1.0),
+            full.subset(idx),
+            # x+ face cut into quarters by y = 0 and z = 0
+            loads=[pdlin.TotalForce("x+", [F / 4, 0, 0])],
+            bond_options={"ratio": RATIO},
+            symmetry=[X, Y, Z],
+        ),
+        solver="direct",
+        keep_stiffness=True,
+    )
     assert rel(res.u, ref.u[idx]) < ROUNDOFF
     # the only prescribed dofs are the normal motions of the plane points
     assert np.abs(res.reactions).max() < 1e-12 * F
@@ -360,9 +377,12 @@ def _bar(planes, dirichlet):
     """Quarter/half of a bar along z pulled on z+ (planes through its axis)."""
     cloud = pdlin.grid((3, 3, 8))  # the part x, y in [0, 3] of a 6 x 6 x 8 bar
     return pdlin.StaticProblem(
-        pdlin.BondBased(E=1.0), cloud, dirichlet=dirichlet,
+        pdlin.BondBased(E=1.0),
+        cloud,
+        dirichlet=dirichlet,
         loads=[pdlin.TotalForce("z+", [0.0, 0.0, 1e-3])],
-        bond_options={"ratio": RATIO}, symmetry=planes,
+        bond_options={"ratio": RATIO},
+        symmetry=planes,
     )
 
 
@@ -378,8 +398,9 @@ def test_quarter_bar_needs_only_an_axial_support():
         pdlin.solve(_bar([X], roller), solver="direct")
     # and the same roller on the unreduced quarter leaves it floating
     prob = _bar([X, Y], roller)
-    plain = pdlin.StaticProblem(prob.model, prob.cloud, dirichlet=roller, loads=prob.loads,
-                                bond_options=prob.bond_options)
+    plain = pdlin.StaticProblem(
+        prob.model, prob.cloud, dirichlet=roller, loads=prob.loads, bond_options=prob.bond_options
+    )
     with pytest.raises(FloatingBodyError):
         pdlin.solve(plain, solver="direct")
 
@@ -392,18 +413,28 @@ def test_mirrored_crack_matches_full():
     full = centered_grid((12, 10))
     crack_full = [[[2.0, -3.0], [2.0, 3.0]]]  # symmetric about y = 0 only
     kw = dict(loads=[pdlin.BodyForce(None, symmetric_body_force)])
-    ref = pdlin.solve(pdlin.StaticProblem(
-        pdlin.BondBased(E=1.0), full,
-        dirichlet=[pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", 0.0)],
-        bond_options={"ratio": RATIO, "cracks": crack_full}, **kw,
-    ), solver="direct")
+    ref = pdlin.solve(
+        pdlin.StaticProblem(
+            pdlin.BondBased(E=1.0),
+            full,
+            dirichlet=[pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", 0.0)],
+            bond_options={"ratio": RATIO, "cracks": crack_full},
+            **kw,
+        ),
+        solver="direct",
+    )
     idx = part(full, [Y])
-    res = pdlin.solve(pdlin.StaticProblem(
-        pdlin.BondBased(E=1.0), full.subset(idx),
-        dirichlet=[pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", 0.0)],
-        bond_options={"ratio": RATIO, "cracks": [[[2.0, 0.0], [2.0, 3.0]]]},
-        symmetry=[Y], **kw,
-    ), solver="direct")
+    res = pdlin.solve(
+        pdlin.StaticProblem(
+            pdlin.BondBased(E=1.0),
+            full.subset(idx),
+            dirichlet=[pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", 0.0)],
+            bond_options={"ratio": RATIO, "cracks": [[[2.0, 0.0], [2.0, 3.0]]]},
+            symmetry=[Y],
+            **kw,
+        ),
+        solver="direct",
+    )
     assert rel(res.u, ref.u[idx]) < ROUNDOFF
 
 
@@ -443,26 +474,33 @@ def test_bad_input():
 
 def test_on_plane_tolerance_and_per_point_modulus():
     # a point 1e-13 h off the plane counts as on it (ON_PLANE_RTOL = 1e-10)
-    cloud = pdlin.PointCloud(
-        [[1e-13, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]], volumes=1.0
-    )
+    cloud = pdlin.PointCloud([[1e-13, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]], volumes=1.0)
     m = mirror_cloud(cloud, [X], reach=1.5)
     assert m.on_plane[:, 0].tolist() == [True, False, True, False]
     assert m.n_ghosts == 2  # only the column at x = 1 is mirrored
     # per-point E is carried to the ghosts (graded plate, symmetric in y)
     full = centered_grid((8, 8))
     E = 1.0 + 0.1 * full.points[:, 1] ** 2
-    ref = pdlin.solve(pdlin.StaticProblem(
-        pdlin.BondBased(E=E), full,
-        dirichlet=[pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", [0.01, 0.0])],
-        bond_options={"ratio": RATIO},
-    ), solver="direct")
+    ref = pdlin.solve(
+        pdlin.StaticProblem(
+            pdlin.BondBased(E=E),
+            full,
+            dirichlet=[pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", [0.01, 0.0])],
+            bond_options={"ratio": RATIO},
+        ),
+        solver="direct",
+    )
     idx = part(full, [Y])
-    res = pdlin.solve(pdlin.StaticProblem(
-        pdlin.BondBased(E=E[idx]), full.subset(idx),
-        dirichlet=[pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", [0.01, 0.0])],
-        bond_options={"ratio": RATIO}, symmetry=[Y],
-    ), solver="direct")
+    res = pdlin.solve(
+        pdlin.StaticProblem(
+            pdlin.BondBased(E=E[idx]),
+            full.subset(idx),
+            dirichlet=[pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", [0.01, 0.0])],
+            bond_options={"ratio": RATIO},
+            symmetry=[Y],
+        ),
+        solver="direct",
+    )
     assert rel(res.u, ref.u[idx]) < ROUNDOFF
 
 
@@ -487,9 +525,10 @@ def test_ghost_layer_depth_follows_coupling_range_and_per_point_horizon():
     idx = part(full, [Y])
     depth = {}
     for model in (pdlin.BondBased(E=1.0), TwoHorizonBondBased(E=1.0)):
-        res = pdlin.solve(pdlin.StaticProblem(
-            model, full.subset(idx), horizon=hor_full[idx], symmetry=[Y], **kw
-        ), solver="direct")
+        res = pdlin.solve(
+            pdlin.StaticProblem(model, full.subset(idx), horizon=hor_full[idx], symmetry=[Y], **kw),
+            solver="direct",
+        )
         assert rel(res.u, ref.u[idx]) < ROUNDOFF
         depth[model.coupling_range] = res.symmetry.mirror
     # reach = coupling_range x largest horizon (3.015): rows within 3.015 / 6.03 of y = 0
