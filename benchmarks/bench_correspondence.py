@@ -167,10 +167,16 @@ def solve_table(cases: list[tuple[tuple[int, ...], int]], limit: float) -> None:
 # 3. anchor
 
 
-def _anchor_solve(n: int, m: int, solver: str, op: str) -> dict:
+def _anchor_solve(n: int, m: int, solver: str, op: str, control: str = "none") -> dict:
     t0 = time.perf_counter()
-    cloud, bonds, tb = _cloud_bonds((n, n), float(m))
-    model = _model(2, "none")
+    if control == "none":
+        cloud, bonds, tb = _cloud_bonds((n, n), float(m))
+    else:  # stabilized controls: ω = 1
+        cloud = pdlin.grid((n, n), spacing=1.0 / n)
+        t = time.perf_counter()
+        bonds = pdlin.find_bonds(cloud, ratio=float(m))
+        tb = time.perf_counter() - t
+    model = _model(2, control)
     bc = [pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", 1e-3, components="x")]
     prob = pdlin.StaticProblem(model, cloud, bonds=bonds, dirichlet=bc)
     t = time.perf_counter()
@@ -200,8 +206,8 @@ def _anchor_solve(n: int, m: int, solver: str, op: str) -> dict:
 
 def anchor_table(cases: list[tuple[int, int, str, str, float]]) -> float | None:
     print("\n## 3. Anchor: 2D grid, ω = 1/|ξ|, clamped x-, pulled x+, rtol 1e-8 (wall s)\n")
-    print("| grid | points | δ/h | solver | operator | bonds | assembly | setup (LU or AMG) | solve | "
-          "iterations | true rel. residual | total | total / 22.7 s |")  # fmt: skip
+    print("| grid | points | δ/h | solver | operator | bonds | assembly | setup (LU or AMG) | "
+          "solve | iterations | true rel. residual | total | total / 22.7 s |")  # fmt: skip
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     best: float | None = None
     for n, m, solver, op, limit in cases:
@@ -225,15 +231,36 @@ def anchor_table(cases: list[tuple[int, int, str, str, float]]) -> float | None:
     return best
 
 
+def stabilized_table(cases: list[tuple[int, int, str, str, str, float]]) -> None:
+    print("\n## 4. The anchor loading with stabilized controls (ω = 1), rtol 1e-8 (wall s)\n")
+    print("| grid | points | δ/h | control | solver | operator | assembly | setup | solve | "
+          "iterations | true rel. residual | total | total / 22.7 s |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for n, m, control, solver, op, limit in cases:
+        r = _run_limited(_anchor_solve, (n, m, solver, op, control), limit)
+        head = f"| {n}x{n} | {n * n:,} | {m} | {control} | {solver} | {op} |"
+        if "timeout" in r or "error" in r:
+            msg = f"> {limit:.0f} s (stopped)" if "timeout" in r else r["error"]
+            print(head + f" | | | | | {msg} | |", flush=True)
+            continue
+        print(
+            head + f" {r['asm']:.2f} | {r['setup']:.2f} | {r['solve']:.2f} | {r['iters']} | "
+            f"{r['true_res']:.1e} | {r['total']:.2f} | {r['total'] / JULIA_TOTAL:.3f} |",
+            flush=True,
+        )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="small grids only (about a minute)")
+    ap.add_argument("--stabilized", action="store_true", help="table 4 only")
     args = ap.parse_args()
     t_all = time.perf_counter()
     print(f"# bench_correspondence.py {'--quick ' if args.quick else ''}"
           f"({datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, python "
           f"{platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "
-          f"{os.cpu_count()} cores, OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']})")  # fmt: skip
+          f"{os.cpu_count()} cores, "
+          f"OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']})")  # fmt: skip
     if args.quick:
         asm = [((60, 60), m) for m in (1, 2, 3)] + [((10, 10, 10), m) for m in (1, 2)]
         sol = [((24, 24), m) for m in (1, 2, 3)] + [((10, 10, 10), 1)]
@@ -251,9 +278,23 @@ def main() -> None:
                (401, 2, "jacobi-cg", "matrix-free", 90.0),
                (401, 3, "jacobi-cg", "matrix-free", 60.0)]  # fmt: skip
         lim = 30.0
+    stab = [(201, 1, "stress_points", "amg-cg", "assembled", 60.0),
+            (201, 2, "stress_points", "amg-cg", "assembled", 60.0),
+            (201, 2, "penalty", "amg-cg", "assembled", 60.0),
+            (201, 2, "penalty", "amg-cg", "matrix-free", 60.0),
+            (201, 1, "springs", "amg-cg", "assembled", 60.0),
+            (401, 1, "stress_points", "amg-cg", "assembled", 90.0),
+            (401, 2, "stress_points", "amg-cg", "assembled", 90.0),
+            (401, 2, "penalty", "amg-cg", "assembled", 90.0)]  # fmt: skip
+    if args.quick:
+        stab = [(c[0] // 2, *c[1:]) for c in stab[:5]]
+    if args.stabilized:
+        stabilized_table(stab)
+        return
     assembly_table(asm)
     solve_table(sol, lim)
     best = anchor_table(anc)
+    stabilized_table(stab)
     if best is not None:
         print(f"\nBest 401x401 δ = 2h total / Julia 22.7 s = {best:.3f} (target < 0.10)")
     else:
