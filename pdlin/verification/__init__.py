@@ -1,12 +1,26 @@
 """Verification utilities: independent reference solutions to check pdlin against.
 
 These are not peridynamic models.  They exist so that tests and examples can compare pdlin's
-results with a classical reference (e.g. a Q4 finite-element solve, spec 002 §9.1) without
-each carrying its own copy of the reference solver.
+results with a classical reference (Q4 and Hex8 finite-element solves: spec 002 §9.1-9.2,
+spec 003 §7.2-7.3) without each carrying its own copy of the reference solver.
 """
 
 from __future__ import annotations
 
-from .fem import evaluate_q4, plate_extension_q4, q4_stiffness, solve_q4
+from .fem import (
+    evaluate_q4,
+    hex8_stiffness,
+    plate_extension_q4,
+    q4_stiffness,
+    solve_hex8,
+    solve_q4,
+)
 
-__all__ = ["evaluate_q4", "plate_extension_q4", "q4_stiffness", "solve_q4"]
+__all__ = [
+    "evaluate_q4",
+    "hex8_stiffness",
+    "plate_extension_q4",
+    "q4_stiffness",
+    "solve_hex8",
+    "solve_q4",
+]
