@@ -168,30 +168,59 @@ def solve_q4(
     array([ 0.01  , -0.0025])
     """
     pts = np.asarray(points, dtype=float)[:, :2]
-    n = pts.shape[0]
     k = q4_stiffness(pts, quads, E, nu, plane=plane)
+    return _solve_prescribed(k, pts, fixed, values, solver, rtol, "Q4")
+
+
+def _solve_prescribed(
+    k: sp.sparray,
+    pts: np.ndarray,
+    fixed: Any,
+    values: Any,
+    solver: str,
+    rtol: float,
+    name: str,
+) -> np.ndarray:
+    """Nodal displacements ``(n, dim)`` of ``k u = 0`` with ``u[fixed] = values``.
+
+    ``solver='lu'``: SuperLU on the free DOFs, residual checked (1e-8); ``'amg'``: pdlin's
+    AMG-CG to ``rtol`` (``solve_linear`` checks its true residual).
+    """
+    n, dim = pts.shape
     fixed = np.asarray(fixed, dtype=np.intp).ravel()
+    if fixed.size and (fixed.min() < 0 or fixed.max() >= dim * n):
+        raise InputError(
+            f"fixed must be DOFs in [0, {dim * n}), got [{fixed.min()}, {fixed.max()}]"
+        )
     vals = np.broadcast_to(np.asarray(values, dtype=float), fixed.shape).copy()
-    u = np.zeros(2 * n)
+    u = np.zeros(dim * n)
     u[fixed] = vals
     if solver == "amg":
         import pdlin
         from pdlin.operators.bc import eliminate_dirichlet
         from pdlin.solvers import solve_linear
 
-        a, b = eliminate_dirichlet(k.tobsr(blocksize=(2, 2)), np.zeros(2 * n), fixed, vals)
+        a, b = eliminate_dirichlet(k.tobsr(blocksize=(dim, dim)), np.zeros(dim * n), fixed, vals)
         modes = pdlin.rigid_body_modes(pts)
         modes[fixed] = 0.0
-        info = solve_linear(a, b, "amg-cg", rtol=rtol, near_null=modes, blocksize=2)
+        info = solve_linear(a, b, "amg-cg", rtol=rtol, near_null=modes, blocksize=dim)
         u = np.array(info.x, dtype=float)
         u[fixed] = vals
-        return u.reshape(n, 2)
+        return u.reshape(n, dim)
     if solver != "lu":
-        raise ValueError(f"solver must be 'lu' or 'amg', got {solver!r}")
-    free = np.setdiff1d(np.arange(2 * n), fixed)
+        raise InputError(f"solver must be 'lu' or 'amg', got {solver!r}")
+    free = np.setdiff1d(np.arange(dim * n), fixed)
+    kff = sp.csc_matrix(k[free][:, free])
     rhs = -(k[free][:, fixed] @ vals)
-    u[free] = spla.spsolve(k[free][:, free].tocsc(), rhs)
-    return u.reshape(n, 2)
+    u[free] = spla.spsolve(kff, rhs)
+    res = float(np.linalg.norm(kff @ u[free] - rhs))
+    scale = float(np.linalg.norm(rhs))
+    if not np.isfinite(res) or res > 1e-8 * max(scale, np.finfo(float).tiny):
+        raise ConvergenceError(
+            f"{name} direct solve: relative residual {res / max(scale, 1e-300):.3e} > 1e-8 "
+            "(do the fixed DOFs remove the rigid-body modes?)"
+        )
+    return u.reshape(n, dim)
 
 
 def plate_extension_q4(
@@ -514,36 +543,4 @@ def solve_hex8(
     """
     pts = np.asarray(points, dtype=float)
     k = hex8_stiffness(pts, hexes, E, nu)
-    n = pts.shape[0]
-    fixed = np.asarray(fixed, dtype=np.intp).ravel()
-    if fixed.size and (fixed.min() < 0 or fixed.max() >= 3 * n):
-        raise InputError(f"fixed must be DOFs in [0, {3 * n}), got [{fixed.min()}, {fixed.max()}]")
-    vals = np.broadcast_to(np.asarray(values, dtype=float), fixed.shape).copy()
-    u = np.zeros(3 * n)
-    u[fixed] = vals
-    if solver == "amg":
-        import pdlin
-        from pdlin.operators.bc import eliminate_dirichlet
-        from pdlin.solvers import solve_linear
-
-        a, b = eliminate_dirichlet(k.tobsr(blocksize=(3, 3)), np.zeros(3 * n), fixed, vals)
-        modes = pdlin.rigid_body_modes(pts)
-        modes[fixed] = 0.0
-        info = solve_linear(a, b, "amg-cg", rtol=rtol, near_null=modes, blocksize=3)
-        u = np.array(info.x, dtype=float)  # solve_linear verified the true residual
-        u[fixed] = vals
-        return u.reshape(n, 3)
-    if solver != "lu":
-        raise InputError(f"solver must be 'lu' or 'amg', got {solver!r}")
-    free = np.setdiff1d(np.arange(3 * n), fixed)
-    kff = k[free][:, free].tocsc()
-    rhs = -(k[free][:, fixed] @ vals)
-    u[free] = spla.spsolve(kff, rhs)
-    res = float(np.linalg.norm(kff @ u[free] - rhs))
-    scale = float(np.linalg.norm(rhs))
-    if not np.isfinite(res) or res > 1e-8 * max(scale, np.finfo(float).tiny):
-        raise ConvergenceError(
-            f"Hex8 direct solve: relative residual {res / max(scale, 1e-300):.3e} > 1e-8 "
-            "(do the fixed DOFs remove the rigid-body modes?)"
-        )
-    return u.reshape(n, 3)
+    return _solve_prescribed(k, pts, fixed, values, solver, rtol, "Hex8")
