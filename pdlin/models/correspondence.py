@@ -686,7 +686,7 @@ class Correspondence(Model):
         P = voigt_projector(d)
         vol = np.asarray(cloud.volumes) * (1.0 if d == 3 else cloud.thickness)
         scale = w * vol[gp_owner] * energy
-        D = np.einsum("ai,gab,bj->gij", P, Cv, P) * scale[:, None, None]
+        D = (P.T @ Cv @ P) * scale[:, None, None]  # Pᵀ C P per gradient point (batched)
         plan = _Plan(gp_owner, gp_of_bond, w, energy, omega, G, D, Cv)
         if self.control == "ads":  # S N is symmetric for constant ω, any V (see the docs)
             self.symmetric = bool(np.allclose(omega, omega[0], rtol=1e-12))
@@ -935,7 +935,7 @@ class Correspondence(Model):
         Gb = sp.bsr_array(p.G, blocksize=(q, d))
         P = voigt_projector(d)
         nv = P.shape[0]
-        Bdata = np.einsum("vr,brc->bvc", P, Gb.data)
+        Bdata = P @ Gb.data  # (n_v x d²) @ (d² x d) per block
         n_gp = p.Cv.shape[0]
         B = sp.bsr_array(
             (Bdata, Gb.indices, Gb.indptr), shape=(n_gp * nv, p.G.shape[1]), blocksize=(nv, d)
