@@ -336,6 +336,13 @@ name = "direct"
             2.0,
         ),
         ('type = "correspondence"\ncontrol = "penalty"', "E = 1.0\nnu = 0.25", 2.0),
+        ('type = "correspondence"\ncontrol = "stress_points"\nseed = 3', "E = 1.0\nnu = 0.25", 1.0),
+        (
+            'type = "correspondence"\ncontrol = "springs"\ncoefficient = 0.5',
+            "E = 1.0\nnu = 0.25",
+            1.0,
+        ),
+        ('type = "correspondence"\ncontrol = "ads"\ncoefficient = 0.1', "E = 1.0\nnu = 0.25", 2.0),
     ],
 )
 def test_scene_models_reproduce_affine_field_with_shadow_layer(tmp_path, model, material, ratio):
