@@ -55,7 +55,10 @@ class ZeroEnergyReport:
     n_rigid : int
         Rigid-body modes expected (0 for constrained systems).
     n_spurious : int
-        ``n_zero - n_rigid`` (zero-energy modes beyond rigid motion).
+        ``n_zero - n_rigid`` (zero-energy modes beyond rigid motion).  Negative when
+        the operator resists rigid motions it should not: the ``'springs'`` and
+        ``'ads'`` correspondence controls act on the full displacement vector and
+        resist rotations, so a free 2D body has ``n_spurious = -1`` (3D: -3).
     eigenvalues : ndarray
         The smallest eigenvalues computed (ascending).
     lambda_max : float

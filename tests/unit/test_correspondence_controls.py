@@ -447,3 +447,19 @@ def test_scene_model_accepts_coefficient():
     cfg = {"type": "correspondence", "control": "ads", "coefficient": 0.25}
     m = _build_model(cfg, {"E": 1.0, "nu": 0.3}, cloud)
     assert (m.control, m.coefficient) == ("ads", 0.25)
+
+
+def test_compare_controls_reports_resisted_rotations():
+    # springs / ADS act on the full vector: a free body keeps its translations only, which
+    # compare_controls reports as n_spurious = n_zero - n_rigid < 0 (2D: 2 - 3 = -1)
+    from pdlin.analysis import compare_controls
+
+    cloud = pdlin.grid((9, 9), spacing=0.1)
+    bonds = pdlin.find_bonds(cloud, ratio=1.0)
+    rows = compare_controls(
+        cloud,
+        bonds,
+        {c: pdlin.Correspondence(E=1.0, nu=0.3, control=c) for c in ("none", "springs", "ads")},
+    )
+    got = {r["name"]: (r["n_zero"], r["n_spurious"]) for r in rows}
+    assert got == {"none": (3, 0), "springs": (2, -1), "ads": (2, -1)}
