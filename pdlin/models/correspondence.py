@@ -299,6 +299,15 @@ def shadow_real_counts(cloud: PointCloud, shadow: np.ndarray) -> np.ndarray:
 # the model
 
 
+def _mean_per_point(owner: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
+    """Plain mean of gradient-point tensors ``(n_gp, d, d)`` over each point's gradient points."""
+    d = values.shape[1]
+    cnt = np.bincount(owner, minlength=n).astype(float)
+    flat = values.reshape(len(owner), d * d)
+    out = np.stack([np.bincount(owner, weights=flat[:, k], minlength=n) for k in range(d * d)], 1)
+    return (out / cnt[:, None]).reshape(n, d, d)
+
+
 def _with_diagonal_blocks(K: sp.sparray, d: int) -> sp.bsr_array:
     """``K`` as BSR with every diagonal block stored (explicit zeros where empty).
 
@@ -1084,26 +1093,13 @@ class Correspondence(Model):
         grad = self.gradient(cloud, bonds, u).reshape(-1, d * d)
         P = voigt_projector(d)
         sv = np.einsum("gab,gb->ga", p.Cv, grad @ P.T)
-        sig = (sv @ P).reshape(-1, d, d)
-        cnt = np.bincount(p.gp_owner, minlength=cloud.n).astype(float)
-        out = np.empty((cloud.n, d, d))
-        for a in range(d):
-            for b in range(d):
-                out[:, a, b] = np.bincount(p.gp_owner, weights=sig[:, a, b], minlength=cloud.n)
-        return out / cnt[:, None, None]
+        return _mean_per_point(p.gp_owner, (sv @ P).reshape(-1, d, d), cloud.n)
 
     def strain(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
         """Small strain per particle ``(n, d, d)``: the mean over its stress points."""
         p = self._plan(cloud, bonds)
-        d = cloud.dim
         grad = self.gradient(cloud, bonds, u)
-        eps = 0.5 * (grad + np.swapaxes(grad, 1, 2))
-        cnt = np.bincount(p.gp_owner, minlength=cloud.n).astype(float)
-        out = np.empty((cloud.n, d, d))
-        for a in range(d):
-            for b in range(d):
-                out[:, a, b] = np.bincount(p.gp_owner, weights=eps[:, a, b], minlength=cloud.n)
-        return out / cnt[:, None, None]
+        return _mean_per_point(p.gp_owner, 0.5 * (grad + np.swapaxes(grad, 1, 2)), cloud.n)
 
     def shadow_loads(
         self,

@@ -45,6 +45,15 @@ def _elasticity(E: float, nu: float, plane: str) -> np.ndarray:
     raise ValueError(f"plane must be 'stress' or 'strain', got {plane!r}")
 
 
+def _scatter(ke: np.ndarray, conn: np.ndarray, dim: int, n: int) -> sp.csr_array:
+    """Sum element matrices ``(ne, k·dim, k·dim)`` of connectivity ``(ne, k)`` into CSR."""
+    ne, m = ke.shape[0], ke.shape[1]
+    dofs = (dim * conn[:, :, None] + np.arange(dim)).reshape(ne, m)
+    rows = np.broadcast_to(dofs[:, :, None], (ne, m, m)).ravel()
+    cols = np.broadcast_to(dofs[:, None, :], (ne, m, m)).ravel()
+    return sp.coo_array((ke.ravel(), (rows, cols)), shape=(dim * n, dim * n)).tocsr()
+
+
 def q4_stiffness(
     points: Any,
     quads: Any,
@@ -116,10 +125,7 @@ def q4_stiffness(
         bm[:, 2, 1::2] = dx[:, 0]
         ke += np.einsum("eai,ab,ebj,e->eij", bm, c, bm, np.abs(det))
     ke *= thickness
-    dofs = (2 * q[:, :, None] + np.arange(2)).reshape(ne, 8)
-    rows = np.broadcast_to(dofs[:, :, None], (ne, 8, 8)).ravel()
-    cols = np.broadcast_to(dofs[:, None, :], (ne, 8, 8)).ravel()
-    return sp.coo_array((ke.ravel(), (rows, cols)), shape=(2 * n, 2 * n)).tocsr()
+    return _scatter(ke, q, 2, n)
 
 
 def solve_q4(
@@ -477,10 +483,7 @@ def hex8_stiffness(points: Any, hexes: Any, E: float, nu: float) -> sp.csr_array
     ke = lam * outer + mu * outer.transpose(0, 3, 2, 1, 4)
     ke += mu * dot[:, :, None, :, None] * np.eye(3)[None, None, :, None, :]
     ke = ke.reshape(ne, 24, 24)
-    dofs = (3 * h[:, :, None] + np.arange(3)).reshape(ne, 24)
-    rows = np.broadcast_to(dofs[:, :, None], (ne, 24, 24)).ravel()
-    cols = np.broadcast_to(dofs[:, None, :], (ne, 24, 24)).ravel()
-    return sp.coo_array((ke.ravel(), (rows, cols)), shape=(3 * n, 3 * n)).tocsr()
+    return _scatter(ke, h, 3, n)
 
 
 def solve_hex8(
