@@ -642,3 +642,87 @@ def test_gradient_convergence_spec_000_v5(ratio, control, infl, err_h01, order):
         errs.append(np.abs(grad[a] - exact).max())
     assert errs[1] == pytest.approx(err_h01, rel=0.01)
     assert np.log2(errs[1] / errs[2]) == pytest.approx(order, abs=0.05)
+
+
+# -- assembly: K = Wᵀ W from the blocks of G -------------------------------------
+
+
+def _reference_K(model: pdlin.Correspondence, cloud, bonds) -> np.ndarray:
+    """Dense Gᵀ blockdiag(w V Pᵀ C P) G from the CSR gradient matrix (definition, spec 000 §3)."""
+    p = model._plan(cloud, bonds)
+    G = model.gradient_matrix(cloud, bonds).toarray()
+    D = np.zeros((G.shape[0],) * 2)
+    q = cloud.dim**2
+    for g in range(p.D.shape[0]):
+        D[g * q : (g + 1) * q, g * q : (g + 1) * q] = p.D[g]
+    return G.T @ D @ G
+
+
+@pytest.mark.parametrize("dim,n,control,ratio", [
+    (2, 9, "none", 2.0), (2, 9, "stress_points", 2.0), (3, 6, "stress_points", 1.0),
+    (3, 6, "none", 2.0), (1, 15, "stress_points", 1.0),
+])  # fmt: skip
+def test_stiffness_exactly_symmetric_with_per_point_C(dim, n, control, ratio, rng):
+    cloud = _grid(dim, n)
+    bonds = pdlin.find_bonds(cloud, ratio=ratio)
+    # a distinct (scaled, orthotropic) stiffness per point: the gathered-Cholesky path
+    C = np.atleast_2d(np.asarray(_material(dim, rng), dtype=float))
+    Cp = C[None] * rng.uniform(0.5, 2.0, cloud.n)[:, None, None]
+    model = pdlin.Correspondence(Cp, control=control, seed=1)
+    K = sp.csr_array(pdlin.assemble_stiffness(model, cloud, bonds))
+    # Wᵀ W sums the same products in the same order in both triangles: bitwise symmetric
+    assert np.array_equal(K.toarray(), K.toarray().T)
+    ref = _reference_K(model, cloud, bonds)
+    np.testing.assert_allclose(K.toarray(), ref, atol=1e-13 * np.abs(ref).max())
+
+
+def test_stiffness_falls_back_for_indefinite_material_blocks():
+    """Not reachable through the validated constructor: the plan's C is replaced directly."""
+    cloud = _grid(2, 8)
+    bonds = pdlin.find_bonds(cloud, ratio=2.0)
+    model = pdlin.Correspondence(E=1.0, nu=0.3)
+    p = model._plan(cloud, bonds)
+    bad = p.Cv.copy()
+    bad[5] = np.diag([1.0, -0.5, 0.3])  # indefinite: no Cholesky factor
+    K = sp.csr_array(model._core_stiffness(cloud, dataclasses.replace(p, Cv=bad))).toarray()
+    assert np.array_equal(K, K.T)  # the fallback symmetrizes
+    P = voigt_projector(2)
+    scale = p.weight * np.asarray(cloud.volumes) * cloud.thickness * p.energy
+    D = sp.block_diag([P.T @ c @ P * s for c, s in zip(bad, scale, strict=True)]).toarray()
+    G = p.G.toarray()
+    ref = G.T @ D @ G
+    np.testing.assert_allclose(K, ref, atol=1e-13 * np.abs(ref).max())
+
+
+def test_per_point_stiffness_validated_at_every_point():
+    cloud = _grid(2, 10)
+    bonds = pdlin.find_bonds(cloud, ratio=1.0)
+    Cp = np.stack([isotropic_2d(1.0 + 0.01 * k, 0.25) for k in range(cloud.n)])
+    Cp[80] = np.diag([1.0, -1.0, 1.0])  # beyond the first 64 distinct matrices
+    with pytest.raises(InputError, match=r"C\[80\] must be positive definite"):
+        pdlin.Correspondence(Cp).stiffness(cloud, bonds)
+    Cp[80] = isotropic_2d(1.0, 0.25)
+    Cp[80, 0, 1] += 1e-3  # not symmetric
+    with pytest.raises(InputError, match=r"C\[80\].*symmetric"):
+        pdlin.Correspondence(Cp).stiffness(cloud, bonds)
+
+
+def test_gradient_sums_repeated_point_pairs():
+    """A (gradient point, point) pair given twice is one block holding the sum (as COO would)."""
+    from pdlin.models.correspondence import _gradient_csr
+
+    rng = np.random.default_rng(3)
+    n, d = 6, 2
+    gp_owner = np.arange(n)
+    gp_of_bond = np.array([0, 0, 0, 1, 1, 2, 3, 3, 4, 5, 5, 5])
+    j = np.array([1, 2, 1, 0, 2, 3, 2, 2, 5, 4, 0, 4])  # (0, 1), (3, 2), (5, 4) repeated
+    c = rng.normal(size=(j.size, d))
+    G = _gradient_csr(gp_owner, gp_of_bond, j, c, n).toarray()
+    ref = np.zeros((n * d * d, n * d))
+    for b in range(j.size):
+        g = gp_of_bond[b]
+        for i in range(d):
+            for q in range(d):
+                ref[(g * d + i) * d + q, j[b] * d + i] += c[b, q]
+                ref[(g * d + i) * d + q, gp_owner[g] * d + i] -= c[b, q]
+    np.testing.assert_allclose(G, ref, atol=1e-15)
