@@ -26,6 +26,7 @@ from .operators.bc import (
     check_constraints,
     eliminate_dirichlet,
     load_vector,
+    matrix_rows,
     resolve_dirichlet,
 )
 from .operators.rigid import rigid_body_modes
@@ -319,12 +320,15 @@ def solve(
         t0 = time.perf_counter()
         K = assemble_stiffness(model, cloud, bonds) if red is None else red.stiffness()
         timings["assembly"] = time.perf_counter() - t0
+        # the prescribed rows, kept for the reactions (elimination overwrites them)
+        K_rows = matrix_rows(K, dofs) if red is None else None
         A, b = eliminate_dirichlet(K, f_ext, dofs, vals, inplace=not keep_stiffness)
         precond = None
     else:
         say(f"matrix-free operator ({reason})")
         t0 = time.perf_counter()
         A, b, precond = _matrix_free_system(model, cloud, bonds, f_ext, dofs, vals)
+        K_rows = None
         timings["assembly"] = time.perf_counter() - t0
         if solver == "auto":
             solver = "amg-cg" if symmetric else "amg-gmres"
@@ -348,13 +352,17 @@ def solve(
     x = lin.x
     x[dofs] = vals
     u = x.reshape(cloud.n, d)
-    # reactions: R = -(f_int + f_ext) on prescribed dofs, f_int = -K u (matrix-free)
-    if red is None:
-        f_int = model.internal_force(cloud, bonds, u, linear=True).ravel()
-    else:
-        f_int = red.internal_force(u, linear=True).ravel()
+    # reactions: R = -(f_int + f_ext) on prescribed dofs, f_int = -K u (from the assembled
+    # rows when there are, else the model's matrix-free internal force)
     reac = np.zeros(cloud.n * d)
-    reac[dofs] = -(f_int[dofs] + f_ext[dofs])
+    if K_rows is not None:
+        reac[dofs] = K_rows @ u.ravel() - f_ext[dofs]
+    else:
+        if red is None:
+            f_int = model.internal_force(cloud, bonds, u, linear=True).ravel()
+        else:
+            f_int = red.internal_force(u, linear=True).ravel()
+        reac[dofs] = -(f_int[dofs] + f_ext[dofs])
     timings["total"] = time.perf_counter() - t_start
     info = {
         "solver": lin.solver,

@@ -24,6 +24,7 @@ __all__ = [
     "resolve_dirichlet",
     "load_vector",
     "eliminate_dirichlet",
+    "matrix_rows",
     "check_constraints",
     "parse_components",
 ]
@@ -367,6 +368,37 @@ def check_constraints(
                 f"motion(s) free ({', '.join(sorted(set(labels_free)))}); "
                 f"{int(constrained.sum())} DOF(s) are prescribed"
             )
+
+
+def matrix_rows(K: sp.sparray, rows: np.ndarray) -> sp.csr_array:
+    """Rows ``rows`` of a CSR or BSR matrix as a CSR array ``(len(rows), ncols)``.
+
+    For BSR only the block rows that hold ``rows`` are converted.
+
+    Examples
+    --------
+    >>> import numpy as np, scipy.sparse as sp
+    >>> K = sp.bsr_array(np.arange(16.0).reshape(4, 4), blocksize=(2, 2))
+    >>> matrix_rows(K, np.array([3, 0])).toarray().tolist()
+    [[12.0, 13.0, 14.0, 15.0], [0.0, 1.0, 2.0, 3.0]]
+    """
+    rows = np.asarray(rows, dtype=np.intp)
+    if isinstance(K, sp.bsr_array | sp.bsr_matrix):
+        r = K.blocksize[0]
+        brows = np.unique(rows // r)
+        starts, ends = K.indptr[brows], K.indptr[brows + 1]
+        lengths = ends - starts
+        take = np.repeat(starts - np.cumsum(lengths) + lengths, lengths) + np.arange(lengths.sum())
+        indptr = np.zeros(brows.size + 1, dtype=K.indptr.dtype)
+        np.cumsum(lengths, out=indptr[1:])
+        sub = sp.bsr_array(
+            (K.data[take], K.indices[take], indptr),
+            shape=(brows.size * r, K.shape[1]),
+            blocksize=K.blocksize,
+        )
+        local = np.searchsorted(brows, rows // r) * r + rows % r
+        return sp.csr_array(sp.csr_array(sub)[local])
+    return sp.csr_array(sp.csr_array(K)[rows])
 
 
 def eliminate_dirichlet(
