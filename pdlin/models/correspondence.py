@@ -1092,7 +1092,9 @@ class Correspondence(Model):
             if (p.Cv == p.Cv[0]).all():  # one material: one (n_v·d x d) map for all blocks
                 L0 = np.linalg.cholesky(p.Cv[0])
                 M = (L0.T @ voigt_projector(d)).reshape(nv * d, d)
-                return (blk.val @ M.T).reshape(nblk, nv, d) * root
+                W = blk.val @ M.T  # one (nblk, n_v·d) buffer, scaled in place
+                W *= root[:, :, 0]
+                return W.reshape(nblk, nv, d)
             Lr = np.linalg.cholesky(p.Cv)[blk.row]
         except np.linalg.LinAlgError:
             return None
