@@ -417,6 +417,26 @@ def _mean_per_point(owner: np.ndarray, values: np.ndarray, n: int) -> np.ndarray
     return (out / cnt[:, None]).reshape(n, d, d)
 
 
+def _drop_zero_blocks(K: sp.bsr_array) -> sp.bsr_array:
+    """``K`` without its stored all-zero blocks (exact cancellations of the product).
+
+    At δ = h the nearest-neighbour blocks of ``Wᵀ W`` cancel exactly (the decoupled
+    sub-lattices), and higher-order weights cancel more: keeping them would inflate nnz and
+    every product with K.
+    """
+    keep = K.data.any(axis=(1, 2))
+    if keep.all():
+        return K
+    nrow = K.shape[0] // K.blocksize[0]
+    brow = np.repeat(np.arange(nrow), np.diff(K.indptr))
+    counts = np.bincount(brow[keep], minlength=nrow)
+    indptr = np.zeros(nrow + 1, dtype=K.indptr.dtype)
+    np.cumsum(counts, out=indptr[1:])
+    return sp.bsr_array(
+        (K.data[keep], K.indices[keep], indptr), shape=K.shape, blocksize=K.blocksize
+    )
+
+
 def _with_diagonal_blocks(K: sp.sparray, d: int) -> sp.bsr_array:
     """``K`` as BSR with every diagonal block stored (explicit zeros where empty).
 
@@ -1070,7 +1090,7 @@ class Correspondence(Model):
         Wdata = self._root_blocks(p, blk, Bdata, scale) if (scale >= 0).all() else None
         if Wdata is not None:
             W = sp.bsr_array((Wdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
-            return sp.bsr_array(W.T @ W, blocksize=(d, d))
+            return _drop_zero_blocks(sp.bsr_array(W.T @ W, blocksize=(d, d)))
         B = sp.bsr_array((Bdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
         ar = np.arange(n_gp + 1, dtype=np.int32)
         Db = sp.bsr_array(

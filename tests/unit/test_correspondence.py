@@ -726,3 +726,31 @@ def test_gradient_sums_repeated_point_pairs():
                 ref[(g * d + i) * d + q, j[b] * d + i] += c[b, q]
                 ref[(g * d + i) * d + q, gp_owner[g] * d + i] -= c[b, q]
     np.testing.assert_allclose(G, ref, atol=1e-15)
+
+
+def test_stiffness_stores_no_cancelled_blocks():
+    """δ = h: the a ± e_i blocks of Wᵀ W cancel exactly and are not stored (nnz of spec tables)."""
+    from pdlin.models.correspondence import _drop_zero_blocks
+
+    cloud = _grid(2, 9)
+    bonds = pdlin.find_bonds(cloud, ratio=1.0)
+    K = pdlin.Correspondence(E=1.0, nu=0.3).stiffness(cloud, bonds)
+    assert K.data.any(axis=(1, 2)).all() or _diag_only_zero(K)
+    dense = K.toarray()
+    nz_blocks = np.abs(dense).reshape(cloud.n, 2, cloud.n, 2).sum(axis=(1, 3)) > 0
+    np.fill_diagonal(nz_blocks, True)  # diagonal blocks are always stored
+    assert K.indices.size == int(nz_blocks.sum())
+    # the helper itself: an empty block row and a stored block that became zero
+    A = sp.bsr_array(np.kron(np.array([[1.0, 0, 2], [0, 0, 0], [3, 0, 0]]), np.ones((2, 2))),
+                     blocksize=(2, 2))  # fmt: skip
+    A.data[1] = 0.0  # a stored block that became zero
+    B = _drop_zero_blocks(A)
+    assert B.indices.size == 2 and np.array_equal(B.toarray(), A.toarray())
+
+
+def _diag_only_zero(K) -> bool:
+    """All stored zero blocks are diagonal ones (kept on purpose for the elimination)."""
+    nrow = K.shape[0] // K.blocksize[0]
+    brow = np.repeat(np.arange(nrow), np.diff(K.indptr))
+    zero = ~K.data.any(axis=(1, 2))
+    return bool(np.all(brow[zero] == K.indices[zero]))
