@@ -890,44 +890,39 @@ class Correspondence(Model):
                 )
         return out.ravel() - np.asarray(p.G.T @ t.ravel())
 
-    def _penalty_matrix(self, cloud: PointCloud, bonds: Bonds, p: _Plan) -> sp.csr_array:
-        """``Zᵀ diag(k) Z = L - YᵀG - GᵀY + Gᵀ M G`` without forming Z (nb·d rows)."""
+    def _penalty_matrix(self, cloud: PointCloud, bonds: Bonds, p: _Plan) -> sp.bsr_array:
+        """``Zᵀ diag(k) Z`` with ``Z = Z_s ⊗ I_d`` (BSR, d x d blocks).
+
+        ``z_b = u_j - u_i - ∇u_g ξ_b`` and the G block of (g, point p) is ``I_d ⊗ c_gp``, so
+        every block of Z is a multiple of ``I_d``: ``Z_s[b, p] = δ_pj - δ_pi - ξ_b·c_gp``.
+        One scalar product ``Rᵀ R``, ``R = √k Z_s`` (bitwise symmetric, as ``Wᵀ W``), replaces
+        the d-fold vector form.
+        """
         d, n = cloud.dim, cloud.n
         k = self._penalty_k(cloud, bonds, p)
-        i, j = bonds.i, bonds.j
-        # L: bond Laplacian ⊗ I_d
-        Ls = sp.coo_array(
-            (np.concatenate([k, k, -k, -k]),
-             (np.concatenate([i, j, i, j]), np.concatenate([i, j, j, i]))),
-            shape=(n, n),
-        ).tocsr()  # fmt: skip
-        L = sp.kron(Ls, sp.eye_array(d), format="csr")
-        # Y = Xᵀ k E: row (g, a, q) has +k ξ_q at (j, a) and -k ξ_q at (owner, a)
-        ngp = p.gp_owner.size
-        comp = np.arange(d)
+        blk = p.blocks
         g = p.gp_of_bond
-        rows = (g[:, None, None] * d + comp[None, :, None]) * d + comp[None, None, :]
-        kx = np.broadcast_to((k[:, None] * bonds.xi)[:, None, :], rows.shape)
-        cj = np.broadcast_to((j[:, None] * d + comp)[:, :, None], rows.shape)
-        ci = np.broadcast_to((i[:, None] * d + comp)[:, :, None], rows.shape)
-        yr = np.concatenate([rows.ravel(), rows.ravel()])
-        yc = np.concatenate([cj.ravel(), ci.ravel()])
-        Y = sp.coo_array(
-            (np.concatenate([kx.ravel(), -kx.ravel()]), (yr, yc)),
-            shape=(ngp * d * d, n * d),
-        ).tocsr()  # fmt: skip
-        # M_g = Σ_b k ξξᵀ ⊗ I (vec layout (a, q), (a, r))
-        S = np.empty((ngp, d, d))
-        for q in range(d):
-            for r in range(d):
-                S[:, q, r] = np.bincount(g, weights=k * bonds.xi[:, q] * bonds.xi[:, r],
-                                         minlength=ngp)  # fmt: skip
-        M = np.einsum("am,gqr->gaqmr", np.eye(d), S).reshape(ngp, d * d, d * d)
-        ar = np.arange(ngp + 1, dtype=np.int32)
-        Mb = sp.bsr_array((M, ar[:-1], ar), shape=(ngp * d * d,) * 2, blocksize=(d * d, d * d))
-        Gt = sp.csr_array(p.G.T)
-        GtY = sp.csr_array(Gt @ Y)
-        return sp.csr_array(L - GtY - GtY.T + Gt @ sp.csr_array(Mb @ p.G))
+        nb = g.size
+        counts = np.diff(blk.indptr)[g]  # blocks of each bond's gradient point
+        rowptr = np.zeros(nb + 1, dtype=np.int64)
+        np.cumsum(counts, out=rowptr[1:])
+        ids = np.repeat(blk.indptr[g] - rowptr[:-1], counts) + np.arange(rowptr[-1])
+        brow = np.repeat(np.arange(nb), counts)
+        data = -np.einsum("eq,eq->e", blk.val[ids], bonds.xi[brow])
+        X = sp.csr_array((data, blk.col[ids], rowptr), shape=(nb, n))
+        ar = np.arange(nb)
+        E = sp.csr_array(
+            (np.concatenate([np.ones(nb), -np.ones(nb)]),
+             (np.concatenate([ar, ar]), np.concatenate([bonds.j, bonds.i]))),
+            shape=(nb, n),
+        )  # fmt: skip
+        # R = √k Z_s (k ≥ 0: BondBased.bond_stiffness rejects signed weights)
+        R = sp.csr_array(X + E)
+        R.data *= np.repeat(np.sqrt(k), np.diff(R.indptr))
+        Ks = sp.csr_array(R.T @ R)
+        Ks.sum_duplicates()
+        blocks = Ks.data[:, None, None] * np.eye(d)
+        return sp.bsr_array((blocks, Ks.indices, Ks.indptr), shape=(n * d, n * d), blocksize=(d, d))
 
     # -- springs / ADS (spec 003 §3) ----------------------------------------
     def control_constants(self, cloud: PointCloud, bonds: Bonds) -> dict[str, float]:
@@ -1055,15 +1050,11 @@ class Correspondence(Model):
         if self.assembly.get("path") == "matrix-free":
             log.warning("assembling K beyond the byte budget: %s", self.assembly["reason"])
         K = self._core_stiffness(cloud, p)
-        extra = None
         if self.control == "penalty" and self.penalty > 0:
-            Kp = self._penalty_matrix(cloud, bonds, p)
-            extra = 0.5 * (Kp + Kp.T)  # symmetric up to round-off: symmetrized like the core
+            K = sp.bsr_array(K + self._penalty_matrix(cloud, bonds, p))  # both bitwise symmetric
         Ka = self._control_matrix(cloud, bonds, p)
         if Ka is not None:  # springs / ADS (ADS may be nonsymmetric: added unsymmetrized)
-            extra = Ka
-        if extra is not None:
-            K = sp.bsr_array(sp.csr_array(K) + sp.csr_array(extra), blocksize=(d, d))
+            K = sp.bsr_array(sp.csr_array(K) + sp.csr_array(Ka), blocksize=(d, d))
         return _with_diagonal_blocks(K, d)
 
     def _core_stiffness(self, cloud: PointCloud, p: _Plan) -> sp.bsr_array:

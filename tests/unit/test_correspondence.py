@@ -754,3 +754,26 @@ def _diag_only_zero(K) -> bool:
     brow = np.repeat(np.arange(nrow), np.diff(K.indptr))
     zero = ~K.data.any(axis=(1, 2))
     return bool(np.all(brow[zero] == K.indices[zero]))
+
+
+def test_penalty_matrix_is_z_transpose_k_z():
+    """Zᵀ diag(k) Z from its definition z_b = u_j - u_i - ∇u_g ξ_b (dense, bond by bond)."""
+    cloud = _grid(2, 7)
+    bonds = pdlin.find_bonds(cloud, ratio=2.0)
+    model = pdlin.Correspondence(E=1.0, nu=0.3, control="penalty", penalty=0.7)
+    p = model._plan(cloud, bonds)
+    k = model._penalty_k(cloud, bonds, p)
+    G = p.G.toarray()
+    d, n = 2, cloud.n
+    Z = np.zeros((bonds.n_bonds * d, n * d))
+    for b in range(bonds.n_bonds):
+        g = p.gp_of_bond[b]
+        for a in range(d):
+            Z[b * d + a, bonds.j[b] * d + a] += 1.0
+            Z[b * d + a, bonds.i[b] * d + a] -= 1.0
+            for q in range(d):
+                Z[b * d + a] -= bonds.xi[b, q] * G[(g * d + a) * d + q]
+    ref = Z.T @ (np.repeat(k, d)[:, None] * Z)
+    got = model._penalty_matrix(cloud, bonds, p).toarray()
+    assert np.array_equal(got, got.T)
+    np.testing.assert_allclose(got, ref, atol=1e-13 * np.abs(ref).max())
