@@ -224,6 +224,8 @@ class _GradientBlocks:
     col: np.ndarray  # (nblk,) point of each block
     val: np.ndarray  # (nblk, d) coefficient vector
     diag: np.ndarray  # (nblk,) bool: owner's block, no bond in it
+    bond_block: np.ndarray  # (nb,) block holding each bond's (g, j)
+    owner_block: np.ndarray  # (n_gp,) block of each gradient point's owner
 
     @property
     def row(self) -> np.ndarray:
@@ -262,6 +264,8 @@ def _gradient_blocks(
     is_diag = is_diag[order]
     first = np.ones(keys.size, dtype=bool)
     first[1:] = keys[1:] != keys[:-1]
+    block_of = np.empty(keys.size, dtype=np.int64)  # block of each input entry
+    block_of[order] = np.cumsum(first) - 1
     if not first.all():  # repeated (g, point) pairs: sum them
         starts = np.flatnonzero(first)
         vals = np.add.reduceat(vals, starts, axis=0)
@@ -270,7 +274,8 @@ def _gradient_blocks(
     g = keys // n_points
     indptr = np.zeros(n_gp + 1, dtype=np.int64)
     np.cumsum(np.bincount(g, minlength=n_gp), out=indptr[1:])
-    return _GradientBlocks(indptr, keys - g * n_points, vals, is_diag)
+    nb = j.size
+    return _GradientBlocks(indptr, keys - g * n_points, vals, is_diag, block_of[:nb], block_of[nb:])
 
 
 def _blocks_to_csr(blk: _GradientBlocks, n_points: int) -> sp.csr_array:
@@ -903,22 +908,26 @@ class Correspondence(Model):
         blk = p.blocks
         g = p.gp_of_bond
         nb = g.size
-        counts = np.diff(blk.indptr)[g]  # blocks of each bond's gradient point
+        start = blk.indptr[g]
+        counts = blk.indptr[g + 1] - start  # blocks of each bond's gradient point
         rowptr = np.zeros(nb + 1, dtype=np.int64)
         np.cumsum(counts, out=rowptr[1:])
-        ids = np.repeat(blk.indptr[g] - rowptr[:-1], counts) + np.arange(rowptr[-1])
-        brow = np.repeat(np.arange(nb), counts)
-        data = -np.einsum("eq,eq->e", blk.val[ids], bonds.xi[brow])
-        X = sp.csr_array((data, blk.col[ids], rowptr), shape=(nb, n))
-        ar = np.arange(nb)
-        E = sp.csr_array(
-            (np.concatenate([np.ones(nb), -np.ones(nb)]),
-             (np.concatenate([ar, ar]), np.concatenate([bonds.j, bonds.i]))),
-            shape=(nb, n),
-        )  # fmt: skip
+        ids = np.repeat(start - rowptr[:-1], counts)
+        ids += np.arange(rowptr[-1])
+        # row b of Z_s: -ξ_b·c_gp on every block p of g, +1 at (g, j_b), -1 at the owner
+        data = np.repeat(-bonds.xi[:, 0], counts)
+        data *= blk.val[ids, 0]
+        for q in range(1, d):
+            tmp = np.repeat(-bonds.xi[:, q], counts)
+            tmp *= blk.val[ids, q]
+            data += tmp
+        data[rowptr[:-1] + blk.bond_block - start] += 1.0
+        data[rowptr[:-1] + blk.owner_block[g] - start] -= 1.0
         # R = √k Z_s (k ≥ 0: BondBased.bond_stiffness rejects signed weights)
-        R = sp.csr_array(X + E)
-        R.data *= np.repeat(np.sqrt(k), np.diff(R.indptr))
+        data *= np.repeat(np.sqrt(k), counts)
+        idx = np.int32 if max(rowptr[-1], n) < np.iinfo(np.int32).max else np.int64
+        R = sp.csr_array((data, blk.col[ids].astype(idx), rowptr.astype(idx)), shape=(nb, n))
+        del ids
         Ks = sp.csr_array(R.T @ R)
         Ks.sum_duplicates()
         blocks = Ks.data[:, None, None] * np.eye(d)
