@@ -199,3 +199,22 @@ def test_chunked_pair_assembly_matches_dense_formula(
             np.add.at(ref, (d * bonds.i + a, d * bonds.j + c), blocks[:, a, c])
             np.add.at(ref, (d * bonds.i + a, d * bonds.i + c), -blocks[:, a, c])
     np.testing.assert_allclose(K, ref, rtol=1e-13, atol=1e-15)
+
+
+def test_cg_returns_the_true_residual_it_was_asked_for():
+    """Jacobi-CG on an ill-conditioned SPD matrix: the recursive residual drifts.
+
+    D L D with L the 1D Laplacian (n = 2000) and D = diag(logspace(0, 4)): before the
+    true-residual check, CG stopped at a true 7.4e-10 for rtol 1e-10 (measured).
+    """
+    n = 2000
+    L = sp.diags_array([-np.ones(n - 1), 2 * np.ones(n), -np.ones(n - 1)], offsets=[-1, 0, 1])
+    D = sp.diags_array(np.logspace(0, 4, n))
+    A = sp.csr_array(D @ L @ D)
+    b = np.random.default_rng(0).normal(size=n)
+    res = solve_linear(A, b, "jacobi-cg", rtol=1e-10, maxiter=100_000)
+    assert np.linalg.norm(b - A @ res.x) <= 1e-10 * np.linalg.norm(b)
+    # an unattainable tolerance stops on stagnation (not after maxiter) and raises
+    with pytest.raises(ConvergenceError, match="no convergence") as info:
+        solve_linear(A, b, "jacobi-cg", rtol=1e-13, maxiter=100_000)
+    assert info.value.result.n_iter < 20_000
