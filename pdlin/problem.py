@@ -335,6 +335,10 @@ def solve(
     if preconditioner is not None:
         precond = _preconditioner_matrix(preconditioner, cloud, bonds, red, dofs)
     say(f"solve ({solver})")
+    # the prescribed rows are decoupled (s I): solve for x_c = 0 and write the values after,
+    # so the relative residual is that of the free equations (s u_c in b would inflate ‖b‖)
+    b = np.array(b, dtype=float)
+    b[dofs] = 0.0
     lin: LinearSolveInfo = solve_linear(
         A,
         b,
