@@ -748,6 +748,30 @@ def test_stiffness_stores_no_cancelled_blocks():
     assert B.indices.size == 2 and np.array_equal(B.toarray(), A.toarray())
 
 
+def test_stiffness_drops_round_off_blocks_3d():
+    """3D δ = h: the cancelling blocks of Wᵀ W leave ~1e-18 round-off in floating point.
+
+    They are not stored: every stored off-diagonal block is a real coupling (far above
+    round-off of sqrt(|K_ii| |K_jj|)), and the block count is that of the blocks whose
+    exact value is non-zero (counted here with the round-off threshold 1e-12, which has
+    no entries between it and 16 ε).
+    """
+    cloud = _grid(3, 6)
+    bonds = pdlin.find_bonds(cloud, ratio=1.0, influence="inverse")
+    K = pdlin.Correspondence(E=1.0, nu=0.25).stiffness(cloud, bonds)
+    n = cloud.n
+    blocks = np.abs(K.toarray()).reshape(n, 3, n, 3).max(axis=(1, 3))
+    d = np.diag(blocks)
+    rel = blocks / np.sqrt(np.outer(d, d))
+    real = rel > 1e-12
+    np.fill_diagonal(real, True)
+    assert K.indices.size == int(real.sum())
+    nrow = np.repeat(np.arange(n), np.diff(K.indptr))
+    off = K.indices != nrow
+    assert rel[nrow[off], K.indices[off]].min() > 1e-6
+    assert np.array_equal(K.toarray(), K.toarray().T)
+
+
 def _diag_only_zero(K) -> bool:
     """All stored zero blocks are diagonal ones (kept on purpose for the elimination)."""
     nrow = K.shape[0] // K.blocksize[0]
