@@ -16,9 +16,12 @@ Tables (times are wall-clock seconds on a shared machine; nothing is asserted):
    relative residual ``‖f_int(u)_free‖ / ‖f_int(u_prescribed)_free‖`` from the model's
    internal force. The 401² δ = 2h total is compared with the published Julia anchor
    (3.1 s assembly + 19.6 s LU = 22.7 s on one core; target < 10 %, i.e. < 2.27 s).
+4. **Stabilized**: the anchor loading with ``stress_points``, ``penalty`` and ``springs``
+   (ω = 1), AMG-CG, assembled and matrix-free.
 
 Every solve runs in a forked child process with a time limit, so a slow path prints
-``> limit`` instead of stalling the run.  ``--quick`` runs small grids only (about a minute).
+``> limit`` instead of stalling the run.  ``--quick`` runs small grids only (about a minute);
+``--anchor`` and ``--stabilized`` run table 3 or table 4 alone.
 """
 
 from __future__ import annotations
