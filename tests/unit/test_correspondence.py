@@ -780,15 +780,22 @@ def _diag_only_zero(K) -> bool:
     return bool(np.all(brow[zero] == K.indices[zero]))
 
 
-def test_penalty_matrix_is_z_transpose_k_z():
-    """Zᵀ diag(k) Z from its definition z_b = u_j - u_i - ∇u_g ξ_b (dense, bond by bond)."""
-    cloud = _grid(2, 7)
-    bonds = pdlin.find_bonds(cloud, ratio=2.0)
+@pytest.mark.parametrize("dim,n,ratio,jitter", [(2, 7, 2.0, 0.0), (3, 4, 1.8, 0.02)])
+def test_penalty_matrix_is_z_transpose_k_z(dim, n, ratio, jitter):
+    """Zᵀ diag(k) Z from its definition z_b = u_j - u_i - ∇u_g ξ_b (dense, bond by bond).
+
+    The assembled form is the expansion Eᵀ k E + T + Tᵀ; the jittered 3D cloud has
+    irregular, truncated families with non-zero Σ_b k_b ξ_b on the owners' blocks.
+    """
+    cloud = _grid(dim, n)
+    rng = np.random.default_rng(3)
+    cloud = cloud.replace(points=cloud.points + jitter * rng.standard_normal(cloud.points.shape))
+    bonds = pdlin.find_bonds(cloud, ratio=ratio)
     model = pdlin.Correspondence(E=1.0, nu=0.3, control="penalty", penalty=0.7)
     p = model._plan(cloud, bonds)
     k = model._penalty_k(cloud, bonds, p)
     G = p.G.toarray()
-    d, n = 2, cloud.n
+    d, n = dim, cloud.n
     Z = np.zeros((bonds.n_bonds * d, n * d))
     for b in range(bonds.n_bonds):
         g = p.gp_of_bond[b]
