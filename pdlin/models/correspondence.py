@@ -123,9 +123,19 @@ def _check_stiffness_per_point(arr: np.ndarray) -> None:
 
 
 def _ratio_ok(K: np.ndarray) -> np.ndarray:
-    """Per tensor of ``K (n, d, d)``: λ_min/λ_max ≥ SP_MIN_RATIO."""
-    lam = np.linalg.eigvalsh(K)
-    return lam[:, 0] >= SP_MIN_RATIO * np.maximum(lam[:, -1], 1e-300)
+    """Per tensor of ``K (n, d, d)``: λ_min/λ_max ≥ SP_MIN_RATIO.
+
+    2 x 2 in closed form, ``(a + c)/2 ± hypot((a - c)/2, b)`` (accurate to ~ε/SP_MIN_RATIO
+    at the threshold; 10x faster than batched LAPACK), otherwise ``eigvalsh``.
+    """
+    if K.shape[1] == 2:
+        mid = 0.5 * (K[:, 0, 0] + K[:, 1, 1])
+        rad = np.hypot(0.5 * (K[:, 0, 0] - K[:, 1, 1]), K[:, 0, 1])
+        lo, hi = mid - rad, mid + rad
+    else:
+        lam = np.linalg.eigvalsh(K)
+        lo, hi = lam[:, 0], lam[:, -1]
+    return lo >= SP_MIN_RATIO * np.maximum(hi, 1e-300)
 
 
 def _halves_well_conditioned(
@@ -195,7 +205,10 @@ def _coefficients(
         assert override_kinv is not None
         K[override_rows] = np.linalg.inv(override_kinv)
     tr = np.abs(np.einsum("nii->n", K))
-    det = np.linalg.det(K)
+    if d == 2:  # closed form (batched 2 x 2 LAPACK calls cost ~10x more)
+        det = K[:, 0, 0] * K[:, 1, 1] - K[:, 0, 1] * K[:, 1, 0]
+    else:
+        det = np.linalg.det(K)
     bad = np.flatnonzero(~(np.abs(det) > 1e-12 * np.maximum(tr / d, 1e-300) ** d))
     if bad.size:
         raise ModelError(
@@ -203,7 +216,15 @@ def _coefficients(
             f"one(s) (first: gradient point {int(bad[0])}); its bonds do not span {d}D "
             "(isolated points, one-point-wide strips, or weights with Ω = 0)"
         )
-    Kinv = np.linalg.inv(K)
+    if d == 2:  # adjugate / det (as accurate as LU for 2 x 2)
+        Kinv = np.empty_like(K)
+        Kinv[:, 0, 0] = K[:, 1, 1]
+        Kinv[:, 1, 1] = K[:, 0, 0]
+        Kinv[:, 0, 1] = -K[:, 0, 1]
+        Kinv[:, 1, 0] = -K[:, 1, 0]
+        Kinv /= det[:, None, None]
+    else:
+        Kinv = np.linalg.inv(K)
     if override_rows is not None and override_rows.size:
         Kinv[override_rows] = override_kinv
     c = np.zeros_like(xi)
@@ -435,12 +456,19 @@ def _drop_zero_blocks(K: sp.bsr_array) -> sp.bsr_array:
     """
     nrow = K.shape[0] // K.blocksize[0]
     brow = np.repeat(np.arange(nrow), np.diff(K.indptr))
-    size = np.abs(K.data).max(axis=(1, 2))
+    flat = K.data.reshape(K.data.shape[0], -1)
+    size = np.abs(flat[:, 0])  # max |entry| per block, column by column (3x faster than axis=)
+    for c in range(1, flat.shape[1]):
+        np.maximum(size, np.abs(flat[:, c]), out=size)
     on_diag = K.indices == brow
     dsize = np.zeros(nrow)
     dsize[brow[on_diag]] = size[on_diag]
-    tol = (16.0 * np.finfo(float).eps) * np.sqrt(dsize[brow] * dsize[K.indices])
-    keep = (size > tol) | on_diag
+    tol = dsize[brow]
+    tol *= dsize[K.indices]
+    tol *= (16.0 * np.finfo(float).eps) ** 2
+    size *= size
+    keep = size > tol
+    keep |= on_diag
     if keep.all():
         return K
     counts = np.bincount(brow[keep], minlength=nrow)

@@ -808,3 +808,22 @@ def test_penalty_matrix_is_z_transpose_k_z(dim, n, ratio, jitter):
     got = model._penalty_matrix(cloud, bonds, p).toarray()
     assert np.array_equal(got, got.T)
     np.testing.assert_allclose(got, ref, atol=1e-13 * np.abs(ref).max())
+
+
+def test_ratio_ok_closed_form_2d_matches_eigvalsh():
+    """The 2 x 2 closed form of the stress-point conditioning test agrees with LAPACK."""
+    from pdlin.models.correspondence import SP_MIN_RATIO, _ratio_ok
+
+    rng = np.random.default_rng(5)
+    A = rng.standard_normal((5000, 2, 2))
+    K = A @ A.transpose(0, 2, 1)
+    # rotated tensors with eigenvalue ratios just below / above the threshold
+    t = rng.uniform(0, np.pi, 200)
+    R = np.stack([np.c_[np.cos(t), -np.sin(t)], np.c_[np.sin(t), np.cos(t)]], axis=1)
+    ratio = np.where(np.arange(200) % 2 == 0, 0.99, 1.01) * SP_MIN_RATIO
+    lam = np.stack([ratio, np.ones(200)], axis=1) * rng.uniform(1e-6, 1e6, (200, 1))
+    K = np.concatenate([K, R @ (lam[:, :, None] * R.transpose(0, 2, 1))])
+    ev = np.linalg.eigvalsh(K)
+    ref = ev[:, 0] >= SP_MIN_RATIO * ev[:, -1]
+    np.testing.assert_array_equal(_ratio_ok(K), ref)
+    assert ref[-200:].sum() == 100  # the constructed half above the threshold
