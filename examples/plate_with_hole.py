@@ -112,8 +112,10 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     print("max |u_x|, |u_y| = {:.4e}, {:.4e} m".format(*summary["max_abs_u"]))
     for key in ("hole_beta_0", "hole_beta_90"):
         v = summary[key]
-        print(f"hole edge, beta = {v['beta_deg']:6.2f} deg: u_x = {v['u_x']:.4e} m, "
-              f"u_y = {v['u_y']:.4e} m")
+        print(
+            f"hole edge, beta = {v['beta_deg']:6.2f} deg: u_x = {v['u_x']:.4e} m, "
+            f"u_y = {v['u_y']:.4e} m"
+        )
     if args.plot:
         _plot(cloud, u)
     return summary
