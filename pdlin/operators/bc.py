@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import scipy.linalg
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
@@ -83,6 +84,54 @@ def _evaluate(value: Any, pts: np.ndarray, dim: int, name: str) -> np.ndarray:
     raise ShapeError(f"{name} must be a scalar, shape ({dim},) or ({m}, {dim}), got {out.shape}")
 
 
+def _evaluate_components(
+    value: Any, pts: np.ndarray, dim: int, comps: np.ndarray, name: str
+) -> np.ndarray:
+    """Dirichlet value spec -> ``(m, k)`` values of the ``k`` constrained components.
+
+    Accepted: the full-vector forms of :func:`_evaluate` (scalar, ``(dim,)``,
+    ``(m, dim)``) and one column per named component: ``(k,)``, ``(m, k)``,
+    and ``(m,)`` when one component is named.
+    """
+    m, k = pts.shape[0], comps.size
+    if callable(value):
+        out = as_float_array(value(pts), f"{name} (callable result)")
+        # a callable's result is per point first: (m, k), (m,) for one component, (m, dim)
+        if out.shape == (m, k):
+            return out
+        if k == 1 and out.shape == (m,):
+            return out[:, None]
+    else:
+        out = as_float_array(value, name)
+        if k == 1 and m == dim != 1 and out.shape == (m,):
+            raise ShapeError(
+                f"{name} of shape ({m},) is ambiguous for {m} point(s) in {dim}D with one "
+                f"constrained component: pass ({m}, 1) for one value per point or a scalar / "
+                f"({dim},) vector for all points"
+            )
+    if out.ndim == 0:
+        return np.full((m, k), float(out))
+    if out.shape == (dim,):
+        return np.broadcast_to(out[comps], (m, k)).copy()
+    if out.shape == (m, dim):
+        return out[:, comps]
+    if out.shape == (k,):
+        return np.broadcast_to(out, (m, k)).copy()
+    if out.shape == (m, k):
+        return out
+    if k == 1 and out.shape == (m,):
+        return out[:, None]
+    shapes = [f"({dim},)", f"({m}, {dim})"]
+    if k != dim:
+        shapes += [f"({k},)", f"({m}, {k})"]
+    if k == 1:
+        shapes.append(f"({m},)")
+    raise ShapeError(
+        f"{name} must be a scalar or have shape {', '.join(dict.fromkeys(shapes))} "
+        f"({m} point(s), {k} constrained component(s) of {dim}), got {out.shape}"
+    )
+
+
 @dataclass(frozen=True)
 class Dirichlet:
     """Prescribed displacement on a point set.
@@ -91,8 +140,15 @@ class Dirichlet:
     ----------
     where : str or index array or mask
         Point set name (e.g. ``'x-'``) or indices.
-    value : float, (dim,) array, (m, dim) array or callable
-        Displacement; a callable receives the ``(m, dim)`` reference points.
+    value : float, array_like or callable
+        Displacement of the ``m`` selected points.  Either the full vector,
+        a scalar, ``(dim,)`` or ``(m, dim)`` (only the constrained
+        components are used), or one column per constrained component:
+        ``(k,)`` or ``(m, k)`` for ``k`` components, and ``(m,)`` when one
+        component is named (an array of shape ``(m,)`` with ``m == dim`` is
+        ambiguous and raises; pass ``(m, 1)``).  A callable receives the
+        ``(m, dim)`` reference points and returns any of these forms (its
+        per-point forms win over the full-vector ones).
     components : str or sequence of int, optional
         Constrained components (default all), e.g. ``'x'`` or ``[0, 2]``.
 
@@ -104,6 +160,12 @@ class Dirichlet:
     >>> dofs, vals = resolve_dirichlet(cloud, [bc])
     >>> dofs.tolist(), vals.round(4).tolist()
     ([8, 10], [0.025, 0.025])
+
+    One value per point for a single component:
+
+    >>> bc = Dirichlet("x+", lambda x: 0.01 * x[:, 1], components="y")
+    >>> resolve_dirichlet(cloud, [bc])[1].round(4).tolist()
+    [0.005, 0.015]
     """
 
     where: Any
@@ -243,9 +305,9 @@ def resolve_dirichlet(
             raise InputError(f"dirichlet[{k}] must be a pdlin Dirichlet, got {type(bc).__name__}")
         idx = _resolve_where(cloud, bc.where, f"dirichlet[{k}]")
         comps = parse_components(bc.components, d)
-        vals = _evaluate(bc.value, cloud.points[idx], d, f"dirichlet[{k}].value")
+        vals = _evaluate_components(bc.value, cloud.points[idx], d, comps, f"dirichlet[{k}].value")
         all_dofs.append((d * idx[:, None] + comps[None, :]).ravel())
-        all_vals.append(vals[:, comps].ravel())
+        all_vals.append(vals.ravel())
     if not all_dofs:
         return np.zeros(0, dtype=np.intp), np.zeros(0)
     dofs = np.concatenate(all_dofs)
@@ -344,12 +406,14 @@ def check_constraints(
                 rows = (d * members[:, None] + np.arange(d)).ravel()
                 full[rows] = B
                 B = full
-        Bc = B[constrained]
         if B.shape[1] == 0:
             continue
+        # drop modes that vanish on (or repeat other modes on) this piece: a rotation about
+        # the line of collinear points moves no point, so it is not a motion to constrain
+        keep = _independent_columns(B)
+        B = B[:, keep]
         scale = np.linalg.norm(B, axis=0)
-        scale[scale == 0] = 1.0
-        Bc = Bc / scale
+        Bc = B[constrained] / scale
         s = np.linalg.svd(Bc, compute_uv=False) if Bc.shape[0] else np.zeros(0)
         rank = int(np.sum(s > 1e-10 * max(1.0, s.max() if s.size else 0.0)))
         if rank < B.shape[1]:
@@ -358,7 +422,7 @@ def check_constraints(
             null = vt[rank:]
             labels_free = []
             for v in null:
-                k = int(np.argmax(np.abs(v)))
+                k = int(keep[int(np.argmax(np.abs(v)))])
                 labels_free.append(
                     names[k] if extra_modes is None and k < len(names) else f"mode {k}"
                 )
@@ -368,6 +432,29 @@ def check_constraints(
                 f"motion(s) free ({', '.join(sorted(set(labels_free)))}); "
                 f"{int(constrained.sum())} DOF(s) are prescribed"
             )
+
+
+def _independent_columns(B: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
+    """Indices of a maximal set of linearly independent columns of ``B`` (pivoted QR).
+
+    Columns are normalized first; a column whose norm is below ``rtol`` times the
+    largest is dropped outright.  The indices are returned in ascending order.
+
+    Examples
+    --------
+    >>> B = np.array([[1.0, 0.0, 2.0], [0.0, 0.0, 0.0], [1.0, 0.0, 2.0]])
+    >>> _independent_columns(B).tolist()
+    [0]
+    """
+    norms = np.linalg.norm(B, axis=0)
+    if norms.size == 0 or norms.max() == 0:
+        return np.zeros(0, dtype=np.intp)
+    live = np.flatnonzero(norms > rtol * norms.max())
+    Q = B[:, live] / norms[live]
+    _, R, piv = scipy.linalg.qr(Q, mode="economic", pivoting=True)
+    diag = np.abs(np.diag(R))
+    rank = int(np.sum(diag > rtol * max(1.0, float(diag[0]) if diag.size else 0.0)))
+    return np.sort(live[piv[:rank]])
 
 
 def matrix_rows(K: sp.sparray, rows: np.ndarray) -> sp.csr_array:

@@ -36,7 +36,7 @@ def test_dirichlet_bad_input():
     c = pdlin.grid((3, 3))
     with pytest.raises(InputError, match="components must be"):
         resolve_dirichlet(c, [pdlin.Dirichlet("x-", 0.0, "w")])
-    with pytest.raises(ShapeError, match=r"must be a scalar, shape \(2,\)"):
+    with pytest.raises(ShapeError, match=r"must be a scalar or have shape \(2,\)"):
         resolve_dirichlet(c, [pdlin.Dirichlet("x-", [1.0, 2.0, 3.0])])
     with pytest.raises(InputError, match="unknown point set 'left'"):
         resolve_dirichlet(c, [pdlin.Dirichlet("left", 0.0)])
@@ -203,3 +203,85 @@ def test_reported_residual_is_that_of_the_free_equations():
     true = np.linalg.norm((K @ u)[free]) / np.linalg.norm((K @ uc)[free])
     assert true <= 1e-6
     np.testing.assert_allclose(res.relative_residual, true, rtol=1e-6)
+
+
+@pytest.mark.parametrize("n", [2, 3])
+def test_collinear_points_fully_prescribed_are_not_floating(n):
+    # issue 15 item 1: a rotation about the line of collinear points moves no point, so
+    # prescribing every DOF constrains every motion there is (was a false FloatingBodyError)
+    pts = np.zeros((n, 3))
+    pts[:, 0] = np.arange(n)
+    cloud = pdlin.PointCloud(pts, volumes=1.0)
+    bonds = pdlin.find_bonds(cloud, 1.5, influence="constant")
+    prob = pdlin.StaticProblem(
+        pdlin.LPS(E=1.0, nu=0.25, peridigm=True),
+        cloud,
+        bonds,
+        dirichlet=[pdlin.Dirichlet(np.arange(n), lambda x: 1e-3 * x)],
+    )
+    res = pdlin.solve(prob, solver="direct")
+    # two-point LPS hand check (Peridigm's discrete weighted volume): m = ω |ξ|² V = 1,
+    # θ = 3 ω |ξ| e V / m = 3e-3, deviatoric extension 0, t = 3 K θ / m = 3e-3 * 3 K per
+    # direction with K = E / (3 (1 - 2ν)) = 2/3; force on a point 2 t V = 0.012
+    if n == 2:
+        np.testing.assert_allclose(res.reactions[:, 0], [-0.012, 0.012], rtol=1e-12)
+    np.testing.assert_allclose(res.reactions.sum(axis=0), 0.0, atol=1e-15)
+
+
+def test_collinear_points_still_detect_free_motions():
+    # the rank-revealing check keeps the motions that do move the points: x-only
+    # prescriptions on a line of points leave the two translations normal to it and the
+    # two rotations that move the points free
+    pts = np.zeros((4, 3))
+    pts[:, 0] = np.arange(4)
+    cloud = pdlin.PointCloud(pts, volumes=1.0)
+    bonds = pdlin.find_bonds(cloud, 1.5)
+    with pytest.raises(FloatingBodyError, match=r"leave 4 rigid-body motion\(s\) free"):
+        pdlin.operators.bc.check_constraints(
+            cloud, bonds, resolve_dirichlet(cloud, [pdlin.Dirichlet(np.arange(4), 0.0, "x")])[0]
+        )
+
+
+@pytest.mark.parametrize(
+    "value",
+    [
+        0.25,
+        [0.25],
+        np.full(4, 0.25),
+        np.full((4, 1), 0.25),
+        lambda x: np.full(x.shape[0], 0.25),
+        lambda x: np.full((x.shape[0], 1), 0.25),
+        [0.0, 0.25, 0.0],  # full vector: only y is used
+    ],
+)
+def test_single_component_dirichlet_accepts_one_column(value):
+    # issue 15 item 2: a value for the named component only, as (k,), (m,), (m, k)
+    cloud = pdlin.grid((2, 4, 1))
+    dofs, vals = resolve_dirichlet(cloud, [pdlin.Dirichlet("x-", value, "y")])
+    assert dofs.tolist() == [3 * i + 1 for i in cloud.point_set("x-")]
+    np.testing.assert_array_equal(vals, 0.25)
+
+
+def test_two_component_dirichlet_columns_and_bad_shapes():
+    cloud = pdlin.grid((2, 4, 1))
+    m = cloud.point_set("x-").size
+    cols = np.column_stack([np.arange(m), -np.arange(m)]).astype(float)
+    _, vals = resolve_dirichlet(cloud, [pdlin.Dirichlet("x-", cols, "xz")])
+    np.testing.assert_array_equal(vals.reshape(m, 2), cols)
+    _, vals = resolve_dirichlet(cloud, [pdlin.Dirichlet("x-", [1.0, 2.0], "xz")])
+    np.testing.assert_array_equal(vals.reshape(m, 2), [[1.0, 2.0]] * m)
+    # (m,) is ambiguous for two components: the message lists the accepted shapes
+    with pytest.raises(ShapeError, match=r"\(4, 2\).*got \(4,\)"):
+        resolve_dirichlet(cloud, [pdlin.Dirichlet("x-", np.zeros(m), "xz")])
+
+
+def test_single_component_value_per_point_when_points_equal_dim():
+    # m == dim: a callable's (m,) result is per point; a constant (m,) array is ambiguous
+    cloud = pdlin.grid((3, 2))
+    bc = pdlin.Dirichlet("x+", lambda x: 0.01 * x[:, 1], components="y")
+    # x+ holds the points at y = 0.5 and 1.5 (unit spacing, cell centred): 0.01 y
+    np.testing.assert_allclose(resolve_dirichlet(cloud, [bc])[1], [0.005, 0.015])
+    with pytest.raises(ShapeError, match=r"ambiguous.*pass \(2, 1\)"):
+        resolve_dirichlet(cloud, [pdlin.Dirichlet("x+", [0.1, 0.2], "y")])
+    _, vals = resolve_dirichlet(cloud, [pdlin.Dirichlet("x+", [[0.1], [0.2]], "y")])
+    np.testing.assert_array_equal(vals, [0.1, 0.2])
