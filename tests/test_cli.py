@@ -11,7 +11,7 @@ import pytest
 
 import pdlin
 from pdlin.cli.main import main
-from pdlin.errors import SceneError
+from pdlin.errors import PdlinError, SceneError
 from pdlin.io.scene import list_builtin_scenes, load_scene
 
 SCENE = """
@@ -370,3 +370,23 @@ def test_scene_model_key_checks(tmp_path):
     text += "[material]\nE = 1.0\nnu = 0.3\n"
     with pytest.raises(SceneError, match="unknown scene key 'model.control'"):
         load_scene(_write(tmp_path, text))
+
+
+@pytest.mark.parametrize("kind", ["lps", "xosb", "correspondence"])
+def test_scene_material_bulk_and_shear_moduli(tmp_path, kind):
+    # issue 15 item 5: [material] K and G (as in Peridigm decks) give the same problem as
+    # E and nu; K = E / (3 (1 - 2ν)), G = E / (2 (1 + ν)) for E = 70e9, ν = 0.3 (closed form)
+    E, nu = 70e9, 0.3
+    K, G = E / (3 * (1 - 2 * nu)), E / (2 * (1 + nu))
+    base = SCENE.replace("[horizon]", f'[model]\ntype = "{kind}"\n[horizon]')
+    by_e = base.replace("E = 70e9\n", f"E = 70e9\nnu = {nu}\n")
+    by_k = base.replace("E = 70e9\n", f"K = {K!r}\nG = {G!r}\n")
+    sc_e = load_scene(_write(tmp_path, by_e))
+    sc_k = load_scene(_write(tmp_path, by_k))
+    u_e = pdlin.solve(sc_e.problem, solver="direct").u
+    u_k = pdlin.solve(sc_k.problem, solver="direct").u
+    np.testing.assert_allclose(u_k, u_e, rtol=1e-9, atol=1e-9 * np.abs(u_e).max())
+    with pytest.raises(SceneError, match="needs two isotropic constants"):
+        load_scene(_write(tmp_path, base.replace("E = 70e9\n", f"K = {K!r}\n")))
+    with pytest.raises(PdlinError, match="inconsistent isotropic constants"):
+        load_scene(_write(tmp_path, by_k.replace("G = ", "E = 1e9\nG = ")))

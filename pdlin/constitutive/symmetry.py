@@ -46,6 +46,7 @@ __all__ = [
     "tetragonal",
     "transversely_isotropic",
     "cubic",
+    "isotropic_constants",
     "isotropic",
     "SYMMETRY_CLASSES",
     "N_CONSTANTS",
@@ -282,6 +283,157 @@ def isotropic(
         "isotropic", C11=lam_ + 2 * mu_, C22=lam_ + 2 * mu_, C33=lam_ + 2 * mu_,
         C12=lam_, C13=lam_, C23=lam_, C44=mu_, C55=mu_, C66=mu_,
     )  # fmt: skip
+
+
+_ISO_ORDER = ("E", "nu", "K", "G", "lam")
+
+
+def _lame_arrays(g: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Elementwise (λ, μ) from a pair of E, ν, K, G (= μ), λ (arrays, no validation)."""
+    keys = frozenset(g)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if keys == {"E", "nu"}:
+            E, nu = g["E"], g["nu"]
+            return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
+        if keys == {"K", "G"}:
+            return g["K"] - 2.0 * g["G"] / 3.0, g["G"]
+        if keys == {"G", "lam"}:
+            return g["lam"], g["G"]
+        if keys == {"E", "G"}:
+            E, G = g["E"], g["G"]
+            return G * (E - 2.0 * G) / (3.0 * G - E), G
+        if keys == {"E", "K"}:
+            E, K = g["E"], g["K"]
+            G = 3.0 * K * E / (9.0 * K - E)
+            return K - 2.0 * G / 3.0, G
+        if keys == {"nu", "K"}:
+            K, nu = g["K"], g["nu"]
+            G = 3.0 * K * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu))
+            return K - 2.0 * G / 3.0, G
+        if keys == {"nu", "G"}:
+            G, nu = g["G"], g["nu"]
+            return 2.0 * G * nu / (1.0 - 2.0 * nu), G
+        if keys == {"nu", "lam"}:
+            lam, nu = g["lam"], g["nu"]
+            return lam, lam * (1.0 - 2.0 * nu) / (2.0 * nu)
+        if keys == {"K", "lam"}:
+            return g["lam"], 1.5 * (g["K"] - g["lam"])
+        E, lam = g["E"], g["lam"]  # {"E", "lam"}
+        return lam, (E - 3.0 * lam + np.sqrt(E * E + 9.0 * lam * lam + 2.0 * E * lam)) / 4.0
+
+
+def isotropic_constants(
+    E: Any = None,
+    nu: Any = None,
+    *,
+    K: Any = None,
+    G: Any = None,
+    lam: Any = None,
+    mu: Any = None,
+    rtol: float = 1e-9,
+) -> tuple[Any, Any]:
+    """Young's modulus and Poisson ratio ``(E, ν)`` from any two isotropic constants.
+
+    Accepts two (or more, if consistent) of ``E``, ``nu``, ``K`` (bulk
+    modulus), ``G`` or ``mu`` (shear modulus, the same constant) and ``lam``
+    (Lamé's first constant), as scalars or per-point ``(n,)`` arrays: the
+    constants users have (Peridigm decks give ``K`` and ``G``).  All are 3D
+    constants; the 2D models apply their plane-stress / plane-strain
+    reduction to the returned ``(E, ν)``.
+
+    Parameters
+    ----------
+    E, nu, K, G, lam, mu : float or (n,) array_like, optional
+    rtol : float
+        Relative tolerance when more than two constants are given: every
+        extra one must agree with the pair ``E, nu, K, G, lam`` (first two
+        in that order) to ``rtol``.
+
+    Returns
+    -------
+    (E, nu) : floats, or arrays when an input is an array
+
+    Raises
+    ------
+    InputError
+        Fewer than two constants, non-finite values, ``mu`` and ``G`` that
+        differ, constants that do not give a positive definite material
+        (need ``K > 0`` and ``G > 0``, i.e. ``-1 < ν < 1/2``), or extra
+        constants inconsistent with the first pair.
+
+    Examples
+    --------
+    >>> E, nu = isotropic_constants(K=175e9, G=80.77e9)         # steel, Peridigm style
+    >>> round(E / 1e9, 3), round(nu, 4)
+    (210.0, 0.3)
+    >>> isotropic_constants(lam=1.0, mu=1.0)
+    (2.5, 0.25)
+    >>> isotropic_constants(E=1.0, nu=0.25, K=1.0)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    pdlin.errors.InputError: inconsistent isotropic constants: K = 1 but ... give K = 0.666667
+    """
+    if mu is not None and G is not None:
+        Ga, ma = _finite_array(G, "G"), _finite_array(mu, "mu")
+        if not np.allclose(Ga, ma, rtol=rtol, atol=0.0):
+            raise InputError(
+                f"mu and G are the same shear modulus and must agree, got {mu} and {G}"
+            )
+    if G is None:
+        G = mu
+    passed = {"E": E, "nu": nu, "K": K, "G": G, "lam": lam}
+    names = [k for k in _ISO_ORDER if passed[k] is not None]
+    if len(names) < 2:
+        raise InputError(
+            "isotropic elasticity needs two of E, nu, K (bulk), G or mu (shear), lam (Lamé), "
+            f"got {len(names)}: {', '.join(names) or 'none'}"
+        )
+    vals = {k: _finite_array(passed[k], k) for k in names}
+    scalar = all(v.ndim == 0 for v in vals.values())
+    pair = {k: vals[k] for k in names[:2]}
+    lam_, mu_ = _lame_arrays(pair)
+    K_ = lam_ + 2.0 * mu_ / 3.0
+    shown = ", ".join(f"{k} = {_show(passed[k])}" for k in names[:2])
+    if not (np.all(np.isfinite(lam_)) and np.all(np.isfinite(mu_))):
+        raise InputError(f"{shown} do not determine finite elastic moduli")
+    if np.any(mu_ <= 0) or np.any(K_ <= 0):
+        raise InputError(
+            f"{shown} give a material that is not positive definite (need K > 0 and G > 0, "
+            f"got K = {_show(K_)}, G = {_show(mu_)})"
+        )
+    E_ = mu_ * (3.0 * lam_ + 2.0 * mu_) / (lam_ + mu_)
+    nu_ = lam_ / (2.0 * (lam_ + mu_))
+    derived = {"E": E_, "nu": nu_, "K": K_, "G": mu_, "lam": lam_}
+    for k in names[2:]:
+        ref = derived[k]
+        scale = np.maximum(np.abs(ref), np.abs(mu_) if k != "nu" else 1.0)
+        if np.any(np.abs(vals[k] - ref) > rtol * scale):
+            raise InputError(
+                f"inconsistent isotropic constants: {k} = {_show(passed[k])} but {shown} "
+                f"give {k} = {_show(ref)}"
+            )
+    if scalar:
+        return float(E_), float(nu_)
+    return E_, nu_
+
+
+def _finite_array(value: Any, name: str) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a number or (n,) array, got {value!r}") from None
+    if arr.ndim > 1:
+        raise ShapeError(f"{name} must be a scalar or (n,) array, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{name} must be finite, got {value!r}")
+    return arr
+
+
+def _show(value: Any) -> str:
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim == 0:
+        return f"{float(arr):.6g}"
+    return f"[{float(arr.min()):.6g} ... {float(arr.max()):.6g}] ({arr.size} values)"
 
 
 #: Class name → constructor, from most to least anisotropic (spec §1.3).

@@ -57,7 +57,20 @@ _GEOM = {
     "mesh": {"type", "path", "thickness", "dim"},
     "image": {"type", "path", "data", "spacing", "origin", "void", "thickness"},
 }
-_MATERIAL = {"E", "nu", "plane", "micromodulus", "calibration", "stiffness"}
+_MATERIAL = {
+    "E",
+    "nu",
+    "K",
+    "G",
+    "lam",
+    "mu",
+    "plane",
+    "micromodulus",
+    "calibration",
+    "stiffness",
+}
+#: isotropic constants a material table may give (any two; per phase tables allowed)
+_ISO_KEYS = ("E", "nu", "K", "G", "lam", "mu")
 _CALIBRATION = {
     "target",
     "method",
@@ -127,11 +140,10 @@ def _state_based(kind: str) -> Callable[[Mapping[str, Any], Mapping[str, Any], P
         from ..models import LPS, XOSB
 
         _no_keys(material, ("micromodulus", "stiffness"), kind)
-        E = per_phase(_require(material, "E", "material"), cloud, "material.E")
-        nu = _require(material, "nu", "material")
+        iso = _isotropic(material, cloud, kind)
         opts = {k: cfg[k] for k in cfg if k != "type"}
         cls = LPS if kind == "lps" else XOSB
-        return cls(E, float(nu), plane=material.get("plane", "stress"), **opts)
+        return cls(**iso, plane=material.get("plane", "stress"), **opts)
 
     return build
 
@@ -146,12 +158,31 @@ def _correspondence(
     opts = {k: cfg[k] for k in cfg if k != "type"}
     plane = material.get("plane", "stress")
     if "stiffness" in material:
-        if "E" in material:
-            raise SceneError("material.E and material.stiffness exclude each other")
+        given = [k for k in _ISO_KEYS if k in material]
+        if given:
+            raise SceneError(
+                f"material.stiffness and material.{given[0]} exclude each other "
+                "(give a Voigt stiffness or isotropic constants)"
+            )
         C = target_from_table(material["stiffness"], "material.stiffness")
         return Correspondence(C, plane=plane, **opts)
-    E = per_phase(_require(material, "E", "material"), cloud, "material.E")
-    return Correspondence(E=E, nu=material.get("nu"), plane=plane, **opts)
+    iso = _isotropic(material, cloud, "correspondence", one=cloud.dim == 1)
+    return Correspondence(**iso, plane=plane, **opts)
+
+
+def _isotropic(
+    material: Mapping[str, Any], cloud: PointCloud, kind: str, *, one: bool = False
+) -> dict[str, Any]:
+    """The isotropic constants of a material table (E, nu, K, G, lam, mu; per phase)."""
+    iso = {k: per_phase(material[k], cloud, f"material.{k}") for k in _ISO_KEYS if k in material}
+    if one and "E" in iso:
+        return iso
+    if len(iso) < 2:
+        raise SceneError(
+            f"model.type = {kind!r} needs two isotropic constants in [material] "
+            f"(E and nu, or K and G, or lam and mu, ...), got {sorted(iso) or 'none'}"
+        )
+    return iso
 
 
 def per_phase(value: Any, cloud: PointCloud, key: str) -> Any:
@@ -179,9 +210,9 @@ def per_phase(value: Any, cloud: PointCloud, key: str) -> Any:
 
 
 def _bond_based(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud) -> Model:
+    iso = {k: per_phase(material[k], cloud, f"material.{k}") for k in _ISO_KEYS if k in material}
     return BondBased(
-        E=per_phase(material.get("E"), cloud, "material.E"),
-        nu=material.get("nu"),
+        **iso,
         plane=material.get("plane", "stress"),
         micromodulus=material.get("micromodulus"),
         average=cfg.get("average", "arithmetic"),

@@ -31,6 +31,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .._validation import as_displacement, as_float_array
+from ..constitutive.symmetry import isotropic_constants
 from ..errors import InputError, ModelError, ShapeError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
@@ -61,6 +62,25 @@ TARGET_D = {
     2: np.array([1.5, 1.5, 0.5, 0.0, 0.0]),
     3: np.array([1.5, 1.5, 1.5, 0.5, 0.5, 0.5] + [0.0] * 9),
 }
+
+
+def uniform_nu_constants(
+    owner: str, E: Any, nu: Any, *, K: Any, G: Any, lam: Any, mu: Any
+) -> tuple[Any, float]:
+    """``(E, ν)`` from any two isotropic constants, with one ν for every point.
+
+    pdlin's isotropic models take per-point ``E`` and one ``ν``; per-point
+    constants that imply a varying ν raise (use a per-point Voigt ``C``).
+    """
+    E_, nu_ = isotropic_constants(E, nu, K=K, G=G, lam=lam, mu=mu)
+    nu_arr = np.asarray(nu_, dtype=float)
+    if nu_arr.ndim and float(np.ptp(nu_arr)) > 1e-12 * max(1.0, float(np.abs(nu_arr).max())):
+        raise InputError(
+            f"{owner} takes one Poisson ratio for all points, but the given constants imply "
+            f"nu from {float(nu_arr.min()):.6g} to {float(nu_arr.max()):.6g}; give constants "
+            "with a uniform ratio (or a per-point Voigt C to Correspondence)"
+        )
+    return E_, float(nu_arr.ravel()[0])
 
 
 def bulk_shear_moduli(E: Any, nu: float, dim: int, plane: str = "stress") -> tuple[Any, Any]:
@@ -446,9 +466,13 @@ class OrdinaryStateBased(Model):
 
     def __init__(
         self,
-        E: Any,
-        nu: float,
+        E: Any = None,
+        nu: Any = None,
         *,
+        K: Any = None,
+        G: Any = None,
+        lam: Any = None,
+        mu: Any = None,
         plane: str = "stress",
         linearization: str = "energy",
         weighted_volume: str = "analytic",
@@ -456,6 +480,14 @@ class OrdinaryStateBased(Model):
         unit_influence: bool = False,
         max_cond: float = 1e10,
     ) -> None:
+        if all(v is None for v in (K, G, lam, mu)):
+            if E is None or nu is None:
+                raise InputError(
+                    f"{type(self).__name__} needs E and nu (or two of K, G, lam, mu), got "
+                    f"E = {E!r}, nu = {nu!r}"
+                )
+        else:
+            E, nu = uniform_nu_constants(type(self).__name__, E, nu, K=K, G=G, lam=lam, mu=mu)
         self.E = as_float_array(E, "E")
         if self.E.ndim > 1 or np.any(self.E <= 0):
             raise InputError(f"E must be a positive scalar or (n,) array, got {E!r}")

@@ -12,11 +12,13 @@ import scipy.sparse as sp
 from scipy import integrate
 
 from .._validation import as_displacement, as_float_array
+from ..constitutive.symmetry import isotropic_constants
 from ..errors import InputError, ModelError, ShapeError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
 from ..geometry.influence import influence_function
 from ..operators.assembly import pair_stiffness_bsr
+from ._state import uniform_nu_constants
 from .base import Model
 
 __all__ = ["BondBased", "implied_poisson_ratio", "standard_micromodulus"]
@@ -121,12 +123,18 @@ class BondBased(Model):
     ----------
     E : float or (n,) array_like, optional
         Young's modulus (per point for graded materials).  Needed unless
-        ``micromodulus`` is given.
+        ``micromodulus``, or ``K``, ``G`` or ``lam``, is given.
     nu : float, optional
         Poisson ratio requested by the user.  Bond-based PD implies
         ν = 1/4 (3D, plane strain) or 1/3 (plane stress); another value
         raises :class:`~pdlin.errors.ModelError` (or warns, see
         ``nu_mismatch``).
+    K, G, lam, mu : float or (n,) array_like, optional
+        Bulk modulus, shear modulus (``mu`` is the same) or Lamé's first
+        constant (3D constants, as in Peridigm decks).  One of them alone
+        fixes ``E`` through the implied Poisson ratio
+        (:meth:`young_modulus`); two constants (with ``E`` or ``nu`` too)
+        fix ``E`` and ``nu``, and ``nu`` is then checked like ``nu``.
     plane : {'stress', 'strain'}
         2D assumption.
     micromodulus : float or (nb,) array_like, optional
@@ -160,13 +168,35 @@ class BondBased(Model):
         E: float | np.ndarray | None = None,
         *,
         nu: float | None = None,
+        K: Any = None,
+        G: Any = None,
+        lam: Any = None,
+        mu: Any = None,
         plane: str = "stress",
         micromodulus: float | np.ndarray | None = None,
         average: str = "arithmetic",
         nu_mismatch: str = "raise",
     ) -> None:
-        if E is None and micromodulus is None:
-            raise InputError("BondBased needs E or micromodulus, got neither")
+        given = {"E": E, "nu": nu, "K": K, "G": G if G is not None else mu, "lam": lam}
+        names = [k for k, v in given.items() if v is not None]
+        #: a single modulus other than E (K, G or lam), converted to E with the implied ν
+        self.modulus: tuple[str, np.ndarray] | None = None
+        if micromodulus is not None and set(names) - {"nu"}:
+            raise InputError(
+                "BondBased takes either elastic constants or an explicit micromodulus, got "
+                f"micromodulus and {', '.join(k for k in names if k != 'nu')}"
+            )
+        if len(names) >= 2:
+            E, nu = uniform_nu_constants("BondBased", E, nu, K=K, G=G, lam=lam, mu=mu)
+        elif names and names[0] in ("K", "G", "lam"):
+            self.modulus = (names[0], as_float_array(given[names[0]], names[0]))
+            if np.any(self.modulus[1] <= 0):
+                raise InputError(f"{names[0]} must be > 0, got {given[names[0]]!r}")
+        if E is None and micromodulus is None and self.modulus is None:
+            raise InputError(
+                "BondBased needs E (or K, G, lam, or two isotropic constants) or micromodulus, "
+                f"got {', '.join(names) or 'none'}"
+            )
         self.E = None if E is None else as_float_array(E, "E")
         if self.E is not None and np.any(self.E <= 0):
             raise InputError(f"E must be > 0, got min {float(np.min(self.E))}")
@@ -193,6 +223,35 @@ class BondBased(Model):
     def implied_poisson_ratio(self, dim: int) -> float:
         """Poisson ratio of this model in ``dim`` dimensions."""
         return implied_poisson_ratio(dim, self.plane)
+
+    def young_modulus(self, dim: int) -> np.ndarray:
+        """Young's modulus (scalar or per point) in ``dim`` dimensions.
+
+        With a single ``K``, ``G`` or ``lam`` it is converted with the
+        implied Poisson ratio of ``dim`` / ``plane`` (the constants are 3D
+        ones, as in Peridigm decks).
+
+        Examples
+        --------
+        >>> import pdlin
+        >>> float(pdlin.BondBased(K=2.0).young_modulus(3))   # E = 3 K (1 - 2/4)
+        3.0
+        >>> float(pdlin.BondBased(G=2.0).young_modulus(2))   # plane stress: E = 2 G (1 + 1/3)
+        5.333333333333333
+        """
+        if self.E is not None:
+            return self.E
+        if self.modulus is None:
+            raise ModelError("BondBased has an explicit micromodulus and no Young's modulus")
+        name, value = self.modulus
+        if dim == 1:
+            raise ModelError(
+                f"a 1D bond-based model needs E (no Poisson ratio relates {name} to E in 1D), "
+                f"got {name}"
+            )
+        kw: dict[str, Any] = {name: value}
+        E, _ = isotropic_constants(None, self.implied_poisson_ratio(dim), **kw)
+        return np.asarray(E, dtype=float)
 
     def check(self, dim: int) -> None:
         """Validate the requested Poisson ratio against the implied one."""
@@ -222,8 +281,7 @@ class BondBased(Model):
                     f"micromodulus must be a scalar or have shape ({nb},), got {c.shape}"
                 )
             return c
-        assert self.E is not None
-        E = self.E
+        E = self.young_modulus(cloud.dim)
         if E.ndim == 0:
             Eb: np.ndarray | float = float(E)
         else:
@@ -358,11 +416,16 @@ class BondBased(Model):
         return {
             "model": "BondBased",
             "E": None if self.E is None or self.E.ndim else float(self.E),
+            **({} if self.modulus is None else {self.modulus[0]: _scalar_or_tag(self.modulus[1])}),
             "plane": self.plane,
             "micromodulus": "per-bond"
             if self.micromodulus is not None and self.micromodulus.ndim
             else (None if self.micromodulus is None else float(self.micromodulus)),
         }
+
+
+def _scalar_or_tag(value: np.ndarray) -> float | str:
+    return "per-point" if value.ndim else float(value)
 
 
 def _measure(cloud: PointCloud) -> float:

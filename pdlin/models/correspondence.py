@@ -36,6 +36,7 @@ from ..errors import InputError, ModelError, ShapeError
 from ..fields import _per_point_outer
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
+from ._state import uniform_nu_constants
 from .base import Model
 from .bond_based import BondBased, _c1111
 
@@ -537,6 +538,11 @@ class Correspondence(Model):
     E, nu : float or (n,) array_like, optional
         Isotropic alternative to ``C`` (``E`` may vary per point; 1D uses
         ``E`` only).
+    K, G, lam, mu : float or (n,) array_like, optional
+        Any two isotropic constants instead of ``E, nu``: bulk modulus,
+        shear modulus (``mu`` is the same), Lamé's first constant (see
+        :func:`pdlin.constitutive.isotropic_constants`; Peridigm decks give
+        ``K`` and ``G``).
     plane : {'stress', 'strain'}
         2D reduction of 3D data.
     control : {'none', 'higher_order', 'penalty', 'stress_points', 'springs', 'ads'}
@@ -629,6 +635,10 @@ class Correspondence(Model):
         *,
         E: Any = None,
         nu: float | None = None,
+        K: Any = None,
+        G: Any = None,
+        lam: Any = None,
+        mu: Any = None,
         plane: str = "stress",
         control: str = "none",
         penalty: float = 1.0,
@@ -640,10 +650,18 @@ class Correspondence(Model):
         max_bytes: int = DEFAULT_MAX_BYTES,
         coefficient: float | None = None,
     ) -> None:
+        iso = [k for k, v in {"K": K, "G": G, "lam": lam, "mu": mu}.items() if v is not None]
+        if iso:
+            if C is not None:
+                raise InputError(
+                    "Correspondence needs exactly one of C (Voigt stiffness) or isotropic "
+                    f"constants, got C and {', '.join(iso)}"
+                )
+            E, nu = uniform_nu_constants("Correspondence", E, nu, K=K, G=G, lam=lam, mu=mu)
         if (C is None) == (E is None):
             raise InputError(
-                "Correspondence needs exactly one of C (Voigt stiffness) or E (with nu), "
-                f"got {'both' if C is not None else 'neither'}"
+                "Correspondence needs exactly one of C (Voigt stiffness) or E (with nu, or two "
+                f"of K, G, lam, mu), got {'both' if C is not None else 'neither'}"
             )
         if control not in CONTROLS:
             raise InputError(f"control must be one of {CONTROLS}, got {control!r}")

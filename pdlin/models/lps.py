@@ -22,6 +22,11 @@ class LPS(OrdinaryStateBased):
         Young's modulus (per point for graded materials).
     nu : float
         Poisson ratio in (-1, 0.5); any value (unlike bond-based PD).
+    K, G, lam, mu : float or (n,) array_like, optional
+        Bulk modulus, shear modulus (``mu`` is the same), Lamé's first
+        constant: give any two isotropic constants instead of ``E, nu``
+        (Peridigm decks give ``K`` and ``G``); see
+        :func:`pdlin.constitutive.isotropic_constants`.
     plane : {'stress', 'strain'}
         2D assumption: ``κ = E/(2(1-ν))`` or ``E/(2(1+ν)(1-2ν))``.
     weighted_volume : {'analytic', 'discrete'}
@@ -54,9 +59,13 @@ class LPS(OrdinaryStateBased):
 
     def __init__(
         self,
-        E: Any,
-        nu: float,
+        E: Any = None,
+        nu: Any = None,
         *,
+        K: Any = None,
+        G: Any = None,
+        lam: Any = None,
+        mu: Any = None,
         plane: str = "stress",
         weighted_volume: str = "analytic",
         peridigm: bool = False,
@@ -65,6 +74,10 @@ class LPS(OrdinaryStateBased):
         super().__init__(
             E,
             nu,
+            K=K,
+            G=G,
+            lam=lam,
+            mu=mu,
             plane=plane,
             linearization=linearization,
             weighted_volume="discrete" if peridigm else weighted_volume,

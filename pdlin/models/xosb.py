@@ -30,6 +30,9 @@ class XOSB(OrdinaryStateBased):
         Young's modulus.
     nu : float
         Poisson ratio in (-1, 0.5).
+    K, G, lam, mu : float or (n,) array_like, optional
+        Any two isotropic constants instead of ``E, nu`` (bulk, shear, Lamé;
+        see :func:`pdlin.constitutive.isotropic_constants`).
     plane : {'stress', 'strain'}
         2D assumption (ignored in 3D).
     linearization : {'energy', 'paper'}
@@ -64,9 +67,13 @@ class XOSB(OrdinaryStateBased):
 
     def __init__(
         self,
-        E: Any,
-        nu: float,
+        E: Any = None,
+        nu: Any = None,
         *,
+        K: Any = None,
+        G: Any = None,
+        lam: Any = None,
+        mu: Any = None,
         plane: str = "stress",
         linearization: str = "energy",
         weighted_volume: str = "analytic",
@@ -76,6 +83,10 @@ class XOSB(OrdinaryStateBased):
         super().__init__(
             E,
             nu,
+            K=K,
+            G=G,
+            lam=lam,
+            mu=mu,
             plane=plane,
             linearization=linearization,
             weighted_volume=weighted_volume,
