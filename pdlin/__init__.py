@@ -43,6 +43,7 @@ from .operators import (
     sparsity_report,
 )
 from .problem import StaticProblem, StaticResult, solve
+from .system import ConstrainedSystem, constrained_system
 
 __version__ = "0.1.0"
 
@@ -77,6 +78,8 @@ __all__ = [
     "StaticProblem",
     "StaticResult",
     "solve",
+    "ConstrainedSystem",
+    "constrained_system",
     "deformation_gradient",
     "shape_tensor",
     "small_strain",

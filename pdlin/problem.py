@@ -11,27 +11,21 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from .errors import InputError, InputTypeError
-from .fields import deformation_gradient, small_strain
+from .fields import small_strain
 from .geometry.bonds import Bonds, find_bonds
 from .geometry.cloud import PointCloud
 from .models.base import Model
-from .operators.assembly import assemble_stiffness, estimate_bond_operator_bytes
+from .operators.assembly import estimate_bond_operator_bytes
 from .operators.bc import (
     BodyForce,
     Dirichlet,
     TotalForce,
-    check_constraints,
-    eliminate_dirichlet,
-    load_vector,
-    matrix_rows,
-    resolve_dirichlet,
 )
-from .operators.rigid import rigid_body_modes
-from .operators.symmetry import SymmetryPlane, SymmetryReduction, symmetry_reduction
+from .operators.symmetry import SymmetryPlane, SymmetryReduction
 from .solvers.linear import LinearSolveInfo, solve_linear
+from .system import ConstrainedSystem, PlainDiscretization, constrained_system
 
 __all__ = ["StaticProblem", "StaticResult", "solve"]
 
@@ -149,15 +143,27 @@ class StaticResult:
     prescribed_dofs: np.ndarray
     info: dict[str, Any]
     stiffness: sp.sparray | None = None
-    #: mirrored cloud, bonds and operators when the problem has symmetry planes
-    #: (``bonds`` then holds the real-real bonds only)
-    symmetry: SymmetryReduction | None = None
+    #: the constrained system the driver solved (its discretization maps fields back)
+    system: ConstrainedSystem | None = None
+
+    @property
+    def symmetry(self) -> SymmetryReduction | None:
+        """Mirrored cloud, bonds and operators when the problem has symmetry planes.
+
+        ``bonds`` then holds the real-real bonds only.
+        """
+        disc = None if self.system is None else self.system.disc
+        return disc if isinstance(disc, SymmetryReduction) else None
+
+    @property
+    def _disc(self) -> Any:
+        if self.system is not None:
+            return self.system.disc
+        return PlainDiscretization(self.problem.model, self.problem.cloud, self.bonds)
 
     def deformation_gradient(self) -> np.ndarray:
         """Nonlocal deformation gradient per point ``(n, dim, dim)``."""
-        if self.symmetry is not None:
-            return self.symmetry.deformation_gradient(self.u)
-        return deformation_gradient(self.problem.cloud, self.bonds, self.u)
+        return np.asarray(self._disc.deformation_gradient(self.u))
 
     def strain(self) -> np.ndarray:
         """Small strain per point ``(n, dim, dim)``."""
@@ -165,12 +171,7 @@ class StaticResult:
 
     def stress(self) -> np.ndarray:
         """Model stress per point ``(n, dim, dim)`` (virial for bond-based models)."""
-        model = self.problem.model
-        if not hasattr(model, "stress"):
-            raise InputError(f"model {type(model).__name__} does not define a stress")
-        if self.symmetry is not None:
-            return self.symmetry.stress(self.u)
-        return model.stress(self.problem.cloud, self.bonds, self.u)
+        return np.asarray(self._disc.stress(self.u))
 
     def reaction(self, where: Any) -> np.ndarray:
         """Total reaction force on a point set ``(dim,)``."""
@@ -182,9 +183,7 @@ class StaticResult:
         out: dict[str, np.ndarray] = {
             "displacement": self.u,
             "reaction": self.reactions,
-            "family_size": (
-                self.bonds if self.symmetry is None else self.symmetry
-            ).family_size.astype(float),
+            "family_size": np.asarray(self._disc.family_size, dtype=float),
             "volume": np.asarray(self.problem.cloud.volumes),
             "material": np.asarray(self.problem.cloud.material, dtype=float),
         }
@@ -279,94 +278,60 @@ def solve(
     say = progress or (lambda msg: None)
     timings: dict[str, float] = {}
     t_start = time.perf_counter()
-    cloud = problem.cloud
     model = problem.model
-    d = cloud.dim
 
     say("bonds")
     t0 = time.perf_counter()
-    red: SymmetryReduction | None = None
-    if problem.symmetry:
-        red = symmetry_reduction(
-            model, cloud, problem.symmetry, problem.horizon, problem.bond_options
-        )
-        bonds = red.real_bonds
-    else:
-        bonds = problem.get_bonds()
+    system = constrained_system(problem)
     timings["bonds"] = time.perf_counter() - t0
+    cloud, d = system.cloud, system.dim
 
-    if red is not None:
-        dofs, vals = resolve_dirichlet(cloud, (*problem.dirichlet, *red.dirichlet()))
-        f_ext = red.load_vector(problem.loads)
-        red.check_constraints(dofs)
-    else:
-        dofs, vals = resolve_dirichlet(cloud, problem.dirichlet)
-        f_ext = load_vector(cloud, problem.loads)
-        check_constraints(cloud, bonds, dofs)
-
-    nblocks = model.estimate_nnz_blocks(cloud, bonds)
+    nblocks = system.estimate_nnz_blocks()
     est = estimate_bond_operator_bytes(cloud.n, nblocks, d)
     path, reason = _choose_operator(
-        operator, model, cloud, solver, est, red is not None, keep_stiffness,
+        operator, model, cloud, solver, est, not system.matrix_free_capable, keep_stiffness,
         nblocks=nblocks,
     )  # fmt: skip
-    B = rigid_body_modes(cloud)
-    B[dofs] = 0.0
-    symmetric = getattr(model, "symmetric", True)
     K: Any = None
+    K_rows = None
+    precond = None
     if path == "assembled":
         say(f"assembly (~{est / 1e9:.2f} GB for {nblocks * d * d:,} nonzeros)")
         log.info("assembling K: %d blocks, ~%.3g GB", nblocks, est / 1e9)
         t0 = time.perf_counter()
-        K = assemble_stiffness(model, cloud, bonds) if red is None else red.stiffness()
+        K = system.assemble()
         timings["assembly"] = time.perf_counter() - t0
         # the prescribed rows, kept for the reactions (elimination overwrites them)
-        K_rows = matrix_rows(K, dofs) if red is None else None
-        A, b = eliminate_dirichlet(K, f_ext, dofs, vals, inplace=not keep_stiffness)
-        precond = None
+        K_rows = system.prescribed_rows(K)
+        A, b = system.eliminate(K, inplace=not keep_stiffness)
     else:
         say(f"matrix-free operator ({reason})")
         t0 = time.perf_counter()
-        A, b, precond = _matrix_free_system(model, cloud, bonds, f_ext, dofs, vals)
-        K_rows = None
+        A, b, precond = system.matrix_free()
         timings["assembly"] = time.perf_counter() - t0
         if solver == "auto":
-            solver = "amg-cg" if symmetric else "amg-gmres"
+            solver = "amg-cg" if system.symmetric else "amg-gmres"
     if preconditioner is not None:
-        precond = _preconditioner_matrix(preconditioner, cloud, bonds, red, dofs)
+        precond = system.preconditioner_matrix(preconditioner)
     say(f"solve ({solver})")
-    # the prescribed rows are decoupled (s I): solve for x_c = 0 and write the values after,
-    # so the relative residual is that of the free equations (s u_c in b would inflate ‖b‖)
-    b = np.array(b, dtype=float)
-    b[dofs] = 0.0
     lin: LinearSolveInfo = solve_linear(
         A,
         b,
         solver,
         rtol=rtol,
         maxiter=maxiter,
-        near_null=B,
+        near_null=system.near_null(),
         blocksize=d,
-        symmetric=symmetric,
+        symmetric=system.symmetric,
         amg_options=dict(amg_options or {}),
         preconditioner_matrix=precond,
     )
     timings["setup"] = lin.setup_time
     timings["solve"] = lin.solve_time
-    x = lin.x
-    x[dofs] = vals
-    u = x.reshape(cloud.n, d)
-    # reactions: R = -(f_int + f_ext) on prescribed dofs, f_int = -K u (from the assembled
-    # rows when there are, else the model's matrix-free internal force)
-    reac = np.zeros(cloud.n * d)
-    if K_rows is not None:
-        reac[dofs] = K_rows @ u.ravel() - f_ext[dofs]
-    else:
-        if red is None:
-            f_int = model.internal_force(cloud, bonds, u, linear=True).ravel()
-        else:
-            f_int = red.internal_force(u, linear=True).ravel()
-        reac[dofs] = -(f_int[dofs] + f_ext[dofs])
+    u = system.expand(lin.x)
+    # reactions -(f_int + f_ext) on prescribed DOFs, f_int = -K u from the assembled rows
+    # when there are, else the model's matrix-free internal force
+    reac = system.reactions(u, rows=K_rows)
     timings["total"] = time.perf_counter() - t_start
     info = {
         "solver": lin.solver,
@@ -379,18 +344,18 @@ def solve(
         info["preconditioner"] = preconditioner.describe()
     return StaticResult(
         problem=problem,
-        bonds=bonds,
+        bonds=system.disc.real_bonds,
         u=u,
         converged=True,
         n_iter=lin.n_iter,
         residuals=lin.residuals,
         relative_residual=lin.relative_residual,
         timings=timings,
-        reactions=reac.reshape(cloud.n, d),
-        prescribed_dofs=dofs,
+        reactions=reac,
+        prescribed_dofs=system.dofs,
         info=info,
         stiffness=K if keep_stiffness and K is not None else None,
-        symmetry=red,
+        system=system,
     )
 
 
@@ -403,7 +368,7 @@ def _choose_operator(
     cloud: PointCloud,
     solver: str,
     est_bytes: int,
-    symmetry: bool,
+    assembled_only: bool,
     keep_stiffness: bool = False,
     *,
     nblocks: int = 0,
@@ -423,7 +388,7 @@ def _choose_operator(
         return "assembled", "requested"
     if operator == "auto" and keep_stiffness:
         return "assembled", "keep_stiffness=True needs the assembled K"
-    if symmetry:
+    if assembled_only:  # the symmetry reduction has no matrix-free operator yet
         if operator == "matrix-free":
             raise InputError("operator='matrix-free' does not support symmetry planes yet")
         return "assembled", "symmetry planes need the assembled reduction"
@@ -449,65 +414,3 @@ def _choose_operator(
             "the factored product is cheaper than assembling it"
         )
     return "assembled", f"assembled K fits (~{est_bytes / 1e9:.2f} GB)"
-
-
-def _preconditioner_matrix(
-    pmodel: Any,
-    cloud: PointCloud,
-    bonds: Bonds,
-    red: SymmetryReduction | None,
-    dofs: np.ndarray,
-) -> sp.sparray:
-    """Assembled stiffness of ``pmodel`` with the problem's Dirichlet elimination."""
-    if not isinstance(pmodel, Model):
-        raise InputTypeError(
-            f"preconditioner must be a pdlin model (BondBased, LPS, XOSB, Correspondence), "
-            f"got {type(pmodel).__name__}"
-        )
-    if red is not None:
-        raise InputError(
-            "preconditioner= needs a problem without symmetry planes, got "
-            f"{len(red.planes)} plane(s)"
-        )
-    Kp = assemble_stiffness(pmodel, cloud, bonds)
-    ndof = cloud.ndof
-    P, _ = eliminate_dirichlet(Kp, np.zeros(ndof), dofs, np.zeros(dofs.size), inplace=True)
-    return P
-
-
-def _matrix_free_system(
-    model: Model,
-    cloud: PointCloud,
-    bonds: Bonds,
-    f_ext: np.ndarray,
-    dofs: np.ndarray,
-    vals: np.ndarray,
-) -> tuple[spla.LinearOperator, np.ndarray, sp.sparray]:
-    """Eliminated matrix-free system and the eliminated surrogate preconditioner matrix.
-
-    Prescribed rows and columns become ``s * I`` in both, with ``s`` the mean
-    free diagonal of the surrogate, so they have the same structure as the
-    assembled elimination of :func:`~pdlin.operators.bc.eliminate_dirichlet`.
-    """
-    ndof = cloud.ndof
-    op = model.operator(cloud, bonds)
-    sur = model.surrogate_stiffness(cloud, bonds)
-    free = np.ones(ndof, dtype=bool)
-    free[dofs] = False
-    P, _ = eliminate_dirichlet(sur, np.zeros(ndof), dofs, np.zeros(dofs.size), inplace=True)
-    diag = sur.diagonal()
-    s = float(np.mean(np.abs(diag[free]))) if free.any() else 1.0
-    uc = np.zeros(ndof)
-    uc[dofs] = vals
-    b = f_ext - op @ uc
-    b[~free] = s * uc[~free]
-    fmask = free.astype(float)
-
-    def mv(x: np.ndarray) -> np.ndarray:
-        x = np.asarray(x, dtype=float).reshape(-1)
-        y = np.asarray(op @ (x * fmask), dtype=float)
-        y[~free] = s * x[~free]
-        return y
-
-    A = spla.LinearOperator((ndof, ndof), matvec=mv, rmatvec=mv, dtype=float)
-    return A, b, P
