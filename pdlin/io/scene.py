@@ -92,10 +92,11 @@ _MODEL = {
     "penalty",
     "coefficient",
     "seed",
+    "surface_correction",
 }
 _MODEL_KEYS = {
-    "bond_based": {"type", "nu_mismatch", "average"},
-    "lps": {"type", "linearization", "weighted_volume", "peridigm"},
+    "bond_based": {"type", "nu_mismatch", "average", "surface_correction"},
+    "lps": {"type", "linearization", "weighted_volume", "peridigm", "surface_correction"},
     "xosb": {"type", "linearization", "weighted_volume", "fallback"},
     "correspondence": {"type", "control", "penalty", "coefficient", "seed"},
 }
@@ -217,6 +218,7 @@ def _bond_based(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: Poin
         micromodulus=material.get("micromodulus"),
         average=cfg.get("average", "arithmetic"),
         nu_mismatch=cfg.get("nu_mismatch", "raise"),
+        surface_correction=cfg.get("surface_correction"),
     )
 
 

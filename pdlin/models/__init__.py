@@ -12,6 +12,7 @@ from .damage import (
     isolated_points,
 )
 from .lps import LPS
+from .surface import SURFACE_CORRECTIONS, SurfaceFactors
 from .weights import (
     HigherOrderWeights,
     MomentWeights,
@@ -36,6 +37,8 @@ __all__ = [
     "standard_micromodulus",
     "LPS",
     "XOSB",
+    "SURFACE_CORRECTIONS",
+    "SurfaceFactors",
     "Correspondence",
     "gradient_operator",
     "shadow_problem",

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy import integrate
 
 from .._validation import as_displacement, as_float_array
 from ..constitutive.symmetry import isotropic_constants
@@ -36,6 +37,15 @@ from ..errors import InputError, ModelError, ShapeError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
 from .base import Model
+from .surface import (
+    SurfaceFactors,
+    check_surface_correction,
+    ellipsoid_bond_factors,
+    harmonic_bond_factors,
+    radial_moment,
+    ratio_factors,
+    volume_point_factors,
+)
 
 __all__ = [
     "bulk_shear_moduli",
@@ -431,6 +441,22 @@ def _point_operator(
     return out
 
 
+def _force_angular(rho: float, d: int) -> float:
+    """``∫ |ρ + (d+2)(n_1² - 1/d)| |n_1| dΩ`` over the unit sphere (ρ = κ/μ)."""
+    if d == 2:
+
+        def f2(a: float) -> float:
+            c = np.cos(a)
+            return abs(rho + 4.0 * (c * c - 0.5)) * abs(c)
+
+        return float(4.0 * integrate.quad(f2, 0.0, 0.5 * np.pi, limit=200)[0])
+
+    def f3(c: float) -> float:  # c = cos φ, dΩ = 2π dc
+        return abs(rho + 5.0 * (c * c - 1.0 / 3.0)) * c
+
+    return float(4.0 * np.pi * integrate.quad(f3, 0.0, 1.0, limit=200)[0])
+
+
 def _segment_max(x: np.ndarray, indptr: np.ndarray) -> np.ndarray:
     """Per-owner maximum of non-negative bond values (0 for empty families)."""
     ptr = np.asarray(indptr, dtype=np.int64)
@@ -479,7 +505,10 @@ class OrdinaryStateBased(Model):
         fallback: bool = True,
         unit_influence: bool = False,
         max_cond: float = 1e10,
+        surface_correction: str | None = None,
     ) -> None:
+        self.surface_correction = check_surface_correction(surface_correction, type(self).__name__)
+        self._surface_cache: tuple[PointCloud, Bonds, SurfaceFactors] | None = None
         if all(v is None for v in (K, G, lam, mu)):
             if E is None or nu is None:
                 raise InputError(
@@ -544,6 +573,81 @@ class OrdinaryStateBased(Model):
         return w
 
     def _coefficients(self, cloud: PointCloud, bonds: Bonds) -> dict[str, Any]:
+        """Per-bond / per-point coefficients, surface-corrected when asked."""
+        co = self._raw_coefficients(cloud, bonds)
+        sf = self.surface_factors(cloud, bonds)
+        if sf is not None:
+            alpha = sf.dilatation
+            co["c"] = co["c"] * sf.bond
+            co["kh"] = co["kh"] * alpha[bonds.i]
+            co["kth"] = co["kth"] * alpha[bonds.i]
+            co["kV"] = co["kV"] * alpha
+        return co
+
+    def surface_factors(self, cloud: PointCloud, bonds: Bonds) -> SurfaceFactors | None:
+        """Surface-correction factors on ``bonds`` (None without correction).
+
+        ``dilatation`` (per point) multiplies κ, ``bond`` (per directed bond,
+        symmetric over the pair) multiplies the deviatoric modulus ``2μω^d``
+        (``docs/state_based.md``).  Cached for the last ``(cloud, bonds)`` pair.
+        """
+        method = self.surface_correction
+        if method is None:
+            return None
+        cache = self._surface_cache
+        if cache is not None and cache[0] is cloud and cache[1] is bonds:
+            return cache[2]
+        d = cloud.dim
+        if method == "volume":
+            m = volume_point_factors(cloud, bonds)
+            g = np.repeat(m[:, None], d, axis=1)
+            out = SurfaceFactors(method, g, m, harmonic_bond_factors(m, bonds))
+        else:
+            g = self._directional_factors(cloud, bonds, method)
+            out = SurfaceFactors(method, g, g.mean(axis=1), ellipsoid_bond_factors(g, bonds))
+        self._surface_cache = (cloud, bonds, out)
+        return out
+
+    def _directional_factors(self, cloud: PointCloud, bonds: Bonds, method: str) -> np.ndarray:
+        """``g_{k,i}`` of the 'energy' / 'force-normalization' methods, ``(n, d)``.
+
+        Under the unit uniaxial strain ``u = x_k e_k`` (``e = r n_k²``), with the
+        uncorrected coefficients: energy ``W_i = κθ²/2 + μ Σ ω̃^d (e^d)² V_j`` against
+        ``κ/2 + μ(n_d-1)/n_d``; force ``F_i = Σ_j |t n_k| V_j`` (paper force state) against
+        its continuum value ``(n_d/m) ∫ω r^{n_d} dr ∫|κ + (n_d+2)μ(n_1² - 1/n_d)||n_1| dΩ``.
+        """
+        n, d = cloud.n, cloud.dim
+        co = self._raw_coefficients(cloud, bonds)
+        kappa, mu = self.moduli(d)
+        kap = np.broadcast_to(kappa, (n,)).astype(float)
+        mup = np.broadcast_to(mu, (n,)).astype(float)
+        r = bonds.length
+        vj = bonds.volume_j
+        nabs = np.abs(bonds.xi / r[:, None])
+        disc = np.empty((n, d))
+        for k in range(d):
+            e = r * nabs[:, k] ** 2
+            theta = np.bincount(bonds.i, weights=co["a"] * e, minlength=n)
+            ed = e - theta[bonds.i] * r / d
+            if method == "energy":
+                dev = np.bincount(bonds.i, weights=co["c"] * ed * ed * vj, minlength=n)
+                disc[:, k] = 0.5 * kap * theta**2 + 0.5 * dev
+            else:
+                t = co["kh"] * theta[bonds.i] + co["c"] * ed
+                disc[:, k] = np.bincount(bonds.i, weights=np.abs(t) * nabs[:, k] * vj, minlength=n)
+        if method == "energy":
+            target = 0.5 * kap + mup * (d - 1) / d
+        else:
+            infl = "constant" if self.unit_influence else getattr(bonds, "influence", "constant")
+            hor = np.asarray(bonds.horizon, dtype=float)
+            full = 2.0 * np.pi if d == 2 else 4.0 * np.pi
+            m_bulk = full * radial_moment(infl, hor, d + 1)
+            k1, m1 = bulk_shear_moduli(1.0, self.nu, d, self.plane)
+            ang = _force_angular(float(k1) / float(m1), d)
+            target = d / m_bulk * radial_moment(infl, hor, d) * mup * ang
+        return ratio_factors(target[:, None], disc)
+
+    def _raw_coefficients(self, cloud: PointCloud, bonds: Bonds) -> dict[str, Any]:
         d = cloud.dim
         w = self.weights(cloud, bonds)
         kappa, mu = self.moduli(d)
@@ -610,6 +714,10 @@ class OrdinaryStateBased(Model):
         )
         ed = e - theta[bonds.i] * bonds.length / d
         wd = w.omega_d_force if force_weights else w.omega_d
+        sf = self.surface_factors(cloud, bonds)
+        if sf is not None:
+            wd = wd * sf.bond
+            kappa = kappa * sf.dilatation
         dev = np.bincount(bonds.i, weights=wd * ed * ed * bonds.volume_j, minlength=cloud.n)
         return 0.5 * kappa * theta**2 + mu * dev
 

@@ -20,6 +20,16 @@ from ..geometry.influence import influence_function
 from ..operators.assembly import pair_stiffness_bsr
 from ._state import uniform_nu_constants
 from .base import Model
+from .surface import (
+    SurfaceFactors,
+    angular_moment,
+    check_surface_correction,
+    ellipsoid_bond_factors,
+    harmonic_bond_factors,
+    radial_moment,
+    ratio_factors,
+    volume_point_factors,
+)
 
 __all__ = ["BondBased", "implied_poisson_ratio", "standard_micromodulus"]
 
@@ -143,6 +153,12 @@ class BondBased(Model):
     average : {'arithmetic', 'harmonic'}
         How a bond combines the per-point moduli of its two ends.
     nu_mismatch : {'raise', 'warn'}
+    surface_correction : {None, 'volume', 'energy', 'force-normalization'}
+        Surface correction of the micromodulus near free surfaces (Le &
+        Bobaru 2018, see :mod:`pdlin.models.surface` and
+        ``docs/bond_based.md``): a factor per bond, symmetric over the pair,
+        computed once per ``(cloud, bonds)`` and used by ``stiffness``,
+        ``internal_force``, ``stress`` and ``effective_tensor``.
 
     Examples
     --------
@@ -158,6 +174,13 @@ class BondBased(Model):
     Traceback (most recent call last):
     ...
     pdlin.errors.ModelError: bond-based PD implies nu = 0.25 in 3D, got nu = 0.3; ...
+
+    With a surface correction the end points of the bar get stiffer bonds:
+
+    >>> sc = pdlin.BondBased(E=200e9, surface_correction="volume")
+    >>> g = sc.surface_factors(cloud, bonds).bond
+    >>> round(float(g[0]), 3), round(float(g[bonds.indptr[5]]), 3)   # end bond, interior bond
+    (1.6, 1.0)
     """
 
     coupling_range = 1
@@ -176,7 +199,10 @@ class BondBased(Model):
         micromodulus: float | np.ndarray | None = None,
         average: str = "arithmetic",
         nu_mismatch: str = "raise",
+        surface_correction: str | None = None,
     ) -> None:
+        self.surface_correction = check_surface_correction(surface_correction, "BondBased")
+        self._surface_cache: tuple[PointCloud, Bonds, SurfaceFactors] | None = None
         given = {"E": E, "nu": nu, "K": K, "G": G if G is not None else mu, "lam": lam}
         names = [k for k, v in given.items() if v is not None]
         #: a single modulus other than E (K, G or lam), converted to E with the implied ν
@@ -316,9 +342,58 @@ class BondBased(Model):
         )
         return np.asarray(cb * Eb, dtype=float)
 
-    def bond_stiffness(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
-        """Scalar bond stiffness ``k_b = c ω V_i V_j t / |ξ|`` (nodal units)."""
+    def surface_factors(self, cloud: PointCloud, bonds: Bonds) -> SurfaceFactors | None:
+        """Surface-correction factors on ``bonds`` (None without correction).
+
+        Cached for the last ``(cloud, bonds)`` pair.  ``bond`` multiplies the
+        micromodulus of :meth:`bond_micromodulus` (which stays uncorrected).
+        """
+        method = self.surface_correction
+        if method is None:
+            return None
+        cache = self._surface_cache
+        if cache is not None and cache[0] is cloud and cache[1] is bonds:
+            return cache[2]
+        n, d = cloud.n, cloud.dim
+        if method == "volume":
+            m = volume_point_factors(cloud, bonds)
+            g = np.repeat(m[:, None], d, axis=1)
+            gb = harmonic_bond_factors(m, bonds)
+        else:
+            c = self.bond_micromodulus(cloud, bonds) * bonds.omega
+            unit = np.abs(bonds.xi / bonds.length[:, None])
+            infl = getattr(bonds, "influence", "constant")
+            hij = bonds.horizon_ij
+            if method == "energy":
+                # W_i = ¼ Σ c ω n_k⁴ r V_j under u = x_k e_k; bulk ¼ c A₄ ∫ω r^d dr
+                w = c * bonds.length * bonds.volume_j
+                bulk = c * angular_moment(d, 4) * radial_moment(infl, hij, d)
+                power = 4
+            else:
+                # F_i = Σ |c ω s n_k| V_j with s = n_k²; bulk c A₃ ∫ω r^(d-1) dr
+                w = c * bonds.volume_j
+                bulk = c * angular_moment(d, 3) * radial_moment(infl, hij, d - 1)
+                power = 3
+            disc = np.empty((n, d))
+            for k in range(d):
+                disc[:, k] = np.bincount(bonds.i, weights=w * unit[:, k] ** power, minlength=n)
+            count = np.maximum(np.diff(bonds.indptr), 1)
+            target = np.bincount(bonds.i, weights=bulk, minlength=n) / count
+            g = ratio_factors(target[:, None], disc)
+            gb = ellipsoid_bond_factors(g, bonds)
+        out = SurfaceFactors(method, g, np.ones(n), gb)
+        self._surface_cache = (cloud, bonds, out)
+        return out
+
+    def corrected_micromodulus(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
+        """Micromodulus per directed bond times its surface-correction factor, ``(nb,)``."""
         c = self.bond_micromodulus(cloud, bonds)
+        sf = self.surface_factors(cloud, bonds)
+        return c if sf is None else c * sf.bond
+
+    def bond_stiffness(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
+        """Scalar bond stiffness ``k_b = c ω V_i V_j t / |ξ|`` (nodal units, corrected c)."""
+        c = self.corrected_micromodulus(cloud, bonds)
         vol = _effective_volumes(cloud)
         k = c * bonds.omega
         k = k * vol[bonds.i]
@@ -377,7 +452,7 @@ class BondBased(Model):
         """
         d = cloud.dim
         uu = as_displacement(u, cloud.n, d)
-        c = self.bond_micromodulus(cloud, bonds)
+        c = self.corrected_micromodulus(cloud, bonds)
         eta = uu[bonds.j] - uu[bonds.i]
         unit = bonds.xi / bonds.length[:, None]
         s_len = np.einsum("ij,ij->i", unit, eta)  # s |ξ|
@@ -399,7 +474,7 @@ class BondBased(Model):
         (possibly truncated) family.
         """
         d = cloud.dim
-        c = self.bond_micromodulus(cloud, bonds)
+        c = self.corrected_micromodulus(cloud, bonds)
         unit = bonds.xi / bonds.length[:, None]
         w = 0.5 * c * bonds.omega * bonds.volume_j * _measure(cloud) * bonds.length
         out = np.empty((cloud.n, d, d, d, d))
@@ -421,6 +496,7 @@ class BondBased(Model):
             "micromodulus": "per-bond"
             if self.micromodulus is not None and self.micromodulus.ndim
             else (None if self.micromodulus is None else float(self.micromodulus)),
+            "surface_correction": self.surface_correction,
         }
 
 

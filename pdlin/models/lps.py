@@ -53,6 +53,10 @@ class LPS(OrdinaryStateBased):
     >>> u = np.random.default_rng(0).normal(size=(cloud.n, 2))
     >>> bool(np.allclose(K @ u.ravel(), -model.internal_force(cloud, bonds, u).ravel()))
     True
+    >>> sc = pdlin.LPS(E=1.0, nu=0.3, plane="strain", surface_correction="energy")
+    >>> sf = sc.surface_factors(cloud, bonds)
+    >>> bool(sf.dilatation[0] > sf.dilatation[27] > 0.9)   # corner point vs centre point
+    True
     """
 
     _corrections = False
@@ -70,6 +74,7 @@ class LPS(OrdinaryStateBased):
         weighted_volume: str = "analytic",
         peridigm: bool = False,
         linearization: str = "energy",
+        surface_correction: str | None = None,
     ) -> None:
         super().__init__(
             E,
@@ -82,10 +87,12 @@ class LPS(OrdinaryStateBased):
             linearization=linearization,
             weighted_volume="discrete" if peridigm else weighted_volume,
             unit_influence=bool(peridigm),
+            surface_correction=surface_correction,
         )
         self.peridigm = bool(peridigm)
 
     def describe(self) -> dict[str, Any]:
         out = super().describe()
         out["peridigm"] = self.peridigm
+        out["surface_correction"] = self.surface_correction
         return out

@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InputError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
 from ._state import OrdinaryStateBased, StateWeights
@@ -46,6 +47,10 @@ class XOSB(OrdinaryStateBased):
     max_cond : float
         Scaled condition number above which a point's λ is the minimum-norm
         solution and the point is flagged ``singular`` (with a warning).
+    surface_correction : None
+        Not supported yet (raises :class:`~pdlin.errors.InputError` for any
+        other value): the corrected weights already remove the surface
+        effect for homogeneous strains.
 
     Examples
     --------
@@ -79,7 +84,14 @@ class XOSB(OrdinaryStateBased):
         weighted_volume: str = "analytic",
         fallback: bool = True,
         max_cond: float = 1e10,
+        surface_correction: str | None = None,
     ) -> None:
+        if surface_correction is not None:
+            raise InputError(
+                "XOSB does not support surface_correction yet (its corrected weights already "
+                "make θ and W exact for homogeneous strains at every non-fallback point); "
+                f"expected None, got {surface_correction!r}"
+            )
         super().__init__(
             E,
             nu,

@@ -2,7 +2,8 @@
 
 These are not peridynamic models.  They exist so that tests and examples can compare pdlin's
 results with a classical reference (Q4 and Hex8 finite-element solves: spec 002 §9.1-9.2,
-spec 003 §7.2-7.3) without each carrying its own copy of the reference solver.
+spec 003 §7.2-7.3) without each carrying its own copy of the reference solver, and the closed-form
+surface-effect problems (tension bar, plate, shear block) of the surface corrections.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from .fem import (
     solve_hex8,
     solve_q4,
 )
+from .surface import plate_tension_errors, shear_block_error, tension_bar_error
 
 __all__ = [
     "evaluate_q4",
@@ -23,4 +25,7 @@ __all__ = [
     "q4_stiffness",
     "solve_hex8",
     "solve_q4",
+    "tension_bar_error",
+    "plate_tension_errors",
+    "shear_block_error",
 ]

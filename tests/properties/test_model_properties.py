@@ -80,6 +80,24 @@ def _case_corr_2d_penalty_jittered() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds
     return pdlin.Correspondence(E=2.0, nu=0.25, control="penalty"), c, pdlin.find_bonds(c)
 
 
+def _case_2d_volume_correction() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = pdlin.grid((20, 20), spacing=0.1)
+    m = pdlin.BondBased(E=70e9, surface_correction="volume")
+    return m, c, pdlin.find_bonds(c, ratio=3.015)
+
+
+def _case_3d_energy_correction() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = pdlin.grid((12, 11, 11), spacing=0.25)
+    return pdlin.BondBased(E=1.0, surface_correction="energy"), c, pdlin.find_bonds(c, ratio=2.01)
+
+
+def _case_2d_force_correction_jittered() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = _jittered(2, 14)
+    E = np.random.default_rng(6).uniform(1.0, 5.0, c.n)
+    m = pdlin.BondBased(E=E, plane="strain", surface_correction="force-normalization")
+    return m, c, pdlin.find_bonds(c, influence="delta_over_r")
+
+
 CASES: dict[str, Callable[[], tuple[Any, pdlin.PointCloud, pdlin.Bonds]]] = {
     "bb-1d": _case_1d,
     "bb-2d-stress": _case_2d_stress,
@@ -87,6 +105,9 @@ CASES: dict[str, Callable[[], tuple[Any, pdlin.PointCloud, pdlin.Bonds]]] = {
     "bb-3d": _case_3d,
     "bb-2d-variable-horizon-graded": _case_2d_variable_horizon,
     "bb-3d-per-bond-micromodulus": _case_3d_per_bond_micromodulus,
+    "bb-2d-volume-correction": _case_2d_volume_correction,
+    "bb-3d-energy-correction": _case_3d_energy_correction,
+    "bb-2d-force-correction-jittered-graded": _case_2d_force_correction_jittered,
     "corr-2d-none-anisotropic": _case_corr_2d_none,
     "corr-3d-higher-order": _case_corr_3d_higher_order,
     "corr-2d-penalty-jittered": _case_corr_2d_penalty_jittered,
@@ -164,9 +185,12 @@ def test_affine_fields_give_zero_force_on_complete_families(case, rng):
     u = cloud.points @ H.T
     f = model.internal_force(cloud, bonds, u)
     # complete family (and complete neighbour families for two-hop models): the point is
-    # at least coupling_range horizons inside the box
+    # at least coupling_range horizons inside the box; surface-corrected bonds depend on
+    # the families of both ends, one horizon more
     lo, hi = cloud.bounds
     hops = getattr(model, "coupling_range", 1)
+    if getattr(model, "surface_correction", None) is not None:
+        hops += 1
     reach = hops * bonds.horizon.max() * (1 + 1e-9) + 0.5 * cloud.spacing.max()
     inner = np.all((cloud.points - lo > reach) & (hi - cloud.points > reach), axis=1)
     if bonds.horizon.min() != bonds.horizon.max() or not inner.any():

@@ -76,10 +76,37 @@ def _xosb_3d_paper_jittered() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
     return pdlin.XOSB(E=1.0, nu=0.45, linearization="paper"), c, pdlin.find_bonds(c)
 
 
+def _lps_2d_energy_correction() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = pdlin.grid((24, 24), spacing=0.1)
+    m = pdlin.LPS(E=70e9, nu=0.3, surface_correction="energy")
+    return m, c, pdlin.find_bonds(c, ratio=3.015)
+
+
+def _lps_2d_paper_force_correction() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = pdlin.grid((16, 15), spacing=0.1)
+    m = pdlin.LPS(
+        E=2.0,
+        nu=0.45,
+        plane="strain",
+        linearization="paper",
+        surface_correction="force-normalization",
+    )
+    return m, c, pdlin.find_bonds(c, ratio=3.015)
+
+
+def _lps_3d_volume_correction() -> tuple[Any, pdlin.PointCloud, pdlin.Bonds]:
+    c = pdlin.grid((15, 15, 15), spacing=0.25)
+    m = pdlin.LPS(E=1.0, nu=0.3, weighted_volume="discrete", surface_correction="volume")
+    return m, c, pdlin.find_bonds(c, ratio=2.01)
+
+
 CASES: dict[str, Callable[[], tuple[Any, pdlin.PointCloud, pdlin.Bonds]]] = {
     "lps-2d-stress": _lps_2d_stress,
     "lps-2d-strain-peridigm": _lps_2d_strain_peridigm,
     "lps-3d": _lps_3d,
+    "lps-2d-energy-correction": _lps_2d_energy_correction,
+    "lps-2d-paper-force-correction": _lps_2d_paper_force_correction,
+    "lps-3d-volume-correction": _lps_3d_volume_correction,
     "xosb-2d-energy": _xosb_2d_energy,
     "xosb-2d-paper-strain": _xosb_2d_paper_strain,
     "xosb-2d-variable-horizon": _xosb_2d_variable_horizon,
