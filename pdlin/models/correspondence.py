@@ -56,8 +56,12 @@ log = logging.getLogger(__name__)
 #: zero-energy-mode controls accepted by :class:`Correspondence`
 CONTROLS = ("none", "higher_order", "penalty", "stress_points", "springs", "ads")
 
-#: default dimensionless coefficient C̃ of the 'springs' and 'ads' controls
-DEFAULT_CONTROL_COEFFICIENT = 0.1
+#: default dimensionless coefficient C̃ of the 'springs' and 'ads' controls (family-normalized,
+#: :meth:`Correspondence.control_constants`).  Measured on a free-surface 2D bar (61 x 11,
+#: δ = h...3h, docs/correspondence.md): springs bias the stiffness by ≈ 1.1 C̃ at any δ/h
+#: (0.01: 1.2 %), ADS only near free surfaces (0.03: elongation ≤ 0.11 %, lateral strain
+#: ≤ 0.6 %) while keeping the checkerboard energy ratio ≥ 2 (stress points: 3.5-43)
+DEFAULT_CONTROL_COEFFICIENT: dict[str, float] = {"springs": 0.01, "ads": 0.03}
 
 #: stress-point cases (spec 003 §4.1): sign vector s of SP1's bonds, per dimension
 _SP_CASES: dict[int, np.ndarray] = {
@@ -69,6 +73,10 @@ _SP_CASES: dict[int, np.ndarray] = {
 #: smallest eigenvalue ratio λ_min/λ_max of a half-family shape tensor for which a
 #: particle gets two stress points (nearest-neighbour interior particles: 1)
 SP_MIN_RATIO = 1e-2
+
+#: largest relative imbalance ``‖K_1 - K_2‖_F / ‖K‖_F`` of the two half-family shape tensors
+#: for which a particle gets two stress points (complete lattice families: 0 to round-off)
+SP_BALANCE_TOL = 1e-6
 
 
 def _half_space(xi: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -142,16 +150,26 @@ def _ratio_ok(K: np.ndarray) -> np.ndarray:
 def _halves_well_conditioned(
     bonds: Bonds, omega_v: np.ndarray, sides: np.ndarray, n: int
 ) -> np.ndarray:
-    """Per point: in every case (row of ``sides``) both halves' shape tensors are well conditioned.
+    """Per point: in every case (row of ``sides``) both halves' shape tensors are well
+    conditioned and *balanced*, ``‖K_1 - K_2‖_F ≤ SP_BALANCE_TOL ‖K‖_F``.
 
-    The second half's tensor is the full one minus the first's (one pass per case).
+    The second half's tensor is the full one minus the first's (one pass per case).  Balanced
+    halves (``K_1 = K_2 = K/2``: a point-symmetric, complete family) are what makes two
+    stress points of weight ``w`` act on a uniform stress exactly like one gradient point of
+    weight ``2w`` (``w (K/2)⁻¹ = 2w K⁻¹`` on every bond), hence consistent next to free
+    surfaces; unbalanced halves of truncated families are not (measured: 1.1 % patch-test
+    error on a free-surface 2D bar at δ = 3h).
     """
     full_k = _per_point_outer(bonds.i, n, omega_v, bonds.xi, bonds.xi)
+    scale = np.sqrt(np.einsum("nij,nij->n", full_k, full_k))
     ok = np.ones(n, dtype=bool)
     for side in sides:
         w = np.where(side, omega_v, 0.0)
         half = _per_point_outer(bonds.i, n, w, bonds.xi, bonds.xi)
-        ok &= _ratio_ok(half) & _ratio_ok(full_k - half)
+        other = full_k - half
+        diff = half - other
+        balanced = np.sqrt(np.einsum("nij,nij->n", diff, diff)) <= SP_BALANCE_TOL * scale
+        ok &= _ratio_ok(half) & _ratio_ok(other) & balanced
     return ok
 
 
@@ -561,13 +579,22 @@ class Correspondence(Model):
           ``penalty = 1`` resists non-affine motion like a bond-based
           material of the same stiffness (full vector, not projected).
         * ``'stress_points'``: spec 003: two stress points per full-horizon
-          particle, one per boundary particle, ``w_s = ½``.  Stress point 1
-          of case ``s`` owns the bonds with ``s·ξ > 0`` (ties broken by
-          orthogonal vectors), stress point 2 the rest: for nearest-neighbour
-          axis bonds this is the paper's ``{s_k e_k} / {-s_k e_k}`` split, for
-          larger horizons pdlin's half-space extension.  A particle gets two
-          stress points when both halves have well-conditioned shape tensors
-          (``λ_min/λ_max ≥ SP_MIN_RATIO``) for every case.
+          particle, one per boundary particle.  Stress point 1 of case ``s``
+          owns the bonds with ``s·ξ > 0`` (ties broken by orthogonal
+          vectors), stress point 2 the rest: for nearest-neighbour axis bonds
+          this is the paper's ``{s_k e_k} / {-s_k e_k}`` split, for larger
+          horizons pdlin's half-space extension.  A particle gets two stress
+          points (weight ``w_s = sp_weight``) when, for every case, both halves
+          have well-conditioned shape tensors (``λ_min/λ_max ≥ SP_MIN_RATIO``)
+          and are *balanced* (``‖K_1 - K_2‖ ≤ SP_BALANCE_TOL ‖K‖``: complete,
+          point-symmetric families), otherwise one.  The one-SP weight is
+          ``w_s`` on the paper's nearest-neighbour families (spec 003 §4.3: the
+          body is the node hull, a bar of ``n_y`` rows has the section
+          ``(n_y - 1) h``) and ``2 w_s`` beyond them (an ordinary gradient
+          point with its whole volume, section ``n_y h``).  Truncated families
+          split into unbalanced halves do not act on a uniform stress like
+          one gradient point, which made the free-surface bar at δ = 3h fail
+          its patch test by 1.1 % before this rule.
         * ``'springs'``: spec 003 Eq. 7, the force state
           ``T_a⟨ξ_ij⟩ = C1 ω (u_j - u_i)`` (full vector) added to every
           bond: ``K_a`` is the graph Laplacian ⊗ I_d with bond weight
@@ -581,14 +608,21 @@ class Correspondence(Model):
         Springs and ADS use one gradient point per particle (as
         ``'none'``); see :meth:`control_constants` for ``C1``, ``C2``.
     coefficient : float, optional
-        Dimensionless ``C̃ >= 0`` of ``'springs'`` / ``'ads'`` (default
-        0.1).  ``C1 = C̃ E_ref / (2 V_ref h_ref²)`` and
-        ``C2 = C̃ E_ref / (V_ref² h_ref²)`` with ``E_ref`` the largest mean
-        axial modulus ``max_i tr(C_i[:d, :d])/d``, ``V_ref`` the mean point
-        volume (with thickness / cross-section) and ``h_ref`` the mean
-        nearest-bond length; on a uniform 1D chain this is exactly
-        ``C̃ (E A / h) Lap0`` (springs) and ``C̃ (E A / h) Lap0²`` (ADS) of
-        spec 003 §3.  The paper's C1/C2 (Table 1) are not transferable.
+        Dimensionless ``C̃ >= 0`` of ``'springs'`` (default 0.01) / ``'ads'``
+        (default 0.03), normalized by the family (:meth:`control_constants`):
+        ``C1 = d C̃ E_ref / S_ref`` and ``C2 = 4 d² C̃ E_ref / (S_ref Ω_ref)``
+        with ``S = Σ_j ω V_j |ξ|²``, ``Ω = Σ_j ω V_j`` of a complete family and
+        ``E_ref = max_i tr(C_i[:d, :d])/d``.  At ``C̃ = 1`` the springs are a
+        full-vector material of modulus ``E_ref`` (energy ``½ E_ref |∇u|²``)
+        at any ``δ/h`` and dimension; on nearest-neighbour families this is
+        spec 003 §3's ``C̃ (E A / h) Lap0`` (springs) and ``C̃ (E A / h) Lap0²``
+        (ADS) in 1D.  Neither control passes an affine patch test next to
+        free surfaces (both act on affine fields there): measured on a 2D
+        free-surface bar, springs stiffen uniaxial tension by ≈ 1.1 C̃ and
+        reduce the lateral strain by ≈ (1 - ν²) C̃ at every δ/h; ADS errs only
+        in a surface layer (C̃ = 0.1: lateral strain -0.4 % at δ = h, -2.2 %
+        at 3h on an 11-particle-wide bar; ``docs/correspondence.md``).  The
+        paper's C1/C2 (Table 1) are not transferable.
     penalty : float
         Dimensionless penalty coefficient (``control='penalty'``).
     influence : callable, optional
@@ -680,7 +714,8 @@ class Correspondence(Model):
             raise InputError(
                 f"coefficient is only used with control='springs' or 'ads', got {control!r}"
             )
-        coef = DEFAULT_CONTROL_COEFFICIENT if coefficient is None else float(coefficient)
+        default = DEFAULT_CONTROL_COEFFICIENT.get(control, 0.0)
+        coef = default if coefficient is None else float(coefficient)
         if not (np.isfinite(coef) and coef >= 0):
             raise InputError(f"coefficient must be a finite number >= 0, got {coefficient!r}")
         self.C = C
@@ -821,6 +856,12 @@ class Correspondence(Model):
         first = np.stack([_half_space(bonds.xi, s) for s in cases])  # (n_cases, nb)
         omega_v = self.bond_weights(cloud, bonds) * bonds.volume_j
         full = _halves_well_conditioned(bonds, omega_v, first, n)
+        if bonds.n_bonds and not full.any():
+            log.warning(
+                "stress points: no particle has two balanced, well-conditioned half families "
+                "(irregular cloud or a body thinner than two horizons); every particle gets one "
+                "gradient point and the control is inactive (ordinary correspondence)"
+            )
         cases = _SP_CASES[d]
         if self.case is None:
             # one draw per full-horizon particle, in point order (the convention of the
@@ -841,7 +882,12 @@ class Correspondence(Model):
         second = full[bonds.i] & ~first[chosen[bonds.i], np.arange(bonds.n_bonds)]
         gp_of_bond = base[bonds.i] + second
         gp_owner = np.repeat(np.arange(n), n_sp)
-        return gp_owner, gp_of_bond, np.full(gp_owner.size, self.sp_weight)
+        # one-SP weight: spec 003 §4.3 (w_s for every SP) on the paper's nearest-neighbour
+        # families; beyond them a one-SP particle is an ordinary gradient point carrying its
+        # whole volume (2 w_s, as its two half-SPs would for a uniform stress)
+        single = 1.0 if int(bonds.family_size.max(initial=0)) <= 2 * d else 2.0
+        weight = np.where(np.repeat(full, n_sp), 1.0, single) * self.sp_weight
+        return gp_owner, gp_of_bond, weight
 
     # -- assembly plan ----------------------------------------------------
     def _plan(self, cloud: PointCloud, bonds: Bonds) -> _Plan:
@@ -876,9 +922,11 @@ class Correspondence(Model):
 
                 fn = influence_function(bonds.influence)
             K_int = intact_shape_tensor(cloud, bonds, fn)
-            if self.control == "stress_points":
-                K_int = 0.5 * K_int  # one bond per axis (nearest-neighbour lattice, §4.2)
             kinv = np.linalg.inv(K_int)
+            if self.control == "stress_points":
+                # a half family holds half the intact tensor (§4.2, one bond per axis at
+                # δ = h); a one-SP particle of weight 2 w_s beyond δ = h holds all of it
+                kinv = kinv[None] * (2.0 * self.sp_weight / w[rows])[:, None, None]
         c = _coefficients(
             gp_of_bond, n_gp, omega, bonds.volume_j, bonds.xi,
             override_rows=rows, override_kinv=kinv,
@@ -1010,17 +1058,24 @@ class Correspondence(Model):
     def control_constants(self, cloud: PointCloud, bonds: Bonds) -> dict[str, float]:
         """Constants of the ``'springs'`` / ``'ads'`` control forces (spec 003 §3).
 
-        Returns ``{'coefficient': C̃, 'E_ref', 'V_ref', 'h_ref', 'C1', 'C2'}``
-        with ``E_ref = max_i tr(C_i[:d, :d])/d`` (the largest mean axial
-        modulus; ``E`` in 1D), ``V_ref`` the mean point volume (times the
-        thickness in 2D / cross-section in 1D), ``h_ref`` the mean over points
-        of the shortest bond length (the spacing on a lattice),
-        ``C1 = C̃ E_ref / (2 V_ref h_ref²)`` and
-        ``C2 = C̃ E_ref / (V_ref² h_ref²)``.  On a uniform nearest-neighbour
-        chain (``V = A h``, ω = 1) the springs add ``C̃ (E A / h) Lap0`` and
-        ADS ``C̃ (E A / h) Lap0²`` (spec 003 §3, ``Lap0`` the chain graph
-        Laplacian); in 2D/3D both scale like ``E_ref V_ref / h_ref²``, the
-        stiffness of one bond of a bond-based material.
+        Returns ``{'coefficient': C̃, 'E_ref', 'V_ref', 'h_ref', 'S_ref', 'Omega_ref',
+        'C1', 'C2'}``.  ``E_ref = max_i tr(C_i[:d, :d])/d`` (the largest mean axial
+        modulus; ``E`` in 1D); the family moments ``S_i = Σ_j ω V_j |ξ_ij|²`` and
+        ``Ω_i = Σ_j ω V_j`` (``V`` times the thickness in 2D / cross-section in 1D) give
+        ``S_ref = max_i S_i`` and ``Omega_ref = max_i Ω_i`` (a complete family on a lattice), and
+
+        ``C1 = d C̃ E_ref / S_ref``,    ``C2 = 4 d² C̃ E_ref / (S_ref Ω_ref)``.
+
+        Meaning, for any ``δ/h`` and dimension: under a homogeneous gradient ``H`` the springs
+        of a complete family store ``½ C̃ E_ref |H|²`` per unit volume (a full-vector
+        "Laplacian" material of modulus ``C̃ E_ref``: uniaxial stretch gains the stress
+        ``C̃ E_ref ε``), and ADS stores ``½ C̃ E_ref ℓ² |∇²u|²`` with ``ℓ² = S_ref/Ω_ref``
+        the family's mean square bond length (zero on affine fields, except where families
+        are truncated).  On the nearest-neighbour families of spec 003 (``S = 2d V h²``,
+        ``Ω = 2d V``) this is ``C1 = C̃ E/(2 V h²)``, ``C2 = C̃ E/(V² h²)``: on a uniform
+        chain (``V = A h``, ω = 1) springs add ``C̃ (E A / h) Lap0`` and ADS
+        ``C̃ (E A / h) Lap0²`` (spec 003 §3, ``Lap0`` the chain graph Laplacian).  ``V_ref``
+        (mean volume) and ``h_ref`` (mean shortest bond) are reported for information.
 
         Examples
         --------
@@ -1031,6 +1086,10 @@ class Correspondence(Model):
         >>> c = m.control_constants(cloud, bonds)
         >>> round(2 * c["C1"] * c["V_ref"] ** 2, 12)   # C̃ E A / h = 0.5 * 2 / 0.1
         10.0
+        >>> b3 = pdlin.find_bonds(cloud, ratio=3.0)   # same springs' modulus, 6 bonds
+        >>> c3 = m.control_constants(cloud, b3)
+        >>> round(c3["S_ref"] / (2 * 0.1 * (0.1**2 + 0.2**2 + 0.3**2)), 12)
+        1.0
         """
         d = cloud.dim
         Cv = self.voigt_stiffness(cloud)
@@ -1043,14 +1102,24 @@ class Correspondence(Model):
         if not has.any():
             raise ModelError("springs/ADS controls need bonds, got a cloud without any")
         h_ref = float(np.mean(shortest[has]))
+        wv = self.bond_weights(cloud, bonds) * vol[bonds.j]
+        s_ref = float(np.max(np.bincount(bonds.i, weights=wv * bonds.length**2, minlength=cloud.n)))
+        o_ref = float(np.max(np.bincount(bonds.i, weights=wv, minlength=cloud.n)))
+        if not (s_ref > 0 and o_ref > 0):
+            raise ModelError(
+                "springs/ADS controls need positive family moments Σ ω V_j |ξ|², Σ ω V_j, "
+                f"got {s_ref:.3g}, {o_ref:.3g}"
+            )
         c = self.coefficient
         return {
             "coefficient": c,
             "E_ref": e_ref,
             "V_ref": v_ref,
             "h_ref": h_ref,
-            "C1": c * e_ref / (2.0 * v_ref * h_ref**2),
-            "C2": c * e_ref / (v_ref**2 * h_ref**2),
+            "S_ref": s_ref,
+            "Omega_ref": o_ref,
+            "C1": d * c * e_ref / s_ref,
+            "C2": 4.0 * d * d * c * e_ref / (s_ref * o_ref),
         }
 
     def _laplacian(

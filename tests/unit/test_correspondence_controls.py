@@ -208,7 +208,8 @@ def test_control_errors():
     with pytest.raises(InputError, match="coefficient must be a finite number >= 0, got -1"):
         pdlin.Correspondence(E=1.0, control="springs", coefficient=-1)
     m = pdlin.Correspondence(E=1.0, control="ads")
-    assert m.coefficient == 0.1 and m.describe()["coefficient"] == 0.1
+    assert m.coefficient == 0.03 and m.describe()["coefficient"] == 0.03  # safe default (docs)
+    assert pdlin.Correspondence(E=1.0, control="springs").coefficient == 0.01
 
 
 # -- shadow layer: affine patch tests for every control --------------------------------
