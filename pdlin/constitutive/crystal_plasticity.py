@@ -672,7 +672,9 @@ class CrystalPlasticity:
         accumulated slips, ``dgamma`` last increments, ``tau`` resolved shears,
         ``R0``/``R`` initial / current lattice rotation (crystal → sample), ``theta0``,
         ``theta`` (2D, radians), ``reorientation`` (degrees), ``dep``/``ep`` equivalent
-        plastic strain increment / accumulated, ``plastic`` (bool as float) and, in 2D,
+        plastic strain increment / accumulated, ``plastic`` (bool as float); after an
+        update also ``sign`` (sign of τ_tr) and ``pruned`` (systems removed from the
+        potentially active set by §3.6 step 5) and, in 2D,
         the lattice spin sum ``theta_rate`` (Σ θ̇ Δt, radians).
 
         Parameters
@@ -748,6 +750,7 @@ class CrystalPlasticity:
             act = b.real > 0.0
         else:
             act = active.copy()
+        n_trial = act.sum(axis=1)
         dgam = np.zeros(b.shape, dtype=b.dtype)
         idx = np.flatnonzero(act.any(axis=1))
         if idx.size:
@@ -787,7 +790,16 @@ class CrystalPlasticity:
         E = 0.5 * (_T(Fe) @ Fe - eye)
         Tbar = (E.reshape(m, d * d) @ self._Cflat.T).reshape(m, d, d)
         P = Fe @ Tbar @ _T(Fp_inv)
-        return {"P": P, "Fp": Fp, "Fe": Fe, "Tbar": Tbar, "dgamma": dgam, "sgn": sgn, "active": act}
+        return {
+            "P": P,
+            "Fp": Fp,
+            "Fe": Fe,
+            "Tbar": Tbar,
+            "dgamma": dgam,
+            "sgn": sgn,
+            "active": act,
+            "pruned": n_trial - act.sum(axis=1),
+        }
 
     # -- public update -----------------------------------------------------------------
     def update(
@@ -849,6 +861,7 @@ class CrystalPlasticity:
             "ep": np.asarray(state_n.get("ep", np.zeros(n))) + dep,
             "plastic": np.any(dgam > 0.0, axis=1).astype(np.float64),
             "sign": sgn.real.astype(np.float64),
+            "pruned": out["pruned"].astype(np.float64),
         }
         if d == 2:
             # spec §3.2 closed form θ = θ0 + atan2(Fe21 − Fe12, Fe11 + Fe22)
