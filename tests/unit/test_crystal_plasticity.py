@@ -491,3 +491,22 @@ def test_bad_shapes():
         pdlin.material_point(mat, "torsion")
     with pytest.raises(InputError, match="shear must be"):
         CrystalPlasticity(shear="voigt")
+
+
+@pytest.mark.parametrize("slip", ["planar-2", "fcc", "hcp"])
+@pytest.mark.parametrize("renormalize", [False, True])
+def test_analytic_tangent_equals_complex_step(slip, renormalize, rng):
+    kw = {"renormalize": renormalize}
+    a = CrystalPlasticity(slip, **kw)
+    b = CrystalPlasticity(slip, tangent="complex-step", **kw)
+    d, n = a.dim, 40
+    o = rng.uniform(-1.5, 1.5, n) if d == 2 else euler_to_rotation(rng.uniform(0, 3, (n, 3)))
+    eta = 0.002 if d == 2 else 5e-5
+    r = pdlin.material_point(a, "shear" if d == 2 else "tension", steps=12, eta=eta, orientation=o)
+    assert np.mean(r.states[-1]["plastic"]) > 0.3
+    F = np.broadcast_to(r.F[-1], (n, d, d)) + 1e-4 * rng.normal(size=(n, d, d))
+    Da = a.update(F, r.states[-1], tangent=True)[2]
+    Db = b.update(F, r.states[-1], tangent=True)[2]
+    np.testing.assert_allclose(Da, Db, rtol=0, atol=1e-12 * np.abs(Db).max())
+    if renormalize:
+        _assert_tangent(a, F[:8], {k: v[:8] for k, v in r.states[-1].items()})
