@@ -425,7 +425,7 @@ def test_voronoi_polycrystal_2d():
     g2, t2 = pdlin.voronoi_polycrystal(cloud, 21, seed=3)
     np.testing.assert_array_equal(grain, g2)
     np.testing.assert_array_equal(theta, t2)
-    # the map is a Voronoi partition: each grain is the nearest-seed cell of one point
+    # the per-point orientations feed the material directly
     mat = CrystalPlasticity(orientation=theta)
     assert mat.initial_state(625)["R0"].shape == (625, 2, 2)
 
