@@ -6,11 +6,18 @@ conditions -> solver -> fields -> files.
 
 from . import constitutive, errors
 from .calibration import CalibrationResult, calibrate_micromoduli
+from .constitutive.crystal_plasticity import (
+    CrystalPlasticity,
+    MaterialPointResult,
+    SaintVenantKirchhoff,
+    material_point,
+)
 from .errors import ConvergenceError, FloatingBodyError
 from .fields import deformation_gradient, shape_tensor, small_strain
 from .geometry import Bonds, PointCloud, find_bonds, from_image, grid
 from .geometry.generators import plate_with_hole_mesh
 from .geometry.mesh import read_mesh
+from .geometry.polycrystal import voronoi_polycrystal
 from .models import LPS, XOSB, BondBased, Correspondence, Model, shadow_problem
 from .models.damage import (
     bond_stretch,
@@ -99,4 +106,9 @@ __all__ = [
     "damage_index",
     "isolated_points",
     "drop_isolated",
+    "CrystalPlasticity",
+    "SaintVenantKirchhoff",
+    "MaterialPointResult",
+    "material_point",
+    "voronoi_polycrystal",
 ]

@@ -1,9 +1,20 @@
-"""Elasticity tensors: Voigt/Mandel/full formats, rotations, symmetry classes, Cauchy relations.
+"""Elasticity tensors (Voigt/Mandel, rotations, symmetry classes) and crystal plasticity.
 
 See ``docs/constitutive.md``.  Conventions: plain Voigt (``C44 = C2323``, no factor 2),
 3D order (11, 22, 33, 23, 31, 12), 2D order (11, 22, 12); norms are full-tensor Frobenius.
 """
 
+from .crystal_plasticity import (
+    ORIENTATIONS_2D,
+    SLIP_FAMILIES,
+    CrystalPlasticity,
+    MaterialPointResult,
+    SaintVenantKirchhoff,
+    cauchy_stress,
+    euler_to_rotation,
+    material_point,
+    slip_systems,
+)
 from .materials import MATERIAL_NAMES, MATERIALS, material
 from .symmetry import (
     N_CONSTANTS,
@@ -46,6 +57,15 @@ from .tensors import (
 )
 
 __all__ = [
+    "CrystalPlasticity",
+    "SaintVenantKirchhoff",
+    "MaterialPointResult",
+    "material_point",
+    "slip_systems",
+    "euler_to_rotation",
+    "cauchy_stress",
+    "SLIP_FAMILIES",
+    "ORIENTATIONS_2D",
     "MATERIALS",
     "MATERIAL_NAMES",
     "material",

@@ -5,6 +5,7 @@ from .cloud import Lattice, PointCloud, from_image, grid
 from .generators import plate_with_hole_mesh
 from .influence import INFLUENCE_FUNCTIONS, influence_function
 from .mesh import read_mesh
+from .polycrystal import voronoi_polycrystal
 
 __all__ = [
     "PointCloud",
@@ -13,6 +14,7 @@ __all__ = [
     "from_image",
     "read_mesh",
     "plate_with_hole_mesh",
+    "voronoi_polycrystal",
     "Bonds",
     "find_bonds",
     "resolve_horizon",

@@ -1,0 +1,59 @@
+"""Time one crystal-plasticity ``update`` (with and without the tangent) on many points.
+
+Run ``python benchmarks/bench_crystal_plasticity.py``.  Each case first drives the points
+through a few load steps so that most of them are plastic, then times the next update
+(best of ``--repeat``).  Prints a Markdown table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from scipy.linalg import expm
+
+from pdlin.constitutive import ORIENTATIONS_2D, CrystalPlasticity, euler_to_rotation
+
+
+def _case(slip: str, n: int, repeat: int) -> tuple[float, float, float, float]:
+    rng = np.random.default_rng(0)
+    if slip == "planar-2":
+        o = rng.choice(ORIENTATIONS_2D, n)
+        L, eta, steps = np.array([[0.0, 1.0], [1.0, 0.0]]), 0.002, 4
+    else:
+        o = euler_to_rotation(rng.uniform(0.0, np.pi, (n, 3)))
+        L, eta, steps = np.diag([-0.5, -0.5, 1.0]), 1e-4, 8
+    mat = CrystalPlasticity(slip, orientation=o)
+    d = mat.dim
+    state = mat.initial_state(n)
+    for k in range(1, steps):
+        _, state, _ = mat.update(np.broadcast_to(expm(eta * k * L), (n, d, d)), state)
+    F = np.broadcast_to(expm(eta * steps * L), (n, d, d)).copy()
+    t_plain, t_tan = np.inf, np.inf
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        _, new, _ = mat.update(F, state)
+        t1 = time.perf_counter()
+        mat.update(F, state, tangent=True)
+        t2 = time.perf_counter()
+        t_plain, t_tan = min(t_plain, t1 - t0), min(t_tan, t2 - t1)
+    plastic = float(new["plastic"].mean())
+    mean_active = float((new["dgamma"] > 0).sum(axis=1)[new["plastic"] > 0].mean())
+    return t_plain, t_tan, plastic, mean_active
+
+
+def main(argv: list[str] | None = None) -> None:
+    p = argparse.ArgumentParser(description=__doc__)
+    p.add_argument("--repeat", type=int, default=3)
+    args = p.parse_args(argv)
+    cases = [("planar-2", 10_000), ("planar-2", 100_000), ("fcc", 10_000), ("hcp", 10_000)]
+    print("| slip | points | plastic | mean active | update (s) | update + tangent (s) |")
+    print("|---|---|---|---|---|---|")
+    for slip, n in cases:
+        t_plain, t_tan, plastic, act = _case(slip, n, args.repeat)
+        print(f"| {slip} | {n} | {plastic:.0%} | {act:.2f} | {t_plain:.3f} | {t_tan:.3f} |")
+
+
+if __name__ == "__main__":
+    main()
