@@ -36,6 +36,7 @@ from .models.base import Model
 from .operators.assembly import assemble_stiffness
 from .operators.bc import (
     Dirichlet,
+    TimePath,
     check_constraints,
     eliminate_dirichlet,
     load_vector,
@@ -79,6 +80,10 @@ class Discretization(Protocol):
     def deformation_gradient(self, u: Any) -> np.ndarray: ...
 
     def stress(self, u: Any) -> np.ndarray: ...
+
+    def initial_state(self) -> dict[str, np.ndarray]: ...
+
+    def respond(self, u: Any, state: dict[str, np.ndarray], *, tangent: bool = False) -> Any: ...
 
 
 @dataclass(frozen=True, eq=False)
@@ -136,6 +141,12 @@ class PlainDiscretization:
             raise InputError(f"model {type(self.model).__name__} does not define a stress")
         return np.asarray(self.model.stress(self.points, self.bonds, u))
 
+    def initial_state(self) -> dict[str, np.ndarray]:
+        return dict(self.model.initial_state(self.points, self.bonds))
+
+    def respond(self, u: Any, state: dict[str, np.ndarray], *, tangent: bool = False) -> Any:
+        return self.model.respond(self.points, self.bonds, u, state, tangent=tangent)
+
     # -- matrix-free path (only the plain discretization has it) ----------
     def operator(self) -> spla.LinearOperator:
         return self.model.operator(self.points, self.bonds)
@@ -184,6 +195,8 @@ class ConstrainedSystem:
     values: np.ndarray
     f_ext: np.ndarray
     problem: Any = None
+    #: Dirichlet conditions whose value is a :class:`~pdlin.TimePath` (re-evaluated per time)
+    paths: tuple[Dirichlet, ...] = ()
     _free: np.ndarray | None = field(default=None, repr=False)
 
     # -- sizes and masks ----------------------------------------------------
@@ -237,6 +250,19 @@ class ConstrainedSystem:
         u = np.zeros(self.ndof)
         u[self.dofs] = factor * self.values
         return u
+
+    def values_at(self, t: float, factor: float) -> np.ndarray:
+        """Prescribed values at time ``t`` of a load path ``(m,)``.
+
+        Plain values are scaled by the load ``factor``; :class:`~pdlin.TimePath`
+        values (e.g. :meth:`~pdlin.Dirichlet.velocity_gradient`) are evaluated
+        at ``t`` instead.
+        """
+        vals = factor * self.values
+        if self.paths:
+            pd, pv = resolve_dirichlet(self.cloud, self.paths, t=t)
+            vals[np.searchsorted(self.dofs, pd)] = pv
+        return vals
 
     # -- operators ----------------------------------------------------------
     def estimate_nnz_blocks(self) -> int:
@@ -402,4 +428,5 @@ def constrained_system(problem: Any) -> ConstrainedSystem:
     dofs, vals = resolve_dirichlet(cloud, (*problem.dirichlet, *disc.dirichlet()))
     f_ext = disc.load_vector(problem.loads)
     disc.check_constraints(dofs)
-    return ConstrainedSystem(disc, dofs, vals, np.asarray(f_ext, dtype=float), problem)
+    paths = tuple(bc for bc in problem.dirichlet if isinstance(bc.value, TimePath))
+    return ConstrainedSystem(disc, dofs, vals, np.asarray(f_ext, dtype=float), problem, paths)

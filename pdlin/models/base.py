@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -13,7 +14,36 @@ from ..errors import ModelError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
 
-__all__ = ["Model"]
+__all__ = ["Model", "Response"]
+
+
+@dataclass
+class Response:
+    """What a model returns to a nonlinear driver at one displacement.
+
+    Attributes
+    ----------
+    force : (n, dim) ndarray
+        Nodal internal force ``f_int(u)`` from the committed state.
+    state : dict of str -> ndarray
+        Trial state at ``u`` (per point or per gradient point).  Drivers
+        commit it when the load step converges; the model never mutates the
+        committed state it was given.
+    tangent : sparse array, optional
+        Consistent tangent stiffness ``K_T = -∂f_int/∂u`` (BSR, blocksize
+        dim), when asked for.
+    stress : (n, dim, dim) ndarray, optional
+        Cauchy stress per point at ``u`` (for output and homogenization).
+    calls : int
+        Constitutive evaluations spent (points x updates), for the driver's
+        counters.
+    """
+
+    force: np.ndarray
+    state: dict[str, np.ndarray] = field(default_factory=dict)
+    tangent: sp.sparray | None = None
+    stress: np.ndarray | None = None
+    calls: int = 0
 
 
 class Model(ABC):
@@ -33,6 +63,9 @@ class Model(ABC):
     coupling_range: int = 1
     #: whether K is symmetric
     symmetric: bool = True
+    #: whether the internal force is nonlinear in u or depends on a history state
+    #: (such models are solved by :func:`pdlin.solve_nonlinear`)
+    nonlinear: bool = False
 
     @abstractmethod
     def stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.sparray:
@@ -70,6 +103,31 @@ class Model(ABC):
         """Linearized strain energy ``½ uᵀ K u`` (matrix-free where possible)."""
         f = self.internal_force(cloud, bonds, u, linear=True)
         return float(-0.5 * np.sum(f * np.asarray(u).reshape(f.shape)))
+
+    # -- nonlinear interface (drivers: Newton, ADR) ---------------------------
+    def initial_state(self, cloud: PointCloud, bonds: Bonds) -> dict[str, np.ndarray]:
+        """Committed state before the first load step (empty for elastic models)."""
+        return {}
+
+    def respond(
+        self,
+        cloud: PointCloud,
+        bonds: Bonds,
+        u: np.ndarray,
+        state: dict[str, np.ndarray],
+        *,
+        tangent: bool = False,
+    ) -> Response:
+        """Internal force, trial state and (optionally) tangent at ``u``.
+
+        ``state`` is the committed state of the last converged load step;
+        the call is a pure function of ``(u, state)``.  The default is the
+        linear model: ``f = -K u`` (matrix-free product where the model has
+        one), the state unchanged and ``K_T = K``.
+        """
+        f = np.asarray(self.internal_force(cloud, bonds, u, linear=True))
+        K = self.stiffness(cloud, bonds) if tangent else None
+        return Response(f, dict(state), K, None, 0)
 
     def estimate_nnz_blocks(self, cloud: PointCloud, bonds: Bonds) -> int:
         """Number of dim x dim blocks of K, without assembling it."""

@@ -4,6 +4,7 @@ from .assembly import assemble_stiffness, bond_pattern_bsr, pair_stiffness_bsr
 from .bc import (
     BodyForce,
     Dirichlet,
+    TimePath,
     TotalForce,
     check_constraints,
     eliminate_dirichlet,
@@ -26,6 +27,7 @@ __all__ = [
     "bond_pattern_bsr",
     "pair_stiffness_bsr",
     "Dirichlet",
+    "TimePath",
     "BodyForce",
     "TotalForce",
     "shadow_layer",

@@ -19,6 +19,7 @@ from .rigid import rigid_body_modes, rigid_mode_names
 
 __all__ = [
     "Dirichlet",
+    "TimePath",
     "BodyForce",
     "TotalForce",
     "shadow_layer",
@@ -133,6 +134,34 @@ def _evaluate_components(
 
 
 @dataclass(frozen=True)
+class TimePath:
+    """A prescribed displacement that depends on time, ``fn(points, t)``.
+
+    ``fn`` receives the ``(m, dim)`` reference points and the time ``t`` and
+    returns any value form of :class:`Dirichlet`.  Linear solves evaluate it
+    at ``t = 1``; :func:`pdlin.solve_nonlinear` at every load step's time
+    (other Dirichlet values are scaled by the load factor instead).
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin
+    >>> cloud = pdlin.grid((2, 2))
+    >>> bc = pdlin.Dirichlet("x+", TimePath(lambda x, t: 0.1 * t), components="x")
+    >>> resolve_dirichlet(cloud, [bc], t=3.0)[1].round(6).tolist()
+    [0.3, 0.3]
+    """
+
+    fn: Callable[[np.ndarray, float], Any]
+    description: str = ""
+
+
+def _path_value(value: Any, t: float) -> Any:
+    if isinstance(value, TimePath):
+        return lambda x: value.fn(x, t)
+    return value
+
+
+@dataclass(frozen=True)
 class Dirichlet:
     """Prescribed displacement on a point set.
 
@@ -199,6 +228,48 @@ class Dirichlet:
             return (x - c) @ H.T + t
 
         return cls(where, field, components)
+
+    @classmethod
+    def velocity_gradient(
+        cls,
+        where: Any,
+        L: Any,
+        *,
+        center: Any = None,
+        components: Any = None,
+    ) -> Dirichlet:
+        """Affine path ``u(X, t) = (exp(L t) - I)(X - center)`` of a constant velocity gradient.
+
+        The homogeneous deformation ``F(t) = exp(L t)`` (``Ḟ F⁻¹ = L``) of
+        spec 001 §4.2, e.g. pure shear ``L = η [[0, 1], [1, 0]]`` with
+        ``center`` at the domain corner.  Evaluated at each load step's time
+        by :func:`pdlin.solve_nonlinear` (at ``t = 1`` by :func:`pdlin.solve`).
+
+        Examples
+        --------
+        >>> import numpy as np, pdlin
+        >>> cloud = pdlin.grid((2, 2))
+        >>> bc = pdlin.Dirichlet.velocity_gradient("x+", [[0.0, 0.002], [0.002, 0.0]])
+        >>> vals = resolve_dirichlet(cloud, [bc], t=30.0)[1].reshape(-1, 2)
+        >>> bool(np.allclose(vals[0], [np.sinh(0.06) * 0.5 + (np.cosh(0.06) - 1) * 1.5,
+        ...                            (np.cosh(0.06) - 1) * 0.5 + np.sinh(0.06) * 1.5]))
+        True
+        """
+        Lm = as_float_array(L, "L", ndim=2)
+        if Lm.shape[0] != Lm.shape[1]:
+            raise ShapeError(f"L must be square (dim, dim), got {Lm.shape}")
+        d = Lm.shape[0]
+        c = np.zeros(d) if center is None else as_float_array(center, "center")
+        if c.shape != (d,):
+            raise ShapeError(f"center must have shape ({d},), got {c.shape}")
+
+        def path(x: np.ndarray, t: float) -> np.ndarray:
+            if x.shape[1] != d:
+                raise ShapeError(f"L is {d}x{d} but the cloud is {x.shape[1]}D")
+            H = scipy.linalg.expm(Lm * float(t)) - np.eye(d)
+            return (x - c) @ H.T
+
+        return cls(where, TimePath(path, f"exp(L t), L = {Lm.tolist()}"), components)
 
 
 @dataclass(frozen=True)
@@ -288,9 +359,11 @@ def shadow_layer(
 
 
 def resolve_dirichlet(
-    cloud: PointCloud, conditions: Sequence[Dirichlet]
+    cloud: PointCloud, conditions: Sequence[Dirichlet], *, t: float = 1.0
 ) -> tuple[np.ndarray, np.ndarray]:
     """Collect prescribed DOFs and values; conflicting duplicates raise.
+
+    :class:`TimePath` values are evaluated at time ``t``.
 
     Returns
     -------
@@ -305,7 +378,8 @@ def resolve_dirichlet(
             raise InputError(f"dirichlet[{k}] must be a pdlin Dirichlet, got {type(bc).__name__}")
         idx = _resolve_where(cloud, bc.where, f"dirichlet[{k}]")
         comps = parse_components(bc.components, d)
-        vals = _evaluate_components(bc.value, cloud.points[idx], d, comps, f"dirichlet[{k}].value")
+        value = _path_value(bc.value, t)
+        vals = _evaluate_components(value, cloud.points[idx], d, comps, f"dirichlet[{k}].value")
         all_dofs.append((d * idx[:, None] + comps[None, :]).ravel())
         all_vals.append(vals.ravel())
     if not all_dofs:

@@ -671,6 +671,23 @@ class SymmetryReduction:
         m = self.mirror
         return np.asarray(self.model.stress(m.cloud, self.bonds, self.expand(u)))[: m.n_real]
 
+    def initial_state(self) -> dict[str, np.ndarray]:
+        """Committed state of the nonlinear drivers (elastic models only: empty)."""
+        if getattr(self.model, "nonlinear", False):
+            raise ModelError(
+                f"symmetry planes do not support nonlinear models yet, got "
+                f"{type(self.model).__name__} with a nonlinear material; model the full body"
+            )
+        return {}
+
+    def respond(self, u: Any, state: dict[str, np.ndarray], *, tangent: bool = False) -> Any:
+        """Linear response ``f = -K_sym u`` on the real DOFs (see :meth:`Model.respond`)."""
+        from ..models.base import Response
+
+        self.initial_state()  # raises for nonlinear models
+        f = self.internal_force(u, linear=True)
+        return Response(f, dict(state), self.stiffness() if tangent else None, None, 0)
+
     def __repr__(self) -> str:
         return f"SymmetryReduction({self.mirror!r}, n_bonds={self.bonds.n_bonds})"
 
