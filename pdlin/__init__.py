@@ -37,6 +37,7 @@ from .models.weights import (
     moment_weights,
     weights_table,
 )
+from .nonlinear import NonlinearResult, solve_nonlinear
 from .operators import (
     BodyForce,
     Dirichlet,
@@ -87,6 +88,8 @@ __all__ = [
     "StaticProblem",
     "StaticResult",
     "solve",
+    "solve_nonlinear",
+    "NonlinearResult",
     "ConstrainedSystem",
     "constrained_system",
     "deformation_gradient",

@@ -357,6 +357,19 @@ class ConstrainedSystem:
         u[self.dofs] = factor * self.values
         return u.reshape(self.n, self.dim)
 
+    def initial_state(self) -> dict[str, np.ndarray]:
+        """The model's committed state before the first load step."""
+        return dict(self.disc.initial_state())
+
+    def respond(self, u: Any, state: dict[str, np.ndarray], *, tangent: bool = False) -> Any:
+        """The model's :class:`~pdlin.models.base.Response` at ``u`` (flat or ``(n, dim)``).
+
+        A pure function of ``(u, state)``: ``state`` is the committed state
+        of the last converged load step and is never modified.
+        """
+        uu = np.asarray(u, dtype=float).reshape(self.n, self.dim)
+        return self.disc.respond(uu, state, tangent=tangent)
+
     def internal_force(self, u: Any, *, linear: bool = True) -> np.ndarray:
         """``f_int(u)`` flat ``(ndof,)``."""
         return np.asarray(self.disc.internal_force(u, linear=linear), dtype=float).reshape(-1)

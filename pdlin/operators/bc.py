@@ -153,6 +153,10 @@ class TimePath:
 
     fn: Callable[[np.ndarray, float], Any]
     description: str = ""
+    #: velocity gradient and centre of an affine path (set by
+    #: :meth:`Dirichlet.velocity_gradient`; drivers use them for the affine predictor)
+    L: Any = None
+    center: Any = None
 
 
 def _path_value(value: Any, t: float) -> Any:
@@ -269,7 +273,7 @@ class Dirichlet:
             H = scipy.linalg.expm(Lm * float(t)) - np.eye(d)
             return (x - c) @ H.T
 
-        return cls(where, TimePath(path, f"exp(L t), L = {Lm.tolist()}"), components)
+        return cls(where, TimePath(path, f"exp(L t), L = {Lm.tolist()}", Lm, c), components)
 
 
 @dataclass(frozen=True)

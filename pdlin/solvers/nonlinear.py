@@ -1,0 +1,326 @@
+"""Nonlinear drivers for one load step: Newton (line search) and adaptive dynamic relaxation.
+
+Both work on a :class:`~pdlin.system.ConstrainedSystem` and the model's
+:meth:`~pdlin.Model.respond` (force, trial state and tangent at ``u`` from the
+committed state), and never ask how the system was built.  A step returns a
+:class:`StepOutcome` or raises :class:`StepFailed` (which the load-stepping
+driver :func:`pdlin.solve_nonlinear` turns into a cut-back or an ADR fallback).
+
+References: Kilic & Madenci 2010 (ADR: fictitious density from the Gershgorin
+bound, Rayleigh-quotient damping), spec 001 §4 (Eqs. 8-14, 19-20: update,
+damping, e₁/e₂ criteria) and §5 (Newton with line search and cut-back).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import ConvergenceError, InputError, ModelError
+from .linear import solve_linear
+
+__all__ = ["StepOutcome", "StepFailed", "newton_step", "adr_step", "adr_density"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class StepOutcome:
+    """Result of one load (sub)step.
+
+    Attributes
+    ----------
+    u : (ndof,) ndarray
+        Converged displacement (prescribed values included).
+    response : Response
+        The model's response at ``u`` (force, trial state to commit, stress).
+    iterations : int
+        Newton iterations (linear solves) or ADR iterations.
+    calls : int
+        Constitutive evaluations (points x updates).
+    residual : float
+        Final ``‖r_free‖ / force scale``.
+    history : list of float
+        Relative residual per iteration.
+    damping : (k,) ndarray, optional
+        ADR damping coefficient per iteration.
+    e1, e2 : float, optional
+        ADR's final relative criteria (spec 001 Eqs. 19-20).
+    """
+
+    u: np.ndarray
+    response: Any
+    iterations: int
+    calls: int
+    residual: float
+    history: list[float] = field(default_factory=list)
+    damping: np.ndarray | None = None
+    e1: float | None = None
+    e2: float | None = None
+    line_search: int = 0
+
+
+class StepFailed(ConvergenceError):
+    """A load step did not converge (the driver may cut back or fall back to ADR)."""
+
+    def __init__(self, message: str, outcome: StepOutcome | None = None) -> None:
+        super().__init__(message, outcome)
+        self.outcome = outcome
+
+
+def _residual(system: Any, resp: Any, factor: float) -> np.ndarray:
+    return system.residual(None, factor=factor, f_int=resp.force)
+
+
+def _force_scale(system: Any, resp: Any, factor: float) -> float:
+    """Force scale of a step: the larger of ‖λ f_ext‖ and ‖f_int‖ on the prescribed DOFs."""
+    f = np.ravel(resp.force)
+    ext = factor * float(np.linalg.norm(system.f_ext))
+    reac = float(np.linalg.norm(f[system.dofs])) if system.dofs.size else 0.0
+    return max(ext, reac)
+
+
+def _linear_solver(system: Any, solver: str) -> str:
+    if solver != "auto":
+        return solver
+    limit = 200_000 if system.dim <= 2 else 30_000
+    if system.ndof <= limit:
+        return "direct"
+    return "amg-cg" if system.symmetric else "amg-gmres"
+
+
+def newton_step(
+    system: Any,
+    u0: np.ndarray,
+    committed: dict[str, np.ndarray],
+    *,
+    factor: float,
+    rtol: float = 1e-8,
+    maxiter: int = 25,
+    line_search: bool = True,
+    max_backtracks: int = 8,
+    linear_solver: str = "auto",
+    linear_rtol: float = 1e-10,
+) -> StepOutcome:
+    """Newton-Raphson with a consistent tangent and backtracking line search.
+
+    Solves ``f_int(u) + factor f_ext = 0`` on the free DOFs from ``u0``
+    (whose prescribed entries hold this step's values).  Each iteration
+    solves ``K_T du = r`` with the Dirichlet elimination of the system
+    (``du = 0`` on prescribed DOFs), then backtracks ``u + α du`` (α = 1,
+    ½, ...) until ``‖r‖`` decreases by the Armijo factor ``1 - 1e-4 α``.
+    Converged when ``‖r_free‖ <= rtol * scale`` (``scale`` the larger of
+    ``‖λ f_ext‖`` and the reaction force norm).
+
+    Raises
+    ------
+    StepFailed
+        On ``maxiter`` iterations, a failed line search or a non-finite force.
+    """
+    u = np.array(u0, dtype=float).reshape(-1)
+    resp = system.respond(u, committed, tangent=True)
+    calls = int(resp.calls)
+    r = _residual(system, resp, factor)
+    scale0 = _force_scale(system, resp, factor)
+    history: list[float] = []
+    solver = _linear_solver(system, linear_solver)
+    backtracks = 0
+    for it in range(maxiter + 1):
+        norm = float(np.linalg.norm(r))
+        if not math.isfinite(norm):
+            raise StepFailed(f"Newton: non-finite residual at iteration {it}")
+        scale = max(scale0, _force_scale(system, resp, factor))
+        rel = norm / scale if scale > 0 else norm
+        history.append(rel)
+        if norm <= rtol * scale or norm == 0.0:
+            return StepOutcome(u, resp, it, calls, rel, history, line_search=backtracks)
+        if it == maxiter:
+            break
+        K = resp.tangent
+        if K is None:
+            raise ModelError(
+                f"{type(system.model).__name__}.respond(tangent=True) returned no tangent; "
+                "Newton needs one (use method='adr')"
+            )
+        A = system.eliminate_matrix(sp.bsr_array(K) if sp.issparse(K) else K)
+        b = np.array(r)
+        b[system.dofs] = 0.0
+        try:
+            lin = solve_linear(
+                A,
+                b,
+                solver,
+                rtol=linear_rtol,
+                near_null=system.near_null() if solver.startswith("amg") else None,
+                blocksize=system.dim,
+                symmetric=system.symmetric,
+            )
+        except ConvergenceError as exc:
+            raise StepFailed(f"Newton: linear solve failed at iteration {it}: {exc}") from exc
+        du = lin.x
+        du[system.dofs] = 0.0
+        alpha = 1.0
+        accepted = False
+        for _ls in range(max_backtracks + 1 if line_search else 1):
+            trial_u = u + alpha * du
+            trial = system.respond(trial_u, committed, tangent=alpha == 1.0)
+            calls += int(trial.calls)
+            rt = _residual(system, trial, factor)
+            nt = float(np.linalg.norm(rt))
+            if math.isfinite(nt) and (nt <= (1.0 - 1e-4 * alpha) * norm or not line_search):
+                accepted = True
+                break
+            alpha *= 0.5
+            backtracks += 1
+        if not accepted:
+            raise StepFailed(
+                f"Newton: line search failed at iteration {it} (‖r‖ = {norm:.3e}, no decrease "
+                f"down to α = {2 * alpha:.2e})",
+                StepOutcome(u, resp, it, calls, rel, history, line_search=backtracks),
+            )
+        u = trial_u
+        if trial.tangent is None:
+            trial = system.respond(u, committed, tangent=True)
+            calls += int(trial.calls)
+            rt = _residual(system, trial, factor)
+        resp, r = trial, rt
+    raise StepFailed(
+        f"Newton: no convergence in {maxiter} iterations (relative residual {history[-1]:.3e} "
+        f"> {rtol:.1e})",
+        StepOutcome(u, resp, maxiter, calls, history[-1], history, line_search=backtracks),
+    )
+
+
+def adr_density(
+    system: Any,
+    committed: dict[str, np.ndarray],
+    u: np.ndarray | None = None,
+    *,
+    dt: float = 1.0,
+    safety: float = 1.0,
+) -> np.ndarray:
+    """Fictitious diagonal density from the Gershgorin bound of the tangent (Kilic-Madenci).
+
+    ``Λ_ii = safety · ¼ Δt² Σ_j |K_ij|`` over the eliminated tangent at ``u``
+    (default: the prescribed-zero state), so that ``ω_max Δt <= 2`` for
+    every eigenvalue of ``Λ⁻¹ K``: the central-difference update is stable
+    for any damping ``c >= 0``.
+
+    Returns
+    -------
+    (ndof,) ndarray, positive
+    """
+    if not (dt > 0 and safety >= 1.0):
+        raise InputError(f"dt must be > 0 and safety >= 1, got dt = {dt}, safety = {safety}")
+    x = np.zeros(system.ndof) if u is None else np.asarray(u, dtype=float).reshape(-1)
+    resp = system.respond(x, committed, tangent=True)
+    if resp.tangent is None:
+        raise ModelError(
+            f"{type(system.model).__name__}.respond(tangent=True) returned no tangent; "
+            "pass the ADR density explicitly"
+        )
+    K = sp.csr_array(resp.tangent)
+    rows = np.asarray(abs(K).sum(axis=1)).ravel()
+    lam = safety * 0.25 * dt * dt * rows
+    free = system.free
+    if np.any(lam[free] <= 0):
+        bad = int(np.flatnonzero(free & (lam <= 0))[0])
+        raise ModelError(
+            f"the tangent has an empty row at free dof {bad} (point {bad // system.dim}): "
+            "no Gershgorin density; is the point connected?"
+        )
+    lam[~free] = 1.0
+    return lam
+
+
+def adr_step(
+    system: Any,
+    u0: np.ndarray,
+    committed: dict[str, np.ndarray],
+    *,
+    factor: float,
+    density: np.ndarray,
+    dt: float,
+    e_l: float = 1e-6,
+    maxiter: int = 20_000,
+    c0: float = 1.0,
+    damping: float | None = None,
+    floor: float = 1e-12,
+) -> StepOutcome:
+    """Adaptive dynamic relaxation for one load step (spec 001 §4).
+
+    Central differences on ``Λ ü + c Λ u̇ = r(u)`` (Eq. 8), ``u⁻¹ = u⁰``;
+    damping ``cⁿ = 2 sqrt(uⁿᵀ kⁿ uⁿ / uⁿᵀ uⁿ)`` with the diagonal local
+    stiffness ``k_ii = -(r_iⁿ - r_iⁿ⁻¹)/(Λ_ii (u_iⁿ - u_iⁿ⁻¹))`` over free
+    DOFs (``c = 0`` when the quotient is <= 0), unless a constant
+    ``damping`` is given.  Stops when ``e₁ = ε₁/ε₁⁰ < e_l`` and
+    ``e₂ = ε₂/ε₂⁰ < e_l`` (``ε₁ = ‖r‖/N``, ``ε₂ = ‖δu‖/N``, ``ε⁰`` of the
+    first iteration), or when ``‖r‖ <= floor`` x the force scale (the
+    relative criteria degenerate when ``u⁰`` is already the solution).
+
+    Raises
+    ------
+    StepFailed
+        After ``maxiter`` iterations or on a non-finite force.
+    """
+    lam = np.asarray(density, dtype=float).reshape(-1)
+    if lam.shape != (system.ndof,) or np.any(lam <= 0) or not np.all(np.isfinite(lam)):
+        raise InputError(f"density must be {system.ndof} positive finite numbers")
+    if not (dt > 0 and math.isfinite(dt)):
+        raise InputError(f"dt must be a positive number, got {dt}")
+    free = system.free
+    npts = system.n
+    u = np.array(u0, dtype=float).reshape(-1)
+    u_prev = u.copy()
+    resp = system.respond(u, committed)
+    calls = int(resp.calls)
+    r = _residual(system, resp, factor)
+    scale = _force_scale(system, resp, factor)
+    history: list[float] = []
+    cs: list[float] = []
+    c = float(c0) if damping is None else float(damping)
+    eps1_0 = eps2_0 = None
+    e1 = e2 = float("nan")
+    if float(np.linalg.norm(r)) <= floor * scale:
+        return StepOutcome(u, resp, 0, calls, 0.0, [0.0], np.zeros(0), 0.0, 0.0)
+    h2 = 2.0 * dt * dt
+    for it in range(1, maxiter + 1):
+        a = np.where(free, r / lam, 0.0)
+        cdt = c * dt
+        u_new = (h2 * a + 4.0 * u + (cdt - 2.0) * u_prev) / (2.0 + cdt)
+        u_new[~free] = u[~free]
+        resp_new = system.respond(u_new, committed)
+        calls += int(resp_new.calls)
+        r_new = _residual(system, resp_new, factor)
+        n1 = float(np.linalg.norm(r_new))
+        if not math.isfinite(n1):
+            raise StepFailed(f"ADR: non-finite force at iteration {it} (dt too large?)")
+        du = u_new - u
+        if damping is None:
+            num_mask = free & (du != 0.0)
+            k = np.zeros_like(u)
+            k[num_mask] = -(r_new[num_mask] - r[num_mask]) / (lam[num_mask] * du[num_mask])
+            uf = u_new[free]
+            den = float(uf @ uf)
+            q = float(uf @ (k[free] * uf)) / den if den > 0 else 0.0
+            c = 2.0 * math.sqrt(q) if q > 0 else 0.0
+        cs.append(c)
+        eps1 = n1 / npts
+        eps2 = float(np.linalg.norm(du)) / npts
+        if eps1_0 is None:
+            eps1_0, eps2_0 = max(eps1, 1e-300), max(eps2, 1e-300)
+        e1, e2 = eps1 / eps1_0, eps2 / eps2_0
+        history.append(n1 / scale if scale > 0 else n1)
+        u_prev, u, r, resp = u, u_new, r_new, resp_new
+        if (e1 < e_l and e2 < e_l) or n1 <= floor * scale:
+            return StepOutcome(u, resp, it, calls, history[-1], history, np.array(cs), e1, e2)
+    raise StepFailed(
+        f"ADR: no convergence in {maxiter} iterations (e1 = {e1:.3e}, e2 = {e2:.3e}, "
+        f"target {e_l:.1e})",
+        StepOutcome(u, resp, maxiter, calls, history[-1], history, np.array(cs), e1, e2),
+    )

@@ -1,0 +1,241 @@
+"""Load-stepped drivers (Newton, ADR, auto) on the constrained system."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import pdlin
+from pdlin.errors import ConvergenceError, InputError
+from pdlin.models.base import Model, Response
+
+
+class CubicChain(Model):
+    """1D chain of hardening springs, bond force k (e + β e³), e = u_j - u_i.
+
+    Its state keeps the largest |e| seen per point (a history variable), to
+    check that drivers commit states only at converged steps.
+    """
+
+    nonlinear = True
+
+    def __init__(self, k: Any = 1.0, beta: float = 1e4) -> None:
+        self.k, self.beta = np.asarray(k, dtype=float), beta
+
+    def _kb(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        k = np.broadcast_to(self.k, (int(max(i.max(), j.max())) + 1,))
+        return 0.5 * (k[i] + k[j])
+
+    def _pairs(self, bonds: Any) -> tuple[np.ndarray, np.ndarray]:
+        keep = bonds.i < bonds.j
+        return bonds.i[keep], bonds.j[keep]
+
+    def stiffness(self, cloud: Any, bonds: Any) -> sp.sparray:
+        i, j = self._pairs(bonds)
+        n = cloud.n
+        w = self._kb(i, j)
+        A = sp.coo_array((np.r_[w, w, -w, -w], (np.r_[i, j, i, j], np.r_[i, j, j, i])), (n, n))
+        return sp.bsr_array(A.tocsr(), blocksize=(1, 1))
+
+    def internal_force(self, cloud: Any, bonds: Any, u: Any, *, linear: bool = True) -> Any:
+        return -(self.stiffness(cloud, bonds) @ np.ravel(u)).reshape(-1, 1)
+
+    def initial_state(self, cloud: Any, bonds: Any) -> dict[str, np.ndarray]:
+        return {"emax": np.zeros(cloud.n)}
+
+    def respond(self, cloud: Any, bonds: Any, u: Any, state: Any, *, tangent: bool = False):
+        i, j = self._pairs(bonds)
+        x = np.ravel(u)
+        e = x[j] - x[i]
+        t = self._kb(i, j) * (e + self.beta * e**3)
+        f = np.zeros(cloud.n)
+        np.add.at(f, i, t)
+        np.add.at(f, j, -t)
+        emax = np.maximum(state["emax"], 0.0)
+        np.maximum.at(emax, i, np.abs(e))
+        K = None
+        if tangent:
+            kt = self._kb(i, j) * (1.0 + 3.0 * self.beta * e**2)
+            n = cloud.n
+            A = sp.coo_array(
+                (np.r_[kt, kt, -kt, -kt], (np.r_[i, j, i, j], np.r_[i, j, j, i])), (n, n)
+            )
+            K = sp.bsr_array(A.tocsr(), blocksize=(1, 1))
+        return Response(f.reshape(-1, 1), {"emax": emax}, K, None, cloud.n)
+
+
+def _chain(n: int = 21, u_end: float = 0.05, beta: float = 1e4, graded: bool = False):
+    cloud = pdlin.grid((n,), spacing=1.0 / (n - 1), origin=[-0.5 / (n - 1)])
+    bonds = pdlin.find_bonds(cloud, ratio=1.0)
+    k = 1.0 + 9.0 * cloud.points[:, 0] if graded else 1.0
+    return pdlin.StaticProblem(
+        CubicChain(k=k, beta=beta),
+        cloud,
+        bonds,
+        dirichlet=[pdlin.Dirichlet([0], 0.0), pdlin.Dirichlet([n - 1], u_end)],
+    )
+
+
+def test_newton_solves_the_hardening_chain_and_commits_history():
+    prob = _chain()
+    res = pdlin.solve_nonlinear(prob, steps=3, method="newton")
+    # uniform chain: the exact solution is linear in x whatever the spring law
+    x = prob.cloud.points[:, 0]
+    u_exact = 0.05 * (x - x[0]) / (x[-1] - x[0])
+    np.testing.assert_allclose(res.u[-1, :, 0], u_exact, rtol=1e-9, atol=1e-12)
+    assert res.methods == ["newton"] * 3 and res.cutbacks.tolist() == [0, 0, 0]
+    # the committed history variable grows with the load: e = u_end / 20 per bond
+    np.testing.assert_allclose(res.states[-1]["emax"][:-1], 0.05 / 20, rtol=1e-9)
+    np.testing.assert_allclose(res.states[0]["emax"][:-1], 0.05 / 60, rtol=1e-9)
+    # the support pulls the right end with the spring force k (e + β e³)
+    e = 0.05 / 20
+    np.testing.assert_allclose(res.reactions[-1, -1, 0], e + 1e4 * e**3, rtol=1e-9)
+    np.testing.assert_allclose(res.reactions[-1].sum(), 0.0, atol=1e-12)
+
+
+def test_newton_converges_quadratically():
+    prob = _chain(u_end=0.2, graded=True)
+    res = pdlin.solve_nonlinear(prob, steps=1, method="newton", predictor="tangent")
+    # hardening springs with a strong cubic term: several iterations, the last ones quadratic
+    assert res.iterations[0] >= 3
+    assert res.residuals[0] <= 1e-8
+
+
+def test_cutback_then_success_and_auto_fallback_to_adr():
+    prob = _chain(u_end=0.2, graded=True, beta=1e3)
+    # three iterations are too few for the full step: halvings make each piece easy enough
+    res = pdlin.solve_nonlinear(prob, steps=1, method="newton", maxiter=3, predictor="tangent")
+    assert res.cutbacks[0] >= 1 and res.methods == ["newton"]
+    with pytest.raises(ConvergenceError, match="Newton failed at load step 1"):
+        pdlin.solve_nonlinear(
+            prob, steps=1, method="newton", maxiter=1, max_cutbacks=0, predictor="tangent"
+        )
+    auto = pdlin.solve_nonlinear(
+        prob, steps=1, method="auto", maxiter=1, max_cutbacks=0, predictor="tangent",
+        e_l=1e-9,
+    )  # fmt: skip
+    assert auto.methods == ["adr (newton failed)"]
+    assert "no convergence in 1 iterations" in auto.messages[0]
+    # the step's iterations: Newton's failed one plus one damping value per ADR iteration
+    assert auto.damping[0].size == auto.iterations[0] - 1 > 0
+    np.testing.assert_allclose(auto.u[-1], res.u[-1], rtol=0, atol=1e-6 * 0.2)
+
+
+def test_linear_models_newton_one_iteration_and_matches_solve():
+    cloud = pdlin.grid((12, 6), spacing=0.1)
+    prob = pdlin.StaticProblem(
+        pdlin.LPS(E=1.0, nu=0.3),
+        cloud,
+        horizon=0.3015,
+        dirichlet=[pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", [1e-3, 5e-4])],
+    )
+    lin = pdlin.solve(prob, solver="direct")
+    res = pdlin.solve_nonlinear(prob, steps=2, method="newton", predictor="previous")
+    assert res.iterations.tolist() == [1, 1]
+    np.testing.assert_allclose(res.u[-1], lin.u, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(res.reactions[-1], lin.reactions, rtol=1e-7, atol=1e-12)
+    # half the load at step 1 (proportional loading)
+    np.testing.assert_allclose(res.u[0], 0.5 * lin.u, rtol=1e-9, atol=1e-15)
+    assert res.homogenized_stress is not None and res.homogenized_stress.shape == (2, 2, 2)
+
+
+@pytest.mark.parametrize("e_l", [1e-4, 1e-6, 1e-8])
+def test_adr_error_against_linear_solve_decreases_with_e_l(e_l):
+    # spec 001 T17: elastic steps, ADR vs a linear solve: max|Δu|/max|u| <= 10 e_l
+    cloud = pdlin.grid((14, 8), spacing=0.1)
+    prob = pdlin.StaticProblem(
+        pdlin.Correspondence(E=1.0, nu=0.3, control="penalty"),
+        cloud,
+        horizon=0.2015,
+        dirichlet=[pdlin.Dirichlet("x-", 0.0), pdlin.Dirichlet("x+", [1e-3, 0.0])],
+    )
+    lin = pdlin.solve(prob, solver="direct")
+    # from the last solution (the tangent predictor would start at the linear solution)
+    res = pdlin.solve_nonlinear(prob, steps=1, method="adr", e_l=e_l, predictor="previous")
+    assert res.iterations[0] > 20
+    err = np.abs(res.u[-1] - lin.u).max() / np.abs(lin.u).max()
+    assert err <= 10 * e_l
+    assert res.e1[0] < e_l and res.e2[0] < e_l
+
+
+def test_adr_explicit_density_stability_limit():
+    # spec 001 T15 on a linear chain: Λ = 1, Δt at 0.98 x 2/sqrt(λ_max) converges, at
+    # 1.02 x the update is unstable (linear forces are unbounded: the step fails)
+    prob = _chain(n=31, beta=0.0)
+    system = pdlin.constrained_system(prob)
+    K = system.eliminate_matrix(system.assemble()).toarray()
+    free = system.free
+    lmax = np.linalg.eigvalsh(K[np.ix_(free, free)]).max()
+    dt_c = 2.0 / np.sqrt(lmax)
+    kw = {"method": "adr", "density": 1.0, "predictor": "previous"}
+    ok = pdlin.solve_nonlinear(prob, steps=1, dt=0.98 * dt_c, **kw)
+    assert ok.iterations[0] > 0
+    with pytest.raises(ConvergenceError, match="ADR"):
+        pdlin.solve_nonlinear(prob, steps=1, dt=1.02 * dt_c, adr_maxiter=3000, **kw)
+
+
+def test_checkpoint_resume_keeps_committed_steps(tmp_path):
+    prob = _chain(u_end=0.1)
+    full = pdlin.solve_nonlinear(prob, steps=4, method="newton")
+    ck = tmp_path / "run.npz"
+
+    class Killed(Exception):
+        pass
+
+    def kill_after_two(msg: str) -> None:
+        if msg.startswith("step 2/4"):
+            raise Killed
+
+    with pytest.raises(Killed):
+        pdlin.solve_nonlinear(
+            prob, steps=4, method="newton", checkpoint=ck, progress=kill_after_two
+        )
+    assert ck.exists() and not (tmp_path / "run.npz.tmp").exists()
+    assert int(np.load(ck)["done"]) == 2
+    res = pdlin.solve_nonlinear(prob, steps=4, method="newton", checkpoint=ck, resume=True)
+    assert res.resumed_from == 2
+    np.testing.assert_allclose(res.u, full.u, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(res.states[-1]["emax"], full.states[-1]["emax"], rtol=1e-12)
+    with pytest.raises(InputError, match="another problem or load path"):
+        pdlin.solve_nonlinear(prob, steps=5, method="newton", checkpoint=ck, resume=True)
+
+
+def test_velocity_gradient_path_and_affine_predictor():
+    # a linear patch under u = (exp(L t) - I) X on its boundary: the affine predictor is the
+    # exact solution of the linearized problem only to O(|L t|²), Newton fixes the rest
+    cloud = pdlin.grid((8, 8), spacing=0.125)
+    L = 0.002 * np.array([[0.0, 1.0], [1.0, 0.0]])
+    ring = np.flatnonzero((cloud.points.min(axis=1) < 0.125) | (cloud.points.max(axis=1) > 0.875))
+    prob = pdlin.StaticProblem(
+        pdlin.Correspondence(E=1.0, nu=0.3),
+        cloud,
+        horizon=0.126,
+        dirichlet=[pdlin.Dirichlet.velocity_gradient(ring, L)],
+    )
+    res = pdlin.solve_nonlinear(prob, steps=3, t_end=30.0, method="newton")
+    system = res.system
+    for k, t in enumerate(res.times):
+        H = __import__("scipy").linalg.expm(L * t) - np.eye(2)
+        np.testing.assert_allclose(res.u[k][ring], cloud.points[ring] @ H.T, rtol=1e-12, atol=1e-15)
+        assert np.abs(system.residual(res.u[k])).max() < 1e-10
+    np.testing.assert_allclose(res.times, [10.0, 20.0, 30.0])
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"method": "newtonn"}, "method must be one of"),
+        ({"steps": 0}, "steps must be an integer >= 1"),
+        ({"times": [1.0, 0.5]}, "times must be a non-empty increasing"),
+        ({"predictor": "affine"}, "predictor='affine' needs"),
+        ({"method": "adr", "density": 1.0}, "explicit ADR density needs dt"),
+        ({"rtol": -1.0}, "rtol must be a positive number"),
+        ({"maxiter": 1.5}, "maxiter must be an integer"),
+    ],
+)
+def test_bad_arguments_name_themselves(kwargs, match):
+    with pytest.raises(InputError, match=match):
+        pdlin.solve_nonlinear(_chain(), **kwargs)
