@@ -1,8 +1,19 @@
-"""Writing point fields to files (meshio VTU/XDMF, or numpy .npz)."""
+"""Writing point fields to files (meshio VTU/XDMF, or numpy .npz), atomically.
+
+Every writer builds its files in a private temporary directory next to the
+target and moves them into place only when they are complete, so a run that
+fails or is killed never leaves a truncated file, and an existing file is
+replaced only by a complete new one.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import csv
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -11,9 +22,81 @@ import numpy as np
 from ..errors import InputError, ShapeError
 from ..geometry.cloud import PointCloud
 
-__all__ = ["write_points", "write_result", "SUPPORTED_SUFFIXES"]
+__all__ = [
+    "write_points",
+    "write_result",
+    "write_series",
+    "write_nonlinear",
+    "write_homogenized_csv",
+    "SUPPORTED_SUFFIXES",
+    "SERIES_SUFFIXES",
+]
 
 SUPPORTED_SUFFIXES = (".vtu", ".xdmf", ".vtk", ".npz")
+#: time-series outputs: one XDMF (+ HDF5), a ParaView .pvd collection of VTU files, one NPZ
+SERIES_SUFFIXES = (".xdmf", ".pvd", ".vtu", ".npz")
+
+
+def _xdmf_fields(pd: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """XDMF attribute shapes: 2D tensors (n, 4) -> (n, 9); other widths split into scalars."""
+    out: dict[str, np.ndarray] = {}
+    for name, arr in pd.items():
+        if arr.ndim == 1 or (arr.ndim == 2 and arr.shape[1] in (1, 2, 3, 6, 9)):
+            out[name] = arr
+        elif arr.ndim == 2 and arr.shape[1] == 4:
+            t = np.zeros((arr.shape[0], 3, 3))
+            t[:, :2, :2] = arr.reshape(-1, 2, 2)
+            out[name] = t.reshape(-1, 9)
+        else:
+            flat = arr.reshape(arr.shape[0], -1)
+            for k in range(flat.shape[1]):
+                out[f"{name}_{k}"] = flat[:, k]
+    return out
+
+
+def _need_h5py() -> None:
+    try:
+        import h5py  # noqa: F401
+    except ImportError as exc:
+        raise ImportError(
+            "XDMF output needs h5py (pip install 'pdlin[io]'); or write .pvd / .vtu / .npz"
+        ) from exc
+
+
+@contextmanager
+def _staging(target: Path) -> Iterator[Path]:
+    """A private directory next to ``target``; its files replace theirs only on success."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".partial", dir=target.parent))
+    try:
+        yield tmp
+        # data files first, the file that references them (xdmf, pvd) last
+        files = sorted(tmp.iterdir(), key=lambda f: f.suffix in (".xdmf", ".pvd"))
+        for f in files:
+            os.replace(f, target.parent / f.name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _check_fields(n: int, fields: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    data: dict[str, np.ndarray] = {}
+    for name, val in fields.items():
+        arr = np.asarray(val, dtype=float)
+        if arr.shape[0] != n:
+            raise ShapeError(f"field {name!r} must have {n} rows, got shape {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise InputError(f"field {name!r} holds NaN or inf; refusing to write it")
+        data[name] = arr
+    return data
+
+
+def _point_data(cloud: PointCloud, data: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    pd: dict[str, np.ndarray] = {"volume": np.asarray(cloud.volumes)}
+    for name, arr in data.items():
+        if arr.ndim == 2 and arr.shape[1] == cloud.dim and cloud.dim < 3:
+            arr = _pad3(arr)
+        pd[name] = arr
+    return pd
 
 
 def _pad3(a: np.ndarray) -> np.ndarray:
@@ -55,33 +138,184 @@ def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any])
     suffix = p.suffix.lower()
     if suffix not in SUPPORTED_SUFFIXES:
         raise InputError(f"output path must end with one of {SUPPORTED_SUFFIXES}, got {str(p)!r}")
-    data: dict[str, np.ndarray] = {}
-    for name, val in fields.items():
-        arr = np.asarray(val, dtype=float)
-        if arr.shape[0] != cloud.n:
-            raise ShapeError(f"field {name!r} must have {cloud.n} rows, got shape {arr.shape}")
-        if not np.all(np.isfinite(arr)):
-            raise InputError(f"field {name!r} holds NaN or inf; refusing to write it")
-        data[name] = arr
-    p.parent.mkdir(parents=True, exist_ok=True)
-    if suffix == ".npz":
-        arrays = {"points": np.asarray(cloud.points), "volumes": np.asarray(cloud.volumes), **data}
-        np.savez_compressed(p, **arrays)  # type: ignore[arg-type]
-        return p
-    import meshio
+    data = _check_fields(cloud.n, fields)
+    with _staging(p) as tmp:
+        out = tmp / p.name
+        if suffix == ".npz":
+            arrays = {
+                "points": np.asarray(cloud.points),
+                "volumes": np.asarray(cloud.volumes),
+                **data,
+            }
+            np.savez_compressed(out, **arrays)  # type: ignore[arg-type]
+        else:
+            import meshio
 
-    pts = _pad3(np.asarray(cloud.points))
-    pd: dict[str, np.ndarray] = {"volume": np.asarray(cloud.volumes)}
-    for name, arr in data.items():
-        if arr.ndim == 2 and arr.shape[1] == cloud.dim and cloud.dim < 3:
-            arr = _pad3(arr)
-        pd[name] = arr
-    cells = [("vertex", np.arange(cloud.n).reshape(-1, 1))]
-    mesh = meshio.Mesh(pts, cells, point_data=pd)
-    mesh.write(p)
+            pdat = _point_data(cloud, data)
+            if suffix == ".xdmf":
+                _need_h5py()
+                pdat = _xdmf_fields(pdat)
+            cells = [("vertex", np.arange(cloud.n).reshape(-1, 1))]
+            mesh = meshio.Mesh(_pad3(np.asarray(cloud.points)), cells, point_data=pdat)
+            mesh.write(out)
     return p
 
 
 def write_result(path: str | Path, result: Any) -> Path:
     """Write every field of a :class:`pdlin.StaticResult` (see :func:`write_points`)."""
     return write_points(path, result.problem.cloud, result.fields())
+
+
+def write_series(
+    path: str | Path,
+    cloud: PointCloud,
+    times: Sequence[float],
+    steps: Sequence[Mapping[str, Any]],
+) -> Path:
+    """Write point fields of several steps as one time series.
+
+    ``.xdmf``: one XDMF file with its HDF5 companion (meshio's time-series
+    writer); ``.pvd`` (or ``.vtu``): one VTU file per step
+    (``<stem>_0001.vtu``, ...) and a ParaView ``<stem>.pvd`` collection;
+    ``.npz``: every field with a leading step axis plus ``times``.  Written
+    atomically (all files appear together, or none).
+
+    Parameters
+    ----------
+    path : str or Path
+    cloud : PointCloud
+    times : (k,) sequence of float
+    steps : sequence of k mappings ``name -> (n,) or (n, c)`` array
+
+    Returns
+    -------
+    Path of the main file (``.xdmf``, ``.pvd`` or ``.npz``).
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin, tempfile, os, meshio
+    >>> cloud = pdlin.grid((3, 2))
+    >>> d = tempfile.mkdtemp()
+    >>> p = write_series(os.path.join(d, "run.pvd"), cloud, [0.5, 1.0],
+    ...                  [{"u": 0.5 * np.ones((6, 2))}, {"u": np.ones((6, 2))}])
+    >>> sorted(os.listdir(d)), p.name
+    (['run.pvd', 'run_0001.vtu', 'run_0002.vtu'], 'run.pvd')
+    """
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix not in SERIES_SUFFIXES:
+        raise InputError(f"series path must end with one of {SERIES_SUFFIXES}, got {str(p)!r}")
+    tt = np.asarray(times, dtype=float).reshape(-1)
+    if tt.size != len(steps) or tt.size == 0:
+        raise ShapeError(
+            f"times and steps must have the same non-zero length, got {tt.size} and {len(steps)}"
+        )
+    data = [_check_fields(cloud.n, f) for f in steps]
+    pts = _pad3(np.asarray(cloud.points))
+    cells = [("vertex", np.arange(cloud.n).reshape(-1, 1))]
+    if suffix == ".vtu":
+        p = p.with_suffix(".pvd")
+    with _staging(p) as tmp:
+        if suffix == ".npz":
+            arrays: dict[str, np.ndarray] = {
+                "points": np.asarray(cloud.points),
+                "volumes": np.asarray(cloud.volumes),
+                "times": tt,
+            }
+            for name in data[0]:
+                arrays[name] = np.stack([d[name] for d in data])
+            np.savez_compressed(tmp / p.name, **arrays)  # type: ignore[arg-type]
+        elif suffix == ".xdmf":
+            import meshio
+
+            _need_h5py()
+            cwd = os.getcwd()
+            os.chdir(tmp)  # meshio writes the .h5 beside the .xdmf, by relative name
+            try:
+                with meshio.xdmf.TimeSeriesWriter(p.name) as writer:
+                    writer.write_points_cells(pts, cells)
+                    for t, d in zip(tt, data, strict=True):
+                        pdat = _xdmf_fields(_point_data(cloud, d))
+                        writer.write_data(float(t), point_data=pdat)
+            finally:
+                os.chdir(cwd)
+        else:
+            import meshio
+
+            entries = []
+            for k, (t, d) in enumerate(zip(tt, data, strict=True)):
+                name = f"{p.stem}_{k + 1:04d}.vtu"
+                meshio.Mesh(pts, cells, point_data=_point_data(cloud, d)).write(tmp / name)
+                entries.append(f'    <DataSet timestep="{t:.17g}" part="0" file="{name}"/>')
+            (tmp / p.name).write_text(
+                '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
+                "  <Collection>\n" + "\n".join(entries) + "\n  </Collection>\n</VTKFile>\n"
+            )
+    return p
+
+
+def write_homogenized_csv(path: str | Path, result: Any) -> Path:
+    """CSV of the homogenized (volume-averaged) response per load step.
+
+    Columns: ``step, time, factor``, the volume-averaged Cauchy stress
+    ``sigma_ij`` and deformation gradient ``F_ij`` (mean of the nonlocal F of
+    the homogenized points), the driver, iterations and cut-backs.
+    """
+    p = Path(path)
+    if p.suffix.lower() != ".csv":
+        raise InputError(f"homogenized output must end with .csv, got {str(p)!r}")
+    d = result.u.shape[2]
+    system = result.system
+    w = np.asarray(system.cloud.volumes, dtype=float)
+    ij = [f"{i + 1}{j + 1}" for i in range(d) for j in range(d)]
+    header = ["step", "time", "factor"]
+    header += [f"sigma_{c}" for c in ij] + [f"F_{c}" for c in ij]
+    header += ["method", "iterations", "cutbacks"]
+    rows = []
+    for k in range(result.n_steps):
+        F = system.disc.deformation_gradient(result.u[k])
+        Fm = np.einsum("i,iab->ab", w, F) / w.sum()
+        sig = (
+            result.homogenized_stress[k]
+            if result.homogenized_stress is not None
+            else np.full((d, d), np.nan)
+        )
+        rows.append(
+            [k + 1, f"{result.times[k]:.10g}", f"{result.factors[k]:.10g}"]
+            + [f"{v:.10g}" for v in sig.ravel()]
+            + [f"{v:.12g}" for v in Fm.ravel()]
+            + [result.methods[k], int(result.iterations[k]), int(result.cutbacks[k])]
+        )
+    with _staging(p) as tmp:
+        with open(tmp / p.name, "w", newline="") as fh:
+            wr = csv.writer(fh)
+            wr.writerow(header)
+            wr.writerows(rows)
+    return p
+
+
+def write_nonlinear(path: str | Path, result: Any) -> Path:
+    """Write every step of a :class:`pdlin.NonlinearResult` as one time series.
+
+    Fields per step: ``displacement``, ``reaction``, and where available
+    ``stress`` (Cauchy, ``dim²`` components) and the scalar / vector state
+    variables of the committed state (e.g. ``state_gamma``, ``state_s``,
+    ``state_reorientation`` of crystal plasticity; per-point ones only).
+    """
+    cloud = result.system.cloud
+    n = cloud.n
+    steps = []
+    for k in range(result.n_steps):
+        fields: dict[str, np.ndarray] = {
+            "displacement": result.u[k],
+            "reaction": result.reactions[k],
+        }
+        if result.stress is not None:
+            fields["stress"] = result.stress[k].reshape(n, -1)
+        if k < len(result.states) and len(result.states) == result.n_steps:
+            for key, val in result.states[k].items():
+                arr = np.asarray(val)
+                if arr.shape[:1] == (n,) and arr.ndim <= 2 and arr.dtype.kind in "fiub":
+                    fields[f"state_{key}"] = arr.astype(float)
+        steps.append(fields)
+    return write_series(path, cloud, result.times, steps)
