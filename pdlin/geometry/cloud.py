@@ -56,6 +56,9 @@ def _as_index_array(value: Any, name: str, n: int) -> np.ndarray:
     return arr
 
 
+_FACE_SETS = ("x-", "x+", "y-", "y+", "z-", "z+")
+
+
 @dataclass(frozen=True, eq=False)
 class PointCloud:
     """Material points with volumes, optional horizons, phases and named sets.
@@ -184,12 +187,28 @@ class PointCloud:
         return self.points.min(axis=0), self.points.max(axis=0)
 
     def point_set(self, name: str) -> np.ndarray:
-        """Return the indices of the named set, or raise a clear error."""
-        try:
+        """Return the indices of the named set, or raise a clear error.
+
+        Two names are always defined unless the cloud has sets of that name:
+        ``'all'`` (every point) and ``'boundary'`` (the union of the face sets
+        ``'x-'``, ``'x+'``, ... the cloud has, e.g. the outermost ring of a
+        :func:`pdlin.grid`).
+
+        Examples
+        --------
+        >>> import pdlin
+        >>> pdlin.grid((4, 4)).point_set("boundary").size   # 16 points minus the 2 x 2 core
+        12
+        """
+        if name in self.sets:
             return self.sets[name]
-        except KeyError:
-            known = ", ".join(sorted(self.sets)) or "none"
-            raise InputError(f"unknown point set {name!r}; known sets: {known}") from None
+        if name == "all":
+            return np.arange(self.n)
+        faces = [self.sets[f] for f in _FACE_SETS if f in self.sets]
+        if name == "boundary" and faces:
+            return np.unique(np.concatenate(faces))
+        known = ", ".join([*sorted(self.sets), "all"] + (["boundary"] if faces else []))
+        raise InputError(f"unknown point set {name!r}; known sets: {known}")
 
     def select(
         self,
