@@ -20,6 +20,7 @@ __all__ = [
     "ConvergenceError",
     "SceneError",
     "ModelError",
+    "ActiveSetWarning",
 ]
 
 
@@ -74,3 +75,13 @@ class ConvergenceError(PdlinError, RuntimeError):
     def __init__(self, message: str, result: object | None = None) -> None:
         super().__init__(message)
         self.result = result
+
+
+class ActiveSetWarning(RuntimeWarning):
+    """A crystal-plasticity active-set search did not settle at some points.
+
+    Issued by :meth:`pdlin.CrystalPlasticity.update` (``active_set="reactivate"``) when
+    points still violate the yield condition on an inactive system after ``max_passes``
+    re-activation passes or cycle between active sets; the message gives their number.
+    Promote it to an error with ``warnings.simplefilter("error", ActiveSetWarning)``.
+    """

@@ -28,6 +28,7 @@ Conventions
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -36,7 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._validation import check_finite
-from ..errors import InputError, ShapeError
+from ..errors import ActiveSetWarning, InputError, ShapeError
 from .tensors import (
     _tensor_to_voigt_unchecked,
     _voigt_to_tensor_unchecked,
@@ -323,6 +324,11 @@ def _solve(A: NDArray[Any], b: NDArray[Any]) -> NDArray[Any]:
     return x
 
 
+def _set_code(act: NDArray[np.bool_], sgn: FloatArray, bits: NDArray[np.int64]) -> NDArray[Any]:
+    """One integer per point encoding its active set and the slip signs on it."""
+    return np.asarray(act @ bits + (act & (sgn < 0.0)) @ (bits << bits.size))
+
+
 def cauchy_stress(P: ArrayLike, F: ArrayLike) -> FloatArray:
     """Cauchy stress ``σ = P Fᵀ / det F`` of first Piola–Kirchhoff stresses.
 
@@ -505,11 +511,31 @@ class CrystalPlasticity:
         tangent; they agree to ≈1e-15 relative).
     tangent_step : float
         Step of the complex-step tangent.
+    active_set : {"reactivate", "prune"}
+        Active-set search.  ``prune`` is spec 001 §3.6 as written: start from the
+        potentially active set, drop every system with ``Δγ ≤ 0`` and re-solve until no
+        point changes (a dropped system is never re-activated).  ``reactivate`` (default)
+        then checks ``τ^α`` of the final state on the inactive systems and adds back those
+        with ``|τ^α| > s^α (1 + yield_tol)`` (``s^α`` the updated resistance, slip sign
+        of the final ``τ^α``), re-solving and pruning again, until no point changes
+        (Anand & Kothari 1996; Miehe & Schröder 2001).  Both give identical results
+        wherever pruning leaves no inactive system over the yield surface (all
+        ``planar-2`` §8.1 table paths).
+    yield_tol : float
+        Relative tolerance of the re-activation check (default 1e-4).
+    max_passes : int
+        Cap on the re-activation passes per update (default 20).  A point that still
+        violates the yield condition after the cap, or that revisits an earlier active
+        set (a cycle of the search), is *unsettled*: it keeps the visited solution with the
+        smallest violation, ``state["unsettled"]`` flags it and :class:`ActiveSetWarning`
+        is issued naming how many points did not settle (turn it into an error with
+        ``warnings.simplefilter("error", ActiveSetWarning)``).
 
     Notes
     -----
     The consistent tangent is the exact linearization of the §3.6 update with the active
-    set of the real solve frozen (valid wherever the active set does not switch).
+    set and slip signs of the real solve (after pruning and re-activation) frozen (valid
+    wherever the active set does not switch).
     ``analytic`` (default): forward-mode chain rule, ``dΔγ = A⁻¹(db − dA Δγ)`` with one
     factorization of ``A`` and ``d²`` right-hand sides per point.  ``complex-step``: the
     same derivative as ``Im P(F + i h E_kl) / h`` of the pure update (``d²`` complex
@@ -541,10 +567,22 @@ class CrystalPlasticity:
         c_over_a: float = DEFAULT_C_OVER_A,
         tangent: str = "analytic",
         tangent_step: float = 1e-30,
+        active_set: str = "reactivate",
+        yield_tol: float = 1e-4,
+        max_passes: int = 20,
     ) -> None:
         if tangent not in ("analytic", "complex-step"):
             raise InputError(f"tangent must be 'analytic' or 'complex-step', got {tangent!r}")
         self.tangent_method = tangent
+        if active_set not in ("reactivate", "prune"):
+            raise InputError(f"active_set must be 'reactivate' or 'prune', got {active_set!r}")
+        self.active_set = active_set
+        self.yield_tol = float(yield_tol)
+        if not np.isfinite(self.yield_tol) or self.yield_tol < 0.0:
+            raise InputError(f"yield_tol must be a finite number >= 0, got {yield_tol!r}")
+        if isinstance(max_passes, bool) or int(max_passes) != max_passes or max_passes < 0:
+            raise InputError(f"max_passes must be an integer >= 0, got {max_passes!r}")
+        self.max_passes = int(max_passes)
         if not isinstance(slip, str) or slip not in SLIP_FAMILIES:
             raise InputError(f"slip must be one of {sorted(SLIP_FAMILIES)}, got {slip!r}")
         if shear not in ("engineering", "tensor"):
@@ -682,8 +720,10 @@ class CrystalPlasticity:
         ``R0``/``R`` initial / current lattice rotation (crystal → sample), ``theta0``,
         ``theta`` (2D, radians), ``reorientation`` (degrees), ``dep``/``ep`` equivalent
         plastic strain increment / accumulated, ``plastic`` (bool as float); after an
-        update also ``sign`` (sign of τ_tr) and ``pruned`` (systems removed from the
-        potentially active set by §3.6 step 5) and, in 2D,
+        update also ``sign`` (slip signs: sign of τ_tr, or of the final τ for a system
+        entered by re-activation), ``pruned`` (potentially active systems left inactive),
+        ``reactivated`` (re-activation passes, one entering system each), ``unsettled``
+        (1 where the active-set search did not settle, see ``max_passes``) and, in 2D,
         the lattice spin sum ``theta_rate`` (Σ θ̇ Δt, radians).
 
         Parameters
@@ -744,8 +784,15 @@ class CrystalPlasticity:
         s_n: FloatArray,
         H: FloatArray,
         active: NDArray[np.bool_] | None = None,
+        sign: FloatArray | None = None,
     ) -> dict[str, Any]:
-        """Spec 001 §3.6 on a batch (real or complex ``Fc``); ``active`` freezes the set."""
+        """Spec 001 §3.6 on a batch (real or complex ``Fc``).
+
+        ``active`` (with ``sign``) freezes the active set and the slip signs (tangent);
+        otherwise the active set is searched: §3.6 pruning, then (``active_set=
+        "reactivate"``) re-activation passes until every inactive system satisfies
+        ``|τ^α| ≤ s^α (1 + yield_tol)`` at the final state.
+        """
         d, N = self.dim, self.nslip
         m = Fc.shape[0]
         eye = np.eye(d)
@@ -753,14 +800,19 @@ class CrystalPlasticity:
         Ce = _T(Fe_tr) @ Fe_tr
         Etr = 0.5 * (Ce - eye)
         tau_tr = Etr.reshape(m, d * d) @ self._CS0flat.T  # τ^α = 𝓛[E] : S₀^α = E : 𝓛[S₀^α]
-        sgn = np.where(tau_tr.real < 0.0, -1.0, 1.0)
+        if sign is None:
+            sgn = np.where(tau_tr.real < 0.0, -1.0, 1.0)
+        else:
+            sgn = np.array(sign, dtype=np.float64)
         b = sgn * tau_tr - s_n
         if active is None:
             act = b.real > 0.0
         else:
             act = active.copy()
-        n_trial = act.sum(axis=1)
+        trial = act.copy()
         dgam = np.zeros(b.shape, dtype=b.dtype)
+        unsettled = np.zeros(m, dtype=bool)
+        passes = np.zeros(m, dtype=np.int64)
         idx = np.flatnonzero(act.any(axis=1))
         if idx.size:
             # A^{αβ} = h^{αβ} + ½ sgn_α sgn_β 𝓛[B^β] : S₀^α
@@ -769,35 +821,22 @@ class CrystalPlasticity:
             Ael = _T(CeS0 @ self._CS0flat.T)  # (m, α, β)
             sg = sgn[idx]
             A = H[idx] + sg[:, :, None] * sg[:, None, :] * Ael
-            bb = b[idx]
-            eyeN = np.eye(N)
-            pos = np.arange(idx.size)
             a_ = act[idx]
-            while pos.size:
-                aa = a_[pos]
-                mask = aa[:, :, None] & aa[:, None, :]
-                Am = np.where(mask, A[pos], 0.0) + (~aa)[:, :, None] * eyeN
-                x = _solve(Am, np.where(aa, bb[pos], 0.0))
-                if active is not None:
-                    dgam[idx[pos]] = np.where(aa, x, 0.0)
-                    break
-                good = x.real > 0.0
-                done = np.all(good | ~aa, axis=1)
-                fin = pos[done]
-                dgam[idx[fin]] = np.where(aa[done], x[done], 0.0)
-                a_[pos] = aa & good
-                left = pos[~done]
-                pos = left[a_[left].any(axis=1)]  # an emptied set is elastic (Δγ = 0)
+            if active is not None:
+                dg = self._solve_set(A, b[idx], a_, prune=False)
+            else:
+                dg = self._solve_set(A, b[idx], a_, prune=True)
+                if self.active_set == "reactivate":
+                    dg, bad, npass = self._reactivate(
+                        s_n[idx], H[idx], tau_tr[idx], Ael, trial[idx], sg, a_, dg
+                    )
+                    sgn[idx] = sg
+                    unsettled[idx] = bad
+                    passes[idx] = npass
+            dgam[idx] = dg
             act[idx] = a_
         # step 6: Fp = (I + Σ Δγ sgn S₀) Fp_n, Fe = F Fp⁻¹, T̄ = 𝓛[½(FeᵀFe − I)]
-        G = eye + ((dgam * sgn) @ self._S0flat).reshape(m, d, d)
-        Fp = G @ Fp_n
-        if self.renormalize:
-            Fp = Fp / (_det(Fp) ** (1.0 / d))[:, None, None]
-        Fp_inv = _inv(Fp)
-        Fe = Fc @ Fp_inv
-        E = 0.5 * (_T(Fe) @ Fe - eye)
-        Tbar = (E.reshape(m, d * d) @ self._Cflat.T).reshape(m, d, d)
+        Fp, Fp_inv, Fe, Tbar = self._final_state(Fc, Fp_n, dgam, sgn)
         P = Fe @ Tbar @ _T(Fp_inv)
         return {
             "P": P,
@@ -809,8 +848,213 @@ class CrystalPlasticity:
             "dgamma": dgam,
             "sgn": sgn,
             "active": act,
-            "pruned": n_trial - act.sum(axis=1),
+            "pruned": (trial & ~act).sum(axis=1),
+            "reactivated": passes,
+            "unsettled": unsettled,
         }
+
+    def _final_state(
+        self, Fc: NDArray[Any], Fp_n: FloatArray, dgam: NDArray[Any], sgn: FloatArray
+    ) -> tuple[NDArray[Any], NDArray[Any], NDArray[Any], NDArray[Any]]:
+        """§3.6 step 6: ``(Fᵖ, Fᵖ⁻¹, Fᵉ, T̄)`` of slip increments ``dgam`` with signs ``sgn``."""
+        d, m = self.dim, Fc.shape[0]
+        G = np.eye(d) + ((dgam * sgn) @ self._S0flat).reshape(m, d, d)
+        Fp = G @ Fp_n
+        if self.renormalize:
+            Fp = Fp / (_det(Fp) ** (1.0 / d))[:, None, None]
+        Fp_inv = _inv(Fp)
+        Fe = Fc @ Fp_inv
+        E = 0.5 * (_T(Fe) @ Fe - np.eye(d))
+        Tbar = (E.reshape(m, d * d) @ self._Cflat.T).reshape(m, d, d)
+        return Fp, Fp_inv, Fe, Tbar
+
+    @staticmethod
+    def _solve_set(
+        A: NDArray[Any], b: NDArray[Any], act: NDArray[np.bool_], *, prune: bool
+    ) -> NDArray[Any]:
+        """Solve ``Σ_{β∈act} A^{αβ} Δγ^β = b^α`` per point; with ``prune``, §3.6 step 5.
+
+        Every point solves its N × N system with the inactive rows/columns replaced by the
+        identity.  With ``prune``, every system with ``Δγ ≤ 0`` is dropped (``act`` is
+        updated in place) and only the points whose set changed are re-solved, until no
+        point changes; an emptied set is elastic (Δγ = 0).
+
+        Returns
+        -------
+        (m, N) ndarray
+            Slip increments, zero on the inactive systems.
+        """
+        N = A.shape[-1]
+        eyeN = np.eye(N)
+        dgam = np.zeros(b.shape, dtype=b.dtype)
+        pos = np.flatnonzero(act.any(axis=1))
+        while pos.size:
+            aa = act[pos]
+            mask = aa[:, :, None] & aa[:, None, :]
+            Am = np.where(mask, A[pos], 0.0) + (~aa)[:, :, None] * eyeN
+            x = _solve(Am, np.where(aa, b[pos], 0.0))
+            if not prune:
+                dgam[pos] = np.where(aa, x, 0.0)
+                break
+            good = x.real > 0.0
+            done = np.all(good | ~aa, axis=1)
+            fin = pos[done]
+            dgam[fin] = np.where(aa[done], x[done], 0.0)
+            act[pos] = aa & good
+            left = pos[~done]
+            pos = left[act[left].any(axis=1)]
+        return dgam
+
+    def _reactivate(
+        self,
+        s_n: FloatArray,
+        H: FloatArray,
+        tau_tr: FloatArray,
+        Ael: FloatArray,
+        trial: NDArray[np.bool_],
+        sg: FloatArray,
+        act: NDArray[np.bool_],
+        dgam: FloatArray,
+    ) -> tuple[FloatArray, NDArray[np.bool_], NDArray[np.int64]]:
+        """Re-activation passes of the active-set search (``active_set="reactivate"``).
+
+        After §3.6 pruning, the resolved shear of the final state,
+        ``τ^α = τ_tr^α − Σ_β sgn_β (Cᵉ_tr S₀^β) : 𝓛ᵉ[S₀^α] Δγ^β`` (the Eq. 31 state on which
+        the consistency conditions are solved), is checked on the inactive systems
+        against the updated resistance ``s^α = s_n^α + Σ_β h^{αβ} Δγ^β``.  At every point
+        with ``|τ^α| > s^α (1 + yield_tol)`` the most violated system α enters the active
+        set (slip sign ``sign τ^α``) by a principal pivot: ``Δγ^α = t`` grows from 0 with the
+        active systems kept consistent, ``Δγ_S(t) = Δγ_S − t A_SS⁻¹ A_Sα``, until α is
+        consistent or an active ``Δγ^β`` reaches 0 first (β is pruned and the growth goes
+        on).  The set is then re-solved and pruned as in §3.6, and the check is repeated,
+        only for the points that changed (Anand & Kothari 1996; Miehe & Schröder 2001).
+        Plain "add every violated system and re-solve" cycles when the enlarged set is
+        (nearly) linearly dependent, as 5 and more fcc systems are.
+
+        A point that still violates after ``max_passes`` passes, revisits an earlier
+        (set, signs) pair or finds no consistent pivot (ray termination) is *unsettled*:
+        it keeps the visited solution with the smallest yield violation.  ``sg`` and
+        ``act`` are updated in place.
+
+        Returns
+        -------
+        dgam : (m, N) ndarray
+            Final slip increments.
+        unsettled : (m,) bool ndarray
+        passes : (m,) int ndarray
+            Re-activation passes per point.
+        """
+        m, N = act.shape
+        tol = self.yield_tol
+        bits = 2 ** np.arange(N, dtype=np.int64)
+        unsettled = np.zeros(m, dtype=bool)
+        passes = np.zeros(m, dtype=np.int64)
+        best = np.full(m, np.inf)
+        best_dg, best_act, best_sg = dgam.copy(), act.copy(), sg.copy()
+        pos = np.arange(m)
+        # (active set, signs) each point started a solve from; revisiting one is a cycle
+        seen = [_set_code(trial, sg, bits)]
+        seen_pos = [pos]
+        for k in range(self.max_passes + 1):
+            tau = tau_tr[pos] - (Ael[pos] @ (sg[pos] * dgam[pos])[:, :, None])[:, :, 0]
+            s = s_n[pos] + (H[pos] @ dgam[pos][:, :, None])[:, :, 0]
+            over = np.where(act[pos], -np.inf, (np.abs(tau) - s * (1.0 + tol)) / s)
+            worst = over.max(axis=1)
+            better = worst < best[pos]
+            bp = pos[better]
+            best[bp] = worst[better]
+            best_dg[bp], best_act[bp], best_sg[bp] = dgam[bp], act[bp], sg[bp]
+            hit = worst > 0.0
+            pos, tau, over = pos[hit], tau[hit], over[hit]
+            if not pos.size:
+                break
+            if k == self.max_passes:
+                unsettled[pos] = True
+                break
+            # the most violated system enters with the sign of its τ
+            r = np.arange(pos.size)
+            al = np.argmax(over, axis=1)
+            sg[pos, al] = np.where(tau[r, al] < 0.0, -1.0, 1.0)
+            sp = sg[pos]
+            A = H[pos] + sp[:, :, None] * sp[:, None, :] * Ael[pos]
+            b = sp * tau_tr[pos] - s_n[pos]
+            S = act[pos]
+            ray = self._pivot(A, b, S, al)
+            unsettled[pos[ray]] = True
+            S[r, al] = ~ray
+            code = _set_code(S, sp, bits)
+            cyc = ray.copy()
+            for c_old, p_old in zip(seen, seen_pos, strict=True):
+                j = np.minimum(np.searchsorted(p_old, pos), p_old.size - 1)
+                cyc |= (p_old[j] == pos) & (c_old[j] == code)
+            unsettled[pos[cyc]] = True
+            keep = ~cyc
+            pos, S, A, b = pos[keep], S[keep], A[keep], b[keep]
+            if not pos.size:
+                break
+            seen.append(code[keep])
+            seen_pos.append(pos)
+            passes[pos] += 1
+            act[pos] = S
+            dgam[pos] = self._solve_set(A, b, S, prune=True)
+            act[pos] = S
+        bad = np.flatnonzero(unsettled)
+        dgam[bad], act[bad], sg[bad] = best_dg[bad], best_act[bad], best_sg[bad]
+        return dgam, unsettled, passes
+
+    @staticmethod
+    def _pivot(
+        A: FloatArray, b: FloatArray, S: NDArray[np.bool_], al: NDArray[np.intp]
+    ) -> NDArray[np.bool_]:
+        """Principal pivot bringing system ``al`` into the active sets ``S`` (in place).
+
+        ``Δγ^α = t`` grows from 0 while the systems of ``S`` stay consistent,
+        ``Δγ_S(t) = x₀ − t d`` with ``A_SS x₀ = b_S``, ``A_SS d = A_Sα``; α becomes
+        consistent at ``t* = (b_α − A_αS x₀) / (A_αα − A_αS d)`` (if the Schur complement
+        is positive); an active β with ``d_β > 0`` blocks at ``t_β = x₀_β / d_β``.  A
+        blocking β before ``t*`` is removed from ``S`` and the growth goes on.  ``S`` is
+        left without α (the caller adds it).
+
+        Returns
+        -------
+        (m,) bool ndarray
+            Points with no consistent pivot (ray termination).
+        """
+        m, N = S.shape
+        r = np.arange(m)
+        eyeN = np.eye(N)
+        ray = np.zeros(m, dtype=bool)
+        live = np.arange(m)
+        for _ in range(N):
+            if not live.size:
+                break
+            Sl, a = S[live], al[live]
+            rl = r[: live.size]
+            Al = A[live]
+            mask = Sl[:, :, None] & Sl[:, None, :]
+            Am = np.where(mask, Al, 0.0) + (~Sl)[:, :, None] * eyeN
+            rhs = np.stack([np.where(Sl, b[live], 0.0), np.where(Sl, Al[rl, :, a], 0.0)], -1)
+            try:
+                sol = np.linalg.solve(Am, rhs)
+            except np.linalg.LinAlgError:
+                sol = np.linalg.pinv(Am) @ rhs
+            x0, d = sol[..., 0], sol[..., 1]
+            row = np.where(Sl, Al[rl, a, :], 0.0)
+            sigma = Al[rl, a, a] - np.sum(row * d, axis=1)
+            y0 = b[live, a] - np.sum(row * x0, axis=1)
+            t_star = np.where(sigma > 0.0, y0 / np.where(sigma > 0.0, sigma, 1.0), np.inf)
+            blocking = Sl & (d > 0.0)
+            t_b = np.where(blocking, x0 / np.where(blocking, d, 1.0), np.inf)
+            beta = np.argmin(t_b, axis=1)
+            t_block = t_b[rl, beta]
+            done = t_star <= t_block
+            dead = ~done & ~np.isfinite(t_block)
+            ray[live[dead]] = True
+            drop = ~done & ~dead
+            S[live[drop], beta[drop]] = False
+            live = live[drop]
+        ray[live] = True
+        return ray
 
     # -- public update -----------------------------------------------------------------
     def update(
@@ -873,7 +1117,21 @@ class CrystalPlasticity:
             "plastic": np.any(dgam > 0.0, axis=1).astype(np.float64),
             "sign": sgn.real.astype(np.float64),
             "pruned": out["pruned"].astype(np.float64),
+            "reactivated": out["reactivated"].astype(np.float64),
+            "unsettled": out["unsettled"].astype(np.float64),
         }
+        n_bad = int(out["unsettled"].sum())
+        if n_bad:
+            first = int(np.argmax(out["unsettled"]))
+            warnings.warn(
+                f"CrystalPlasticity: the active-set search did not settle at {n_bad} of {n} "
+                f"point(s) (first index {first}): an inactive slip system still has "
+                f"|tau| > s (1 + {self.yield_tol:g}) after {self.max_passes} re-activation "
+                "passes or the search cycled; the solution with the smallest violation is "
+                "kept (state['unsettled']). Reduce the strain increment or raise max_passes.",
+                ActiveSetWarning,
+                stacklevel=2,
+            )
         if d == 2:
             # spec §3.2 closed form θ = θ0 + atan2(Fe21 − Fe12, Fe11 + Fe22)
             phi = np.arctan2(Fe[:, 1, 0] - Fe[:, 0, 1], Fe[:, 0, 0] + Fe[:, 1, 1])
@@ -900,7 +1158,7 @@ class CrystalPlasticity:
         if tangent and self.tangent_method == "analytic":
             D = self._tangent_analytic(Fc, R0, Fp_n, H, out)
         elif tangent:
-            D = self._tangent(f, R0, Fp_n, s_n, H, out["active"])
+            D = self._tangent(f, R0, Fp_n, s_n, H, out["active"], out["sgn"].real)
         return P, state, D
 
     def _tangent_analytic(
@@ -989,7 +1247,9 @@ class CrystalPlasticity:
         s_n: FloatArray,
         H: FloatArray,
         active: NDArray[np.bool_],
+        sign: FloatArray,
     ) -> FloatArray:
+        """Complex-step tangent ``Im P(F + i h E_kl) / h``, active set and signs frozen."""
         n, d, N = f.shape[0], self.dim, self.nslip
         h = self.tangent_step
         D = np.empty((n, d, d, d, d))
@@ -1007,7 +1267,7 @@ class CrystalPlasticity:
             def rep(a: NDArray[Any]) -> NDArray[Any]:
                 return np.repeat(a[sl], d * d, axis=0)  # noqa: B023
 
-            out = self._return_map(Fz, rep(Fp_n), rep(s_n), rep(H), rep(active))
+            out = self._return_map(Fz, rep(Fp_n), rep(s_n), rep(H), rep(active), rep(sign))
             Pz = rep(R0) @ out["P"] @ _T(rep(R0))
             D[sl] = (Pz.imag / h).reshape(k, d, d, d, d).transpose(0, 3, 4, 1, 2)
         return D
