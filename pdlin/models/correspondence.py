@@ -1678,11 +1678,11 @@ class Correspondence(Model):
         Gb = sp.bsr_array((Gd, blk.col, blk.indptr), shape=shape, blocksize=(d * d, d))
         AGb = sp.bsr_array((AG, blk.col, blk.indptr), shape=shape, blocksize=(d * d, d))
         K = _drop_zero_blocks(sp.bsr_array(Gb.T @ AGb, blocksize=(d, d)))
-        if self.symmetric:
-            K = sp.bsr_array(0.5 * (K + K.T), blocksize=(d, d))
         Kc = self._addon_matrix(cloud, bonds, p)
         if Kc is not None:
             K = sp.bsr_array(sp.csr_array(K) + Kc, blocksize=(d, d))
+        if self.symmetric:  # major-symmetric dP/dF: make K_T symmetric to the last bit
+            K = sp.bsr_array(0.5 * (K + K.T), blocksize=(d, d))
         return _with_diagonal_blocks(K, d)
 
     def respond(
