@@ -703,6 +703,17 @@ class Correspondence(Model):
     max_bytes : int
         Budget of an assembled K; beyond it :meth:`plan` picks the
         matrix-free operator.
+    material : object, optional
+        A nonlinear material instead of ``C`` / ``E``: anything with
+        ``initial_state(n)`` and ``update(F, state, *, tangent) -> (P, state_new,
+        dPdF)``, e.g. :class:`pdlin.CrystalPlasticity` (orientation per particle:
+        ``orientation=theta`` with ``theta (n,)``) or
+        :class:`pdlin.SaintVenantKirchhoff`.  The model is then finite strain
+        (``nonlinear = True``): :meth:`initial_state` and :meth:`respond` give
+        ``F = I + G u``, ``f = -Gᵀ vec(w V P)`` and ``K_T = Gᵀ blockdiag(w V
+        dP/dF) G`` (spec 001 §2); ``symmetric`` is False unless the material is
+        hyperelastic.  Penalty, springs and ADS act as linear add-ons; the
+        linearized ``K`` uses ``dP/dF`` at ``F = I``.  Not with ``shadow``.
 
     Examples
     --------
