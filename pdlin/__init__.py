@@ -14,7 +14,7 @@ from .constitutive.crystal_plasticity import (
 )
 from .errors import ConvergenceError, FloatingBodyError
 from .fields import deformation_gradient, shape_tensor, small_strain
-from .geometry import Bonds, PointCloud, find_bonds, from_image, grid
+from .geometry import Bonds, GhostLayer, PointCloud, find_bonds, from_image, ghost_layer, grid
 from .geometry.generators import plate_with_hole_mesh
 from .geometry.mesh import read_mesh
 from .geometry.polycrystal import voronoi_polycrystal
@@ -65,6 +65,8 @@ __all__ = [
     "Bonds",
     "grid",
     "from_image",
+    "ghost_layer",
+    "GhostLayer",
     "read_mesh",
     "plate_with_hole_mesh",
     "find_bonds",

@@ -1,7 +1,7 @@
 """Geometry: point clouds, generators, meshes and bonds."""
 
 from .bonds import SHAPES, Bonds, find_bonds, resolve_horizon
-from .cloud import Lattice, PointCloud, from_image, grid
+from .cloud import GhostLayer, Lattice, PointCloud, from_image, ghost_layer, grid
 from .generators import plate_with_hole_mesh
 from .influence import INFLUENCE_FUNCTIONS, influence_function
 from .mesh import read_mesh
@@ -12,6 +12,8 @@ __all__ = [
     "Lattice",
     "grid",
     "from_image",
+    "ghost_layer",
+    "GhostLayer",
     "read_mesh",
     "plate_with_hole_mesh",
     "voronoi_polycrystal",

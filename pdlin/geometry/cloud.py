@@ -5,14 +5,14 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from .._validation import as_float_array, check_finite
 from ..errors import InputError, ShapeError
 
-__all__ = ["PointCloud", "Lattice", "grid", "from_image"]
+__all__ = ["PointCloud", "Lattice", "grid", "from_image", "ghost_layer", "GhostLayer"]
 
 
 @dataclass(frozen=True)
@@ -444,4 +444,105 @@ def from_image(
         sets=sets,
         thickness=thickness,
         lattice=Lattice(lat.shape, lat.spacing, lat.origin, index=idx),
+    )
+
+
+class GhostLayer(NamedTuple):
+    """Result of :func:`ghost_layer`: ``cloud, ghost, source = ghost_layer(...)``."""
+
+    #: the original points (same indices, first) followed by the ghost points
+    cloud: PointCloud
+    #: indices of the ghost points in ``cloud``, ``(m,)``
+    ghost: np.ndarray
+    #: for every point of ``cloud`` the original point it copies its data from (itself for
+    #: original points, the nearest original point for ghosts), ``(n + m,)``
+    source: np.ndarray
+
+
+def ghost_layer(cloud: PointCloud, layers: int = 1) -> GhostLayer:
+    """Add ``layers`` rings of ghost points around a lattice cloud (spec 001 §1, §2.4).
+
+    The ghosts fill the cells of the lattice box grown by ``layers`` cells on every side;
+    prescribe their displacement by the same affine map as the boundary (e.g. with
+    :meth:`pdlin.Dirichlet.velocity_gradient`) so that the original boundary particles
+    have complete families.  With the correspondence model at δ = h or √2 h and the
+    original outer ring prescribed, a uniform stress then gives zero force at every free
+    particle (T5) and a single crystal under affine boundary conditions deforms exactly
+    affinely (T21); with truncated families it does not (spec 001 §2.4).
+
+    The original points keep their indices; the ghosts are appended (C order of their
+    cells).  Volumes are the lattice cell volume; ``horizon`` and ``material`` are copied
+    from ``source``; the sets are kept, with two more: ``'ghost'`` (the ghosts) and
+    ``'outer_ring'`` (the original points in the outermost cells of the original box).
+    Extend per-particle data such as orientations with ``data[source]``.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+        A cloud with lattice metadata (:func:`grid`, :func:`from_image`).
+    layers : int
+        Number of ghost rings (>= 1).
+
+    Returns
+    -------
+    GhostLayer
+        ``(cloud, ghost, source)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> g = ghost_layer(grid((4, 3), spacing=0.5))
+    >>> g.cloud.n, g.ghost.size, g.cloud.lattice.shape
+    (30, 18, (6, 5))
+    >>> g.cloud.points[g.ghost[0]].tolist(), int(g.source[g.ghost[0]])
+    ([-0.25, -0.25], 0)
+    >>> g.cloud.point_set("outer_ring").size
+    10
+    """
+    lat = cloud.lattice
+    if lat is None:
+        raise InputError(
+            "ghost_layer needs a lattice cloud (pdlin.grid or pdlin.from_image), got a cloud "
+            "without lattice metadata"
+        )
+    if isinstance(layers, bool) or not isinstance(layers, int | np.integer) or layers < 1:
+        raise InputError(f"layers must be an integer >= 1, got {layers!r}")
+    L = int(layers)
+    dim, n = cloud.dim, cloud.n
+    shp = np.array(lat.shape, dtype=np.int64)
+    big = shp + 2 * L
+    h = np.asarray(lat.spacing, dtype=float)
+    origin = np.asarray(lat.origin, dtype=float) - L * h
+    flat_old = np.arange(n, dtype=np.int64) if lat.index is None else np.asarray(lat.index)
+    multi_old = np.stack(np.unravel_index(flat_old, tuple(shp)), axis=1)
+    flat_new = np.ravel_multi_index(tuple((multi_old + L).T), tuple(big))
+    cells = np.indices(tuple(big)).reshape(dim, -1).T  # C order
+    outside = np.any((cells < L) | (cells >= shp + L), axis=1)
+    gcells = cells[outside]
+    gflat = np.flatnonzero(outside)
+    gpts = origin + (gcells + 0.5) * h
+    from scipy.spatial import cKDTree
+
+    _, near = cKDTree(cloud.points).query(gpts)
+    m = gpts.shape[0]
+    source = np.concatenate([np.arange(n), np.asarray(near, dtype=np.intp)])
+    ghost = np.arange(n, n + m)
+    ring = np.flatnonzero(np.any((multi_old == 0) | (multi_old == shp - 1), axis=1))
+    sets = dict(cloud.sets)
+    sets["ghost"] = ghost
+    sets["outer_ring"] = ring
+    return GhostLayer(
+        PointCloud(
+            np.vstack([cloud.points, gpts]),
+            np.concatenate([cloud.volumes, np.full(m, float(np.prod(h)))]),
+            horizon=None if cloud.horizon is None else cloud.horizon[source],
+            material=None if cloud.material is None else cloud.material[source],
+            sets=sets,
+            thickness=cloud.thickness,
+            lattice=Lattice(
+                tuple(int(b) for b in big), h, origin, np.concatenate([flat_new, gflat])
+            ),
+        ),
+        ghost,
+        source,
     )

@@ -31,13 +31,13 @@ import scipy.sparse.linalg as spla
 
 from .._validation import as_displacement, as_float_array
 from ..constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
-from ..constitutive.tensors import _mandel_weights
-from ..errors import InputError, ModelError, ShapeError
+from ..constitutive.tensors import _mandel_weights, _pairs
+from ..errors import InputError, InputTypeError, ModelError, ShapeError
 from ..fields import _per_point_outer
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
 from ._state import uniform_nu_constants
-from .base import Model
+from .base import Model, Response
 from .bond_based import BondBased, _c1111
 
 __all__ = [
@@ -531,9 +531,23 @@ class _Plan:
     omega: np.ndarray  # (nb,) weights used
     blocks: _GradientBlocks  # G by (gradient point, point) blocks
     n_points: int
-    D: np.ndarray  # (n_gp, d*d, d*d) w V C_ijkl (0 for energy-free points)
-    Cv: np.ndarray  # (n_gp, nv, nv) Voigt stiffness of the owner
+    #: () -> (D, Cv): D (n_gp, d*d, d*d) w V C_ijkl (0 for energy-free points), Cv (n_gp, nv,
+    #: nv) Voigt stiffness of the owner; evaluated on first use (a nonlinear material's
+    #: small-strain tangent is only needed by the linearized operators)
+    stiffness_fn: Any = dataclasses.field(compare=False, repr=False)
     _lazy: dict[str, Any] = dataclasses.field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def D(self) -> np.ndarray:
+        if "D" not in self._lazy:
+            self._lazy["D"], self._lazy["Cv"] = self.stiffness_fn()
+        return self._lazy["D"]
+
+    @property
+    def Cv(self) -> np.ndarray:
+        if "Cv" not in self._lazy:
+            self._lazy["D"], self._lazy["Cv"] = self.stiffness_fn()
+        return self._lazy["Cv"]
 
     @property
     def G(self) -> sp.csr_array:
@@ -541,6 +555,48 @@ class _Plan:
         if "G" not in self._lazy:
             self._lazy["G"] = _blocks_to_csr(self.blocks, self.n_points)
         return self._lazy["G"]
+
+
+def _symmetric_tangent(material: Any) -> bool:
+    """Whether ``dP/dF`` of ``material`` has major symmetry (K_T symmetric).
+
+    ``None`` (linear elastic C) and hyperelastic materials (with an ``energy`` method, e.g.
+    :class:`pdlin.SaintVenantKirchhoff`) do; an explicit ``symmetric_tangent`` attribute
+    overrides; anything else (crystal plasticity) is treated as nonsymmetric.
+    """
+    if material is None:
+        return True
+    flag = getattr(material, "symmetric_tangent", None)
+    if flag is not None:
+        return bool(flag)
+    return callable(getattr(material, "energy", None))
+
+
+def _orientation_count(orientation: Any, dim: int) -> int | None:
+    """Points described by a material orientation (None: one for all points)."""
+    if orientation is None:
+        return None
+    from ..constitutive.crystal_plasticity import _n_orientations
+
+    return _n_orientations(orientation, dim)
+
+
+def _tangent_blocks_product(
+    blk: _GradientBlocks, A: np.ndarray, d: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Blocks of ``G`` (d² x d) and of ``A G`` (d² x d) for blockdiag ``A`` (n_gp, d², d²).
+
+    The G block of (g, point) is ``I_d ⊗ c``: entry ``[(i, q), k] = δ_ik c_q`` (rows
+    ``(i, q)`` in the row-major order of ``vec F``).
+    """
+    nblk = blk.col.size
+    Gd = np.zeros((nblk, d, d, d))  # [b, i, q, k]
+    for i in range(d):
+        Gd[:, i, :, i] = blk.val
+    # (A G)[b, p, k] = Σ_q A[g, p, (k, q)] c_bq
+    Ar = A.reshape(-1, d * d, d, d)[blk.row]  # (nblk, d², k, q)
+    AG = np.einsum("bpkq,bq->bpk", Ar, blk.val)
+    return Gd.reshape(nblk, d * d, d), AG
 
 
 class Correspondence(Model):
@@ -647,6 +703,17 @@ class Correspondence(Model):
     max_bytes : int
         Budget of an assembled K; beyond it :meth:`plan` picks the
         matrix-free operator.
+    material : object, optional
+        A nonlinear material instead of ``C`` / ``E``: anything with
+        ``initial_state(n)`` and ``update(F, state, *, tangent) -> (P, state_new,
+        dPdF)``, e.g. :class:`pdlin.CrystalPlasticity` (orientation per particle:
+        ``orientation=theta`` with ``theta (n,)``) or
+        :class:`pdlin.SaintVenantKirchhoff`.  The model is then finite strain
+        (``nonlinear = True``): :meth:`initial_state` and :meth:`respond` give
+        ``F = I + G u``, ``f = -Gᵀ vec(w V P)`` and ``K_T = Gᵀ blockdiag(w V
+        dP/dF) G`` (spec 001 §2); ``symmetric`` is False unless the material is
+        hyperelastic.  Penalty, springs and ADS act as linear add-ons; the
+        linearized ``K`` uses ``dP/dF`` at ``F = I``.  Not with ``shadow``.
 
     Examples
     --------
@@ -683,16 +750,38 @@ class Correspondence(Model):
         sp_weight: float = 0.5,
         max_bytes: int = DEFAULT_MAX_BYTES,
         coefficient: float | None = None,
+        material: Any = None,
     ) -> None:
+        if material is not None:
+            given = {"C": C, "E": E, "nu": nu, "K": K, "G": G, "lam": lam, "mu": mu}
+            both = [k for k, v in given.items() if v is not None]
+            if both:
+                raise InputError(
+                    "Correspondence needs exactly one of material= (a nonlinear material) or "
+                    f"elastic constants, got material and {', '.join(both)}"
+                )
+            for meth in ("initial_state", "update"):
+                if not callable(getattr(material, meth, None)):
+                    raise InputTypeError(
+                        "material must provide initial_state(n) and update(F, state, "
+                        "tangent=...) (e.g. pdlin.CrystalPlasticity, pdlin.SaintVenantKirchhoff),"
+                        f" got {type(material).__name__} without {meth}()"
+                    )
+            if shadow is not None:
+                raise ModelError(
+                    "shadow= is not supported with material= (its shadow loads are linear); "
+                    "use pdlin.ghost_layer to give the prescribed particles full families, got "
+                    "both"
+                )
         iso = [k for k, v in {"K": K, "G": G, "lam": lam, "mu": mu}.items() if v is not None]
-        if iso:
+        if iso and material is None:
             if C is not None:
                 raise InputError(
                     "Correspondence needs exactly one of C (Voigt stiffness) or isotropic "
                     f"constants, got C and {', '.join(iso)}"
                 )
             E, nu = uniform_nu_constants("Correspondence", E, nu, K=K, G=G, lam=lam, mu=mu)
-        if (C is None) == (E is None):
+        if material is None and (C is None) == (E is None):
             raise InputError(
                 "Correspondence needs exactly one of C (Voigt stiffness) or E (with nu, or two "
                 f"of K, G, lam, mu), got {'both' if C is not None else 'neither'}"
@@ -733,15 +822,28 @@ class Correspondence(Model):
         self.sp_weight = float(sp_weight)
         self.coefficient = coef
         self.max_bytes = int(max_bytes)
-        #: whether K is symmetric: False for 'ads' until a plan shows a constant ω
-        self.symmetric = control != "ads"
+        #: the nonlinear material (None: linear elastic C)
+        self.material = material
+        #: whether f(u) is nonlinear / history dependent (a ``material`` was given)
+        self.nonlinear = material is not None
+        #: whether K (K_T) is symmetric: False for 'ads' until a plan shows a constant ω, and
+        #: for materials without a major-symmetric dP/dF (crystal plasticity)
+        self.symmetric = control != "ads" and _symmetric_tangent(material)
+        self._voigt_cache: tuple[PointCloud, np.ndarray] | None = None
         self._cache: tuple[PointCloud, Bonds, _Plan] | None = None
         #: how the last :meth:`plan` decided to apply K ('assembled' / 'matrix-free') and why
         self.assembly: dict[str, Any] = {}
 
     # -- material --------------------------------------------------------
     def voigt_stiffness(self, cloud: PointCloud) -> np.ndarray:
-        """Per-point Voigt stiffness ``(n, nv, nv)`` in the cloud's dimension."""
+        """Per-point Voigt stiffness ``(n, nv, nv)`` in the cloud's dimension.
+
+        With ``material=`` it is the material's tangent ``dP/dF`` at ``F = I`` from its
+        initial state (the small-strain stiffness, rotated by the particle's orientation):
+        the linearized ``K`` and the penalty / springs / ADS constants use it.
+        """
+        if self.material is not None:
+            return self._material_voigt(cloud)
         d, n = cloud.dim, cloud.n
         nv = {1: 1, 2: 3, 3: 6}[d]
         if self.E is not None:
@@ -932,14 +1034,21 @@ class Correspondence(Model):
             override_rows=rows, override_kinv=kinv,
         )  # fmt: skip
         blocks = _gradient_blocks(gp_owner, gp_of_bond, bonds.j, c, n)
-        Cv = self.voigt_stiffness(cloud)[gp_owner]
-        P = voigt_projector(d)
         vol = np.asarray(cloud.volumes) * (1.0 if d == 3 else cloud.thickness)
         scale = w * vol[gp_owner] * energy
-        D = (P.T @ Cv @ P) * scale[:, None, None]  # Pᵀ C P per gradient point (batched)
-        plan = _Plan(gp_owner, gp_of_bond, w, energy, omega, blocks, n, D, Cv)
+
+        def stiffness_fn() -> tuple[np.ndarray, np.ndarray]:
+            Cv = self.voigt_stiffness(cloud)[gp_owner]
+            P = voigt_projector(d)
+            D = (P.T @ Cv @ P) * scale[:, None, None]  # Pᵀ C P per gradient point (batched)
+            return D, Cv
+
+        plan = _Plan(gp_owner, gp_of_bond, w, energy, omega, blocks, n, stiffness_fn)
+        if self.material is None:  # validate C now (errors at plan time)
+            plan.D  # noqa: B018
         if self.control == "ads":  # S N is symmetric for constant ω, any V (see the docs)
-            self.symmetric = bool(np.allclose(omega, omega[0], rtol=1e-12))
+            const = bool(np.allclose(omega, omega[0], rtol=1e-12))
+            self.symmetric = const and _symmetric_tangent(self.material)
         self._cache = (cloud, bonds, plan)
         return plan
 
@@ -1385,11 +1494,288 @@ class Correspondence(Model):
     ) -> np.ndarray:
         """Nodal internal force ``f = -Gᵀ vec(w V σ)`` (small strain: ``f = -K u``).
 
-        The model is linear small strain (spec 000 §8), so ``linear=False``
-        returns the same force.
+        The elastic model is linear small strain (spec 000 §8), so ``linear=False``
+        returns the same force.  With ``material=``, ``linear=False`` is the finite-strain
+        force of :meth:`respond` from the initial state; ``linear=True`` is ``-K u`` with the
+        material's small-strain stiffness.
         """
         uu = _as_u(u, cloud)
+        if not linear and self.material is not None:
+            return self.respond(cloud, bonds, uu, self.initial_state(cloud, bonds)).force
         return -self.apply(cloud, bonds, uu).reshape(cloud.n, cloud.dim)
+
+    # -- nonlinear materials ---------------------------------------------------
+    def _check_material_dim(self, cloud: PointCloud) -> None:
+        md = getattr(self.material, "dim", cloud.dim)
+        if md != cloud.dim:
+            raise ModelError(
+                f"material is {md}D but the cloud is {cloud.dim}D ({type(self.material).__name__})"
+            )
+
+    def _material_initial_state(self, cloud: PointCloud, owner: np.ndarray) -> dict[str, Any]:
+        """The material's initial state for points ``owner`` (particle of each row)."""
+        mat = self.material
+        self._check_material_dim(cloud)
+        o = getattr(mat, "orientation", None)
+        count = _orientation_count(o, cloud.dim)
+        if count is None:
+            return dict(mat.initial_state(owner.size))
+        if count != cloud.n:
+            raise ShapeError(
+                "material.orientation must describe all particles at once or one particle "
+                f"each ({cloud.n}), got {count} orientations"
+            )
+        return dict(mat.initial_state(owner.size, orientation=np.asarray(o)[owner]))
+
+    def _material_voigt(self, cloud: PointCloud) -> np.ndarray:
+        """Voigt form of the material's ``dP/dF`` at ``F = I`` per particle (cached)."""
+        if self._voigt_cache is not None and self._voigt_cache[0] is cloud:
+            return self._voigt_cache[1]
+        d, n = cloud.dim, cloud.n
+        state = self._material_initial_state(cloud, np.arange(n))
+        eye = np.broadcast_to(np.eye(d), (n, d, d)).copy()
+        _, _, A = self.material.update(eye, state, tangent=True)
+        if A is None:
+            raise ModelError(
+                f"material.update(F, state, tangent=True) must return dP/dF, got None "
+                f"({type(self.material).__name__})"
+            )
+        A = np.asarray(A, dtype=float).reshape(n, d, d, d, d)
+        if d == 1:
+            Cv = A.reshape(n, 1, 1)
+        else:
+            ij = np.array(_pairs(d))
+            Cv = A[:, ij[:, 0, None], ij[:, 1, None], ij[None, :, 0], ij[None, :, 1]]
+        try:
+            _check_stiffness_per_point(Cv)
+        except InputError as exc:
+            raise ModelError(
+                f"material's small-strain tangent dP/dF(F = I) must be a symmetric positive "
+                f"definite stiffness ({type(self.material).__name__}): {exc}"
+            ) from None
+        self._voigt_cache = (cloud, Cv)
+        return Cv
+
+    def initial_state(self, cloud: PointCloud, bonds: Bonds) -> dict[str, np.ndarray]:
+        """The material's committed state before the first load step, per gradient point.
+
+        One entry per gradient point (``stress_points(...)['owner']`` maps them to their
+        particle: one per particle without stress points).  A per-particle orientation of
+        the material (``CrystalPlasticity(orientation=theta)``, ``theta (n,)``) is given to
+        every gradient point of that particle.  Empty without ``material=``.
+
+        Examples
+        --------
+        >>> import numpy as np, pdlin
+        >>> cloud = pdlin.grid((4, 4), spacing=0.25)
+        >>> bonds = pdlin.find_bonds(cloud, ratio=1.0)
+        >>> theta = np.linspace(-0.5, 0.5, cloud.n)
+        >>> model = pdlin.Correspondence(material=pdlin.CrystalPlasticity(orientation=theta),
+        ...                              control="stress_points")
+        >>> state = model.initial_state(cloud, bonds)
+        >>> owner = model.stress_points(cloud, bonds)["owner"]
+        >>> state["Fp"].shape[0] == owner.size, bool(np.allclose(state["theta0"], theta[owner]))
+        (True, True)
+        """
+        if self.material is None:
+            return {}
+        p = self._plan(cloud, bonds)
+        return self._material_initial_state(cloud, p.gp_owner)
+
+    def deformation_gradient(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
+        """``F = I + G u`` per gradient point ``(n_gp, d, d)`` (spec 001 Eq. 16).
+
+        Exact for affine fields at every gradient point whose shape tensor is invertible,
+        truncated families included (spec 001 §2.4, T1).
+        """
+        return np.eye(cloud.dim) + self.gradient(cloud, bonds, u)
+
+    def nodal_force(self, cloud: PointCloud, bonds: Bonds, P: Any) -> np.ndarray:
+        """Nodal force of a first Piola–Kirchhoff stress per gradient point, ``(n, d)``.
+
+        ``f = -Gᵀ vec(w V P)`` (spec 001 §2.1: ``L = -V⁻¹ Bᵀ(V ⊙ P)``, ``f = V L``), i.e.
+        the pairwise sum ``f_a = V_a Σ_b ω V_b (P_a K_a⁻¹ + P_b K_b⁻¹) ξ_ab`` of spec 001
+        Eqs. 15–18 for one gradient point per particle.
+
+        Parameters
+        ----------
+        P : (n_gp, d, d) or (d, d) array_like of float
+            Stress per gradient point (``(d, d)``: the same at every one).
+
+        Examples
+        --------
+        A uniform stress on a truncated-family grid at δ = h gives ``V P n / (2h)`` on the
+        first free ring (spec 001 §2.4), here ``0.25² · 1 / 0.5`` in x at the second column:
+
+        >>> import numpy as np, pdlin
+        >>> cloud = pdlin.grid((4, 4), spacing=0.25)
+        >>> bonds = pdlin.find_bonds(cloud, ratio=1.0)
+        >>> f = pdlin.Correspondence(E=1.0, nu=0.3).nodal_force(cloud, bonds, np.eye(2))
+        >>> float(f.reshape(4, 4, 2)[1, 2, 0])
+        -0.125
+        """
+        p = self._plan(cloud, bonds)
+        d = cloud.dim
+        n_gp = p.gp_owner.size
+        arr = as_float_array(P, "P")
+        if arr.shape == (d, d):
+            arr = np.broadcast_to(arr, (n_gp, d, d))
+        if arr.shape != (n_gp, d, d):
+            raise ShapeError(
+                f"P must have shape ({n_gp}, {d}, {d}) (one per gradient point) or ({d}, {d}), "
+                f"got {arr.shape}"
+            )
+        vol = np.asarray(cloud.volumes) * (1.0 if d == 3 else cloud.thickness)
+        scale = p.weight * vol[p.gp_owner] * p.energy
+        flat = arr.reshape(n_gp, d * d) * scale[:, None]
+        return -np.asarray(p.G.T @ flat.ravel()).reshape(cloud.n, d)
+
+    def _linear_addons(self, cloud: PointCloud, bonds: Bonds, p: _Plan) -> tuple[Any, Any]:
+        """Penalty / springs / ADS as ``(x -> K_c x, K_c)`` (cached in the plan) or ``(None,
+        None)``."""
+        if "addon" in p._lazy:
+            return p._lazy["addon"]
+        apply: Any = None
+        if self.control == "penalty" and self.penalty > 0:
+            k = self._penalty_k(cloud, bonds, p)
+
+            def apply(x: np.ndarray) -> np.ndarray:
+                return self._penalty_force(cloud, bonds, p, k, x)
+
+        elif self.control in ("springs", "ads"):
+            prods = self._control_products(cloud, bonds, p)
+            apply = None if prods is None else prods[0]
+        p._lazy["addon"] = (apply, {})
+        return p._lazy["addon"]
+
+    def _addon_matrix(self, cloud: PointCloud, bonds: Bonds, p: _Plan) -> sp.csr_array | None:
+        _, store = self._linear_addons(cloud, bonds, p)
+        if "K" not in store:
+            if self.control == "penalty" and self.penalty > 0:
+                store["K"] = sp.csr_array(self._penalty_matrix(cloud, bonds, p))
+            else:
+                store["K"] = self._control_matrix(cloud, bonds, p)
+        return store["K"]
+
+    def tangent_matrix(self, cloud: PointCloud, bonds: Bonds, dPdF: Any) -> sp.bsr_array:
+        """``K_T = Gᵀ blockdiag(w V dP/dF) G`` (+ the linear control stiffness), BSR.
+
+        Parameters
+        ----------
+        dPdF : (n_gp, d, d, d, d) array_like of float
+            ``dPdF[g, i, j, k, l] = ∂P_ij/∂F_kl`` per gradient point; reshaped to
+            ``(d², d²)`` blocks in the row-major ``(i, j)`` order of ``vec F`` (the order of
+            G's rows).
+
+        Returns
+        -------
+        scipy.sparse.bsr_array of shape (n*d, n*d), blocksize (d, d)
+            Nonsymmetric unless ``dP/dF`` has major symmetry (then symmetrized to the
+            last bit); blocks that cancel in exact arithmetic (the δ = h sub-lattice
+            coupling) are dropped.
+        """
+        p = self._plan(cloud, bonds)
+        d = cloud.dim
+        n_gp = p.gp_owner.size
+        A = as_float_array(dPdF, "dPdF")
+        if A.shape not in ((n_gp, d, d, d, d), (n_gp, d * d, d * d)):
+            raise ShapeError(f"dPdF must have shape ({n_gp}, {d}, {d}, {d}, {d}), got {A.shape}")
+        vol = np.asarray(cloud.volumes) * (1.0 if d == 3 else cloud.thickness)
+        scale = p.weight * vol[p.gp_owner] * p.energy
+        A = A.reshape(n_gp, d * d, d * d) * scale[:, None, None]
+        blk = p.blocks
+        Gd, AG = _tangent_blocks_product(blk, A, d)
+        shape = (n_gp * d * d, p.n_points * d)
+        Gb = sp.bsr_array((Gd, blk.col, blk.indptr), shape=shape, blocksize=(d * d, d))
+        AGb = sp.bsr_array((AG, blk.col, blk.indptr), shape=shape, blocksize=(d * d, d))
+        K = _drop_zero_blocks(sp.bsr_array(Gb.T @ AGb, blocksize=(d, d)))
+        Kc = self._addon_matrix(cloud, bonds, p)
+        if Kc is not None:
+            K = sp.bsr_array(sp.csr_array(K) + Kc, blocksize=(d, d))
+        if self.symmetric:  # major-symmetric dP/dF: make K_T symmetric to the last bit
+            K = sp.bsr_array(0.5 * (K + K.T), blocksize=(d, d))
+        return _with_diagonal_blocks(K, d)
+
+    def respond(
+        self,
+        cloud: PointCloud,
+        bonds: Bonds,
+        u: np.ndarray,
+        state: dict[str, np.ndarray],
+        *,
+        tangent: bool = False,
+    ) -> Response:
+        """Finite-strain force, trial state, tangent and Cauchy stress at ``u``.
+
+        ``F_g = I + (G u)_g`` per gradient point; ``P, trial, dP/dF =
+        material.update(F, state, tangent=tangent)``; ``f = -Gᵀ vec(w V P)`` and
+        ``K_T = Gᵀ blockdiag(w V dP/dF) G`` (:meth:`nodal_force`, :meth:`tangent_matrix`).
+        Penalty, springs and ADS controls are linear add-ons: ``f -= K_c u``,
+        ``K_T += K_c``.  ``state`` (from :meth:`initial_state` or a committed trial state)
+        is not modified.  Without ``material=`` this is the linear model
+        (:meth:`pdlin.models.base.Model.respond`).
+
+        Returns
+        -------
+        Response
+            ``force (n, d)``, ``state`` (trial, per gradient point), ``tangent`` (BSR or
+            None), ``stress`` (Cauchy per particle: mean over its gradient points, ``(n, d,
+            d)``), ``calls`` (constitutive evaluations: the number of gradient points).
+
+        Examples
+        --------
+        >>> import numpy as np, pdlin
+        >>> cloud = pdlin.grid((6, 6), spacing=1 / 6)
+        >>> bonds = pdlin.find_bonds(cloud, ratio=1.0)
+        >>> model = pdlin.Correspondence(material=pdlin.CrystalPlasticity())
+        >>> state = model.initial_state(cloud, bonds)
+        >>> Fbar = np.array([[1.0, 0.002], [0.002, 1.0]])
+        >>> r = model.respond(cloud, bonds, cloud.points @ (Fbar - np.eye(2)).T, state,
+        ...                   tangent=True)
+        >>> r.force.shape, r.tangent.shape, r.calls, model.symmetric
+        ((36, 2), (72, 72), 36, False)
+        >>> round(float(r.stress[14, 0, 1]), 3)   # interior particle, elastic (spec §8.1: 8.000)
+        8.0
+        """
+        if self.material is None:
+            return super().respond(cloud, bonds, u, state, tangent=tangent)
+        p = self._plan(cloud, bonds)
+        d, n = cloud.dim, cloud.n
+        n_gp = p.gp_owner.size
+        uu = _as_u(u, cloud)
+        if not isinstance(state, Mapping):
+            raise InputTypeError(
+                f"state must be a dict from initial_state(cloud, bonds), got {type(state).__name__}"
+            )
+        for key, val in state.items():
+            if isinstance(val, np.ndarray) and val.ndim and val.shape[0] != n_gp:
+                raise ShapeError(
+                    f"state[{key!r}] must have one row per gradient point ({n_gp}), got "
+                    f"shape {val.shape} (use model.initial_state(cloud, bonds))"
+                )
+        x = uu.ravel()
+        F = np.eye(d) + (p.G @ x).reshape(n_gp, d, d)
+        P, trial, A = self.material.update(F, state, tangent=tangent)
+        P = np.asarray(P, dtype=float)
+        force = self.nodal_force(cloud, bonds, P).ravel()
+        addon, _ = self._linear_addons(cloud, bonds, p)
+        if addon is not None:
+            force -= addon(x)
+        K = None
+        if tangent:
+            if A is None:
+                raise ModelError(
+                    f"material.update(..., tangent=True) must return dP/dF, got None "
+                    f"({type(self.material).__name__})"
+                )
+            K = self.tangent_matrix(cloud, bonds, A)
+        cauchy: Any = getattr(self.material, "cauchy", None)
+        if cauchy is None:
+            from ..constitutive.crystal_plasticity import cauchy_stress
+
+            cauchy = cauchy_stress
+        sigma = _mean_per_point(p.gp_owner, np.asarray(cauchy(P, F)), n)
+        return Response(force.reshape(n, d), dict(trial), K, sigma, int(n_gp))
 
     def stress(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
         """Cauchy stress per particle ``(n, d, d)``: the mean over its stress points."""
@@ -1463,6 +1849,8 @@ class Correspondence(Model):
             "plane": self.plane,
             "shadow": None if self.shadow is None else int(self.shadow.size),
         }
+        if self.material is not None:
+            out["material"] = type(self.material).__name__
         if self.control == "penalty":
             out["penalty"] = self.penalty
         if self.control == "stress_points":
