@@ -12,6 +12,7 @@ import logging
 import math
 import os
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +22,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
-from .errors import ConvergenceError, InputError, InputTypeError
+from .errors import ActiveSetWarning, ConvergenceError, InputError, InputTypeError
 from .operators.bc import TimePath, eliminate_dirichlet
 from .problem import StaticProblem
 from .solvers.linear import solve_linear
@@ -328,10 +329,11 @@ def solve_nonlinear(
     e_l, density, density_safety, dt, damping, c0, adr_maxiter, floor
         ADR: target of the relative criteria e₁, e₂ (spec 001 Eqs. 19-20);
         fictitious density ``'gershgorin'`` (Kilic-Madenci, ``Λ_ii = s ¼ Δt²
-        Σ_j |K_ij|`` of the tangent at each step's predictor, with Δt = ``dt``
-        or 1 and the safety ``s = density_safety``: at ``s = 1`` the highest
-        mode sits at the stability limit and decays very slowly, 1.1 keeps it
-        damped; hardening materials far from equilibrium may need more) or a
+        Σ_j |K_ij|`` of the tangent at each step's predictor, at least that of
+        the initial (elastic) tangent, with Δt = ``dt`` or 1 and the safety
+        ``s = density_safety``: at ``s = 1`` the highest mode sits at the
+        stability limit and decays very slowly, 1.1 keeps it damped;
+        hardening materials far from equilibrium may need more) or a
         positive number / ``(n*dim,)`` array with an explicit ``dt`` (spec
         001 Eq. 12: ``Λ = 1``, ``Δt = h sqrt(1/E_max)``); constant
         ``damping`` instead of the adaptive Rayleigh quotient; initial damping
@@ -483,6 +485,7 @@ def solve_nonlinear(
     def values(t: float) -> np.ndarray:
         return system.values_at(t, t / te)
 
+    lam0: dict[str, np.ndarray] = {}
     # the sub-step state read by the predictor closures below
     t_cur: float = t_c
     u_prev: np.ndarray | None = u_p
@@ -503,12 +506,19 @@ def solve_nonlinear(
 
     def adr_to(t_new: float, u_from: np.ndarray, st: dict[str, np.ndarray]) -> StepOutcome:
         u0 = pred(u_from, st, t_cur, u_prev, t_prev, t_new, t_new / te, values(t_new))
-        # Gershgorin density of the tangent at the step's start (hardening raises it)
-        dens = (
-            lam
-            if lam is not None
-            else adr_density(system, st, u0, dt=adr_dt, safety=density_safety)
-        )
+        if lam is not None:
+            dens = lam
+        else:
+            # Gershgorin density of the tangent at the step's start (hardening raises it),
+            # never below that of the initial, elastic tangent (softening or plastic
+            # tangents would under-estimate the stiffness of elastic unloading)
+            if "elastic" not in lam0:
+                lam0["elastic"] = adr_density(
+                    system, state0, None, dt=adr_dt, safety=density_safety
+                )
+            dens = np.maximum(
+                lam0["elastic"], adr_density(system, st, u0, dt=adr_dt, safety=density_safety)
+            )
         return adr_step(
             system,
             u0,
@@ -524,93 +534,108 @@ def solve_nonlinear(
         )
 
     for k in range(start, K):
-        t0 = time.perf_counter()
-        t_target = float(tt[k])
-        step_u, step_state = u_c, state_c
-        n_it = n_calls = n_cut = 0
-        pred.calls = 0
-        damp: list[np.ndarray] = []
-        out: StepOutcome | None = None
-        used = method
-        why = ""
-        # the sub-step loop shares these with the predictor closures
-        t_cur, u_prev, t_prev = t_c, u_p, t_p
-        if method in ("newton", "auto"):
-            pending = [t_target]
-            cur_u, cur_state = step_u, step_state
-            while pending:
-                target = pending[-1]
+        with warnings.catch_warnings():
+            # trial iterates may leave a crystal's active set unsettled; only the
+            # committed state matters (checked below)
+            warnings.simplefilter("ignore", ActiveSetWarning)
+            t0 = time.perf_counter()
+            t_target = float(tt[k])
+            step_u, step_state = u_c, state_c
+            n_it = n_calls = n_cut = 0
+            pred.calls = 0
+            damp: list[np.ndarray] = []
+            out: StepOutcome | None = None
+            used = method
+            why = ""
+            # the sub-step loop shares these with the predictor closures
+            t_cur, u_prev, t_prev = t_c, u_p, t_p
+            if method in ("newton", "auto"):
+                pending = [t_target]
+                cur_u, cur_state = step_u, step_state
+                while pending:
+                    target = pending[-1]
+                    try:
+                        out = newton_to(target, cur_u, cur_state)
+                    except StepFailed as exc:
+                        if exc.outcome is not None:
+                            n_it += exc.outcome.iterations
+                            n_calls += exc.outcome.calls
+                        if n_cut < max_cutbacks:
+                            n_cut += 1
+                            pending.append(0.5 * (t_cur + target))
+                            log.info(
+                                "step %d: %s; cutting back to t = %.6g", k + 1, exc, pending[-1]
+                            )
+                            continue
+                        why = str(exc)
+                        out = None
+                        break
+                    n_it += out.iterations
+                    n_calls += out.calls
+                    u_prev, t_prev = cur_u, t_cur
+                    cur_u, cur_state, t_cur = out.u, out.response.state, target
+                    pending.pop()
+                if out is None:
+                    if method == "newton":
+                        raise ConvergenceError(
+                            f"Newton failed at load step {k + 1} (t = {t_target:.6g}) after "
+                            f"{n_cut} cut-back(s): {why}"
+                        )
+                    used = "adr (newton failed)"
+                    t_cur, u_prev, t_prev = t_c, u_p, t_p
+                else:
+                    used = "newton"
+            if method == "adr" or out is None:
                 try:
-                    out = newton_to(target, cur_u, cur_state)
+                    out = adr_to(t_target, step_u, step_state)
                 except StepFailed as exc:
-                    if exc.outcome is not None:
-                        n_it += exc.outcome.iterations
-                        n_calls += exc.outcome.calls
-                    if n_cut < max_cutbacks:
-                        n_cut += 1
-                        pending.append(0.5 * (t_cur + target))
-                        log.info("step %d: %s; cutting back to t = %.6g", k + 1, exc, pending[-1])
-                        continue
-                    why = str(exc)
-                    out = None
-                    break
+                    prefix = f"Newton failed ({why}); " if why else ""
+                    raise ConvergenceError(
+                        f"{prefix}ADR failed at load step {k + 1} (t = {t_target:.6g}): {exc}"
+                    ) from exc
                 n_it += out.iterations
                 n_calls += out.calls
-                u_prev, t_prev = cur_u, t_cur
-                cur_u, cur_state, t_cur = out.u, out.response.state, target
-                pending.pop()
-            if out is None:
-                if method == "newton":
-                    raise ConvergenceError(
-                        f"Newton failed at load step {k + 1} (t = {t_target:.6g}) after "
-                        f"{n_cut} cut-back(s): {why}"
-                    )
-                used = "adr (newton failed)"
-                t_cur, u_prev, t_prev = t_c, u_p, t_p
-            else:
-                used = "newton"
-        if method == "adr" or out is None:
-            try:
-                out = adr_to(t_target, step_u, step_state)
-            except StepFailed as exc:
-                prefix = f"Newton failed ({why}); " if why else ""
-                raise ConvergenceError(
-                    f"{prefix}ADR failed at load step {k + 1} (t = {t_target:.6g}): {exc}"
-                ) from exc
-            n_it += out.iterations
-            n_calls += out.calls
-            if out.damping is not None:
-                damp.append(out.damping)
-            e1s[k] = np.nan if out.e1 is None else out.e1
-            e2s[k] = np.nan if out.e2 is None else out.e2
-            if method == "adr":
-                used = "adr"
-        assert out is not None
-        resp = out.response
-        u_new = out.u
-        factor = t_target / te
-        u_hist[k] = u_new.reshape(n, d)
-        reac_hist[k] = system.reactions(u_new, factor=factor, f_int=resp.force)
-        sig = resp.stress
-        if sig is None:
-            try:
-                sig = system.disc.stress(u_new.reshape(n, d))
-            except Exception:  # noqa: BLE001 - models without a stress: record none
-                sig = None
-        if sig is not None:
-            if stress_hist is None:
-                stress_hist = np.full((K, n, d, d), np.nan)
-                hom_hist = np.full((K, d, d), np.nan)
-            assert hom_hist is not None
-            stress_hist[k] = sig
-            hom_hist[k] = np.einsum("i,iab->ab", hom_w, sig) / hom_w.sum()
-        iters[k], calls[k], cuts[k] = n_it, n_calls + pred.calls, n_cut
-        resid[k] = out.residual
-        methods[k], messages[k] = used, why
-        damping_hist[k] = np.concatenate(damp) if damp else np.zeros(0)
+                if out.damping is not None:
+                    damp.append(out.damping)
+                e1s[k] = np.nan if out.e1 is None else out.e1
+                e2s[k] = np.nan if out.e2 is None else out.e2
+                if method == "adr":
+                    used = "adr"
+            assert out is not None
+            resp = out.response
+            u_new = out.u
+            factor = t_target / te
+            u_hist[k] = u_new.reshape(n, d)
+            reac_hist[k] = system.reactions(u_new, factor=factor, f_int=resp.force)
+            sig = resp.stress
+            if sig is None:
+                try:
+                    sig = system.disc.stress(u_new.reshape(n, d))
+                except Exception:  # noqa: BLE001 - models without a stress: record none
+                    sig = None
+            if sig is not None:
+                if stress_hist is None:
+                    stress_hist = np.full((K, n, d, d), np.nan)
+                    hom_hist = np.full((K, d, d), np.nan)
+                assert hom_hist is not None
+                stress_hist[k] = sig
+                hom_hist[k] = np.einsum("i,iab->ab", hom_w, sig) / hom_w.sum()
+            iters[k], calls[k], cuts[k] = n_it, n_calls + pred.calls, n_cut
+            resid[k] = out.residual
+            methods[k], messages[k] = used, why
+            damping_hist[k] = np.concatenate(damp) if damp else np.zeros(0)
         # commit
         u_p, t_p = u_c, t_c
         u_c, state_c, t_c = u_new, dict(resp.state), t_target
+        unsettled = np.asarray(state_c.get("unsettled", np.zeros(0)), dtype=bool)
+        if unsettled.any():
+            warnings.warn(
+                f"load step {k + 1} (t = {t_target:.6g}): the crystal-plasticity active-set "
+                f"search did not settle at {int(unsettled.sum())} of {unsettled.size} gradient "
+                "point(s) of the committed state (state['unsettled']); use smaller steps",
+                ActiveSetWarning,
+                stacklevel=2,
+            )
         if keep_states:
             states.append(state_c)
         else:
