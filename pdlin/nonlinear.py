@@ -186,11 +186,19 @@ class _Predictor:
                 "predictor='affine' needs Dirichlet.velocity_gradient conditions sharing one L "
                 "and centre, got none or several"
             )
-        if kind == "auto":
-            kind = "affine" if path is not None else "tangent"
         self.kind = kind
         self.path = path
         self.calls = 0
+
+    def resolved(self, driver: str) -> str:
+        """The predictor a driver uses: 'auto' is the tangent one for Newton (half the
+        iterations of the affine map on plastic polycrystals), the affine map of spec 001
+        §4.3 for ADR when the paths share a velocity gradient."""
+        if self.kind != "auto":
+            return self.kind
+        if driver == "adr" and self.path is not None:
+            return "affine"
+        return "tangent"
 
     def __call__(
         self,
@@ -202,16 +210,18 @@ class _Predictor:
         t_new: float,
         factor: float,
         values: np.ndarray,
+        driver: str = "newton",
     ) -> np.ndarray:
         sysm = self.system
-        if self.kind == "affine" and self.path is not None:
+        kind = self.resolved(driver)
+        if kind == "affine" and self.path is not None:
             L, c = self.path
             X = sysm.cloud.points - c
             E = scipy.linalg.expm(L * (t_new - t_c))
             u0 = ((X + u_c.reshape(X.shape)) @ E.T - X).reshape(-1)
-        elif self.kind == "tangent":
+        elif kind == "tangent":
             u0 = self._tangent(u_c, state, factor, values)
-        elif self.kind == "extrapolate" and u_p is not None and t_p is not None and t_c > t_p:
+        elif kind == "extrapolate" and u_p is not None and t_p is not None and t_c > t_p:
             u0 = u_c + (t_new - t_c) / (t_c - t_p) * (u_c - u_p)
         else:
             u0 = u_c.copy()
@@ -269,7 +279,7 @@ def solve_nonlinear(
     rtol: float = 1e-8,
     maxiter: int = 25,
     line_search: bool = True,
-    max_cutbacks: int = 4,
+    max_cutbacks: int = 8,
     linear_solver: str = "auto",
     e_l: float = 1e-6,
     density: Any = "gershgorin",
@@ -310,7 +320,10 @@ def solve_nonlinear(
         from the step's committed state on a step that Newton fails even
         after ``max_cutbacks`` halvings (``result.methods`` says so).
     t_end : float, optional
-        End time (default 1).
+        Time of the full load (default 1): the end of ``steps`` equal steps,
+        and the time at which plain prescribed values and loads reach their
+        given size (they scale with ``t / t_end``; with ``times`` beyond
+        ``t_end`` they keep growing proportionally).
     times : sequence of float, optional
         Explicit step times (increasing, > 0).
     predictor : {'auto', 'affine', 'tangent', 'extrapolate', 'previous'}
@@ -319,8 +332,8 @@ def solve_nonlinear(
         ``K_T(u) Δu = r(u)`` from the committed state and the prescribed
         increment imposed (one linear solve; exact for linear models); a
         linear extrapolation of the last two steps; or the last solution.
-        'auto': affine when the prescribed paths share one velocity gradient,
-        else tangent.
+        'auto': tangent for Newton steps; for ADR steps affine when the
+        prescribed paths share one velocity gradient, else tangent.
     rtol, maxiter, line_search, max_cutbacks, linear_solver
         Newton: convergence ``‖r_free‖ <= rtol`` x force scale (the larger of
         ``‖λ f_ext‖`` and the reaction norm), iteration budget per (sub)step,
@@ -347,7 +360,9 @@ def solve_nonlinear(
     checkpoint : path, optional
         NPZ file written atomically after every converged step; with
         ``resume=True`` an existing checkpoint of the same problem is
-        continued from its last committed step.
+        continued from its last committed step (its step times must be the
+        first ones of this run: a finished run can be extended with more
+        steps, or several drivers can continue from one committed state).
     progress : callable, optional
         Called with one line per step.
 
@@ -390,7 +405,7 @@ def solve_nonlinear(
     say = progress or (lambda msg: None)
     t_start = time.perf_counter()
     tt = _times(steps, t_end, times)
-    te = float(tt[-1]) if times is not None else (1.0 if t_end is None else float(t_end))
+    te = 1.0 if t_end is None else float(t_end)
     system = constrained_system(problem)
     n, d = system.n, system.dim
     pred = _Predictor(system, predictor, linear_solver)
@@ -449,9 +464,10 @@ def solve_nonlinear(
     ckpt = None if checkpoint is None else Path(checkpoint)
     if ckpt is not None and resume and ckpt.exists():
         data = np.load(ckpt, allow_pickle=False)
+        done = int(data["done"])
         if int(data["version"]) != _CHECKPOINT_VERSION or not (
-            data["times"].shape == tt.shape
-            and np.allclose(data["times"], tt)
+            done <= tt.size
+            and np.allclose(data["times"][:done], tt[:done])
             and tuple(data["shape"]) == (n, d)
         ):
             raise InputError(
@@ -505,7 +521,7 @@ def solve_nonlinear(
         )
 
     def adr_to(t_new: float, u_from: np.ndarray, st: dict[str, np.ndarray]) -> StepOutcome:
-        u0 = pred(u_from, st, t_cur, u_prev, t_prev, t_new, t_new / te, values(t_new))
+        u0 = pred(u_from, st, t_cur, u_prev, t_prev, t_new, t_new / te, values(t_new), "adr")
         if lam is not None:
             dens = lam
         else:

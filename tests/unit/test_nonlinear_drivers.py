@@ -201,6 +201,13 @@ def test_checkpoint_resume_keeps_committed_steps(tmp_path):
     np.testing.assert_allclose(res.states[-1]["emax"], full.states[-1]["emax"], rtol=1e-12)
     with pytest.raises(InputError, match="another problem or load path"):
         pdlin.solve_nonlinear(prob, steps=5, method="newton", checkpoint=ck, resume=True)
+    # a finished run extended by more steps of the same path continues after step 4
+    more = pdlin.solve_nonlinear(
+        prob, times=[0.25, 0.5, 0.75, 1.0, 1.25], method="newton", checkpoint=ck, resume=True
+    )
+    assert more.resumed_from == 4 and more.iterations[:4].tolist() == full.iterations.tolist()
+    # plain prescribed values scale with t / t_end: 1.25 x the end displacement at t = 1.25
+    np.testing.assert_allclose(more.u[-1, -1, 0], 1.25 * 0.1, rtol=1e-12)
 
 
 def test_velocity_gradient_path_and_affine_predictor():
