@@ -55,6 +55,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     prog = _Progress(args.quiet)
     prog("reading scene")
     scene = _load(args)
+    if scene.nonlinear is not None:
+        return _run_nonlinear(args, scene, prog)
+    if args.resume:
+        raise PdlinError("--resume needs a nonlinear scene with solver.checkpoint")
     solver = args.solver or scene.solver
     result = solve(
         scene.problem, solver=solver, rtol=scene.rtol, maxiter=scene.maxiter, progress=prog
@@ -97,6 +101,47 @@ def _cmd_run(args: argparse.Namespace) -> int:
                 f"calibration  {cal['status']}, max relative tensor error "
                 f"{cal['relative_error']:.3e}"
             )
+    return 0
+
+
+def _run_nonlinear(args: argparse.Namespace, scene: Any, prog: Any) -> int:
+    """``pdlin run`` on a nonlinear scene: load steps, one time series and a CSV."""
+    from ..io.results import write_homogenized_csv, write_nonlinear
+    from ..nonlinear import solve_nonlinear
+
+    opts = dict(scene.nonlinear)
+    if args.solver:
+        opts["linear_solver"] = args.solver
+    if args.resume:
+        if "checkpoint" not in opts:
+            raise PdlinError("--resume needs solver.checkpoint in the scene")
+        opts["resume"] = True
+    result = solve_nonlinear(scene.problem, progress=prog, **opts)
+    out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.pvd"))
+    prog(f"writing {out}")
+    series = write_nonlinear(out, result)
+    csv_path = scene.homogenized or out.with_name(f"{out.stem}_homogenized.csv")
+    write_homogenized_csv(csv_path, result)
+    summary = result.summary()
+    summary["scene"] = scene.name
+    summary["output"] = str(series)
+    summary["homogenized"] = str(csv_path)
+    if result.homogenized_stress is not None:
+        summary["final_homogenized_stress"] = result.homogenized_stress[-1].tolist()
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(f"scene        {scene.name}")
+        print(
+            f"load steps   {summary['steps']} ({', '.join(summary['methods'])}): "
+            f"{summary['iterations']} iteration(s), {summary['cutbacks']} cut-back(s), "
+            f"{summary['fallbacks']} ADR fallback(s)"
+        )
+        if result.homogenized_stress is not None:
+            sig = result.homogenized_stress[-1]
+            print("mean stress  " + ", ".join(f"{v:.6g}" for v in sig.ravel()))
+        print(f"time (s)     {summary['timings']['total']:.3f}")
+        print(f"results      {series} (time series), {csv_path} (homogenized)")
     return 0
 
 
@@ -244,10 +289,19 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="solve a scene and write the results")
     r.add_argument("scene", nargs="?", help="scene file (.toml)")
     r.add_argument("--example", help="run a built-in example scene (see 'pdlin examples')")
-    r.add_argument("-o", "--output", help="results file (.vtu, .xdmf, .npz)")
+    r.add_argument(
+        "-o",
+        "--output",
+        help="results file (.vtu, .xdmf, .npz; nonlinear scenes: .pvd, .xdmf, .npz series)",
+    )
     r.add_argument("--solver", help="override the scene's solver")
     r.add_argument("--json", action="store_true", help="print the summary as JSON")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    r.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue a nonlinear run from its checkpoint (solver.checkpoint)",
+    )
     r.set_defaults(func=_cmd_run)
 
     i = sub.add_parser("info", help="points, volumes, bonds and horizons of a mesh or scene")

@@ -58,6 +58,13 @@ _GEOM = {
     "image": {"type", "path", "data", "spacing", "origin", "void", "thickness"},
 }
 _MATERIAL = {
+    "type",
+    "slip",
+    "orientation",
+    "elastic",
+    "hardening",
+    "shear",
+    "polycrystal",
     "E",
     "nu",
     "K",
@@ -69,6 +76,8 @@ _MATERIAL = {
     "calibration",
     "stiffness",
 }
+_CP_KEYS = ("slip", "orientation", "elastic", "hardening", "shear", "polycrystal")
+_POLYCRYSTAL = {"grains", "seed"}
 #: isotropic constants a material table may give (any two; per phase tables allowed)
 _ISO_KEYS = ("E", "nu", "K", "G", "lam", "mu")
 _CALIBRATION = {
@@ -101,12 +110,48 @@ _MODEL_KEYS = {
     "correspondence": {"type", "control", "penalty", "coefficient", "seed"},
 }
 _HORIZON = {"value", "ratio", "shape", "axes", "influence", "cracks"}
-_DIRICHLET = {"set", "box", "points", "components", "value", "F", "translation", "center"}
+_DIRICHLET = {
+    "set",
+    "box",
+    "points",
+    "components",
+    "value",
+    "F",
+    "translation",
+    "center",
+    "velocity_gradient",
+}
 _LOAD = {"type", "set", "box", "points", "force", "density"}
 _SHADOW = {"F", "depth", "faces", "translation"}
 _SYMMETRY = {"axis", "position", "side"}
-_SOLVER = {"name", "rtol", "maxiter"}
-_OUTPUT = {"path", "fields"}
+_SOLVER = {
+    "name",
+    "rtol",
+    "maxiter",
+    "nonlinear",
+    "steps",
+    "t_end",
+    "e_l",
+    "predictor",
+    "checkpoint",
+    "max_cutbacks",
+    "density",
+    "dt",
+    "damping",
+}
+#: [solver] keys of solve_nonlinear (with rtol / maxiter for Newton)
+_NONLINEAR_KEYS = (
+    "steps",
+    "t_end",
+    "e_l",
+    "predictor",
+    "checkpoint",
+    "max_cutbacks",
+    "density",
+    "dt",
+    "damping",
+)
+_OUTPUT = {"path", "fields", "homogenized"}
 
 
 def _check_keys(table: Any, allowed: set[str], where: str) -> dict[str, Any]:
@@ -120,7 +165,22 @@ def _require(table: Mapping[str, Any], key: str, where: str) -> Any:
 
 
 def _build_model(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud) -> Model:
+    mtype = material.get("type", "elastic")
+    if mtype not in ("elastic", "crystal-plasticity"):
+        raise SceneError(f"material.type must be 'elastic' or 'crystal-plasticity', got {mtype!r}")
+    if mtype == "elastic":
+        extra = [k for k in _CP_KEYS if k in material]
+        if extra:
+            raise SceneError(
+                f"material.{extra[0]} is a crystal-plasticity key; set material.type = "
+                "'crystal-plasticity' or remove it"
+            )
     kind = cfg.get("type", "bond_based")
+    if mtype == "crystal-plasticity" and kind != "correspondence":
+        raise SceneError(
+            "material.type = 'crystal-plasticity' needs model.type = 'correspondence', "
+            f"got {kind!r}"
+        )
     try:
         builder = MODELS[kind]
     except KeyError:
@@ -157,6 +217,8 @@ def _correspondence(
 
     _no_keys(material, ("micromodulus",), "correspondence")
     opts = {k: cfg[k] for k in cfg if k != "type"}
+    if material.get("type") == "crystal-plasticity":
+        return Correspondence(material=_crystal_plasticity(material, cloud), **opts)
     plane = material.get("plane", "stress")
     if "stiffness" in material:
         given = [k for k in _ISO_KEYS if k in material]
@@ -169,6 +231,33 @@ def _correspondence(
         return Correspondence(C, plane=plane, **opts)
     iso = _isotropic(material, cloud, "correspondence", one=cloud.dim == 1)
     return Correspondence(**iso, plane=plane, **opts)
+
+
+def _crystal_plasticity(material: Mapping[str, Any], cloud: PointCloud) -> Any:
+    """``[material] type = "crystal-plasticity"``: slip systems, constants, orientations."""
+    from ..constitutive.crystal_plasticity import CrystalPlasticity
+    from ..geometry.polycrystal import voronoi_polycrystal
+
+    bad = [k for k in _ISO_KEYS + ("plane", "stiffness", "micromodulus") if k in material]
+    if bad:
+        raise SceneError(
+            f"material.{bad[0]} is not used by material.type = 'crystal-plasticity' (give "
+            "material.elastic = {{...}} for the crystal's elastic constants)"
+        )
+    orientation: Any = material.get("orientation", 0.0)
+    if "polycrystal" in material:
+        if "orientation" in material:
+            raise SceneError("material.orientation and material.polycrystal exclude each other")
+        pc = _check_keys(material["polycrystal"], _POLYCRYSTAL, "material.polycrystal")
+        grains = _require(pc, "grains", "material.polycrystal")
+        if isinstance(grains, bool) or not isinstance(grains, int) or grains < 1:
+            raise SceneError(f"material.polycrystal.grains must be an integer >= 1, got {grains!r}")
+        _, orientation = voronoi_polycrystal(cloud, grains, seed=int(pc.get("seed", 0)))
+    kw: dict[str, Any] = {}
+    for key in ("elastic", "hardening", "shear"):
+        if key in material:
+            kw[key] = material[key]
+    return CrystalPlasticity(material.get("slip", "planar-2"), orientation=orientation, **kw)
 
 
 def _isotropic(
@@ -245,6 +334,11 @@ class Scene:
     base_dir: Path = field(default_factory=Path.cwd)
     #: result of ``[material.calibration]`` (anisotropic micromoduli), if any
     calibration: Any = None
+    #: ``solve_nonlinear`` options (``method`` and the [solver] load-step keys) when the
+    #: scene asks for a nonlinear solve or its material is nonlinear; else None
+    nonlinear: dict[str, Any] | None = None
+    #: CSV of the homogenized response per load step (nonlinear scenes)
+    homogenized: Path | None = None
 
     @property
     def cloud(self) -> PointCloud:
@@ -307,10 +401,10 @@ def _where(cfg: Mapping[str, Any], cloud: PointCloud, key: str) -> Any:
     k = given[0]
     if k == "set":
         name = cfg["set"]
-        if name not in cloud.sets:
-            raise SceneError(
-                f"{key}.set: unknown point set {name!r}; known sets: {sorted(cloud.sets)}"
-            )
+        try:
+            cloud.point_set(name)  # named sets, plus 'all' and 'boundary'
+        except PdlinError as exc:
+            raise SceneError(f"{key}.set: {exc}") from None
         return name
     if k == "box":
         box = cfg["box"]
@@ -371,7 +465,19 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
             key = f"dirichlet[{k}]"
             bc = _check_keys(bc, _DIRICHLET, key)
             where = _where(bc, cloud, key)
-            if "F" in bc:
+            if "velocity_gradient" in bc:
+                clash = [k for k in ("value", "F", "translation") if k in bc]
+                if clash:
+                    raise SceneError(f"{key} takes 'velocity_gradient' or '{clash[0]}', not both")
+                dirichlet.append(
+                    Dirichlet.velocity_gradient(
+                        where,
+                        bc["velocity_gradient"],
+                        center=bc.get("center"),
+                        components=bc.get("components"),
+                    )
+                )
+            elif "F" in bc:
                 if "value" in bc:
                     raise SceneError(f"{key} takes 'value' or 'F', not both")
                 dirichlet.append(
@@ -470,6 +576,10 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
     except PdlinError as exc:
         raise SceneError(f"invalid scene: {exc}") from exc
     out = ocfg.get("path")
+    nonlinear = _nonlinear_options(scfg, problem, base)
+    hom = ocfg.get("homogenized")
+    if hom is not None and nonlinear is None:
+        raise SceneError("output.homogenized needs a nonlinear solve ([solver] nonlinear = ...)")
     return Scene(
         name=str(top.get("name", "scene")),
         problem=problem,
@@ -480,7 +590,44 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         fields=ocfg.get("fields"),
         base_dir=base,
         calibration=calibration,
+        nonlinear=nonlinear,
+        homogenized=None if hom is None else (Path(hom) if Path(hom).is_absolute() else base / hom),
     )
+
+
+def _nonlinear_options(
+    scfg: Mapping[str, Any], problem: StaticProblem, base: Path
+) -> dict[str, Any] | None:
+    """``solve_nonlinear`` keyword arguments from the [solver] table (None: linear solve)."""
+    from ..nonlinear import METHODS
+
+    method = scfg.get("nonlinear")
+    given = [k for k in _NONLINEAR_KEYS if k in scfg]
+    if method is None:
+        if getattr(problem.model, "nonlinear", False):
+            method = "auto"
+        elif given:
+            raise SceneError(
+                f"solver.{given[0]} needs a nonlinear solve: add solver.nonlinear = "
+                "'auto' | 'newton' | 'adr'"
+            )
+        else:
+            return None
+    if method not in METHODS:
+        raise SceneError(f"solver.nonlinear must be one of {list(METHODS)}, got {method!r}")
+    opts: dict[str, Any] = {"method": method}
+    for k in given:
+        opts[k] = scfg[k]
+    if "checkpoint" in opts:
+        ck = opts["checkpoint"]
+        if not isinstance(ck, str):
+            raise SceneError(f"solver.checkpoint must be a path string, got {ck!r}")
+        opts["checkpoint"] = Path(ck) if Path(ck).is_absolute() else base / ck
+    if "rtol" in scfg:
+        opts["rtol"] = float(scfg["rtol"])
+    if "maxiter" in scfg:
+        opts["maxiter"] = int(scfg["maxiter"])
+    return opts
 
 
 def _calibrated_model(
