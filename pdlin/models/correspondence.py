@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import warnings
 from collections.abc import Mapping
 from typing import Any
 
@@ -148,10 +149,15 @@ def _ratio_ok(K: np.ndarray) -> np.ndarray:
 
 
 def _halves_well_conditioned(
-    bonds: Bonds, omega_v: np.ndarray, sides: np.ndarray, n: int
+    bonds: Bonds, omega_v: np.ndarray, sides: np.ndarray, n: int, omega: np.ndarray | None = None
 ) -> np.ndarray:
     """Per point: in every case (row of ``sides``) both halves' shape tensors are well
     conditioned and *balanced*, ``‖K_1 - K_2‖_F ≤ SP_BALANCE_TOL ‖K‖_F``.
+
+    Balance is a property of the family's geometry: it is tested on the tensors of the
+    weights ``omega`` (without volumes) when given, so a lattice with non-uniform volumes
+    keeps its two stress points (spec 003's scheme) while truncated families next to free
+    surfaces and irregular clouds get one gradient point.
 
     The second half's tensor is the full one minus the first's (one pass per case).  Balanced
     halves (``K_1 = K_2 = K/2``: a point-symmetric, complete family) are what makes two
@@ -161,13 +167,15 @@ def _halves_well_conditioned(
     error on a free-surface 2D bar at δ = 3h).
     """
     full_k = _per_point_outer(bonds.i, n, omega_v, bonds.xi, bonds.xi)
-    scale = np.sqrt(np.einsum("nij,nij->n", full_k, full_k))
+    geo = omega_v if omega is None else omega
+    full_g = _per_point_outer(bonds.i, n, geo, bonds.xi, bonds.xi)
+    scale = np.sqrt(np.einsum("nij,nij->n", full_g, full_g))
     ok = np.ones(n, dtype=bool)
     for side in sides:
-        w = np.where(side, omega_v, 0.0)
-        half = _per_point_outer(bonds.i, n, w, bonds.xi, bonds.xi)
+        half = _per_point_outer(bonds.i, n, np.where(side, omega_v, 0.0), bonds.xi, bonds.xi)
         other = full_k - half
-        diff = half - other
+        half_g = _per_point_outer(bonds.i, n, np.where(side, geo, 0.0), bonds.xi, bonds.xi)
+        diff = 2.0 * half_g - full_g
         balanced = np.sqrt(np.einsum("nij,nij->n", diff, diff)) <= SP_BALANCE_TOL * scale
         ok &= _ratio_ok(half) & _ratio_ok(other) & balanced
     return ok
@@ -956,13 +964,16 @@ class Correspondence(Model):
         # orthogonal basis); for nearest-neighbour axis bonds this is spec 003's
         # {s_k e_k} / {-s_k e_k} split, for larger horizons its half-space extension
         first = np.stack([_half_space(bonds.xi, s) for s in cases])  # (n_cases, nb)
-        omega_v = self.bond_weights(cloud, bonds) * bonds.volume_j
-        full = _halves_well_conditioned(bonds, omega_v, first, n)
+        omega = self.bond_weights(cloud, bonds)
+        full = _halves_well_conditioned(bonds, omega * bonds.volume_j, first, n, omega)
         if bonds.n_bonds and not full.any():
-            log.warning(
+            warnings.warn(
                 "stress points: no particle has two balanced, well-conditioned half families "
                 "(irregular cloud or a body thinner than two horizons); every particle gets one "
-                "gradient point and the control is inactive (ordinary correspondence)"
+                "gradient point and the control is inactive (ordinary correspondence): use "
+                "control='penalty' on irregular clouds",
+                UserWarning,
+                stacklevel=4,
             )
         cases = _SP_CASES[d]
         if self.case is None:

@@ -464,3 +464,19 @@ def test_compare_controls_reports_resisted_rotations():
     )
     got = {r["name"]: (r["n_zero"], r["n_spurious"]) for r in rows}
     assert got == {"none": (3, 0), "springs": (2, -1), "ads": (2, -1)}
+
+
+def test_stress_points_survive_non_uniform_volumes(rng):
+    # balance of the two half families is a property of the geometry: a lattice with random
+    # volumes keeps two stress points per full-family particle (spec 003's scheme), while a
+    # jittered cloud has no balanced halves and falls back to one gradient point, with a warning
+    cloud, bonds, E = _nonuniform(2, (7, 6), rng)
+    info = _model(2, E=E, control="stress_points", seed=5).stress_points(cloud, bonds)
+    counts = np.bincount(info["owner"], minlength=cloud.n)
+    interior = np.flatnonzero(np.diff(bonds.indptr) == 4)  # complete δ = h families
+    assert interior.size == 20 and np.all(counts[interior] == 2)
+    jitter = cloud.replace(points=cloud.points + rng.uniform(-0.01, 0.01, cloud.points.shape))
+    jb = pdlin.find_bonds(jitter, ratio=1.5)
+    with pytest.warns(UserWarning, match="control is inactive"):
+        info = _model(2, E=E, control="stress_points").stress_points(jitter, jb)
+    assert info["owner"].size == cloud.n
