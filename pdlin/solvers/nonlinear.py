@@ -106,6 +106,7 @@ def newton_step(
     max_backtracks: int = 8,
     linear_solver: str = "auto",
     linear_rtol: float = 1e-10,
+    nonmonotone: int = 3,
 ) -> StepOutcome:
     """Newton-Raphson with a consistent tangent and backtracking line search.
 
@@ -113,7 +114,10 @@ def newton_step(
     (whose prescribed entries hold this step's values).  Each iteration
     solves ``K_T du = r`` with the Dirichlet elimination of the system
     (``du = 0`` on prescribed DOFs), then backtracks ``u + α du`` (α = 1,
-    ½, ...) until ``‖r‖`` decreases by the Armijo factor ``1 - 1e-4 α``.
+    ½, ...) until ``‖r‖`` decreases by the Armijo factor ``1 - 1e-4 α``.  When
+    no α decreases ``‖r‖`` (the tangent of an active-set model is only piecewise
+    smooth), the best trial is taken anyway, at most ``nonmonotone`` times per
+    step and only if it does not raise ``‖r‖`` tenfold.
     Converged when ``‖r_free‖ <= rtol * scale`` (``scale`` the larger of
     ``‖λ f_ext‖`` and the reaction force norm).
 
@@ -130,6 +134,7 @@ def newton_step(
     history: list[float] = []
     solver = _linear_solver(system, linear_solver)
     backtracks = 0
+    nonmonotone_left = int(nonmonotone)
     for it in range(maxiter + 1):
         norm = float(np.linalg.norm(r))
         if not math.isfinite(norm):
@@ -166,6 +171,7 @@ def newton_step(
         du[system.dofs] = 0.0
         alpha = 1.0
         accepted = False
+        best: tuple[float, np.ndarray, Any, np.ndarray] | None = None
         for _ls in range(max_backtracks + 1 if line_search else 1):
             trial_u = u + alpha * du
             trial = system.respond(trial_u, committed, tangent=alpha == 1.0)
@@ -175,8 +181,17 @@ def newton_step(
             if math.isfinite(nt) and (nt <= (1.0 - 1e-4 * alpha) * norm or not line_search):
                 accepted = True
                 break
+            if math.isfinite(nt) and (best is None or nt < best[0]):
+                best = (nt, trial_u, trial, rt)
             alpha *= 0.5
             backtracks += 1
+        if not accepted and best is not None and nonmonotone_left > 0 and best[0] < 10.0 * norm:
+            # watchdog: at active-set switches the consistent tangent is only piecewise
+            # smooth and the Newton direction need not decrease ‖r‖; take the best trial a
+            # few times per step rather than give up at once (maxiter still bounds the step)
+            nonmonotone_left -= 1
+            _, trial_u, trial, rt = best
+            accepted = True
         if not accepted:
             raise StepFailed(
                 f"Newton: line search failed at iteration {it} (‖r‖ = {norm:.3e}, no decrease "
