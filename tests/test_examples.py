@@ -73,3 +73,48 @@ def test_correspondence_controls_tutorial(tmp_path):
     assert plate["stress_points"]["checker"] == pytest.approx(2.72e-3, rel=0.01)
     for name in ("bar_controls.png", "plate_controls.png"):
         assert (tmp_path / name).stat().st_size > 0
+
+
+def test_crystal_plasticity_polycrystal_tutorial(tmp_path):
+    import meshio
+
+    steps = 6
+    out = _load("crystal_plasticity_polycrystal").main(
+        ["--n", "10", "--steps", str(steps), "--compare", "1,3,6", "--out", str(tmp_path)]
+    )
+    runs = out["runs"]
+    for load in ("shear", "compression"):
+        res = runs[load]["result"]
+        assert res.n_steps == steps and len(res.states) == steps  # merged segments
+        # time series (.pvd + one .vtu per step, with the committed state) and the CSV
+        pvd = (tmp_path / f"{load}.pvd").read_text()
+        assert pvd.count("<DataSet") == steps
+        last = meshio.read(tmp_path / f"{load}_{steps:04d}.vtu")
+        assert {"displacement", "stress", "state_reorientation"} <= set(last.point_data)
+        csv = np.genfromtxt(tmp_path / f"{load}_homogenized.csv", delimiter=",", names=True)
+        np.testing.assert_allclose(csv["sigma_12"], res.homogenized_stress[:, 0, 1], rtol=1e-9)
+        # plasticity starts at step 3 (spec 001 §8.2: ~30 % of the particles plastic there)
+        plastic = [float(np.mean(st["plastic"])) for st in res.states]
+        assert plastic[0] == 0.0 and plastic[2] > 0.05
+        # spec 001 §6 / T18: from a shared committed state the two drivers agree in the
+        # homogenized stress (measured ≤ 1e-7 here; ≤ 3e-4 at n = 25), never compare pointwise
+        cmp = runs[load]["compare"]
+        assert sorted(cmp) == [1, 3, 6] and all(c["ok"] for c in cmp.values())
+        assert runs[load]["max_difference"] <= 2e-3
+        assert all(c["method"] == "adr" for c in cmp.values())
+    sxy = runs["shear"]["result"].homogenized_stress[:, 0, 1]
+    syy = runs["compression"]["result"].homogenized_stress[:, 1, 1]
+    sxx = runs["compression"]["result"].homogenized_stress[:, 0, 0]
+    # spec 001 §8.2 (seeded 21-grain maps at n = 25, "indicative ± 10 %"): mean σ_xy ≈ 3.7 / 10
+    # and mean σ_yy ≈ -4.3 / -11.0 MPa at steps 1 / 3.  This is a 10 x 10 grid (a third of the
+    # particles sit in the prescribed ring) and another map, so the tolerance is ± 25 %
+    # (measured: σ_xy 3.92 / 10.79, σ_yy -3.94 / -10.62).
+    np.testing.assert_allclose(sxy[[0, 2]], [3.7, 10.0], rtol=0.25)
+    np.testing.assert_allclose(syy[[0, 2]], [-4.3, -11.0], rtol=0.25)
+    assert np.all(sxy > 0) and np.all(np.diff(sxy) > 0)  # hardening, no softening
+    assert np.all(syy < 0) and np.all(sxx > 0)  # compression along y, lateral tension
+    # the plastic plateau sits far below the elastic line (h0 = 10 MPa: near-perfect plasticity)
+    assert sxy[-1] < 0.6 * steps * sxy[0]
+    for name in ("cp_shear_sxy", "cp_compression_reorientation", "cp_grains"):
+        assert (tmp_path / f"{name}.png").stat().st_size > 0
+    assert (tmp_path / "cp_stress_strain.png").exists() and (tmp_path / "cp_adr.png").exists()
