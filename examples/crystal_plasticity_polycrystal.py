@@ -152,7 +152,13 @@ def run_load(
         damping += seg.damping[start:]
         step_time = np.concatenate([step_time, seg.timings["steps"][start:]])
     timings = dict(last.timings, steps=step_time, total=float(step_time.sum()))
-    result = dataclasses.replace(last, states=states, damping=damping, timings=timings)
+    result = dataclasses.replace(
+        last,
+        states=states,
+        state_steps=list(range(len(states))),
+        damping=damping,
+        timings=timings,
+    )
     ckpt.unlink(missing_ok=True)
     return {"result": result, "method": method, "other": other, "compare": cmp, "times": times}
 

@@ -62,7 +62,9 @@ class NonlinearResult:
     reactions : (k, n, dim) ndarray
         Nodal reactions on the prescribed DOFs.
     states : list of dict
-        Committed state per step (only the last with ``keep_states=False``).
+        Committed states (every step; only the last with ``keep_states=False``;
+        after a resume from the checkpoint's last step on): ``state_steps``
+        gives their step indices and :meth:`state_at` looks one up.
     iterations, calls, cutbacks : (k,) ndarray of int
         Newton iterations or ADR iterations, constitutive evaluations and
         step halvings per step (summed over sub-steps).
@@ -101,6 +103,18 @@ class NonlinearResult:
     residuals: np.ndarray
     timings: dict[str, Any] = field(default_factory=dict)
     resumed_from: int = 0
+    #: load-step index (0-based) of each entry of ``states``: all steps, or with
+    #: ``keep_states=False`` the last one, and after a resume the checkpoint's last
+    #: committed step followed by the steps solved in this call
+    state_steps: list[int] = field(default_factory=list)
+
+    def state_at(self, step: int) -> dict[str, np.ndarray] | None:
+        """Committed state after load step ``step`` (0-based), or None if not kept."""
+        k = step % self.n_steps if self.n_steps else step
+        try:
+            return self.states[self.state_steps.index(k)]
+        except ValueError:
+            return None
 
     @property
     def converged(self) -> bool:
@@ -456,6 +470,7 @@ def solve_nonlinear(
     messages: list[str] = [""] * K
     damping_hist: list[np.ndarray] = [np.zeros(0)] * K
     states: list[dict[str, np.ndarray]] = []
+    state_steps: list[int] = []
 
     u_c = np.zeros(system.ndof)
     state_c = dict(state0)
@@ -495,6 +510,7 @@ def solve_nonlinear(
         if start >= 2:
             u_p, t_p = u_hist[start - 2].reshape(-1).copy(), float(tt[start - 2])
         states = [dict(state_c)] if start else []
+        state_steps = [start - 1] if start else []
         say(f"resuming from {ckpt} after step {start} of {K}")
     timings: dict[str, Any] = {"setup": time.perf_counter() - t_start}
 
@@ -654,8 +670,10 @@ def solve_nonlinear(
             )
         if keep_states:
             states.append(state_c)
+            state_steps.append(k)
         else:
             states = [state_c]
+            state_steps = [k]
         step_time[k] = time.perf_counter() - t0
         if ckpt is not None:
             arrays: dict[str, np.ndarray] = {
@@ -696,6 +714,7 @@ def solve_nonlinear(
         homogenized_stress=hom_hist,
         reactions=reac_hist,
         states=states,
+        state_steps=state_steps,
         iterations=iters,
         calls=calls,
         cutbacks=cuts,

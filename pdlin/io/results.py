@@ -300,7 +300,8 @@ def write_nonlinear(path: str | Path, result: Any) -> Path:
     Fields per step: ``displacement``, ``reaction``, and where available
     ``stress`` (Cauchy, ``dim²`` components) and the scalar / vector state
     variables of the committed state (e.g. ``state_gamma``, ``state_s``,
-    ``state_reorientation`` of crystal plasticity; per-point ones only).
+    ``state_reorientation`` of crystal plasticity; per-point ones only) of the steps
+    whose committed state the result kept (:meth:`NonlinearResult.state_at`).
     """
     cloud = result.system.cloud
     n = cloud.n
@@ -312,8 +313,9 @@ def write_nonlinear(path: str | Path, result: Any) -> Path:
         }
         if result.stress is not None:
             fields["stress"] = result.stress[k].reshape(n, -1)
-        if k < len(result.states) and len(result.states) == result.n_steps:
-            for key, val in result.states[k].items():
+        state = result.state_at(k) if hasattr(result, "state_at") else None
+        if state is not None:
+            for key, val in state.items():
                 arr = np.asarray(val)
                 if arr.shape[:1] == (n,) and arr.ndim <= 2 and arr.dtype.kind in "fiub":
                     fields[f"state_{key}"] = arr.astype(float)

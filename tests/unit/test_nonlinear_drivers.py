@@ -197,6 +197,9 @@ def test_checkpoint_resume_keeps_committed_steps(tmp_path):
     assert int(np.load(ck)["done"]) == 2
     res = pdlin.solve_nonlinear(prob, steps=4, method="newton", checkpoint=ck, resume=True)
     assert res.resumed_from == 2
+    # the checkpoint's committed state and the two solved steps' states are kept
+    assert res.state_steps == [1, 2, 3] and res.state_at(0) is None
+    np.testing.assert_allclose(res.state_at(1)["emax"], full.states[1]["emax"], rtol=1e-12)
     np.testing.assert_allclose(res.u, full.u, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(res.states[-1]["emax"], full.states[-1]["emax"], rtol=1e-12)
     with pytest.raises(InputError, match="another problem or load path"):
