@@ -153,6 +153,13 @@ class BondBased(Model):
     average : {'arithmetic', 'harmonic'}
         How a bond combines the per-point moduli of its two ends.
     nu_mismatch : {'raise', 'warn'}
+    kinematics : {'small', 'finite'}
+        ``'finite'``: the model is the prototype microelastic (PMB) force with
+        the exact stretch ``(|ξ+η| - |ξ|)/|ξ|`` along the deformed bond
+        (geometrically nonlinear: exact under finite rigid rotations), solved by
+        :func:`pdlin.solve_nonlinear` with its consistent tangent
+        ``k [(|ξ|/|y|) n nᵀ + (1 - |ξ|/|y|) I]`` per bond (``y = ξ + η``,
+        ``n = y/|y|``).  ``'small'`` (default): the linearized model.
     surface_correction : {None, 'volume', 'energy', 'force-normalization'}
         Surface correction of the micromodulus near free surfaces (Le &
         Bobaru 2018, see :mod:`pdlin.models.surface` and
@@ -200,7 +207,14 @@ class BondBased(Model):
         average: str = "arithmetic",
         nu_mismatch: str = "raise",
         surface_correction: str | None = None,
+        kinematics: str = "small",
     ) -> None:
+        if kinematics not in ("small", "finite"):
+            raise InputError(f"kinematics must be 'small' or 'finite', got {kinematics!r}")
+        self.kinematics = kinematics
+        #: finite kinematics: the PMB force of the exact stretch along the deformed bond,
+        #: solved by :func:`pdlin.solve_nonlinear`
+        self.nonlinear = kinematics == "finite"
         self.surface_correction = check_surface_correction(surface_correction, "BondBased")
         self._surface_cache: tuple[PointCloud, Bonds, SurfaceFactors] | None = None
         given = {"E": E, "nu": nu, "K": K, "G": G if G is not None else mu, "lam": lam}
@@ -486,6 +500,54 @@ class BondBased(Model):
             prod = w * unit[:, idx[0]] * unit[:, idx[1]] * unit[:, idx[2]] * unit[:, idx[3]]
             out[(slice(None),) + idx] = np.bincount(bonds.i, weights=prod, minlength=cloud.n)
         return out
+
+    def respond(
+        self,
+        cloud: PointCloud,
+        bonds: Bonds,
+        u: np.ndarray,
+        state: dict[str, np.ndarray],
+        *,
+        tangent: bool = False,
+    ) -> Any:
+        """Force, state and tangent for the nonlinear drivers (see :meth:`Model.respond`).
+
+        With ``kinematics='finite'`` the PMB force and its consistent tangent
+        (symmetric, BSR); otherwise the linear model.
+
+        Examples
+        --------
+        >>> import numpy as np, pdlin
+        >>> cloud = pdlin.grid((4, 4), spacing=0.1)
+        >>> bonds = pdlin.find_bonds(cloud, ratio=1.5)
+        >>> m = pdlin.BondBased(E=1.0, kinematics="finite")
+        >>> Q = np.array([[0.0, -1.0], [1.0, 0.0]])           # a 90 degree rigid rotation
+        >>> u = cloud.points @ Q.T - cloud.points
+        >>> r = m.respond(cloud, bonds, u, {})
+        >>> float(np.abs(r.force).max()) < 1e-15             # no force: finite kinematics
+        True
+        """
+        from .base import Response
+
+        if self.kinematics == "small":
+            return super().respond(cloud, bonds, u, state, tangent=tangent)
+        f = self.internal_force(cloud, bonds, u, linear=False)
+        K = None
+        if tangent:
+            uu = as_displacement(u, cloud.n, cloud.dim)
+            y = bonds.xi + uu[bonds.j] - uu[bonds.i]
+            ly = np.sqrt(np.einsum("ij,ij->i", y, y))
+            k = self.bond_stiffness(cloud, bonds)
+            ratio = bonds.length / ly
+            K = pair_stiffness_bsr(bonds, k * ratio, y / ly[:, None])
+            b = k * (1.0 - ratio)
+            if np.any(b != 0.0):
+                n, d = cloud.n, cloud.dim
+                lap = sp.csr_array((-b, (bonds.i, bonds.j)), shape=(n, n))
+                lap = lap + sp.diags_array(np.bincount(bonds.i, weights=b, minlength=n))
+                iso = sp.kron(lap, sp.eye_array(d), format="bsr")
+                K = sp.bsr_array(K + iso, blocksize=(d, d))
+        return Response(np.asarray(f), dict(state), K, None, 0)
 
     def describe(self) -> dict[str, Any]:
         return {
