@@ -145,6 +145,16 @@ def _run_nonlinear(args: argparse.Namespace, scene: Any, prog: Any) -> int:
     return 0
 
 
+def _cmd_export(args: argparse.Namespace) -> int:
+    from ..io.results import export_system
+
+    scene = _load(args)
+    out = export_system(args.output, scene.problem, eliminated=not args.unconstrained)
+    kind = "K, f (unconstrained)" if args.unconstrained else "A, b (Dirichlet eliminated)"
+    print(f"wrote {out} ({kind}, {scene.cloud.n * scene.cloud.dim:,} DOFs)")
+    return 0
+
+
 def _cmd_info(args: argparse.Namespace) -> int:
     from ..geometry.bonds import find_bonds
 
@@ -334,6 +344,17 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--json", action="store_true")
     c.add_argument("--no-plot", action="store_true", help="skip the plot named in the file")
     c.set_defaults(func=_cmd_calibrate)
+
+    x = sub.add_parser("export", help="write a scene's assembled system (Matrix Market or npz)")
+    x.add_argument("scene", nargs="?", help="scene file (.toml)")
+    x.add_argument("--example", help="use a built-in example scene")
+    x.add_argument("-o", "--output", required=True, help="K.mtx (+ K_rhs.mtx) or system.npz")
+    x.add_argument(
+        "--unconstrained",
+        action="store_true",
+        help="write K and f before the Dirichlet elimination (default: the eliminated A, b)",
+    )
+    x.set_defaults(func=_cmd_export)
 
     e = sub.add_parser("examples", help="list the built-in example scenes")
     e.add_argument("--show", metavar="NAME", help="print the scene file of an example")

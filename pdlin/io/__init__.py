@@ -1,5 +1,19 @@
-"""Input/output: result files and scene files."""
+"""Input/output: result files, time series, system export and scene files."""
 
-from .results import write_points, write_result
+from .results import (
+    export_system,
+    write_homogenized_csv,
+    write_nonlinear,
+    write_points,
+    write_result,
+    write_series,
+)
 
-__all__ = ["write_points", "write_result"]
+__all__ = [
+    "write_points",
+    "write_result",
+    "write_series",
+    "write_nonlinear",
+    "write_homogenized_csv",
+    "export_system",
+]

@@ -23,6 +23,7 @@ from ..errors import InputError, ShapeError
 from ..geometry.cloud import PointCloud
 
 __all__ = [
+    "export_system",
     "write_points",
     "write_result",
     "write_series",
@@ -67,6 +68,10 @@ def _need_h5py() -> None:
 def _staging(target: Path) -> Iterator[Path]:
     """A private directory next to ``target``; its files replace theirs only on success."""
     target.parent.mkdir(parents=True, exist_ok=True)
+    # staging directories of this target left by a killed writer (a finished or failed
+    # write removes its own): clear them, they never hold a complete result
+    for stale in target.parent.glob(f".{target.name}.*.partial"):
+        shutil.rmtree(stale, ignore_errors=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".partial", dir=target.parent))
     try:
         yield tmp
@@ -321,3 +326,68 @@ def write_nonlinear(path: str | Path, result: Any) -> Path:
                     fields[f"state_{key}"] = arr.astype(float)
         steps.append(fields)
     return write_series(path, cloud, result.times, steps)
+
+
+def export_system(path: str | Path, problem: Any, *, eliminated: bool = True) -> Path:
+    """Write the assembled system of a static problem for solvers outside pdlin.
+
+    ``.mtx`` (Matrix Market): the matrix in ``<path>`` and the right-hand side
+    in ``<stem>_rhs.mtx`` (a dense column); ``.npz``: one file holding the
+    matrix in scipy's CSR arrays (``data``, ``indices``, ``indptr``,
+    ``shape``), ``rhs``, the prescribed ``dofs`` and ``values``, ``dim`` and
+    ``points``.  With ``eliminated=True`` (default) the matrix is the
+    Dirichlet-eliminated ``A`` of :meth:`pdlin.ConstrainedSystem.eliminate`
+    (same size, prescribed rows and columns ``s I``, ``rhs = 0`` there: solve
+    ``A x = rhs`` and set ``x[dofs] = values``); otherwise the unconstrained
+    ``K`` and the external force ``f``.  Written atomically.
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin, tempfile, os, scipy.io
+    >>> cloud = pdlin.grid((6,), spacing=0.1)
+    >>> prob = pdlin.StaticProblem(pdlin.BondBased(E=1.0), cloud, horizon=0.2,
+    ...     dirichlet=[pdlin.Dirichlet("x-", 0.0)], loads=[pdlin.TotalForce("x+", [1e-3])])
+    >>> p = export_system(os.path.join(tempfile.mkdtemp(), "K.mtx"), prob)
+    >>> A = scipy.io.mmread(p); b = scipy.io.mmread(p.with_name("K_rhs.mtx")).ravel()
+    >>> x = np.linalg.solve(A.toarray(), b)
+    >>> bool(np.allclose(x, pdlin.solve(prob, solver="direct").u.ravel()))
+    True
+    """
+    import scipy.io
+    import scipy.sparse as sp
+
+    from ..system import constrained_system
+
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix not in (".mtx", ".npz"):
+        raise InputError(f"export path must end with .mtx or .npz, got {str(p)!r}")
+    system = constrained_system(problem)
+    K = system.assemble()
+    if eliminated:
+        A, rhs = system.eliminate(K)
+    else:
+        A, rhs = K, system.f_ext
+    A = sp.csr_array(A)
+    rhs = np.asarray(rhs, dtype=float)
+    if not (np.all(np.isfinite(A.data)) and np.all(np.isfinite(rhs))):
+        raise InputError("the assembled system holds NaN or inf; refusing to export it")
+    with _staging(p) as tmp:
+        if suffix == ".mtx":
+            scipy.io.mmwrite(tmp / p.name, A, symmetry="general")
+            scipy.io.mmwrite(tmp / f"{p.stem}_rhs.mtx", rhs.reshape(-1, 1))
+        else:
+            np.savez_compressed(
+                tmp / p.name,
+                data=A.data,
+                indices=A.indices,
+                indptr=A.indptr,
+                shape=np.array(A.shape),
+                rhs=rhs,
+                dofs=system.dofs,
+                values=system.values,
+                dim=np.array(system.dim),
+                points=np.asarray(system.cloud.points),
+                eliminated=np.array(bool(eliminated)),
+            )
+    return p
