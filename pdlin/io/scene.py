@@ -53,9 +53,9 @@ _TOP = {
     "output",
 }
 _GEOM = {
-    "grid": {"type", "shape", "spacing", "origin", "thickness"},
+    "grid": {"type", "shape", "spacing", "origin", "thickness", "ghost_layers"},
     "mesh": {"type", "path", "thickness", "dim"},
-    "image": {"type", "path", "data", "spacing", "origin", "void", "thickness"},
+    "image": {"type", "path", "data", "spacing", "origin", "void", "thickness", "ghost_layers"},
 }
 _MATERIAL = {
     "type",
@@ -252,7 +252,17 @@ def _crystal_plasticity(material: Mapping[str, Any], cloud: PointCloud) -> Any:
         grains = _require(pc, "grains", "material.polycrystal")
         if isinstance(grains, bool) or not isinstance(grains, int) or grains < 1:
             raise SceneError(f"material.polycrystal.grains must be an integer >= 1, got {grains!r}")
-        _, orientation = voronoi_polycrystal(cloud, grains, seed=int(pc.get("seed", 0)))
+        seed = int(pc.get("seed", 0))
+        if "ghost" in cloud.sets:
+            # grains on the real points; a ghost copies the orientation of its nearest one
+            from scipy.spatial import cKDTree
+
+            real = np.setdiff1d(np.arange(cloud.n), cloud.point_set("ghost"))
+            _, ori_real = voronoi_polycrystal(cloud.points[real], grains, seed=seed)
+            _, near = cKDTree(cloud.points[real]).query(cloud.points)
+            orientation = ori_real[near]
+        else:
+            _, orientation = voronoi_polycrystal(cloud, grains, seed=seed)
     kw: dict[str, Any] = {}
     for key in ("elastic", "hardening", "shear"):
         if key in material:
@@ -440,7 +450,16 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
     base = Path(base_dir) if base_dir is not None else Path.cwd()
     top = _check_keys(data, _TOP, "")
     try:
-        cloud = _geometry(_require(top, "geometry", "scene"), base)
+        gcfg = _require(top, "geometry", "scene")
+        cloud = _geometry(gcfg, base)
+        n_real = cloud.n
+        if isinstance(gcfg, Mapping) and "ghost_layers" in gcfg:
+            layers = gcfg["ghost_layers"]
+            if isinstance(layers, bool) or not isinstance(layers, int) or layers < 1:
+                raise SceneError(f"geometry.ghost_layers must be an integer >= 1, got {layers!r}")
+            from ..geometry.cloud import ghost_layer
+
+            cloud = ghost_layer(cloud, layers).cloud
         material = _check_keys(_require(top, "material", "scene"), _MATERIAL, "material")
         model_cfg = _check_keys(top.get("model", {}), _MODEL, "model")
         hcfg = _check_keys(_require(top, "horizon", "scene"), _HORIZON, "horizon")
@@ -577,6 +596,8 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         raise SceneError(f"invalid scene: {exc}") from exc
     out = ocfg.get("path")
     nonlinear = _nonlinear_options(scfg, problem, base)
+    if nonlinear is not None and cloud.n != n_real:
+        nonlinear["homogenize"] = np.arange(n_real)  # ghosts are not part of the body
     hom = ocfg.get("homogenized")
     if hom is not None and nonlinear is None:
         raise SceneError("output.homogenized needs a nonlinear solve ([solver] nonlinear = ...)")
