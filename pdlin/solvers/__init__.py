@@ -1,4 +1,4 @@
-"""Solvers: direct, AMG-preconditioned Krylov, and (later) ADR / Newton."""
+"""Solvers: direct, AMG-preconditioned Krylov, and the nonlinear step drivers (Newton, ADR)."""
 
 from .linear import (
     AMG_DEFAULTS,
@@ -8,6 +8,14 @@ from .linear import (
     amg_hierarchy,
     solve_linear,
 )
+from .nonlinear import (
+    StepFailed,
+    StepOutcome,
+    adr_density,
+    adr_step,
+    adr_time_step,
+    newton_step,
+)
 
 __all__ = [
     "AMG_DEFAULTS",
@@ -16,4 +24,10 @@ __all__ = [
     "LinearSolveInfo",
     "amg_hierarchy",
     "solve_linear",
+    "StepFailed",
+    "StepOutcome",
+    "adr_density",
+    "adr_step",
+    "adr_time_step",
+    "newton_step",
 ]
