@@ -63,7 +63,8 @@ def integer(value: Any, name: str, *, minimum: int | None = None) -> int:
         ok = True
     if not ok:
         bound = "" if minimum is None else f" >= {minimum}"
-        raise InputError(f"{name} must be an integer{bound}, got {value!r}")
+        shown = value.item() if isinstance(value, np.generic) else value
+        raise InputError(f"{name} must be an integer{bound}, got {shown!r}")
     v = int(value)
     if minimum is not None and v < minimum:
         raise InputError(f"{name} must be an integer >= {minimum}, got {v}")
