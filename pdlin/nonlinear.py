@@ -22,7 +22,8 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
-from .errors import ActiveSetWarning, ConvergenceError, InputError, InputTypeError
+from ._validation import as_float_array, integer
+from .errors import ActiveSetWarning, ConvergenceError, InputError, InputTypeError, ShapeError
 from .operators.bc import TimePath, eliminate_dirichlet
 from .problem import StaticProblem
 from .solvers.linear import solve_linear
@@ -363,9 +364,10 @@ def solve_nonlinear(
         hardening materials far from equilibrium may need more) or a
         positive number / ``(n*dim,)`` array with an explicit ``dt`` (spec
         001 Eq. 12: ``Λ = 1``, ``Δt = h sqrt(1/E_max)``); constant
-        ``damping`` instead of the adaptive Rayleigh quotient; initial damping
-        ``c0``; iteration budget per step (default ``200 ⌈N^(1/dim)⌉ + 2000``);
-        absolute floor on ``‖r‖`` relative to the force scale.
+        ``damping`` instead of the adaptive Rayleigh quotient (finite, >= 0); initial
+        damping ``c0`` (finite, >= 0); iteration budget per step, an integer >= 1
+        (default ``200 ⌈N^(1/dim)⌉ + 2000``); absolute floor on ``‖r‖`` relative to the
+        force scale.
     homogenize : index array or mask, optional
         Points of the volume average (default all), e.g. the real points of a
         ghost-layer problem.
@@ -376,7 +378,8 @@ def solve_nonlinear(
         ``resume=True`` an existing checkpoint of the same problem is
         continued from its last committed step (its step times must be the
         first ones of this run: a finished run can be extended with more
-        steps, or several drivers can continue from one committed state).
+        steps, or several drivers can continue from one committed state).  Its
+        folder must exist; ``resume=True`` needs a checkpoint.
     progress : callable, optional
         Called with one line per step.
 
@@ -386,6 +389,9 @@ def solve_nonlinear(
 
     Raises
     ------
+    InputError
+        An option is out of range (``method``, ``steps``, ``times``, ``rtol``, ``e_l``,
+        ``density``, ``dt``, ``damping``, ``c0``, ``adr_maxiter``, ``checkpoint``, ...).
     ConvergenceError
         A step fails with the chosen method (with 'auto': Newton and ADR).
 
@@ -416,6 +422,26 @@ def solve_nonlinear(
     for name, ival in (("maxiter", maxiter), ("max_cutbacks", max_cutbacks)):
         if isinstance(ival, bool) or not isinstance(ival, int) or ival < 0:
             raise InputError(f"{name} must be an integer >= 0, got {ival!r}")
+    for name, opt in (("damping", damping), ("c0", c0)):
+        if opt is None and name == "damping":
+            continue
+        if not (isinstance(opt, int | float) and not isinstance(opt, bool)) or not (
+            math.isfinite(opt) and opt >= 0
+        ):
+            raise InputError(f"{name} must be a finite number >= 0, got {opt!r}")
+    if adr_maxiter is not None:
+        adr_maxiter = integer(adr_maxiter, "adr_maxiter", minimum=1)
+    if resume and checkpoint is None:
+        raise InputError("resume=True needs checkpoint= (the file to resume from), got None")
+    if checkpoint is not None:
+        if not isinstance(checkpoint, str | os.PathLike):
+            raise InputTypeError(f"checkpoint must be a path, got {type(checkpoint).__name__}")
+        parent = Path(checkpoint).parent
+        if not parent.is_dir():
+            raise InputError(
+                f"checkpoint must be a path in an existing folder, got {os.fspath(checkpoint)!r} "
+                f"(folder {str(parent)!r} does not exist)"
+            )
     say = progress or (lambda msg: None)
     t_start = time.perf_counter()
     tt = _times(steps, t_end, times)
@@ -444,12 +470,17 @@ def solve_nonlinear(
                 )
             adr_dt = 1.0 if dt is None else float(dt)
         else:
+            dens = as_float_array(density, "density")
+            if dens.ndim > 1 or dens.size not in (1, system.ndof):
+                raise ShapeError(
+                    f"density must be a scalar or have shape ({system.ndof},), got {dens.shape}"
+                )
+            if np.any(dens <= 0):
+                raise InputError(f"density must be > 0, got min {float(dens.min())}")
             if dt is None:
                 raise InputError("an explicit ADR density needs dt (e.g. h sqrt(Λ / E_max))")
             adr_dt = float(dt)
-            arr = np.broadcast_to(np.asarray(density, dtype=float), (system.ndof,)).copy()
-            if np.any(arr <= 0) or not np.all(np.isfinite(arr)):
-                raise InputError("density must be positive and finite")
+            arr = np.broadcast_to(dens.reshape(-1), (system.ndof,)).copy()
             lam = arr
     budget = int(adr_maxiter) if adr_maxiter is not None else 200 * math.ceil(n ** (1.0 / d)) + 2000
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import logging
 import os
 import time
@@ -12,7 +13,8 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import InputError, InputTypeError
+from ._validation import as_float_array, integer, tolerance
+from .errors import InputError, InputTypeError, ShapeError
 from .fields import small_strain
 from .geometry.bonds import Bonds, find_bonds
 from .geometry.cloud import PointCloud
@@ -24,12 +26,16 @@ from .operators.bc import (
     TotalForce,
 )
 from .operators.symmetry import SymmetryPlane, SymmetryReduction
-from .solvers.linear import LinearSolveInfo, solve_linear
+from .solvers.linear import SOLVERS, LinearSolveInfo, solve_linear
 from .system import ConstrainedSystem, PlainDiscretization, constrained_system
 
 __all__ = ["StaticProblem", "StaticResult", "solve"]
 
 log = logging.getLogger(__name__)
+
+
+#: keyword arguments of find_bonds that ``StaticProblem.bond_options`` may hold
+_BOND_OPTIONS = set(inspect.signature(find_bonds).parameters) - {"cloud", "horizon"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,6 +95,34 @@ class StaticProblem:
             object.__setattr__(self, "loads", (self.loads,))
         object.__setattr__(self, "dirichlet", tuple(self.dirichlet))
         object.__setattr__(self, "loads", tuple(self.loads))
+        for k, bc in enumerate(self.dirichlet):
+            if not isinstance(bc, Dirichlet):
+                raise InputTypeError(
+                    f"dirichlet[{k}] must be a pdlin Dirichlet, got {type(bc).__name__}"
+                )
+        for k, ld in enumerate(self.loads):
+            if not isinstance(ld, BodyForce | TotalForce):
+                raise InputTypeError(
+                    f"loads[{k}] must be a BodyForce or TotalForce, got {type(ld).__name__}"
+                )
+        if self.bonds is not None and self.bonds.n_points != self.cloud.n:
+            raise ShapeError(
+                f"bonds must belong to the cloud ({self.cloud.n} points), got bonds over "
+                f"{self.bonds.n_points} points"
+            )
+        if not isinstance(self.bond_options, Mapping):
+            raise InputTypeError(
+                f"bond_options must be a mapping, got {type(self.bond_options).__name__}"
+            )
+        unknown = sorted(set(self.bond_options) - _BOND_OPTIONS)
+        if unknown:
+            raise InputError(
+                f"bond_options has unknown key {unknown[0]!r}; allowed: {sorted(_BOND_OPTIONS)}"
+            )
+        if self.horizon is not None:
+            h = as_float_array(self.horizon, "horizon")
+            if h.size and np.any(h <= 0):
+                raise InputError(f"horizon must be > 0, got min {float(h.min())}")
         sym = (self.symmetry,) if isinstance(self.symmetry, SymmetryPlane) else tuple(self.symmetry)
         for k, p in enumerate(sym):
             if not isinstance(p, SymmetryPlane):
@@ -234,8 +268,9 @@ def solve(
         'auto' (direct up to 5,000 DOFs, then AMG-CG), 'direct', 'amg-cg',
         'cg', 'jacobi-cg', 'amg-gmres', 'ilu-gmres', 'gmres'.
     rtol : float
-        Relative residual tolerance of iterative solvers.
+        Relative residual tolerance of iterative solvers, in ``(0, 1)``.
     maxiter : int, optional
+        Iteration limit of iterative solvers (an integer >= 1).
     amg_options : mapping, optional
         Overrides of :data:`pdlin.solvers.AMG_DEFAULTS`.
     keep_stiffness : bool
@@ -268,6 +303,9 @@ def solve(
 
     Raises
     ------
+    InputError
+        When ``solver``, ``rtol``, ``maxiter`` or ``amg_options`` are out of range, or the
+        problem's data (horizon, conditions, loads) are invalid.
     FloatingBodyError
         When the conditions leave rigid-body motions free.
     ConvergenceError
@@ -275,6 +313,16 @@ def solve(
     """
     if not isinstance(problem, StaticProblem):
         raise InputTypeError(f"problem must be a StaticProblem, got {type(problem).__name__}")
+    if solver not in SOLVERS:
+        raise InputError(f"solver must be one of {SOLVERS}, got {solver!r}")
+    rtol = tolerance(rtol, "rtol")
+    if maxiter is not None:
+        maxiter = integer(maxiter, "maxiter", minimum=1)
+    if amg_options is not None and not isinstance(amg_options, Mapping):
+        raise InputTypeError(
+            f"amg_options must be a mapping of pyamg keyword arguments, got "
+            f"{type(amg_options).__name__}"
+        )
     say = progress or (lambda msg: None)
     timings: dict[str, float] = {}
     t_start = time.perf_counter()

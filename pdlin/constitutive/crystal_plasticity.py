@@ -36,8 +36,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validation import check_finite
-from ..errors import ActiveSetWarning, InputError, ShapeError
+from .._validation import check_finite, integer, positive_scalar
+from ..errors import ActiveSetWarning, InputError, InputTypeError, ShapeError
 from .tensors import (
     _tensor_to_voigt_unchecked,
     _voigt_to_tensor_unchecked,
@@ -600,7 +600,7 @@ class CrystalPlasticity:
         self.shear = shear
         self.renormalize = bool(renormalize)
         self.c_over_a = float(c_over_a)
-        self.tangent_step = float(tangent_step)
+        self.tangent_step = positive_scalar(tangent_step, "tangent_step")
         self.dim = 2 if slip == "planar-2" else 3
         self.families = SLIP_FAMILIES[slip]
         self.m, self.n = slip_systems(slip, self.c_over_a)
@@ -1425,6 +1425,11 @@ def material_point(
     """
     from scipy.linalg import expm
 
+    if not isinstance(material, CrystalPlasticity | SaintVenantKirchhoff):
+        raise InputTypeError(
+            "material must be a CrystalPlasticity or SaintVenantKirchhoff, got "
+            f"{type(material).__name__}"
+        )
     d = material.dim
     if isinstance(loading, str):
         if loading not in _LOADINGS[d]:
@@ -1435,9 +1440,10 @@ def material_point(
         if L.shape != (d, d):
             raise ShapeError(f"loading must have shape ({d}, {d}), got {L.shape}")
         check_finite(L, "loading")
-    if int(steps) < 1:
-        raise InputError(f"steps must be >= 1, got {steps}")
-    steps = int(steps)
+    steps = integer(steps, "steps", minimum=1)
+    eta_v = float(eta) if isinstance(eta, int | float | np.number) else np.nan
+    if not np.isfinite(eta_v):
+        raise InputError(f"eta must be a finite number, got {eta!r}")
     eta = float(eta)
     if isinstance(material, CrystalPlasticity):
         o = material.orientation if orientation is None else orientation

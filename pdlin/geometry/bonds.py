@@ -423,7 +423,7 @@ def find_bonds(
         weights, :func:`pdlin.higher_order_weights`); bond-based models
         refuse bonds with negative stiffness.
     rtol : float
-        Relative tolerance of the inclusive membership test.
+        Relative tolerance of the inclusive membership test, in ``[0, 1)``.
     method : {'auto', 'lattice', 'tree'}
         'lattice' uses the integer stencil of a :func:`pdlin.grid` cloud
         (exact bond vectors, no search); 'auto' picks it when possible.
@@ -445,6 +445,8 @@ def find_bonds(
     hor = resolve_horizon(cloud, horizon, ratio)
     if shape not in SHAPES:
         raise InputError(f"shape must be one of {SHAPES}, got {shape!r}")
+    if not isinstance(rtol, int | float | np.number) or not (0.0 <= float(rtol) < 1.0):
+        raise InputError(f"rtol must be a number in [0, 1), got {rtol!r}")
     ax: np.ndarray | None = None
     if shape in ("ellipsoid", "box"):
         if axes is None:

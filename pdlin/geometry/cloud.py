@@ -9,7 +9,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .._validation import as_float_array, check_finite
+from .._validation import as_float_array, check_finite, integer, positive_scalar
 from ..errors import InputError, ShapeError
 
 __all__ = ["PointCloud", "Lattice", "grid", "from_image", "ghost_layer", "GhostLayer"]
@@ -139,6 +139,8 @@ class PointCloud:
             if m.shape != (n,):
                 raise ShapeError(f"material must have shape ({n},), got {m.shape}")
             if not np.issubdtype(m.dtype, np.integer):
+                if not (np.issubdtype(m.dtype, np.floating) or m.dtype == bool):
+                    raise InputError(f"material must hold integer ids, got dtype {m.dtype}")
                 if np.issubdtype(m.dtype, np.floating):
                     check_finite(m, "material")
                 if not np.all(np.asarray(m) == np.round(m)):
@@ -149,9 +151,7 @@ class PointCloud:
             if not isinstance(name, str):
                 raise InputError(f"set names must be strings, got {name!r}")
             sets[name] = _as_index_array(idx, f"sets[{name!r}]", n)
-        thick = float(self.thickness)
-        if not np.isfinite(thick) or thick <= 0:
-            raise InputError(f"thickness must be > 0, got {self.thickness}")
+        thick = positive_scalar(self.thickness, "thickness")
         pts.setflags(write=False)
         vol.setflags(write=False)
         object.__setattr__(self, "points", pts)
@@ -348,16 +348,21 @@ def grid(
     >>> float(cloud.volumes[0]), sorted(cloud.sets)
     (0.25, ['x+', 'x-', 'y+', 'y-'])
     """
+    if isinstance(shape, str) or not isinstance(shape, int | np.integer | Sequence | np.ndarray):
+        raise InputError(f"shape must be an integer or a sequence of integers, got {shape!r}")
     if isinstance(shape, int | np.integer):
-        shp: tuple[int, ...] = (int(shape),)
+        shp: tuple[int, ...] = (integer(shape, "shape"),)
     else:
-        shp = tuple(int(s) for s in shape)
+        shp = tuple(integer(s, f"shape[{k}]") for k, s in enumerate(shape))
     dim = len(shp)
     if dim not in (1, 2, 3):
         raise ShapeError(f"shape must have 1, 2 or 3 entries, got {shp}")
     if any(s < 1 for s in shp):
         raise InputError(f"shape entries must be >= 1, got {shp}")
-    h = np.broadcast_to(as_float_array(spacing, "spacing"), (dim,)).astype(float)
+    h = as_float_array(spacing, "spacing")
+    if h.ndim > 1 or h.size not in (1, dim):
+        raise ShapeError(f"spacing must be a scalar or have shape ({dim},), got {h.shape}")
+    h = np.broadcast_to(h.reshape(-1), (dim,)).astype(float)
     if np.any(h <= 0):
         raise InputError(f"spacing must be > 0, got {h.tolist()}")
     o = np.zeros(dim) if origin is None else as_float_array(origin, "origin")
@@ -418,6 +423,8 @@ def from_image(
     if not np.issubdtype(img.dtype, np.integer):
         if np.issubdtype(img.dtype, np.bool_):
             img = img.astype(np.int64)
+        elif not np.issubdtype(img.dtype, np.floating):
+            raise InputError(f"image must hold integer phase ids, got dtype {img.dtype}")
         else:
             imgf = np.asarray(img, dtype=float)
             check_finite(imgf, "image")

@@ -71,7 +71,15 @@ def voronoi_polycrystal(
         raise InputError(
             f"n_grains must be an integer in [1, {n}] (the point count), got {n_grains}"
         )
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    if isinstance(seed, np.random.Generator):
+        rng = seed
+    else:
+        try:
+            rng = np.random.default_rng(seed)
+        except (TypeError, ValueError) as exc:
+            raise InputError(
+                f"seed must be an int, None or a numpy Generator, got {seed!r}"
+            ) from exc
     seeds = rng.choice(n, size=k, replace=False)
     _, grain = cKDTree(x[seeds]).query(x)
     grain = np.asarray(grain, dtype=np.int64)

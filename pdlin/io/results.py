@@ -19,7 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError, ShapeError
+from .._validation import as_bool, as_float_array
+from ..errors import InputError, InputTypeError, ShapeError
 from ..geometry.cloud import PointCloud
 
 __all__ = [
@@ -83,11 +84,27 @@ def _staging(target: Path) -> Iterator[Path]:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+def _check_cloud(cloud: Any) -> None:
+    if not isinstance(cloud, PointCloud):
+        raise InputTypeError(f"cloud must be a PointCloud, got {type(cloud).__name__}")
+
+
 def _check_fields(n: int, fields: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    if not isinstance(fields, Mapping):
+        raise InputTypeError(
+            f"fields must be a mapping of name to (n,) / (n, k) arrays, got {type(fields).__name__}"
+        )
     data: dict[str, np.ndarray] = {}
     for name, val in fields.items():
-        arr = np.asarray(val, dtype=float)
-        if arr.shape[0] != n:
+        if not isinstance(name, str) or not name:
+            raise InputTypeError(f"field names must be non-empty strings, got {name!r}")
+        try:
+            arr = np.asarray(val, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InputError(
+                f"field {name!r} must be a numeric array, got {type(val).__name__}: {exc}"
+            ) from exc
+        if arr.ndim == 0 or arr.shape[0] != n:
             raise ShapeError(f"field {name!r} must have {n} rows, got shape {arr.shape}")
         if not np.all(np.isfinite(arr)):
             raise InputError(f"field {name!r} holds NaN or inf; refusing to write it")
@@ -143,6 +160,7 @@ def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any])
     suffix = p.suffix.lower()
     if suffix not in SUPPORTED_SUFFIXES:
         raise InputError(f"output path must end with one of {SUPPORTED_SUFFIXES}, got {str(p)!r}")
+    _check_cloud(cloud)
     data = _check_fields(cloud.n, fields)
     with _staging(p) as tmp:
         out = tmp / p.name
@@ -210,10 +228,16 @@ def write_series(
     suffix = p.suffix.lower()
     if suffix not in SERIES_SUFFIXES:
         raise InputError(f"series path must end with one of {SERIES_SUFFIXES}, got {str(p)!r}")
-    tt = np.asarray(times, dtype=float).reshape(-1)
+    _check_cloud(cloud)
+    tt = as_float_array(times, "times").reshape(-1)
     if tt.size != len(steps) or tt.size == 0:
         raise ShapeError(
             f"times and steps must have the same non-zero length, got {tt.size} and {len(steps)}"
+        )
+    if np.any(np.diff(tt) <= 0):
+        k = int(np.flatnonzero(np.diff(tt) <= 0)[0])
+        raise InputError(
+            f"times must be increasing, got times[{k}] = {tt[k]} and times[{k + 1}] = {tt[k + 1]}"
         )
     data = [_check_fields(cloud.n, f) for f in steps]
     pts = _pad3(np.asarray(cloud.points))
@@ -358,6 +382,7 @@ def export_system(path: str | Path, problem: Any, *, eliminated: bool = True) ->
 
     from ..system import constrained_system
 
+    eliminated = as_bool(eliminated, "eliminated")
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix not in (".mtx", ".npz"):

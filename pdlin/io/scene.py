@@ -17,11 +17,19 @@ from typing import Any
 import numpy as np
 
 from ..errors import PdlinError, SceneError
-from ..geometry.bonds import Bonds, find_bonds
+from ..geometry.bonds import SHAPES, Bonds, find_bonds
 from ..geometry.cloud import PointCloud, from_image, grid
+from ..geometry.influence import INFLUENCE_FUNCTIONS
 from ..models.base import Model
 from ..models.bond_based import BondBased
-from ..operators.bc import BodyForce, Dirichlet, TotalForce, shadow_layer
+from ..operators.bc import (
+    BodyForce,
+    Dirichlet,
+    TotalForce,
+    load_vector,
+    resolve_dirichlet,
+    shadow_layer,
+)
 from ..problem import StaticProblem
 from ._keys import check_keys, read_toml
 
@@ -292,6 +300,10 @@ def per_phase(value: Any, cloud: PointCloud, key: str) -> Any:
     present in the cloud must be listed.
     """
     if not isinstance(value, Mapping):
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise SceneError(
+                f"{key} must be a number or a table of per-phase numbers, got {value!r}"
+            )
         return value
     try:
         table = {int(k): float(v) for k, v in value.items()}
@@ -373,22 +385,43 @@ def _resolve_path(p: Any, base: Path, key: str) -> Path:
     return path
 
 
+def _number(value: Any, key: str, *, positive: bool = False) -> float:
+    """A TOML number (int or float, not bool) as a float, else SceneError naming ``key``."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise SceneError(f"{key} must be a number, got {type(value).__name__} {value!r}")
+    v = float(value)
+    if positive and not (np.isfinite(v) and v > 0):
+        raise SceneError(f"{key} must be > 0, got {v}")
+    return v
+
+
 def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
+    if not isinstance(cfg, Mapping):
+        raise SceneError(f"geometry must be a table, got {type(cfg).__name__}")
     kind = cfg.get("type", "grid")
     if kind not in _GEOM:
         raise SceneError(f"geometry.type must be one of {sorted(_GEOM)}, got {kind!r}")
     _check_keys(cfg, _GEOM[kind], "geometry")
-    thickness = float(cfg.get("thickness", 1.0))
+    thickness = _number(cfg.get("thickness", 1.0), "geometry.thickness", positive=True)
     if kind == "grid":
         shape = _require(cfg, "shape", "geometry")
-        return grid(shape, cfg.get("spacing", 1.0), cfg.get("origin"), thickness=thickness)
+        if not isinstance(shape, int | list) or isinstance(shape, bool):
+            raise SceneError(
+                f"geometry.shape must be an integer or a list of integers, got {shape!r}"
+            )
+        spacing = cfg.get("spacing", 1.0)
+        for k, v in enumerate(spacing if isinstance(spacing, list) else [spacing]):
+            _number(v, "geometry.spacing" + (f"[{k}]" if isinstance(spacing, list) else ""))
+        return grid(shape, spacing, cfg.get("origin"), thickness=thickness)
     if kind == "mesh":
         path = _resolve_path(_require(cfg, "path", "geometry"), base, "geometry.path")
         from ..geometry import mesh as mesh_mod  # lazy: meshio readers
 
         kwargs: dict[str, Any] = {}
         if "dim" in cfg:
-            kwargs["dim"] = int(cfg["dim"])
+            if isinstance(cfg["dim"], bool) or not isinstance(cfg["dim"], int):
+                raise SceneError(f"geometry.dim must be 1, 2 or 3, got {cfg['dim']!r}")
+            kwargs["dim"] = cfg["dim"]
         cloud = mesh_mod.read_mesh(path, **kwargs)
         return cloud.replace(thickness=thickness) if thickness != 1.0 else cloud
     # image
@@ -425,7 +458,44 @@ def _where(cfg: Mapping[str, Any], cloud: PointCloud, key: str) -> Any:
         if idx.size == 0:
             raise SceneError(f"{key}.box selects no points")
         return idx
-    return np.asarray(cfg["points"], dtype=np.intp)
+    pts = cfg["points"]
+    if (
+        not isinstance(pts, list)
+        or not pts
+        or not all(isinstance(p, int) and not isinstance(p, bool) for p in pts)
+    ):
+        raise SceneError(f"{key}.points must be a non-empty list of point indices, got {pts!r}")
+    if min(pts) < 0 or max(pts) >= cloud.n:
+        raise SceneError(
+            f"{key}.points must hold indices in [0, {cloud.n - 1}], got range "
+            f"[{min(pts)}, {max(pts)}]"
+        )
+    return np.asarray(pts, dtype=np.intp)
+
+
+def _dirichlet(bc: Mapping[str, Any], where: Any, key: str) -> Dirichlet:
+    """One ``[[dirichlet]]`` table as a :class:`Dirichlet` (value, F or velocity_gradient)."""
+    if "velocity_gradient" in bc:
+        clash = [k for k in ("value", "F", "translation") if k in bc]
+        if clash:
+            raise SceneError(f"{key} takes 'velocity_gradient' or '{clash[0]}', not both")
+        return Dirichlet.velocity_gradient(
+            where,
+            bc["velocity_gradient"],
+            center=bc.get("center"),
+            components=bc.get("components"),
+        )
+    if "F" in bc:
+        if "value" in bc:
+            raise SceneError(f"{key} takes 'value' or 'F', not both")
+        return Dirichlet.affine(
+            where,
+            bc["F"],
+            translation=bc.get("translation"),
+            center=bc.get("center"),
+            components=bc.get("components"),
+        )
+    return Dirichlet(where, bc.get("value", 0.0), bc.get("components"))
 
 
 def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None) -> Scene:
@@ -464,7 +534,22 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         model_cfg = _check_keys(top.get("model", {}), _MODEL, "model")
         hcfg = _check_keys(_require(top, "horizon", "scene"), _HORIZON, "horizon")
         if ("value" in hcfg) == ("ratio" in hcfg):
-            raise SceneError("horizon needs exactly one of 'value' or 'ratio'")
+            given = [k for k in ("value", "ratio") if k in hcfg]
+            raise SceneError(
+                f"horizon needs exactly one of 'value' or 'ratio', got {given or 'none'}"
+            )
+        if "ratio" in hcfg:
+            _number(hcfg["ratio"], "horizon.ratio", positive=True)
+        else:
+            hv = hcfg["value"]
+            if isinstance(hv, list):
+                for k, v in enumerate(hv):
+                    _number(v, f"horizon.value[{k}]", positive=True)
+            else:
+                _number(hv, "horizon.value", positive=True)
+        for key, allowed in (("shape", SHAPES), ("influence", tuple(INFLUENCE_FUNCTIONS))):
+            if key in hcfg and hcfg[key] not in allowed:
+                raise SceneError(f"horizon.{key} must be one of {list(allowed)}, got {hcfg[key]!r}")
         bond_options: dict[str, Any] = {
             k: hcfg[k] for k in ("shape", "axes", "influence", "cracks") if k in hcfg
         }
@@ -479,37 +564,23 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
             )
         else:
             model = _build_model(model_cfg, material, cloud)
+        for name in ("dirichlet", "load", "symmetry"):
+            if name in top and not isinstance(top[name], list):
+                raise SceneError(
+                    f"{name} must be an array of tables ([[{name}]]), got "
+                    f"{type(top[name]).__name__}"
+                )
         dirichlet: list[Dirichlet] = []
         for k, bc in enumerate(top.get("dirichlet", [])):
             key = f"dirichlet[{k}]"
             bc = _check_keys(bc, _DIRICHLET, key)
             where = _where(bc, cloud, key)
-            if "velocity_gradient" in bc:
-                clash = [k for k in ("value", "F", "translation") if k in bc]
-                if clash:
-                    raise SceneError(f"{key} takes 'velocity_gradient' or '{clash[0]}', not both")
-                dirichlet.append(
-                    Dirichlet.velocity_gradient(
-                        where,
-                        bc["velocity_gradient"],
-                        center=bc.get("center"),
-                        components=bc.get("components"),
-                    )
-                )
-            elif "F" in bc:
-                if "value" in bc:
-                    raise SceneError(f"{key} takes 'value' or 'F', not both")
-                dirichlet.append(
-                    Dirichlet.affine(
-                        where,
-                        bc["F"],
-                        translation=bc.get("translation"),
-                        center=bc.get("center"),
-                        components=bc.get("components"),
-                    )
-                )
-            else:
-                dirichlet.append(Dirichlet(where, bc.get("value", 0.0), bc.get("components")))
+            try:
+                dirichlet.append(_dirichlet(bc, where, key))
+            except SceneError:
+                raise
+            except PdlinError as exc:
+                raise SceneError(f"{key}: {exc}") from exc
         shadow_loads: list[Any] = []
         if "shadow" in top:
             sh = _check_keys(top["shadow"], _SHADOW, "shadow")
@@ -557,12 +628,16 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
             ld = _check_keys(ld, _LOAD, key)
             where = _where(ld, cloud, key)
             kind = ld.get("type", "total")
-            if kind == "total":
-                loads.append(TotalForce(where, _require(ld, "force", key)))
-            elif kind == "body":
-                loads.append(BodyForce(where, _require(ld, "density", key)))
-            else:
+            if kind not in ("total", "body"):
                 raise SceneError(f"{key}.type must be 'total' or 'body', got {kind!r}")
+            vkey = "force" if kind == "total" else "density"
+            value = _require(ld, vkey, key)
+            try:
+                loads.append(
+                    TotalForce(where, value) if kind == "total" else BodyForce(where, value)
+                )
+            except PdlinError as exc:
+                raise SceneError(f"{key}.{vkey}: {exc}") from exc
         extra: dict[str, Any] = {}
         if "symmetry" in top:
             from ..operators import symmetry as sym_mod
@@ -573,7 +648,7 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
                 planes.append(
                     sym_mod.SymmetryPlane(
                         _require(s, "axis", f"symmetry[{k}]"),
-                        float(s.get("position", 0.0)),
+                        _number(s.get("position", 0.0), f"symmetry[{k}].position"),
                         side=s.get("side"),
                     )
                 )
@@ -588,6 +663,10 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
             bond_options=bond_options,
             **extra,
         )
+        # resolve the conditions and loads on the cloud now (cheap, no bonds): shapes,
+        # conflicts and empty selections are reported before any assembly
+        resolve_dirichlet(cloud, dirichlet)
+        load_vector(cloud, loads)
         scfg = _check_keys(top.get("solver", {}), _SOLVER, "solver")
         ocfg = _check_keys(top.get("output", {}), _OUTPUT, "output")
     except SceneError:
@@ -595,6 +674,16 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
     except PdlinError as exc:
         raise SceneError(f"invalid scene: {exc}") from exc
     out = ocfg.get("path")
+    for key in ("path", "homogenized"):
+        if key in ocfg and not isinstance(ocfg[key], str):
+            raise SceneError(f"output.{key} must be a path string, got {ocfg[key]!r}")
+    if "fields" in ocfg and (
+        not isinstance(ocfg["fields"], list) or not all(isinstance(f, str) for f in ocfg["fields"])
+    ):
+        raise SceneError(f"output.fields must be a list of field names, got {ocfg['fields']!r}")
+    if "name" in top and not isinstance(top["name"], str):
+        raise SceneError(f"name must be a string, got {top['name']!r}")
+    _solver_options(scfg)
     nonlinear = _nonlinear_options(scfg, problem, base)
     if nonlinear is not None and cloud.n != n_real:
         nonlinear["homogenize"] = np.arange(n_real)  # ghosts are not part of the body
@@ -614,6 +703,22 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         nonlinear=nonlinear,
         homogenized=None if hom is None else (Path(hom) if Path(hom).is_absolute() else base / hom),
     )
+
+
+def _solver_options(scfg: Mapping[str, Any]) -> None:
+    """Type and range checks of the [solver] table's linear-solve keys."""
+    from ..solvers.linear import SOLVERS
+
+    if "name" in scfg and scfg["name"] not in SOLVERS:
+        raise SceneError(f"solver.name must be one of {list(SOLVERS)}, got {scfg['name']!r}")
+    if "rtol" in scfg:
+        rtol = _number(scfg["rtol"], "solver.rtol")
+        if not (np.isfinite(rtol) and 0 < rtol < 1):
+            raise SceneError(f"solver.rtol must be a number in (0, 1), got {rtol}")
+    if "maxiter" in scfg:
+        mi = scfg["maxiter"]
+        if isinstance(mi, bool) or not isinstance(mi, int) or mi < 1:
+            raise SceneError(f"solver.maxiter must be an integer >= 1, got {mi!r}")
 
 
 def _nonlinear_options(
@@ -639,6 +744,25 @@ def _nonlinear_options(
     opts: dict[str, Any] = {"method": method}
     for k in given:
         opts[k] = scfg[k]
+    for k in ("steps", "max_cutbacks"):
+        if k in opts:
+            v = opts[k]
+            lo = 1 if k == "steps" else 0
+            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+                raise SceneError(f"solver.{k} must be an integer >= {lo}, got {v!r}")
+    for k in ("t_end", "e_l", "dt"):
+        if k in opts:
+            _number(opts[k], f"solver.{k}", positive=True)
+    if "damping" in opts:
+        dmp = _number(opts["damping"], "solver.damping")
+        if not (np.isfinite(dmp) and dmp >= 0):
+            raise SceneError(f"solver.damping must be >= 0, got {dmp}")
+    if "density" in opts and opts["density"] != "gershgorin":
+        if isinstance(opts["density"], str):
+            raise SceneError(
+                f"solver.density must be 'gershgorin' or a number > 0, got {opts['density']!r}"
+            )
+        _number(opts["density"], "solver.density", positive=True)
     if "checkpoint" in opts:
         ck = opts["checkpoint"]
         if not isinstance(ck, str):

@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .._validation import as_displacement, as_float_array
+from .._validation import as_displacement, as_float_array, check_finite, integer
 from ..constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
 from ..constitutive.tensors import _mandel_weights, _pairs
 from ..errors import InputError, InputTypeError, ModelError, ShapeError
@@ -803,7 +803,7 @@ class Correspondence(Model):
             raise InputError(f"penalty must be a finite number >= 0, got {penalty!r}")
         if influence is not None and not callable(influence):
             raise InputError(f"influence must be a callable ω(length, horizon), got {influence!r}")
-        if not float(sp_weight) > 0:
+        if not isinstance(sp_weight, int | float | np.number) or not float(sp_weight) > 0:
             raise InputError(f"sp_weight must be > 0, got {sp_weight}")
         if case is not None and control != "stress_points":
             raise InputError(f"case is only used with control='stress_points', got {control!r}")
@@ -815,6 +815,12 @@ class Correspondence(Model):
         coef = default if coefficient is None else float(coefficient)
         if not (np.isfinite(coef) and coef >= 0):
             raise InputError(f"coefficient must be a finite number >= 0, got {coefficient!r}")
+        if C is not None and not isinstance(C, Mapping):
+            c_arr = np.asarray(C) if not isinstance(C, list | tuple) else None
+            if c_arr is not None and c_arr.dtype.kind in "fiub":
+                check_finite(np.asarray(c_arr, dtype=float), "C")
+            elif c_arr is not None and c_arr.dtype.kind != "O":
+                raise InputTypeError(f"C must be a numeric array, got dtype {c_arr.dtype}")
         self.C = C
         self.E = None if E is None else as_float_array(E, "E")
         if self.E is not None and np.any(self.E <= 0):
@@ -825,11 +831,11 @@ class Correspondence(Model):
         self.penalty = pen
         self.influence = influence
         self.shadow = None if shadow is None else np.unique(np.asarray(shadow, dtype=np.intp))
-        self.seed = int(seed)
+        self.seed = integer(seed, "seed")
         self.case = None if case is None else int(case)
         self.sp_weight = float(sp_weight)
         self.coefficient = coef
-        self.max_bytes = int(max_bytes)
+        self.max_bytes = integer(max_bytes, "max_bytes", minimum=1)
         #: the nonlinear material (None: linear elastic C)
         self.material = material
         #: whether f(u) is nonlinear / history dependent (a ``material`` was given)

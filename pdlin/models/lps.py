@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from .._validation import as_bool
 from ._state import OrdinaryStateBased, analytic_weighted_volume, bulk_shear_moduli
 
 __all__ = ["LPS", "bulk_shear_moduli", "analytic_weighted_volume"]
@@ -76,6 +77,7 @@ class LPS(OrdinaryStateBased):
         linearization: str = "energy",
         surface_correction: str | None = None,
     ) -> None:
+        peridigm = as_bool(peridigm, "peridigm")
         super().__init__(
             E,
             nu,
@@ -89,7 +91,7 @@ class LPS(OrdinaryStateBased):
             unit_influence=bool(peridigm),
             surface_correction=surface_correction,
         )
-        self.peridigm = bool(peridigm)
+        self.peridigm = peridigm
 
     def describe(self) -> dict[str, Any]:
         out = super().describe()

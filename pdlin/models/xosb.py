@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 
+from .._validation import as_bool, positive_scalar
 from ..errors import InputError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
@@ -92,6 +93,8 @@ class XOSB(OrdinaryStateBased):
                 "make θ and W exact for homogeneous strains at every non-fallback point); "
                 f"expected None, got {surface_correction!r}"
             )
+        fallback = as_bool(fallback, "fallback")
+        max_cond = positive_scalar(max_cond, "max_cond")
         super().__init__(
             E,
             nu,

@@ -11,7 +11,7 @@ import scipy.linalg
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .._validation import as_float_array
+from .._validation import as_float_array, integer
 from ..errors import FloatingBodyError, InputError, ShapeError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
@@ -53,11 +53,30 @@ def parse_components(components: Any, dim: int) -> np.ndarray:
         except KeyError:
             raise InputError(f"components must be letters from 'xyz', got {components!r}") from None
     else:
-        comps = [int(c) for c in np.atleast_1d(components)]
+        comps = [integer(c, "components") for c in np.atleast_1d(components)]
     arr = np.asarray(comps, dtype=np.intp)
     if arr.size == 0 or arr.min() < 0 or arr.max() >= dim or np.unique(arr).size != arr.size:
         raise InputError(f"components must be distinct axes in [0, {dim - 1}], got {components!r}")
     return arr
+
+
+def _check_where(where: Any, name: str) -> None:
+    """Eager type check of a point selection (set name, index array, mask or None)."""
+    if where is None or isinstance(where, str):
+        return
+    arr = np.asarray(where)
+    if arr.dtype != bool and arr.size and not np.issubdtype(arr.dtype, np.integer):
+        raise InputError(
+            f"{name} must be a set name, integer point indices or a boolean mask, "
+            f"got dtype {arr.dtype}"
+        )
+
+
+def _check_value(value: Any, name: str) -> None:
+    """Eager check of a non-callable BC / load value: numeric and finite."""
+    if value is None or callable(value) or isinstance(value, TimePath):
+        return
+    as_float_array(value, name)
 
 
 def _resolve_where(cloud: PointCloud, where: Any, what: str) -> np.ndarray:
@@ -205,6 +224,12 @@ class Dirichlet:
     value: Any = 0.0
     components: Any = None
 
+    def __post_init__(self) -> None:
+        _check_where(self.where, "where")
+        _check_value(self.value, "value")
+        if self.components is not None:
+            parse_components(self.components, 3)  # letters / distinct ints >= 0 (dim: later)
+
     @classmethod
     def affine(
         cls,
@@ -287,6 +312,10 @@ class BodyForce:
     where: Any
     density: Any
 
+    def __post_init__(self) -> None:
+        _check_where(self.where, "where")
+        _check_value(self.density, "density")
+
 
 @dataclass(frozen=True)
 class TotalForce:
@@ -295,6 +324,12 @@ class TotalForce:
     where: Any
     force: Any
     weights: Any = field(default=None)
+
+    def __post_init__(self) -> None:
+        _check_where(self.where, "where")
+        _check_value(self.force, "force")
+        if self.weights is not None:
+            as_float_array(self.weights, "weights")
 
 
 def shadow_layer(
@@ -425,7 +460,15 @@ def load_vector(cloud: PointCloud, loads: Sequence[Any]) -> np.ndarray:
                 raise ShapeError(f"loads[{k}].force must have shape ({d},), got {total.shape}")
             w = cloud.volumes[idx] if ld.weights is None else as_float_array(ld.weights, "weights")
             if w.shape != idx.shape or np.any(w < 0) or w.sum() <= 0:
-                raise InputError(f"loads[{k}].weights must be {idx.size} non-negative numbers")
+                got = (
+                    f"shape {w.shape}"
+                    if w.shape != idx.shape
+                    else f"min {float(w.min())}, sum {float(w.sum())}"
+                )
+                raise InputError(
+                    f"loads[{k}].weights must be {idx.size} non-negative numbers with a "
+                    f"positive sum, got {got}"
+                )
             np.add.at(f, idx, np.outer(w / w.sum(), total))
         else:
             raise InputError(f"loads[{k}] must be BodyForce or TotalForce, got {type(ld).__name__}")

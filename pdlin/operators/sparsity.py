@@ -24,7 +24,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from ..errors import InputError, InputTypeError, ShapeError
+from ..errors import InputError, InputTypeError, NonFiniteError, ShapeError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
 
@@ -497,10 +497,15 @@ def _free_mask(fixed_dofs: Any, n: int) -> np.ndarray | None:
 
 def _as_sparse(K: Any) -> sp.sparray:
     if sp.issparse(K):
+        data = np.asarray(K.data)
+        if data.dtype.kind in "fc" and not np.all(np.isfinite(data)):
+            raise NonFiniteError("K must be finite, got NaN or inf entries")
         return K
     if isinstance(K, np.ndarray):
         if K.ndim != 2:
             raise ShapeError(f"K must be a 2-D matrix, got an array of shape {K.shape}")
+        if K.dtype.kind in "fc" and not np.all(np.isfinite(K)):
+            raise NonFiniteError("K must be finite, got NaN or inf entries")
         return sp.csr_array(K)
     raise InputTypeError(f"K must be a scipy sparse array or a 2-D ndarray, got {type(K).__name__}")
 

@@ -1,0 +1,150 @@
+"""Hostile input: result writers and system export; a failed write leaves no file."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hostile_util import NAN, expect, problem
+
+import pdlin
+from pdlin.errors import FloatingBodyError, InputError, InputTypeError, NonFiniteError, ShapeError
+from pdlin.io import export_system, write_points, write_series
+
+C = pdlin.grid((4, 4), 0.1)
+U = np.zeros((16, 2))
+
+CASES = [
+    (
+        "points-ext",
+        lambda d: write_points(d / "a.xyz", C, {"u": U}),
+        InputError,
+        r"output path must end with one of .* got '.*a.xyz'",
+    ),
+    (
+        "points-nan",
+        lambda d: write_points(d / "a.vtu", C, {"u": np.full((16, 2), NAN)}),
+        InputError,
+        r"field 'u' holds NaN or inf; refusing to write it",
+    ),
+    (
+        "points-rows",
+        lambda d: write_points(d / "a.vtu", C, {"u": np.zeros((5, 2))}),
+        ShapeError,
+        r"field 'u' must have 16 rows, got shape \(5, 2\)",
+    ),
+    (
+        "points-str",
+        lambda d: write_points(d / "a.vtu", C, {"u": "abc"}),
+        InputError,
+        r"field 'u' must be a numeric array, got str",
+    ),
+    (
+        "points-scalar",
+        lambda d: write_points(d / "a.vtu", C, {"u": 1.0}),
+        ShapeError,
+        r"field 'u' must have 16 rows, got shape \(\)",
+    ),
+    (
+        "points-not-mapping",
+        lambda d: write_points(d / "a.vtu", C, [1, 2]),
+        InputTypeError,
+        r"fields must be a mapping .* got list",
+    ),
+    (
+        "points-name",
+        lambda d: write_points(d / "a.vtu", C, {1: np.zeros(16)}),
+        InputTypeError,
+        r"field names must be non-empty strings, got 1",
+    ),
+    (
+        "points-cloud",
+        lambda d: write_points(d / "a.vtu", None, {}),
+        InputTypeError,
+        r"cloud must be a PointCloud, got NoneType",
+    ),
+    (
+        "points-npz-nan",
+        lambda d: write_points(d / "a.npz", C, {"u": np.full(16, np.inf)}),
+        InputError,
+        r"field 'u' holds NaN or inf",
+    ),
+    (
+        "series-length",
+        lambda d: write_series(d / "s.pvd", C, [0.0, 1.0], [{"u": U}]),
+        ShapeError,
+        r"times and steps must have the same non-zero length, got 2 and 1",
+    ),
+    (
+        "series-times-nan",
+        lambda d: write_series(d / "s.pvd", C, [NAN], [{"u": U}]),
+        NonFiniteError,
+        r"times must be finite, got nan",
+    ),
+    (
+        "series-decreasing",
+        lambda d: write_series(d / "s.pvd", C, [1.0, 0.5], [{"u": U}] * 2),
+        InputError,
+        r"times must be increasing, got times\[0\] = 1.0 and times\[1\] = 0.5",
+    ),
+    (
+        "series-ext",
+        lambda d: write_series(d / "s.txt", C, [1.0], [{"u": U}]),
+        InputError,
+        r"series path must end with one of .* got '.*s.txt'",
+    ),
+    (
+        "series-nan-step",
+        lambda d: write_series(
+            d / "s.pvd", C, [1.0, 2.0], [{"u": U}, {"u": np.full((16, 2), NAN)}]
+        ),
+        InputError,
+        r"field 'u' holds NaN or inf",
+    ),
+    ("series-empty", lambda d: write_series(d / "s.pvd", C, [], []), ShapeError, r"got 0 and 0"),
+    (
+        "series-npz-rows",
+        lambda d: write_series(d / "s.npz", C, [1.0], [{"u": np.zeros((3, 2))}]),
+        ShapeError,
+        r"field 'u' must have 16 rows, got shape \(3, 2\)",
+    ),
+    (
+        "export-ext",
+        lambda d: export_system(d / "K.txt", problem()),
+        InputError,
+        r"export path must end with .mtx or .npz, got '.*K.txt'",
+    ),
+    (
+        "export-problem",
+        lambda d: export_system(d / "K.mtx", "p"),
+        InputTypeError,
+        r"problem must be a StaticProblem, got str",
+    ),
+    (
+        "export-floating",
+        lambda d: export_system(d / "K.mtx", problem(dirichlet=[])),
+        FloatingBodyError,
+        r"the body is floating",
+    ),
+    (
+        "export-nan-load",
+        lambda d: export_system(
+            d / "K.npz", problem(loads=[pdlin.BodyForce("all", lambda x: np.full(x.shape, NAN))])
+        ),
+        NonFiniteError,
+        r"loads\[0\].density \(callable result\) must be finite",
+    ),
+    (
+        "export-eliminated",
+        lambda d: export_system(d / "K.npz", problem(), eliminated="yes"),
+        InputTypeError,
+        r"eliminated must be True or False, got 'yes'",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    ("call", "exc", "pattern"), [c[1:] for c in CASES], ids=[c[0] for c in CASES]
+)
+def test_writers_reject_and_leave_nothing(tmp_path, call, exc, pattern):
+    expect(lambda: call(tmp_path), exc, pattern)
+    assert list(tmp_path.iterdir()) == [], "a failed write left files behind"

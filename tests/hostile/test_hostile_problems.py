@@ -1,0 +1,415 @@
+"""Hostile input: boundary conditions, loads, static problems, linear solves, sparsity."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hostile_util import INF, NAN, expect, problem
+
+import pdlin
+from pdlin.errors import (
+    FloatingBodyError,
+    InputError,
+    InputTypeError,
+    NonFiniteError,
+    ShapeError,
+)
+
+D, TF, BF = pdlin.Dirichlet, pdlin.TotalForce, pdlin.BodyForce
+
+
+def _solve(**kw):
+    return pdlin.solve(problem(**kw))
+
+
+def _run(**kw):
+    return pdlin.solve(problem(), **kw)
+
+
+CASES = [
+    # Dirichlet
+    (
+        "bc-unknown-set",
+        lambda: _solve(dirichlet=[D("left", 0.0)]),
+        InputError,
+        r"unknown point set 'left'",
+    ),
+    ("bc-value-nan", lambda: D("x-", NAN), NonFiniteError, r"value must be finite, got nan"),
+    (
+        "bc-value-inf",
+        lambda: D("x-", [0, INF]),
+        NonFiniteError,
+        r"value must be finite, got inf at index 1",
+    ),
+    ("bc-value-str", lambda: D("x-", "zero"), InputError, r"value must be numeric, got str"),
+    (
+        "bc-components-range",
+        lambda: _solve(dirichlet=[D("x-", 0.0, components=[2])]),
+        InputError,
+        r"components must be distinct axes in \[0, 1\], got \[2\]",
+    ),
+    (
+        "bc-components-neg",
+        lambda: D("x-", 0.0, components=[-1]),
+        InputError,
+        r"components must be distinct axes in \[0, 2\], got \[-1\]",
+    ),
+    (
+        "bc-components-float",
+        lambda: D("x-", 0.0, components=[0.5]),
+        InputError,
+        r"components must be an integer, got 0.5",
+    ),
+    (
+        "bc-components-letter",
+        lambda: D("x-", 0.0, components="w"),
+        InputError,
+        r"components must be letters from 'xyz', got 'w'",
+    ),
+    (
+        "bc-value-shape",
+        lambda: _solve(dirichlet=[D("x-", [0, 0, 0])]),
+        ShapeError,
+        r"dirichlet\[0\].value must be a scalar or have shape .* got \(3,\)",
+    ),
+    (
+        "bc-where-float",
+        lambda: D(np.array([0.5]), 0.0),
+        InputError,
+        r"where must be a set name, integer point indices or a boolean mask, got dtype float64",
+    ),
+    (
+        "bc-where-oob",
+        lambda: _solve(dirichlet=[D([1000], 0.0)]),
+        InputError,
+        r"point selection must hold indices in \[0, 35\], got range \[1000, 1000\]",
+    ),
+    (
+        "bc-empty-set",
+        lambda: _solve(dirichlet=[D([], 0.0)]),
+        InputError,
+        r"dirichlet\[0\] selects no points \(where=\[\]\)",
+    ),
+    (
+        "bc-conflict",
+        lambda: _solve(dirichlet=[D("x-", 0.0), D("x-", 1.0)]),
+        InputError,
+        r"dirichlet conditions conflict: dof 0 .* prescribed as 0.0 and 1.0",
+    ),
+    (
+        "affine-F-nan",
+        lambda: D.affine("x-", np.full((2, 2), NAN)),
+        NonFiniteError,
+        r"F must be finite, got nan at index \(0, 0\)",
+    ),
+    (
+        "affine-F-dim",
+        lambda: _solve(dirichlet=[D.affine("x-", np.eye(3))]),
+        ShapeError,
+        r"F is 3x3 but the cloud is 2D",
+    ),
+    ("affine-F-str", lambda: D.affine("x-", "I"), InputError, r"F must be numeric, got str"),
+    (
+        "affine-F-nonsquare",
+        lambda: D.affine("x-", np.ones((2, 3))),
+        ShapeError,
+        r"F must be square \(dim, dim\), got \(2, 3\)",
+    ),
+    (
+        "affine-translation-nan",
+        lambda: D.affine("x-", np.eye(2), translation=[NAN, 0]),
+        NonFiniteError,
+        r"translation must be finite, got nan at index 0",
+    ),
+    (
+        "affine-center-shape",
+        lambda: D.affine("x-", np.eye(2), center=[0, 0, 0]),
+        ShapeError,
+        r"center and translation must have shape \(2,\)",
+    ),
+    (
+        "vgrad-L-nan",
+        lambda: D.velocity_gradient("x-", np.full((2, 2), NAN)),
+        NonFiniteError,
+        r"L must be finite, got nan at index \(0, 0\)",
+    ),
+    (
+        "vgrad-L-1d",
+        lambda: D.velocity_gradient("x-", np.ones(3)),
+        ShapeError,
+        r"L must be a 2-D array, got shape \(3,\)",
+    ),
+    (
+        "vgrad-center",
+        lambda: D.velocity_gradient("x-", np.eye(2), center=[0.0]),
+        ShapeError,
+        r"center must have shape \(2,\), got \(1,\)",
+    ),
+    (
+        "floating-body",
+        lambda: _solve(dirichlet=[]),
+        FloatingBodyError,
+        r"the body is floating: 1 of 1 bond-connected piece",
+    ),
+    (
+        "floating-translation",
+        lambda: _solve(dirichlet=[D("x-", 0.0, components=[0])]),
+        FloatingBodyError,
+        r"leave 1 rigid-body motion\(s\) free \(translation y\)",
+    ),
+    # loads
+    (
+        "load-force-nan",
+        lambda: TF("x+", [NAN, 0]),
+        NonFiniteError,
+        r"force must be finite, got nan at index 0",
+    ),
+    ("load-force-str", lambda: TF("x+", "big"), InputError, r"force must be numeric, got str"),
+    (
+        "load-force-shape",
+        lambda: _solve(loads=[TF("x+", [1, 0, 0])]),
+        ShapeError,
+        r"loads\[0\].force must have shape \(2,\), got \(3,\)",
+    ),
+    (
+        "load-empty-set",
+        lambda: _solve(loads=[TF([], [1, 0])]),
+        InputError,
+        r"loads\[0\] selects no points \(where=\[\]\)",
+    ),
+    (
+        "load-weights-neg",
+        lambda: _solve(loads=[TF("x+", [1, 0], weights=-np.ones(6))]),
+        InputError,
+        r"loads\[0\].weights must be 6 non-negative numbers .* got min -1.0",
+    ),
+    (
+        "load-weights-zero",
+        lambda: _solve(loads=[TF("x+", [1, 0], weights=np.zeros(6))]),
+        InputError,
+        r"loads\[0\].weights .* positive sum, got min 0.0, sum 0.0",
+    ),
+    (
+        "load-weights-shape",
+        lambda: _solve(loads=[TF("x+", [1, 0], weights=np.ones(2))]),
+        InputError,
+        r"loads\[0\].weights must be 6 .* got shape \(2,\)",
+    ),
+    (
+        "load-weights-nan",
+        lambda: TF("x+", [1, 0], weights=[NAN] * 6),
+        NonFiniteError,
+        r"weights must be finite, got nan at index 0",
+    ),
+    (
+        "body-force-nan",
+        lambda: BF("all", [NAN, 0]),
+        NonFiniteError,
+        r"density must be finite, got nan at index 0",
+    ),
+    (
+        "body-force-shape",
+        lambda: _solve(loads=[BF("all", [1, 0, 0])]),
+        ShapeError,
+        r"loads\[0\].density must be a scalar, shape \(2,\) or \(36, 2\), got \(3,\)",
+    ),
+    (
+        "body-force-callable-nan",
+        lambda: _solve(loads=[BF("all", lambda x: np.full(x.shape, NAN))]),
+        NonFiniteError,
+        r"loads\[0\].density \(callable result\) must be finite",
+    ),
+    (
+        "body-force-unknown-set",
+        lambda: _solve(loads=[BF("nope", [1, 0])]),
+        InputError,
+        r"unknown point set 'nope'",
+    ),
+    # StaticProblem
+    (
+        "problem-model",
+        lambda: pdlin.StaticProblem("bb", pdlin.grid((3, 3)), horizon=0.3),
+        InputTypeError,
+        r"model must be a pdlin model, got str",
+    ),
+    (
+        "problem-cloud",
+        lambda: pdlin.StaticProblem(pdlin.BondBased(E=1.0), np.zeros((3, 2)), horizon=0.3),
+        InputTypeError,
+        r"cloud must be a PointCloud, got ndarray",
+    ),
+    (
+        "problem-horizon-nan",
+        lambda: problem(horizon=NAN),
+        NonFiniteError,
+        r"horizon must be finite, got nan",
+    ),
+    (
+        "problem-horizon-neg",
+        lambda: problem(horizon=-0.1),
+        InputError,
+        r"horizon must be > 0, got min -0.1",
+    ),
+    (
+        "problem-dirichlet-type",
+        lambda: problem(dirichlet=[("x-", 0)]),
+        InputTypeError,
+        r"dirichlet\[0\] must be a pdlin Dirichlet, got tuple",
+    ),
+    (
+        "problem-loads-type",
+        lambda: problem(loads=[1.0]),
+        InputTypeError,
+        r"loads\[0\] must be a BodyForce or TotalForce, got float",
+    ),
+    (
+        "problem-bond-options",
+        lambda: problem(bond_options={"shapes": "sphere"}),
+        InputError,
+        r"bond_options has unknown key 'shapes'",
+    ),
+    (
+        "problem-foreign-bonds",
+        lambda: problem(horizon=None, bonds=pdlin.find_bonds(pdlin.grid((3, 3), 0.1), 0.301)),
+        ShapeError,
+        r"bonds must belong to the cloud \(36 points\), got bonds over 9 points",
+    ),
+    # solve options
+    ("solve-solver", lambda: _run(solver="lu"), InputError, r"solver must be one of .* got 'lu'"),
+    (
+        "solve-rtol-neg",
+        lambda: _run(rtol=-1),
+        InputError,
+        r"rtol must be a number in \(0, 1\), got -1",
+    ),
+    (
+        "solve-rtol-nan",
+        lambda: _run(rtol=NAN),
+        InputError,
+        r"rtol must be a number in \(0, 1\), got nan",
+    ),
+    (
+        "solve-rtol-zero",
+        lambda: _run(solver="cg", rtol=0),
+        InputError,
+        r"rtol must be a number in \(0, 1\), got 0",
+    ),
+    (
+        "solve-rtol-big",
+        lambda: _run(rtol=2.0),
+        InputError,
+        r"rtol must be a number in \(0, 1\), got 2.0",
+    ),
+    (
+        "solve-rtol-str",
+        lambda: _run(rtol="small"),
+        InputError,
+        r"rtol must be a number in \(0, 1\), got 'small'",
+    ),
+    (
+        "solve-maxiter-0",
+        lambda: _run(solver="cg", maxiter=0),
+        InputError,
+        r"maxiter must be an integer >= 1, got 0",
+    ),
+    (
+        "solve-maxiter-float",
+        lambda: _run(solver="cg", maxiter=2.5),
+        InputError,
+        r"maxiter must be an integer >= 1, got 2.5",
+    ),
+    (
+        "solve-maxiter-str",
+        lambda: _run(solver="cg", maxiter="10"),
+        InputError,
+        r"maxiter must be an integer >= 1, got '10'",
+    ),
+    (
+        "solve-operator",
+        lambda: _run(operator="sparse"),
+        InputError,
+        r"operator must be one of .* got 'sparse'",
+    ),
+    (
+        "solve-amg-options",
+        lambda: _run(solver="amg-cg", amg_options=3),
+        InputTypeError,
+        r"amg_options must be a mapping .* got int",
+    ),
+    (
+        "solve-problem",
+        lambda: pdlin.solve("p"),
+        InputTypeError,
+        r"problem must be a StaticProblem, got str",
+    ),
+    (
+        "solve-preconditioner",
+        lambda: _run(preconditioner="amg"),
+        InputTypeError,
+        r"preconditioner must be a pdlin model .* got str",
+    ),
+    # sparsity_report
+    (
+        "sparsity-nothing",
+        lambda: pdlin.sparsity_report(),
+        InputError,
+        r"sparsity_report needs K or model=, cloud=, bonds=; got neither",
+    ),
+    (
+        "sparsity-nonsquare",
+        lambda: pdlin.sparsity_report(np.ones((3, 4))),
+        ShapeError,
+        r"K must be square, got shape \(3, 4\)",
+    ),
+    (
+        "sparsity-nan",
+        lambda: pdlin.sparsity_report(np.full((4, 4), NAN), numeric=True),
+        NonFiniteError,
+        r"K must be finite, got NaN or inf",
+    ),
+    (
+        "sparsity-str",
+        lambda: pdlin.sparsity_report("K"),
+        InputTypeError,
+        r"K must be a scipy sparse array or a 2-D ndarray, got str",
+    ),
+    (
+        "sparsity-block",
+        lambda: pdlin.sparsity_report(np.eye(4), block_size=3),
+        ShapeError,
+        r"K has 4 rows, not a multiple of block_size 3",
+    ),
+    (
+        "sparsity-fixed-oob",
+        lambda: pdlin.sparsity_report(np.eye(4), fixed_dofs=[10]),
+        InputError,
+        r"fixed_dofs must hold DOF indices in \[0, 3\], got range \[10, 10\]",
+    ),
+    (
+        "sparsity-fill-limit",
+        lambda: pdlin.sparsity_report(np.eye(4), fill_limit=-1),
+        InputError,
+        r"fill_limit must be an integer >= 0, got -1",
+    ),
+    (
+        "sparsity-points-nan",
+        lambda: pdlin.sparsity_report(
+            model=pdlin.BondBased(E=1.0), points=[[0, 0], [NAN, 1]], horizon=1.0
+        ),
+        InputError,
+        r"points must be finite, got NaN or inf",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    ("call", "exc", "pattern"), [c[1:] for c in CASES], ids=[c[0] for c in CASES]
+)
+def test_problems_reject(call, exc, pattern):
+    expect(call, exc, pattern)
+
+
+def test_solve_result_is_finite():
+    """No NaN escapes: a valid solve returns finite displacements and reactions."""
+    res = pdlin.solve(problem())
+    assert np.all(np.isfinite(res.u)) and np.all(np.isfinite(res.reactions))
