@@ -25,7 +25,7 @@ from .operators.bc import (
     TotalForce,
 )
 from .operators.symmetry import SymmetryPlane, SymmetryReduction
-from .solvers.linear import LinearSolveInfo, solve_linear
+from .solvers.linear import LinearSolveInfo, _safe_norm, solve_linear
 from .system import ConstrainedSystem, PlainDiscretization, constrained_system
 
 __all__ = ["StaticProblem", "StaticResult", "solve"]
@@ -376,8 +376,8 @@ def _check_force_balance(
     holds the stiff phase's forces and is ``contrast`` times larger than the reactions: a
     residual of 1e-12 ``||b||`` left 1 % of the reaction out of balance (AMG-CG, 1D bar).
     """
-    scale = float(np.linalg.norm(reactions)) + float(np.linalg.norm(f_ext))
-    nb = float(np.linalg.norm(b))
+    scale = _safe_norm(np.ravel(reactions)) + _safe_norm(f_ext)
+    nb = _safe_norm(b)
     if scale == 0.0 or nb == 0.0:
         return
     imbalance = lin.relative_residual * nb / scale
