@@ -21,6 +21,7 @@ __all__ = [
     "SceneError",
     "ModelError",
     "ActiveSetWarning",
+    "AccuracyWarning",
 ]
 
 
@@ -84,4 +85,13 @@ class ActiveSetWarning(RuntimeWarning):
     points still violate the yield condition on an inactive system after ``max_passes``
     re-activation passes or cycle between active sets; the message gives their number.
     Promote it to an error with ``warnings.simplefilter("error", ActiveSetWarning)``.
+    """
+
+
+class AccuracyWarning(UserWarning):
+    """A result is computed but pdlin measured a cause that makes it inaccurate.
+
+    Raised for example by :class:`pdlin.LPS` near incompressibility, where
+    the bulk modulus amplifies the dilatation error of truncated families
+    (``docs/solvers.md``, "Numerical extremes").
     """

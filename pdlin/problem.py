@@ -6,6 +6,7 @@ import inspect
 import logging
 import os
 import time
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -14,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ._validation import as_float_array, integer, tolerance
-from .errors import InputError, InputTypeError, ShapeError
+from .errors import AccuracyWarning, InputError, InputTypeError, ShapeError
 from .fields import small_strain
 from .geometry.bonds import Bonds, find_bonds
 from .geometry.cloud import PointCloud
@@ -26,7 +27,7 @@ from .operators.bc import (
     TotalForce,
 )
 from .operators.symmetry import SymmetryPlane, SymmetryReduction
-from .solvers.linear import SOLVERS, LinearSolveInfo, solve_linear
+from .solvers.linear import SOLVERS, LinearSolveInfo, _safe_norm, solve_linear
 from .system import ConstrainedSystem, PlainDiscretization, constrained_system
 
 __all__ = ["StaticProblem", "StaticResult", "solve"]
@@ -380,6 +381,7 @@ def solve(
     # reactions -(f_int + f_ext) on prescribed DOFs, f_int = -K u from the assembled rows
     # when there are, else the model's matrix-free internal force
     reac = system.reactions(u, rows=K_rows)
+    _check_force_balance(lin, b, reac, system.f_ext)
     timings["total"] = time.perf_counter() - t_start
     info = {
         "solver": lin.solver,
@@ -405,6 +407,38 @@ def solve(
         stiffness=K if keep_stiffness and K is not None else None,
         system=system,
     )
+
+
+#: out-of-balance force, relative to the transmitted forces (reactions and loads), above
+#: which a converged solve warns (``docs/solvers.md``, "Numerical extremes")
+FORCE_BALANCE_TOL = 1e-4
+
+
+def _check_force_balance(
+    lin: LinearSolveInfo, b: np.ndarray, reactions: np.ndarray, f_ext: np.ndarray
+) -> None:
+    """Warn when the residual is small against ``b`` but not against the transmitted forces.
+
+    The solvers stop on ``||b - A x|| <= rtol ||b||``.  When displacements are prescribed on
+    a phase much stiffer than the one that carries the load (stiffness contrast 1e8), ``b``
+    holds the stiff phase's forces and is ``contrast`` times larger than the reactions: a
+    residual of 1e-12 ``||b||`` left 1 % of the reaction out of balance (AMG-CG, 1D bar).
+    """
+    scale = _safe_norm(np.ravel(reactions)) + _safe_norm(f_ext)
+    nb = _safe_norm(b)
+    if scale == 0.0 or nb == 0.0:
+        return
+    imbalance = lin.relative_residual * nb / scale
+    if imbalance > FORCE_BALANCE_TOL:
+        warnings.warn(
+            f"{lin.solver}: the true residual is {lin.relative_residual:.1e} of ||b|| but "
+            f"{imbalance:.1e} of the reaction and load forces (||b|| is {nb / scale:.1e} x "
+            "larger: displacements prescribed on a much stiffer phase or region, e.g. a "
+            "stiffness contrast); the reactions and the soft part of the field are accurate "
+            "only to about that ratio. Use solver='direct' or a smaller rtol.",
+            AccuracyWarning,
+            stacklevel=3,
+        )
 
 
 _OPERATORS = ("assembled", "matrix-free", "auto")

@@ -33,7 +33,7 @@ from scipy import integrate
 
 from .._validation import as_displacement, as_float_array
 from ..constitutive.symmetry import isotropic_constants
-from ..errors import InputError, ModelError, ShapeError
+from ..errors import AccuracyWarning, InputError, ModelError, ShapeError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
 from .base import Model
@@ -484,6 +484,13 @@ def _bond_operator(bonds: Bonds, unit: np.ndarray, n: int, d: int) -> sp.csr_arr
     return sp.csr_array((data.ravel(), cols.ravel(), indptr), shape=(nb, n * d))
 
 
+#: κ/μ from which LPS-type models check their dilatation (ν ≈ 0.49 in plane strain and 3D;
+#: plane stress never reaches it: κ/μ = (1 + ν)/(1 - ν) <= 3)
+KAPPA_MU_WARN = 40.0
+#: largest |θ - 1| under a unit uniaxial strain that counts as exact
+DILATATION_TOL = 1e-6
+
+
 class OrdinaryStateBased(Model):
     """Common base of :class:`pdlin.LPS` and :class:`pdlin.XOSB` (not public)."""
 
@@ -570,7 +577,44 @@ class OrdinaryStateBased(Model):
         )
         # strong references: an id() key could be reused by a new object after GC
         self._cache = (cloud, bonds, w)
+        self._warn_near_incompressible(cloud, bonds, w)
         return w
+
+    def _warn_near_incompressible(self, cloud: PointCloud, bonds: Bonds, w: StateWeights) -> None:
+        """Warn when κ/μ >= :data:`KAPPA_MU_WARN` and the dilatation is not exact.
+
+        The measured cause: κ multiplies the dilatation error of the uniaxial
+        strains ``u = x_k e_k`` (θ should be 1) at truncated families, and
+        the field follows it (``docs/solvers.md``, "Numerical extremes").
+        XOSB's corrected weights make θ exact, so it does not warn.
+        """
+        d = cloud.dim
+        kappa, mu = self.moduli(d)
+        ratio = float(np.max(np.asarray(kappa, dtype=float) / np.asarray(mu, dtype=float)))
+        if ratio < KAPPA_MU_WARN:
+            return
+        n = cloud.n
+        err = np.zeros(n)
+        for k in range(d):
+            theta = np.bincount(
+                bonds.i, weights=w.omega_h * bonds.xi[:, k] ** 2 * bonds.volume_j, minlength=n
+            )
+            err = np.maximum(err, np.abs(theta - 1.0))
+        bad = err > DILATATION_TOL
+        if not bad.any():
+            return
+        where = "3D" if d == 3 else f"plane {self.plane}"
+        warnings.warn(
+            f"{type(self).__name__} with nu = {self.nu:g} ({where}: kappa/mu = {ratio:.3g}): "
+            f"the dilatation of a uniaxial strain is off by up to {err.max():.1%} at "
+            f"{int(bad.sum())} point(s) (first index {int(np.flatnonzero(bad)[0])}; truncated "
+            "or uncorrected families) and kappa amplifies that error: a plane-strain bar with "
+            "free surfaces measured -12 % at nu = 0.49 and -37 % at nu = 0.4999 (+4 % at "
+            "nu = 0.3). Use XOSB (exact dilatation) near incompressibility; see docs/solvers.md, "
+            "'Numerical extremes'.",
+            AccuracyWarning,
+            stacklevel=3,
+        )
 
     def _coefficients(self, cloud: PointCloud, bonds: Bonds) -> dict[str, Any]:
         """Per-bond / per-point coefficients, surface-corrected when asked."""

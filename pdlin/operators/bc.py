@@ -541,18 +541,56 @@ def check_constraints(
             # name the free motions: null space of Bc
             _, _, vt = np.linalg.svd(Bc if Bc.shape[0] else np.zeros((1, B.shape[1])))
             null = vt[rank:]
-            labels_free = []
-            for v in null:
-                k = int(keep[int(np.argmax(np.abs(v)))])
-                labels_free.append(
-                    names[k] if extra_modes is None and k < len(names) else f"mode {k}"
-                )
+            if extra_modes is None:
+                labels_free = _free_mode_names(null, keep, names, d)
+            else:
+                labels_free = [f"mode {int(keep[int(np.argmax(np.abs(v)))])}" for v in null]
             raise FloatingBodyError(
                 "the stiffness matrix is singular: constraints leave "
                 f"{B.shape[1] - rank} rigid-body "
                 f"motion(s) free ({', '.join(sorted(set(labels_free)))}); "
                 f"{int(constrained.sum())} DOF(s) are prescribed"
             )
+
+
+def _free_mode_names(null: np.ndarray, keep: np.ndarray, names: list[str], d: int) -> list[str]:
+    """Names of the rigid motions spanned by ``null`` (rows: free combinations of modes).
+
+    A free rotation about a point other than the origin is a rotation plus
+    translations (one clamped point leaves the rotation about that point
+    free), so the rotations are named first: as many as the rank of the
+    null space's rotation part, then the pure translations of what is left.
+
+    Examples
+    --------
+    >>> names = ["translation x", "translation y", "rotation about z"]
+    >>> _free_mode_names(np.array([[0.6, 0.0, 0.8]]), np.arange(3), names, 2)
+    ['rotation about z']
+    >>> _free_mode_names(np.array([[0.0, 1.0, 0.0]]), np.arange(3), names, 2)
+    ['translation y']
+    """
+    rot = keep >= d
+    out: list[str] = []
+
+    def pick(M: np.ndarray, cols: np.ndarray) -> tuple[list[int], int]:
+        if M.size == 0 or not cols.any():
+            return [], 0
+        sub = M[:, cols]
+        sv = np.linalg.svd(sub, compute_uv=False)
+        r = int(np.sum(sv > 1e-6 * max(1.0, float(sv.max()) if sv.size else 0.0)))
+        if r == 0:
+            return [], 0
+        _, _, piv = scipy.linalg.qr(sub, mode="economic", pivoting=True)
+        return [int(keep[cols][p]) for p in piv[:r]], r
+
+    ks, r = pick(null, rot)
+    out += [names[k] if k < len(names) else f"mode {k}" for k in ks]
+    if r < null.shape[0]:
+        # combinations of the free motions without rotation: pure translations
+        T = scipy.linalg.null_space(null[:, rot].T).T @ null if r else null
+        kt, _ = pick(T, ~rot)
+        out += [names[k] if k < len(names) else f"mode {k}" for k in kt]
+    return out
 
 
 def _independent_columns(B: np.ndarray, rtol: float = 1e-10) -> np.ndarray:

@@ -17,7 +17,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..errors import ConvergenceError, InputError
+from ..errors import ConvergenceError, InputError, NonFiniteError
 
 __all__ = [
     "AMGHierarchy",
@@ -537,12 +537,52 @@ def amg_hierarchy(
     return AMGHierarchy(ml, cycle=cycle, relax=relax, symmetric=symmetric)
 
 
+#: Range of the largest |entry| of the matrix in which the solvers keep full precision: the
+#: Krylov inner products (``r·z ~ |b|²/|A|``, ``pᵀAp``) and the residual norms stay far from
+#: overflow and from subnormal numbers (``docs/solvers.md``, "Numerical extremes").  Stiffness
+#: matrices in any consistent unit system (Pa and nm ... GPa and km) lie within 1e-20 ... 1e25.
+MATRIX_SCALE_LIMITS = (1e-100, 1e100)
+
+
+def _safe_norm(v: np.ndarray) -> float:
+    """2-norm without overflow or underflow of the squares (scaled by max |v|)."""
+    m = float(np.max(np.abs(v), initial=0.0))
+    if m == 0.0 or not np.isfinite(m):
+        return m
+    return m * float(np.linalg.norm(v / m))
+
+
+def _check_matrix_scale(M: Any, name: str) -> None:
+    """Raise when a sparse matrix holds NaN / inf or entries outside :data:`MATRIX_SCALE_LIMITS`."""
+    if not sp.issparse(M):
+        return
+    data = np.asarray(M.data)
+    if data.size == 0:
+        return
+    if not np.all(np.isfinite(data)):
+        raise NonFiniteError(
+            f"{name} must be finite, got NaN or inf entries: a float overflow while building the "
+            "stiffness (elastic constants, horizon or coordinates too large or too small for "
+            "float64); rescale the units"
+        )
+    amax = float(np.max(np.abs(data)))
+    lo, hi = MATRIX_SCALE_LIMITS
+    if amax > 0.0 and not lo <= amax <= hi:
+        raise InputError(
+            f"{name} must have its largest entry within [{lo:.0e}, {hi:.0e}] for a solve in "
+            f"full float64 precision, got {amax:.3e}: rescale the units (e.g. E in MPa or GPa, "
+            "lengths in mm or m)"
+        )
+
+
 def _check(A: Any, x: np.ndarray, b: np.ndarray, rtol: float, name: str, extra: str = "") -> float:
-    nb = float(np.linalg.norm(b))
+    """True relative residual ``||b - A x|| / ||b||`` (inf when it cannot be computed)."""
+    nb = _safe_norm(b)
     if not np.all(np.isfinite(x)):
         raise ConvergenceError(f"{name}: solution holds NaN or inf{extra}")
-    r = float(np.linalg.norm(b - A @ x)) / (nb if nb > 0 else 1.0)
-    return r
+    r = _safe_norm(b - A @ x) / (nb if nb > 0 else 1.0)
+    # a NaN would pass every `r > tol` test: report it as a miss
+    return r if np.isfinite(r) else float("inf")
 
 
 def solve_linear(
@@ -601,15 +641,57 @@ def solve_linear(
     n = A.shape[0]
     if b.shape != (n,):
         raise InputError(f"b must have shape ({n},), got {b.shape}")
+    _check_matrix_scale(A, "A")
+    if preconditioner_matrix is not None:
+        _check_matrix_scale(preconditioner_matrix, "preconditioner_matrix")
     if not np.all(np.isfinite(b)):
-        raise InputError("b must be finite, got NaN or inf")
+        raise NonFiniteError("b must be finite, got NaN or inf")
     if solver == "auto":
         solver = "direct" if n <= 5000 else ("amg-cg" if symmetric else "amg-gmres")
     if solver in ("amg-cg", "cg", "jacobi-cg") and not symmetric:
         raise InputError(f"solver {solver!r} needs a symmetric matrix; use 'amg-gmres' or 'direct'")
-    nb = float(np.linalg.norm(b))
+    nb = _safe_norm(b)
     if nb == 0.0:
         return LinearSolveInfo(np.zeros(n), solver, 0, [0.0], 0.0, 0.0, 0.0)
+    # solve for b scaled by a power of two to max |b| in [0.5, 1): exact in floating point, so
+    # ordinary right-hand sides give bit-identical iterates, and the inner products of
+    # b ~ 1e-200 or 1e200 neither underflow nor overflow
+    bscale = float(np.ldexp(1.0, -int(np.frexp(np.max(np.abs(b)))[1])))
+    try:
+        info_out = _solve_scaled(
+            A, b * bscale, solver, rtol, maxiter, near_null, blocksize, symmetric,
+            None if x0 is None else np.asarray(x0, dtype=float) * bscale, amg_options,
+            check_rtol, preconditioner_matrix,
+        )  # fmt: skip
+    except ConvergenceError as exc:
+        if isinstance(exc.result, LinearSolveInfo):  # the partial result, in the caller's units
+            exc.result.x = exc.result.x / bscale
+        raise
+    x = info_out.x / bscale
+    if not np.all(np.isfinite(x)):
+        raise ConvergenceError(
+            f"{info_out.solver}: the solution overflows float64 (|b| = {nb:.3e}); rescale the units"
+        )
+    info_out.x = x
+    return info_out
+
+
+def _solve_scaled(
+    A: Any,
+    b: np.ndarray,
+    solver: str,
+    rtol: float,
+    maxiter: int | None,
+    near_null: np.ndarray | None,
+    blocksize: int | None,
+    symmetric: bool,
+    x0: np.ndarray | None,
+    amg_options: dict[str, Any] | None,
+    check_rtol: float | None,
+    preconditioner_matrix: Any,
+) -> LinearSolveInfo:
+    """The body of :func:`solve_linear` for a right-hand side of unit magnitude."""
+    n = A.shape[0]
     if maxiter is None:
         maxiter = max(200, min(n, 5000))
     residuals: list[float] = []
@@ -628,7 +710,14 @@ def solve_linear(
         if not sp.issparse(A):
             raise InputError("solver 'direct' needs an assembled matrix, got a LinearOperator")
         t0 = time.perf_counter()
-        lu = DirectSolver(A, symmetric=symmetric)
+        try:
+            lu = DirectSolver(A, symmetric=symmetric)
+        except RuntimeError as exc:  # SuperLU: "Factor is exactly singular"
+            raise ConvergenceError(
+                f"direct solve: the matrix is exactly singular (SuperLU: {exc}); the Dirichlet "
+                "conditions or the model leave a zero-energy motion free (a mechanism such as "
+                "a one-point-wide strip, or points whose bonds do not span the dimension)"
+            ) from exc
         t1 = time.perf_counter()
         x = lu.solve(b)
         t2 = time.perf_counter()
