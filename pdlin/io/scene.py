@@ -51,6 +51,7 @@ _TOP = {
     "symmetry",
     "solver",
     "output",
+    "tradeoff",  # read by pdlin.sweeps.scene (pdlin tradeoff), ignored by run
 }
 _GEOM = {
     "grid": {"type", "shape", "spacing", "origin", "thickness"},

@@ -870,7 +870,9 @@ def tradeoff(
         if key in done:
             continue
         row: dict[str, Any] = {"key": key, **p}
-        row.update({c: (float("nan") if c in _NUMERIC else "") for c in METRIC_COLUMNS})
+        row.update(
+            {c: (float("nan") if c in _NUMERIC else "") for c in METRIC_COLUMNS if c not in p}
+        )
         try:
             meas = run(p)
         except TimeoutError as exc:
@@ -881,7 +883,7 @@ def tradeoff(
             row.update(status="failed", message=str(exc)[:300])
             meas = None
         if meas is not None:
-            row.update(meas["row"])
+            row.update({c: v for c, v in meas["row"].items() if c not in p})
             row["status"] = "ok"
             X, u = meas["points"], meas["u"]
             sel = meas["measure"] if meas["measure"] is not None else np.arange(X.shape[0])
