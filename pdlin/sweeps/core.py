@@ -331,6 +331,18 @@ def _measure_point(
     }
 
 
+def _warm_imports() -> None:
+    """Import the lazily imported solver modules once in the parent, so that forked
+    points do not each pay (and time) their import."""
+    import importlib
+
+    for name in ("pyamg", "scipy.sparse.linalg", "scipy.interpolate", "pdlin.models"):
+        try:
+            importlib.import_module(name)
+        except ImportError:  # pragma: no cover - optional
+            pass
+
+
 def _run_isolated(
     factory: Callable[..., Any], params: dict[str, Any], timeout: float | None
 ) -> dict[str, Any]:
@@ -558,7 +570,9 @@ class TradeoffResult:
         ok = [r for r in self.ok() if float(r["error"]) <= target_error]
         return min(ok, key=lambda r: float(r[self.time])) if ok else None
 
-    def rates(self, x: str = "h", *, vary: str | None = None) -> list[dict[str, Any]]:
+    def rates(
+        self, x: str = "h", *, vary: str | None = None, roundoff: float = 1e-10
+    ) -> list[dict[str, Any]]:
         """Convergence rates: log-log least-squares slopes of the error against ``x``.
 
         Parameters
@@ -570,6 +584,8 @@ class TradeoffResult:
             swept; for 'h' else 'N'; for 'delta' else 'm', 'h', 'N').  Rows are
             grouped by every other swept parameter; groups with fewer than two
             distinct ``x`` are skipped.
+        roundoff : float
+            Groups whose errors are all below it (exact up to round-off) have no rate.
 
         Returns
         -------
@@ -594,7 +610,7 @@ class TradeoffResult:
         for gk, rows in groups.items():
             xs = np.array([float(r[x]) for r in rows])
             es = np.array([float(r["error"]) for r in rows])
-            if np.unique(xs).size < 2 or not (xs > 0).all():
+            if np.unique(xs).size < 2 or not (xs > 0).all() or es.max() < roundoff:
                 continue
             slope = float(np.polyfit(np.log(xs), np.log(es), 1)[0])
             o = np.argsort(xs)
@@ -824,6 +840,8 @@ def tradeoff(
         memory = "rss" if hasattr(os, "fork") else "tracemalloc"
     if memory not in ("rss", "tracemalloc", "none"):
         raise InputError(f"memory must be 'auto', 'rss', 'tracemalloc' or 'none', got {memory!r}")
+    if memory == "rss":
+        _warm_imports()
     if timeout is not None and memory != "rss":
         raise InputError("timeout needs memory='rss' (points run in a child process)")
     if not (callable(reference) or reference in ("auto", "closed-form", "fem", "finest")):
@@ -894,6 +912,8 @@ def tradeoff(
                     if meas["exact"] is not None
                     else ("fem" if meas["other"] is not None else "finest")
                 )
+            if len(sel) == 0 and k != k_fine:
+                mode = "none"
             if k == k_fine and mode == "finest":
                 finest_sol = {"points": X, "u": u}
                 if side is not None:
@@ -904,6 +924,8 @@ def tradeoff(
             try:
                 if mode == "done":
                     pass
+                elif mode == "none":
+                    raise InputError("no points to measure the error on (measure is empty)")
                 elif mode == "closed-form":
                     if meas["exact"] is None:
                         raise InputError("reference='closed-form' but the case has no exact")
@@ -927,8 +949,8 @@ def tradeoff(
                     row["reference"] = "callable"
                 if mode != "done":
                     row["error"] = float(err_fn(u[sel], uref))
-            except InputError as exc:
-                row.update(status="no-reference", message=str(exc))
+            except Exception as exc:  # noqa: BLE001 - recorded on the row
+                row.update(status="no-reference", message=str(exc)[:300])
         if writer is not None:
             writer.append(row)
         rows.append(row)
