@@ -21,6 +21,7 @@ MODULES = [
     "pdlin.analysis",
     "pdlin.verification",
     "pdlin.io",
+    "pdlin.sweeps",
 ]
 
 

@@ -4,7 +4,11 @@ The pipeline: points -> bonds -> model -> sparse operators -> boundary
 conditions -> solver -> fields -> files.
 """
 
-from . import constitutive, errors
+from . import (
+    constitutive,
+    errors,
+    sweeps,  # noqa: E402  (after problem: the harness calls pdlin.solve)
+)
 from .calibration import CalibrationResult, calibrate_micromoduli
 from .constitutive.crystal_plasticity import (
     CrystalPlasticity,
@@ -52,6 +56,7 @@ from .operators import (
     sparsity_report,
 )
 from .problem import StaticProblem, StaticResult, solve
+from .sweeps import TradeoffCase, TradeoffResult, tradeoff
 from .system import ConstrainedSystem, constrained_system
 
 __version__ = "0.1.0"
@@ -118,4 +123,8 @@ __all__ = [
     "MaterialPointResult",
     "material_point",
     "voronoi_polycrystal",
+    "sweeps",
+    "tradeoff",
+    "TradeoffCase",
+    "TradeoffResult",
 ]

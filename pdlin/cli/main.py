@@ -1,4 +1,4 @@
-"""The ``pdlin`` command: ``run``, ``info``, ``sparsity``, ``examples``.
+"""The ``pdlin`` command: ``run``, ``info``, ``sparsity``, ``tradeoff``, ``examples``.
 
 Only this layer prints; the library logs.  ``main(argv)`` returns an exit
 code and can be called from tests.
@@ -290,6 +290,46 @@ def _cmd_examples(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_tradeoff(args: argparse.Namespace) -> int:
+    from ..sweeps.scene import load_tradeoff
+
+    sweep = load_tradeoff(args.scene)
+    opts: dict[str, Any] = {"resume": args.resume}
+    if args.output:
+        opts["output"] = Path(args.output)
+    if args.target_error is not None:
+        opts["target_error"] = args.target_error
+    if not args.quiet:
+        t0 = time.perf_counter()
+
+        def bar(done: int, total: int, row: dict[str, Any]) -> None:
+            fill = int(30 * done / max(total, 1))
+            err = row.get("error")
+            e = f"{err:.3g}" if isinstance(err, float) and np.isfinite(err) else "-"
+            print(
+                f"[{'#' * fill}{'.' * (30 - fill)}] {done}/{total} {row['key']}: "
+                f"{row.get('status')}, error {e}, {time.perf_counter() - t0:.1f} s",
+                file=sys.stderr,
+                flush=True,
+            )
+
+        opts["progress"] = bar
+    result = sweep.run(**opts)
+    target = opts.get("target_error", sweep.options.get("target_error"))
+    if args.json:
+        print(result.to_json())
+    else:
+        print(result.summary(target_error=target))
+    out = opts.get("output", sweep.options.get("output"))
+    if out is not None:
+        print(f"table        {out}")
+    plot = Path(args.plot) if args.plot else sweep.plot
+    if plot is not None:
+        result.plot(plot)
+        print(f"plot         {plot}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``pdlin`` command."""
     p = argparse.ArgumentParser(prog="pdlin", description="Static peridynamics on sparse operators")
@@ -355,6 +395,16 @@ def build_parser() -> argparse.ArgumentParser:
         help="write K and f before the Dirichlet elimination (default: the eliminated A, b)",
     )
     x.set_defaults(func=_cmd_export)
+
+    t = sub.add_parser("tradeoff", help="sweep a scene's [tradeoff] table: error vs time")
+    t.add_argument("scene", help="scene file (.toml) with a [tradeoff] table")
+    t.add_argument("-o", "--output", help="table written point by point (.csv or .jsonl)")
+    t.add_argument("--plot", help="figure: error vs time and error vs delta/h (.png, .pdf)")
+    t.add_argument("--resume", action="store_true", help="keep the finished points of -o")
+    t.add_argument("--target-error", type=float, help="report the fastest config meeting it")
+    t.add_argument("--json", action="store_true", help="print the table as JSON")
+    t.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    t.set_defaults(func=_cmd_tradeoff)
 
     e = sub.add_parser("examples", help="list the built-in example scenes")
     e.add_argument("--show", metavar="NAME", help="print the scene file of an example")

@@ -59,6 +59,7 @@ _TOP = {
     "symmetry",
     "solver",
     "output",
+    "tradeoff",  # read by pdlin.sweeps.scene (pdlin tradeoff), ignored by run
 }
 _GEOM = {
     "grid": {"type", "shape", "spacing", "origin", "thickness", "ghost_layers"},

@@ -1,0 +1,359 @@
+"""Problem factories of the bundled trade-off problems, each with its reference.
+
+Every factory takes keyword parameters that a sweep may vary and returns a
+:class:`~pdlin.sweeps.TradeoffCase`: the problem, its closed form (``exact``) or another
+reference (``reference``) and the points where the error is measured.
+
+=====================  ====  =====================================================
+factory                dim   reference
+=====================  ====  =====================================================
+:func:`graded_bar`     1     closed form u = αx + βH(x-½)√(x-½) (spec 000 §10.A)
+:func:`tension_bar`    2, 3  closed form: uniaxial stress, lateral faces free
+:func:`affine_patch`   2, 3  closed form: any affine field (a patch test)
+:func:`plate_with_hole` 2    Q4 finite elements (:mod:`pdlin.verification.fem`)
+=====================  ====  =====================================================
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry.bonds import find_bonds
+from ..geometry.cloud import PointCloud, grid
+from ..models.base import Model
+from ..operators.bc import BodyForce, Dirichlet, shadow_layer
+from ..operators.symmetry import SymmetryPlane
+from ..problem import StaticProblem
+from .core import TradeoffCase
+
+__all__ = [
+    "make_model",
+    "MODEL_NAMES",
+    "graded_bar",
+    "tension_bar",
+    "affine_patch",
+    "plate_with_hole",
+    "FACTORIES",
+]
+
+#: model names :func:`make_model` accepts (correspondence takes ``:control``)
+MODEL_NAMES = ("bb", "lps", "xosb", "correspondence")
+
+
+def make_model(name: str, E: Any, nu: float | None = None, *, plane: str = "stress") -> Model:
+    """A model from its sweep name: 'bb', 'lps', 'xosb' or 'correspondence[:control]'.
+
+    Bond-based models take only ``E`` (their Poisson ratio is implied: 1/4 in 3D, 1/3 in
+    plane stress); the others need ``nu``.
+
+    Examples
+    --------
+    >>> make_model("correspondence:penalty", 1.0, 0.25).control
+    'penalty'
+    >>> make_model("fem", 1.0)
+    Traceback (most recent call last):
+    ...
+    pdlin.errors.InputError: model must be one of ('bb', 'lps', 'xosb', 'correspondence') \
+(correspondence:<control>), got 'fem'
+    """
+    from ..models import LPS, XOSB, BondBased, Correspondence
+
+    base, _, control = str(name).partition(":")
+    base = {"bond_based": "bb", "cor": "correspondence"}.get(base, base)
+    if base == "bb":
+        return BondBased(E=E, plane=plane)
+    if base in ("lps", "xosb"):
+        cls = LPS if base == "lps" else XOSB
+        return cls(E, nu, plane=plane)
+    if base == "correspondence":
+        return Correspondence(E=E, nu=nu, plane=plane, control=control or "none")
+    raise InputError(f"model must be one of {MODEL_NAMES} (correspondence:<control>), got {name!r}")
+
+
+def _two_hop(model_name: str) -> bool:
+    return not str(model_name).startswith(("bb", "bond_based"))
+
+
+# --- 1D graded bar (spec 000 §10.A) ---------------------------------------------------------
+
+_ALPHA = 1e-3
+_BETA = 4e-3 * np.sqrt(2.0)
+_SIGMA = 1e-3
+
+
+def _graded_modulus(x: np.ndarray) -> np.ndarray:
+    r = np.clip(x - 0.5, 1e-300, None)
+    return np.asarray(np.where(x <= 0.5, 1.0, 1.0 / (1.0 + 2.0 * np.sqrt(2.0) / np.sqrt(r))))
+
+
+def _graded_exact(X: np.ndarray) -> np.ndarray:
+    x = X[:, 0]
+    return np.asarray((_ALPHA * x + _BETA * np.sqrt(np.clip(x - 0.5, 0.0, None)))[:, None])
+
+
+def graded_bar(
+    control: str = "higher_order",
+    *,
+    N: int = 500,
+    m: int = 2,
+    influence: str = "constant",
+    model: str | None = None,
+) -> TradeoffCase:
+    """The 1D graded-modulus bar of spec 000 §10.A with the correspondence model.
+
+    Bar ``0 <= x <= 1`` of ``N`` particles (``h = 1/N``), ``E = 1`` on ``x <= ½`` and
+    ``[1 + 2√2 (x - ½)^{-½}]⁻¹`` beyond, outward shadow layers of ``m = δ/h`` particles
+    per end carrying the exact ``u`` and the stress σ = 1e-3.  Exact
+    ``u = αx + βH(x - ½)√(x - ½)``; the error is measured on the N real particles.  The
+    solution has a ``√`` singularity, so errors fall like ``h^{1/2}``.
+
+    Parameters
+    ----------
+    control : str
+        Correspondence control ('higher_order', 'none', 'stress_points', ...).
+    N : int
+        Particles in the bar.
+    m : int
+        Horizon ratio δ/h.
+    influence : str
+        Influence function name of :func:`pdlin.find_bonds`.
+    model : str, optional
+        'correspondence:<control>' (overrides ``control``).
+
+    Examples
+    --------
+    >>> case = graded_bar(N=100, m=2)
+    >>> case.problem.cloud.n, case.h
+    (104, 0.01)
+    """
+    from ..models import Correspondence
+
+    if model is not None:
+        base, _, ctl = str(model).partition(":")
+        if base not in ("correspondence", "cor"):
+            raise InputError(f"graded_bar supports model='correspondence:<control>', got {model!r}")
+        control = ctl or "none"
+    N, m = int(N), int(m)
+    if N < 4 or m < 1:
+        raise InputError(f"graded_bar needs N >= 4 and m >= 1, got N={N}, m={m}")
+    cloud = grid((N + 2 * m,), spacing=1.0 / N, origin=[-m / N])
+    bonds = find_bonds(cloud, ratio=float(m), influence=influence)
+    x = cloud.points[:, 0]
+    shadow = np.r_[0:m, N + m : N + 2 * m]
+    mdl = Correspondence(E=_graded_modulus(x), control=control, shadow=shadow)
+    f = mdl.shadow_loads(cloud, bonds, stress=np.full((2 * m, 1, 1), _SIGMA))
+    real = np.arange(m, N + m)
+    prob = StaticProblem(
+        mdl,
+        cloud,
+        bonds,
+        dirichlet=[Dirichlet(shadow, _graded_exact(cloud.points)[shadow])],
+        loads=[BodyForce(real, f[real] / cloud.volumes[real, None])],
+    )
+    return TradeoffCase(
+        prob, {"solver": "direct"}, exact=_graded_exact, measure=real, h=1.0 / N, delta=m / N
+    )
+
+
+# --- 2D/3D bar in tension -------------------------------------------------------------------
+
+
+def _grid_for(lengths: tuple[float, ...], h: float, origin: np.ndarray) -> PointCloud:
+    shape = tuple(max(int(round(L / h)), 1) for L in lengths)
+    return grid(shape, spacing=h, origin=[float(v) for v in origin])
+
+
+def tension_bar(
+    model: str = "bb",
+    *,
+    dim: int = 3,
+    h: float = 0.1,
+    m: float = 3.015,
+    influence: str = "constant",
+    symmetry: bool = False,
+    length: float = 2.0,
+    width: float = 1.0,
+    strain: float = 1e-3,
+) -> TradeoffCase:
+    """Bar in uniaxial tension, ends held by shadow layers, lateral faces free.
+
+    The box ``length x width (x width)`` centred at the origin; inward shadow layers of
+    depth ``2 δ`` (two horizons, so two-hop models see complete families) at ``x = ±L/2``
+    carry the exact uniaxial-stress field ``u = (F - I) X`` with ``F = diag(1 + ε, 1 - ν ε,
+    1 - ν ε)``, ν = 1/4 in 3D and 1/3 in 2D (plane stress; the bond-based values, so every
+    model has the same closed form).  The lateral faces are free, so the error of the real
+    points is the model's surface effect plus its discretization error.
+
+    Parameters
+    ----------
+    model : str
+        :func:`make_model` name.
+    dim : {2, 3}
+    h : float
+        Grid spacing.
+    m : float
+        Horizon ratio δ/h.
+    influence : str
+        Influence function of :func:`pdlin.find_bonds`.
+    symmetry : bool
+        Model the quarter (3D) / half (2D) ``y >= 0 (, z >= 0)`` with symmetry planes.
+
+    Examples
+    --------
+    >>> case = tension_bar("bb", dim=2, h=0.1, m=3.015)
+    >>> case.problem.cloud.n, case.measure.size
+    (200, 80)
+    """
+    if dim not in (2, 3):
+        raise InputError(f"dim must be 2 or 3, got {dim}")
+    nu = 0.25 if dim == 3 else 1.0 / 3.0
+    E = 1.0
+    F = np.eye(dim) * (1.0 - nu * strain)
+    F[0, 0] = 1.0 + strain
+    lengths = (length,) + (width,) * (dim - 1)
+    lo = -0.5 * np.asarray(lengths)
+    if symmetry:
+        lengths = (length,) + (0.5 * width,) * (dim - 1)
+        lo = lo.copy()
+        lo[1:] = 0.0
+    cloud = _grid_for(lengths, float(h), lo)
+    delta = float(m) * float(h)
+    depth = 2.0 * delta
+    bc, shadow = shadow_layer(cloud, F, depth, faces=["x-", "x+"])
+    real = np.setdiff1d(np.arange(cloud.n), shadow)
+    mdl = make_model(model, E, nu, plane="stress")
+    sym = tuple(SymmetryPlane(ax, 0.0) for ax in range(1, dim)) if symmetry else ()
+    prob = StaticProblem(
+        mdl,
+        cloud,
+        horizon=delta,
+        dirichlet=[bc],
+        bond_options={"influence": influence},
+        symmetry=sym,
+    )
+
+    def exact(X: np.ndarray) -> np.ndarray:
+        return np.asarray(X @ (F - np.eye(dim)).T)
+
+    return TradeoffCase(prob, exact=exact, measure=real, h=float(h), delta=delta)
+
+
+def affine_patch(
+    model: str = "bb",
+    *,
+    dim: int = 2,
+    h: float = 0.1,
+    m: float = 3.015,
+    influence: str = "constant",
+    size: float = 1.0,
+) -> TradeoffCase:
+    """Patch test: a shadow layer on every face carries an affine field, exact inside.
+
+    ``u = (F - I) X`` with a general (stretch + shear) ``F`` on the unit box; every
+    linearized model reproduces it on the real points up to the solver's tolerance,
+    so the error isolates the solver (sweep ``rtol`` and ``solver``).
+
+    Examples
+    --------
+    >>> case = affine_patch("bb", dim=2, h=0.1, m=2.0)
+    >>> case.measure.size   # 10 x 10 minus a shadow layer 2 δ deep
+    4
+    """
+    nu = 0.25 if dim == 3 else 1.0 / 3.0
+    F = (
+        np.eye(dim)
+        + 1e-3 * np.array([[1.0, 0.4, 0.2], [0.1, -0.3, 0.3], [0.2, 0.1, 0.5]])[:dim, :dim]
+    )
+    cloud = _grid_for((size,) * dim, float(h), np.zeros(dim))
+    delta = float(m) * float(h)
+    bc, shadow = shadow_layer(cloud, F, 2.0 * delta)
+    real = np.setdiff1d(np.arange(cloud.n), shadow)
+    prob = StaticProblem(
+        make_model(model, 1.0, nu),
+        cloud,
+        horizon=delta,
+        bond_options={"influence": influence},
+        dirichlet=[bc],
+    )
+
+    def exact(X: np.ndarray) -> np.ndarray:
+        return np.asarray(X @ (F - np.eye(dim)).T)
+
+    return TradeoffCase(prob, exact=exact, measure=real, h=float(h), delta=delta)
+
+
+# --- plate with a hole against Q4 ----------------------------------------------------------
+
+_PLATE_E, _PLATE_NU, _PLATE_U0 = 70e9, 0.33, 5e-4  # spec 002 §9.1
+
+
+@functools.lru_cache(maxsize=2)
+def _plate_fe(n_ang: int, n_rad: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    from ..geometry.generators import plate_with_hole_mesh
+    from ..verification.fem import plate_extension_q4
+
+    mesh = plate_with_hole_mesh(n_ang, n_rad)
+    quads = np.asarray(next(c.data for c in mesh.cells if c.type == "quad"))
+    pts = np.asarray(mesh.points[:, :2], dtype=float)
+    u = plate_extension_q4(pts, quads, _PLATE_E, _PLATE_NU, _PLATE_U0)
+    return pts, quads, u
+
+
+def plate_with_hole(
+    model: str = "lps",
+    *,
+    h: float = 1.0 / 40,
+    m: float = 3.015,
+    influence: str = "constant",
+    fe_mesh: tuple[int, int] = (32, 60),
+) -> TradeoffCase:
+    """Square plate (side 1) with a central hole (r = 0.1) pulled at its ends; Q4 reference.
+
+    Spec 002 §9.1 on a cell-centred grid of spacing ``h`` (cells whose centre lies in the
+    hole removed): plane stress, E = 70 GPa, ν = 0.33 (bond-based: ν = 1/3), the finite-
+    element displacement (:func:`pdlin.verification.plate_extension_q4` on the O-grid
+    ``4 x n_ang x n_rad`` of ``fe_mesh``, interpolated by
+    :func:`pdlin.verification.evaluate_q4`) prescribed on the points within ``2 δ`` of the
+    left and right edges.  The error is measured on the remaining points.
+
+    Examples
+    --------
+    >>> case = plate_with_hole("bb", h=0.1, m=2.0, fe_mesh=(4, 6))
+    >>> case.problem.cloud.n
+    96
+    """
+    from ..verification.fem import evaluate_q4
+
+    pts, quads, ufe = _plate_fe(*fe_mesh)
+    full = grid((int(round(1.0 / h)),) * 2, spacing=float(h), origin=[-0.5, -0.5])
+    keep = np.linalg.norm(full.points, axis=1) > 0.1
+    cloud = full.subset(np.flatnonzero(keep)) if hasattr(full, "subset") else None
+    if cloud is None:  # pragma: no cover - PointCloud without subset
+        raise InputError("plate_with_hole needs PointCloud.subset")
+    delta = float(m) * float(h)
+    uref = evaluate_q4(pts, quads, ufe, cloud.points)
+    x = cloud.points[:, 0]
+    held = np.flatnonzero(np.abs(x) >= 0.5 - 2.0 * delta)
+    free = np.setdiff1d(np.arange(cloud.n), held)
+    nu = 1.0 / 3.0 if not _two_hop(model) else _PLATE_NU
+    prob = StaticProblem(
+        make_model(model, _PLATE_E, nu, plane="stress"),
+        cloud,
+        horizon=delta,
+        bond_options={"influence": influence},
+        dirichlet=[Dirichlet(held, uref[held])],
+    )
+    return TradeoffCase(prob, reference=uref, measure=free, h=float(h), delta=delta)
+
+
+#: bundled factories by name (``[tradeoff] problem = ...`` in scene files)
+FACTORIES = {
+    "graded_bar": graded_bar,
+    "tension_bar": tension_bar,
+    "affine_patch": affine_patch,
+    "plate_with_hole": plate_with_hole,
+}

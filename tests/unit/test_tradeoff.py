@@ -1,0 +1,247 @@
+"""The speed-vs-accuracy harness: rates, Pareto front, resume, target error, CLI."""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pdlin
+from pdlin.errors import InputError
+from pdlin.sweeps import TradeoffCase, TradeoffResult, graded_bar, tension_bar, tradeoff
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+def test_rate_in_h_recovered_on_graded_bar():
+    # spec 000 §10.A: higher-order correspondence errors fall like N^(-1/2) (ratio 1.41 per
+    # doubling, V16) because of the sqrt singularity at x = 1/2
+    res = tradeoff(graded_bar, {"control": ["higher_order"], "m": [1, 2], "N": [100, 200, 500]},
+                   memory="none")  # fmt: skip
+    rates = res.rates("h")
+    assert len(rates) == 2
+    for g in rates:
+        assert g["rate"] == pytest.approx(0.5, abs=0.05)
+        assert g["n"] == 3
+    # the N = 500, 2h entry of the spec 000 §10.A table: max |u - u_ex| = 1.51e-4 (± 1 %)
+    row = next(r for r in res.table if r["m"] == 2 and r["N"] == 500)
+    u_max = 1e-3 + 4e-3 * np.sqrt(2.0) * np.sqrt(0.5 - 0.5 / 500)  # max |u_ex| on the real points
+    assert row["error"] * u_max == pytest.approx(1.51e-4, rel=0.01)
+
+
+def _rows(pairs):
+    return [
+        {"key": str(k), "p": k, "t_total": t, "error": e, "status": s}
+        for k, (t, e, s) in enumerate(pairs)
+    ]
+
+
+def test_pareto_front_on_hand_made_table():
+    table = _rows(
+        [
+            (1.0, 1e-1, "ok"),  # 0 front (fastest)
+            (2.0, 1e-1, "ok"),  # 1 dominated by 0 (slower, same error)
+            (2.0, 1e-2, "ok"),  # 2 front
+            (3.0, 5e-2, "ok"),  # 3 dominated by 2
+            (4.0, 1e-3, "ok"),  # 4 front
+            (0.5, 1e-9, "failed"),  # 5 not a finished point
+            (5.0, 1e-3, "ok"),  # 6 dominated by 4 (tie in error, slower)
+            (6.0, 1e-4, "ok"),  # 7 front
+        ]
+    )
+    for r in table:
+        if r["status"] == "failed":
+            r["error"] = float("nan")
+    res = TradeoffResult(table, ["p"])
+    assert [r["p"] for r in res.pareto()] == [0, 2, 4, 7]
+    # permuting the rows does not change the front
+    rng = np.random.default_rng(0)
+    res2 = TradeoffResult([table[i] for i in rng.permutation(len(table))], ["p"])
+    assert sorted(r["p"] for r in res2.pareto()) == [0, 2, 4, 7]
+
+
+def test_best_picks_fastest_configuration_meeting_target():
+    table = _rows([(3.0, 1e-3, "ok"), (1.0, 1e-1, "ok"), (2.0, 5e-3, "ok"), (0.1, 1e-9, "failed")])
+    table[3]["error"] = float("nan")
+    res = TradeoffResult(table, ["p"])
+    assert res.best(1e-2)["p"] == 2
+    assert res.best(2e-3)["p"] == 0
+    assert res.best(1.0)["p"] == 1
+    assert res.best(1e-6) is None
+    with pytest.raises(InputError, match="target_error must be > 0"):
+        res.best(0.0)
+
+
+def test_target_error_on_real_sweep():
+    res = tradeoff(
+        tension_bar,
+        {"model": ["bb", "lps"], "dim": [2], "h": [0.1], "m": [2.0, 3.015]},
+        memory="none",
+        target_error=0.05,
+    )
+    ok = [r for r in res.table if r["error"] <= 0.05]
+    best = res.best(0.05)
+    assert best is not None and best["error"] <= 0.05
+    assert best["t_total"] == min(r["t_total"] for r in ok)
+    assert "fastest with error <= 0.05" in res.summary(target_error=0.05)
+
+
+class _Kill(RuntimeError):
+    pass
+
+
+def test_resume_skips_finished_points(tmp_path):
+    calls: list[tuple[int, int]] = []
+
+    def factory(N: int, m: int) -> TradeoffCase:
+        calls.append((N, m))
+        return graded_bar(N=N, m=m)
+
+    grid = {"N": [50, 100, 200], "m": [1, 2]}
+    out = tmp_path / "sweep.csv"
+
+    def kill_after_three(done, total, row):
+        if done == 3:
+            raise _Kill("simulated kill")
+
+    with pytest.raises(_Kill):
+        tradeoff(factory, grid, output=out, memory="none", progress=kill_after_three)
+    assert len(calls) == 3
+    # a torn last line (killed during a write) is dropped on resume
+    with open(out, "a") as f:
+        f.write("N=200;m=2,200,2,ok,0.1")
+    finished = list(calls)
+    seen = []
+    res = tradeoff(factory, grid, output=out, memory="none",
+                   progress=lambda d, t, r: seen.append((d, t)))  # fmt: skip
+    assert calls[:3] == finished and len(calls) == 6  # only the 3 missing points ran
+    assert sorted(calls[3:]) == sorted(set((n, m) for n in grid["N"] for m in grid["m"]) -
+                                        set(finished))  # fmt: skip
+    assert seen == [(4, 6), (5, 6), (6, 6)]
+    assert [r["status"] for r in res.table] == ["ok"] * 6
+    rows = list(csv.DictReader(open(out)))
+    assert len(rows) == 6 and len({r["key"] for r in rows}) == 6
+    # the table keeps the grid's order and typed values
+    assert [(r["N"], r["m"]) for r in res.table] == [(n, m) for n in (50, 100, 200) for m in (1, 2)]
+    # nothing left: a third call runs no point
+    tradeoff(factory, grid, output=out, memory="none")
+    assert len(calls) == 6
+    # resume=False starts over
+    tradeoff(factory, {"N": [50], "m": [1]}, output=out, memory="none", resume=False)
+    assert len(list(csv.DictReader(open(out)))) == 1
+
+
+def test_finest_reference_and_jsonl(tmp_path):
+    out = tmp_path / "s.jsonl"
+    res = tradeoff(tension_bar, {"model": ["bb"], "dim": [2], "h": [0.1, 0.05, 0.025]},
+                   reference="finest", output=out, memory="none")  # fmt: skip
+    ref = [r for r in res.table if r["status"] == "reference"]
+    assert len(ref) == 1 and ref[0]["h"] == 0.025 and ref[0]["error"] == 0.0
+    assert all(r["reference"].startswith("finest: ") for r in res.table)
+    assert len(res.pareto()) >= 1 and all(r["status"] == "ok" for r in res.pareto())
+    lines = [json.loads(x) for x in out.read_text().splitlines()]
+    assert len(lines) == 3 and lines[0]["h"] == 0.025  # the reference runs first
+    assert (tmp_path / "s.jsonl.finest.npz").exists()
+    # a resumed sweep reads the stored reference instead of solving it again
+    res2 = tradeoff(tension_bar, {"model": ["bb"], "dim": [2], "h": [0.1, 0.05, 0.025, 0.0125]},
+                    reference="finest", output=out, memory="none",
+                    finest={"h": 0.025})  # fmt: skip
+    new = next(r for r in res2.table if r["h"] == 0.0125)
+    assert new["status"] == "ok" and np.isfinite(new["error"])
+
+
+def test_failures_and_timeouts_are_rows():
+    def factory(mode: str) -> TradeoffCase:
+        if mode == "bad":
+            raise InputError("bad point")
+        if mode == "slow":
+            time.sleep(30)
+        return graded_bar(N=50)
+
+    res = tradeoff(factory, {"mode": ["ok", "bad", "slow"]}, memory="rss", timeout=3.0)
+    status = {r["mode"]: r["status"] for r in res.table}
+    assert status == {"ok": "ok", "bad": "failed", "slow": "timeout"}
+    ok = res.table[0]
+    assert ok["peak_mb"] >= 0 and ok["nnz"] > 0 and ok["iterations"] == 1
+    assert "bad point" in res.table[1]["message"]
+
+
+def test_symmetry_reduction_gives_same_error_cheaper():
+    grid = {"model": ["bb"], "dim": [2], "h": [0.05], "symmetry": [False, True]}
+    res = tradeoff(tension_bar, grid, memory="none", reference="closed-form")
+    full, half = res.table
+    assert half["points"] * 2 == full["points"]
+    assert half["error"] == pytest.approx(full["error"], rel=1e-6)
+
+
+def test_bad_arguments():
+    with pytest.raises(InputError, match="reference must be"):
+        tradeoff(graded_bar, {"N": [50]}, reference="nope")
+    with pytest.raises(InputError, match="clashes"):
+        tradeoff(graded_bar, {"error": [1]})
+    with pytest.raises(InputError, match="timeout needs"):
+        tradeoff(graded_bar, {"N": [50]}, memory="none", timeout=1.0)
+
+
+def test_plot_and_exports(tmp_path):
+    pytest.importorskip("matplotlib")
+    res = tradeoff(graded_bar, {"control": ["higher_order", "none"], "m": [1, 2], "N": [50, 100]},
+                   memory="none")  # fmt: skip
+    fig = res.plot(tmp_path / "f.png")
+    assert (tmp_path / "f.png").stat().st_size > 0 and len(fig.axes) == 2
+    res.to_csv(tmp_path / "t.csv")
+    assert len(list(csv.DictReader(open(tmp_path / "t.csv")))) == 8
+    data = json.loads(res.to_json(tmp_path / "t.json"))
+    assert len(data["table"]) == 8 and data["pareto"]
+
+
+def test_cli_tradeoff_on_scene(tmp_path, capsys):
+    from pdlin.cli.main import main
+
+    scene = (EXAMPLES / "tradeoff_plate.toml").read_text()
+    scene = scene.replace('model = ["bond_based", "lps", "xosb"]', 'model = ["bond_based", "lps"]')
+    path = tmp_path / "plate.toml"
+    path.write_text(scene)
+    out, png = tmp_path / "t.csv", tmp_path / "t.png"
+    assert main(["tradeoff", str(path), "-o", str(out), "--plot", str(png)]) == 0
+    text = capsys.readouterr()
+    assert "fastest with error <= 0.05" in text.out
+    assert "8/8" in text.err  # progress bar
+    rows = list(csv.DictReader(open(out)))
+    assert len(rows) == 8 and all(r["status"] == "ok" for r in rows)
+    assert png.exists()
+    # bond-based at delta = 3.015 h: a few per mille on the free-surface plate
+    bb = [float(r["error"]) for r in rows if r["model"] == "bond_based" and r["m"] == "3.015"]
+    assert max(bb) < 0.01
+    # --resume keeps all points: nothing runs again
+    assert main(["tradeoff", str(path), "-o", str(out), "--resume", "-q"]) == 0
+    assert len(list(csv.DictReader(open(out)))) == 8
+    # the same scene still runs as a plain scene
+    assert main(["run", str(path), "-o", str(tmp_path / "p.npz"), "-q"]) == 0
+
+
+def test_scene_sweep_errors(tmp_path):
+    from pdlin.errors import SceneError
+    from pdlin.sweeps.scene import tradeoff_from_dict
+
+    base = {
+        "geometry": {"type": "grid", "shape": [20], "spacing": 0.05},
+        "material": {"E": 1.0},
+        "horizon": {"ratio": 3.015},
+        "dirichlet": [{"points": [0], "value": 0.0}],
+    }
+    with pytest.raises(SceneError, match="unknown tradeoff.sweep key 'ratioo'"):
+        tradeoff_from_dict({**base, "tradeoff": {"sweep": {"ratioo": [1.0]}}})
+    with pytest.raises(SceneError, match="points"):
+        tradeoff_from_dict({**base, "tradeoff": {"sweep": {"h": [0.01]}}})
+    with pytest.raises(SceneError, match="unknown scene key 'tradeoff.refrence'"):
+        tradeoff_from_dict({**base, "tradeoff": {"sweep": {"m": [2.0]}, "refrence": "x"}})
+
+
+def test_top_level_names():
+    assert pdlin.tradeoff is tradeoff
+    assert pdlin.TradeoffResult is TradeoffResult
