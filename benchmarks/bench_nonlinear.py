@@ -1,0 +1,556 @@
+"""Nonlinear static solves of the crystal-plasticity polycrystal (spec 001 B1, B2, T20).
+
+``pdlin.solve_nonlinear`` on the 21-grain Voronoi polycrystal of spec 001 §7
+(``voronoi_polycrystal(cloud, 21, seed=1)``, planar-2 crystal plasticity,
+``Correspondence(material=...)``, δ = h, n x n pixel grid, boundary ring prescribed by
+``Dirichlet.velocity_gradient``, η = 0.002, 30 load steps of Δt = 1). Tables (wall-clock
+seconds on a shared machine, one BLAS thread; nothing is asserted):
+
+1. **B1 cost**: per size, load (pure shear, Y-compression) and method: wall time of load
+   steps 1-7 and 8-30, iterations (Newton iterations or ADR iterations), constitutive calls,
+   cut-backs, ADR fallbacks (``auto``), peak RSS of the run's child process and the plastic
+   fraction. Methods: ``newton``; ``adr-spec`` (spec 001's Λ = 1: ``density=h²``,
+   ``dt=h sqrt(1/2000)``, pdlin forces are nodal V·L); ``adr`` (default Gershgorin
+   density); ``auto`` (Newton, ADR fallback). A run that exceeds ``--budget`` seconds is
+   stopped after its current step and the remaining steps are extrapolated from the mean
+   time of its completed steps of the same range (marked ``*``).
+2. **Aim** (issue): "2,500 particles, 30 steps under 60 s on one core with either method;
+   Newton elastic steps in one iteration", from table 1, and a cProfile split of one Newton
+   and one ADR run (respond = constitutive update + tangent assembly + nodal force, linear
+   solve, Dirichlet elimination, predictor, ADR density).
+3. **10⁵ particles** (316 x 316): Newton for the first ``--big-steps`` load steps.
+4. **B2 accuracy-cost**: ADR with e_l in ``--e-l`` from the committed state of a tight
+   Newton reference (rtol 1e-12, ``checkpoint=`` + ``resume=True``), homogenized-stress error
+   against Newton's next step (spec 001 §6: never pointwise), for an elastic and a plastic step.
+5. **T20**: adaptive ADR damping vs constant c = 200, 500, 2000 on 25 x 25 shear steps 1-12:
+   iterations per step, max damping in the first and last 10 % of each step's iterations.
+
+Every run is a forked child process (its peak RSS is the run's). ``--quick`` (the default
+when no size is given) runs 15 x 15 and 25 x 25 only, about 2 minutes.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import cProfile  # noqa: E402
+import datetime  # noqa: E402
+import multiprocessing as mp  # noqa: E402
+import platform  # noqa: E402
+import pstats  # noqa: E402
+import resource  # noqa: E402
+import shutil  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
+
+import numpy as np  # noqa: E402
+import scipy  # noqa: E402
+
+import pdlin  # noqa: E402
+
+ETA = 0.002
+LOADS = {"shear": [[0.0, 1.0], [1.0, 0.0]], "compression": [[1.0, 0.0], [0.0, -1.0]]}
+METHODS = ("newton", "adr-spec", "adr", "auto")
+SPLIT = 7  # steps 1-7 / 8-30 (spec 001 Fig. 7)
+
+
+class _Stop(Exception):
+    """Raised from the progress callback when a run exceeds its time budget."""
+
+
+def problem(n: int, load: str) -> tuple[Any, float]:
+    h = 1.0 / n
+    cloud = pdlin.grid((n, n), spacing=h)
+    bonds = pdlin.find_bonds(cloud, ratio=1.0, influence="constant")
+    _, theta = pdlin.voronoi_polycrystal(cloud, 21, seed=1)
+    model = pdlin.Correspondence(material=pdlin.CrystalPlasticity("planar-2", orientation=theta))
+    L = ETA * np.array(LOADS[load])
+    bc = pdlin.Dirichlet.velocity_gradient("boundary", L)
+    return pdlin.StaticProblem(model, cloud, bonds, dirichlet=[bc]), h
+
+
+def options(method: str, h: float) -> dict[str, Any]:
+    if method == "adr-spec":
+        return {"method": "adr", "density": h * h, "dt": h * np.sqrt(1.0 / 2000.0)}
+    return {"method": method}
+
+
+def _peak_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def run(
+    n: int,
+    load: str,
+    method: str,
+    steps: int,
+    budget: float,
+    *,
+    extra: dict[str, Any] | None = None,
+    profile: bool = False,
+) -> dict[str, Any]:
+    """One solve_nonlinear run (in the calling process); stops after ``budget`` s."""
+    prob, h = problem(n, load)
+    kw = options(method, h)
+    kw.update(extra or {})
+    tmp = Path(tempfile.mkdtemp(prefix="bench_nl_"))
+    ckpt = tmp / "run.npz"
+    stamps: list[float] = []
+    t0 = time.perf_counter()
+
+    def progress(msg: str) -> None:
+        if msg.startswith("step "):
+            stamps.append(time.perf_counter())
+            if stamps[-1] - t0 > budget and len(stamps) < steps:
+                raise _Stop
+
+    prof = cProfile.Profile() if profile else None
+    out: dict[str, Any] = {"n": n * n, "load": load, "method": method}
+    res = None
+    try:
+        if prof is not None:
+            prof.enable()
+        res = pdlin.solve_nonlinear(
+            prob,
+            steps=steps,
+            t_end=float(steps),
+            checkpoint=ckpt,
+            progress=progress,
+            keep_states=False,
+            **kw,
+        )
+    except _Stop:
+        pass
+    except pdlin.errors.ConvergenceError as exc:
+        out["failed"] = str(exc).split(":")[0]
+    finally:
+        if prof is not None:
+            prof.disable()
+    wall = time.perf_counter() - t0
+    if not ckpt.exists():
+        raise pdlin.errors.ConvergenceError(out.get("failed", "no step converged"))
+    data = np.load(ckpt, allow_pickle=False)
+    done = int(data["done"])
+    if res is not None:
+        st = np.asarray(res.timings["steps"], dtype=float)
+        plastic = np.asarray(res.state.get("plastic", np.zeros(1)), dtype=bool)
+    else:  # stopped by the budget or failed: times from the progress callback
+        st = np.diff(np.concatenate([[t0], stamps]))[:done]
+        plastic = np.asarray(data["state__plastic"], dtype=bool)
+    out.update(
+        done=done,
+        steps=steps,
+        wall=wall,
+        step_times=st,
+        iterations=np.asarray(data["iterations"]),
+        calls=np.asarray(data["calls"]),
+        cutbacks=np.asarray(data["cutbacks"]),
+        methods=[str(m) for m in data["methods"]],
+        hom=np.asarray(data["homogenized_stress"]),
+        plastic=float(plastic.mean()),
+        peak_mb=_peak_mb(),
+    )
+    if prof is not None:
+        out["profile"] = profile_split(prof, wall)
+    shutil.rmtree(tmp, ignore_errors=True)
+    return out
+
+
+def _child(conn: Any, fn: Any, args: tuple[Any, ...], kw: dict[str, Any]) -> None:
+    try:
+        conn.send(("ok", fn(*args, **kw)))
+    except Exception as exc:  # noqa: BLE001 - report any failure as a table row
+        conn.send(("error", f"{type(exc).__name__}: {str(exc)[:160]}"))
+    conn.close()
+
+
+def forked(fn: Any, *args: Any, **kw: Any) -> Any:
+    """Run ``fn(*args, **kw)`` in a forked child (its own peak RSS); errors come back as str."""
+    ctx = mp.get_context("fork")
+    parent, child = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_child, args=(child, fn, args, kw))
+    proc.start()
+    child.close()
+    try:
+        status, value = parent.recv()
+    except EOFError:
+        status, value = "error", f"child died (exit code {proc.exitcode})"
+    proc.join()
+    return value if status == "ok" else str(value)
+
+
+# ---------------------------------------------------------------------------------------
+# profile split
+
+
+PROFILE_KEYS = (
+    ("constitutive update", "crystal_plasticity.py", "update"),
+    ("tangent assembly", "correspondence.py", "tangent_matrix"),
+    ("nodal force", "correspondence.py", "nodal_force"),
+    ("respond (total)", "correspondence.py", "respond"),
+    ("linear solve", "linear.py", "solve_linear"),
+    ("Dirichlet elimination", "bc.py", "eliminate_dirichlet"),
+    ("predictor", "nonlinear.py", "__call__"),
+    ("ADR density", "nonlinear.py", "adr_density"),
+)
+
+
+def profile_split(prof: cProfile.Profile, wall: float) -> list[tuple[str, float, int]]:
+    stats = pstats.Stats(prof)
+    raw: dict[Any, Any] = stats.stats  # type: ignore[attr-defined]
+    rows = []
+    for label, fname, func in PROFILE_KEYS:
+        ct, nc = 0.0, 0
+        for (path, _line, name), (_cc, ncalls, _tt, cum, _callers) in raw.items():
+            if name == func and path.endswith(fname):
+                ct += cum
+                nc += ncalls
+        rows.append((label, ct, nc))
+    rows.append(("profiled wall", wall, 1))
+    return rows
+
+
+# ---------------------------------------------------------------------------------------
+# tables
+
+
+def _fmt_t(x: float, est: bool) -> str:
+    return f"{x:.2f}{'*' if est else ''}"
+
+
+def split_times(r: dict[str, Any]) -> tuple[float, bool, float, bool, float]:
+    """Steps 1-7 and 8-30 wall times (extrapolated from the mean of done steps if stopped)."""
+    st, done, steps = r["step_times"], r["done"], r["steps"]
+    parts = []
+    for lo, hi in ((0, min(SPLIT, steps)), (min(SPLIT, steps), steps)):
+        have = st[lo : min(hi, done)]
+        missing = hi - max(lo, min(hi, done))
+        if missing <= 0:
+            parts.append((float(have.sum()), False))
+        elif have.size:
+            parts.append((float(have.sum() + missing * have.mean()), True))
+        else:
+            parts.append((float("nan"), True))
+    return parts[0][0], parts[0][1], parts[1][0], parts[1][1], parts[0][0] + parts[1][0]
+
+
+def table_b1(
+    sizes: list[int], loads: list[str], methods: list[str], steps: int, budget: float
+) -> list[dict[str, Any]]:
+    print(f"\n## B1: cost per size, load and method ({steps} load steps; * = extrapolated)\n")
+    head = (
+        "| particles | load | method | steps done | t 1-7 s | t 8-30 s | total s | it 1-7 | "
+        "it 8-30 | it max | calls | cut-backs | fallbacks | peak RSS MB | plastic |"
+    )
+    print(head)
+    print("|" + "---|" * (head.count("|") - 1))
+    rows = []
+    for n in sizes:
+        for load in loads:
+            for m in methods:
+                r = forked(run, n, load, m, steps, budget)
+                if isinstance(r, str):
+                    print(f"| {n * n:,} | {load} | {m} | failed: {r} |")
+                    continue
+                a, ae, b, be, tot = split_times(r)
+                done = f"{r['done']}/{steps}" + (f" ({r['failed']})" if "failed" in r else "")
+                it = r["iterations"]
+                fb = sum("failed" in s for s in r["methods"])
+                print(
+                    f"| {n * n:,} | {load} | {m} | {done} | {_fmt_t(a, ae)} | "
+                    f"{_fmt_t(b, be)} | {_fmt_t(tot, ae or be)} | {int(it[:SPLIT].sum())} | "
+                    f"{int(it[SPLIT:].sum())} | {int(it.max())} | {int(r['calls'].sum()):,} | "
+                    f"{int(r['cutbacks'].sum())} | {fb} | {r['peak_mb']:.0f} | "
+                    f"{r['plastic']:.2f} |",
+                    flush=True,
+                )
+                rows.append(r)
+    return rows
+
+
+def table_aim(rows: list[dict[str, Any]], n_aim: int) -> None:
+    print(f"\n## Aim: {n_aim * n_aim:,} particles, 30 steps < 60 s on one core\n")
+    print("| load | method | total s | aim met | Newton it steps 1, 2 |")
+    print("|---|---|---|---|---|")
+    for r in rows:
+        if r["n"] != n_aim * n_aim:
+            continue
+        tot = split_times(r)[4]
+        est = r["done"] < r["steps"]
+        its = r["iterations"][:2].tolist() if r["method"] in ("newton", "auto") else "-"
+        met = "yes" if tot < 60 else "no"
+        print(f"| {r['load']} | {r['method']} | {_fmt_t(tot, est)} | {met} | {its} |")
+
+
+def table_profile(n: int, load: str, methods: list[str], steps: int, budget: float) -> None:
+    print(f"\n## Profile: {n * n:,} particles, {load}, cProfile cumulative seconds\n")
+    for m in methods:
+        r = forked(run, n, load, m, steps, budget, profile=True)
+        if isinstance(r, str):
+            print(f"{m}: failed: {r}")
+            continue
+        it = int(r["iterations"].sum())
+        print(f"{m}: {r['done']} steps, {it} iterations, wall (profiled) {r['wall']:.1f} s")
+        print("\n| part | s | share | calls |")
+        print("|---|---|---|---|")
+        for label, ct, nc in r["profile"]:
+            print(f"| {label} | {ct:.2f} | {ct / r['wall']:.0%} | {nc} |")
+        print()
+
+
+def _big(n: int, steps: int, load: str) -> dict[str, Any]:
+    prob, _ = problem(n, load)
+    t0 = time.perf_counter()
+    res = pdlin.solve_nonlinear(
+        prob,
+        times=np.arange(1.0, steps + 1.0),
+        t_end=30.0,
+        method="newton",
+        keep_states=False,
+        progress=lambda msg: print(f"    {msg} (RSS {_peak_mb():.0f} MB)", flush=True),
+    )
+    plastic = np.asarray(res.state.get("plastic", np.zeros(1)), dtype=bool)
+    return {
+        "setup": float(res.timings["setup"]),
+        "step_times": np.asarray(res.timings["steps"]),
+        "iterations": res.iterations,
+        "calls": res.calls,
+        "cutbacks": res.cutbacks,
+        "plastic": float(plastic.mean()),
+        "wall": time.perf_counter() - t0,
+        "peak_mb": _peak_mb(),
+        "hom": res.homogenized_stress,
+    }
+
+
+def table_big(n: int, steps: int, load: str) -> None:
+    print(f"\n## 10⁵ feasibility: {n}² = {n * n:,} particles, {load}, Newton, steps 1-{steps}\n")
+    r = forked(_big, n, steps, load)
+    if isinstance(r, str):
+        print(f"failed: {r}")
+        return
+    print("| step | s | iterations | calls | cut-backs |")
+    print("|---|---|---|---|---|")
+    for k in range(len(r["step_times"])):
+        print(
+            f"| {k + 1} | {r['step_times'][k]:.1f} | {int(r['iterations'][k])} | "
+            f"{int(r['calls'][k]):,} | {int(r['cutbacks'][k])} |"
+        )
+    print(
+        f"\nsetup {r['setup']:.1f} s, wall {r['wall']:.1f} s, peak RSS {r['peak_mb']:.0f} MB, "
+        f"plastic fraction after step {steps}: {r['plastic']:.2f}"
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# B2 accuracy-cost
+
+
+def _b2(n: int, load: str, k: int, e_ls: list[float]) -> list[tuple[Any, ...]]:
+    prob, h = problem(n, load)
+    tmp = Path(tempfile.mkdtemp(prefix="bench_b2_"))
+    base = tmp / "base.npz"
+    tight = {"method": "newton", "rtol": 1e-12}
+    if k > 1:
+        pdlin.solve_nonlinear(
+            prob, steps=k - 1, t_end=float(k - 1), checkpoint=base, keep_states=False, **tight
+        )
+
+    def from_base(name: str, **kw: Any) -> Any:
+        path = tmp / name
+        if base.exists():
+            shutil.copy(base, path)
+        return pdlin.solve_nonlinear(
+            prob, steps=k, t_end=float(k), checkpoint=path, resume=True, keep_states=False, **kw
+        )
+
+    ref = from_base("ref.npz", **tight)
+    s_ref = ref.homogenized_stress[-1]
+    scale = float(np.linalg.norm(s_ref))
+    rows = []
+    for dens in ("adr-spec", "adr"):
+        for e_l in e_ls:
+            kw = options(dens, h)
+            t0 = time.perf_counter()
+            res = from_base(f"{dens}{e_l}.npz", e_l=e_l, **kw)
+            dt = time.perf_counter() - t0
+            err = float(np.linalg.norm(res.homogenized_stress[-1] - s_ref)) / scale
+            du = float(np.abs(res.u[-1] - ref.u[-1]).max() / np.abs(ref.u[-1]).max())
+            rows.append((dens, e_l, int(res.iterations[-1]), dt, err, du))
+    plastic = float(np.asarray(ref.state.get("plastic", np.zeros(1)), dtype=bool).mean())
+    shutil.rmtree(tmp, ignore_errors=True)
+    return [(k, plastic, int(ref.iterations[-1]), *row) for row in rows]
+
+
+def table_b2(n: int, load: str, ks: list[int], e_ls: list[float]) -> None:
+    print(f"\n## B2: accuracy-cost, {n * n:,} particles, {load}, ADR from Newton's state\n")
+    print(
+        "| step | plastic | Newton it | density | e_l | ADR it | ADR s | "
+        "‖Δσ̄‖/‖σ̄‖ | max|Δu|/max|u| |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
+    for k in ks:
+        rows = forked(_b2, n, load, k, e_ls)
+        if isinstance(rows, str):
+            print(f"| {k} | failed: {rows} |")
+            continue
+        for kk, pl, nit, dens, e_l, it, dt, err, du in rows:
+            print(
+                f"| {kk} | {pl:.2f} | {nit} | {dens} | {e_l:.0e} | {it} | {dt:.2f} | "
+                f"{err:.1e} | {du:.1e} |",
+                flush=True,
+            )
+
+
+# ---------------------------------------------------------------------------------------
+# T20 damping
+
+
+def _t20(n: int, steps: int, total: int, damping: float | None) -> dict[str, Any]:
+    prob, h = problem(n, "shear")
+    res = pdlin.solve_nonlinear(
+        prob,
+        times=np.arange(1.0, steps + 1.0),
+        t_end=float(total),
+        method="adr",
+        density=h * h,
+        dt=h * np.sqrt(1.0 / 2000.0),
+        damping=damping,
+        keep_states=False,
+    )
+    first, last, zero = [], [], []
+    for c in res.damping:
+        m = max(1, int(np.ceil(0.1 * c.size)))
+        first.append(float(c[:m].max()))
+        last.append(float(c[-m:].max()))
+        zero.append(float(np.mean(c == 0.0)))
+    return {
+        "it": res.iterations.tolist(),
+        "first": first,
+        "last": last,
+        "zero": zero,
+        "time": float(res.timings["total"]),
+    }
+
+
+def table_t20(n: int, steps: int) -> None:
+    print(f"\n## T20: ADR damping, {n}x{n} shear, steps 1-{steps} (spec density)\n")
+    runs = {}
+    for c in (None, 200.0, 500.0, 2000.0):
+        r = forked(_t20, n, steps, 30, c)
+        runs["adaptive" if c is None else f"c = {c:g}"] = r
+    names = list(runs)
+    print(
+        "| step | " + " | ".join(f"it {k}" for k in names) + " | adaptive max c first 10 % | "
+        "last 10 % | ratio | c = 0 share |"
+    )
+    print("|---" * (len(names) + 5) + "|")
+    ad = runs["adaptive"]
+    for k in range(steps):
+        its = " | ".join(str(runs[m]["it"][k]) if isinstance(runs[m], dict) else "-" for m in names)
+        if isinstance(ad, dict):
+            f, la, z = ad["first"][k], ad["last"][k], ad["zero"][k]
+            print(f"| {k + 1} | {its} | {f:.3g} | {la:.3g} | {f / max(la, 1e-300):.1f} | {z:.0%} |")
+    tot = " | ".join(
+        f"{sum(runs[m]['it'])} ({runs[m]['time']:.1f} s)" if isinstance(runs[m], dict) else "-"
+        for m in names
+    )
+    print(f"| total (time) | {tot} | | | | |")
+
+
+# ---------------------------------------------------------------------------------------
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--sizes", type=int, nargs="+", help="grid sides n (n x n particles)")
+    ap.add_argument("--loads", nargs="+", default=list(LOADS), choices=list(LOADS))
+    ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
+    ap.add_argument("--steps", type=int, default=30)
+    ap.add_argument(
+        "--e-l",
+        type=float,
+        nargs="+",
+        dest="e_l",
+        default=[1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8],
+    )
+    ap.add_argument(
+        "--budget",
+        type=float,
+        default=150.0,
+        help="seconds per B1 run before it stops and extrapolates (default 150)",
+    )
+    ap.add_argument("--aim-size", type=int, default=50, help="grid side of the aim (50: 2,500)")
+    ap.add_argument(
+        "--big", type=int, help="grid side of the 10⁵ run (0: skip; default 316, 0 with --quick)"
+    )
+    ap.add_argument("--big-steps", type=int, default=3)
+    ap.add_argument("--b2-size", type=int, default=25)
+    ap.add_argument(
+        "--b2-steps",
+        type=int,
+        nargs="+",
+        default=[1, 8],
+        help="load steps of B2 (an elastic and a plastic one)",
+    )
+    ap.add_argument(
+        "--sections",
+        nargs="+",
+        default=["b1", "aim", "profile", "big", "b2", "t20"],
+        choices=["b1", "aim", "profile", "big", "b2", "t20"],
+    )
+    ap.add_argument(
+        "--profile-budget", type=float, default=90.0, help="seconds per profiled run (default 90)"
+    )
+    mode = ap.add_mutually_exclusive_group()
+    mode.add_argument(
+        "--quick",
+        action="store_true",
+        help="the default: 15x15 and 25x25, 8 s per run, no 10⁵ run (about 2 min)",
+    )
+    mode.add_argument("--full", action="store_true", help="225 to 10,000 particles and the 10⁵ run")
+    args = ap.parse_args(argv)
+    quick = not args.full and args.sizes is None
+    if args.sizes is None:
+        args.sizes = [15, 25, 50, 100] if args.full else [15, 25]
+    if args.big is None:
+        args.big = 0 if quick else 316
+    if quick:
+        args.aim_size = max(args.sizes)
+        args.budget = min(args.budget, 8.0)
+        args.profile_budget = min(args.profile_budget, 8.0)
+    print(
+        f"# bench_nonlinear {datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC, python "
+        f"{platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "
+        f"{os.cpu_count()} cores, BLAS threads {os.environ.get('OPENBLAS_NUM_THREADS')}, "
+        f"load average {os.getloadavg()[0]:.1f}"
+    )
+    t_all = time.perf_counter()
+    rows: list[dict[str, Any]] = []
+    if "b1" in args.sections:
+        rows = table_b1(args.sizes, args.loads, args.methods, args.steps, args.budget)
+    if "aim" in args.sections and rows:
+        table_aim(rows, args.aim_size)
+    if "profile" in args.sections:
+        n_prof = args.aim_size
+        table_profile(
+            n_prof, args.loads[0], ["newton", "adr-spec"], args.steps, args.profile_budget
+        )
+    if "big" in args.sections and args.big > 0:
+        table_big(args.big, args.big_steps, args.loads[0])
+    if "b2" in args.sections:
+        table_b2(args.b2_size, args.loads[0], args.b2_steps, args.e_l)
+    if "t20" in args.sections:
+        table_t20(25, 6 if quick else 12)
+    print(f"\nrun time {time.perf_counter() - t_all:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
