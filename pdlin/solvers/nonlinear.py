@@ -110,7 +110,7 @@ def newton_step(
     rtol: float = 1e-8,
     maxiter: int = 25,
     line_search: bool = True,
-    max_backtracks: int = 8,
+    max_backtracks: int = 16,
     linear_solver: str = "auto",
     linear_rtol: float = 1e-10,
     nonmonotone: int = 3,
@@ -179,9 +179,12 @@ def newton_step(
         alpha = 1.0
         accepted = False
         best: tuple[float, np.ndarray, Any, np.ndarray] | None = None
+        # the full step's tangent is wanted unless it is likely the last iteration
+        # (quadratic convergence from here would end below rtol)
+        want_tangent = rel * rel > 0.1 * rtol
         for _ls in range(max_backtracks + 1 if line_search else 1):
             trial_u = u + alpha * du
-            trial = system.respond(trial_u, committed, tangent=alpha == 1.0)
+            trial = system.respond(trial_u, committed, tangent=alpha == 1.0 and want_tangent)
             calls += int(trial.calls)
             rt = _residual(system, trial, factor)
             nt = float(np.linalg.norm(rt))
@@ -207,9 +210,12 @@ def newton_step(
             )
         u = trial_u
         if trial.tangent is None:
-            trial = system.respond(u, committed, tangent=True)
-            calls += int(trial.calls)
-            rt = _residual(system, trial, factor)
+            nt = float(np.linalg.norm(rt))
+            scale_t = max(scale0, _force_scale(system, trial, factor))
+            if not (nt <= rtol * scale_t or nt == 0.0):  # another iteration needs K_T
+                trial = system.respond(u, committed, tangent=True)
+                calls += int(trial.calls)
+                rt = _residual(system, trial, factor)
         resp, r = trial, rt
     raise StepFailed(
         f"Newton: no convergence in {maxiter} iterations (relative residual {history[-1]:.3e} "
