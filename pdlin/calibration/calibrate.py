@@ -96,6 +96,17 @@ def _voigt_matrix(v: np.ndarray, nv: int) -> np.ndarray:
     return out
 
 
+def _finite_scalar(value: Any, name: str) -> float:
+    """``value`` as a finite real float, or InputError naming ``name``."""
+    real = int | float | np.integer | np.floating
+    if isinstance(value, bool | np.bool_) or not isinstance(value, real):
+        raise InputError(f"{name} must be a finite real number, got {value!r}")
+    v = float(value)
+    if not np.isfinite(v):
+        raise InputError(f"{name} must be finite, got {value!r}")
+    return v
+
+
 # ---------------------------------------------------------------------------
 # design matrix
 # ---------------------------------------------------------------------------
@@ -128,6 +139,9 @@ def design_matrix(
     vol = np.broadcast_to(as_float_array(volume, "volume"), (m,))
     dim = x.shape[1]
     length = np.sqrt(np.einsum("ij,ij->i", x, x))
+    if np.any(length <= 0):
+        k = int(np.flatnonzero(length <= 0)[0])
+        raise InputError(f"xi must hold non-zero bond vectors, got a zero vector at bond {k}")
     zeta = np.stack([x[:, i] * x[:, j] for i, j in _VOIGT[dim]], axis=1)
     w = 0.5 * om * vol * float(thickness) / length**3
     a, b = _upper(len(_VOIGT[dim]))
@@ -782,9 +796,13 @@ def calibrate_micromoduli(
         raise InputError(f"boundary must be one of {_BOUNDARY_RULES}, got {boundary!r}")
     if plane not in ("stress", "strain"):
         raise InputError(f"plane must be 'stress' or 'strain', got {plane!r}")
-    lb = float(lower_bound)
-    if not np.isfinite(lb):
-        raise InputError(f"lower_bound must be finite, got {lower_bound!r}")
+    lb = _finite_scalar(lower_bound, "lower_bound")
+    rc = _finite_scalar(rcond, "rcond")
+    if not 0.0 <= rc < 1.0:
+        raise InputError(f"rcond must be in [0, 1), got {rc!r}")
+    zt = _finite_scalar(zero_tol, "zero_tol")
+    if zt < 0.0:
+        raise InputError(f"zero_tol must be >= 0, got {zt!r}")
     if lb < 0 and method != "min-norm":
         log.warning("lower_bound %g < 0 allows negative micromoduli (unstable bonds)", lb)
     opts: dict[str, Any] = dict(
@@ -792,8 +810,8 @@ def calibrate_micromoduli(
         lower_bound=lb,
         method=method,
         qp_solver=qp_solver,
-        rcond=float(rcond),
-        zero_tol=float(zero_tol),
+        rcond=rc,
+        zero_tol=zt,
         raise_on_infeasible=raise_on_infeasible,
     )
     if isinstance(bonds, Bonds):

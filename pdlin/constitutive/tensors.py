@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._validation import check_finite
-from ..errors import InputError, NonFiniteError, ShapeError
+from ..errors import InputError, InputTypeError, NonFiniteError, ShapeError
 
 __all__ = [
     "VOIGT_PAIRS_3D",
@@ -79,6 +79,12 @@ def _mandel_weights(dim: int) -> FloatArray:
 
 def _as_array(C: Any, name: str) -> FloatArray:
     """Float64 array of an allowed stiffness shape, finite (no symmetry check)."""
+    try:
+        is_complex = np.iscomplexobj(C)
+    except (TypeError, ValueError):  # ragged input: reported by the conversion below
+        is_complex = False
+    if is_complex:
+        raise InputTypeError(f"{name} must be real, got complex dtype {np.asarray(C).dtype}")
     try:
         arr = np.asarray(C, dtype=np.float64)
     except (TypeError, ValueError) as exc:

@@ -60,6 +60,27 @@ def _keys(table: Any, allowed: set[str], where: str) -> dict[str, Any]:
     return check_keys(table, allowed, where)
 
 
+def _matrix(value: Any, where: str) -> np.ndarray:
+    """A numeric array from TOML, or SceneError naming ``where``."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise SceneError(
+            f"{where} must be a numeric matrix (array of arrays of numbers), got {value!r}: {exc}"
+        ) from exc
+
+
+def _number(value: Any, where: str, *, integer: bool = False) -> Any:
+    """A TOML number (an integer when ``integer``), or SceneError naming ``where``."""
+    ok = isinstance(value, int) and not isinstance(value, bool)
+    if not integer:
+        ok = ok or isinstance(value, float)
+    if not ok:
+        kind = "an integer" if integer else "a number"
+        raise SceneError(f"{where} must be {kind}, got {value!r}")
+    return value
+
+
 def target_from_table(table: Mapping[str, Any], where: str = "target") -> np.ndarray:
     """Voigt stiffness from a target table (see the module docstring).
 
@@ -96,9 +117,9 @@ def target_from_table(table: Mapping[str, Any], where: str = "target") -> np.nda
         elif "material" in tbl:
             C = cst.material(str(tbl["material"]))
         else:
-            C = cst.check_stiffness(np.asarray(tbl["voigt"], dtype=float), f"{where}.voigt")
+            C = cst.check_stiffness(_matrix(tbl["voigt"], f"{where}.voigt"), f"{where}.voigt")
         if "rotation" in tbl:
-            C = cst.rotate(C, np.asarray(tbl["rotation"], dtype=float))
+            C = cst.rotate(C, _matrix(tbl["rotation"], f"{where}.rotation"))
         if "plane" in tbl:
             plane = tbl["plane"]
             if plane not in ("stress", "strain"):
@@ -157,23 +178,40 @@ def calibration_from_dict(
         if k not in fam_cfg:
             raise SceneError(f"missing key family.{k}")
     target = target_from_table(top["target"])
+    dim = _number(fam_cfg["dim"], "family.dim", integer=True)
+    horizon = float(_number(fam_cfg["horizon"], "family.horizon"))
+    spacing = float(_number(fam_cfg.get("spacing", 1.0), "family.spacing"))
+    thickness = float(_number(fam_cfg.get("thickness", 1.0), "family.thickness"))
     try:
         family = lattice_family(
-            int(fam_cfg["dim"]),
-            float(fam_cfg["horizon"]),
+            dim,
+            horizon,
             lattice=fam_cfg.get("lattice"),
-            spacing=float(fam_cfg.get("spacing", 1.0)),
+            spacing=spacing,
             shape=fam_cfg.get("shape", "sphere"),
             axes=fam_cfg.get("axes"),
             influence=fam_cfg.get("influence", "constant"),
             rotation=fam_cfg.get("rotation"),
-            thickness=float(fam_cfg.get("thickness", 1.0)),
+            thickness=thickness,
         )
     except PdlinError as exc:
         raise SceneError(f"family: {exc}") from exc
     options = _keys(top.get("calibration", {}), _OPTIONS, "calibration")
     options.pop("boundary", None)
     options.pop("pair_rule", None)
+    if "lower_bound" in options:
+        options["lower_bound"] = _number(options["lower_bound"], "calibration.lower_bound")
+    if "raise_on_infeasible" in options and not isinstance(options["raise_on_infeasible"], bool):
+        raise SceneError(
+            "calibration.raise_on_infeasible must be true or false, got "
+            f"{options['raise_on_infeasible']!r}"
+        )
+    for key in ("method", "weighting", "qp_solver"):
+        if key in options and not isinstance(options[key], str):
+            raise SceneError(f"calibration.{key} must be a string, got {options[key]!r}")
+    name = top.get("name", "calibration")
+    if not isinstance(name, str):
+        raise SceneError(f"name must be a string, got {name!r}")
     out = _keys(top.get("output", {}), _OUTPUT, "output")
 
     def _path(p: Any) -> Path | None:
@@ -183,7 +221,7 @@ def calibration_from_dict(
         return q if q.is_absolute() else base / q
 
     return CalibrationJob(
-        name=str(top.get("name", "calibration")),
+        name=name,
         target=target,
         family=family,
         options=options,
