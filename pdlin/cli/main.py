@@ -54,14 +54,30 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     prog = _Progress(args.quiet)
     prog("reading scene")
-    scene = _load(args)
+    chosen: dict[str, Any] | None = None
+    if args.select:
+        if not args.scene:
+            raise PdlinError("--select needs a scene file with a [tradeoff] table")
+        from ..sweeps.scene import select_scene
+
+        prog("measuring the scene's [tradeoff] sweep (finished points are reused)")
+        scene, chosen, _ = select_scene(args.scene, target_error=args.target_error)
+        prog(f"fastest configuration meeting the target: {chosen}")
+    else:
+        scene = _load(args)
     if scene.nonlinear is not None:
         return _run_nonlinear(args, scene, prog)
     if args.resume:
         raise PdlinError("--resume needs a nonlinear scene with solver.checkpoint")
     solver = args.solver or scene.solver
+    extra = {"operator": chosen["operator"]} if chosen and "operator" in chosen else {}
     result = solve(
-        scene.problem, solver=solver, rtol=scene.rtol, maxiter=scene.maxiter, progress=prog
+        scene.problem,
+        solver=solver,
+        rtol=scene.rtol,
+        maxiter=scene.maxiter,
+        progress=prog,
+        **extra,
     )
     out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.vtu"))
     prog(f"writing {out}")
@@ -78,6 +94,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     write_points(out, scene.cloud, fields) if scene.fields else write_result(out, result)
     summary = result.summary()
     summary["scene"] = scene.name
+    if chosen is not None:
+        summary["selected"] = {
+            k: (v if isinstance(v, int | float | str) else str(v)) for k, v in chosen.items()
+        }
     if scene.calibration is not None:
         summary["calibration"] = _calibration_summary(scene.calibration)
     summary["output"] = str(out)
@@ -86,6 +106,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     else:
         u = summary["max_abs_u"]
         print(f"scene        {scene.name}")
+        if chosen is not None:
+            print("selected     " + ", ".join(f"{k} = {v}" for k, v in summary["selected"].items()))
         print(f"points       {summary['points']:,} ({summary['dim']}D), bonds {summary['bonds']:,}")
         print(
             f"solver       {summary['solver']}: {summary['iterations']} iteration(s), "
@@ -352,6 +374,13 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="continue a nonlinear run from its checkpoint (solver.checkpoint)",
     )
+    r.add_argument(
+        "--select",
+        action="store_true",
+        help="run the fastest configuration of the scene's [tradeoff] sweep that meets "
+        "tradeoff.target_error (the sweep's finished points are reused)",
+    )
+    r.add_argument("--target-error", type=float, help="override tradeoff.target_error")
     r.set_defaults(func=_cmd_run)
 
     i = sub.add_parser("info", help="points, volumes, bonds and horizons of a mesh or scene")

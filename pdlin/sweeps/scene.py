@@ -41,7 +41,13 @@ from ..errors import SceneError
 from ..io._keys import check_keys, read_toml
 from .core import SOLVE_KEYS, TradeoffCase, TradeoffResult, tradeoff
 
-__all__ = ["SceneSweep", "load_tradeoff", "tradeoff_from_dict", "run_scene_tradeoff"]
+__all__ = [
+    "SceneSweep",
+    "load_tradeoff",
+    "tradeoff_from_dict",
+    "run_scene_tradeoff",
+    "select_scene",
+]
 
 _TRADEOFF = {
     "sweep",
@@ -264,3 +270,65 @@ def load_tradeoff(path: str | Path) -> SceneSweep:
 def run_scene_tradeoff(path: str | Path, **kwargs: Any) -> TradeoffResult:
     """:func:`pdlin.tradeoff` on a scene file's ``[tradeoff]`` sweep."""
     return load_tradeoff(path).run(**kwargs)
+
+
+def select_scene(
+    path: str | Path,
+    *,
+    target_error: float | None = None,
+    output: str | Path | None = None,
+    resume: bool = True,
+    progress: Callable[..., Any] | None = None,
+) -> tuple[Any, dict[str, Any], TradeoffResult]:
+    """The scene's fastest measured configuration meeting its error target.
+
+    "Model only what a scene requires": runs (or resumes) the scene's ``[tradeoff]``
+    sweep, takes the fastest row whose error is at most ``target_error`` (default
+    ``tradeoff.target_error``) and returns that configuration as a
+    :class:`~pdlin.io.scene.Scene` ready to solve, with the chosen parameters and the
+    sweep's result.
+
+    Raises
+    ------
+    SceneError
+        Without a target, or when no configuration of the sweep meets it (the message
+        gives the smallest error measured).
+    """
+    from ..io.scene import scene_from_dict
+
+    sweep = load_tradeoff(path)
+    target = target_error if target_error is not None else sweep.options.get("target_error")
+    if target is None:
+        raise SceneError(
+            "selecting a configuration needs tradeoff.target_error in the scene "
+            "(or --target-error), got none"
+        )
+    opts: dict[str, Any] = {"resume": resume, "target_error": float(target)}
+    if output is not None:
+        opts["output"] = Path(output)
+    elif sweep.options.get("output") is None:
+        opts["output"] = Path(path).with_name(f"{Path(path).stem}_tradeoff.csv")
+    if progress is not None:
+        opts["progress"] = progress
+    result = sweep.run(**opts)
+    row = result.best(float(target))
+    if row is None:
+        errs = [float(r["error"]) for r in result.ok()]
+        best = f"{min(errs):.3g}" if errs else "none (no point succeeded)"
+        raise SceneError(
+            f"no configuration of the sweep meets tradeoff.target_error = {target:g}; "
+            f"smallest error measured: {best}"
+        )
+    # rows read back from a resumed table hold strings: map them onto the grid's values
+    params: dict[str, Any] = {}
+    for p in result.params:
+        values = sweep.grid.get(p, [row[p]])
+        params[p] = next((v for v in values if str(v) == str(row[p])), row[p])
+    scene = scene_from_dict(sweep.scene_data(**params), sweep.base_dir)
+    if "solver" in params:
+        scene.solver = str(params["solver"])
+    if "rtol" in params:
+        scene.rtol = float(params["rtol"])
+    if "maxiter" in params and params["maxiter"] is not None:
+        scene.maxiter = int(params["maxiter"])
+    return scene, params, result

@@ -245,3 +245,30 @@ def test_scene_sweep_errors(tmp_path):
 def test_top_level_names():
     assert pdlin.tradeoff is tradeoff
     assert pdlin.TradeoffResult is TradeoffResult
+
+
+def test_run_select_solves_the_fastest_configuration_meeting_the_target(tmp_path, capsys):
+    # "model only what a scene requires": pdlin run --select measures the [tradeoff] sweep
+    # (or reuses its finished points) and solves the fastest configuration within the target
+    from pdlin.cli.main import main
+    from pdlin.errors import SceneError
+    from pdlin.sweeps.scene import select_scene
+
+    scene = (EXAMPLES / "tradeoff_plate.toml").read_text()
+    scene = scene.replace('model = ["bond_based", "lps", "xosb"]', 'model = ["bond_based", "lps"]')
+    path = tmp_path / "plate.toml"
+    path.write_text(scene)
+    table = tmp_path / "plate_tradeoff.csv"
+    sc, chosen, res = select_scene(path, target_error=0.05, output=table)
+    best = res.best(0.05)
+    assert best is not None
+    assert {p: str(v) for p, v in chosen.items()} == {p: str(best[p]) for p in res.params}
+    # no faster row of the table meets the target
+    ok = [r for r in res.ok() if float(r["error"]) <= 0.05]
+    assert all(float(r[res.time]) >= float(best[res.time]) for r in ok)
+    assert main(["run", str(path), "--select", "--target-error", "0.05", "--json", "-q",
+                 "-o", str(tmp_path / "best.npz")]) == 0  # fmt: skip
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["selected"]["model"] == str(chosen["model"])
+    with pytest.raises(SceneError, match="no configuration of the sweep meets"):
+        select_scene(path, target_error=1e-12, output=table)
