@@ -18,6 +18,7 @@ from .problems import (
     FACTORIES,
     MODEL_NAMES,
     affine_patch,
+    anisotropic_block,
     graded_bar,
     make_model,
     plate_with_hole,
@@ -38,5 +39,6 @@ __all__ = [
     "tension_bar",
     "affine_patch",
     "plate_with_hole",
+    "anisotropic_block",
     "FACTORIES",
 ]

@@ -11,6 +11,7 @@ factory                dim   reference
 :func:`tension_bar`    2, 3  closed form: uniaxial stress, lateral faces free
 :func:`affine_patch`   2, 3  closed form: any affine field (a patch test)
 :func:`plate_with_hole` 2    Q4 finite elements (:mod:`pdlin.verification.fem`)
+:func:`anisotropic_block` 2  closed form: uniaxial stress of an orthotropic tensor
 =====================  ====  =====================================================
 """
 
@@ -37,6 +38,7 @@ __all__ = [
     "tension_bar",
     "affine_patch",
     "plate_with_hole",
+    "anisotropic_block",
     "FACTORIES",
 ]
 
@@ -350,10 +352,84 @@ def plate_with_hole(
     return TradeoffCase(prob, reference=uref, measure=free, h=float(h), delta=delta)
 
 
+def anisotropic_block(
+    model: str = "bb",
+    *,
+    h: float = 0.05,
+    m: float = 3.015,
+    anisotropy: float = 4.0,
+    angle: float = 0.0,
+    influence: str = "constant",
+    strain: float = 1e-3,
+) -> TradeoffCase:
+    """Orthotropic block in uniaxial stress: calibrated bond-based or correspondence models.
+
+    The 2D plane-stress tensor ``C11 = anisotropy · C22``, ``C12 = C66 = 0.3 C22`` (it
+    satisfies the Cauchy relation ``C12 = C66``, so nonnegative bond micromoduli can
+    represent it exactly on complete families), rotated by ``angle`` radians.  The block
+    ``2 x 1`` is pulled along x by inward shadow layers of depth ``2 δ`` at ``x = ±1``
+    carrying the closed-form uniaxial-stress field ``ε = S σ e_x⊗e_x`` (``S = C⁻¹``); the
+    lateral faces are free.  ``model``: ``'bb'`` (micromoduli of the bulk family calibrated
+    with :func:`pdlin.calibrate_micromoduli`, ``boundary="bulk"``: interior families exact,
+    truncated ones softer, like any bond-based body) or
+    ``'correspondence[:control]'`` (the tensor itself).
+
+    Examples
+    --------
+    >>> case = anisotropic_block("correspondence:penalty", h=0.1, m=2.015)
+    >>> case.problem.cloud.n, case.measure.size
+    (200, 120)
+    """
+    from ..calibration import calibrate_micromoduli
+    from ..constitutive.tensors import rotate
+    from ..models.bond_based import BondBased
+    from ..models.correspondence import Correspondence
+
+    a = float(anisotropy)
+    if not (np.isfinite(a) and a > 0):
+        raise InputError(f"anisotropy must be a positive number, got {anisotropy!r}")
+    C22 = 1.0
+    C = np.array([[a * C22, 0.3 * C22, 0.0], [0.3 * C22, C22, 0.0], [0.0, 0.0, 0.3 * C22]])
+    if angle:
+        c, s_ = np.cos(angle), np.sin(angle)
+        C = rotate(C, np.array([[c, -s_], [s_, c]]))
+    S = np.linalg.inv(C)  # plain Voigt (engineering shear): ε = S σ
+    eps = strain * S[:, 0] / S[0, 0]  # σ_xx chosen so that ε_xx = strain
+    F = np.eye(2) + np.array([[eps[0], 0.5 * eps[2]], [0.5 * eps[2], eps[1]]])
+    cloud = _grid_for((2.0, 1.0), float(h), np.array([-1.0, -0.5]))
+    delta = float(m) * float(h)
+    bc, shadow = shadow_layer(cloud, F, 2.0 * delta, faces=["x-", "x+"])
+    real = np.setdiff1d(np.arange(cloud.n), shadow)
+    bonds = find_bonds(cloud, delta, influence=influence)
+    name, _, control = model.partition(":")
+    mdl: Model
+    if name == "bb":
+        res = calibrate_micromoduli(
+            C, bonds, thickness=cloud.thickness, plane="stress", boundary="bulk"
+        )
+        if not np.all(np.isfinite(res.micromoduli)):
+            raise InputError(f"calibration failed ({res.status}): {res.message}")
+        mdl = BondBased(micromodulus=res.micromoduli, plane="stress")
+    elif name == "correspondence":
+        mdl = Correspondence(C, plane="stress", control=control or "none")
+    else:
+        raise InputError(
+            f"model must be 'bb' or 'correspondence[:control]' for the anisotropic block, "
+            f"got {model!r}"
+        )
+    prob = StaticProblem(mdl, cloud, bonds, dirichlet=[bc])
+
+    def exact(X: np.ndarray) -> np.ndarray:
+        return np.asarray(X @ (F - np.eye(2)).T)
+
+    return TradeoffCase(prob, exact=exact, measure=real, h=float(h), delta=delta)
+
+
 #: bundled factories by name (``[tradeoff] problem = ...`` in scene files)
 FACTORIES = {
     "graded_bar": graded_bar,
     "tension_bar": tension_bar,
     "affine_patch": affine_patch,
     "plate_with_hole": plate_with_hole,
+    "anisotropic_block": anisotropic_block,
 }
