@@ -315,7 +315,18 @@ def _cmd_examples(args: argparse.Namespace) -> int:
 def _cmd_tradeoff(args: argparse.Namespace) -> int:
     from ..sweeps.scene import load_tradeoff
 
-    sweep = load_tradeoff(args.scene)
+    if getattr(args, "example", None):
+        from ..io.scene import builtin_scene
+        from ..sweeps.scene import tradeoff_from_dict
+
+        data, _ = builtin_scene(args.example)
+        if "tradeoff" not in data:
+            raise PdlinError(f"built-in scene {args.example!r} has no [tradeoff] table")
+        sweep = tradeoff_from_dict(data, Path.cwd())
+    elif not args.scene:
+        raise PdlinError("give a scene file or --example NAME")
+    else:
+        sweep = load_tradeoff(args.scene)
     opts: dict[str, Any] = {"resume": args.resume}
     if args.output:
         opts["output"] = Path(args.output)
@@ -426,7 +437,8 @@ def build_parser() -> argparse.ArgumentParser:
     x.set_defaults(func=_cmd_export)
 
     t = sub.add_parser("tradeoff", help="sweep a scene's [tradeoff] table: error vs time")
-    t.add_argument("scene", help="scene file (.toml) with a [tradeoff] table")
+    t.add_argument("scene", nargs="?", help="scene file (.toml) with a [tradeoff] table")
+    t.add_argument("--example", help="a built-in scene with a [tradeoff] table (e.g. bar)")
     t.add_argument("-o", "--output", help="table written point by point (.csv or .jsonl)")
     t.add_argument("--plot", help="figure: error vs time and error vs delta/h (.png, .pdf)")
     t.add_argument("--resume", action="store_true", help="keep the finished points of -o")
