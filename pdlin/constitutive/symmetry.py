@@ -192,54 +192,6 @@ def cubic(C11: float, C12: float, C44: float) -> FloatArray:
     )  # fmt: skip
 
 
-def _lame_from(given: dict[str, float]) -> tuple[float, float]:
-    """(λ, μ) from any two of E, ν, λ, G (= μ), K."""
-    g = given
-    keys = frozenset(g)
-    if keys == {"lam", "G"}:
-        return g["lam"], g["G"]
-    if keys == {"E", "nu"}:
-        E, nu = g["E"], g["nu"]
-        if nu <= -1.0 or nu >= 0.5:
-            raise InputError(f"nu must be in (-1, 0.5), got {nu}")
-        return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
-    if keys == {"K", "G"}:
-        return g["K"] - 2.0 * g["G"] / 3.0, g["G"]
-    if keys == {"E", "G"}:
-        E, G = g["E"], g["G"]
-        if G == 0.0 or 3.0 * G == E:
-            raise InputError(f"E and G must give a finite nu, got E = {E}, G = {G}")
-        return G * (E - 2.0 * G) / (3.0 * G - E), G
-    if keys == {"E", "K"}:
-        E, K = g["E"], g["K"]
-        if 9.0 * K == E:
-            raise InputError(f"E and K must satisfy E != 9K, got E = {E}, K = {K}")
-        G = 3.0 * K * E / (9.0 * K - E)
-        return K - 2.0 * G / 3.0, G
-    if keys == {"K", "nu"}:
-        K, nu = g["K"], g["nu"]
-        if nu <= -1.0 or nu >= 0.5:
-            raise InputError(f"nu must be in (-1, 0.5), got {nu}")
-        G = 3.0 * K * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu))
-        return K - 2.0 * G / 3.0, G
-    if keys == {"G", "nu"}:
-        G, nu = g["G"], g["nu"]
-        if nu >= 0.5:
-            raise InputError(f"nu must be < 0.5, got {nu}")
-        return 2.0 * G * nu / (1.0 - 2.0 * nu), G
-    if keys == {"lam", "nu"}:
-        lam, nu = g["lam"], g["nu"]
-        if nu == 0.0:
-            raise InputError("lam and nu cannot fix the moduli when nu = 0, give another pair")
-        return lam, lam * (1.0 - 2.0 * nu) / (2.0 * nu)
-    if keys == {"lam", "K"}:
-        return g["lam"], 1.5 * (g["K"] - g["lam"])
-    # keys == {"E", "lam"}
-    E, lam = g["E"], g["lam"]
-    R = np.sqrt(E * E + 9.0 * lam * lam + 2.0 * E * lam)
-    return lam, float(E - 3.0 * lam + R) / 4.0
-
-
 def isotropic(
     E: float | None = None,
     nu: float | None = None,
@@ -278,7 +230,12 @@ def isotropic(
             f"got {len(names)}: {', '.join(names) or 'none'}"
         )
     given = {("G" if k == "mu" else k): _finite_scalar(passed[k], k) for k in names}
-    lam_, mu_ = _lame_from(given)
+    _check_nu(given.get("nu"))
+    lam_a, mu_a = _lame_arrays({k: np.asarray(v) for k, v in given.items()})
+    if not (np.isfinite(lam_a) and np.isfinite(mu_a)):
+        raise InputError(f"{', '.join(f'{k} = {v:g}' for k, v in given.items())} do not "
+                         "determine finite elastic moduli")  # fmt: skip
+    lam_, mu_ = float(lam_a), float(mu_a)
     return _build(
         "isotropic", C11=lam_ + 2 * mu_, C22=lam_ + 2 * mu_, C33=lam_ + 2 * mu_,
         C12=lam_, C13=lam_, C23=lam_, C44=mu_, C55=mu_, C66=mu_,
@@ -415,6 +372,16 @@ def isotropic_constants(
     if scalar:
         return float(E_), float(nu_)
     return E_, nu_
+
+
+def _check_nu(nu: Any) -> None:
+    """A given Poisson ratio must lie in (-1, 1/2) (positive definite isotropic tensor)."""
+    if nu is None:
+        return
+    arr = np.asarray(nu, dtype=float)
+    if np.any(arr <= -1.0) or np.any(arr >= 0.5):
+        got = float(arr) if arr.ndim == 0 else _show(arr)
+        raise InputError(f"nu must be in (-1, 0.5), got {got}")
 
 
 def _finite_array(value: Any, name: str) -> np.ndarray:

@@ -133,21 +133,6 @@ _DIRICHLET = {
 _LOAD = {"type", "set", "box", "points", "force", "density"}
 _SHADOW = {"F", "depth", "faces", "translation"}
 _SYMMETRY = {"axis", "position", "side"}
-_SOLVER = {
-    "name",
-    "rtol",
-    "maxiter",
-    "nonlinear",
-    "steps",
-    "t_end",
-    "e_l",
-    "predictor",
-    "checkpoint",
-    "max_cutbacks",
-    "density",
-    "dt",
-    "damping",
-}
 #: [solver] keys of solve_nonlinear (with rtol / maxiter for Newton)
 _NONLINEAR_KEYS = (
     "steps",
@@ -160,6 +145,7 @@ _NONLINEAR_KEYS = (
     "dt",
     "damping",
 )
+_SOLVER = {"name", "rtol", "maxiter", "nonlinear", *_NONLINEAR_KEYS}
 _OUTPUT = {"path", "fields", "homogenized"}
 
 
@@ -238,7 +224,7 @@ def _correspondence(
             )
         C = target_from_table(material["stiffness"], "material.stiffness")
         return Correspondence(C, plane=plane, **opts)
-    iso = _isotropic(material, cloud, "correspondence", one=cloud.dim == 1)
+    iso = _isotropic(material, cloud, "correspondence", minimum=1 if cloud.dim == 1 else 2)
     return Correspondence(**iso, plane=plane, **opts)
 
 
@@ -280,13 +266,14 @@ def _crystal_plasticity(material: Mapping[str, Any], cloud: PointCloud) -> Any:
 
 
 def _isotropic(
-    material: Mapping[str, Any], cloud: PointCloud, kind: str, *, one: bool = False
+    material: Mapping[str, Any], cloud: PointCloud, kind: str, *, minimum: int = 2
 ) -> dict[str, Any]:
-    """The isotropic constants of a material table (E, nu, K, G, lam, mu; per phase)."""
+    """The isotropic constants of a material table (E, nu, K, G, lam, mu; per phase).
+
+    Fewer than ``minimum`` of them raise (the model checks the set further).
+    """
     iso = {k: per_phase(material[k], cloud, f"material.{k}") for k in _ISO_KEYS if k in material}
-    if one and "E" in iso:
-        return iso
-    if len(iso) < 2:
+    if len(iso) < minimum:
         raise SceneError(
             f"model.type = {kind!r} needs two isotropic constants in [material] "
             f"(E and nu, or K and G, or lam and mu, ...), got {sorted(iso) or 'none'}"
@@ -323,7 +310,7 @@ def per_phase(value: Any, cloud: PointCloud, key: str) -> Any:
 
 
 def _bond_based(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud) -> Model:
-    iso = {k: per_phase(material[k], cloud, f"material.{k}") for k in _ISO_KEYS if k in material}
+    iso = _isotropic(material, cloud, "bond_based", minimum=0)  # E, K, G or lam alone suffice
     return BondBased(
         **iso,
         plane=material.get("plane", "stress"),

@@ -69,24 +69,7 @@ METRIC_COLUMNS = (
     "reference",
     "message",
 )
-_NUMERIC = {
-    "error",
-    "t_bonds",
-    "t_assembly",
-    "t_setup",
-    "t_solve",
-    "t_total",
-    "t_wall",
-    "peak_mb",
-    "points",
-    "dofs",
-    "bonds",
-    "nnz",
-    "iterations",
-    "residual",
-    "h",
-    "delta",
-}
+_NUMERIC = set(METRIC_COLUMNS[METRIC_COLUMNS.index("error") : METRIC_COLUMNS.index("delta") + 1])
 
 
 @dataclass
