@@ -35,6 +35,7 @@ __all__ = [
     "TradeoffResult",
     "tradeoff",
     "SOLVE_KEYS",
+    "NONLINEAR_KEYS",
     "METRIC_COLUMNS",
     "interpolate_field",
     "point_key",
@@ -43,7 +44,11 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 #: sweep keys passed to :func:`pdlin.solve` instead of the problem factory
-SOLVE_KEYS = ("solver", "rtol", "operator", "maxiter")
+#: (for a nonlinear case: ``solver`` is the inner linear solver, ``rtol`` and ``maxiter``
+#: Newton's, and ``method``, ``e_l``, ``predictor`` go to :func:`pdlin.solve_nonlinear`)
+SOLVE_KEYS = ("solver", "rtol", "operator", "maxiter", "method", "e_l", "predictor")
+#: the sweep keys that only a nonlinear case accepts
+NONLINEAR_KEYS = ("method", "e_l", "predictor")
 
 #: measured columns of every row, after the swept parameters
 METRIC_COLUMNS = (
@@ -92,6 +97,13 @@ class TradeoffCase:
     h, delta : float, optional
         Grid spacing and horizon, reported in the table and used by
         :meth:`TradeoffResult.rates` (default: read from the problem).
+    nonlinear : dict, optional
+        Solve with :func:`pdlin.solve_nonlinear` and these keyword arguments instead of
+        :func:`pdlin.solve`.  The error is then that of the homogenized (volume-averaged)
+        stress history, never of the point-wise field (plastic equilibria are not unique,
+        spec 001 §6): ``exact`` and ``reference`` give the reference history
+        ``(steps, dim, dim)`` (``exact(times)``, or an array), e.g. the material-point
+        driver of a homogeneous single crystal.
     """
 
     problem: StaticProblem
@@ -101,6 +113,7 @@ class TradeoffCase:
     measure: np.ndarray | None = None
     h: float | None = None
     delta: float | None = None
+    nonlinear: dict[str, Any] | None = None
 
 
 def _as_case(obj: Any) -> TradeoffCase:
@@ -254,6 +267,14 @@ def _measure_point(
     skw = {k: v for k, v in params.items() if k in SOLVE_KEYS}
     t0 = time.perf_counter()
     case = _as_case(factory(**fparams))
+    if case.nonlinear is not None:
+        return _measure_nonlinear(case, skw, memory, t0)
+    extra = [k for k in skw if k in NONLINEAR_KEYS]
+    if extra:
+        raise InputError(
+            f"sweep key {extra[0]!r} needs a nonlinear case (a scene with solver.nonlinear or "
+            "a nonlinear material); this case is solved by pdlin.solve"
+        )
     kw = {**case.solve_kwargs, **skw}
     if memory == "tracemalloc":
         tracemalloc.start()
@@ -311,6 +332,79 @@ def _measure_point(
         "exact": None if case.exact is None else np.asarray(case.exact(np.asarray(cloud.points))),
         "other": None if ref is None else np.asarray(ref, dtype=float),
         "measure": None if case.measure is None else np.asarray(case.measure),
+    }
+
+
+def _measure_nonlinear(
+    case: TradeoffCase, skw: dict[str, Any], memory: str, t0: float
+) -> dict[str, Any]:
+    """:func:`_measure_point` of a nonlinear case: the homogenized stress history."""
+    from ..nonlinear import solve_nonlinear
+
+    kw = dict(case.nonlinear or {})
+    for k in ("checkpoint", "resume", "progress"):
+        kw.pop(k, None)  # sweep points neither checkpoint nor print
+    if "operator" in skw:
+        raise InputError("sweep key 'operator' applies to linear solves only")
+    mapped = {("linear_solver" if k == "solver" else k): v for k, v in skw.items()}
+    kw.update(mapped)
+    if memory == "tracemalloc":
+        tracemalloc.start()
+    rss0 = _reset_peak_rss() if memory == "rss" else 0.0
+    try:
+        res = solve_nonlinear(case.problem, **kw)
+    finally:
+        if memory == "tracemalloc":
+            peak = tracemalloc.get_traced_memory()[1] / 2**20
+            tracemalloc.stop()
+    wall = time.perf_counter() - t0
+    if memory == "rss":
+        peak = max(_rss_kb("VmHWM") - rss0, 0.0) / 1024.0
+    elif memory == "none":
+        peak = float("nan")
+    if res.homogenized_stress is None:
+        raise InputError("a nonlinear tradeoff case needs a model with a stress response")
+    cloud = case.problem.cloud
+    d = cloud.dim
+    hom = np.asarray(res.homogenized_stress, dtype=float).reshape(res.n_steps, d * d)
+    h = case.h if case.h is not None else float(np.median(cloud.spacing))
+    bonds = res.system.disc.real_bonds
+    delta = case.delta
+    if delta is None:
+        delta = float(np.median(bonds.horizon)) if bonds.n_bonds else float("nan")
+    t = res.timings
+    exact = None
+    if case.exact is not None:
+        exact = np.asarray(case.exact(np.asarray(res.times)), dtype=float).reshape(hom.shape)
+    ref = case.reference() if callable(case.reference) else case.reference
+    return {
+        "row": {
+            "t_bonds": float("nan"),
+            "t_assembly": float("nan"),
+            "t_setup": float(t.get("setup", float("nan"))),
+            "t_solve": float(t.get("total", float("nan"))) - float(t.get("setup", 0.0)),
+            "t_total": float(t.get("total", float("nan"))),
+            "t_wall": wall,
+            "peak_mb": peak,
+            "points": cloud.n,
+            "dofs": cloud.n * d,
+            "bonds": bonds.n_bonds,
+            "nnz": float("nan"),
+            "iterations": int(np.sum(res.iterations)),
+            "residual": float(np.max(res.residuals)) if res.n_steps else float("nan"),
+            "h": h,
+            "delta": delta,
+            "solver_used": "+".join(sorted(set(res.methods))),
+            "operator_used": "homogenized-stress",
+        },
+        # the compared "field": one row per load step (σ̄ flattened), so every metric and
+        # the finest-run reference apply unchanged; points = (t, 0, ...) for the lookup
+        "points": np.column_stack([res.times, np.zeros((res.n_steps, max(d - 1, 0)))]),
+        "u": hom,
+        "exact": exact,
+        "other": None if ref is None else np.asarray(ref, dtype=float).reshape(hom.shape),
+        "measure": None,
+        "history": True,
     }
 
 
@@ -734,12 +828,14 @@ def _finest_index(points: list[dict[str, Any]], finest: Mapping[str, Any] | None
                 return k
         raise InputError(f"finest={dict(finest)} matches no point of the grid")
 
-    def score(p: Mapping[str, Any]) -> tuple[float, float, float, int]:
+    def score(p: Mapping[str, Any]) -> tuple[float, float, float, float, int, int]:
         h = float(p["h"]) if "h" in p else 0.0
         m = -float(p["m"]) if "m" in p else 0.0
         rtol = float(p["rtol"]) if "rtol" in p else 0.0
+        e_l = float(p["e_l"]) if "e_l" in p else 0.0
         direct = 0 if p.get("solver", "direct") == "direct" else 1
-        return (h, m, rtol, direct)
+        newton = 0 if p.get("method", "newton") == "newton" else 1
+        return (h, m, rtol, e_l, direct, newton)
 
     return min(range(len(points)), key=lambda k: score(points[k]))
 
@@ -765,17 +861,20 @@ def tradeoff(
     factory : callable
         ``factory(**params) -> TradeoffCase`` (or ``(problem, solve_kwargs[, exact])``
         or a :class:`~pdlin.StaticProblem`), called with the grid's parameters other than
-        :data:`SOLVE_KEYS` ('solver', 'rtol', 'operator', 'maxiter'), which go to
-        :func:`pdlin.solve`.  :mod:`pdlin.sweeps` has factories for the bundled problems
-        (:func:`~pdlin.sweeps.graded_bar`, :func:`~pdlin.sweeps.tension_bar`, ...).
+        :data:`SOLVE_KEYS` ('solver', 'rtol', 'operator', 'maxiter'; and for a nonlinear
+        case 'method', 'e_l', 'predictor'), which go to :func:`pdlin.solve` (or to
+        :func:`pdlin.solve_nonlinear` for a case with ``nonlinear`` options, whose error is
+        that of the homogenized stress history).  :mod:`pdlin.sweeps` has factories for the
+        bundled problems (:func:`~pdlin.sweeps.graded_bar`, :func:`~pdlin.sweeps.tension_bar`,
+        ...).
     grid : mapping str -> list
         Values of each swept parameter; every combination is one point.
     reference : {'auto', 'closed-form', 'fem', 'finest'} or callable
         What the error is measured against: the case's closed form (``case.exact``), its
         other reference (``case.reference``, e.g. a Q4/Hex8 solution), the finest point
-        of the sweep (smallest ``h``, then largest ``m``, smallest ``rtol``, direct
-        solver; or the point given by ``finest``; a Richardson-style estimate, reported
-        as such, whose own error is 0), or ``reference(X) -> (k, dim)``.  'auto' takes
+        of the sweep (smallest ``h``, then largest ``m``, smallest ``rtol`` and ``e_l``,
+        direct solver, Newton; or the point given by ``finest``; a Richardson-style
+        estimate, reported as such, whose own error is 0), or ``reference(X) -> (k, dim)``.  'auto' takes
         the first of closed form, case reference and finest that the cases provide.
     metric : {'rel-max', 'rel-l2', 'max-abs'} or callable
         Error of the measured points: max point-wise |u - u_ref| / max |u_ref|, relative
@@ -924,7 +1023,15 @@ def tradeoff(
                         finest_sol = load_finest()
                     if finest_sol is None:
                         raise InputError(f"the finest point ({finest_label}) did not finish")
-                    uref = interpolate_field(finest_sol["points"], finest_sol["u"], X[sel])
+                    if meas.get("history"):
+                        if finest_sol["u"].shape != u.shape:
+                            raise InputError(
+                                "the finest run has another number of load steps or "
+                                "dimension; sweep points must share the load path"
+                            )
+                        uref = finest_sol["u"][sel]
+                    else:
+                        uref = interpolate_field(finest_sol["points"], finest_sol["u"], X[sel])
                     row["reference"] = finest_label
                 else:
                     assert callable(reference)

@@ -129,6 +129,19 @@ class SceneSweep:
         h = None
         if cloud.lattice is not None:
             h = float(np.max(cloud.lattice.spacing))
+        if sc.nonlinear is not None:
+            if exact is not None or measure is not None:
+                raise SceneError(
+                    "tradeoff.exact and tradeoff.measure apply to linear scenes; a nonlinear "
+                    "scene's error is that of its homogenized stress history (reference = "
+                    "'finest')"
+                )
+            nl = dict(sc.nonlinear)
+            if "rtol" in kw and "rtol" not in nl:
+                nl["rtol"] = kw["rtol"]
+            if sc.maxiter is not None:
+                nl.setdefault("maxiter", sc.maxiter)
+            return TradeoffCase(sc.problem, {}, h=h, nonlinear=nl)
         return TradeoffCase(sc.problem, kw, exact=exact, measure=measure, h=h)
 
     def run(self, **kwargs: Any) -> TradeoffResult:
