@@ -874,8 +874,9 @@ def tradeoff(
         other reference (``case.reference``, e.g. a Q4/Hex8 solution), the finest point
         of the sweep (smallest ``h``, then largest ``m``, smallest ``rtol`` and ``e_l``,
         direct solver, Newton; or the point given by ``finest``; a Richardson-style
-        estimate, reported as such, whose own error is 0), or ``reference(X) -> (k, dim)``.  'auto' takes
-        the first of closed form, case reference and finest that the cases provide.
+        estimate, reported as such, whose own error is 0), or ``reference(X) -> (k, dim)``.
+        'auto' takes the first of closed form, case reference and finest that the cases
+        provide.
     metric : {'rel-max', 'rel-l2', 'max-abs'} or callable
         Error of the measured points: max point-wise |u - u_ref| / max |u_ref|, relative
         Euclidean norm, max absolute component error, or ``metric(u, u_ref) -> float``.
