@@ -56,6 +56,7 @@ from .operators import (
     sparsity_report,
 )
 from .problem import StaticProblem, StaticResult, solve
+from .submodeling import SubregionProblem, subregion
 from .sweeps import TradeoffCase, TradeoffResult, tradeoff
 from .system import ConstrainedSystem, constrained_system
 
@@ -96,6 +97,8 @@ __all__ = [
     "StaticResult",
     "solve",
     "solve_nonlinear",
+    "subregion",
+    "SubregionProblem",
     "NonlinearResult",
     "ConstrainedSystem",
     "constrained_system",

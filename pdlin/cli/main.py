@@ -100,6 +100,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         }
     if scene.calibration is not None:
         summary["calibration"] = _calibration_summary(scene.calibration)
+    if scene.subregion is not None:
+        summary["subregion"] = {k: v for k, v in scene.subregion.items() if k != "interior"}
     summary["output"] = str(out)
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -109,6 +111,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if chosen is not None:
             print("selected     " + ", ".join(f"{k} = {v}" for k, v in summary["selected"].items()))
         print(f"points       {summary['points']:,} ({summary['dim']}D), bonds {summary['bonds']:,}")
+        if scene.subregion is not None:
+            sr = summary["subregion"]
+            print(
+                f"subregion    {sr['free_points']:,} free + {sr['points'] - sr['free_points']:,} "
+                f"driven of {sr['whole_body_points']:,} points; driver: {sr['coarse_points']:,}"
+                f"-point solve at h = {sr['coarse_spacing']:.4g} ({sr['t_coarse']:.3f} s)"
+            )
         print(
             f"solver       {summary['solver']}: {summary['iterations']} iteration(s), "
             f"relative residual {summary['relative_residual']:.2e}"

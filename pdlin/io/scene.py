@@ -60,7 +60,9 @@ _TOP = {
     "solver",
     "output",
     "tradeoff",  # read by pdlin.sweeps.scene (pdlin tradeoff), ignored by run
+    "subregion",
 }
+_SUBREGION = {"box", "coarse", "layer"}
 _GEOM = {
     "grid": {"type", "shape", "spacing", "origin", "thickness", "ghost_layers"},
     "mesh": {"type", "path", "thickness", "dim"},
@@ -349,6 +351,9 @@ class Scene:
     nonlinear: dict[str, Any] | None = None
     #: CSV of the homogenized response per load step (nonlinear scenes)
     homogenized: Path | None = None
+    #: ``[subregion]`` scenes: the driving coarse solve and the cut (see
+    #: :func:`pdlin.subregion`): box, layer, coarse spacing, points, seconds
+    subregion: dict[str, Any] | None = None
 
     @property
     def cloud(self) -> PointCloud:
@@ -507,6 +512,8 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
     """
     base = Path(base_dir) if base_dir is not None else Path.cwd()
     top = _check_keys(data, _TOP, "")
+    if "subregion" in top:
+        return _subregion_scene(top, base)
     try:
         gcfg = _require(top, "geometry", "scene")
         cloud = _geometry(gcfg, base)
@@ -691,6 +698,70 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         nonlinear=nonlinear,
         homogenized=None if hom is None else (Path(hom) if Path(hom).is_absolute() else base / hom),
     )
+
+
+def _subregion_scene(top: Mapping[str, Any], base: Path) -> Scene:
+    """A ``[subregion]`` scene: a coarse solve of the whole body drives the box (fine).
+
+    ``coarse`` is the spacing factor of the driving run (default 2: twice the scene's
+    spacing), ``layer`` the driven layer's thickness (default: horizon x the model's
+    coupling range).  The coarse solve runs here, once, with the scene's solver.
+    """
+    import copy
+    import time
+
+    from ..problem import solve
+    from ..submodeling import subregion
+    from ..sweeps.scene import _apply
+
+    sub = _check_keys(top["subregion"], _SUBREGION, "subregion")
+    data = {k: copy.deepcopy(v) for k, v in top.items() if k != "subregion"}
+    if "symmetry" in data or "shadow" in data:
+        raise SceneError("subregion cannot be combined with symmetry or shadow tables")
+    geo = data.get("geometry", {})
+    if not isinstance(geo, Mapping) or geo.get("type", "grid") != "grid":
+        raise SceneError("subregion needs geometry.type = 'grid' (the coarse run rescales it)")
+    factor = _number(sub.get("coarse", 2.0), "subregion.coarse")
+    if not (np.isfinite(factor) and factor >= 1.0):
+        raise SceneError(f"subregion.coarse must be a number >= 1, got {factor}")
+    box = _require(sub, "box", "subregion")
+    fine = scene_from_dict(data, base)
+    if fine.nonlinear is not None:
+        raise SceneError("subregion supports linear scenes (the driver is one linear solve)")
+    spacing = float(np.max(np.asarray(geo.get("spacing", 1.0), dtype=float)))
+    coarse_data = copy.deepcopy(data)
+    try:
+        _apply(coarse_data, "h", float(spacing) * factor)
+    except SceneError as exc:
+        raise SceneError(f"subregion.coarse: {exc}") from exc
+    coarse = scene_from_dict(coarse_data, base)
+    t0 = time.perf_counter()
+    kw: dict[str, Any] = {"solver": coarse.solver, "rtol": coarse.rtol}
+    if coarse.maxiter is not None:
+        kw["maxiter"] = coarse.maxiter
+    res = solve(coarse.problem, **kw)
+    t_coarse = time.perf_counter() - t0
+    layer = sub.get("layer")
+    if layer is not None:
+        layer = _number(layer, "subregion.layer", positive=True)
+    try:
+        cut = subregion(fine.problem, box, res, layer=layer)
+    except PdlinError as exc:
+        raise SceneError(f"subregion: {exc}") from exc
+    n_whole = fine.problem.cloud.n
+    fine.problem = cut.problem
+    fine.subregion = {
+        "box": np.asarray(box, dtype=float).tolist(),
+        "layer": cut.layer,
+        "coarse_spacing": float(spacing) * factor,
+        "coarse_points": coarse.problem.cloud.n,
+        "points": cut.problem.cloud.n,
+        "free_points": int(cut.interior.sum()),
+        "whole_body_points": n_whole,
+        "t_coarse": t_coarse,
+        "interior": cut.interior,
+    }
+    return fine
 
 
 def _solver_options(scfg: Mapping[str, Any]) -> None:
