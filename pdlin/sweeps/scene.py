@@ -7,7 +7,7 @@ any dotted key) and builds it again.  See ``docs/tradeoff.md``.
 .. code-block:: toml
 
     [tradeoff]
-    reference = "closed-form"      # auto | closed-form | finest
+    reference = "closed-form"      # auto | closed-form | fem | finest
     metric = "rel-max"             # rel-max | rel-l2 | max-abs
     target_error = 0.05            # report the fastest configuration meeting it
     output = "bar_tradeoff.csv"    # each point appended as it finishes (.csv | .jsonl)
@@ -142,7 +142,16 @@ class SceneSweep:
             if sc.maxiter is not None:
                 nl.setdefault("maxiter", sc.maxiter)
             return TradeoffCase(sc.problem, {}, h=h, nonlinear=nl)
-        return TradeoffCase(sc.problem, kw, exact=exact, measure=measure, h=h)
+        reference = None
+        if self.options.get("reference") == "fem":
+            from ..verification.fem import grid_fe_reference
+
+            problem = sc.problem
+
+            def reference() -> np.ndarray:
+                return grid_fe_reference(problem)
+
+        return TradeoffCase(sc.problem, kw, exact=exact, reference=reference, measure=measure, h=h)
 
     def run(self, **kwargs: Any) -> TradeoffResult:
         """Run the sweep (keyword arguments override the scene's options)."""
@@ -250,6 +259,13 @@ def tradeoff_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = No
         if "translation" in ex:
             sw.exact_translation = np.asarray(ex["translation"], dtype=float)
     opts["reference"] = t.get("reference", "closed-form" if exact is not None else "finest")
+    if opts["reference"] not in ("auto", "closed-form", "fem", "finest"):
+        raise SceneError(
+            "tradeoff.reference must be 'auto', 'closed-form', 'fem' or 'finest', got "
+            f"{opts['reference']!r}"
+        )
+    if opts["reference"] == "closed-form" and exact is None:
+        raise SceneError("tradeoff.reference = 'closed-form' needs a [tradeoff.exact] table")
     if "metric" in t:
         opts["metric"] = t["metric"]
     if "target_error" in t:

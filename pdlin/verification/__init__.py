@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from .fem import (
     evaluate_q4,
+    grid_fe_reference,
     hex8_stiffness,
     plate_extension_q4,
     q4_stiffness,
@@ -20,6 +21,7 @@ from .surface import plate_tension_errors, shear_block_error, tension_bar_error
 
 __all__ = [
     "evaluate_q4",
+    "grid_fe_reference",
     "hex8_stiffness",
     "plate_extension_q4",
     "q4_stiffness",
