@@ -133,7 +133,7 @@ _DIRICHLET = {
     "velocity_gradient",
 }
 _LOAD = {"type", "set", "box", "points", "force", "density"}
-_SHADOW = {"F", "depth", "faces", "translation"}
+_SHADOW = {"F", "depth", "faces", "translation", "mode"}
 _SYMMETRY = {"axis", "position", "side"}
 #: [solver] keys of solve_nonlinear (with rtol / maxiter for Newton)
 _NONLINEAR_KEYS = (
@@ -594,13 +594,32 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
                 depth = float(np.max(hv))
             from ..models.correspondence import Correspondence, shadow_problem
 
-            if isinstance(model, Correspondence):
+            partial = sh.get("faces") is not None or sh.get("translation") is not None
+            mode = sh.get("mode")
+            if mode is None:
+                mode = (
+                    "stress"
+                    if isinstance(model, Correspondence) and not partial
+                    else "displacement"
+                )
+            if mode not in ("stress", "displacement"):
+                raise SceneError(f"shadow.mode must be 'stress' or 'displacement', got {mode!r}")
+            if mode == "stress" and not isinstance(model, Correspondence):
+                raise SceneError(
+                    "shadow.mode = 'stress' is the correspondence shadow problem (spec 000 "
+                    f"section 7); got model {type(model).__name__}: use 'displacement'"
+                )
+            if mode == "stress" and partial:
+                raise SceneError(
+                    "shadow.mode = 'stress' needs the whole frame: shadow.faces/translation "
+                    "apply to mode = 'displacement' (the layer prescribed like any points)"
+                )
+            if sh.get("depth") is None and mode == "displacement":
+                # two-hop models (state-based, correspondence) need two horizons of layer
+                depth = float(depth) * int(getattr(model, "coupling_range", 1))
+            if mode == "stress":
                 # correspondence shadow particles use the intact-lattice shape tensor and act
                 # through their prescribed stress (spec 000 section 7)
-                if sh.get("faces") is not None or sh.get("translation") is not None:
-                    raise SceneError(
-                        "shadow.faces/translation are not supported for correspondence"
-                    )
                 bonds = bonds if bonds is not None else find_bonds(cloud, horizon, **bond_options)
                 sp_prob = shadow_problem(
                     model, cloud, bonds, _require(sh, "F", "shadow"), depth=float(depth)
