@@ -495,7 +495,7 @@ class TradeoffResult:
     Attributes
     ----------
     table : list of dict
-        One row per point: the swept parameters, then :data:`METRIC_COLUMNS`.
+        One row per point: the swept parameters, then :data:`~pdlin.sweeps.METRIC_COLUMNS`.
     params : list of str
         The swept parameter names (grid keys), in order.
     reference : str
@@ -765,7 +765,7 @@ def tradeoff(
     factory : callable
         ``factory(**params) -> TradeoffCase`` (or ``(problem, solve_kwargs[, exact])``
         or a :class:`~pdlin.StaticProblem`), called with the grid's parameters other than
-        :data:`SOLVE_KEYS` ('solver', 'rtol', 'operator', 'maxiter'), which go to
+        :data:`~pdlin.sweeps.SOLVE_KEYS` ('solver', 'rtol', 'operator', 'maxiter'), which go to
         :func:`pdlin.solve`.  :mod:`pdlin.sweeps` has factories for the bundled problems
         (:func:`~pdlin.sweeps.graded_bar`, :func:`~pdlin.sweeps.tension_bar`, ...).
     grid : mapping str -> list
@@ -778,7 +778,7 @@ def tradeoff(
         as such, whose own error is 0), or ``reference(X) -> (k, dim)``.  'auto' takes
         the first of closed form, case reference and finest that the cases provide.
     metric : {'rel-max', 'rel-l2', 'max-abs'} or callable
-        Error of the measured points: max point-wise |u - u_ref| / max |u_ref|, relative
+        Error of the measured points: max point-wise ``|u - u_ref|`` / ``max |u_ref|``, relative
         Euclidean norm, max absolute component error, or ``metric(u, u_ref) -> float``.
     output : path, optional
         ``.csv`` or ``.jsonl`` file; each point is appended (flushed, fsynced) as soon as
