@@ -196,8 +196,8 @@ def reference_pages() -> dict[str, str]:
                 lines += _entries(modname, own)
         pages[f"{modname}.rst"] = "\n".join(lines).rstrip() + "\n"
     index = [
-        "API reference",
-        "=============",
+        "API reference: the docstrings",
+        "=============================",
         "",
         "Generated at build time from the docstrings (numpydoc) by ``docs/gen_api.py``;",
         "the one-line-per-entry index is :doc:`../api`.",
