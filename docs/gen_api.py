@@ -1,13 +1,17 @@
-"""Generate docs/api.md: the public API with signatures and one-line summaries.
+"""Generate docs/api.md and the Sphinx API reference pages from the public API.
 
 Run ``python docs/gen_api.py > docs/api.md``; ``tests/test_docs.py`` checks the
-file is up to date.
+file is up to date.  :func:`reference_pages` writes the autodoc/numpydoc pages of
+the docs site (``docs/reference/*.rst``); ``docs/conf.py`` calls it at build time,
+so the site always documents the current ``__all__`` lists.
 """
 
 from __future__ import annotations
 
 import importlib
 import inspect
+import re
+from pathlib import Path
 
 MODULES = [
     "pdlin",
@@ -22,6 +26,7 @@ MODULES = [
     "pdlin.verification",
     "pdlin.io",
     "pdlin.sweeps",
+    "pdlin.errors",
 ]
 
 
@@ -73,6 +78,161 @@ def render() -> str:
         if rows:
             out += [f"## `{modname}`", "", *rows, ""]
     return "\n".join(out).rstrip() + "\n"
+
+
+# --------------------------------------------------------------------------------------
+# Sphinx reference pages (docs/reference/*.rst, generated at build time by docs/conf.py)
+# --------------------------------------------------------------------------------------
+
+#: page title of each reference group; top-level ``pdlin`` names whose defining module is
+#: not below one of these groups (problem, system, nonlinear) are documented on ``pdlin``
+TITLES = {
+    "pdlin": "Problems and solves",
+    "pdlin.geometry": "Geometry: point clouds and bonds",
+    "pdlin.models": "Material models, weights and damage",
+    "pdlin.operators": "Operators and boundary conditions",
+    "pdlin.solvers": "Linear and nonlinear solvers",
+    "pdlin.fields": "Fields: strain and deformation gradient",
+    "pdlin.constitutive": "Constitutive tensors and crystal plasticity",
+    "pdlin.calibration": "Micromodulus calibration",
+    "pdlin.analysis": "Zero-energy-mode analysis",
+    "pdlin.verification": "Finite-element references",
+    "pdlin.io": "Scene files and result files",
+    "pdlin.sweeps": "Trade-off sweeps",
+    "pdlin.errors": "Exceptions and warnings",
+}
+
+
+def _group(obj: object) -> str:
+    """Reference page of a top-level ``pdlin`` name: its defining subpackage, or ``pdlin``."""
+    module = getattr(obj, "__module__", None) or ""
+    parts = module.split(".")
+    group = ".".join(parts[:2])
+    return group if group in TITLES and len(parts) > 1 else "pdlin"
+
+
+def _directive(obj: object) -> str:
+    if inspect.isclass(obj):
+        if issubclass(obj, BaseException):
+            return "autoexception"
+        return "autoclass"
+    if inspect.isfunction(obj) or inspect.isbuiltin(obj):
+        return "autofunction"
+    return "autodata"
+
+
+def _constant_doc(module: str, name: str) -> list[str]:
+    """The ``#:`` comment above ``NAME = ...`` in the package that exports the constant."""
+    mod = importlib.import_module(module)
+    path = Path(mod.__file__ or "")
+    files = sorted(path.parent.rglob("*.py")) if path.name == "__init__.py" else [path]
+    pattern = re.compile(rf"((?:^[ \t]*#:.*\n)+)^{re.escape(name)}\b[^=\n]*=", re.M)
+    for file in files:
+        match = pattern.search(file.read_text(encoding="utf-8"))
+        if match:
+            return [re.sub(r"^\s*#: ?", "", line).rstrip() for line in match.group(1).splitlines()]
+    raise ValueError(f"{module}.{name}: add a '#: description' comment above its definition")
+
+
+def _entries(module: str, names: list[str]) -> list[str]:
+    if not names:
+        return []
+    out = [f".. currentmodule:: {module}", "", ".. autosummary::", ""]
+    out += [f"   {name}" for name in names]
+    out.append("")
+    for name in names:
+        obj = getattr(importlib.import_module(module), name)
+        directive = _directive(obj)
+        if directive == "autodata":  # constants: the '#:' comment where they are defined
+            out.append(f".. py:data:: {name}")
+            value = repr(obj)
+            if len(value) <= 90 and "\n" not in value and "<" not in value:
+                out.append(f"   :value: {value}")
+            out.append("")
+            out += [f"   {line}" for line in _constant_doc(module, name)]
+            out.append("")
+            continue
+        out.append(f".. {directive}:: {name}")
+        if directive in ("autoclass", "autoexception"):
+            out.append("   :members:")
+        if directive == "autoexception":  # bases of classes are private or abc/enum
+            out.append("   :show-inheritance:")
+        out.append("")
+    return out
+
+
+def reference_pages() -> dict[str, str]:
+    """Sphinx pages of the API reference: ``{file name: reStructuredText}``.
+
+    One page per public subpackage (``TITLES``).  A name exported by ``pdlin`` itself
+    is documented once, as ``pdlin.NAME``, on the page of the subpackage that defines
+    it; a subpackage's other ``__all__`` names are documented as ``pdlin.sub.NAME``.
+    ``index.rst`` lists every top-level name in one table.
+    """
+    import pdlin
+
+    top = [n for n in pdlin.__all__ if not inspect.ismodule(getattr(pdlin, n))]
+    top_ids = {id(getattr(pdlin, n)) for n in top}
+    pages: dict[str, str] = {}
+    for modname, title in TITLES.items():
+        mod = importlib.import_module(modname)
+        head = f"{title} (``{modname}``)"
+        lines = [head, "=" * len(head), ""]
+        lines += [f".. automodule:: {modname}", ""]
+        mine = sorted(n for n in top if _group(getattr(pdlin, n)) == modname)
+        if mine and modname != "pdlin":
+            sub = "Exported by ``pdlin`` (use as ``pdlin.NAME``)"
+            lines += [sub, "-" * len(sub), ""]
+        lines += _entries("pdlin", mine)
+        if modname != "pdlin":
+            own = sorted(
+                n
+                for n in getattr(mod, "__all__", [])
+                if not inspect.ismodule(getattr(mod, n)) and id(getattr(mod, n)) not in top_ids
+            )
+            if own:
+                sub = f"Only in ``{modname}``"
+                lines += [sub, "-" * len(sub), ""]
+                lines += _entries(modname, own)
+        pages[f"{modname}.rst"] = "\n".join(lines).rstrip() + "\n"
+    index = [
+        "API reference: the docstrings",
+        "=============================",
+        "",
+        "Generated at build time from the docstrings (numpydoc) by ``docs/gen_api.py``;",
+        "the one-line-per-entry index is :doc:`../api`.",
+        "",
+        ".. toctree::",
+        "   :maxdepth: 1",
+        "",
+        *[f"   {m}" for m in TITLES],
+        "",
+        "Every name exported by ``pdlin``",
+        "--------------------------------",
+        "",
+        ".. currentmodule:: pdlin",
+        "",
+        ".. autosummary::",
+        "",
+        *[f"   {n}" for n in sorted(top, key=str.lower)],
+    ]
+    pages["index.rst"] = "\n".join(index) + "\n"
+    return pages
+
+
+def write_reference(outdir: str | Path) -> list[Path]:
+    """Write :func:`reference_pages` into ``outdir``; rewrite only changed files."""
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, text in reference_pages().items():
+        path = outdir / name
+        if not path.exists() or path.read_text() != text:
+            path.write_text(text)
+        written.append(path)
+    for stale in set(outdir.glob("*.rst")) - set(written):
+        stale.unlink()
+    return written
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 
 1. Calibrate nonnegative minimum-norm bond micromoduli to the transversely
    isotropic target of spec 004 §3 (axis e3) on the 3D lattice family with
-   delta = 3 h and omega = delta/|xi|; the achieved tensor is the target's
+   delta = 3 h and ``omega = delta/|xi|``; the achieved tensor is the target's
    Cauchy projection (bond-based PD obeys the Cauchy relations).
 2. Plot the micromoduli on the direction sphere (plotting extra; skipped
    without matplotlib).

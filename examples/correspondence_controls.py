@@ -12,7 +12,7 @@ lattices where the plain correspondence (NOSB) model has zero-energy modes:
    * ``rel_l2_u`` = ||u - u_ex|| / ||u_ex|| over all particles,
    * ``rel_l2_eps`` = ||ε - ε_ex|| / ||ε_ex|| on x <= 0.48 (the exact strain is singular
      at x = 1/2+, so a global strain norm only measures the two particles next to it),
-   * ``osc`` = max |Δ²(u - u_ex)| / u_end over the stencils inside 0.02 < x < 0.48 (Δ² the
+   * ``osc`` = ``max |Δ²(u - u_ex)| / u_end`` over the stencils inside 0.02 < x < 0.48 (Δ² the
      second difference along the bar; spec 003 §7.1): the odd-even (zero-energy) oscillation
      amplitude.
      The exact solution is linear there, so a smooth numerical error gives osc ≈ 0.
@@ -21,15 +21,16 @@ lattices where the plain correspondence (NOSB) model has zero-energy modes:
    [0, 10)², node grid h = 2 mm (651 particles), E = 1000 MPa, ν = 0.3, plane stress;
    u_x = 0 on x = 0, u_y = 0 on y = 0, u_x = 0.5 mm on x = 50, u_y = 0.5 mm on y = 50,
    tangential components free.  Reference: Q4 FEM with its nodes at the particles
-   (:func:`pdlin.verification.fem.solve_q4`).  Metrics (spec 003 §7.2):
+   (:func:`pdlin.verification.solve_q4`).  Metrics (spec 003 §7.2):
 
    * rel-L2 of u and of σ = [σ_xx, σ_yy, σ_xy] over all particles; the PD particle
      stress is :meth:`pdlin.Correspondence.stress` (the mean over the particle's stress
      points); the FEM nodal stress is the plain average, over the elements sharing the
      node, of the element stress at the centroid (equal to the mean of the 2 x 2 Gauss
      point stresses on these rectangular elements);
-   * checker deviation = max_i |c_i^PD - c_i^FEM| / 0.5 mm with c_i = |u_i - mean of its
-     4 neighbours|, over particles with 4 neighbours and x > 20 or y > 20.
+   * checker deviation = ``max_i |c_i^PD - c_i^FEM| / 0.5 mm`` with
+     ``c_i = |u_i - mean of its 4 neighbours|``, over particles with 4 neighbours and
+     x > 20 or y > 20.
 
 Run ``python examples/correspondence_controls.py [--plot DIR] [--n 500] [--h 2]``; it prints
 both tables (about 3 s), and ``--plot DIR`` saves ``bar_controls.png`` and

@@ -5,11 +5,11 @@ Tutorial for the state-based models (docs/state_based.md), reproducing Ex. 1 of 
 
 1. plane-stress square plate L = 1 m with a hole r = 0.1 m, E = 70 GPa, nu = 0.33;
    u_x = 0 on the left edge, u_x = u0 = 5e-4 m on the right edge, top/bottom free;
-2. FE reference: a Q4 plane-stress solve (:func:`pdlin.verification.fem.plate_extension_q4`)
+2. FE reference: a Q4 plane-stress solve (:func:`pdlin.verification.plate_extension_q4`)
    on the same O-grid mapping, 2x finer than the PD mesh in each direction (4 x 64 x 120
    at the default size, as in ``tests/verification/test_xosb_plate.py``; the spec's own
    reference is 4 x 128 x 240, which differs by about 1e-4 max|u|).  FE values at the PD
-   particles are the FE field itself (:func:`pdlin.verification.fem.evaluate_q4`); the test
+   particles are the FE field itself (:func:`pdlin.verification.evaluate_q4`); the test
    interpolates linearly on a Delaunay triangulation of the FE nodes instead, which differs
    by < 1e-5 max|u| here;
 3. PD: one particle per O-grid cell (:func:`pdlin.plate_with_hole_mesh` ->
@@ -20,7 +20,7 @@ Tutorial for the state-based models (docs/state_based.md), reproducing Ex. 1 of 
    energy (symmetric) one, and uncorrected OSBPD = :class:`pdlin.LPS` with the analytic
    weighted volume (XOSB with the corrections off), paper linearization;
 5. metric (spec 002 section 9.1): on the ring (the first radial layer, 4 n_ang particles),
-   max |u_PD - u_FE| / range_ring(u_FE), per component.
+   ``max |u_PD - u_FE| / range_ring(u_FE)``, per component.
 
 The spec's claim (section 11, C2): XOSBPD's ring u_y error is small (2.2 % at 7,680
 particles) while OSBPD's is not (14.5 %): on the graded mesh the uncorrected quadrature

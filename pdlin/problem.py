@@ -60,7 +60,7 @@ class StaticProblem:
     symmetry : sequence of SymmetryPlane
         Mirror planes: ``cloud`` is the half / quarter / eighth of a
         symmetric body, and points near a plane bond to mirror images of
-        their neighbors (see :mod:`pdlin.operators.symmetry`).  Needs
+        their neighbors (see :class:`~pdlin.operators.SymmetryReduction`).  Needs
         ``horizon`` / ``bond_options`` rather than precomputed ``bonds``.
 
     Examples

@@ -362,7 +362,7 @@ class ConstrainedSystem:
         return dict(self.disc.initial_state())
 
     def respond(self, u: Any, state: dict[str, np.ndarray], *, tangent: bool = False) -> Any:
-        """The model's :class:`~pdlin.models.base.Response` at ``u`` (flat or ``(n, dim)``).
+        """The model's ``Response`` at ``u`` (flat or ``(n, dim)``).
 
         A pure function of ``(u, state)``: ``state`` is the committed state
         of the last converged load step and is never modified.
@@ -394,7 +394,7 @@ class ConstrainedSystem:
     ) -> np.ndarray:
         """Nodal reactions ``(n, dim)``: ``-(f_int + f_ext)`` on the prescribed DOFs.
 
-        ``rows`` are K's prescribed rows (:func:`~pdlin.operators.bc.matrix_rows`,
+        ``rows`` are K's prescribed rows (``pdlin.operators.bc.matrix_rows``,
         kept before an in-place elimination), which give ``f_int = -K u``
         there without a full internal-force pass.
         """

@@ -1,6 +1,6 @@
 """Micromodulus calibration for anisotropic bond-based peridynamics (spec 004).
 
-:func:`calibrate_micromoduli` fits one micromodulus per bond so that a bond
+:func:`~pdlin.calibrate_micromoduli` fits one micromodulus per bond so that a bond
 family (or every family of a cloud) reproduces a target stiffness tensor in
 the Frobenius norm; :func:`lattice_family` builds single lattice families.
 """

@@ -1,7 +1,7 @@
 """Calibration of anisotropic bond micromoduli (spec 004).
 
 The effective tensor of a bond family is linear in the micromoduli,
-``C_PD = X c`` (spec 004 Eq. 29/32).  :func:`calibrate_micromoduli` finds the
+``C_PD = X c`` (spec 004 Eq. 29/32).  :func:`~pdlin.calibrate_micromoduli` finds the
 minimum-norm nonnegative ``c`` whose tensor is closest to a target ``C`` in
 the Frobenius norm of the full fourth-order tensor (spec §2.1-2.2).
 """
@@ -32,7 +32,10 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
+#: ``method`` values of :func:`pdlin.calibrate_micromoduli`.
 METHODS = ("two-step", "robust", "min-norm")
+#: ``qp_solver`` values of :func:`pdlin.calibrate_micromoduli` (clarabel and osqp fall
+#: back on each other).
 QP_SOLVERS = ("clarabel", "osqp", "cvxpy")
 _WEIGHTINGS = ("frobenius", "voigt")
 _PAIR_RULES = ("mean", "owner")
@@ -156,7 +159,7 @@ def design_matrix(
 # ---------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
 class CalibrationResult:
-    """Outcome of :func:`calibrate_micromoduli`.
+    """Outcome of :func:`~pdlin.calibrate_micromoduli`.
 
     For a single family the arrays refer to its bonds; for a
     :class:`pdlin.Bonds` of a cloud ``micromoduli`` has one value per

@@ -134,7 +134,7 @@ def calibrate_bonds(
     boundary: str,
     **opts: Any,
 ) -> CalibrationResult:
-    """Calibrate every distinct family of ``bonds`` (see :func:`calibrate_micromoduli`)."""
+    """Calibrate every distinct family of ``bonds`` (see :func:`~pdlin.calibrate_micromoduli`)."""
     t0 = time.perf_counter()
     dim = bonds.dim
     nv = len(_VOIGT[dim])

@@ -502,8 +502,8 @@ class CrystalPlasticity:
     Parameters
     ----------
     slip : {"planar-2", "fcc", "hcp"}
-        Lattice and slip systems (:func:`slip_systems`); ``planar-2`` is 2D (plane
-        strain, out-of-plane stress not modelled), the others 3D.
+        Lattice and slip systems (:func:`~pdlin.constitutive.slip_systems`); ``planar-2``
+        is 2D (plane strain, out-of-plane stress not modelled), the others 3D.
     elastic : mapping or array_like, optional
         Crystal-frame stiffness.  A mapping of constants: ``planar-2`` ``D11, D22, D12,
         D33`` (2D Voigt, spec §3.4); ``fcc`` ``C11, C12, C44``; ``hcp`` ``C11, C12, C13,
@@ -513,7 +513,8 @@ class CrystalPlasticity:
     hardening : mapping, optional
         Keys ``h0, s0, ss, a, q`` (missing keys keep their defaults); each a scalar, a
         mapping family → value or a sequence with one value per family
-        (:data:`SLIP_FAMILIES`); ``q`` is the latent factor of the hardening system β.
+        (:data:`~pdlin.constitutive.SLIP_FAMILIES`); ``q`` is the latent factor of the
+        hardening system β.
         Defaults: spec 001 §3.5 (planar-2); [S] copper (fcc); [S] placeholders (hcp, see
         ``docs/crystal_plasticity.md``).
     orientation : float, array_like
@@ -553,8 +554,9 @@ class CrystalPlasticity:
         Cap on the re-activation passes per update (default 20).  A point that still
         violates the yield condition after the cap, or that revisits an earlier active
         set (a cycle of the search), is *unsettled*: it keeps the visited solution with the
-        smallest violation, ``state["unsettled"]`` flags it and :class:`ActiveSetWarning`
-        is issued naming how many points did not settle (turn it into an error with
+        smallest violation, ``state["unsettled"]`` flags it and
+        :class:`~pdlin.errors.ActiveSetWarning` is issued naming how many points did not
+        settle (turn it into an error with
         ``warnings.simplefilter("error", ActiveSetWarning)``).
 
     Notes

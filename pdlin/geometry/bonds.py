@@ -21,6 +21,7 @@ __all__ = ["Bonds", "find_bonds", "resolve_horizon", "SHAPES"]
 
 log = logging.getLogger(__name__)
 
+#: Neighbourhood shapes accepted by ``find_bonds(shape=...)``.
 SHAPES = ("sphere", "cube", "ellipsoid", "box")
 
 
@@ -408,7 +409,7 @@ def find_bonds(
         Semi-axes / half-widths for 'ellipsoid' / 'box' (absolute lengths).
     influence : str or callable
         Influence function name (see
-        :data:`pdlin.geometry.influence.INFLUENCE_FUNCTIONS`) or
+        :data:`pdlin.geometry.INFLUENCE_FUNCTIONS`) or
         ``f(length, horizon_ij) -> omega``.
     cracks : array_like, optional
         Bonds crossing these are removed: 2D segments ``(m, 2, 2)`` or 3D

@@ -17,7 +17,7 @@ __all__ = ["PointCloud", "Lattice", "grid", "from_image", "ghost_layer", "GhostL
 
 @dataclass(frozen=True)
 class Lattice:
-    """Metadata of a regular cell-centred lattice (set by :func:`grid`).
+    """Metadata of a regular cell-centred lattice (set by :func:`~pdlin.grid`).
 
     Parameters
     ----------
@@ -399,7 +399,7 @@ def from_image(
     image : (nx,) or (nx, ny) or (nx, ny, nz) array_like of int
         Phase id per cell; axis k of the array is spatial axis k.
     spacing, origin, horizon, thickness
-        As in :func:`grid`.
+        As in :func:`~pdlin.grid`.
     void : int, optional
         Phase id marking empty cells (no point is created there).
 
@@ -486,7 +486,7 @@ def ghost_layer(cloud: PointCloud, layers: int = 1) -> GhostLayer:
     Parameters
     ----------
     cloud : PointCloud
-        A cloud with lattice metadata (:func:`grid`, :func:`from_image`).
+        A cloud with lattice metadata (:func:`~pdlin.grid`, :func:`~pdlin.from_image`).
     layers : int
         Number of ghost rings (>= 1).
 

@@ -104,7 +104,7 @@ def plate_with_hole_mesh(
         ``bottom`` are stored twice: as ``cell_sets`` on the adjacent quad
         layer, and as gmsh physical groups of the boundary lines
         (``cell_data['gmsh:physical']`` with names in ``field_data``, see
-        :data:`PLATE_WITH_HOLE_GROUPS`), which survive ``.msh`` and ``.vtu``
+        ``PLATE_WITH_HOLE_GROUPS``), which survive ``.msh`` and ``.vtu``
         files; :func:`pdlin.read_mesh` maps both to the same point sets.
 
         With ``layers``: 3D points (node ``(k, p)`` of layer ``k`` is

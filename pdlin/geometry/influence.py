@@ -38,6 +38,7 @@ def hat(length: np.ndarray, horizon: np.ndarray) -> np.ndarray:
     return 1.0 - length / horizon
 
 
+#: Influence functions ``omega(|xi|, delta)`` by name (``influence=`` of :func:`pdlin.find_bonds`).
 INFLUENCE_FUNCTIONS: dict[str, InfluenceFunction] = {
     "constant": constant,
     "inverse": inverse,

@@ -438,7 +438,7 @@ def read_mesh(
     Notes
     -----
     Measures and centroids are exact for straight-sided cells, see
-    :func:`cell_measures`; quadratic cells use their corner nodes.  Cells
+    ``cell_measures``; quadratic cells use their corner nodes.  Cells
     with inverted node order (clockwise polygons, left-handed solids) use
     the absolute measure and are reported by one logging warning.
 

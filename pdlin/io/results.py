@@ -330,7 +330,7 @@ def write_nonlinear(path: str | Path, result: Any) -> Path:
     ``stress`` (Cauchy, ``dim²`` components) and the scalar / vector state
     variables of the committed state (e.g. ``state_gamma``, ``state_s``,
     ``state_reorientation`` of crystal plasticity; per-point ones only) of the steps
-    whose committed state the result kept (:meth:`NonlinearResult.state_at`).
+    whose committed state the result kept (:meth:`pdlin.NonlinearResult.state_at`).
     """
     cloud = result.system.cloud
     n = cloud.n

@@ -162,7 +162,7 @@ class BondBased(Model):
         ``n = y/|y|``).  ``'small'`` (default): the linearized model.
     surface_correction : {None, 'volume', 'energy', 'force-normalization'}
         Surface correction of the micromodulus near free surfaces (Le &
-        Bobaru 2018, see :mod:`pdlin.models.surface` and
+        Bobaru 2018, see ``pdlin.models.surface`` and
         ``docs/bond_based.md``): a factor per bond, symmetric over the pair,
         computed once per ``(cloud, bonds)`` and used by ``stiffness``,
         ``internal_force``, ``stress`` and ``effective_tensor``.
@@ -510,7 +510,7 @@ class BondBased(Model):
         *,
         tangent: bool = False,
     ) -> Any:
-        """Force, state and tangent for the nonlinear drivers (see :meth:`Model.respond`).
+        """Force, state and tangent for the nonlinear drivers (see :meth:`pdlin.Model.respond`).
 
         With ``kinematics='finite'`` the PMB force and its consistent tangent
         (symmetric, BSR); otherwise the linear model.

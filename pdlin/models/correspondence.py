@@ -629,7 +629,7 @@ class Correspondence(Model):
         2D reduction of 3D data.
     control : {'none', 'higher_order', 'penalty', 'stress_points', 'springs', 'ads'}
         * ``'none'``: the bonds' ω (e.g. ``influence='inverse'`` for the
-          LAMMPS-PD ω = 1/|ξ|, or ``'constant'``).
+          LAMMPS-PD ``ω = 1/|ξ|``, or ``'constant'``).
         * ``'higher_order'``: the model re-weights the bonds of a
           :func:`pdlin.grid` cloud with
           ``pdlin.higher_order_weights(dim, δ/h)`` (spec 000 §6; negative
@@ -1730,7 +1730,7 @@ class Correspondence(Model):
         Penalty, springs and ADS controls are linear add-ons: ``f -= K_c u``,
         ``K_T += K_c``.  ``state`` (from :meth:`initial_state` or a committed trial state)
         is not modified.  Without ``material=`` this is the linear model
-        (:meth:`pdlin.models.base.Model.respond`).
+        (:meth:`pdlin.Model.respond`).
 
         Returns
         -------

@@ -9,14 +9,14 @@ deformation gradient ``F = (sum w V dy (x) xi) K^-1`` more accurate:
   by the procedure of spec 000 §6 (moment equations of increasing order,
   augmentation with the next-order mixed-monomial equations, rejection
   rules).  It reproduces Tables 1-3 of Javaheri et al. (2022).
-* **Numeric path for irregular families** (:func:`moment_weights`): the
+* **Numeric path for irregular families** (:func:`~pdlin.moment_weights`): the
   minimum-norm (volume-weighted) correction of base weights that makes the
   discrete moments of one family vanish, in floating point and batched over
   families.  On lattice families it agrees with the symbolic path only where
   the symbolic set is unique without augmentation (spec 000 §14): it is a
   *different choice*, not an approximation of the symbolic one.
 
-The lattice Fourier symbol :func:`gradient_symbol` and
+The lattice Fourier symbol :func:`~pdlin.gradient_symbol` and
 :func:`symbol_extremes` support zero-energy-mode analysis (spec 000 §4), and
 :func:`gradient_exactness_order` checks polynomial exactness exactly.
 
@@ -333,12 +333,12 @@ class HigherOrderWeights:
 
     @property
     def float_weights(self) -> dict[int, float]:
-        """Weights as floats keyed by ``s`` (raises :class:`ModelError` without a set)."""
+        """Weights as floats keyed by ``s`` (:class:`~pdlin.errors.ModelError` without a set)."""
         return {s: float(w) for s, w in self._require_weights().items()}
 
     @property
     def Omega_float(self) -> float:  # noqa: N802 - the spec's symbol
-        """``Omega`` as a float (raises :class:`ModelError` without a set)."""
+        """``Omega`` as a float (raises :class:`~pdlin.errors.ModelError` without a set)."""
         self._require_weights()
         return float(self.Omega)
 
@@ -492,7 +492,7 @@ def weights_table(dim: int, max_ratio: float | None = None) -> list[HigherOrderW
 def nocontrol_weights(dim: int, horizon_ratio: float) -> dict[int, float]:
     """The 'no control' set ``omega = 1/|xi|`` (units h = 1) keyed by shell ``s``.
 
-    The LAMMPS-PD default of spec 000 §1; use it with :func:`gradient_symbol`.
+    The LAMMPS-PD default of spec 000 §1; use it with :func:`~pdlin.gradient_symbol`.
 
     Examples
     --------
@@ -746,7 +746,7 @@ def _offsets_float(
 def gradient_symbol(
     weights: WeightsLike, theta: Any, *, dim: int | None = None, chunk: int = 32768
 ) -> np.ndarray:
-    """Lattice Fourier symbol ``g(theta) = Omega^-1 sum_p omega(|p|) p sin(theta . p)``.
+    """Lattice Fourier symbol ``g(theta) = Omega^-1 sum_p omega(|p|) p sin(theta·p)``.
 
     For ``u_a = v exp(i theta . a)`` the intact-lattice gradient is
     ``i v (x) g(theta) / h`` (spec 000 §4); the zeros of ``g`` are the
@@ -755,7 +755,7 @@ def gradient_symbol(
     Parameters
     ----------
     weights : HigherOrderWeights or mapping of int to number
-        A weight set or ``{s: omega}`` (e.g. :func:`nocontrol_weights`).
+        A weight set or ``{s: omega}`` (e.g. :func:`~pdlin.models.nocontrol_weights`).
     theta : (..., dim) array_like of float
         Wave vectors (radians per lattice step).  In 1D, ``theta`` may also be
         an array of scalars (any shape without a trailing axis of length 1,
@@ -909,7 +909,7 @@ def symbol_extremes(
 
 @dataclass(frozen=True, eq=False)
 class MomentWeights:
-    """Result of :func:`moment_weights` (numeric, per family).
+    """Result of :func:`~pdlin.moment_weights` (numeric, per family).
 
     Attributes
     ----------

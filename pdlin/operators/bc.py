@@ -402,7 +402,7 @@ def resolve_dirichlet(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Collect prescribed DOFs and values; conflicting duplicates raise.
 
-    :class:`TimePath` values are evaluated at time ``t``.
+    :class:`~pdlin.TimePath` values are evaluated at time ``t``.
 
     Returns
     -------
@@ -482,7 +482,7 @@ def check_constraints(
     *,
     extra_modes: np.ndarray | None = None,
 ) -> None:
-    """Raise :class:`FloatingBodyError` if rigid motions remain unconstrained.
+    """Raise :class:`~pdlin.FloatingBodyError` if rigid motions remain unconstrained.
 
     Each bond-connected component must have its rigid-body modes removed
     by the prescribed DOFs: the rows of the rigid-mode basis at the

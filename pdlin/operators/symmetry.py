@@ -514,7 +514,7 @@ class SymmetryReduction:
 
     @cached_property
     def real_bonds(self) -> Bonds:
-        """Bonds between real points only (a valid :class:`Bonds` of the real cloud)."""
+        """Bonds between real points only (a valid :class:`~pdlin.Bonds` of the real cloud)."""
         n = self.mirror.n_real
         b = self.bonds
         end = int(b.indptr[n])
@@ -619,7 +619,7 @@ class SymmetryReduction:
         return B[:n_loc][:, :, keep].reshape(n_loc * d, int(keep.sum())), names
 
     def check_constraints(self, dofs: np.ndarray) -> None:
-        """Raise :class:`FloatingBodyError` if motions compatible with the planes stay free.
+        """Raise :class:`~pdlin.FloatingBodyError` if motions compatible with the planes stay free.
 
         Connectivity counts bonds through ghosts; each connected piece is
         checked against the rigid modes its reflections leave (via
@@ -681,7 +681,7 @@ class SymmetryReduction:
         return {}
 
     def respond(self, u: Any, state: dict[str, np.ndarray], *, tangent: bool = False) -> Any:
-        """Linear response ``f = -K_sym u`` on the real DOFs (see :meth:`Model.respond`)."""
+        """Linear response ``f = -K_sym u`` on the real DOFs (see :meth:`pdlin.Model.respond`)."""
         from ..models.base import Response
 
         self.initial_state()  # raises for nonlinear models

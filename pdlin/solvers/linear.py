@@ -40,7 +40,7 @@ SOLVERS = ("auto", "direct", "amg-cg", "cg", "jacobi-cg", "ilu-gmres", "amg-gmre
 #: Keys ``strength``, ``aggregate``, ``smooth``, ``improve_candidates``,
 #: ``max_coarse`` (in block rows) and ``max_levels`` go to
 #: :func:`pyamg.smoothed_aggregation_solver`; ``cycle`` and ``relax`` select
-#: pdlin's own cycle (see :class:`AMGHierarchy`).  A per-level list uses its
+#: pdlin's own cycle (see ``AMGHierarchy``).  A per-level list uses its
 #: last entry for all deeper levels.
 #:
 #: Why these values (measured on 3D bars and 2D plates, horizon 3.015 h,
@@ -78,7 +78,7 @@ SOLVERS = ("auto", "direct", "amg-cg", "cg", "jacobi-cg", "ilu-gmres", "amg-gmre
 #:   power steps).  With the zero initial guess of a preconditioner the
 #:   pre-smoothing step needs no mat-vec, so a cycle costs two fine
 #:   mat-vecs plus about 5 % on the coarse levels; it also returns ``A z``
-#:   (:meth:`AMGHierarchy.apply_with_product`), so CG and GMRES need no
+#:   (``AMGHierarchy.apply_with_product``), so CG and GMRES need no
 #:   mat-vec of their own: ~2.5 mat-vecs per iteration.  Gauss-Seidel on BSR
 #:   costs about 3 mat-vecs per sweep in pyamg (CSR: 1.1) for no fewer
 #:   iterations; Chebyshev of degree 2 saves 1-3 iterations but costs
@@ -168,7 +168,7 @@ def block_relative_strength(
 
 
 class _Level:
-    """One level of :class:`AMGHierarchy`: operator, transfer and smoother data."""
+    """One level of ``AMGHierarchy``: operator, transfer and smoother data."""
 
     def __init__(self, A: Any, P: Any = None, R: Any = None) -> None:
         self.A = A
@@ -495,7 +495,7 @@ def amg_hierarchy(
     **overrides
         Replace entries of :data:`AMG_DEFAULTS` (pyamg keywords, ``cycle``,
         ``relax``).  A strength entry ``('block_relative', {'theta': t})``
-        is computed by :func:`block_relative_strength`.
+        is computed by ``block_relative_strength``.
 
     Returns
     -------
@@ -913,7 +913,7 @@ def _pcg(
     """Preconditioned conjugate gradients with one mat-vec per iteration.
 
     With ``MA(r) -> (M r, A M r)`` (e.g.
-    :meth:`AMGHierarchy.apply_with_product`) no separate mat-vec is done:
+    ``AMGHierarchy.apply_with_product``) no separate mat-vec is done:
     ``A p`` follows from ``A p = A z + beta A p_old``.
 
     Stops when the true residual ``||b - A x_k|| <= rtol ||b||``: once the

@@ -589,7 +589,7 @@ class TradeoffResult:
     Attributes
     ----------
     table : list of dict
-        One row per point: the swept parameters, then :data:`METRIC_COLUMNS`.
+        One row per point: the swept parameters, then :data:`~pdlin.sweeps.METRIC_COLUMNS`.
     params : list of str
         The swept parameter names (grid keys), in order.
     reference : str
@@ -861,8 +861,8 @@ def tradeoff(
     factory : callable
         ``factory(**params) -> TradeoffCase`` (or ``(problem, solve_kwargs[, exact])``
         or a :class:`~pdlin.StaticProblem`), called with the grid's parameters other than
-        :data:`SOLVE_KEYS` ('solver', 'rtol', 'operator', 'maxiter'; and for a nonlinear
-        case 'method', 'e_l', 'predictor'), which go to :func:`pdlin.solve` (or to
+        :data:`~pdlin.sweeps.SOLVE_KEYS` ('solver', 'rtol', 'operator', 'maxiter'; and for a
+        nonlinear case 'method', 'e_l', 'predictor'), which go to :func:`pdlin.solve` (or to
         :func:`pdlin.solve_nonlinear` for a case with ``nonlinear`` options, whose error is
         that of the homogenized stress history).  :mod:`pdlin.sweeps` has factories for the
         bundled problems (:func:`~pdlin.sweeps.graded_bar`, :func:`~pdlin.sweeps.tension_bar`,
@@ -878,7 +878,7 @@ def tradeoff(
         'auto' takes the first of closed form, case reference and finest that the cases
         provide.
     metric : {'rel-max', 'rel-l2', 'max-abs'} or callable
-        Error of the measured points: max point-wise |u - u_ref| / max |u_ref|, relative
+        Error of the measured points: max point-wise ``|u - u_ref|`` / ``max |u_ref|``, relative
         Euclidean norm, max absolute component error, or ``metric(u, u_ref) -> float``.
     output : path, optional
         ``.csv`` or ``.jsonl`` file; each point is appended (flushed, fsynced) as soon as
