@@ -78,7 +78,16 @@ class ConvergenceError(PdlinError, RuntimeError):
         self.result = result
 
 
-class ActiveSetWarning(RuntimeWarning):
+class TrialStateWarning(RuntimeWarning):
+    """A material's state update is questionable at some points.
+
+    The nonlinear drivers ignore it on trial iterates (Newton trials, line-search and ADR
+    states are discarded) and re-issue what :meth:`pdlin.models.Model.committed_issues`
+    reports on each committed state.  Subclasses name the cause.
+    """
+
+
+class ActiveSetWarning(TrialStateWarning):
     """A crystal-plasticity active-set search did not settle at some points.
 
     Issued by :meth:`pdlin.CrystalPlasticity.update` (``active_set="reactivate"``) when

@@ -23,7 +23,7 @@ import scipy.linalg
 import scipy.sparse as sp
 
 from ._validation import as_float_array, integer
-from .errors import ActiveSetWarning, ConvergenceError, InputError, InputTypeError, ShapeError
+from .errors import ConvergenceError, InputError, InputTypeError, ShapeError, TrialStateWarning
 from .operators.bc import TimePath, eliminate_dirichlet
 from .problem import StaticProblem
 from .solvers.linear import solve_linear
@@ -598,9 +598,9 @@ def solve_nonlinear(
 
     for k in range(start, K):
         with warnings.catch_warnings():
-            # trial iterates may leave a crystal's active set unsettled; only the
-            # committed state matters (checked below)
-            warnings.simplefilter("ignore", ActiveSetWarning)
+            # trial iterates may leave a material's state questionable (e.g. a crystal's
+            # active set unsettled); only the committed state matters (checked below)
+            warnings.simplefilter("ignore", TrialStateWarning)
             t0 = time.perf_counter()
             t_target = float(tt[k])
             step_u, step_state = u_c, state_c
@@ -690,14 +690,9 @@ def solve_nonlinear(
         # commit
         u_p, t_p = u_c, t_c
         u_c, state_c, t_c = u_new, dict(resp.state), t_target
-        unsettled = np.asarray(state_c.get("unsettled", np.zeros(0)), dtype=bool)
-        if unsettled.any():
+        for category, message in system.model.committed_issues(state_c):
             warnings.warn(
-                f"load step {k + 1} (t = {t_target:.6g}): the crystal-plasticity active-set "
-                f"search did not settle at {int(unsettled.sum())} of {unsettled.size} gradient "
-                "point(s) of the committed state (state['unsettled']); use smaller steps",
-                ActiveSetWarning,
-                stacklevel=2,
+                f"load step {k + 1} (t = {t_target:.6g}): {message}", category, stacklevel=2
             )
         if keep_states:
             states.append(state_c)

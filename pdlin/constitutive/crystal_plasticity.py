@@ -1099,6 +1099,33 @@ class CrystalPlasticity:
         return ray
 
     # -- public update -----------------------------------------------------------------
+    def committed_issues(self, state: dict[str, np.ndarray]) -> list[tuple[type[Warning], str]]:
+        """Warnings about a committed state: points whose active-set search did not settle.
+
+        Called by the nonlinear drivers after each converged load step (see
+        :meth:`pdlin.models.Model.committed_issues`).
+
+        Examples
+        --------
+        >>> import numpy as np, pdlin
+        >>> cp = pdlin.CrystalPlasticity()
+        >>> cp.committed_issues({"unsettled": np.array([False, True, False])})[0][1][:58]
+        'the crystal-plasticity active-set search did not settle at'
+        """
+        from ..errors import ActiveSetWarning
+
+        unsettled = np.asarray(state.get("unsettled", np.zeros(0)), dtype=bool)
+        if not unsettled.any():
+            return []
+        return [
+            (
+                ActiveSetWarning,
+                "the crystal-plasticity active-set search did not settle at "
+                f"{int(unsettled.sum())} of {unsettled.size} gradient point(s) of the committed "
+                "state (state['unsettled']); use smaller steps",
+            )
+        ]
+
     def update(
         self,
         F: ArrayLike,

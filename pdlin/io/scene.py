@@ -617,7 +617,7 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
             if sh.get("depth") is None and mode == "displacement":
                 # two-hop models (state-based, correspondence) need two horizons of layer
                 depth = float(depth) * int(getattr(model, "coupling_range", 1))
-            if mode == "stress":
+            if mode == "stress" and isinstance(model, Correspondence):
                 # correspondence shadow particles use the intact-lattice shape tensor and act
                 # through their prescribed stress (spec 000 section 7)
                 bonds = bonds if bonds is not None else find_bonds(cloud, horizon, **bond_options)

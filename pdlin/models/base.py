@@ -129,6 +129,17 @@ class Model(ABC):
         K = self.stiffness(cloud, bonds) if tangent else None
         return Response(f, dict(state), K, None, 0)
 
+    def committed_issues(self, state: dict[str, np.ndarray]) -> list[tuple[type[Warning], str]]:
+        """Warnings about a committed state (``(category, message)`` pairs, default none).
+
+        The nonlinear drivers call it after every converged load step and issue what it
+        returns; trial states are not checked (their :class:`~pdlin.errors.TrialStateWarning`
+        are ignored).  Models with a history-dependent material delegate to it.
+        """
+        material = getattr(self, "material", None)
+        check = getattr(material, "committed_issues", None)
+        return list(check(state)) if callable(check) else []
+
     def estimate_nnz_blocks(self, cloud: PointCloud, bonds: Bonds) -> int:
         """Number of dim x dim blocks of K, without assembling it."""
         return int(bonds.n_bonds + cloud.n)

@@ -249,3 +249,39 @@ def test_velocity_gradient_path_and_affine_predictor():
 def test_bad_arguments_name_themselves(kwargs, match):
     with pytest.raises(InputError, match=match):
         pdlin.solve_nonlinear(_chain(), **kwargs)
+
+
+class _NoisyChain(CubicChain):
+    """CubicChain whose trial states warn and whose committed states report an issue once
+    the strain passes a threshold: the drivers' model-side hook."""
+
+    def respond(self, cloud: Any, bonds: Any, u: Any, state: Any, *, tangent: bool = False):
+        import warnings
+
+        warnings.warn("trial state questionable", pdlin.errors.TrialStateWarning, stacklevel=1)
+        return super().respond(cloud, bonds, u, state, tangent=tangent)
+
+    def committed_issues(self, state):
+        big = state["emax"] > 0.05 / 45  # passed in steps 2 and 3 (bond strain 0.05 k / 60)
+        if big.any():
+            return [(UserWarning, f"{int(big.sum())} point(s) past the threshold")]
+        return []
+
+
+@pytest.mark.parametrize("method", ["newton", "adr"])
+def test_committed_issues_are_warned_per_step_and_trial_warnings_ignored(method):
+    import warnings
+
+    p = _chain()
+    prob = pdlin.StaticProblem(_NoisyChain(beta=1e4), p.cloud, p.bonds, dirichlet=list(p.dirichlet))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        pdlin.solve_nonlinear(prob, steps=3, method=method)
+    msgs = [str(w.message) for w in caught]
+    assert not any("trial state" in m for m in msgs)
+    # steps 2 and 3 commit e = 0.05 * 2/60, 0.05 * 3/60 > 0.05/45 at the 20 points that start
+    # a bond (the last point starts none); step 1 (0.05/60) does not
+    assert [m for m in msgs if "threshold" in m] == [
+        "load step 2 (t = 0.666667): 20 point(s) past the threshold",
+        "load step 3 (t = 1): 20 point(s) past the threshold",
+    ]
