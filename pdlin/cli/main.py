@@ -45,6 +45,10 @@ def _load(args: argparse.Namespace) -> Any:
         return scene_from_dict(data, Path.cwd())
     if not args.scene:
         raise PdlinError("give a scene file or --example NAME")
+    if Path(args.scene).suffix.lower() in (".yaml", ".yml", ".xml"):
+        from ..io.decks import read_deck  # Peridigm / PeriLab input decks
+
+        return read_deck(args.scene)
     return load_scene(args.scene)
 
 
@@ -370,7 +374,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("run", help="solve a scene and write the results")
-    r.add_argument("scene", nargs="?", help="scene file (.toml)")
+    r.add_argument(
+        "scene", nargs="?", help="scene file (.toml) or Peridigm / PeriLab deck (.yaml, .xml)"
+    )
     r.add_argument("--example", help="run a built-in example scene (see 'pdlin examples')")
     r.add_argument(
         "-o",
