@@ -1110,7 +1110,8 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         set_name = bc.get("Node Set")
         if set_name not in sets:
             raise SceneError(
-                f"{key}.Node Set: {set_name!r} is not under Discretization.Node Sets ({sorted(sets)})"
+                f"{key}.Node Set: {set_name!r} is not under Discretization.Node Sets "
+                f"({sorted(sets)})"
             )
         idx = sets[set_name]
         coord = str(bc.get("Coordinate", "x")).strip().upper()
