@@ -131,10 +131,14 @@ def _compile_expression(text: str, key: str, *, caret_power: bool) -> ast.Expres
                 f"{key}: unknown name {node.id!r} in expression {text!r}; allowed variables "
                 f"{list(_VARS)}, constants {sorted(_CONSTS)}, functions {sorted(_FUNCS)}"
             )
-        if isinstance(node, ast.Call) and (
-            not isinstance(node.func, ast.Name) or node.func.id not in _FUNCS or node.keywords
-        ):
-            ok = False
+        if isinstance(node, ast.Call):
+            if isinstance(node.func, ast.Name) and node.func.id not in _FUNCS:
+                raise SceneError(
+                    f"{key}: unknown function {node.func.id!r} in expression {text!r}; allowed "
+                    f"functions {sorted(_FUNCS)}"
+                )
+            if not isinstance(node.func, ast.Name) or node.keywords:
+                ok = False
         if not ok:
             raise SceneError(
                 f"{key}: unsupported construct {type(node).__name__} in expression {text!r}; "
@@ -601,7 +605,13 @@ def _exodus_cloud(path: Path) -> tuple[PointCloud, dict[str, Any]]:
                 "attribute are not read by meshio)"
             )
         nodes = np.asarray(block.data)[:, : 4 if kinds[block.type] == "tetra" else 8]
-        c, v = cell_measures(mesh.points, nodes, kinds[block.type])
+        v, c = cell_measures(mesh.points, nodes, kinds[block.type])
+        if np.any(v <= 0):
+            e = int(np.flatnonzero(v <= 0)[0])
+            raise SceneError(
+                f"Discretization: Exodus block {k + 1} element {e + 1} has volume {v[e]:.3g} "
+                "(inverted or degenerate element)"
+            )
         cents.append(c)
         vols.append(v)
         conn_rows.append(nodes)
