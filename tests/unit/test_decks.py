@@ -33,7 +33,8 @@ def bar_points(nx: int = 8, ny: int = 2, nz: int = 2, h: float = H) -> np.ndarra
 def write_text_mesh(path: Path, pts: np.ndarray, vol: float, block=None) -> None:
     block = np.ones(len(pts), int) if block is None else block
     lines = ["# x y z block_id volume", "// a C++-style comment", "* a starred comment", ""]
-    lines += [f"{float(p[0])!r} {float(p[1])!r} {float(p[2])!r} {b} {float(vol)!r}" for p, b in zip(pts, block, strict=True)]
+    for p, b in zip(pts, block, strict=True):
+        lines.append(f"{float(p[0])!r} {float(p[1])!r} {float(p[2])!r} {b} {float(vol)!r}")
     path.write_text("\n".join(lines) + "\n")
 
 
@@ -228,11 +229,13 @@ def test_inline_node_sets_and_all_sets(bar_dir):
         ),
         (
             lambda b: b["Fix X"].update({"Type": "Initial Velocity"}),
-            r"Fix X.Type: 'Initial Velocity' is not supported; supported: 'Prescribed Displacement', 'Body Force'",
+            r"Fix X.Type: 'Initial Velocity' is not supported; supported: "
+            r"'Prescribed Displacement', 'Body Force'",
         ),
         (
             lambda b: b["Fix X"].update({"Scale": 2.0}),
-            r"Fix X.Scale: not supported .* supported keys: \['Coordinate', 'Node Set', 'Type', 'Value'\]",
+            r"Fix X.Scale: not supported .* supported keys: "
+            r"\['Coordinate', 'Node Set', 'Type', 'Value'\]",
         ),
         (lambda b: b["Pull X"].update({"Value": "0.001*t*q"}), r"Pull X.Value: unknown name 'q'"),
         (lambda b: b.pop("Node Set One"), r"Fix X.Node Set: node set 'Node Set One' not found"),
@@ -267,7 +270,8 @@ def test_boundary_condition_errors_name_the_key(bar_dir, edit, pattern):
             "Material",
             "Material Model",
             "Elastic Plastic",
-            r"Material Model: 'Elastic Plastic' is not supported; supported: \['Elastic', 'Elastic Bond Based', 'Elastic Correspondence'",
+            r"Material Model: 'Elastic Plastic' is not supported; supported: "
+            r"\['Elastic', 'Elastic Bond Based', 'Elastic Correspondence'",
         ),
         (
             "Material",
