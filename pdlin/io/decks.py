@@ -100,6 +100,8 @@ def _compile_expression(text: str, key: str, *, caret_power: bool) -> ast.Expres
         src = src.replace("^", "**")
     try:
         tree = ast.parse(src, mode="eval")
+    except (RecursionError, MemoryError, ValueError):
+        raise SceneError(f"{key}: cannot parse expression of {len(text)} characters") from None
     except SyntaxError as exc:
         raise SceneError(
             f"{key}: cannot parse expression {text!r} ({exc.msg}); expressions use x, y, z, t, "
@@ -223,7 +225,7 @@ def deck_expression(
         with np.errstate(all="ignore"):
             try:
                 val = _eval_node(tree, env)
-            except (TypeError, ValueError, ZeroDivisionError, OverflowError) as exc:
+            except (TypeError, ValueError, ZeroDivisionError, OverflowError, RecursionError) as exc:
                 raise SceneError(f"{key}: cannot evaluate {text!r}: {exc}") from None
         out = np.broadcast_to(np.asarray(val, dtype=float), (m,)).copy()
     if not np.all(np.isfinite(out)):
@@ -243,7 +245,7 @@ def _load_yaml(path: Path) -> Any:
             f'reading the YAML deck {path} needs PyYAML: pip install "pdlin[decks]"'
         ) from exc
     try:
-        return yaml.safe_load(path.read_text())
+        return yaml.safe_load(_read_text(path, "deck"))
     except yaml.YAMLError as exc:
         raise SceneError(f"{path}: invalid YAML: {exc}") from None
 
@@ -305,7 +307,7 @@ def _load_xml(path: Path) -> dict[str, Any]:
 def _read_text_table(path: Path, key: str, ncols: tuple[int, ...]) -> np.ndarray:
     """Rows of numbers; lines starting with '#', '/', '*' (or empty) are comments."""
     rows = []
-    for lineno, raw in enumerate(path.read_text().splitlines(), 1):
+    for lineno, raw in enumerate(_read_text(path, key).splitlines(), 1):
         line = raw.strip()
         if not line or line[0] in "#/*" or line.startswith("header:"):
             continue
@@ -327,15 +329,30 @@ def _read_text_table(path: Path, key: str, ncols: tuple[int, ...]) -> np.ndarray
     return np.asarray(rows, dtype=float)
 
 
+def _cloud(points: np.ndarray, volumes: np.ndarray, key: str) -> PointCloud:
+    try:
+        return PointCloud(points, volumes)
+    except PdlinError as exc:
+        raise SceneError(f"{key}: {exc}") from None
+
+
 def _resolve_file(value: Any, base: Path, key: str) -> Path:
     if not isinstance(value, str) or not value.strip():
         raise SceneError(f"{key} must be a file name, got {value!r}")
     p = Path(value.strip())
     if not p.is_absolute():
         p = base / p
-    if not p.exists():
-        raise SceneError(f"{key}: file not found: {p}")
+    if not p.is_file():
+        what = "is not a file" if p.exists() else "file not found"
+        raise SceneError(f"{key}: {what}: {p}")
     return p
+
+
+def _read_text(path: Path, key: str) -> str:
+    try:
+        return path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(f"{key}: cannot read {path} as text: {exc}") from None
 
 
 def _node_ids(value: Any, base: Path, key: str, n: int) -> np.ndarray:
@@ -352,7 +369,7 @@ def _node_ids(value: Any, base: Path, key: str, n: int) -> np.ndarray:
         else:
             path = _resolve_file(s, base, key)
             toks = []
-            for raw in path.read_text().splitlines():
+            for raw in _read_text(path, key).splitlines():
                 line = raw.strip()
                 if line and line[0] not in "#/*":
                     toks.extend(line.split())
@@ -555,7 +572,7 @@ def _peridigm_cloud(disc: Mapping[str, Any], base: Path) -> tuple[PointCloud, di
         block_id = data[:, 3]
         if np.any(block_id != np.round(block_id)):
             raise SceneError(f"Discretization: {path.name} has non-integer block ids (column 4)")
-        cloud = PointCloud(data[:, :3], data[:, 4])
+        cloud = _cloud(data[:, :3], data[:, 4], "Discretization.Input Mesh File")
         blocks = {
             f"block_{b}": np.flatnonzero(block_id == b) for b in np.unique(block_id.astype(int))
         }
@@ -618,7 +635,7 @@ def _exodus_cloud(path: Path) -> tuple[PointCloud, dict[str, Any]]:
         blocks[f"block_{k + 1}"] = offset + np.arange(len(nodes))
         offset += len(nodes)
     points = np.vstack(cents)
-    cloud = PointCloud(points, np.concatenate(vols))
+    cloud = _cloud(points, np.concatenate(vols), "Discretization.Input Mesh File")
     offsets = np.cumsum([0] + [len(r) for r in conn_rows[:-1]])
     # element-node incidence -> node sets as element sets (any node in the set)
     rows = np.concatenate(
@@ -1001,7 +1018,7 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     header = next(
         (
             ln.strip()[len("header:") :].split()
-            for ln in path.read_text().splitlines()
+            for ln in _read_text(path, "Discretization.Input Mesh File").splitlines()
             if ln.strip().startswith("header:")
         ),
         None,
@@ -1020,7 +1037,7 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     data = _read_text_table(path, "Discretization.Input Mesh File", (len(header),))
     dim = len(header) - 2
     block_id = data[:, dim]
-    cloud = PointCloud(data[:, :dim], data[:, dim + 1])
+    cloud = _cloud(data[:, :dim], data[:, dim + 1], "Discretization.Input Mesh File")
     n = cloud.n
     sets: dict[str, np.ndarray] = {}
     for sname, v in _table(disc.get("Node Sets", {}), "Discretization.Node Sets").items():
