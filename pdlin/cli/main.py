@@ -185,10 +185,11 @@ def _cmd_info(args: argparse.Namespace) -> int:
     from ..geometry.bonds import find_bonds
 
     path = Path(args.mesh)
-    if path.suffix == ".toml":
+    if path.suffix in (".toml", ".yaml", ".yml", ".xml"):
+        from ..io.decks import read_deck
         from ..io.scene import load_scene
 
-        scene = load_scene(path)
+        scene = load_scene(path) if path.suffix == ".toml" else read_deck(path)
         cloud = scene.cloud
         bonds = scene.bonds()
     else:
@@ -401,7 +402,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=_cmd_run)
 
     i = sub.add_parser("info", help="points, volumes, bonds and horizons of a mesh or scene")
-    i.add_argument("mesh", help="mesh file readable by meshio, or a scene .toml")
+    i.add_argument(
+        "mesh", help="mesh file readable by meshio, a scene .toml or a deck .yaml / .xml"
+    )
     i.add_argument("--ratio", type=float, default=3.015, help="horizon / spacing (default 3.015)")
     i.add_argument("--horizon", type=float, help="absolute horizon (overrides --ratio)")
     i.add_argument("--json", action="store_true")

@@ -670,6 +670,8 @@ def test_cli_runs_yaml_and_xml_decks(bar_dir):
     assert (bar_dir / "out.vtu").exists()
     deck = peridigm_deck({**LPS_MAT, "Material Model": "Elastic Plastic"})
     (bar_dir / "bad.xml").write_text(to_xml("Peridigm", deck["Peridigm"]))
+    res = _cli("info", "deck.yaml", "--json", cwd=bar_dir)
+    assert res.returncode == 0 and '"points": 32' in res.stdout, res.stderr
     res = _cli("run", "bad.xml", "-q", cwd=bar_dir)
     assert res.returncode == 2
     assert "Materials.My Material.Material Model: 'Elastic Plastic' is not supported" in res.stderr
