@@ -1045,6 +1045,9 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
 
     models = _table(root["Models"], "Models")
     _unknown(models, _PL_MODELS, "Models", "PeriLab models")
+    for k in models:
+        if _PL_MODELS[k]:
+            _note(f"Models.{k}", _PL_MODELS[k])
     mats: dict[str, dict[str, Any]] = {}
     for mname, m in _table(models.get("Material Models", {}), "Models.Material Models").items():
         key = f"Models.Material Models.{mname}"
@@ -1119,6 +1122,13 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     _unknown(st, _PL_STATIC, "Solver.Static", "PeriLab static solver")
     if "Damage Models" in s and _flag(s["Damage Models"], "Solver.Damage Models"):
         raise SceneError("Solver.Damage Models: true is not supported (damage)")
+    if "Material Models" in s and not _flag(s["Material Models"], "Solver.Material Models"):
+        raise SceneError("Solver.Material Models: false (no material forces) is not supported")
+    for k in s:
+        if _PL_SOLVER[k] and k not in ("Material Models", "Damage Models"):
+            _note(f"Solver.{k}", _PL_SOLVER[k])
+    for k in st:
+        _note(f"Solver.Static.{k}", _PL_STATIC[k])
     if "Final Time" not in s:
         raise SceneError("missing deck key Solver.Final Time")
     t = _number(s["Final Time"], "Solver.Final Time")

@@ -675,3 +675,35 @@ def test_cli_runs_yaml_and_xml_decks(bar_dir):
     res = _cli("run", "bad.xml", "-q", cwd=bar_dir)
     assert res.returncode == 2
     assert "Materials.My Material.Material Model: 'Elastic Plastic' is not supported" in res.stderr
+
+
+def test_cosmetic_keys_are_logged_not_ignored(bar_dir, caplog):
+    deck = peridigm_deck(LPS_MAT)
+    deck["Peridigm"]["Output"]["Output Frequency"] = 5
+    with caplog.at_level("INFO", logger="pdlin.io.decks"):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    text = caplog.text
+    for key in (
+        "Peridigm.Verbose",
+        "Materials.My Material.Density",
+        "Solver.QuasiStatic.Number of Load Steps",
+        "Output.Output Frequency",
+        "Output.Output Variables",
+    ):
+        assert f"deck key {key} accepted without effect" in text
+
+
+def test_perilab_solver_switches(plate_dir):
+    mat = {
+        "Material Model": "Bond-based Elastic",
+        "Symmetry": "isotropic plane stress",
+        "Young's Modulus": 1.0,
+    }
+    solver = {"Final Time": 1.0, "Material Models": False, "Static": {}}
+    with pytest.raises(SceneError, match=r"Solver.Material Models: false .* is not supported"):
+        pdlin.read_deck(write_yaml(plate_dir / "p.yaml", perilab_deck(mat, solver)))
+    solver = {"Final Time": 1.0, "Damage Models": True, "Static": {}}
+    with pytest.raises(SceneError, match=r"Solver.Damage Models: true is not supported"):
+        pdlin.read_deck(write_yaml(plate_dir / "p.yaml", perilab_deck(mat, solver)))
+    model = pdlin.read_deck(write_yaml(plate_dir / "p.yaml", perilab_deck(mat))).model
+    assert isinstance(model, pdlin.BondBased) and model.plane == "stress"
