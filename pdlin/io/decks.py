@@ -240,7 +240,7 @@ def deck_expression(
 def _load_yaml(path: Path) -> Any:
     try:
         import yaml
-    except ImportError as exc:  # pragma: no cover - depends on the environment
+    except ImportError as exc:
         raise PdlinError(
             f'reading the YAML deck {path} needs PyYAML: pip install "pdlin[decks]"'
         ) from exc

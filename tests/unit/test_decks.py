@@ -707,3 +707,10 @@ def test_perilab_solver_switches(plate_dir):
         pdlin.read_deck(write_yaml(plate_dir / "p.yaml", perilab_deck(mat, solver)))
     model = pdlin.read_deck(write_yaml(plate_dir / "p.yaml", perilab_deck(mat))).model
     assert isinstance(model, pdlin.BondBased) and model.plane == "stress"
+
+
+def test_missing_pyyaml_names_the_extra(bar_dir, monkeypatch):
+    write_yaml(bar_dir / "d.yaml", peridigm_deck(LPS_MAT))
+    monkeypatch.setitem(sys.modules, "yaml", None)  # import yaml -> ImportError
+    with pytest.raises(pdlin.errors.PdlinError, match=r'pip install "pdlin\[decks\]"'):
+        pdlin.read_deck(bar_dir / "d.yaml")
