@@ -205,7 +205,7 @@ def deck_expression(
     ...     deck_expression("__import__('os')", np.zeros((1, 3)), 0.0)
     ... except SceneError as exc:
     ...     print(str(exc).split(" in expression")[0])
-    Value: unsupported construct Call
+    Value: unknown function '__import__'
     """
     pts = np.atleast_2d(np.asarray(points, dtype=float))
     m = pts.shape[0]
