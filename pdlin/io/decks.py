@@ -1175,6 +1175,12 @@ def _perilab_model(mat: Mapping[str, Any], dim: int) -> Any:
             else BondBased(K=_bulk_shear(c, "material")[0], plane=plane)
         )
     if mat["kind"] == "lps":
+        if dim == 2:
+            log.warning(
+                "PeriLab 'PD Solid Elastic' in 2D is read as pdlin's plane-%s LPS; PeriLab's 2D "
+                "coefficients (Bobaru et al. 2016 section 6.3) are not verified to coincide",
+                plane,
+            )
         return LPS(**c, plane=plane, peridigm=True)
     return Correspondence(**c, plane=plane)
 
