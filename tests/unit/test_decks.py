@@ -714,3 +714,17 @@ def test_missing_pyyaml_names_the_extra(bar_dir, monkeypatch):
     monkeypatch.setitem(sys.modules, "yaml", None)  # import yaml -> ImportError
     with pytest.raises(pdlin.errors.PdlinError, match=r'pip install "pdlin\[decks\]"'):
         pdlin.read_deck(bar_dir / "d.yaml")
+
+
+def test_legacy_discretization_horizon_and_aliases(bar_dir):
+    # early Peridigm decks (examples/tensile_test at 0b2088a) put the horizon under
+    # Discretization and named the linear LPS "Linear Elastic"
+    deck = peridigm_deck({**LPS_MAT, "Material Model": "Linear Elastic"})
+    root = deck["Peridigm"]
+    root["Discretization"]["Horizon"] = 0.25
+    del root["Blocks"]["My Block"]["Horizon"]
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    assert scene.problem.horizon == 0.25 and isinstance(scene.model, pdlin.LPS)
+    del root["Discretization"]["Horizon"]
+    with pytest.raises(SceneError, match=r"missing deck key Blocks.My Block.Horizon"):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
