@@ -1,7 +1,7 @@
-"""Peridigm and PeriLab input decks (static subset) read into a pdlin :class:`Scene`.
+"""Peridigm and PeriLab input decks (static subset) read into a pdlin ``Scene``.
 
 :func:`read_deck` turns a Peridigm deck (YAML or Teuchos ParameterList XML) or a
-PeriLab.jl deck (YAML) into the same :class:`pdlin.io.scene.Scene` a TOML scene
+PeriLab.jl deck (YAML) into the same ``pdlin.io.scene.Scene`` a TOML scene
 gives, so ``pdlin run DECK.yaml`` and :func:`pdlin.solve` work unchanged.  Every
 key is checked: physics pdlin does not have raises :class:`pdlin.errors.SceneError`
 naming the key path and what is supported; cosmetic keys (``Verbose``, output
@@ -1189,7 +1189,7 @@ def _perilab_model(mat: Mapping[str, Any], dim: int) -> Any:
 def read_deck(path: str | Path) -> Scene:
     """Read a Peridigm (YAML / XML) or PeriLab (YAML) input deck as a pdlin scene.
 
-    The returned :class:`pdlin.io.scene.Scene` is what :func:`pdlin.io.scene.load_scene`
+    The returned ``pdlin.io.scene.Scene`` is what ``pdlin.io.scene.load_scene``
     gives for a TOML scene: ``pdlin.solve(read_deck(p).problem)`` solves it and
     ``pdlin run DECK.yaml`` runs it.  Linear models are solved once at the deck's
     ``Final Time`` (boundary values are evaluated there, also when they are nonlinear in
