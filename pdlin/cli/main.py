@@ -45,6 +45,10 @@ def _load(args: argparse.Namespace) -> Any:
         return scene_from_dict(data, Path.cwd())
     if not args.scene:
         raise PdlinError("give a scene file or --example NAME")
+    if Path(args.scene).suffix.lower() in (".yaml", ".yml", ".xml"):
+        from ..io.decks import read_deck  # Peridigm / PeriLab input decks
+
+        return read_deck(args.scene)
     return load_scene(args.scene)
 
 
@@ -190,10 +194,11 @@ def _cmd_info(args: argparse.Namespace) -> int:
     from ..geometry.bonds import find_bonds
 
     path = Path(args.mesh)
-    if path.suffix == ".toml":
+    if path.suffix in (".toml", ".yaml", ".yml", ".xml"):
+        from ..io.decks import read_deck
         from ..io.scene import load_scene
 
-        scene = load_scene(path)
+        scene = load_scene(path) if path.suffix == ".toml" else read_deck(path)
         cloud = scene.cloud
         bonds = scene.bonds()
     else:
@@ -379,7 +384,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("run", help="solve a scene and write the results")
-    r.add_argument("scene", nargs="?", help="scene file (.toml)")
+    r.add_argument(
+        "scene", nargs="?", help="scene file (.toml) or Peridigm / PeriLab deck (.yaml, .xml)"
+    )
     r.add_argument("--example", help="run a built-in example scene (see 'pdlin examples')")
     r.add_argument(
         "-o",
@@ -404,7 +411,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=_cmd_run)
 
     i = sub.add_parser("info", help="points, volumes, bonds and horizons of a mesh or scene")
-    i.add_argument("mesh", help="mesh file readable by meshio, or a scene .toml")
+    i.add_argument(
+        "mesh", help="mesh file readable by meshio, a scene .toml or a deck .yaml / .xml"
+    )
     i.add_argument("--ratio", type=float, default=3.015, help="horizon / spacing (default 3.015)")
     i.add_argument("--horizon", type=float, help="absolute horizon (overrides --ratio)")
     i.add_argument("--json", action="store_true")

@@ -1,0 +1,1257 @@
+"""Peridigm and PeriLab input decks (static subset) read into a pdlin ``Scene``.
+
+:func:`read_deck` turns a Peridigm deck (YAML or Teuchos ParameterList XML) or a
+PeriLab.jl deck (YAML) into the same ``pdlin.io.scene.Scene`` a TOML scene
+gives, so ``pdlin run DECK.yaml`` and :func:`pdlin.solve` work unchanged.  Every
+key is checked: physics pdlin does not have raises :class:`pdlin.errors.SceneError`
+naming the key path and what is supported; cosmetic keys (``Verbose``, output
+frequency, compute classes, ...) are accepted and logged.  The key-by-key mapping
+is in ``docs/decks.md``.
+
+Sources of the formats (read, not copied):
+
+* Peridigm ``examples/tensile_test/tensile_test.yaml`` / ``.xml`` and
+  ``examples/wave_in_bar/wave_in_bar.yaml`` (deck layout, node-set files);
+* Peridigm ``src/io/discretization/Peridigm_TextFileDiscretization.cpp`` (text
+  discretization: five columns ``x y z block_id volume``, comment lines start with
+  ``#``, ``/`` or ``*``, blocks named ``block_<id>``, 3D only);
+* Peridigm ``src/core/Peridigm_BoundaryAndInitialConditionManager.cpp`` and
+  ``Peridigm_Enums.cpp`` (names containing ``NODE_SET`` after upper-casing and
+  ``' ' -> '_'`` are node-set definitions: a file of 1-based ids or an inline list;
+  ``Full Domain`` / ``All Sets``; ``Coordinate`` defaults to x);
+* Peridigm ``src/core/Peridigm_BoundaryCondition.cpp`` (``Value`` is a function of
+  ``x, y, z, t``, optionally written ``value = ...``);
+* Peridigm ``src/materials/Peridigm_Material.cpp`` (exactly two of Bulk Modulus,
+  Shear Modulus, Young's Modulus, Poisson's Ratio), ``elastic.cxx`` (linear
+  peridynamic solid, ω = 1, discrete weighted volume), ``elastic_bond_based.cxx``
+  (``c = 18 K / (π δ⁴)``), ``correspondence.cxx`` (hourglass force
+  ``18 C_hg K / (π δ⁴)``);
+* Peridigm ``src/io/discretization/Peridigm_ExodusDiscretization.cpp`` (one point per
+  tet / hex element at its centroid with the element volume);
+* PeriLab.jl ``examples/Dogbone/Dogbone.yaml``, ``Dogbone_plastic_corr_static.yaml``,
+  ``Dogbone.txt`` (``header: x y block_id volume``) and ``ns_Dogbone_2.txt``.
+"""
+
+from __future__ import annotations
+
+import ast
+import logging
+import math
+import operator
+import re
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import PdlinError, SceneError
+from ..geometry.cloud import PointCloud
+from ..operators.bc import BodyForce, Dirichlet, load_vector, resolve_dirichlet
+from ..problem import StaticProblem
+from .scene import Scene
+
+__all__ = ["read_deck", "deck_expression", "peridigm_hourglass_penalty"]
+
+log = logging.getLogger(__name__)
+
+# --------------------------------------------------------------------------------------
+# expressions: a whitelisted AST evaluator (never eval of arbitrary code)
+# --------------------------------------------------------------------------------------
+_BINOPS: dict[type, Callable[[Any, Any], Any]] = {
+    ast.Add: operator.add,
+    ast.Sub: operator.sub,
+    ast.Mult: operator.mul,
+    ast.Div: operator.truediv,
+    ast.Pow: operator.pow,
+}
+_UNOPS: dict[type, Callable[[Any], Any]] = {ast.UAdd: operator.pos, ast.USub: operator.neg}
+_FUNCS: dict[str, Callable[..., Any]] = {
+    "sin": np.sin,
+    "cos": np.cos,
+    "tan": np.tan,
+    "asin": np.arcsin,
+    "acos": np.arccos,
+    "atan": np.arctan,
+    "atan2": np.arctan2,
+    "sinh": np.sinh,
+    "cosh": np.cosh,
+    "tanh": np.tanh,
+    "exp": np.exp,
+    "log": np.log,
+    "log10": np.log10,
+    "sqrt": np.sqrt,
+    "abs": np.abs,
+    "fabs": np.abs,
+    "pow": np.power,
+    "min": np.minimum,
+    "max": np.maximum,
+}
+_CONSTS = {"pi": math.pi, "PI": math.pi, "M_PI": math.pi, "e": math.e}
+_VARS = ("x", "y", "z", "t")
+
+
+def _compile_expression(text: str, key: str, *, caret_power: bool) -> ast.Expression:
+    src = text.strip()
+    m = re.fullmatch(r"value\s*=\s*(.*?);?\s*", src, flags=re.S)
+    if m:  # Peridigm's RTCompiler form "value = ..."
+        src = m.group(1)
+    if caret_power:  # Julia (PeriLab): ^ is the power
+        src = src.replace("^", "**")
+    try:
+        tree = ast.parse(src, mode="eval")
+    except (RecursionError, MemoryError, ValueError):
+        raise SceneError(f"{key}: cannot parse expression of {len(text)} characters") from None
+    except SyntaxError as exc:
+        raise SceneError(
+            f"{key}: cannot parse expression {text!r} ({exc.msg}); expressions use x, y, z, t, "
+            f"numbers, + - * / {'^' if caret_power else '**'} and {sorted(_FUNCS)}"
+        ) from None
+    for node in ast.walk(tree):
+        ok = isinstance(
+            node,
+            ast.Expression
+            | ast.BinOp
+            | ast.UnaryOp
+            | ast.Constant
+            | ast.Name
+            | ast.Call
+            | ast.Load
+            | ast.operator
+            | ast.unaryop,
+        )
+        if isinstance(node, ast.BinOp) and type(node.op) not in _BINOPS:
+            ok = False
+        if isinstance(node, ast.UnaryOp) and type(node.op) not in _UNOPS:
+            ok = False
+        if isinstance(node, ast.Constant) and (
+            isinstance(node.value, bool) or not isinstance(node.value, int | float)
+        ):
+            ok = False
+        if isinstance(node, ast.Name) and node.id not in (*_VARS, *_CONSTS, *_FUNCS):
+            raise SceneError(
+                f"{key}: unknown name {node.id!r} in expression {text!r}; allowed variables "
+                f"{list(_VARS)}, constants {sorted(_CONSTS)}, functions {sorted(_FUNCS)}"
+            )
+        if isinstance(node, ast.Call):
+            if isinstance(node.func, ast.Name) and node.func.id not in _FUNCS:
+                raise SceneError(
+                    f"{key}: unknown function {node.func.id!r} in expression {text!r}; allowed "
+                    f"functions {sorted(_FUNCS)}"
+                )
+            if not isinstance(node.func, ast.Name) or node.keywords:
+                ok = False
+        if not ok:
+            raise SceneError(
+                f"{key}: unsupported construct {type(node).__name__} in expression {text!r}; "
+                f"expressions use x, y, z, t, numbers, + - * / and {sorted(_FUNCS)}"
+            )
+    return tree
+
+
+def _eval_node(node: ast.AST, env: Mapping[str, Any]) -> Any:
+    if isinstance(node, ast.Expression):
+        return _eval_node(node.body, env)
+    if isinstance(node, ast.Constant):
+        return float(node.value)  # type: ignore[arg-type]  # numbers only (checked)
+    if isinstance(node, ast.Name):
+        if node.id in env:
+            return env[node.id]
+        return _CONSTS[node.id]
+    if isinstance(node, ast.BinOp):
+        return _BINOPS[type(node.op)](_eval_node(node.left, env), _eval_node(node.right, env))
+    if isinstance(node, ast.UnaryOp):
+        return _UNOPS[type(node.op)](_eval_node(node.operand, env))
+    assert isinstance(node, ast.Call) and isinstance(node.func, ast.Name)  # checked on compile
+    return _FUNCS[node.func.id](*(_eval_node(a, env) for a in node.args))
+
+
+def deck_expression(
+    text: Any, points: Any, t: float, key: str = "Value", *, caret_power: bool = False
+) -> np.ndarray:
+    """Evaluate a deck ``Value`` expression in ``x, y, z, t`` at every point.
+
+    A whitelisted AST evaluator: numbers, ``x y z t``, ``+ - * / **`` (``^`` with
+    ``caret_power``), ``pi`` and the functions ``sin cos tan exp log sqrt abs pow
+    ...``; Peridigm's ``value = ...`` form is accepted.  Anything else raises
+    :class:`pdlin.errors.SceneError` naming ``key``.
+
+    Parameters
+    ----------
+    text : str or float
+        The expression (a number is returned as a constant).
+    points : (m, dim) array_like of float
+        Reference coordinates (missing coordinates are 0).
+    t : float
+        The time.
+    key : str
+        Key path reported in errors.
+    caret_power : bool
+        Read ``^`` as the power (PeriLab / Julia expressions).
+
+    Returns
+    -------
+    (m,) ndarray of float
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> deck_expression("y*0.005*t", np.array([[0.0, 2.0, 0.0]]), 1.0).tolist()
+    [0.01]
+    >>> deck_expression("value = 0.1*sin(pi*x)", np.array([[0.5, 0.0, 0.0]]), 0.0).tolist()
+    [0.1]
+    >>> from pdlin.errors import SceneError
+    >>> try:
+    ...     deck_expression("__import__('os')", np.zeros((1, 3)), 0.0)
+    ... except SceneError as exc:
+    ...     print(str(exc).split(" in expression")[0])
+    Value: unknown function '__import__'
+    """
+    pts = np.atleast_2d(np.asarray(points, dtype=float))
+    m = pts.shape[0]
+    if isinstance(text, bool):
+        raise SceneError(f"{key} must be a number or an expression string, got {text!r}")
+    if isinstance(text, int | float):
+        out = np.full(m, float(text))
+    else:
+        if not isinstance(text, str):
+            raise SceneError(f"{key} must be a number or an expression string, got {text!r}")
+        tree = _compile_expression(text, key, caret_power=caret_power)
+        env: dict[str, Any] = {
+            name: (pts[:, k] if k < pts.shape[1] else np.zeros(m))
+            for k, name in enumerate(("x", "y", "z"))
+        }
+        env["t"] = float(t)
+        with np.errstate(all="ignore"):
+            try:
+                val = _eval_node(tree, env)
+            except (TypeError, ValueError, ZeroDivisionError, OverflowError, RecursionError) as exc:
+                raise SceneError(f"{key}: cannot evaluate {text!r}: {exc}") from None
+        out = np.broadcast_to(np.asarray(val, dtype=float), (m,)).copy()
+    if not np.all(np.isfinite(out)):
+        k = int(np.flatnonzero(~np.isfinite(out))[0])
+        raise SceneError(f"{key}: expression {text!r} is not finite at point {k} (t = {t})")
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# file readers
+# --------------------------------------------------------------------------------------
+def _load_yaml(path: Path) -> Any:
+    try:
+        import yaml
+    except ImportError as exc:
+        raise PdlinError(
+            f'reading the YAML deck {path} needs PyYAML: pip install "pdlin[decks]"'
+        ) from exc
+    try:
+        return yaml.safe_load(_read_text(path, "deck"))
+    except yaml.YAMLError as exc:
+        raise SceneError(f"{path}: invalid YAML: {exc}") from None
+
+
+_XML_TYPES: dict[str, Callable[[str], Any]] = {
+    "string": str,
+    "double": float,
+    "float": float,
+    "int": int,
+    "bool": lambda s: {"true": True, "false": False}[s.strip().lower()],
+}
+
+
+def _xml_list(elem: Any, where: str) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for child in elem:
+        if not isinstance(child.tag, str):  # comments
+            continue
+        name = child.get("name")
+        key = f"{where}.{name}" if where else str(name)
+        if child.tag == "ParameterList":
+            if name is None:
+                raise SceneError(f"{where or 'deck'}: a nested <ParameterList> needs a name")
+            out[name] = _xml_list(child, key)
+        elif child.tag == "Parameter":
+            typ = child.get("type", "string")
+            value = child.get("value")
+            if name is None or value is None:
+                raise SceneError(f"{where or 'deck'}: <Parameter> needs name and value")
+            if typ not in _XML_TYPES:
+                raise SceneError(
+                    f"{key}: Parameter type must be one of {sorted(_XML_TYPES)}, got {typ!r}"
+                )
+            try:
+                out[name] = _XML_TYPES[typ](value)
+            except (ValueError, KeyError):
+                raise SceneError(f"{key}: {value!r} is not a valid {typ}") from None
+        else:
+            raise SceneError(
+                f"{where or 'deck'}: unexpected XML element <{child.tag}> (Teuchos "
+                "ParameterList decks hold <ParameterList> and <Parameter> only)"
+            )
+    return out
+
+
+def _load_xml(path: Path) -> dict[str, Any]:
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as exc:
+        raise SceneError(f"{path}: invalid XML: {exc}") from None
+    if root.tag != "ParameterList":
+        raise SceneError(f"{path}: the root element must be <ParameterList>, got <{root.tag}>")
+    name = root.get("name") or "Peridigm"
+    return {name: _xml_list(root, name)}
+
+
+def _read_text_table(path: Path, key: str, ncols: tuple[int, ...]) -> np.ndarray:
+    """Rows of numbers; lines starting with '#', '/', '*' (or empty) are comments."""
+    rows = []
+    for lineno, raw in enumerate(_read_text(path, key).splitlines(), 1):
+        line = raw.strip()
+        if not line or line[0] in "#/*" or line.startswith("header:"):
+            continue
+        try:
+            vals = [float(v) for v in line.split()]
+        except ValueError:
+            raise SceneError(f"{key}: {path.name} line {lineno} is not numbers: {line!r}") from None
+        if len(vals) not in ncols:
+            raise SceneError(
+                f"{key}: {path.name} line {lineno} has {len(vals)} columns, expected "
+                f"{' or '.join(map(str, ncols))}: {line!r}"
+            )
+        rows.append(vals)
+    if not rows:
+        raise SceneError(f"{key}: {path} holds no points")
+    widths = {len(r) for r in rows}
+    if len(widths) > 1:
+        raise SceneError(f"{key}: {path.name} mixes rows of {sorted(widths)} columns")
+    return np.asarray(rows, dtype=float)
+
+
+def _cloud(points: np.ndarray, volumes: np.ndarray, key: str) -> PointCloud:
+    try:
+        return PointCloud(points, volumes)
+    except PdlinError as exc:
+        raise SceneError(f"{key}: {exc}") from None
+
+
+def _resolve_file(value: Any, base: Path, key: str) -> Path:
+    if not isinstance(value, str) or not value.strip():
+        raise SceneError(f"{key} must be a file name, got {value!r}")
+    p = Path(value.strip())
+    if not p.is_absolute():
+        p = base / p
+    if not p.is_file():
+        what = "is not a file" if p.exists() else "file not found"
+        raise SceneError(f"{key}: {what}: {p}")
+    return p
+
+
+def _read_text(path: Path, key: str) -> str:
+    try:
+        return path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(f"{key}: cannot read {path} as text: {exc}") from None
+
+
+def _node_ids(value: Any, base: Path, key: str, n: int) -> np.ndarray:
+    """A node set: a file of 1-based ids, an inline list or string of them -> 0-based."""
+    if isinstance(value, list):
+        toks: list[Any] = value
+    elif isinstance(value, int) and not isinstance(value, bool):
+        toks = [value]
+    elif isinstance(value, str):
+        s = value.strip()
+        # Peridigm's rule (nodeSetStringToFileName): whitespace or an integer -> a list
+        if re.fullmatch(r"[+-]?\d+(\s+[+-]?\d+)*", s):
+            toks = s.split()
+        else:
+            path = _resolve_file(s, base, key)
+            toks = []
+            for raw in _read_text(path, key).splitlines():
+                line = raw.strip()
+                if line and line[0] not in "#/*":
+                    toks.extend(line.split())
+    else:
+        raise SceneError(f"{key} must be a node-set file name or a list of node ids, got {value!r}")
+    try:
+        ids = np.array([int(str(v)) for v in toks], dtype=np.int64)
+    except ValueError:
+        raise SceneError(f"{key}: node ids must be integers, got {toks[:5]!r}...") from None
+    if ids.size == 0:
+        raise SceneError(f"{key}: the node set is empty")
+    if ids.min() < 1 or ids.max() > n:
+        raise SceneError(
+            f"{key}: node ids are 1-based and must lie in [1, {n}], got range "
+            f"[{int(ids.min())}, {int(ids.max())}]"
+        )
+    return np.unique(ids - 1)
+
+
+def _tidy(name: str) -> str:
+    """Peridigm's tidy_string: upper case, trimmed, spaces -> underscores."""
+    return "_".join(name.strip().upper().split(" "))
+
+
+def _table(value: Any, key: str) -> dict[str, Any]:
+    if not isinstance(value, Mapping):
+        raise SceneError(f"{key} must be a list of parameters, got {type(value).__name__}")
+    return dict(value)
+
+
+def _unknown(table: Mapping[str, Any], allowed: Mapping[str, str], key: str, what: str) -> None:
+    for k in table:
+        if k not in allowed:
+            raise SceneError(
+                f"{key}.{k}: not supported by pdlin's {what} reader; supported keys: "
+                f"{sorted(allowed)}"
+            )
+
+
+def _note(key: str, why: str) -> None:
+    log.info("deck key %s accepted without effect: %s", key, why)
+
+
+def _number(value: Any, key: str, *, positive: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise SceneError(f"{key} must be a number, got {value!r}")
+    v = float(value)
+    if not np.isfinite(v) or (positive and v <= 0):
+        raise SceneError(f"{key} must be {'> 0' if positive else 'finite'}, got {v}")
+    return v
+
+
+def _flag(value: Any, key: str) -> bool:
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, str) and value.strip().lower() in ("true", "false"):
+        return value.strip().lower() == "true"
+    raise SceneError(f"{key} must be true or false, got {value!r}")
+
+
+# --------------------------------------------------------------------------------------
+# materials
+# --------------------------------------------------------------------------------------
+_ELASTIC_CONSTANTS = {
+    "Bulk Modulus": "K",
+    "Shear Modulus": "G",
+    "Young's Modulus": "E",
+    "Poisson's Ratio": "nu",
+}
+
+
+def _constants(mat: Mapping[str, Any], key: str, *, exactly: int | None = 2) -> dict[str, float]:
+    got = {
+        short: _number(mat[long], f"{key}.{long}")
+        for long, short in _ELASTIC_CONSTANTS.items()
+        if long in mat
+    }
+    if exactly is not None and len(got) != exactly:
+        raise SceneError(
+            f"{key} needs exactly two of {list(_ELASTIC_CONSTANTS)}, got "
+            f"{[k for k in _ELASTIC_CONSTANTS if k in mat] or 'none'}"
+        )
+    return got
+
+
+def _bulk_shear(c: Mapping[str, float], key: str) -> tuple[float, float]:
+    from ..constitutive import isotropic_constants
+
+    try:
+        E, nu = isotropic_constants(**dict(c))
+    except PdlinError as exc:
+        raise SceneError(f"{key}: {exc}") from None
+    E, nu = float(E), float(nu)
+    return E / (3.0 * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
+
+
+def peridigm_hourglass_penalty(coefficient: float, K: Any, G: Any) -> Any:
+    """pdlin ``penalty`` matching Peridigm's ``Hourglass Coefficient`` micromodulus scale.
+
+    Peridigm's correspondence hourglass force has the bond constant
+    ``18 C_hg K / (π δ⁴)`` (``correspondence.cxx``); pdlin's penalty control uses the
+    bond-based micromodulus ``18 K_eq / (π δ⁴)`` of the modulus ``E_eq`` whose
+    bond-based axial stiffness equals ``C_1111 = K + 4G/3`` (``K_eq = C_1111 / 1.8``
+    in 3D).  Equal constants give ``penalty = C_hg K / K_eq = 1.8 C_hg K / (K + 4G/3)``.
+    The controls still differ (see ``docs/decks.md``): Peridigm penalizes the
+    bond-direction projection of the non-affine displacement with a force that holds
+    the deformation gradient fixed (nonsymmetric Jacobian); pdlin's penalty is the
+    energy ``½ Σ ½ k_b |z_b|²`` of the full vector with ``k_b ∝ 1/|ξ|``.
+
+    Examples
+    --------
+    >>> round(float(peridigm_hourglass_penalty(0.02, 1.5e12, 6.923e11)), 6)
+    0.022286
+    """
+    return 1.8 * coefficient * np.asarray(K) / (np.asarray(K) + 4.0 * np.asarray(G) / 3.0)
+
+
+# --------------------------------------------------------------------------------------
+# Peridigm
+# --------------------------------------------------------------------------------------
+_PD_TOP = {
+    "Verbose": "cosmetic",
+    "Discretization": "",
+    "Materials": "",
+    "Blocks": "",
+    "Boundary Conditions": "",
+    "Solver": "",
+    "Output": "",
+    "Compute Class Parameters": "output computations (pdlin writes its own fields)",
+}
+_PD_DISC = {
+    "Type": "",
+    "Input Mesh File": "",
+    "Horizon": "legacy place of the horizon (used by blocks without one)",
+    "Store Exodus Mesh": "output option",
+}
+_PD_MAT_COMMON = {
+    "Material Model": "",
+    "Density": "dynamics only",
+    "Bulk Modulus": "",
+    "Shear Modulus": "",
+    "Young's Modulus": "",
+    "Poisson's Ratio": "",
+    "Apply Automatic Differentiation Jacobian": "Jacobian algorithm (pdlin assembles K exactly)",
+    "Plane Strain": "",
+    "Plane Stress": "",
+    "Influence Function": "",
+}
+_PD_MATERIALS: dict[str, dict[str, str]] = {
+    "Elastic": {
+        **_PD_MAT_COMMON,
+        "Apply Shear Correction Factor": "Peridigm's elastic.cxx computes it but does not use it "
+        "in the force (the scaled alpha line is commented out)",
+    },
+    "Linear LPS": dict(_PD_MAT_COMMON),
+    "Linear Elastic": dict(_PD_MAT_COMMON),
+    "Elastic Correspondence": {**_PD_MAT_COMMON, "Hourglass Coefficient": ""},
+    "Elastic Bond Based": dict(_PD_MAT_COMMON),
+}
+_PD_BLOCK = {"Block Names": "", "Material": "", "Horizon": ""}
+_PD_BC = {"Type": "", "Node Set": "", "Coordinate": "", "Value": ""}
+_PD_SOLVER = {
+    "Verbose": "cosmetic",
+    "Initial Time": "",
+    "Final Time": "",
+    "QuasiStatic": "",
+    "NOXQuasiStatic": "",
+}
+_PD_QS = {
+    "Number of Load Steps": "a linear model's final state is one solve at Final Time",
+    "Absolute Tolerance": "Newton tolerance (pdlin checks its own residual)",
+    "Relative Tolerance": "Newton tolerance (pdlin checks its own residual)",
+    "Maximum Solver Iterations": "Newton iterations (one linear solve here)",
+    "Verbose": "cosmetic",
+    "Number of Steps": "as Number of Load Steps",
+    "Nonlinear Solver": "NOX algorithm choice (one linear solve here)",
+    "Direction": "NOX algorithm choice",
+    "Line Search": "NOX algorithm choice",
+    "Jacobian Operator": "NOX algorithm choice",
+    "Preconditioner": "NOX algorithm choice",
+    "Max Age Of Prec": "NOX algorithm choice",
+    "Maximum Age of Preconditioner": "NOX algorithm choice",
+}
+_PD_OUTPUT = {
+    "Output File Type": "pdlin writes .vtu (see pdlin run -o)",
+    "Output Format": "cosmetic",
+    "Output Filename": "",
+    "Output Frequency": "one state is written (the final one)",
+    "Parallel Write": "cosmetic",
+    "Output Variables": "pdlin writes all of its fields",
+}
+
+
+def _peridigm_cloud(disc: Mapping[str, Any], base: Path) -> tuple[PointCloud, dict[str, Any]]:
+    """Points, volumes, block names (``block_<id>``) and mesh node sets."""
+    kind = disc.get("Type")
+    if kind == "Text File":
+        path = _resolve_file(disc.get("Input Mesh File"), base, "Discretization.Input Mesh File")
+        data = _read_text_table(path, "Discretization.Input Mesh File", (5,))
+        block_id = data[:, 3]
+        if np.any(block_id != np.round(block_id)):
+            raise SceneError(f"Discretization: {path.name} has non-integer block ids (column 4)")
+        cloud = _cloud(data[:, :3], data[:, 4], "Discretization.Input Mesh File")
+        blocks = {
+            f"block_{b}": np.flatnonzero(block_id == b) for b in np.unique(block_id.astype(int))
+        }
+        return cloud, {"blocks": blocks, "node_sets": {}}
+    if kind == "Exodus":
+        path = _resolve_file(disc.get("Input Mesh File"), base, "Discretization.Input Mesh File")
+        return _exodus_cloud(path)
+    raise SceneError(
+        f"Discretization.Type must be 'Text File' or 'Exodus' (pdlin's deck reader), got {kind!r}"
+    )
+
+
+def _exodus_cloud(path: Path) -> tuple[PointCloud, dict[str, Any]]:
+    """Peridigm's Exodus conversion: one point per tet / hex at its centroid, its volume.
+
+    Node sets become the elements holding at least one node of the set (Peridigm
+    records the elements each node belongs to).
+    """
+    import meshio
+    import scipy.sparse as sp
+
+    from ..geometry.mesh import cell_measures
+
+    try:
+        mesh = meshio.read(path, file_format="exodus")
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise PdlinError(
+            f"reading the Exodus mesh {path} needs netCDF4: pip install netCDF4"
+        ) from exc
+    except Exception as exc:  # meshio raises many kinds
+        raise SceneError(
+            f"Discretization.Input Mesh File: cannot read {path} as Exodus: {exc}"
+        ) from None
+    kinds = {
+        "tetra": "tetra",
+        "tetra10": "tetra",
+        "hexahedron": "hexahedron",
+        "hexahedron20": "hexahedron",
+    }
+    cents, vols, conn_rows, blocks = [], [], [], {}
+    offset = 0
+    for k, block in enumerate(mesh.cells):
+        if block.type not in kinds:
+            raise SceneError(
+                f"Discretization: Exodus block {k + 1} has {block.type!r} elements; Peridigm's and "
+                "pdlin's conversion supports tet and hex elements (sphere elements with a volume "
+                "attribute are not read by meshio)"
+            )
+        nodes = np.asarray(block.data)[:, : 4 if kinds[block.type] == "tetra" else 8]
+        v, c = cell_measures(mesh.points, nodes, kinds[block.type])
+        if np.any(v <= 0):
+            e = int(np.flatnonzero(v <= 0)[0])
+            raise SceneError(
+                f"Discretization: Exodus block {k + 1} element {e + 1} has volume {v[e]:.3g} "
+                "(inverted or degenerate element)"
+            )
+        cents.append(c)
+        vols.append(v)
+        conn_rows.append(nodes)
+        blocks[f"block_{k + 1}"] = offset + np.arange(len(nodes))
+        offset += len(nodes)
+    points = np.vstack(cents)
+    cloud = _cloud(points, np.concatenate(vols), "Discretization.Input Mesh File")
+    offsets = np.cumsum([0] + [len(r) for r in conn_rows[:-1]])
+    # element-node incidence -> node sets as element sets (any node in the set)
+    rows = np.concatenate(
+        [
+            np.repeat(np.arange(len(r)) + off, r.shape[1])
+            for r, off in zip(conn_rows, offsets, strict=True)
+        ]
+    )
+    cols = np.concatenate([r.ravel() for r in conn_rows])
+    inc = sp.csr_array((np.ones(rows.size), (rows, cols)), shape=(offset, len(mesh.points)))
+    node_sets = {}
+    for name, ids in mesh.point_sets.items():
+        mask = np.zeros(len(mesh.points))
+        mask[np.asarray(ids, dtype=np.int64)] = 1.0
+        node_sets[_tidy(name)] = np.flatnonzero(inc @ mask > 0)
+    return cloud, {"blocks": blocks, "node_sets": node_sets}
+
+
+def _peridigm_material(name: str, mat: Mapping[str, Any], key: str) -> dict[str, Any]:
+    """A Peridigm material list -> {'kind': pdlin model, 'K', 'G', 'hourglass'}."""
+    model = mat.get("Material Model")
+    if model not in _PD_MATERIALS:
+        hint = (
+            " (partial-volume materials are not supported)"
+            if isinstance(model, str) and "Partial" in model
+            else ""
+        )
+        raise SceneError(
+            f"{key}.Material Model: {model!r} is not supported{hint}; supported: "
+            f"{sorted(_PD_MATERIALS)}"
+        )
+    allowed = _PD_MATERIALS[model]
+    _unknown(mat, allowed, key, f"Peridigm {model!r} material")
+    for k in ("Plane Strain", "Plane Stress"):
+        if k in mat and _flag(mat[k], f"{key}.{k}"):
+            raise SceneError(
+                f"{key}.{k}: true is not supported: pdlin reads Peridigm decks as 3D point clouds "
+                "(the text discretization is x y z block_id volume); for a 2D model write a pdlin "
+                "scene with material.plane or a PeriLab deck with 'Symmetry'"
+            )
+    if "Influence Function" in mat and str(mat["Influence Function"]).strip() != "One":
+        raise SceneError(
+            f"{key}.Influence Function: only 'One' (ω = 1, Peridigm's default) is supported, got "
+            f"{mat['Influence Function']!r}"
+        )
+    for k, why in allowed.items():
+        if why and k in mat:
+            _note(f"{key}.{k}", why)
+    if model == "Elastic Bond Based":
+        c = _constants(mat, key, exactly=None)
+        if "K" in c and len(c) == 1:
+            K = c["K"]
+        else:
+            if len(c) != 2:
+                raise SceneError(
+                    f"{key} needs Bulk Modulus or two of {list(_ELASTIC_CONSTANTS)}, got "
+                    f"{[k for k in _ELASTIC_CONSTANTS if k in mat] or 'none'}"
+                )
+            K, _ = _bulk_shear(c, key)
+        return {"kind": "bond_based", "K": K, "G": None, "hourglass": None}
+    K, G = _bulk_shear(_constants(mat, key), key)
+    if model == "Elastic Correspondence":
+        if "Hourglass Coefficient" not in mat:
+            raise SceneError(
+                f"{key}.Hourglass Coefficient is required for 'Elastic Correspondence'"
+            )
+        hg = _number(mat["Hourglass Coefficient"], f"{key}.Hourglass Coefficient")
+        if hg < 0:
+            raise SceneError(f"{key}.Hourglass Coefficient must be >= 0, got {hg}")
+        return {"kind": "correspondence", "K": K, "G": G, "hourglass": hg}
+    return {"kind": "lps", "K": K, "G": G, "hourglass": None}
+
+
+def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
+    root = _table(deck, "Peridigm")
+    _unknown(root, _PD_TOP, "Peridigm", "Peridigm deck")
+    for k in ("Verbose", "Compute Class Parameters"):
+        if k in root:
+            _note(f"Peridigm.{k}", _PD_TOP[k])
+    for k in ("Discretization", "Materials", "Blocks", "Boundary Conditions", "Solver"):
+        if k not in root:
+            raise SceneError(f"missing deck key Peridigm.{k}")
+    disc = _table(root["Discretization"], "Discretization")
+    _unknown(disc, _PD_DISC, "Discretization", "Peridigm discretization")
+    cloud, extra = _peridigm_cloud(disc, base)
+    blocks_pts: dict[str, np.ndarray] = extra["blocks"]
+
+    materials = _table(root["Materials"], "Materials")
+    mats = {
+        mname: _peridigm_material(mname, _table(m, f"Materials.{mname}"), f"Materials.{mname}")
+        for mname, m in materials.items()
+    }
+    n = cloud.n
+    horizon = np.full(n, np.nan)
+    K = np.full(n, np.nan)
+    G = np.full(n, np.nan)
+    kinds: set[str] = set()
+    hgs: set[float] = set()
+    default_h = disc.get("Horizon")
+    for bname, b in _table(root["Blocks"], "Blocks").items():
+        key = f"Blocks.{bname}"
+        b = _table(b, key)
+        _unknown(b, _PD_BLOCK, key, "Peridigm block")
+        names = b.get("Block Names")
+        if not isinstance(names, str) or not names.split():
+            raise SceneError(
+                f"{key}.Block Names must name blocks (e.g. 'block_1 block_2'), got {names!r}"
+            )
+        mname = b.get("Material")
+        if mname not in mats:
+            raise SceneError(
+                f"{key}.Material: {mname!r} is not defined under Materials ({sorted(mats)})"
+            )
+        h = b.get("Horizon", default_h)
+        if h is None:
+            raise SceneError(f"missing deck key {key}.Horizon")
+        if isinstance(h, str):
+            raise SceneError(
+                f"{key}.Horizon: expressions for the horizon are not supported; give a number"
+            )
+        h = _number(h, f"{key}.Horizon", positive=True)
+        mat = mats[mname]
+        for bn in names.split():
+            if bn not in blocks_pts:
+                raise SceneError(
+                    f"{key}.Block Names: {bn!r} is not in the discretization (blocks "
+                    f"{sorted(blocks_pts)})"
+                )
+            idx = blocks_pts[bn]
+            horizon[idx] = h
+            K[idx] = mat["K"]
+            G[idx] = np.nan if mat["G"] is None else mat["G"]
+        kinds.add(mat["kind"])
+        if mat["hourglass"] is not None:
+            hgs.add(mat["hourglass"])
+    missing = [bn for bn, idx in blocks_pts.items() if np.isnan(horizon[idx]).any()]
+    if missing:
+        raise SceneError(f"Blocks: discretization block(s) {missing} are not assigned to any block")
+    if len(kinds) != 1:
+        raise SceneError(
+            f"Blocks: all blocks must use one material model family in pdlin, got {sorted(kinds)}"
+        )
+    kind = kinds.pop()
+    model = _build_model(kind, K, G, hgs, "Materials")
+
+    sets = _peridigm_node_sets(root["Boundary Conditions"], base, n, extra["node_sets"])
+    t_final = _peridigm_solver(root["Solver"])
+    dirichlet, loads = _peridigm_bcs(root["Boundary Conditions"], sets, cloud, t_final)
+    output = None
+    if "Output" in root:
+        out = _table(root["Output"], "Output")
+        _unknown(out, _PD_OUTPUT, "Output", "Peridigm output")
+        for k, why in _PD_OUTPUT.items():
+            if why and k in out:
+                _note(f"Output.{k}", why)
+        if "Output Filename" in out:
+            output = base / f"{out['Output Filename']}.vtu"
+    return _scene(name, model, cloud, horizon, dirichlet, loads, base, output)
+
+
+def _build_model(kind: str, K: np.ndarray, G: np.ndarray, hgs: set[float], key: str) -> Any:
+    from ..models import LPS, BondBased, Correspondence
+
+    def one(a: np.ndarray) -> Any:
+        return float(a[0]) if np.all(a == a[0]) else a
+
+    if kind == "bond_based":
+        return BondBased(K=one(K))
+    if kind == "lps":
+        return LPS(K=one(K), G=one(G), peridigm=True)
+    if len(hgs) != 1:
+        raise SceneError(
+            f"{key}: all correspondence blocks must share one Hourglass Coefficient, "
+            f"got {sorted(hgs)}"
+        )
+    hg = hgs.pop()
+    if hg == 0:
+        return Correspondence(K=one(K), G=one(G), control="none")
+    pen = peridigm_hourglass_penalty(hg, K, G)
+    if not np.allclose(pen, pen[0], rtol=1e-12):
+        raise SceneError(
+            f"{key}: correspondence blocks with different K/G give different hourglass penalties; "
+            "pdlin's penalty control takes one coefficient"
+        )
+    return Correspondence(K=one(K), G=one(G), control="penalty", penalty=float(pen[0]))
+
+
+def _peridigm_node_sets(
+    bcs: Any, base: Path, n: int, mesh_sets: Mapping[str, np.ndarray]
+) -> dict[str, np.ndarray]:
+    sets = dict(mesh_sets)
+    for k, v in _table(bcs, "Boundary Conditions").items():
+        if "NODE_SET" in _tidy(k):
+            key = f"Boundary Conditions.{k}"
+            if _tidy(k) in sets:
+                raise SceneError(f"{key}: duplicate node set {_tidy(k)!r}")
+            sets[_tidy(k)] = _node_ids(v, base, key, n)
+    return sets
+
+
+def _peridigm_solver(solver: Any) -> float:
+    s = _table(solver, "Solver")
+    _unknown(s, _PD_SOLVER, "Solver", "Peridigm solver (static subset)")
+    kinds = [k for k in ("QuasiStatic", "NOXQuasiStatic") if k in s]
+    if len(kinds) != 1:
+        raise SceneError(
+            f"Solver needs exactly one of 'QuasiStatic' or 'NOXQuasiStatic' (pdlin solves statics; "
+            f"Verlet / Implicit dynamics are not supported), got {kinds or 'none'}"
+        )
+    sub = _table(s[kinds[0]], f"Solver.{kinds[0]}")
+    _unknown(sub, _PD_QS, f"Solver.{kinds[0]}", "Peridigm quasi-static solver")
+    for k in sub:
+        _note(f"Solver.{kinds[0]}.{k}", _PD_QS[k])
+    if "Final Time" not in s:
+        raise SceneError("missing deck key Solver.Final Time")
+    t0 = _number(s.get("Initial Time", 0.0), "Solver.Initial Time")
+    t1 = _number(s["Final Time"], "Solver.Final Time")
+    if t1 <= t0:
+        raise SceneError(f"Solver.Final Time must exceed Initial Time ({t0}), got {t1}")
+    if "Number of Load Steps" in sub:
+        steps = sub["Number of Load Steps"]
+        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
+            raise SceneError(
+                f"Solver.{kinds[0]}.Number of Load Steps must be an integer >= 1, got {steps!r}"
+            )
+    return t1
+
+
+_COORD = {"X": 0, "Y": 1, "Z": 2}
+
+
+def _bc_points(set_name: Any, sets: Mapping[str, np.ndarray], n: int, key: str) -> np.ndarray:
+    if not isinstance(set_name, str):
+        raise SceneError(f"{key} must name a node set, got {set_name!r}")
+    tid = _tidy(set_name)
+    if tid == "FULL_DOMAIN":
+        return np.arange(n)
+    if tid == "ALL_SETS":
+        if not sets:
+            raise SceneError(f"{key}: 'All Sets' but the deck defines no node sets")
+        return np.unique(np.concatenate(list(sets.values())))
+    if tid not in sets:
+        raise SceneError(f"{key}: node set {set_name!r} not found; defined: {sorted(sets)}")
+    return sets[tid]
+
+
+def _peridigm_bcs(
+    bcs: Any, sets: Mapping[str, np.ndarray], cloud: PointCloud, t: float
+) -> tuple[list[Dirichlet], list[BodyForce]]:
+    dirichlet: list[Dirichlet] = []
+    loads: list[BodyForce] = []
+    for k, v in _table(bcs, "Boundary Conditions").items():
+        key = f"Boundary Conditions.{k}"
+        if "NODE_SET" in _tidy(k):
+            continue
+        if k == "Create Node Set For Rank Deficient Nodes":
+            _note(key, "damage option")
+            continue
+        bc = _table(v, key)
+        _unknown(bc, _PD_BC, key, "Peridigm boundary condition")
+        typ = _tidy(str(bc.get("Type", "")))
+        if typ not in ("PRESCRIBED_DISPLACEMENT", "BODY_FORCE"):
+            raise SceneError(
+                f"{key}.Type: {bc.get('Type')!r} is not supported; supported: "
+                "'Prescribed Displacement', 'Body Force' (initial conditions, velocities and "
+                "temperatures are dynamics / multiphysics)"
+            )
+        if "Node Set" not in bc:
+            raise SceneError(f"missing deck key {key}.Node Set")
+        idx = _bc_points(bc["Node Set"], sets, cloud.n, f"{key}.Node Set")
+        coord = str(bc.get("Coordinate", "x"))
+        if _tidy(coord) not in _COORD:
+            raise SceneError(f"{key}.Coordinate must be x, y or z, got {coord!r}")
+        c = _COORD[_tidy(coord)]
+        if "Value" not in bc:
+            raise SceneError(f"missing deck key {key}.Value")
+        val = deck_expression(bc["Value"], cloud.points[idx], t, f"{key}.Value")
+        if typ == "PRESCRIBED_DISPLACEMENT":
+            dirichlet.append(Dirichlet(idx, val[:, None], components=[c]))
+        else:
+            dens = np.zeros((idx.size, cloud.dim))
+            dens[:, c] = val
+            loads.append(BodyForce(idx, dens))
+    return dirichlet, loads
+
+
+def _scene(
+    name: str,
+    model: Any,
+    cloud: PointCloud,
+    horizon: np.ndarray,
+    dirichlet: list[Dirichlet],
+    loads: list[Any],
+    base: Path,
+    output: Path | None,
+) -> Scene:
+    h: Any = float(horizon[0]) if np.all(horizon == horizon[0]) else horizon
+    try:
+        resolve_dirichlet(cloud, dirichlet)
+        load_vector(cloud, loads)
+        problem = StaticProblem(model, cloud, None, horizon=h, dirichlet=dirichlet, loads=loads)
+    except SceneError:
+        raise
+    except PdlinError as exc:
+        raise SceneError(f"invalid deck: {exc}") from exc
+    return Scene(name=name, problem=problem, output=output, base_dir=base)
+
+
+# --------------------------------------------------------------------------------------
+# PeriLab
+# --------------------------------------------------------------------------------------
+_PL_TOP = {
+    "Discretization": "",
+    "Models": "",
+    "Blocks": "",
+    "Boundary Conditions": "",
+    "Solver": "",
+    "Outputs": "pdlin writes all of its fields",
+    "Compute Class Parameters": "output computations",
+}
+_PL_DISC = {"Type": "", "Input Mesh File": "", "Node Sets": ""}
+_PL_MODELS = {
+    "Material Models": "",
+    "Damage Models": "definitions only (a block using one is an error)",
+    "Pre Calculation": "PeriLab bookkeeping",
+    "Pre Calculation Global": "PeriLab bookkeeping",
+}
+_PL_MATERIAL = {
+    "Material Model": "",
+    "Symmetry": "",
+    "Bulk Modulus": "",
+    "Shear Modulus": "",
+    "Young's Modulus": "",
+    "Poisson's Ratio": "",
+}
+_PL_KINDS = {
+    "PD Solid Elastic": "lps",
+    "Correspondence Elastic": "correspondence",
+    "Bond-based Elastic": "bond_based",
+}
+_PL_BLOCK = {"Block ID": "", "Horizon": "", "Material Model": "", "Density": "dynamics only"}
+_PL_BC = {"Variable": "", "Coordinate": "", "Node Set": "", "Value": "", "Type": ""}
+_PL_SOLVER = {
+    "Initial Time": "",
+    "Final Time": "",
+    "Static": "",
+    "Material Models": "PeriLab switch (must be true)",
+    "Damage Models": "PeriLab switch (must be false)",
+    "Number of Steps": "a linear model's final state is one solve at Final Time",
+    "Numerical Damping": "dynamics only",
+}
+_PL_STATIC = {
+    "NLsolver": "nonlinear-solver switch (one linear solve here)",
+    "Show solver iteration": "cosmetic",
+    "Residual tolerance": "pdlin checks its own residual",
+    "Solution tolerance": "pdlin checks its own residual",
+    "Linear Start Value": "initial guess (one direct linear solve here)",
+    "Residual scaling": "solver scaling",
+    "m": "Anderson memory of PeriLab's solver",
+    "Maximum number of iterations": "one linear solve here",
+}
+
+
+def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
+    root = _table(deck, "PeriLab")
+    _unknown(root, _PL_TOP, "PeriLab", "PeriLab deck")
+    for k in ("Discretization", "Models", "Blocks", "Boundary Conditions", "Solver"):
+        if k not in root:
+            raise SceneError(f"missing deck key PeriLab.{k}")
+    for k in ("Outputs", "Compute Class Parameters"):
+        if k in root:
+            _note(f"PeriLab.{k}", _PL_TOP[k])
+    disc = _table(root["Discretization"], "Discretization")
+    _unknown(disc, _PL_DISC, "Discretization", "PeriLab discretization")
+    if disc.get("Type") != "Text File":
+        raise SceneError(
+            f"Discretization.Type must be 'Text File' for PeriLab decks, got {disc.get('Type')!r}"
+        )
+    path = _resolve_file(disc.get("Input Mesh File"), base, "Discretization.Input Mesh File")
+    header = next(
+        (
+            ln.strip()[len("header:") :].split()
+            for ln in _read_text(path, "Discretization.Input Mesh File").splitlines()
+            if ln.strip().startswith("header:")
+        ),
+        None,
+    )
+    if header is None:
+        raise SceneError(
+            f"Discretization.Input Mesh File: {path.name} has no 'header: x y ...' line"
+        )
+    want2 = ["x", "y", "block_id", "volume"]
+    want3 = ["x", "y", "z", "block_id", "volume"]
+    if header not in (want2, want3):
+        raise SceneError(
+            f"Discretization.Input Mesh File: header must be {' '.join(want2)!r} or "
+            f"{' '.join(want3)!r} (extra columns are not supported), got {' '.join(header)!r}"
+        )
+    data = _read_text_table(path, "Discretization.Input Mesh File", (len(header),))
+    dim = len(header) - 2
+    block_id = data[:, dim]
+    cloud = _cloud(data[:, :dim], data[:, dim + 1], "Discretization.Input Mesh File")
+    n = cloud.n
+    sets: dict[str, np.ndarray] = {}
+    for sname, v in _table(disc.get("Node Sets", {}), "Discretization.Node Sets").items():
+        sets[sname] = _node_ids(v, base, f"Discretization.Node Sets.{sname}", n)
+
+    models = _table(root["Models"], "Models")
+    _unknown(models, _PL_MODELS, "Models", "PeriLab models")
+    for k in models:
+        if _PL_MODELS[k]:
+            _note(f"Models.{k}", _PL_MODELS[k])
+    mats: dict[str, dict[str, Any]] = {}
+    for mname, m in _table(models.get("Material Models", {}), "Models.Material Models").items():
+        key = f"Models.Material Models.{mname}"
+        m = _table(m, key)
+        _unknown(m, _PL_MATERIAL, key, "PeriLab material")
+        kind = m.get("Material Model")
+        if kind not in _PL_KINDS:
+            raise SceneError(
+                f"{key}.Material Model: {kind!r} is not supported; supported: {sorted(_PL_KINDS)} "
+                "(combined models 'A+B' and plastic / damage models are nonlinear)"
+            )
+        sym = str(m.get("Symmetry", "isotropic")).strip().lower()
+        planes = {
+            "isotropic": None,
+            "isotropic plane strain": "strain",
+            "isotropic plane stress": "stress",
+        }
+        if sym not in planes:
+            raise SceneError(
+                f"{key}.Symmetry must be one of {sorted(planes)}, got {m.get('Symmetry')!r}"
+            )
+        plane = planes[sym]
+        if (dim == 2) != (plane is not None):
+            raise SceneError(
+                f"{key}.Symmetry: {sym!r} does not fit the {dim}D mesh (2D meshes need "
+                "'isotropic plane strain' or 'isotropic plane stress', 3D ones 'isotropic')"
+            )
+        consts = _constants(m, key, exactly=None)
+        if _PL_KINDS[kind] != "bond_based" and len(consts) != 2:
+            raise SceneError(f"{key} needs exactly two of {list(_ELASTIC_CONSTANTS)}")
+        mats[mname] = {"kind": _PL_KINDS[kind], "consts": consts, "plane": plane or "stress"}
+    horizon = np.full(n, np.nan)
+    assigned: dict[str, Any] = {}
+    for bname, b in _table(root["Blocks"], "Blocks").items():
+        key = f"Blocks.{bname}"
+        b = _table(b, key)
+        if "Damage Model" in b:
+            raise SceneError(f"{key}.Damage Model: damage is not supported by pdlin's deck reader")
+        _unknown(b, _PL_BLOCK, key, "PeriLab block")
+        bid = b.get("Block ID")
+        if bid is None:
+            m_ = re.fullmatch(r"block_(\d+)", bname)
+            if not m_:
+                raise SceneError(f"{key}: give 'Block ID' or name the block 'block_<id>'")
+            bid = int(m_.group(1))
+        idx = np.flatnonzero(block_id == bid)
+        if idx.size == 0:
+            raise SceneError(f"{key}: block id {bid} has no points in {path.name}")
+        pl_mat = b.get("Material Model")
+        if pl_mat not in mats:
+            raise SceneError(f"{key}.Material Model: {pl_mat!r} is not defined ({sorted(mats)})")
+        horizon[idx] = _number(b.get("Horizon"), f"{key}.Horizon", positive=True)
+        assigned[bname] = pl_mat
+    if np.isnan(horizon).any():
+        ids = sorted({int(v) for v in block_id[np.isnan(horizon)]})
+        raise SceneError(f"Blocks: block id(s) {ids} of the mesh are not assigned to a block")
+    used = {assigned[b] for b in assigned}
+    if len(used) != 1:
+        raise SceneError(
+            f"Blocks: pdlin's PeriLab reader takes one material for all blocks, got {sorted(used)}"
+        )
+    mat = mats[used.pop()]
+    model = _perilab_model(mat, dim)
+
+    s = _table(root["Solver"], "Solver")
+    _unknown(s, _PL_SOLVER, "Solver", "PeriLab solver (static subset)")
+    if "Static" not in s:
+        raise SceneError(
+            "Solver needs 'Static' (pdlin solves statics; 'Verlet' dynamics is not supported)"
+        )
+    st = _table(s["Static"], "Solver.Static")
+    _unknown(st, _PL_STATIC, "Solver.Static", "PeriLab static solver")
+    if "Damage Models" in s and _flag(s["Damage Models"], "Solver.Damage Models"):
+        raise SceneError("Solver.Damage Models: true is not supported (damage)")
+    if "Material Models" in s and not _flag(s["Material Models"], "Solver.Material Models"):
+        raise SceneError("Solver.Material Models: false (no material forces) is not supported")
+    for k in s:
+        if _PL_SOLVER[k] and k not in ("Material Models", "Damage Models"):
+            _note(f"Solver.{k}", _PL_SOLVER[k])
+    for k in st:
+        _note(f"Solver.Static.{k}", _PL_STATIC[k])
+    if "Final Time" not in s:
+        raise SceneError("missing deck key Solver.Final Time")
+    t = _number(s["Final Time"], "Solver.Final Time")
+
+    dirichlet: list[Dirichlet] = []
+    for bcname, bc in _table(root["Boundary Conditions"], "Boundary Conditions").items():
+        key = f"Boundary Conditions.{bcname}"
+        bc = _table(bc, key)
+        _unknown(bc, _PL_BC, key, "PeriLab boundary condition")
+        if bc.get("Variable") != "Displacements":
+            raise SceneError(
+                f"{key}.Variable: only 'Displacements' is supported, got {bc.get('Variable')!r}"
+            )
+        if bc.get("Type", "Dirichlet") != "Dirichlet":
+            raise SceneError(f"{key}.Type: only 'Dirichlet' is supported, got {bc.get('Type')!r}")
+        set_name = bc.get("Node Set")
+        if set_name not in sets:
+            raise SceneError(
+                f"{key}.Node Set: {set_name!r} is not under Discretization.Node Sets "
+                f"({sorted(sets)})"
+            )
+        idx = sets[set_name]
+        coord = str(bc.get("Coordinate", "x")).strip().upper()
+        if coord not in _COORD or _COORD[coord] >= dim:
+            raise SceneError(
+                f"{key}.Coordinate must be one of {'xyz'[:dim]!r}, got {bc.get('Coordinate')!r}"
+            )
+        val = deck_expression(
+            bc.get("Value", 0.0), cloud.points[idx], t, f"{key}.Value", caret_power=True
+        )
+        dirichlet.append(Dirichlet(idx, val[:, None], components=[_COORD[coord]]))
+    return _scene(name, model, cloud, horizon, dirichlet, [], base, None)
+
+
+def _perilab_model(mat: Mapping[str, Any], dim: int) -> Any:
+    from ..models import LPS, BondBased, Correspondence
+
+    c = mat["consts"]
+    plane = mat["plane"]
+    if mat["kind"] == "bond_based":
+        return (
+            BondBased(**c, plane=plane)
+            if len(c) == 1
+            else BondBased(K=_bulk_shear(c, "material")[0], plane=plane)
+        )
+    if mat["kind"] == "lps":
+        if dim == 2:
+            log.warning(
+                "PeriLab 'PD Solid Elastic' in 2D is read as pdlin's plane-%s LPS; PeriLab's 2D "
+                "coefficients (Bobaru et al. 2016 section 6.3) are not verified to coincide",
+                plane,
+            )
+        return LPS(**c, plane=plane, peridigm=True)
+    return Correspondence(**c, plane=plane)
+
+
+# --------------------------------------------------------------------------------------
+def read_deck(path: str | Path) -> Scene:
+    """Read a Peridigm (YAML / XML) or PeriLab (YAML) input deck as a pdlin scene.
+
+    The returned ``pdlin.io.scene.Scene`` is what ``pdlin.io.scene.load_scene``
+    gives for a TOML scene: ``pdlin.solve(read_deck(p).problem)`` solves it and
+    ``pdlin run DECK.yaml`` runs it.  Linear models are solved once at the deck's
+    ``Final Time`` (boundary values are evaluated there, also when they are nonlinear in
+    ``t``).  See ``docs/decks.md`` for the key-by-key mapping.
+
+    Parameters
+    ----------
+    path : str or path-like
+        ``.yaml`` / ``.yml`` (needs PyYAML, ``pip install "pdlin[decks]"``) or ``.xml``.
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    SceneError
+        An unsupported or invalid key, named by its path.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile, pdlin
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (d / "bar.txt").write_text("\\n".join(
+    ...     f"{0.5 * i + 0.25} 0.25 0.25 1 0.125" for i in range(6)))
+    >>> _ = (d / "bar.yaml").write_text('''
+    ... Peridigm:
+    ...   Discretization: {Type: "Text File", Input Mesh File: "bar.txt"}
+    ...   Materials:
+    ...     Steel: {Material Model: "Elastic Bond Based", Density: 7.8, Bulk Modulus: 1.0}
+    ...   Blocks:
+    ...     All: {Block Names: "block_1", Material: "Steel", Horizon: 1.01}
+    ...   Boundary Conditions:
+    ...     Node Set One: "1"
+    ...     Node Set Two: "6"
+    ...     Fix: {Type: "Prescribed Displacement", Node Set: "Node Set One", Value: "0.0"}
+    ...     Pull: {Type: "Prescribed Displacement", Node Set: "Node Set Two", Value: "0.01*t"}
+    ...   Solver: {Final Time: 1.0, QuasiStatic: {Number of Load Steps: 4}}
+    ... ''')
+    >>> scene = pdlin.read_deck(d / "bar.yaml")
+    >>> scene.cloud.n, scene.cloud.dim, type(scene.model).__name__
+    (6, 3, 'BondBased')
+    """
+    p = Path(path)
+    if not p.exists():
+        raise SceneError(f"deck file not found: {p}")
+    suffix = p.suffix.lower()
+    if suffix in (".yaml", ".yml"):
+        data = _load_yaml(p)
+    elif suffix == ".xml":
+        data = _load_xml(p)
+    else:
+        raise SceneError(f"deck file must end with .yaml, .yml or .xml, got {p.name!r}")
+    if not isinstance(data, Mapping) or len(data) != 1:
+        raise SceneError(
+            f"{p.name}: a deck has one top-level list, 'Peridigm' or 'PeriLab', got "
+            f"{list(data) if isinstance(data, Mapping) else type(data).__name__}"
+        )
+    ((top, body),) = data.items()
+    base = p.parent
+    if top == "Peridigm":
+        return _peridigm(body, base, p.stem)
+    if top == "PeriLab":
+        return _perilab(body, base, p.stem)
+    raise SceneError(f"{p.name}: top-level list must be 'Peridigm' or 'PeriLab', got {top!r}")

@@ -1,0 +1,730 @@
+"""Peridigm / PeriLab input decks (pdlin.read_deck): formats, mapping, key-path errors.
+
+The decks are written here from the documented formats (Peridigm ``examples/`` and
+``src/`` readers, PeriLab.jl ``examples/Dogbone``; see the module docstring of
+``pdlin/io/decks.py``).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pdlin
+from pdlin.errors import SceneError
+from pdlin.io.decks import deck_expression, peridigm_hourglass_penalty
+
+yaml = pytest.importorskip("yaml")
+
+H = 0.1  # point spacing of the test bars
+
+
+def bar_points(nx: int = 8, ny: int = 2, nz: int = 2, h: float = H) -> np.ndarray:
+    """Cell-centred points of an nx x ny x nz bar (x fastest last, as np.meshgrid ij)."""
+    ax = [(np.arange(k) + 0.5) * h for k in (nx, ny, nz)]
+    return np.stack(np.meshgrid(*ax, indexing="ij"), -1).reshape(-1, 3)
+
+
+def write_text_mesh(path: Path, pts: np.ndarray, vol: float, block=None) -> None:
+    block = np.ones(len(pts), int) if block is None else block
+    lines = ["# x y z block_id volume", "// a C++-style comment", "* a starred comment", ""]
+    for p, b in zip(pts, block, strict=True):
+        lines.append(f"{float(p[0])!r} {float(p[1])!r} {float(p[2])!r} {b} {float(vol)!r}")
+    path.write_text("\n".join(lines) + "\n")
+
+
+def peridigm_deck(material: dict, *, extra_bc: dict | None = None, solver: dict | None = None):
+    """A Peridigm deck (as a dict) pulling an 8 x 2 x 2 bar along x."""
+    bcs = {
+        "Node Set One": "left.txt",
+        "Node Set Two": "right.txt",
+        "Fix X": {
+            "Type": "Prescribed Displacement",
+            "Node Set": "Node Set One",
+            "Coordinate": "x",
+            "Value": "0.0",
+        },
+        "Pull X": {
+            "Type": "Prescribed Displacement",
+            "Node Set": "Node Set Two",
+            "Coordinate": "x",
+            "Value": "0.001*t",
+        },
+        "Fix YZ": {
+            "Type": "Prescribed Displacement",
+            "Node Set": "Full Domain",
+            "Coordinate": "y",
+            "Value": 0.0,
+        },
+        "Fix Z": {
+            "Type": "Prescribed Displacement",
+            "Node Set": "Full Domain",
+            "Coordinate": "z",
+            "Value": 0.0,
+        },
+    }
+    bcs.update(extra_bc or {})
+    return {
+        "Peridigm": {
+            "Verbose": False,
+            "Discretization": {"Type": "Text File", "Input Mesh File": "bar.txt"},
+            "Materials": {"My Material": material},
+            "Blocks": {
+                "My Block": {"Block Names": "block_1", "Material": "My Material", "Horizon": 0.2015}
+            },
+            "Boundary Conditions": bcs,
+            "Solver": solver
+            or {
+                "Verbose": False,
+                "Initial Time": 0.0,
+                "Final Time": 2.0,
+                "QuasiStatic": {"Number of Load Steps": 4, "Absolute Tolerance": 1.0},
+            },
+            "Output": {"Output Filename": "out", "Output Variables": {"Displacement": True}},
+        }
+    }
+
+
+LPS_MAT = {
+    "Material Model": "Elastic",
+    "Density": 7.8,
+    "Bulk Modulus": 130.0,
+    "Shear Modulus": 70.0,
+}
+
+
+@pytest.fixture
+def bar_dir(tmp_path: Path) -> Path:
+    pts = bar_points()
+    write_text_mesh(tmp_path / "bar.txt", pts, H**3)
+    left = np.flatnonzero(pts[:, 0] < 2 * H) + 1  # 1-based ids (Peridigm node sets)
+    right = np.flatnonzero(pts[:, 0] > 6 * H) + 1
+    (tmp_path / "left.txt").write_text("# left end\n" + "\n".join(map(str, left)) + "\n")
+    (tmp_path / "right.txt").write_text(" ".join(map(str, right)) + "\n")
+    return tmp_path
+
+
+def write_yaml(path: Path, deck: dict) -> Path:
+    path.write_text(yaml.safe_dump(deck, sort_keys=False))
+    return path
+
+
+def to_xml(name: str, table: dict, indent: str = "") -> str:
+    """Teuchos ParameterList XML of a nested dict (the Peridigm XML deck format)."""
+    out = [f'{indent}<ParameterList name="{name}">']
+    for k, v in table.items():
+        if isinstance(v, dict):
+            out.append(to_xml(k, v, indent + "  "))
+        else:
+            typ = {bool: "bool", int: "int", float: "double", str: "string"}[type(v)]
+            val = str(v).lower() if isinstance(v, bool) else str(v)
+            out.append(f'{indent}  <Parameter name="{k}" type="{typ}" value="{val}"/>')
+    out.append(f"{indent}</ParameterList>")
+    return "\n".join(out)
+
+
+# ---------------------------------------------------------------- expressions
+def test_expression_arithmetic_functions_and_time():
+    pts = np.array([[1.0, 2.0, 3.0], [0.5, 0.0, -1.0]])
+    got = deck_expression("value = 0.5*x + y*z - 2*t + sqrt(4) + pow(x, 2) - abs(z)", pts, 3.0)
+    # hand evaluation: point 0: 0.5 + 6 - 6 + 2 + 1 - 3 = 0.5; point 1: 0.25 + 0 - 6 + 2 + 0.25 - 1
+    np.testing.assert_allclose(got, [0.5, -4.5], rtol=0, atol=1e-15)
+    # PeriLab (Julia) power: 2^3 = 8
+    assert deck_expression("x^3", pts[:1], 0.0, caret_power=True).tolist() == [1.0]
+    assert deck_expression(0.25, pts, 0.0).tolist() == [0.25, 0.25]
+
+
+@pytest.mark.parametrize(
+    "expr, pattern",
+    [
+        ("__import__('os').system('true')", "unsupported construct"),
+        ("x.real", "unsupported construct Attribute"),
+        ("lambda: 1", "unsupported construct Lambda"),
+        ("open('f')", "unknown function 'open'"),
+        ("q + 1", "unknown name 'q'"),
+        ("x if y else z", "unsupported construct IfExp"),
+        ("'abc'", "unsupported construct Constant"),
+        ("x +", "cannot parse expression"),
+        ("x // 2", "unsupported construct BinOp"),
+        ("1/(x-1)", "is not finite at point 0"),
+    ],
+)
+def test_expression_rejects_anything_else(expr, pattern):
+    with pytest.raises(SceneError, match=r"^Boundary.Value: .*" + pattern):
+        deck_expression(expr, np.array([[1.0, 0.0, 0.0]]), 0.0, "Boundary.Value")
+
+
+# ---------------------------------------------------------------- Peridigm, text files
+def test_yaml_deck_builds_the_lps_problem(bar_dir):
+    scene = pdlin.read_deck(write_yaml(bar_dir / "deck.yaml", peridigm_deck(LPS_MAT)))
+    model = scene.model
+    assert isinstance(model, pdlin.LPS) and model.peridigm
+    # K = 130, G = 70 -> E = 9KG/(3K+G) = 81900/460, nu = (3K-2G)/(2(3K+G)) = 250/920
+    np.testing.assert_allclose([model.E, model.nu], [81900 / 460, 250 / 920], rtol=1e-14)
+    assert scene.cloud.n == 32 and scene.cloud.dim == 3
+    np.testing.assert_allclose(scene.cloud.volumes, H**3, rtol=1e-15)
+    assert scene.output == bar_dir / "out.vtu"
+    dofs, vals = pdlin.operators.bc.resolve_dirichlet(scene.cloud, scene.problem.dirichlet)
+    x = scene.cloud.points
+    right = np.flatnonzero(x[:, 0] > 6 * H)
+    # the pull is evaluated at Final Time = 2: 0.001 * 2
+    pulled = vals[np.isin(dofs, 3 * right)]
+    np.testing.assert_allclose(pulled, 0.002, rtol=1e-15)
+    assert pulled.size == right.size
+
+
+def test_xml_and_yaml_decks_give_the_same_solution(bar_dir):
+    deck = peridigm_deck(LPS_MAT)
+    ry = pdlin.solve(pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck)).problem)
+    (bar_dir / "d.xml").write_text(
+        '<?xml version="1.0"?>\n<!-- a Peridigm deck -->\n'
+        + to_xml("Peridigm", deck["Peridigm"]).replace(
+            '<ParameterList name="Peridigm">', "<ParameterList>", 1
+        )
+    )
+    rx = pdlin.solve(pdlin.read_deck(bar_dir / "d.xml").problem)
+    np.testing.assert_allclose(rx.u, ry.u, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(rx.reactions, ry.reactions, rtol=0, atol=1e-12)
+
+
+def test_inline_node_sets_and_all_sets(bar_dir):
+    deck = peridigm_deck(LPS_MAT)
+    bcs = deck["Peridigm"]["Boundary Conditions"]
+    bcs["Node Set One"] = "1 2 3 4"
+    bcs["Node Set Two"] = 32  # a single node id
+    bcs["Fix X"]["Node Set"] = "All Sets"
+    bcs.pop("Pull X")
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    fix_x = scene.problem.dirichlet[0]
+    np.testing.assert_array_equal(fix_x.where, [0, 1, 2, 3, 31])
+
+
+@pytest.mark.parametrize(
+    "edit, pattern",
+    [
+        (
+            lambda b: b.update({"Node Set One": "missing.txt"}),
+            r"Node Set One: file not found: .*missing.txt",
+        ),
+        (
+            lambda b: b.update({"Node Set One": "0 1 2"}),
+            r"Node Set One: node ids are 1-based .* \[0, 2\]",
+        ),
+        (
+            lambda b: b.update({"Node Set One": "1 33"}),
+            r"node ids are 1-based and must lie in \[1, 32\]",
+        ),
+        (
+            lambda b: b["Fix X"].update({"Node Set": "Node Set Three"}),
+            r"Fix X.Node Set: node set 'Node Set Three' not found",
+        ),
+        (
+            lambda b: b["Fix X"].update({"Coordinate": "w"}),
+            r"Fix X.Coordinate must be x, y or z, got 'w'",
+        ),
+        (
+            lambda b: b["Fix X"].update({"Type": "Initial Velocity"}),
+            r"Fix X.Type: 'Initial Velocity' is not supported; supported: "
+            r"'Prescribed Displacement', 'Body Force'",
+        ),
+        (
+            lambda b: b["Fix X"].update({"Scale": 2.0}),
+            r"Fix X.Scale: not supported .* supported keys: "
+            r"\['Coordinate', 'Node Set', 'Type', 'Value'\]",
+        ),
+        (lambda b: b["Pull X"].update({"Value": "0.001*t*q"}), r"Pull X.Value: unknown name 'q'"),
+        (lambda b: b.pop("Node Set One"), r"Fix X.Node Set: node set 'Node Set One' not found"),
+    ],
+)
+def test_boundary_condition_errors_name_the_key(bar_dir, edit, pattern):
+    deck = peridigm_deck(LPS_MAT)
+    edit(deck["Peridigm"]["Boundary Conditions"])
+    with pytest.raises(SceneError, match=pattern):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+
+
+@pytest.mark.parametrize(
+    "where, key, value, pattern",
+    [
+        ("Peridigm", "Contact", {}, r"Peridigm.Contact: not supported"),
+        ("Peridigm", "Damage Models", {}, r"Peridigm.Damage Models: not supported"),
+        (
+            "Discretization",
+            "Type",
+            "PdQuickGrid",
+            r"Discretization.Type must be 'Text File' or 'Exodus'",
+        ),
+        ("Discretization", "Bond Filters", {}, r"Discretization.Bond Filters: not supported"),
+        (
+            "Discretization",
+            "Omit Bonds Between Blocks",
+            "All",
+            r"Omit Bonds Between Blocks: not supported",
+        ),
+        (
+            "Material",
+            "Material Model",
+            "Elastic Plastic",
+            r"Material Model: 'Elastic Plastic' is not supported; supported: "
+            r"\['Elastic', 'Elastic Bond Based', 'Elastic Correspondence'",
+        ),
+        (
+            "Material",
+            "Material Model",
+            "Linear LPS Partial Volume",
+            r"partial-volume materials are not supported",
+        ),
+        (
+            "Material",
+            "Plane Strain",
+            True,
+            r"Plane Strain: true is not supported: pdlin reads Peridigm decks as 3D",
+        ),
+        ("Material", "Influence Function", "Gaussian", r"Influence Function: only 'One'"),
+        (
+            "Material",
+            "Thermal Expansion Coefficient",
+            1e-5,
+            r"Thermal Expansion Coefficient: not supported",
+        ),
+        (
+            "Material",
+            "Young's Modulus",
+            200.0,
+            r"needs exactly two of .* got \['Bulk Modulus', 'Shear Modulus', \"Young's Modulus\"\]",
+        ),
+        ("Material", "Damage Model", "My Damage", r"Damage Model: not supported"),
+        ("Block", "Horizon", "0.2*x", r"Horizon: expressions for the horizon are not supported"),
+        ("Block", "Horizon", -0.1, r"Horizon must be > 0, got -0.1"),
+        ("Block", "Block Names", "block_2", r"Block Names: 'block_2' is not in the discretization"),
+        ("Block", "Material", "Other", r"Material: 'Other' is not defined under Materials"),
+        ("Block", "Damage Model", "D", r"Blocks.My Block.Damage Model: not supported"),
+        ("Solver", "Verlet", {"Safety Factor": 0.8}, r"Solver.Verlet: not supported"),
+        ("Solver", "Final Time", -1.0, r"Solver.Final Time must exceed Initial Time"),
+        ("QuasiStatic", "Number of Load Steps", 0, r"Number of Load Steps must be an integer >= 1"),
+        ("QuasiStatic", "Bogus Key", 1, r"Solver.QuasiStatic.Bogus Key: not supported"),
+        ("Output", "Output Type", "x", r"Output.Output Type: not supported"),
+    ],
+)
+def test_unsupported_keys_raise_with_their_path(bar_dir, where, key, value, pattern):
+    deck = peridigm_deck(dict(LPS_MAT))
+    root = deck["Peridigm"]
+    table = {
+        "Peridigm": root,
+        "Discretization": root["Discretization"],
+        "Material": root["Materials"]["My Material"],
+        "Block": root["Blocks"]["My Block"],
+        "Solver": root["Solver"],
+        "QuasiStatic": root["Solver"]["QuasiStatic"],
+        "Output": root["Output"],
+    }[where]
+    table[key] = value
+    with pytest.raises(SceneError, match=pattern):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+
+
+def test_missing_sections_and_files(bar_dir):
+    deck = peridigm_deck(LPS_MAT)
+    del deck["Peridigm"]["Solver"]
+    with pytest.raises(SceneError, match=r"missing deck key Peridigm.Solver"):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    deck = peridigm_deck(LPS_MAT)
+    deck["Peridigm"]["Discretization"]["Input Mesh File"] = "nope.txt"
+    with pytest.raises(SceneError, match=r"Discretization.Input Mesh File: file not found"):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    with pytest.raises(SceneError, match=r"deck file not found"):
+        pdlin.read_deck(bar_dir / "absent.yaml")
+    (bar_dir / "d.toml").write_text("")
+    with pytest.raises(SceneError, match=r"must end with .yaml, .yml or .xml"):
+        pdlin.read_deck(bar_dir / "d.toml")
+    (bar_dir / "x.yaml").write_text("Other: {}\n")
+    with pytest.raises(SceneError, match=r"top-level list must be 'Peridigm' or 'PeriLab'"):
+        pdlin.read_deck(bar_dir / "x.yaml")
+
+
+def test_text_file_format_errors(bar_dir):
+    (bar_dir / "bar.txt").write_text("0 0 0 1\n")
+    with pytest.raises(SceneError, match=r"bar.txt line 1 has 4 columns, expected 5"):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", peridigm_deck(LPS_MAT)))
+    (bar_dir / "bar.txt").write_text("0 0 0 1 abc\n")
+    with pytest.raises(SceneError, match=r"bar.txt line 1 is not numbers"):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", peridigm_deck(LPS_MAT)))
+    (bar_dir / "bar.txt").write_text("# only comments\n")
+    with pytest.raises(SceneError, match=r"holds no points"):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", peridigm_deck(LPS_MAT)))
+
+
+def test_xml_type_errors(bar_dir):
+    (bar_dir / "d.xml").write_text(
+        '<ParameterList><ParameterList name="Solver">'
+        '<Parameter name="Final Time" type="double" value="abc"/></ParameterList></ParameterList>'
+    )
+    with pytest.raises(
+        SceneError, match=r"Peridigm.Solver.Final Time: 'abc' is not a valid double"
+    ):
+        pdlin.read_deck(bar_dir / "d.xml")
+    (bar_dir / "d.xml").write_text(
+        '<ParameterList><Parameter name="V" type="Array" value="1"/></ParameterList>'
+    )
+    with pytest.raises(SceneError, match=r"Peridigm.V: Parameter type must be one of"):
+        pdlin.read_deck(bar_dir / "d.xml")
+    (bar_dir / "d.xml").write_text("<ParameterList><Parameter")
+    with pytest.raises(SceneError, match=r"invalid XML"):
+        pdlin.read_deck(bar_dir / "d.xml")
+
+
+def test_material_mapping():
+    # Peridigm's Elastic Correspondence hourglass constant 18 C K/(pi d^4) vs pdlin's
+    # bond-based 18 K_eq/(pi d^4), K_eq = (K + 4G/3)/1.8: penalty = 1.8 C K/(K + 4G/3)
+    assert peridigm_hourglass_penalty(0.02, 1.0, 0.75) == pytest.approx(1.8 * 0.02 / 2.0, rel=1e-15)
+
+
+def test_bond_based_and_correspondence_decks(bar_dir):
+    bb = {"Material Model": "Elastic Bond Based", "Density": 1.0, "Bulk Modulus": 3.0}
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", peridigm_deck(bb)))
+    bonds = scene.bonds()
+    c = scene.model.bond_micromodulus(scene.cloud, bonds)
+    # Peridigm elastic_bond_based.cxx: c = 18 K / (pi delta^4), delta = 0.2015
+    np.testing.assert_allclose(c, 18 * 3.0 / (np.pi * 0.2015**4), rtol=1e-12)
+    co = {
+        "Material Model": "Elastic Correspondence",
+        "Density": 1.0,
+        "Young's Modulus": 2.0,
+        "Poisson's Ratio": 0.25,
+        "Hourglass Coefficient": 0.02,
+    }
+    model = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", peridigm_deck(co))).model
+    assert isinstance(model, pdlin.Correspondence) and model.control == "penalty"
+    # E = 2, nu = 1/4: K = E/(3(1-2nu)) = 4/3, G = E/(2(1+nu)) = 0.8
+    assert model.penalty == pytest.approx(1.8 * 0.02 * (4 / 3) / (4 / 3 + 4 * 0.8 / 3), rel=1e-13)
+    co["Hourglass Coefficient"] = 0.0
+    model = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", peridigm_deck(co))).model
+    assert model.control == "none"
+    del co["Hourglass Coefficient"]
+    with pytest.raises(SceneError, match=r"Hourglass Coefficient is required"):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", peridigm_deck(co)))
+
+
+def test_body_force_is_a_force_density(bar_dir):
+    bf = {
+        "Gravity": {
+            "Type": "Body Force",
+            "Node Set": "Full Domain",
+            "Coordinate": "z",
+            "Value": "-9.8*t",
+        }
+    }
+    deck = peridigm_deck(LPS_MAT, extra_bc=bf)
+    deck["Peridigm"]["Boundary Conditions"].pop("Fix Z")
+    deck["Peridigm"]["Boundary Conditions"]["Fix X"]["Node Set"] = "Full Domain"
+    deck["Peridigm"]["Boundary Conditions"].pop("Pull X")
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    f = pdlin.operators.bc.load_vector(scene.cloud, scene.problem.loads).reshape(-1, 3)
+    # b V at t = Final Time = 2: -19.6 * 0.001 per point, z only
+    np.testing.assert_allclose(f[:, 2], -19.6 * H**3, rtol=1e-14)
+    assert np.all(f[:, :2] == 0)
+
+
+def test_multiple_blocks_per_point_horizons_and_constants(bar_dir):
+    pts = bar_points()
+    block = np.where(pts[:, 0] < 0.4, 1, 2)
+    write_text_mesh(bar_dir / "bar.txt", pts, H**3, block)
+    deck = peridigm_deck(LPS_MAT)
+    root = deck["Peridigm"]
+    root["Materials"]["Soft"] = {**LPS_MAT, "Bulk Modulus": 13.0, "Shear Modulus": 7.0}
+    root["Blocks"] = {
+        "A": {"Block Names": "block_1", "Material": "My Material", "Horizon": 0.2015},
+        "B": {"Block Names": "block_2", "Material": "Soft", "Horizon": 0.25},
+    }
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    np.testing.assert_allclose(scene.problem.horizon, np.where(block == 1, 0.2015, 0.25))
+    E = np.asarray(scene.model.E)
+    np.testing.assert_allclose(E, np.where(block == 1, 81900 / 460, 8190 / 460), rtol=1e-13)
+    root["Blocks"] = {"A": {"Block Names": "block_1", "Material": "My Material", "Horizon": 0.2}}
+    with pytest.raises(SceneError, match=r"block\(s\) \['block_2'\] are not assigned"):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+
+
+# ---------------------------------------------------------------- Exodus
+def test_exodus_discretization_elements_become_points(tmp_path):
+    pytest.importorskip("netCDF4")
+    import meshio
+
+    # 3 x 1 x 1 hexes of size 0.5 x 1 x 2 (volume 1), nodes 0..15
+    xs = np.array([0.0, 0.5, 1.0, 1.5])
+    nodes = np.array([[x, y, z] for z in (0.0, 2.0) for y in (0.0, 1.0) for x in xs])
+    n4 = len(xs)
+
+    def nid(i, j, k):
+        return i + n4 * (j + 2 * k)
+
+    hexes = [
+        [nid(i, 0, 0), nid(i + 1, 0, 0), nid(i + 1, 1, 0), nid(i, 1, 0),
+         nid(i, 0, 1), nid(i + 1, 0, 1), nid(i + 1, 1, 1), nid(i, 1, 1)]
+        for i in range(3)
+    ]  # fmt: skip
+    left_nodes = [nid(0, j, k) for j in (0, 1) for k in (0, 1)]
+    mesh = meshio.Mesh(
+        nodes, [("hexahedron", np.array(hexes))], point_sets={"nodelist_1": np.array(left_nodes)}
+    )
+    meshio.write(tmp_path / "bar.g", mesh, file_format="exodus")
+    deck = peridigm_deck(LPS_MAT)
+    root = deck["Peridigm"]
+    root["Discretization"] = {"Type": "Exodus", "Input Mesh File": "bar.g"}
+    root["Blocks"]["My Block"]["Horizon"] = 1.1
+    root["Boundary Conditions"] = {
+        "Fix": {
+            "Type": "Prescribed Displacement",
+            "Node Set": "nodelist_1",
+            "Coordinate": "x",
+            "Value": "0",
+        },
+    }
+    scene = pdlin.read_deck(write_yaml(tmp_path / "d.yaml", deck))
+    # centroids (0.25 + 0.5 i, 0.5, 1), volumes 0.5 * 1 * 2 = 1 (Peridigm: one point per hex)
+    np.testing.assert_allclose(
+        scene.cloud.points, [[0.25, 0.5, 1.0], [0.75, 0.5, 1.0], [1.25, 0.5, 1.0]]
+    )
+    np.testing.assert_allclose(scene.cloud.volumes, 1.0, rtol=1e-14)
+    # nodelist_1 (the x = 0 nodes) -> the element holding them
+    np.testing.assert_array_equal(scene.problem.dirichlet[0].where, [0])
+
+
+# ---------------------------------------------------------------- PeriLab
+def perilab_deck(material: dict, solver: dict | None = None) -> dict:
+    return {
+        "PeriLab": {
+            "Discretization": {
+                "Input Mesh File": "plate.txt",
+                "Node Sets": {"Node Set 1": "ns_1.txt", "Node Set 2": "ns_2.txt"},
+                "Type": "Text File",
+            },
+            "Models": {
+                "Pre Calculation": {"Deformation Gradient": False},
+                "Material Models": {"Mat": material},
+            },
+            "Boundary Conditions": {
+                "BC_1": {
+                    "Coordinate": "x",
+                    "Node Set": "Node Set 1",
+                    "Variable": "Displacements",
+                    "Value": 0,
+                },
+                "BC_2": {
+                    "Coordinate": "x",
+                    "Node Set": "Node Set 2",
+                    "Variable": "Displacements",
+                    "Value": "0.5*t^2",
+                    "Type": "Dirichlet",
+                },
+                "BC_3": {
+                    "Coordinate": "y",
+                    "Node Set": "Node Set 1",
+                    "Variable": "Displacements",
+                    "Value": 0,
+                },
+            },
+            "Blocks": {
+                "block_1": {
+                    "Block ID": 1,
+                    "Density": 1e-8,
+                    "Horizon": 0.301,
+                    "Material Model": "Mat",
+                }
+            },
+            "Solver": solver
+            or {"Final Time": 0.1, "Initial Time": 0.0, "Static": {"NLsolver": False}},
+            "Outputs": {
+                "Output": {"Output Filename": "o", "Output Variables": {"Displacements": True}}
+            },
+        }
+    }
+
+
+@pytest.fixture
+def plate_dir(tmp_path: Path) -> Path:
+    ax = (np.arange(10) + 0.5) * H
+    pts = np.stack(np.meshgrid(ax, ax[:5], indexing="ij"), -1).reshape(-1, 2)
+    lines = ["# PeriLab mesh", "header: x y block_id volume"]
+    lines += [f"{float(p[0])!r} {float(p[1])!r} 1 {H * H!r}" for p in pts]
+    (tmp_path / "plate.txt").write_text("\n".join(lines) + "\n")
+    (tmp_path / "ns_1.txt").write_text("\n".join(map(str, np.flatnonzero(pts[:, 0] < 0.3) + 1)))
+    (tmp_path / "ns_2.txt").write_text("\n".join(map(str, np.flatnonzero(pts[:, 0] > 0.7) + 1)))
+    return tmp_path
+
+
+def test_perilab_2d_plane_strain_deck(plate_dir):
+    mat = {
+        "Material Model": "PD Solid Elastic",
+        "Symmetry": "isotropic plane strain",
+        "Bulk Modulus": 2.5e3,
+        "Shear Modulus": 1.15e3,
+    }
+    scene = pdlin.read_deck(write_yaml(plate_dir / "p.yaml", perilab_deck(mat)))
+    assert scene.cloud.dim == 2 and scene.cloud.n == 50
+    assert isinstance(scene.model, pdlin.LPS) and scene.model.plane == "strain"
+    dofs, vals = pdlin.operators.bc.resolve_dirichlet(scene.cloud, scene.problem.dirichlet)
+    right = np.flatnonzero(scene.cloud.points[:, 0] > 0.7)
+    # 0.5 t^2 at Final Time 0.1 (Julia ^ is the power)
+    np.testing.assert_allclose(vals[np.isin(dofs, 2 * right)], 0.005, rtol=1e-14)
+    r = pdlin.solve(scene.problem)
+    assert r.converged and r.reaction(right)[0] > 0
+    mat["Material Model"] = "Correspondence Elastic"
+    assert isinstance(
+        pdlin.read_deck(write_yaml(plate_dir / "p.yaml", perilab_deck(mat))).model,
+        pdlin.Correspondence,
+    )
+
+
+@pytest.mark.parametrize(
+    "edit, pattern",
+    [
+        (
+            lambda d: d["Models"]["Material Models"]["Mat"].update(
+                {"Material Model": "Correspondence Elastic+Correspondence Plastic"}
+            ),
+            r"Material Model: 'Correspondence Elastic\+Correspondence Plastic' is not supported",
+        ),
+        (
+            lambda d: d["Models"]["Material Models"]["Mat"].update({"Symmetry": "isotropic"}),
+            r"Symmetry: 'isotropic' does not fit the 2D mesh",
+        ),
+        (
+            lambda d: d["Models"]["Material Models"]["Mat"].update(
+                {"Zero Energy Control": "Global"}
+            ),
+            r"Zero Energy Control: not supported",
+        ),
+        (
+            lambda d: d["Blocks"]["block_1"].update({"Damage Model": "Damage"}),
+            r"Blocks.block_1.Damage Model: damage is not supported",
+        ),
+        (
+            lambda d: d.update({"Solver": {"Final Time": 1e-5, "Verlet": {"Safety Factor": 1.0}}}),
+            r"Solver.Verlet: not supported",
+        ),
+        (
+            lambda d: d["Boundary Conditions"]["BC_1"].update({"Variable": "Temperature"}),
+            r"BC_1.Variable: only 'Displacements'",
+        ),
+        (
+            lambda d: d["Boundary Conditions"]["BC_1"].update({"Node Set": "Node Set 9"}),
+            r"BC_1.Node Set: 'Node Set 9' is not under Discretization.Node Sets",
+        ),
+        (
+            lambda d: d["Boundary Conditions"]["BC_1"].update({"Coordinate": "z"}),
+            r"BC_1.Coordinate must be one of 'xy'",
+        ),
+        (
+            lambda d: d.update({"Surface Correction": {"Type": "Volume Correction"}}),
+            r"PeriLab.Surface Correction: not supported",
+        ),
+        (
+            lambda d: d["Discretization"]["Node Sets"].update({"Node Set 1": "gone.txt"}),
+            r"Node Sets.Node Set 1: file not found",
+        ),
+    ],
+)
+def test_perilab_errors_name_the_key(plate_dir, edit, pattern):
+    mat = {
+        "Material Model": "PD Solid Elastic",
+        "Symmetry": "isotropic plane stress",
+        "Young's Modulus": 7e5,
+        "Poisson's Ratio": 0.33,
+    }
+    deck = perilab_deck(mat)
+    edit(deck["PeriLab"])
+    with pytest.raises(SceneError, match=pattern):
+        pdlin.read_deck(write_yaml(plate_dir / "p.yaml", deck))
+
+
+def test_perilab_mesh_header_required(plate_dir):
+    (plate_dir / "plate.txt").write_text("0 0 1 0.01\n")
+    mat = {
+        "Material Model": "PD Solid Elastic",
+        "Symmetry": "isotropic plane stress",
+        "Young's Modulus": 1.0,
+        "Poisson's Ratio": 0.3,
+    }
+    with pytest.raises(SceneError, match=r"has no 'header: x y ...' line"):
+        pdlin.read_deck(write_yaml(plate_dir / "p.yaml", perilab_deck(mat)))
+
+
+# ---------------------------------------------------------------- CLI
+def _cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
+    return subprocess.run(
+        [sys.executable, "-m", "pdlin", *args], cwd=cwd, env=env, capture_output=True, text=True
+    )
+
+
+def test_cli_runs_yaml_and_xml_decks(bar_dir):
+    write_yaml(bar_dir / "deck.yaml", peridigm_deck(LPS_MAT))
+    res = _cli("run", "deck.yaml", "-q", "--json", cwd=bar_dir)
+    assert res.returncode == 0, res.stderr
+    assert (bar_dir / "out.vtu").exists()
+    deck = peridigm_deck({**LPS_MAT, "Material Model": "Elastic Plastic"})
+    (bar_dir / "bad.xml").write_text(to_xml("Peridigm", deck["Peridigm"]))
+    res = _cli("info", "deck.yaml", "--json", cwd=bar_dir)
+    assert res.returncode == 0 and '"points": 32' in res.stdout, res.stderr
+    res = _cli("run", "bad.xml", "-q", cwd=bar_dir)
+    assert res.returncode == 2
+    assert "Materials.My Material.Material Model: 'Elastic Plastic' is not supported" in res.stderr
+
+
+def test_cosmetic_keys_are_logged_not_ignored(bar_dir, caplog):
+    deck = peridigm_deck(LPS_MAT)
+    deck["Peridigm"]["Output"]["Output Frequency"] = 5
+    with caplog.at_level("INFO", logger="pdlin.io.decks"):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    text = caplog.text
+    for key in (
+        "Peridigm.Verbose",
+        "Materials.My Material.Density",
+        "Solver.QuasiStatic.Number of Load Steps",
+        "Output.Output Frequency",
+        "Output.Output Variables",
+    ):
+        assert f"deck key {key} accepted without effect" in text
+
+
+def test_perilab_solver_switches(plate_dir):
+    mat = {
+        "Material Model": "Bond-based Elastic",
+        "Symmetry": "isotropic plane stress",
+        "Young's Modulus": 1.0,
+    }
+    solver = {"Final Time": 1.0, "Material Models": False, "Static": {}}
+    with pytest.raises(SceneError, match=r"Solver.Material Models: false .* is not supported"):
+        pdlin.read_deck(write_yaml(plate_dir / "p.yaml", perilab_deck(mat, solver)))
+    solver = {"Final Time": 1.0, "Damage Models": True, "Static": {}}
+    with pytest.raises(SceneError, match=r"Solver.Damage Models: true is not supported"):
+        pdlin.read_deck(write_yaml(plate_dir / "p.yaml", perilab_deck(mat, solver)))
+    model = pdlin.read_deck(write_yaml(plate_dir / "p.yaml", perilab_deck(mat))).model
+    assert isinstance(model, pdlin.BondBased) and model.plane == "stress"
+
+
+def test_missing_pyyaml_names_the_extra(bar_dir, monkeypatch):
+    write_yaml(bar_dir / "d.yaml", peridigm_deck(LPS_MAT))
+    monkeypatch.setitem(sys.modules, "yaml", None)  # import yaml -> ImportError
+    with pytest.raises(pdlin.errors.PdlinError, match=r'pip install "pdlin\[decks\]"'):
+        pdlin.read_deck(bar_dir / "d.yaml")
+
+
+def test_legacy_discretization_horizon_and_aliases(bar_dir):
+    # early Peridigm decks (examples/tensile_test at 0b2088a) put the horizon under
+    # Discretization and named the linear LPS "Linear Elastic"
+    deck = peridigm_deck({**LPS_MAT, "Material Model": "Linear Elastic"})
+    root = deck["Peridigm"]
+    root["Discretization"]["Horizon"] = 0.25
+    del root["Blocks"]["My Block"]["Horizon"]
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    assert scene.problem.horizon == 0.25 and isinstance(scene.model, pdlin.LPS)
+    del root["Discretization"]["Horizon"]
+    with pytest.raises(SceneError, match=r"missing deck key Blocks.My Block.Horizon"):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
