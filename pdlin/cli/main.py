@@ -375,7 +375,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument(
         "-o",
         "--output",
-        help="results file (.vtu, .xdmf, .npz; nonlinear scenes: .pvd, .xdmf, .npz series)",
+        help="results file (.vtu, .xdmf, .npz, .e/.exo Exodus II; nonlinear scenes: "
+        ".pvd, .xdmf, .npz, .e/.exo series)",
     )
     r.add_argument("--solver", help="override the scene's solver")
     r.add_argument("--json", action="store_true", help="print the summary as JSON")

@@ -1,5 +1,7 @@
 """Input/output: result files, time series, system export and scene files."""
 
+from .read import ResultFile, read_result
+
 from .results import (
     export_system,
     write_homogenized_csv,
@@ -16,4 +18,6 @@ __all__ = [
     "write_nonlinear",
     "write_homogenized_csv",
     "export_system",
+    "read_result",
+    "ResultFile",
 ]
