@@ -1,7 +1,6 @@
 """Input/output: result files, time series, system export and scene files."""
 
 from .read import ResultFile, read_result
-
 from .results import (
     export_system,
     write_homogenized_csv,

@@ -39,6 +39,8 @@ class ResultFile:
         API key -> (n,) / (n, c) array of each step.
     sets : dict
         Named point sets (Exodus node sets; empty for the other formats).
+    extra : dict
+        Arrays of an NPZ file that are not point fields (``residual_history``).
     """
 
     path: Path
@@ -46,6 +48,7 @@ class ResultFile:
     times: np.ndarray
     steps: list[dict[str, np.ndarray]]
     sets: dict[str, np.ndarray] = field(default_factory=dict)
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def dim(self) -> int:
@@ -60,7 +63,7 @@ class ResultFile:
         k = self.n_steps
         if isinstance(step, bool) or not isinstance(step, int | np.integer) or not -k <= step < k:
             raise InputError(
-                f"step must be an integer in [{-k}, {k - 1}] ({k} step(s) in {self.path.name}), "
+                f"step (--step) must be an integer in [{-k}, {k - 1}] ({k} step(s) in {self.path.name}), "
                 f"got {step!r}"
             )
         return int(step) % k
@@ -135,16 +138,24 @@ def read_result(path: str | Path) -> ResultFile:
             arrays = {k: np.asarray(data[k]) for k in data.files}
         pts = arrays.pop("points")
         vols = arrays.pop("volumes", None)
-        if "times" in arrays:
+        n = pts.shape[0]
+        series = "times" in arrays
+        if series:
             times = arrays.pop("times").astype(float)
-            steps = [{k: v[j] for k, v in arrays.items()} for j in range(times.size)]
+            lead: tuple[int, ...] = (times.size, n)
         else:
             times = np.zeros(1)
-            steps = [arrays]
+            lead = (n,)
+        extra = {k: v for k, v in arrays.items() if v.shape[: len(lead)] != lead}
+        per_point = {k: v for k, v in arrays.items() if k not in extra}
+        if series:
+            steps = [{k: v[j] for k, v in per_point.items()} for j in range(times.size)]
+        else:
+            steps = [per_point]
         if vols is not None:
             for s in steps:
                 s.setdefault("volume", vols)
-        return ResultFile(p, pts, times, steps)
+        return ResultFile(p, pts, times, steps, extra=extra)
     if suffix == ".pvd":
         try:
             root = ET.parse(p).getroot()

@@ -193,6 +193,15 @@ def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any])
     >>> m.point_data["u"].shape, m.point_data["Displacement"].shape
     ((6, 3), (6, 3))
     """
+    return _write_points(path, cloud, fields)
+
+
+def _write_points(
+    path: str | Path,
+    cloud: PointCloud,
+    fields: Mapping[str, Any],
+    npz_extra: Mapping[str, np.ndarray] | None = None,
+) -> Path:
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix not in SUPPORTED_SUFFIXES:
@@ -206,6 +215,7 @@ def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any])
                 "points": np.asarray(cloud.points),
                 "volumes": np.asarray(cloud.volumes),
                 **data,
+                **(npz_extra or {}),
             }
             np.savez_compressed(out, **arrays)  # type: ignore[arg-type]
         elif suffix in EXODUS_SUFFIXES:
@@ -224,8 +234,14 @@ def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any])
 
 
 def write_result(path: str | Path, result: Any) -> Path:
-    """Write every field of a :class:`pdlin.StaticResult` (see :func:`write_points`)."""
-    return write_points(path, result.problem.cloud, result.fields())
+    """Write every field of a :class:`pdlin.StaticResult` (see :func:`write_points`).
+
+    ``.npz`` files also store the linear solver's relative residual history
+    (``residual_history``, drawn by ``pdlin plot --convergence``).
+    """
+    hist = np.asarray(result.residuals, dtype=float).reshape(-1)
+    extra = {"residual_history": hist} if np.all(np.isfinite(hist)) else None
+    return _write_points(path, result.problem.cloud, result.fields(), npz_extra=extra)
 
 
 def write_series(
