@@ -63,8 +63,8 @@ class ResultFile:
         k = self.n_steps
         if isinstance(step, bool) or not isinstance(step, int | np.integer) or not -k <= step < k:
             raise InputError(
-                f"step (--step) must be an integer in [{-k}, {k - 1}] ({k} step(s) in {self.path.name}), "
-                f"got {step!r}"
+                f"step (--step) must be an integer in [{-k}, {k - 1}] ({k} step(s) in "
+                f"{self.path.name}), got {step!r}"
             )
         return int(step) % k
 
