@@ -22,6 +22,7 @@ MODULES = [
     "pdlin.verification",
     "pdlin.io",
     "pdlin.sweeps",
+    "pdlin.plotting",
 ]
 
 

@@ -254,7 +254,9 @@ def plot_result(
     width_pt = 72 * 5.0 * float(np.ptp(xy[:, 0]) or span) / span
     size = float(np.clip((0.9 * width_pt * _spacing(r, fields) / span) ** 2, 0.5, 200.0))
     sc = ax.scatter(xy[:, 0], xy[:, 1], c=values, s=size, marker="s", cmap="viridis")
-    fig.colorbar(sc, ax=ax, label=label)
+    ext = np.ptp(xy, axis=0)
+    shrink = float(np.clip(1.2 * ext[1] / ext[0], 0.4, 1.0)) if ext[0] > 0 else 1.0
+    fig.colorbar(sc, ax=ax, label=label, shrink=shrink)
     ax.set_aspect("equal")
     ax.set_xlabel(names[0])
     ax.set_ylabel(names[1])
