@@ -256,3 +256,35 @@ def test_partial_states_are_dropped_with_a_warning(tmp_path, caplog):
 def test_bad_suffix_names_exodus():
     with pytest.raises(InputError, match=r"'\.e', '\.exo'"):
         write_points("x.exodus", pdlin.grid((2, 2)), {})
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+@pytest.mark.parametrize("suffix", [".e", ".vtu", ".pvd", ".xdmf", ".npz"])
+def test_every_format_round_trips_every_field_exactly(tmp_path, dim, suffix):
+    if suffix == ".xdmf":
+        pytest.importorskip("h5py")
+    shape = {1: (7,), 2: (4, 3), 3: (3, 2, 2)}[dim]
+    cloud = pdlin.grid(shape, spacing=0.5)
+    n = cloud.n
+    rng = np.random.default_rng(dim)
+    sym = rng.random((n, dim, dim))
+    sym = sym + sym.transpose(0, 2, 1)
+    steps = [
+        {
+            "displacement": rng.random((n, dim)),
+            "reaction": rng.random((n, dim)),
+            "stress": sym.reshape(n, -1) * (k + 1),
+            "deformation_gradient": rng.random((n, dim * dim)),
+            "damage": rng.random(n),
+            "material": np.zeros(n),
+        }
+        for k in range(2)
+    ]
+    times = [0.25, 1.0]
+    p = write_series(tmp_path / f"s{suffix}", cloud, times, steps)
+    r = read_result(p)
+    assert r.dim == dim and r.times.tolist() == times
+    np.testing.assert_array_equal(r.points, cloud.points)
+    for k in range(2):
+        for key, val in steps[k].items():
+            np.testing.assert_array_equal(r.steps[k][key], val, err_msg=f"{key} step {k}")
