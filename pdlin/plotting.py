@@ -27,6 +27,7 @@ __all__ = [
     "plot_sparsity_vs_horizon",
     "field_components",
     "save_figure",
+    "render_result",
 ]
 
 _AXES = "xyz"
@@ -394,6 +395,63 @@ def plot_sparsity_vs_horizon(
     ax.set_title(f"{sc.name}: {sc.cloud.n:,} points, {sc.cloud.dim}D")
     ax.grid(True, alpha=0.3)
     return Plot(fig, vals, m, "nonzeros per DOF row (mean)")
+
+
+def render_result(
+    result: str | Path | ResultFile,
+    output: str | Path,
+    *,
+    field: str = "displacement",
+    component: str | None = None,
+    step: int = -1,
+    scale: float = 0.0,
+    window_size: tuple[int, int] = (1024, 768),
+) -> Plot:
+    """3D rendering of a result with pyvista (off-screen), written to a PNG atomically.
+
+    The points are drawn as spheres coloured by the field component (no
+    slice needed); needs ``pip install "pdlin[render]"`` (pyvista).
+
+    Returns
+    -------
+    Plot
+        ``figure`` is the rendered image ((h, w, 3) uint8 array), ``values``
+        the plotted values and ``points`` the drawn (3D) positions.
+    """
+    try:
+        import pyvista as pv
+    except ImportError as exc:
+        raise ImportError("3D rendering needs pyvista: pip install 'pdlin[render]'") from exc
+    from .io.results import _staging
+
+    r = result if isinstance(result, ResultFile) else read_result(result)
+    k = r.step_index(step)
+    fields = r.steps[k]
+    if field not in fields:
+        raise InputError(
+            f"field (--field) {field!r} is not in {r.path.name}; available: {sorted(fields)}"
+        )
+    values, label = _component(field, fields[field], r.dim, component)
+    pts = np.zeros((r.points.shape[0], 3))
+    pts[:, : r.dim] = r.points
+    if float(scale) != 0.0:
+        if "displacement" not in fields:
+            raise InputError(f"scale (--scale) {scale} needs a displacement field")
+        pts[:, : r.dim] += float(scale) * np.asarray(fields["displacement"])[:, : r.dim]
+    cloud = pv.PolyData(pts)
+    cloud[label] = values
+    pl = pv.Plotter(off_screen=True, window_size=list(window_size))
+    pl.add_points(cloud, scalars=label, render_points_as_spheres=True, point_size=8, cmap="viridis")
+    title = f"{r.path.name}: {label}" + (f", deformed x{float(scale):g}" if scale else "")
+    if r.n_steps > 1:
+        title += f" (step {k}, t = {r.times[k]:g})"
+    pl.add_text(title, font_size=10)
+    pl.camera_position = "iso"
+    p = Path(output)
+    with _staging(p) as tmp:
+        image = pl.screenshot(str(tmp / p.name), return_img=True)
+    pl.close()
+    return Plot(np.asarray(image), values, pts, label)
 
 
 def save_figure(fig: Any, path: str | Path, *, dpi: int = 120) -> Path:

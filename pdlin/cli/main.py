@@ -397,6 +397,19 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
         src = Path(args.path)
         result = read_result(src)
+        if args.render:
+            tag = args.field + (f"_{args.component}" if args.component else "")
+            out = Path(args.output) if args.output else src.with_name(f"{src.stem}_{tag}_3d.png")
+            plotting.render_result(
+                result,
+                out,
+                field=args.field,
+                component=args.component,
+                step=args.step,
+                scale=args.scale,
+            )
+            print(f"wrote {out}")
+            return 0
         if args.convergence:
             plot = plotting.plot_convergence(result)
             out = Path(args.output) if args.output else src.with_name(f"{src.stem}_convergence.png")
@@ -525,6 +538,9 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--scale", type=float, default=0.0, help="draw at x + scale * u")
     pl.add_argument("--slice", help="plane of a 3D result, e.g. z=0.5 (points within h/2)")
     pl.add_argument("--convergence", action="store_true", help="linear solver residuals (.npz)")
+    pl.add_argument(
+        "--render", action="store_true", help="3D rendering with pyvista (pdlin[render])"
+    )
     pl.add_argument("--spy", action="store_true", help="spy plot of the scene's stiffness")
     pl.add_argument(
         "--sparsity-vs-horizon",

@@ -198,3 +198,19 @@ def test_files_of_earlier_versions_read_back(tmp_path):
     np.testing.assert_array_equal(r.fields()["material"], 0.0)  # 0-based already
     plot = plotting.plot_result(r, field="stress", component="yx")
     np.testing.assert_array_equal(plot.values, s4[:, 2])
+
+
+def test_render_3d_with_pyvista(tmp_path, capsys):
+    pytest.importorskip("pyvista")
+    cloud = pdlin.grid((4, 3, 2), spacing=0.5)
+    u = np.column_stack([cloud.points[:, 0], np.zeros((24, 2))])
+    p = pdlin.io.write_points(tmp_path / "box.e", cloud, {"displacement": u})
+    out = tmp_path / "box.png"
+    plot = plotting.render_result(p, out, component="x", scale=0.5, window_size=(320, 240))
+    np.testing.assert_array_equal(plot.values, u[:, 0])
+    np.testing.assert_allclose(plot.points, cloud.points + 0.5 * u)
+    assert matplotlib.image.imread(out).shape[:2] == (240, 320) == plot.figure.shape[:2]
+    assert main(["plot", str(p), "--render", "-o", str(tmp_path / "cli.png")]) == 0
+    assert (tmp_path / "cli.png").is_file()
+    with pytest.raises(InputError, match=r"field \(--field\) 'nope'"):
+        plotting.render_result(p, out, field="nope")
