@@ -306,8 +306,38 @@ def read_exodus_file(path: str | Path) -> dict[str, Any]:
                 )
         block = np.zeros(n, dtype=np.int64)
         ids = np.asarray(nc.variables["eb_prop1"][:], dtype=np.int64)
+        conns: dict[int, np.ndarray] = {}
         for b, bid in enumerate(ids, start=1):
             conn = nc.variables.get(f"connect{b}")
             if conn is not None:
-                block[np.asarray(conn[:], dtype=np.int64).ravel() - 1] = bid
+                cb = np.asarray(conn[:], dtype=np.int64)
+                block[cb.ravel() - 1] = bid
+                conns[b] = cb
+        _element_fields(nc, conns, n, times.size, steps)
     return {"points": pts, "dim": dim, "times": times, "steps": steps, "sets": sets, "block": block}
+
+
+def _element_fields(
+    nc: Any, conns: dict[int, np.ndarray], n: int, k: int, steps: list[dict[str, np.ndarray]]
+) -> None:
+    """Element variables of one-node (sphere) elements as point fields, as Peridigm writes
+    ``Volume``, ``Damage``, ``Element_Id``, ... (kept only where every point has a value)."""
+    if "name_elem_var" not in nc.variables or not conns:
+        return
+    if any(c.shape[1] != 1 for c in conns.values()):
+        return  # not a particle file: element values do not belong to single points
+    names = _names(nc.variables["name_elem_var"])
+    raw: list[np.ndarray | None] = []
+    for j in range(1, len(names) + 1):
+        vals = np.full((k, n), np.nan)
+        for b, c in conns.items():
+            var = nc.variables.get(f"vals_elem_var{j}eb{b}")
+            if var is not None:
+                vals[:, c[:, 0] - 1] = np.asarray(var[:], dtype=float)
+        raw.append(vals if np.all(np.isfinite(vals)) else None)
+    for base, cols in _group_components(names):
+        if any(raw[c] is None for c in cols) or base in steps[0]:
+            continue
+        for step in range(k):
+            parts = [raw[c][step] for c in cols]  # type: ignore[index]
+            steps[step][base] = parts[0] if len(parts) == 1 else np.column_stack(parts)

@@ -288,3 +288,62 @@ def test_every_format_round_trips_every_field_exactly(tmp_path, dim, suffix):
     for k in range(2):
         for key, val in steps[k].items():
             np.testing.assert_array_equal(r.steps[k][key], val, err_msg=f"{key} step {k}")
+
+
+def _peridigm_like_file(path):
+    """A small Exodus file laid out as Peridigm writes one (written here with netCDF4 alone):
+    3 coordinates, two SPHERE blocks, vectors as nodal ``<Name>X/Y/Z``, scalars as element
+    variables per block (``vals_elem_var<j>eb<b>``), one node set, two steps."""
+    pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 1]])
+    with netCDF4.Dataset(path, "w", format="NETCDF3_64BIT_OFFSET") as nc:
+        nc.title = "Peridigm"
+        for d, s in [("len_name", 33), ("time_step", None), ("num_dim", 3), ("num_nodes", 4)]:
+            nc.createDimension(d, s)
+        for d, s in [("num_elem", 4), ("num_el_blk", 2), ("num_node_sets", 1)]:
+            nc.createDimension(d, s)
+        nc.createVariable("time_whole", "f8", ("time_step",))[:] = [0.0, 0.5]
+        for k, c in enumerate("xyz"):
+            nc.createVariable(f"coord{c}", "f8", ("num_nodes",))[:] = pts[:, k]
+        nc.createVariable("eb_prop1", "i4", ("num_el_blk",))[:] = [1, 2]
+        for b, nodes in [(1, [1, 3]), (2, [2, 4])]:
+            nc.createDimension(f"num_el_in_blk{b}", 2)
+            nc.createDimension(f"num_nod_per_el{b}", 1)
+            v = nc.createVariable(f"connect{b}", "i4", (f"num_el_in_blk{b}", f"num_nod_per_el{b}"))
+            v.elem_type = "SPHERE"
+            v[:] = np.array(nodes).reshape(-1, 1)
+        names = netCDF4.stringtochar(
+            np.array([b"DisplacementX", b"DisplacementY", b"DisplacementZ"], "S33")
+        )
+        nc.createDimension("num_nod_var", 3)
+        nc.createVariable("name_nod_var", "S1", ("num_nod_var", "len_name"))[:] = names
+        for j in range(3):
+            v = nc.createVariable(f"vals_nod_var{j + 1}", "f8", ("time_step", "num_nodes"))
+            v[:] = [np.zeros(4), 0.1 * (j + 1) * np.arange(4)]
+        nc.createDimension("num_elem_var", 2)
+        enames = netCDF4.stringtochar(np.array([b"Volume", b"Damage"], "S33"))
+        nc.createVariable("name_elem_var", "S1", ("num_elem_var", "len_name"))[:] = enames
+        for b, nodes in [(1, [0, 2]), (2, [1, 3])]:
+            v = nc.createVariable(f"vals_elem_var1eb{b}", "f8", ("time_step", f"num_el_in_blk{b}"))
+            v[:] = [[0.25, 0.25]] * 2
+            v = nc.createVariable(f"vals_elem_var2eb{b}", "f8", ("time_step", f"num_el_in_blk{b}"))
+            v[:] = [[0.0, 0.0], [0.1 * nodes[0], 0.1 * nodes[1]]]
+        nc.createDimension("num_nod_ns1", 2)
+        nc.createVariable("ns_names", "S1", ("num_node_sets", "len_name"))[:] = (
+            netCDF4.stringtochar(np.array([b"min_x"], "S33"))
+        )
+        nc.createVariable("node_ns1", "i4", ("num_nod_ns1",))[:] = [1, 3]
+    return pts
+
+
+def test_reads_a_peridigm_style_exodus_file(tmp_path):
+    p = tmp_path / "peridigm.e"
+    pts = _peridigm_like_file(p)
+    r = read_result(p)
+    assert r.dim == 3 and r.times.tolist() == [0.0, 0.5]
+    np.testing.assert_array_equal(r.points, pts)
+    u = r.steps[1]["displacement"]
+    np.testing.assert_allclose(u, 0.1 * np.outer(np.arange(4), [1, 2, 3]))
+    # element variables of the sphere blocks land on their points
+    np.testing.assert_array_equal(r.steps[1]["volume"], 0.25)
+    np.testing.assert_allclose(r.steps[1]["damage"], 0.1 * np.arange(4))
+    assert r.sets["min_x"].tolist() == [0, 2]
