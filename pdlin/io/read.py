@@ -93,7 +93,9 @@ def _unpad(point_data: dict[str, Any], dim: int) -> dict[str, np.ndarray]:
 def _read_meshio(path: Path) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     import meshio
 
-    mesh = meshio.read(path)
+    # the format's own reader: meshio.read calls sys.exit on a file it cannot read
+    reader = {".vtu": meshio.vtu.read, ".vtk": meshio.vtk.read, ".xdmf": meshio.xdmf.read}
+    mesh = reader[path.suffix.lower()](str(path))
     pts = np.asarray(mesh.points, dtype=float)
     dim = _dim_of(pts)
     return pts[:, :dim], _unpad(dict(mesh.point_data), dim)
@@ -129,6 +131,17 @@ def read_result(path: str | Path) -> ResultFile:
         raise InputError(f"result file must end with one of {READ_SUFFIXES}, got {str(p)!r}")
     if not p.is_file():
         raise InputError(f"result file {str(p)!r} does not exist")
+    import meshio
+
+    try:
+        return _read(p, suffix)
+    except (OSError, KeyError, ValueError, IndexError, ET.ParseError, meshio.ReadError) as exc:
+        raise InputError(
+            f"cannot read {str(p)!r} as a pdlin result ({suffix}): {type(exc).__name__}: {exc}"
+        ) from exc
+
+
+def _read(p: Path, suffix: str) -> ResultFile:
     if suffix in EXODUS_SUFFIXES:
         d = read_exodus_file(p)
         steps = [_unpad(s, d["dim"]) for s in d["steps"]]
