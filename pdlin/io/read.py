@@ -3,7 +3,7 @@
 :func:`read_result` returns the points and, per step, the fields under their
 API keys (``displacement``, ``reaction``, ``stress``, ...) with the 3D padding
 of the ParaView formats removed, whichever spelling the file uses (the
-ParaView names of :mod:`pdlin.io.names` or the lowercase names of files
+ParaView names of ``pdlin.io.names`` or the lowercase names of files
 written by earlier pdlin versions).
 """
 

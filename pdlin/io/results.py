@@ -7,7 +7,7 @@ replaced only by a complete new one.
 
 The ParaView formats (VTU, PVD, XDMF, Exodus) name the fields as Peridigm does
 where it has the quantity (``Displacement``, ``Volume``, ``Cauchy_Stress``, ...;
-see :mod:`pdlin.io.names`), pad vectors to 3 and ``dim x dim`` tensors to
+see ``pdlin.io.names``), pad vectors to 3 and ``dim x dim`` tensors to
 3 x 3 components; NPZ files keep the API keys and shapes.
 """
 
@@ -168,9 +168,9 @@ def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any])
     ``vertex`` cells (coordinates and vector fields padded to 3 components
     for 1D/2D so ParaView can warp by displacement); ``.e``/``.exo`` write
     an Exodus II file (one time step at ``t = 0``, point sets as node sets,
-    see :mod:`pdlin.io.exodus`; needs ``pdlin[exodus]``); ``.npz`` stores the
+    see ``pdlin.io.exodus``; needs ``pdlin[exodus]``); ``.npz`` stores the
     raw arrays (``points``, ``volumes`` and every field).  The ParaView
-    formats name pdlin's fields as :data:`pdlin.io.names.FILE_NAMES` says
+    formats name pdlin's fields as ``pdlin.io.names.FILE_NAMES`` says
     (``displacement`` -> ``Displacement``, ...); other names are kept.
 
     Parameters
