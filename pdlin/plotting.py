@@ -267,11 +267,13 @@ def plot_result(
     return Plot(fig, values, xy, label)
 
 
-def plot_homogenized(path: str | Path, *, component: str = "11", ax: Any = None) -> Plot:
+def plot_homogenized(path: str | Path, *, component: str | None = None, ax: Any = None) -> Plot:
     """Homogenized stress-strain curve from the CSV of a nonlinear run.
 
     ``sigma_<component>`` against the strain ``F_<component> - delta`` (the
-    volume-averaged nonlocal deformation gradient minus the identity).
+    volume-averaged nonlocal deformation gradient minus the identity).  The
+    default component (``None``) is the one of largest magnitude at the last
+    step (``12`` in shear, ``22`` in compression along y).
 
     Returns
     -------
@@ -285,7 +287,10 @@ def plot_homogenized(path: str | Path, *, component: str = "11", ax: Any = None)
     with open(p, newline="") as fh:
         rows = list(csv.DictReader(fh))
     comps = sorted(c[6:] for c in (rows[0] if rows else {}) if c.startswith("sigma_"))
-    if component not in comps:
+    if component is None and comps:
+        last = [abs(float(rows[-1][f"sigma_{c}"])) for c in comps]
+        component = comps[int(np.nanargmax(last))] if np.any(np.isfinite(last)) else comps[0]
+    if component is None or component not in comps:
         raise InputError(
             f"component (--component) of the homogenized curve must be one of {comps}, "
             f"got {component!r}"
@@ -301,6 +306,7 @@ def plot_homogenized(path: str | Path, *, component: str = "11", ax: Any = None)
     ax.plot(eps, sig, "o-")
     ax.set_xlabel(f"mean strain F_{component} - δ")
     ax.set_ylabel(f"mean stress sigma_{component}")
+    ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 3))
     ax.set_title(p.name)
     ax.grid(True, alpha=0.3)
     return Plot(fig, sig, eps, f"sigma_{component}")

@@ -425,8 +425,12 @@ def _cmd_plot(args: argparse.Namespace) -> int:
             tag = args.field + (f"_{args.component}" if args.component else "")
             out = Path(args.output) if args.output else src.with_name(f"{src.stem}_{tag}.png")
         written.append(plotting.save_figure(plot.figure, out, dpi=args.dpi))
-        csv_path = src.with_name(f"{src.stem}_homogenized.csv")
-        if result.n_steps > 1 and csv_path.is_file() and not args.convergence:
+        csv_path = (
+            Path(args.homogenized)
+            if args.homogenized
+            else src.with_name(f"{src.stem}_homogenized.csv")
+        )
+        if args.homogenized or (result.n_steps > 1 and csv_path.is_file() and not args.convergence):
             curve = plotting.plot_homogenized(csv_path)
             written.append(
                 plotting.save_figure(
@@ -537,6 +541,12 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--step", type=int, default=-1, help="step of a series (0-based; -1 last)")
     pl.add_argument("--scale", type=float, default=0.0, help="draw at x + scale * u")
     pl.add_argument("--slice", help="plane of a 3D result, e.g. z=0.5 (points within h/2)")
+    pl.add_argument(
+        "--homogenized",
+        metavar="CSV",
+        help="also plot this homogenized stress-strain CSV (default: <stem>_homogenized.csv "
+        "beside a series, if it exists)",
+    )
     pl.add_argument("--convergence", action="store_true", help="linear solver residuals (.npz)")
     pl.add_argument(
         "--render", action="store_true", help="3D rendering with pyvista (pdlin[render])"

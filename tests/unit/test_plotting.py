@@ -136,6 +136,8 @@ def test_series_step_and_homogenized_curve(tmp_path, capsys):
     np.testing.assert_array_equal(plot.values, res.u[1][:, 0])
     assert "(step 1, t = " in plot.figure.axes[0].get_title()
     curve = plotting.plot_homogenized(tmp_path / "run_homogenized.csv")
+    # uniaxial pull along x: sigma_11 is the largest mean stress, the default component
+    assert curve.label == "sigma_11"
     # the CSV holds sigma to 10 significant digits; the curve starts at the origin
     np.testing.assert_allclose(curve.values[1:], res.homogenized_stress[:, 0, 0], rtol=1e-9)
     assert curve.values[0] == 0.0 and curve.points[0] == 0.0
