@@ -298,6 +298,11 @@ def plot_homogenized(path: str | Path, *, component: str | None = None, ax: Any 
     sig = np.array([float(r[f"sigma_{component}"]) for r in rows])
     delta = 1.0 if component[0] == component[1] else 0.0
     eps = np.array([float(r[f"F_{component}"]) for r in rows]) - delta
+    if not (np.all(np.isfinite(sig)) and np.all(np.isfinite(eps))):
+        raise InputError(
+            f"{p.name} holds no finite sigma_{component} / F_{component} column (the run "
+            "computed no homogenized stress)"
+        )
     eps, sig = np.concatenate([[0.0], eps]), np.concatenate([[0.0], sig])
     if ax is None:
         fig, ax = plt.subplots(figsize=(5.5, 4.2))

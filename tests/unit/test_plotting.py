@@ -143,6 +143,10 @@ def test_series_step_and_homogenized_curve(tmp_path, capsys):
     assert curve.values[0] == 0.0 and curve.points[0] == 0.0
     with pytest.raises(InputError, match=r"must be one of \['11', '12', '21', '22'\], got '33'"):
         plotting.plot_homogenized(tmp_path / "run_homogenized.csv", component="33")
+    bad = tmp_path / "nan.csv"
+    bad.write_text("step,time,factor,sigma_11,F_11\n1,1,1,nan,1.0\n")
+    with pytest.raises(InputError, match="holds no finite sigma_11 / F_11 column"):
+        plotting.plot_homogenized(bad)
     # the command: the chosen step plus the homogenized curve beside it
     out = tmp_path / "figs" / "u.png"
     assert main(["plot", str(p), "--step", "2", "--component", "x", "-o", str(out)]) == 0
