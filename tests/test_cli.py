@@ -53,11 +53,12 @@ def test_run_writes_results_and_summary(tmp_path, capsys):
     assert summary["points"] == 300 and summary["solver"] == "direct"
     assert summary["relative_residual"] < 1e-8
     mesh = meshio.read(tmp_path / "out" / "plate.vtu")
-    assert mesh.point_data["displacement"].shape == (300, 3)
+    # ParaView / Peridigm field names, vectors padded to 3 components
+    assert mesh.point_data["Displacement"].shape == (300, 3)
     # the file holds the solution of the same problem solved through the API
     res = pdlin.solve(load_scene(scene).problem, solver="direct")
-    np.testing.assert_allclose(mesh.point_data["displacement"][:, :2], res.u, rtol=1e-10)
-    np.testing.assert_allclose(mesh.point_data["reaction"][:, 0].sum(), -1000.0, rtol=1e-8)
+    np.testing.assert_allclose(mesh.point_data["Displacement"][:, :2], res.u, rtol=1e-10)
+    np.testing.assert_allclose(mesh.point_data["Reaction_Force"][:, 0].sum(), -1000.0, rtol=1e-8)
 
 
 def test_run_builtin_example_listed():
@@ -428,7 +429,7 @@ def test_run_nonlinear_scene_writes_series_csv_and_resumes(tmp_path, capsys):
     pvd = tmp_path / "out" / "cp.pvd"
     assert pvd.exists() and pvd.read_text().count("<DataSet") == 4
     step4 = meshio.read(tmp_path / "out" / "cp_0004.vtu")
-    assert {"displacement", "stress", "state_gamma"} <= set(step4.point_data)
+    assert {"Displacement", "Cauchy_Stress", "State_gamma"} <= set(step4.point_data)
     rows = (tmp_path / "out" / "cp_homogenized.csv").read_text().splitlines()
     assert len(rows) == 5 and rows[0].startswith("step,time,factor,sigma_11")
     # the same problem through the API

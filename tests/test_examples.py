@@ -90,7 +90,7 @@ def test_crystal_plasticity_polycrystal_tutorial(tmp_path):
         pvd = (tmp_path / f"{load}.pvd").read_text()
         assert pvd.count("<DataSet") == steps
         last = meshio.read(tmp_path / f"{load}_{steps:04d}.vtu")
-        assert {"displacement", "stress", "state_reorientation"} <= set(last.point_data)
+        assert {"Displacement", "Cauchy_Stress", "State_reorientation"} <= set(last.point_data)
         csv = np.genfromtxt(tmp_path / f"{load}_homogenized.csv", delimiter=",", names=True)
         np.testing.assert_allclose(csv["sigma_12"], res.homogenized_stress[:, 0, 1], rtol=1e-9)
         # plasticity starts at step 3 (spec 001 §8.2: ~30 % of the particles plastic there)

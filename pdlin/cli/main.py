@@ -1,4 +1,4 @@
-"""The ``pdlin`` command: ``run``, ``info``, ``sparsity``, ``tradeoff``, ``examples``.
+"""The ``pdlin`` command: ``run``, ``info``, ``sparsity``, ``tradeoff``, ``examples``, ``plot``.
 
 Only this layer prints; the library logs.  ``main(argv)`` returns an exit
 code and can be called from tests.
@@ -377,6 +377,88 @@ def _cmd_tradeoff(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_plot(args: argparse.Namespace) -> int:
+    from .. import plotting
+
+    written: list[Path] = []
+    if args.spy or args.sparsity_vs_horizon:
+        args.scene = args.path
+        scene = _load(args)
+        stem = Path(args.path).stem if args.path else scene.name
+        base = Path(args.path).parent if args.path else Path.cwd()
+        if args.spy:
+            plot = plotting.plot_scene_spy(scene, order=args.order)
+            out = Path(args.output) if args.output else base / f"{stem}_spy.png"
+            written.append(plotting.save_figure(plot.figure, out, dpi=args.dpi))
+        if args.sparsity_vs_horizon:
+            try:
+                ratios = [float(v) for v in args.ratios.split(",")]
+            except ValueError as exc:
+                raise PdlinError(
+                    f"--ratios must be comma-separated numbers, got {args.ratios!r}"
+                ) from exc
+            plot = plotting.plot_sparsity_vs_horizon(scene, ratios)
+            out = (
+                Path(args.output)
+                if args.output and not args.spy
+                else base / f"{stem}_sparsity_vs_horizon.png"
+            )
+            written.append(plotting.save_figure(plot.figure, out, dpi=args.dpi))
+    else:
+        if not args.path:
+            raise PdlinError("give a result file, or --spy / --sparsity-vs-horizon with a scene")
+        from ..io.read import read_result
+
+        src = Path(args.path)
+        result = read_result(src)
+        if args.render:
+            tag = args.field + (f"_{args.component}" if args.component else "")
+            out = Path(args.output) if args.output else src.with_name(f"{src.stem}_{tag}_3d.png")
+            plotting.render_result(
+                result,
+                out,
+                field=args.field,
+                component=args.component,
+                step=args.step,
+                scale=args.scale,
+            )
+            print(f"wrote {out}")
+            return 0
+        if args.convergence:
+            plot = plotting.plot_convergence(result)
+            out = Path(args.output) if args.output else src.with_name(f"{src.stem}_convergence.png")
+        else:
+            plot = plotting.plot_result(
+                result,
+                field=args.field,
+                component=args.component,
+                step=args.step,
+                scale=args.scale,
+                slice=args.slice,
+            )
+            tag = args.field + (f"_{args.component}" if args.component else "")
+            out = Path(args.output) if args.output else src.with_name(f"{src.stem}_{tag}.png")
+        written.append(plotting.save_figure(plot.figure, out, dpi=args.dpi))
+        csv_path = (
+            Path(args.homogenized)
+            if args.homogenized
+            else src.with_name(f"{src.stem}_homogenized.csv")
+        )
+        if args.homogenized or (result.n_steps > 1 and csv_path.is_file() and not args.convergence):
+            curve = plotting.plot_homogenized(csv_path)
+            written.append(
+                plotting.save_figure(
+                    curve.figure, out.with_name(f"{out.stem}_homogenized.png"), dpi=args.dpi
+                )
+            )
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
+    for w in written:
+        print(f"wrote {w}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``pdlin`` command."""
     p = argparse.ArgumentParser(prog="pdlin", description="Static peridynamics on sparse operators")
@@ -391,7 +473,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument(
         "-o",
         "--output",
-        help="results file (.vtu, .xdmf, .npz; nonlinear scenes: .pvd, .xdmf, .npz series)",
+        help="results file (.vtu, .xdmf, .npz, .e/.exo Exodus II; nonlinear scenes: "
+        ".pvd, .xdmf, .npz, .e/.exo series)",
     )
     r.add_argument("--solver", help="override the scene's solver")
     r.add_argument("--json", action="store_true", help="print the summary as JSON")
@@ -464,6 +547,39 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--json", action="store_true", help="print the table as JSON")
     t.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     t.set_defaults(func=_cmd_tradeoff)
+
+    pl = sub.add_parser(
+        "plot",
+        help="PNG of a result field (VTU/PVD/XDMF/NPZ/Exodus), or a scene's stiffness pattern",
+    )
+    pl.add_argument("path", nargs="?", help="result file, or scene (.toml) with --spy")
+    pl.add_argument("-o", "--output", help="PNG file (default: beside the input)")
+    pl.add_argument("--field", default="displacement", help="field (default displacement)")
+    pl.add_argument("--component", help="magnitude, x, y, z of vectors; xx, xy, ... of tensors")
+    pl.add_argument("--step", type=int, default=-1, help="step of a series (0-based; -1 last)")
+    pl.add_argument("--scale", type=float, default=0.0, help="draw at x + scale * u")
+    pl.add_argument("--slice", help="plane of a 3D result, e.g. z=0.5 (points within h/2)")
+    pl.add_argument(
+        "--homogenized",
+        metavar="CSV",
+        help="also plot this homogenized stress-strain CSV (default: <stem>_homogenized.csv "
+        "beside a series, if it exists)",
+    )
+    pl.add_argument("--convergence", action="store_true", help="linear solver residuals (.npz)")
+    pl.add_argument(
+        "--render", action="store_true", help="3D rendering with pyvista (pdlin[render])"
+    )
+    pl.add_argument("--spy", action="store_true", help="spy plot of the scene's stiffness")
+    pl.add_argument(
+        "--sparsity-vs-horizon",
+        action="store_true",
+        help="nonzeros per row of the scene's stiffness vs delta/h",
+    )
+    pl.add_argument("--ratios", default="2,3,4,5", help="delta/h values (default 2,3,4,5)")
+    pl.add_argument("--order", default="rcm", help="spy ordering: natural or rcm (default)")
+    pl.add_argument("--example", help="a built-in scene (with --spy / --sparsity-vs-horizon)")
+    pl.add_argument("--dpi", type=int, default=120)
+    pl.set_defaults(func=_cmd_plot, scene=None)
 
     e = sub.add_parser("examples", help="list the built-in example scenes")
     e.add_argument("--show", metavar="NAME", help="print the scene file of an example")

@@ -1,5 +1,6 @@
 """Input/output: result files, time series, system export and scene files."""
 
+from .read import ResultFile, read_result
 from .results import (
     export_system,
     write_homogenized_csv,
@@ -16,4 +17,6 @@ __all__ = [
     "write_nonlinear",
     "write_homogenized_csv",
     "export_system",
+    "read_result",
+    "ResultFile",
 ]

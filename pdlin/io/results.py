@@ -1,14 +1,20 @@
-"""Writing point fields to files (meshio VTU/XDMF, or numpy .npz), atomically.
+"""Writing point fields to files (meshio VTU/XDMF, Exodus II, or numpy .npz), atomically.
 
 Every writer builds its files in a private temporary directory next to the
 target and moves them into place only when they are complete, so a run that
 fails or is killed never leaves a truncated file, and an existing file is
 replaced only by a complete new one.
+
+The ParaView formats (VTU, PVD, XDMF, Exodus) name the fields as Peridigm does
+where it has the quantity (``Displacement``, ``Volume``, ``Cauchy_Stress``, ...;
+see ``pdlin.io.names``), pad vectors to 3 and ``dim x dim`` tensors to
+3 x 3 components; NPZ files keep the API keys and shapes.
 """
 
 from __future__ import annotations
 
 import csv
+import logging
 import os
 import shutil
 import tempfile
@@ -22,6 +28,10 @@ import numpy as np
 from .._validation import as_bool, as_float_array
 from ..errors import InputError, InputTypeError, ShapeError
 from ..geometry.cloud import PointCloud
+from .exodus import EXODUS_SUFFIXES, write_exodus_file
+from .names import file_name, to_file_value
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "export_system",
@@ -34,9 +44,10 @@ __all__ = [
     "SERIES_SUFFIXES",
 ]
 
-SUPPORTED_SUFFIXES = (".vtu", ".xdmf", ".vtk", ".npz")
-#: time-series outputs: one XDMF (+ HDF5), a ParaView .pvd collection of VTU files, one NPZ
-SERIES_SUFFIXES = (".xdmf", ".pvd", ".vtu", ".npz")
+SUPPORTED_SUFFIXES = (".vtu", ".xdmf", ".vtk", ".npz", *EXODUS_SUFFIXES)
+#: time-series outputs: one XDMF (+ HDF5), a ParaView .pvd collection of VTU files, one NPZ,
+#: one Exodus II file
+SERIES_SUFFIXES = (".xdmf", ".pvd", ".vtu", ".npz", *EXODUS_SUFFIXES)
 
 
 def _xdmf_fields(pd: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -113,12 +124,33 @@ def _check_fields(n: int, fields: Mapping[str, Any]) -> dict[str, np.ndarray]:
 
 
 def _point_data(cloud: PointCloud, data: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-    pd: dict[str, np.ndarray] = {"volume": np.asarray(cloud.volumes)}
+    """Fields under their ParaView names, vectors padded to 3 and tensors to 3 x 3."""
+    pd: dict[str, np.ndarray] = {}
+    if "volume" not in data:
+        pd[file_name("volume")] = np.asarray(cloud.volumes, dtype=float)
     for name, arr in data.items():
-        if arr.ndim == 2 and arr.shape[1] == cloud.dim and cloud.dim < 3:
-            arr = _pad3(arr)
-        pd[name] = arr
+        pd[file_name(name)] = to_file_value(name, arr, cloud.dim)
     return pd
+
+
+def _write_exodus(out: Path, cloud: PointCloud, times: np.ndarray, data: Sequence[Any]) -> None:
+    keys = list(data[0])
+    for k, d in enumerate(data[1:], start=1):
+        if list(d) != keys or any(d[f].shape != data[0][f].shape for f in keys):
+            raise InputError(
+                "Exodus nodal variables need the same fields in every step: step 0 has "
+                f"{sorted(keys)}, step {k} has "
+                f"{sorted((f, d[f].shape) for f in d)}; write .pvd or .xdmf instead"
+            )
+    write_exodus_file(
+        out,
+        np.asarray(cloud.points),
+        np.asarray(cloud.material),
+        cloud.sets,
+        times,
+        [_point_data(cloud, d) for d in data],
+        dim=cloud.dim,
+    )
 
 
 def _pad3(a: np.ndarray) -> np.ndarray:
@@ -134,8 +166,12 @@ def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any])
 
     ``.vtu``/``.xdmf``/``.vtk`` go through meshio with the points as
     ``vertex`` cells (coordinates and vector fields padded to 3 components
-    for 1D/2D so ParaView can warp by displacement); ``.npz`` stores the raw
-    arrays (``points``, ``volumes`` and every field).
+    for 1D/2D so ParaView can warp by displacement); ``.e``/``.exo`` write
+    an Exodus II file (one time step at ``t = 0``, point sets as node sets,
+    see ``pdlin.io.exodus``; needs ``pdlin[exodus]``); ``.npz`` stores the
+    raw arrays (``points``, ``volumes`` and every field).  The ParaView
+    formats name pdlin's fields as ``pdlin.io.names.FILE_NAMES`` says
+    (``displacement`` -> ``Displacement``, ...); other names are kept.
 
     Parameters
     ----------
@@ -152,10 +188,20 @@ def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any])
     >>> import numpy as np, pdlin, tempfile, os, meshio
     >>> cloud = pdlin.grid((3, 2))
     >>> path = os.path.join(tempfile.mkdtemp(), "out.vtu")
-    >>> _ = write_points(path, cloud, {"u": np.ones((6, 2))})
-    >>> meshio.read(path).point_data["u"].shape
-    (6, 3)
+    >>> _ = write_points(path, cloud, {"u": np.ones((6, 2)), "displacement": np.ones((6, 2))})
+    >>> m = meshio.read(path)
+    >>> m.point_data["u"].shape, m.point_data["Displacement"].shape
+    ((6, 3), (6, 3))
     """
+    return _write_points(path, cloud, fields)
+
+
+def _write_points(
+    path: str | Path,
+    cloud: PointCloud,
+    fields: Mapping[str, Any],
+    npz_extra: Mapping[str, np.ndarray] | None = None,
+) -> Path:
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix not in SUPPORTED_SUFFIXES:
@@ -169,8 +215,11 @@ def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any])
                 "points": np.asarray(cloud.points),
                 "volumes": np.asarray(cloud.volumes),
                 **data,
+                **(npz_extra or {}),
             }
             np.savez_compressed(out, **arrays)  # type: ignore[arg-type]
+        elif suffix in EXODUS_SUFFIXES:
+            _write_exodus(out, cloud, np.zeros(1), [data])
         else:
             import meshio
 
@@ -185,8 +234,14 @@ def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any])
 
 
 def write_result(path: str | Path, result: Any) -> Path:
-    """Write every field of a :class:`pdlin.StaticResult` (see :func:`write_points`)."""
-    return write_points(path, result.problem.cloud, result.fields())
+    """Write every field of a :class:`pdlin.StaticResult` (see :func:`write_points`).
+
+    ``.npz`` files also store the linear solver's relative residual history
+    (``residual_history``, drawn by ``pdlin plot --convergence``).
+    """
+    hist = np.asarray(result.residuals, dtype=float).reshape(-1)
+    extra = {"residual_history": hist} if np.all(np.isfinite(hist)) else None
+    return _write_points(path, result.problem.cloud, result.fields(), npz_extra=extra)
 
 
 def write_series(
@@ -200,8 +255,10 @@ def write_series(
     ``.xdmf``: one XDMF file with its HDF5 companion (meshio's time-series
     writer); ``.pvd`` (or ``.vtu``): one VTU file per step
     (``<stem>_0001.vtu``, ...) and a ParaView ``<stem>.pvd`` collection;
-    ``.npz``: every field with a leading step axis plus ``times``.  Written
-    atomically (all files appear together, or none).
+    ``.npz``: every field with a leading step axis plus ``times``;
+    ``.e``/``.exo``: one Exodus II file with every step (``time_whole``) and
+    the point sets as node sets (every step must hold the same fields).
+    Written atomically (all files appear together, or none).
 
     Parameters
     ----------
@@ -254,6 +311,8 @@ def write_series(
             for name in data[0]:
                 arrays[name] = np.stack([d[name] for d in data])
             np.savez_compressed(tmp / p.name, **arrays)  # type: ignore[arg-type]
+        elif suffix in EXODUS_SUFFIXES:
+            _write_exodus(tmp / p.name, cloud, tt, data)
         elif suffix == ".xdmf":
             import meshio
 
@@ -326,7 +385,8 @@ def write_homogenized_csv(path: str | Path, result: Any) -> Path:
 def write_nonlinear(path: str | Path, result: Any) -> Path:
     """Write every step of a :class:`pdlin.NonlinearResult` as one time series.
 
-    Fields per step: ``displacement``, ``reaction``, and where available
+    Any suffix of :func:`write_series` (``.pvd``, ``.xdmf``, ``.npz``,
+    ``.e``/``.exo``).  Fields per step: ``displacement``, ``reaction``, and where available
     ``stress`` (Cauchy, ``dim²`` components) and the scalar / vector state
     variables of the committed state (e.g. ``state_gamma``, ``state_s``,
     ``state_reorientation`` of crystal plasticity; per-point ones only) of the steps
@@ -349,6 +409,19 @@ def write_nonlinear(path: str | Path, result: Any) -> Path:
                 if arr.shape[:1] == (n,) and arr.ndim <= 2 and arr.dtype.kind in "fiub":
                     fields[f"state_{key}"] = arr.astype(float)
         steps.append(fields)
+    if Path(path).suffix.lower() in EXODUS_SUFFIXES:
+        # Exodus nodal variables hold a value at every step: state variables kept for
+        # only some steps (keep_states=False, or a resumed run) cannot be written there
+        common = set.intersection(*(set(f) for f in steps))
+        partial = sorted(set().union(*(set(f) for f in steps)) - common)
+        if partial:
+            log.warning(
+                "Exodus output %s: %s kept for only some steps (keep_states=False or a "
+                "resumed run) are not written; use .pvd or .xdmf to keep them",
+                path,
+                partial,
+            )
+            steps = [{k: v for k, v in f.items() if k in common} for f in steps]
     return write_series(path, cloud, result.times, steps)
 
 

@@ -148,3 +148,42 @@ CASES = [
 def test_writers_reject_and_leave_nothing(tmp_path, call, exc, pattern):
     expect(lambda: call(tmp_path), exc, pattern)
     assert list(tmp_path.iterdir()) == [], "a failed write left files behind"
+
+
+def _garbage(d, name, text="not a result file"):
+    p = d / name
+    p.write_text(text)
+    return p
+
+
+READ_CASES = [
+    ("read-suffix", lambda d: _garbage(d, "r.txt"), r"result file must end with one of"),
+    ("read-missing", lambda d: d / "absent.vtu", r"result file '.*absent.vtu' does not exist"),
+    ("read-exodus-garbage", lambda d: _garbage(d, "r.e"), r"cannot read '.*r.e' as a pdlin result"),
+    ("read-vtu-garbage", lambda d: _garbage(d, "r.vtu"), r"cannot read '.*r.vtu'"),
+    ("read-npz-garbage", lambda d: _garbage(d, "r.npz"), r"cannot read '.*r.npz'"),
+    ("read-pvd-garbage", lambda d: _garbage(d, "r.pvd"), r"is not a ParaView .pvd collection"),
+    (
+        "read-pvd-empty",
+        lambda d: _garbage(d, "r.pvd", "<VTKFile><Collection/></VTKFile>"),
+        r"lists no DataSet files",
+    ),
+    (
+        "read-pvd-missing-step",
+        lambda d: _garbage(
+            d, "r.pvd", '<VTKFile><Collection><DataSet file="gone.vtu"/></Collection></VTKFile>'
+        ),
+        r"cannot read '.*r.pvd'",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    ("make", "pattern"), [c[1:] for c in READ_CASES], ids=[c[0] for c in READ_CASES]
+)
+def test_reader_rejects_with_the_file_named(tmp_path, make, pattern):
+    from pdlin.io import read_result
+
+    if "exodus" in pattern or "r.e'" in pattern:
+        pytest.importorskip("netCDF4")
+    expect(lambda: read_result(make(tmp_path)), InputError, pattern)

@@ -67,10 +67,10 @@ def test_nonlinear_result_series_and_csv(tmp_path):
         reader.read_points_cells()
         t, pd, _ = reader.read_data(2)
     assert t == pytest.approx(1.0)
-    np.testing.assert_allclose(pd["displacement"][:, :2], res.u[2], rtol=1e-12)
+    np.testing.assert_allclose(pd["Displacement"][:, :2], res.u[2], rtol=1e-12)
     # 2D stress tensors are written as XDMF 3 x 3 tensors
-    assert pd["stress"].shape == (cloud.n, 9)
-    np.testing.assert_allclose(pd["stress"][:, [0, 1, 3, 4]], res.stress[2].reshape(-1, 4))
+    assert pd["Cauchy_Stress"].shape == (cloud.n, 9)
+    np.testing.assert_allclose(pd["Cauchy_Stress"][:, [0, 1, 3, 4]], res.stress[2].reshape(-1, 4))
     c = write_homogenized_csv(tmp_path / "curve.csv", res)
     rows = c.read_text().splitlines()
     assert rows[0].startswith("step,time,factor,sigma_11") and len(rows) == 4

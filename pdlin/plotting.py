@@ -1,0 +1,475 @@
+"""Figures of results, stiffness patterns and convergence (``pdlin plot``).
+
+matplotlib is imported lazily (extra ``plotting``) and drawn with the Agg
+backend; every function returns a :class:`Plot`: the figure plus the data it
+drew, so tests and scripts can check what is on the picture.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import InputError
+from .io.names import TENSOR_FIELDS
+from .io.read import ResultFile, read_result
+
+__all__ = [
+    "Plot",
+    "plot_result",
+    "plot_homogenized",
+    "plot_convergence",
+    "plot_scene_spy",
+    "plot_sparsity_vs_horizon",
+    "field_components",
+    "save_figure",
+    "render_result",
+]
+
+_AXES = "xyz"
+
+
+@dataclass
+class Plot:
+    """A drawn figure and the data on it.
+
+    Attributes
+    ----------
+    figure : matplotlib Figure
+    values : ndarray
+        The plotted values (colour of each marker, or the curve's y values).
+    points : ndarray
+        Where they are drawn (marker positions (m, 2), or the curve's x values).
+    label : str
+        What ``values`` are (colour-bar or y-axis label).
+    """
+
+    figure: Any
+    values: np.ndarray
+    points: np.ndarray
+    label: str
+
+
+def _plt() -> Any:
+    try:
+        import matplotlib
+    except ImportError as exc:
+        raise ImportError("plots need matplotlib: pip install 'pdlin[plotting]'") from exc
+    if matplotlib.get_backend().lower() != "agg":
+        matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def field_components(arr: np.ndarray, dim: int, key: str = "") -> list[str]:
+    """Component names of a field: ``[]`` for scalars, vectors ``magnitude, x, y(, z)``,
+    ``dim x dim`` tensors ``xx, xy, ...``, other widths ``0, 1, ...``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> field_components(np.zeros((5, 2)), 2), field_components(np.zeros((5, 4)), 2)
+    (['magnitude', 'x', 'y'], ['xx', 'xy', 'yx', 'yy'])
+    """
+    a = np.asarray(arr)
+    w = 1 if a.ndim == 1 else a.reshape(a.shape[0], -1).shape[1]
+    if a.ndim == 1 or (w == 1 and dim > 1):
+        return []
+    if w == 1:  # (n, 1) of a 1D result
+        return ["xx"] if key in TENSOR_FIELDS else ["magnitude", "x"]
+    if w == dim * dim and (key in TENSOR_FIELDS or (dim > 1 and w != dim)):
+        return [_AXES[i] + _AXES[j] for i in range(dim) for j in range(dim)]
+    if w == dim or (key in ("displacement", "reaction") and w == 3):
+        return ["magnitude", *_AXES[:w]]
+    return [str(k) for k in range(w)]
+
+
+def _component(
+    key: str, arr: np.ndarray, dim: int, component: str | None
+) -> tuple[np.ndarray, str]:
+    comps = field_components(arr, dim, key)
+    a = np.asarray(arr, dtype=float)
+    if not comps:
+        if component not in (None, "", "value"):
+            raise InputError(
+                f"component (--component) {component!r}: field {key!r} is a scalar, "
+                "give no component"
+            )
+        return a.reshape(-1), key
+    if component is None:
+        component = comps[0]
+    if component not in comps:
+        raise InputError(
+            f"component (--component) must be one of {comps} for field {key!r}, got {component!r}"
+        )
+    flat = a.reshape(a.shape[0], -1)
+    if component == "magnitude":
+        return np.linalg.norm(flat, axis=1), f"|{key}|"
+    return flat[:, comps.index(component) - (1 if "magnitude" in comps else 0)], (
+        f"{key} {component}"
+    )
+
+
+def _parse_slice(slice_: str | tuple[str, float], dim: int) -> tuple[int, float]:
+    if isinstance(slice_, str):
+        axis, sep, val = slice_.partition("=")
+        try:
+            value = float(val)
+        except ValueError:
+            value = float("nan")
+        if not sep or not np.isfinite(value):
+            raise InputError(f"slice (--slice) must look like 'z=0.5', got {slice_!r}")
+    else:
+        axis, value = slice_[0], float(slice_[1])
+    axis = axis.strip().lower()
+    if axis not in _AXES[:dim]:
+        raise InputError(f"slice (--slice) axis must be one of {list(_AXES[:dim])}, got {axis!r}")
+    return _AXES.index(axis), value
+
+
+def _spacing(r: ResultFile, fields: dict[str, np.ndarray]) -> float:
+    vol = fields.get("volume")
+    if vol is not None and np.all(np.asarray(vol) > 0):
+        return float(np.median(vol) ** (1.0 / r.dim))
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(r.points).query(r.points, k=2)
+    return float(np.median(d[:, 1]))
+
+
+def plot_result(
+    result: str | Path | ResultFile,
+    *,
+    field: str = "displacement",
+    component: str | None = None,
+    step: int = -1,
+    scale: float = 0.0,
+    slice: str | tuple[str, float] | None = None,  # noqa: A002 - the CLI's --slice
+    ax: Any = None,
+) -> Plot:
+    """Colour map of one field of a result file (or of a :class:`ResultFile`).
+
+    2D results: the points coloured by the value, equal aspect; 3D results:
+    the points within ``h/2`` of a plane (``slice="z=0.5"``, ``h`` the
+    point spacing from the volumes), drawn in the other two coordinates; 1D
+    results: the value along x.
+
+    Parameters
+    ----------
+    result : path or ResultFile
+    field : str
+        API key (``displacement``, ``reaction``, ``strain``, ``stress``, ...).
+    component : str, optional
+        ``magnitude``/``x``/``y``/``z`` of vectors (default magnitude),
+        ``xx``/``xy``/... of tensors (default ``xx``); none for scalars.
+    step : int
+        Step of a series (0-based; negative from the end; default last).
+    scale : float
+        Draw at ``points + scale * displacement`` (0: the reference shape).
+    slice : str or (axis, value), optional
+        Plane of a 3D result, e.g. ``"z=0.5"``.
+    ax : matplotlib Axes, optional
+
+    Returns
+    -------
+    Plot
+        ``values`` are the plotted field values, ``points`` the drawn positions.
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin, tempfile, os
+    >>> from pdlin.io import write_points
+    >>> cloud = pdlin.grid((4, 3))
+    >>> u = np.column_stack([cloud.points[:, 0], np.zeros(12)])
+    >>> p = write_points(os.path.join(tempfile.mkdtemp(), "r.vtu"), cloud, {"displacement": u})
+    >>> plot = plot_result(p, component="x")
+    >>> bool(np.array_equal(plot.values, u[:, 0])), plot.label
+    (True, 'displacement x')
+    """
+    plt = _plt()
+    r = result if isinstance(result, ResultFile) else read_result(result)
+    k = r.step_index(step)
+    fields = r.steps[k]
+    if field not in fields:
+        raise InputError(
+            f"field (--field) {field!r} is not in {r.path.name}; available: {sorted(fields)}"
+        )
+    values, label = _component(field, fields[field], r.dim, component)
+    pts = np.asarray(r.points, dtype=float)
+    scale = float(scale)
+    if not np.isfinite(scale):
+        raise InputError(f"scale (--scale) must be finite, got {scale}")
+    if scale != 0.0:
+        if "displacement" not in fields:
+            raise InputError(
+                f"scale (--scale) {scale} needs a displacement field; {r.path.name} has "
+                f"{sorted(fields)}"
+            )
+        pts = pts + scale * np.asarray(fields["displacement"])[:, : r.dim]
+    if r.dim == 3:
+        if slice is None:
+            lo, hi = r.points.min(axis=0), r.points.max(axis=0)
+            raise InputError(
+                "slice (--slice) is needed for a 3D result, e.g. 'z=0.5'; bounds "
+                + ", ".join(f"{a} [{lo[i]:g}, {hi[i]:g}]" for i, a in enumerate(_AXES))
+            )
+        axis, value = _parse_slice(slice, 3)
+        half = 0.5 * _spacing(r, fields)
+        keep = np.abs(r.points[:, axis] - value) <= half * (1 + 1e-9)
+        if not keep.any():
+            c = r.points[:, axis]
+            raise InputError(
+                f"slice (--slice) {_AXES[axis]}={value:g} holds no point (within h/2 = "
+                f"{half:g}); {_AXES[axis]} ranges over [{c.min():g}, {c.max():g}]"
+            )
+        others = [i for i in range(3) if i != axis]
+        xy, values = pts[keep][:, others], values[keep]
+        names = [_AXES[i] for i in others]
+    elif slice is not None:
+        raise InputError(f"slice (--slice) applies to 3D results; this one is {r.dim}D")
+    else:
+        xy, names = pts, list(_AXES[: r.dim])
+    if ax is None:
+        ext = np.ptp(xy, axis=0) if r.dim > 1 else np.ones(2)
+        aspect = float(ext[1] / ext[0]) if r.dim > 1 and ext[0] > 0 else 0.75
+        height = float(np.clip(5.6 * aspect + 1.2, 2.6, 7.0))
+        fig, ax = plt.subplots(figsize=(6.4, height), layout="constrained")
+    else:
+        fig = ax.figure
+    title = f"{r.path.name}: {label}"
+    if r.n_steps > 1:
+        title += f" (step {k}, t = {r.times[k]:g})"
+    if r.dim == 1:
+        order = np.argsort(xy[:, 0])
+        ax.plot(xy[order, 0], values[order], ".-")
+        ax.set_xlabel("x")
+        ax.set_ylabel(label)
+        ax.set_title(title)
+        return Plot(fig, values, xy[:, 0], label)
+    span = np.ptp(xy, axis=0).max() or 1.0
+    width_pt = 72 * 5.0 * float(np.ptp(xy[:, 0]) or span) / span
+    size = float(np.clip((0.9 * width_pt * _spacing(r, fields) / span) ** 2, 0.5, 200.0))
+    sc = ax.scatter(xy[:, 0], xy[:, 1], c=values, s=size, marker="s", cmap="viridis")
+    ext = np.ptp(xy, axis=0)
+    shrink = float(np.clip(1.2 * ext[1] / ext[0], 0.4, 1.0)) if ext[0] > 0 else 1.0
+    fig.colorbar(sc, ax=ax, label=label, shrink=shrink)
+    ax.set_aspect("equal")
+    ax.set_xlabel(names[0])
+    ax.set_ylabel(names[1])
+    if scale != 0.0:
+        title += f", deformed x{scale:g}"
+    ax.set_title(title)
+    return Plot(fig, values, xy, label)
+
+
+def plot_homogenized(path: str | Path, *, component: str | None = None, ax: Any = None) -> Plot:
+    """Homogenized stress-strain curve from the CSV of a nonlinear run.
+
+    ``sigma_<component>`` against the strain ``F_<component> - delta`` (the
+    volume-averaged nonlocal deformation gradient minus the identity).  The
+    default component (``None``) is the one of largest magnitude at the last
+    step (``12`` in shear, ``22`` in compression along y).
+
+    Returns
+    -------
+    Plot
+        ``values`` = the stress column, ``points`` = the strain.
+    """
+    plt = _plt()
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"homogenized CSV {str(p)!r} does not exist")
+    with open(p, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    comps = sorted(c[6:] for c in (rows[0] if rows else {}) if c.startswith("sigma_"))
+    if component is None and comps:
+        last = [abs(float(rows[-1][f"sigma_{c}"])) for c in comps]
+        component = comps[int(np.nanargmax(last))] if np.any(np.isfinite(last)) else comps[0]
+    if component is None or component not in comps:
+        raise InputError(
+            f"component (--component) of the homogenized curve must be one of {comps}, "
+            f"got {component!r}"
+        )
+    sig = np.array([float(r[f"sigma_{component}"]) for r in rows])
+    delta = 1.0 if component[0] == component[1] else 0.0
+    eps = np.array([float(r[f"F_{component}"]) for r in rows]) - delta
+    if not (np.all(np.isfinite(sig)) and np.all(np.isfinite(eps))):
+        raise InputError(
+            f"{p.name} holds no finite sigma_{component} / F_{component} column (the run "
+            "computed no homogenized stress)"
+        )
+    eps, sig = np.concatenate([[0.0], eps]), np.concatenate([[0.0], sig])
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(5.5, 4.2))
+    else:
+        fig = ax.figure
+    ax.plot(eps, sig, "o-")
+    ax.set_xlabel(f"mean strain F_{component} - δ")
+    ax.set_ylabel(f"mean stress sigma_{component}")
+    ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 3))
+    ax.set_title(p.name)
+    ax.grid(True, alpha=0.3)
+    return Plot(fig, sig, eps, f"sigma_{component}")
+
+
+def plot_convergence(result: str | Path | ResultFile, *, ax: Any = None) -> Plot:
+    """Relative residual vs iteration of the linear solve stored in a result.
+
+    Only NPZ results of :func:`pdlin.io.write_result` store the history
+    (``residual_history``); other files raise an error saying so.
+    """
+    plt = _plt()
+    r = result if isinstance(result, ResultFile) else read_result(result)
+    hist = r.extra.get("residual_history")
+    if hist is None:
+        raise InputError(
+            f"{r.path.name} stores no residual history (written by write_result as .npz)"
+        )
+    res = np.asarray(hist, dtype=float)
+    it = np.arange(res.size, dtype=float)
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(5.5, 4.2))
+    else:
+        fig = ax.figure
+    ax.semilogy(it, np.maximum(res, np.finfo(float).tiny), "o-", ms=3)
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("relative residual")
+    ax.set_title(f"{r.path.name}: linear solver convergence")
+    ax.grid(True, which="both", alpha=0.3)
+    return Plot(fig, res, it, "relative residual")
+
+
+def plot_scene_spy(scene: Any, *, order: str = "rcm", ax: Any = None) -> Plot:
+    """Spy plot of a scene's assembled stiffness (``pdlin plot --spy SCENE``).
+
+    Returns
+    -------
+    Plot
+        ``values`` = the nonzeros per row of the matrix drawn, ``points`` =
+        ``[n_rows, nnz]``.
+    """
+    _plt()
+    import scipy.sparse as sp
+
+    from .io.scene import load_scene
+    from .operators.sparsity import plot_spy
+    from .system import constrained_system
+
+    sc = scene if hasattr(scene, "problem") else load_scene(scene)
+    K = sp.csr_array(constrained_system(sc.problem).assemble())
+    ax = plot_spy(K, ax=ax, order=order, block_size=sc.cloud.dim)
+    nnz_row = np.diff(K.indptr).astype(float)
+    return Plot(ax.figure, nnz_row, np.array([K.shape[0], K.nnz]), "nonzeros per row")
+
+
+def plot_sparsity_vs_horizon(
+    scene: Any, ratios: Any = (2.0, 3.0, 4.0, 5.0), *, ax: Any = None
+) -> Plot:
+    """Mean nonzeros per row of a scene's stiffness against the horizon ratio δ/h.
+
+    Each ratio rebuilds the bonds of the scene's cloud (``find_bonds(cloud,
+    ratio=m)``) and counts the pattern with :func:`pdlin.sparsity_report`
+    (``K`` is not assembled).
+
+    Returns
+    -------
+    Plot
+        ``values`` = mean nonzeros per DOF row, ``points`` = the ratios.
+    """
+    plt = _plt()
+    from .geometry.bonds import find_bonds
+    from .io.scene import load_scene
+    from .operators.sparsity import sparsity_report
+
+    sc = scene if hasattr(scene, "model") else load_scene(scene)
+    m = np.asarray(ratios, dtype=float).reshape(-1)
+    if m.size == 0 or not np.all(np.isfinite(m)) or np.any(m <= 0):
+        raise InputError(f"ratios (--ratios) must be positive numbers, got {m.tolist()}")
+    nnz = []
+    for ratio in m:
+        bonds = find_bonds(sc.cloud, ratio=float(ratio))
+        rep = sparsity_report(model=sc.model, cloud=sc.cloud, bonds=bonds, fill_limit=0)
+        nnz.append(rep.nnz_per_row_mean)
+    vals = np.array(nnz)
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(5.5, 4.2))
+    else:
+        fig = ax.figure
+    ax.plot(m, vals, "o-")
+    ax.set_xlabel("horizon ratio δ/h")
+    ax.set_ylabel("nonzeros per DOF row (mean)")
+    ax.set_title(f"{sc.name}: {sc.cloud.n:,} points, {sc.cloud.dim}D")
+    ax.grid(True, alpha=0.3)
+    return Plot(fig, vals, m, "nonzeros per DOF row (mean)")
+
+
+def render_result(
+    result: str | Path | ResultFile,
+    output: str | Path,
+    *,
+    field: str = "displacement",
+    component: str | None = None,
+    step: int = -1,
+    scale: float = 0.0,
+    window_size: tuple[int, int] = (1024, 768),
+) -> Plot:
+    """3D rendering of a result with pyvista (off-screen), written to a PNG atomically.
+
+    The points are drawn as spheres coloured by the field component (no
+    slice needed); needs ``pip install "pdlin[render]"`` (pyvista).
+
+    Returns
+    -------
+    Plot
+        ``figure`` is the rendered image ((h, w, 3) uint8 array), ``values``
+        the plotted values and ``points`` the drawn (3D) positions.
+    """
+    try:
+        import pyvista as pv
+    except ImportError as exc:
+        raise ImportError("3D rendering needs pyvista: pip install 'pdlin[render]'") from exc
+    from .io.results import _staging
+
+    r = result if isinstance(result, ResultFile) else read_result(result)
+    k = r.step_index(step)
+    fields = r.steps[k]
+    if field not in fields:
+        raise InputError(
+            f"field (--field) {field!r} is not in {r.path.name}; available: {sorted(fields)}"
+        )
+    values, label = _component(field, fields[field], r.dim, component)
+    pts = np.zeros((r.points.shape[0], 3))
+    pts[:, : r.dim] = r.points
+    if float(scale) != 0.0:
+        if "displacement" not in fields:
+            raise InputError(f"scale (--scale) {scale} needs a displacement field")
+        pts[:, : r.dim] += float(scale) * np.asarray(fields["displacement"])[:, : r.dim]
+    cloud = pv.PolyData(pts)
+    cloud[label] = values
+    pl = pv.Plotter(off_screen=True, window_size=list(window_size))
+    pl.add_points(cloud, scalars=label, render_points_as_spheres=True, point_size=8, cmap="viridis")
+    title = f"{r.path.name}: {label}" + (f", deformed x{float(scale):g}" if scale else "")
+    if r.n_steps > 1:
+        title += f" (step {k}, t = {r.times[k]:g})"
+    pl.add_text(title, font_size=10)
+    pl.camera_position = "iso"
+    p = Path(output)
+    with _staging(p) as tmp:
+        image = pl.screenshot(str(tmp / p.name), return_img=True)
+    pl.close()
+    return Plot(np.asarray(image), values, pts, label)
+
+
+def save_figure(fig: Any, path: str | Path, *, dpi: int = 120) -> Path:
+    """Save a figure atomically (written beside the target, then renamed)."""
+    from .io.results import _staging
+
+    p = Path(path)
+    with _staging(p) as tmp:
+        fig.savefig(tmp / p.name, dpi=dpi)
+    return p
