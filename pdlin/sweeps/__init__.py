@@ -22,6 +22,7 @@ from .problems import (
     graded_bar,
     make_model,
     plate_with_hole,
+    square_hole_plate,
     tension_bar,
 )
 
@@ -40,5 +41,6 @@ __all__ = [
     "affine_patch",
     "plate_with_hole",
     "anisotropic_block",
+    "square_hole_plate",
     "FACTORIES",
 ]
