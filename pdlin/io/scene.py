@@ -1070,8 +1070,6 @@ def list_builtin_scenes(*, hidden: bool = False) -> list[str]:
 def builtin_scene(name: str) -> tuple[dict[str, Any], str]:
     """Parsed data and text of a built-in example scene."""
     if name not in list_builtin_scenes(hidden=True):
-        raise SceneError(
-            f"unknown built-in scene {name!r}; available: {list_builtin_scenes()}"
-        )
+        raise SceneError(f"unknown built-in scene {name!r}; available: {list_builtin_scenes()}")
     text = (resources.files("pdlin") / "examples" / f"{name}.toml").read_text()
     return tomllib.loads(text), text

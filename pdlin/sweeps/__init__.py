@@ -22,6 +22,7 @@ from .problems import (
     graded_bar,
     make_model,
     plate_with_hole,
+    plate_with_hole_ogrid,
     square_hole_plate,
     tension_bar,
 )
@@ -42,5 +43,6 @@ __all__ = [
     "plate_with_hole",
     "anisotropic_block",
     "square_hole_plate",
+    "plate_with_hole_ogrid",
     "FACTORIES",
 ]
