@@ -256,11 +256,24 @@ def _with_check(**check):
             "check[0].metric must be one of",
         ),
         ({"kind": "scene", "source": "s", "tolerance": 0.1}, "check[0].scene must name"),
+        (
+            {
+                "kind": "value",
+                "quantity": "strain_xx",
+                "expected": 0.0,
+                "atol": 1e-9,
+                "tolerance": 0.1,
+                "source": "s",
+            },
+            "check[0] takes a relative 'tolerance' or an absolute 'atol', not both",
+        ),
+        ("not a table", "check[0] must be a table, got str"),
     ],
 )
 def test_bad_check_tables_name_the_key(check, message):
+    data = {**BASE, "check": [check]}
     with pytest.raises(SceneError) as exc:
-        scene_from_dict(_with_check(**check))
+        scene_from_dict(data)
     assert message in str(exc.value)
 
 
@@ -287,7 +300,6 @@ def test_checks_evaluated_on_a_user_scene():
                 "atol": 1e-12,
                 "points": [0],
                 "reduce": "max-abs",
-                "tolerance": 1.0,
                 "source": "not zero",
             },
         ],

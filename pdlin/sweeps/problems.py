@@ -20,6 +20,7 @@ factory                dim   reference
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -584,7 +585,7 @@ def square_hole_plate(
 
 
 #: bundled factories by name (``[tradeoff] problem = ...`` in scene files)
-FACTORIES = {
+FACTORIES: dict[str, Callable[..., TradeoffCase]] = {
     "graded_bar": graded_bar,
     "tension_bar": tension_bar,
     "affine_patch": affine_patch,
