@@ -405,6 +405,17 @@ def _step_index(check: Check, n_steps: int) -> int:
 def _value(check: Check, out: _Outcome) -> CheckResult:
     o = check.options
     name, idx = _parse_quantity(check.quantity, check.where)
+    if out.kind == "static" and "step" in o:
+        raise SceneError(f"{check.where}.step needs a load-stepped (nonlinear or damage) run")
+    scalar = name in ("broken_bonds", "first_break_load") or name == "homogenized_stress"
+    extra = [k for k in ("reduce", "set", "box", "points") if k in o]
+    if scalar and extra:
+        raise SceneError(
+            f"{check.where}.{extra[0]} does not apply to {check.quantity!r} (one number per run "
+            "or step, not a field)"
+        )
+    if name == "first_break_load" and "step" in o:
+        raise SceneError(f"{check.where}.step does not apply to 'first_break_load'")
     n_steps = 1 if out.kind == "static" else int(out.result.n_steps)
     step = _step_index(check, n_steps) if out.kind != "static" else -1
     r = out.result
