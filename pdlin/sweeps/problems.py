@@ -448,7 +448,7 @@ def plate_with_hole_ogrid(
     right edge) on the same mapping ``fe_refine`` times finer, evaluated at the particles;
     it is prescribed (both components) on the outermost radial layer of the left and right
     blocks.  The error is measured on the ring (the first radial layer, ``4 n_ang``
-    particles), where the spec compares max |u - u_FE| / range_ring(u_FE) per component:
+    particles), where the spec compares ``max |u - u_FE| / range_ring(u_FE)`` per component:
     XOSB ≈ 1 % / 3 %, uncorrected OSBPD (``model='lps'``) ≈ 2.4 % / 9.6 % at the default
     size (``examples/plate_with_hole_xosb.py --coarse``).
 
