@@ -18,6 +18,7 @@ from .constitutive.crystal_plasticity import (
 )
 from .errors import ConvergenceError, FloatingBodyError
 from .fields import deformation_gradient, shape_tensor, small_strain
+from .fracture import DamageResult, solve_damage
 from .geometry import Bonds, GhostLayer, PointCloud, find_bonds, from_image, ghost_layer, grid
 from .geometry.generators import plate_with_hole_mesh
 from .geometry.mesh import read_mesh
@@ -123,6 +124,8 @@ __all__ = [
     "damage_index",
     "isolated_points",
     "drop_isolated",
+    "solve_damage",
+    "DamageResult",
     "CrystalPlasticity",
     "SaintVenantKirchhoff",
     "MaterialPointResult",

@@ -71,6 +71,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         scene = _load(args)
     if scene.nonlinear is not None:
         return _run_nonlinear(args, scene, prog)
+    if scene.damage is not None:
+        return _run_damage(args, scene, prog)
     if args.resume:
         raise PdlinError("--resume needs a nonlinear scene with solver.checkpoint")
     solver = args.solver or scene.solver
@@ -107,6 +109,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if scene.subregion is not None:
         summary["subregion"] = {k: v for k, v in scene.subregion.items() if k != "interior"}
     summary["output"] = str(out)
+    checks = _checks(scene, result, summary, prog)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
@@ -136,7 +139,88 @@ def _cmd_run(args: argparse.Namespace) -> int:
                 f"calibration  {cal['status']}, max relative tensor error "
                 f"{cal['relative_error']:.3e}"
             )
-    return 0
+        _print_checks(checks)
+    return _check_status(args, checks)
+
+
+def _checks(scene: Any, result: Any, summary: dict[str, Any], prog: Any) -> list[Any]:
+    """Evaluate the scene's [[check]] tables; add them to the summary."""
+    if not scene.checks:
+        return []
+    from ..io.checks import evaluate_checks
+
+    prog(f"checking {len(scene.checks)} reference(s)")
+    res = evaluate_checks(scene.checks, scene, result)
+    summary["checks"] = [
+        {
+            "kind": r.check.kind,
+            "quantity": r.check.quantity,
+            "computed": r.computed,
+            "reference": r.reference,
+            "error": r.error,
+            "measure": r.measure,
+            "tolerance": r.check.tolerance,
+            "source": r.check.source,
+            "passed": r.passed,
+        }
+        for r in res
+    ]
+    return res
+
+
+def _print_checks(checks: list[Any]) -> None:
+    for r in checks:
+        print(r.line())
+
+
+def _check_status(args: argparse.Namespace, checks: list[Any]) -> int:
+    """Exit code: 5 when a check failed and --strict was given, else 0."""
+    failed = [r for r in checks if not r.passed]
+    if failed and not getattr(args, "json", False):
+        print(f"{len(failed)} of {len(checks)} check(s) FAILED", file=sys.stderr)
+    return 5 if failed and getattr(args, "strict", False) else 0
+
+
+def _run_damage(args: argparse.Namespace, scene: Any, prog: Any) -> int:
+    """``pdlin run`` on a scene with a [damage] table: load steps with bond breaking."""
+    from ..fracture import solve_damage
+    from ..io.results import write_points
+
+    opts = dict(scene.damage)
+    if args.solver:
+        opts["solver"] = args.solver
+    result = solve_damage(scene.problem, progress=prog, **opts)
+    out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.vtu"))
+    prog(f"writing {out}")
+    write_points(
+        out,
+        scene.cloud,
+        {"displacement": result.u[-1], "damage": result.damage[-1]},
+    )
+    summary = result.summary()
+    summary["scene"] = scene.name
+    summary["output"] = str(out)
+    checks = _checks(scene, result, summary, prog)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(f"scene        {scene.name}")
+        print(
+            f"load steps   {summary['steps']}, {summary['linear_solves']} linear solve(s), "
+            f"critical stretch {summary['critical_stretch']:.6g}"
+        )
+        print(
+            "broken bonds " + ", ".join(str(int(b)) for b in result.broken) + " (cumulative, "
+            f"per step); max damage {summary['max_damage']:.4f}"
+        )
+        fb = summary["first_break_load"]
+        print(f"first break  at load factor {fb:.6g}" if np.isfinite(fb) else "first break  none")
+        if result.stopped:
+            print(f"stopped      {result.stopped}")
+        print(f"time (s)     {summary['timings']['total']:.3f}")
+        print(f"results      {out}")
+        _print_checks(checks)
+    return _check_status(args, checks)
 
 
 def _run_nonlinear(args: argparse.Namespace, scene: Any, prog: Any) -> int:
@@ -163,6 +247,7 @@ def _run_nonlinear(args: argparse.Namespace, scene: Any, prog: Any) -> int:
     summary["homogenized"] = str(csv_path)
     if result.homogenized_stress is not None:
         summary["final_homogenized_stress"] = result.homogenized_stress[-1].tolist()
+    checks = _checks(scene, result, summary, prog)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
@@ -177,7 +262,8 @@ def _run_nonlinear(args: argparse.Namespace, scene: Any, prog: Any) -> int:
             print("mean stress  " + ", ".join(f"{v:.6g}" for v in sig.ravel()))
         print(f"time (s)     {summary['timings']['total']:.3f}")
         print(f"results      {series} (time series), {csv_path} (homogenized)")
-    return 0
+        _print_checks(checks)
+    return _check_status(args, checks)
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
@@ -321,8 +407,30 @@ def _cmd_examples(args: argparse.Namespace) -> int:
     if args.show:
         print(builtin_scene(args.show)[1])
         return 0
+    from ..io.checks import parse_checks
+
+    rows = []
     for name in list_builtin_scenes():
-        print(name)
+        data, _ = builtin_scene(name)
+        about = data.get("about", {})
+        checks = parse_checks(data["check"]) if "check" in data else []
+        verifies = "; ".join(f"{c.quantity} vs {c.source}" for c in checks) or "-"
+        rows.append(
+            {
+                "name": name,
+                "description": about.get("description", ""),
+                "verifies": verifies,
+                "runtime": about.get("runtime", ""),
+            }
+        )
+    if args.json:
+        print(json.dumps(rows, indent=2))
+        return 0
+    for r in rows:
+        print(f"{r['name']:22s} {r['description']}")
+        print(f"{'':22s}   verifies: {r['verifies']}")
+        print(f"{'':22s}   runtime:  {r['runtime']}")
+    print("\nrun one with: pdlin run --example NAME   (show its scene: pdlin examples --show NAME)")
     return 0
 
 
@@ -491,6 +599,11 @@ def build_parser() -> argparse.ArgumentParser:
         "tradeoff.target_error (the sweep's finished points are reused)",
     )
     r.add_argument("--target-error", type=float, help="override tradeoff.target_error")
+    r.add_argument(
+        "--strict",
+        action="store_true",
+        help="exit with code 5 when one of the scene's [[check]] references fails",
+    )
     r.set_defaults(func=_cmd_run)
 
     i = sub.add_parser("info", help="points, volumes, bonds and horizons of a mesh or scene")
@@ -583,6 +696,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     e = sub.add_parser("examples", help="list the built-in example scenes")
     e.add_argument("--show", metavar="NAME", help="print the scene file of an example")
+    e.add_argument("--json", action="store_true", help="print the list as JSON")
     e.set_defaults(func=_cmd_examples)
     return p
 
@@ -590,7 +704,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit code.
 
-    0 ok, 2 bad input, 3 solver failure, 4 infeasible calibration target.
+    0 ok, 2 bad input, 3 solver failure, 4 infeasible calibration target, 5 a scene
+    check failed under ``pdlin run --strict`` (without it failed checks only print FAIL).
     """
     parser = build_parser()
     args = parser.parse_args(argv)

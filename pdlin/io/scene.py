@@ -61,10 +61,18 @@ _TOP = {
     "output",
     "tradeoff",  # read by pdlin.sweeps.scene (pdlin tradeoff), ignored by run
     "subregion",
+    "check",  # [[check]]: references the run verifies (pdlin.io.checks)
+    "damage",  # stretch damage: load steps with bond breaking (pdlin.solve_damage)
+    "about",  # description / runtime shown by `pdlin examples`
+    "problem",  # a bundled problem of pdlin.sweeps.problems instead of geometry, ...
 }
+#: top-level keys of a scene built from a bundled problem ([problem] factory = ...)
+_PROBLEM_TOP = {"name", "problem", "solver", "output", "check", "about"}
+_DAMAGE = {"critical_stretch", "G0", "steps", "max_resolves"}
+_ABOUT = {"description", "runtime"}
 _SUBREGION = {"box", "coarse", "layer"}
 _GEOM = {
-    "grid": {"type", "shape", "spacing", "origin", "thickness", "ghost_layers"},
+    "grid": {"type", "shape", "spacing", "origin", "thickness", "ghost_layers", "holes"},
     "mesh": {"type", "path", "thickness", "dim"},
     "image": {"type", "path", "data", "spacing", "origin", "void", "thickness", "ghost_layers"},
 }
@@ -354,6 +362,14 @@ class Scene:
     #: ``[subregion]`` scenes: the driving coarse solve and the cut (see
     #: :func:`pdlin.subregion`): box, layer, coarse spacing, points, seconds
     subregion: dict[str, Any] | None = None
+    #: ``[[check]]`` tables (:func:`pdlin.io.checks.parse_checks`)
+    checks: list[Any] = field(default_factory=list)
+    #: ``[damage]`` options of :func:`pdlin.solve_damage` (``s0``, ``steps``, ...), or None
+    damage: dict[str, Any] | None = None
+    #: the bundled problem's :class:`~pdlin.sweeps.TradeoffCase` ([problem] scenes)
+    case: Any = None
+    #: ``[about]`` table: description and typical runtime
+    about: dict[str, str] = field(default_factory=dict)
 
     @property
     def cloud(self) -> PointCloud:
@@ -388,6 +404,29 @@ def _number(value: Any, key: str, *, positive: bool = False) -> float:
     return v
 
 
+def _holes(cloud: PointCloud, holes: Any) -> PointCloud:
+    """Remove the grid points inside circular (2D) / spherical (3D) holes."""
+    if not isinstance(holes, list):
+        raise SceneError(
+            f"geometry.holes must be an array of tables {{center = [...], radius = r}}, "
+            f"got {holes!r}"
+        )
+    inside = np.zeros(cloud.n, dtype=bool)
+    for k, hole in enumerate(holes):
+        key = f"geometry.holes[{k}]"
+        hole = _check_keys(hole, {"center", "radius"}, key)
+        r = _number(_require(hole, "radius", key), f"{key}.radius", positive=True)
+        c = _require(hole, "center", key)
+        if not isinstance(c, list) or len(c) != cloud.dim:
+            raise SceneError(f"{key}.center must list {cloud.dim} coordinates, got {c!r}")
+        for j, v in enumerate(c):
+            _number(v, f"{key}.center[{j}]")
+        inside |= np.linalg.norm(cloud.points - np.asarray(c, dtype=float), axis=1) < r
+    if inside.all():
+        raise SceneError("geometry.holes remove every point of the grid")
+    return cloud.subset(np.flatnonzero(~inside))
+
+
 def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
     if not isinstance(cfg, Mapping):
         raise SceneError(f"geometry must be a table, got {type(cfg).__name__}")
@@ -405,7 +444,8 @@ def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
         spacing = cfg.get("spacing", 1.0)
         for k, v in enumerate(spacing if isinstance(spacing, list) else [spacing]):
             _number(v, "geometry.spacing" + (f"[{k}]" if isinstance(spacing, list) else ""))
-        return grid(shape, spacing, cfg.get("origin"), thickness=thickness)
+        cloud = grid(shape, spacing, cfg.get("origin"), thickness=thickness)
+        return _holes(cloud, cfg["holes"]) if "holes" in cfg else cloud
     if kind == "mesh":
         path = _resolve_path(_require(cfg, "path", "geometry"), base, "geometry.path")
         from ..geometry import mesh as mesh_mod  # lazy: meshio readers
@@ -514,6 +554,8 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
     top = _check_keys(data, _TOP, "")
     if "subregion" in top:
         return _subregion_scene(top, base)
+    if "problem" in top:
+        return _problem_scene(top, base)
     try:
         gcfg = _require(top, "geometry", "scene")
         cloud = _geometry(gcfg, base)
@@ -704,9 +746,15 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
     hom = ocfg.get("homogenized")
     if hom is not None and nonlinear is None:
         raise SceneError("output.homogenized needs a nonlinear solve ([solver] nonlinear = ...)")
+    damage = _damage_options(top, problem, scfg)
+    if damage is not None and nonlinear is not None:
+        raise SceneError("[damage] runs linear load steps; remove solver.nonlinear")
     return Scene(
         name=str(top.get("name", "scene")),
         problem=problem,
+        checks=_checks(top),
+        damage=damage,
+        about=_about(top),
         solver=str(scfg.get("name", "auto")),
         rtol=float(scfg.get("rtol", 1e-8)),
         maxiter=None if scfg.get("maxiter") is None else int(scfg["maxiter"]),
@@ -781,6 +829,117 @@ def _subregion_scene(top: Mapping[str, Any], base: Path) -> Scene:
         "interior": cut.interior,
     }
     return fine
+
+
+def _checks(top: Mapping[str, Any]) -> list[Any]:
+    from .checks import parse_checks
+
+    return parse_checks(top["check"]) if "check" in top else []
+
+
+def _about(top: Mapping[str, Any]) -> dict[str, str]:
+    about = _check_keys(top.get("about", {}), _ABOUT, "about")
+    for k, v in about.items():
+        if not isinstance(v, str):
+            raise SceneError(f"about.{k} must be a string, got {v!r}")
+    return about
+
+
+def _damage_options(
+    top: Mapping[str, Any], problem: StaticProblem, scfg: Mapping[str, Any]
+) -> dict[str, Any] | None:
+    """``[damage]``: critical stretch (or G0) and load steps of :func:`pdlin.solve_damage`."""
+    if "damage" not in top:
+        return None
+    d = _check_keys(top["damage"], _DAMAGE, "damage")
+    if ("critical_stretch" in d) == ("G0" in d):
+        raise SceneError("damage needs exactly one of 'critical_stretch' or 'G0'")
+    if problem.symmetry:
+        raise SceneError("[damage] cannot be combined with [[symmetry]] planes")
+    opts: dict[str, Any] = {}
+    if "critical_stretch" in d:
+        opts["s0"] = _number(d["critical_stretch"], "damage.critical_stretch", positive=True)
+    else:
+        from ..models.damage import critical_stretch
+
+        g0 = _number(d["G0"], "damage.G0", positive=True)
+        model = problem.model
+        E = getattr(model, "E", None)
+        if not isinstance(model, BondBased) or E is None or np.ndim(E) != 0:
+            raise SceneError(
+                "damage.G0 needs a bond-based model with one scalar material.E (the "
+                "critical-stretch forms of pdlin.critical_stretch); give "
+                "damage.critical_stretch otherwise"
+            )
+        cloud = problem.cloud
+        delta = problem.get_bonds().horizon.max()
+        plane = getattr(model, "plane", "stress") if cloud.dim == 2 else None
+        opts["s0"] = critical_stretch(g0, float(E), float(delta), plane=plane, dim=cloud.dim)
+    for key, lo in (("steps", 1), ("max_resolves", 1)):
+        if key in d:
+            v = d[key]
+            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+                raise SceneError(f"damage.{key} must be an integer >= {lo}, got {v!r}")
+            opts[key] = v
+    opts["solver"] = str(scfg.get("name", "auto"))
+    if "rtol" in scfg:
+        opts["rtol"] = float(scfg["rtol"])
+    return opts
+
+
+def _problem_scene(top: Mapping[str, Any], base: Path) -> Scene:
+    """A scene built from a bundled problem of :mod:`pdlin.sweeps.problems`.
+
+    ``[problem] factory = "graded_bar"`` plus the factory's keyword parameters; the
+    problem carries its own reference (closed form or finite elements), which checks of
+    ``kind = "reference"`` compare against.
+    """
+    import inspect
+
+    from ..sweeps.problems import FACTORIES
+
+    extra = sorted(set(top) - _PROBLEM_TOP)
+    if extra:
+        raise SceneError(
+            f"scene key {extra[0]!r} cannot be combined with [problem] (a bundled problem "
+            f"defines its own geometry, model and conditions); allowed: {sorted(_PROBLEM_TOP)}"
+        )
+    cfg = top["problem"]
+    if not isinstance(cfg, Mapping):
+        raise SceneError(f"problem must be a table, got {type(cfg).__name__}")
+    name = cfg.get("factory")
+    if name not in FACTORIES:
+        raise SceneError(f"problem.factory must be one of {sorted(FACTORIES)}, got {name!r}")
+    factory = FACTORIES[name]
+    params = set(inspect.signature(factory).parameters)
+    _check_keys(cfg, params | {"factory"}, "problem")
+    kwargs = {k: (tuple(v) if isinstance(v, list) else v) for k, v in cfg.items() if k != "factory"}
+    try:
+        case = factory(**kwargs)
+    except SceneError:
+        raise
+    except (PdlinError, TypeError) as exc:
+        raise SceneError(f"problem ({name}): {exc}") from exc
+    scfg = _check_keys(top.get("solver", {}), {"name", "rtol", "maxiter"}, "solver")
+    _solver_options(scfg)
+    ocfg = _check_keys(top.get("output", {}), {"path", "fields"}, "output")
+    out = ocfg.get("path")
+    if out is not None and not isinstance(out, str):
+        raise SceneError(f"output.path must be a path string, got {out!r}")
+    solver = scfg.get("name", case.solve_kwargs.get("solver", "auto"))
+    return Scene(
+        name=str(top.get("name", name)),
+        problem=case.problem,
+        solver=str(solver),
+        rtol=float(scfg.get("rtol", case.solve_kwargs.get("rtol", 1e-8))),
+        maxiter=None if scfg.get("maxiter") is None else int(scfg["maxiter"]),
+        output=None if out is None else (Path(out) if Path(out).is_absolute() else base / out),
+        fields=ocfg.get("fields"),
+        base_dir=base,
+        checks=_checks(top),
+        case=case,
+        about=_about(top),
+    )
 
 
 def _solver_options(scfg: Mapping[str, Any]) -> None:
@@ -897,16 +1056,20 @@ def load_scene(path: str | Path) -> Scene:
     return scene_from_dict(data, base)
 
 
-def list_builtin_scenes() -> list[str]:
-    """Names of the example scenes shipped with pdlin."""
+def list_builtin_scenes(*, hidden: bool = False) -> list[str]:
+    """Names of the example scenes shipped with pdlin.
+
+    Names starting with ``_`` are reference scenes used by other scenes' checks; they
+    are listed only with ``hidden=True``.
+    """
     files = resources.files("pdlin") / "examples"
-    return sorted(f.name[:-5] for f in files.iterdir() if f.name.endswith(".toml"))
+    names = sorted(f.name[:-5] for f in files.iterdir() if f.name.endswith(".toml"))
+    return names if hidden else [n for n in names if not n.startswith("_")]
 
 
 def builtin_scene(name: str) -> tuple[dict[str, Any], str]:
     """Parsed data and text of a built-in example scene."""
-    names = list_builtin_scenes()
-    if name not in names:
-        raise SceneError(f"unknown built-in scene {name!r}; available: {names}")
+    if name not in list_builtin_scenes(hidden=True):
+        raise SceneError(f"unknown built-in scene {name!r}; available: {list_builtin_scenes()}")
     text = (resources.files("pdlin") / "examples" / f"{name}.toml").read_text()
     return tomllib.loads(text), text

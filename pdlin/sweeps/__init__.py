@@ -22,6 +22,8 @@ from .problems import (
     graded_bar,
     make_model,
     plate_with_hole,
+    plate_with_hole_ogrid,
+    square_hole_plate,
     tension_bar,
 )
 
@@ -40,5 +42,7 @@ __all__ = [
     "affine_patch",
     "plate_with_hole",
     "anisotropic_block",
+    "square_hole_plate",
+    "plate_with_hole_ogrid",
     "FACTORIES",
 ]

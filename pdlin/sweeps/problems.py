@@ -12,12 +12,15 @@ factory                dim   reference
 :func:`affine_patch`   2, 3  closed form: any affine field (a patch test)
 :func:`plate_with_hole` 2    Q4 finite elements (:mod:`pdlin.verification.fem`)
 :func:`anisotropic_block` 2  closed form: uniaxial stress of an orthotropic tensor
+:func:`square_hole_plate` 2  Q4 finite elements on the particles (spec 003 §7.2)
+:func:`plate_with_hole_ogrid` 2 Q4 finite elements, graded O-grid (spec 002 §9.1)
 =====================  ====  =====================================================
 """
 
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -39,6 +42,8 @@ __all__ = [
     "affine_patch",
     "plate_with_hole",
     "anisotropic_block",
+    "square_hole_plate",
+    "plate_with_hole_ogrid",
     "FACTORIES",
 ]
 
@@ -425,11 +430,167 @@ def anisotropic_block(
     return TradeoffCase(prob, exact=exact, measure=real, h=float(h), delta=delta)
 
 
+def plate_with_hole_ogrid(
+    model: str = "xosb",
+    *,
+    n_ang: int = 24,
+    n_rad: int = 45,
+    fe_refine: int = 2,
+    ratio: float = 3.01,
+    linearization: str = "energy",
+) -> TradeoffCase:
+    """The spec 002 §9.1 plate on its graded O-grid, boundary condition "B"; Q4 reference.
+
+    One particle per cell of :func:`pdlin.plate_with_hole_mesh` ``(n_ang, n_rad)``
+    (``4 n_ang n_rad`` particles, horizon ``ratio · sqrt(A_i)`` per particle), plane
+    stress, E = 70 GPa, ν = 0.33.  The reference is the Q4 solution
+    (:func:`pdlin.verification.plate_extension_q4`: u_x = 0 / u0 = 5e-4 m on the left /
+    right edge) on the same mapping ``fe_refine`` times finer, evaluated at the particles;
+    it is prescribed (both components) on the outermost radial layer of the left and right
+    blocks.  The error is measured on the ring (the first radial layer, ``4 n_ang``
+    particles), where the spec compares ``max |u - u_FE| / range_ring(u_FE)`` per component:
+    XOSB ≈ 1 % / 3 %, uncorrected OSBPD (``model='lps'``) ≈ 2.4 % / 9.6 % at the default
+    size (``examples/plate_with_hole_xosb.py --coarse``).
+
+    Parameters
+    ----------
+    model : {'xosb', 'lps'}
+        XOSB, or LPS with the analytic weighted volume (the uncorrected OSBPD).
+    n_ang, n_rad : int
+        O-grid cells per block side and radially.
+    fe_refine : int
+        FE mesh refinement factor.
+    ratio : float
+        Horizon / sqrt(cell area).
+    linearization : {'energy', 'paper'}
+        Force-state linearization (``'paper'`` is nonsymmetric: solve with GMRES).
+
+    Examples
+    --------
+    >>> case = plate_with_hole_ogrid(n_ang=4, n_rad=6, fe_refine=1)
+    >>> case.problem.cloud.n, case.measure.size
+    (96, 16)
+    """
+    from ..geometry.generators import plate_with_hole_mesh
+    from ..geometry.mesh import read_mesh
+    from ..models import LPS, XOSB
+    from ..verification.fem import evaluate_q4
+
+    if model not in ("xosb", "lps"):
+        raise InputError(f"model must be 'xosb' or 'lps', got {model!r}")
+    n_ang, n_rad, fe_refine = int(n_ang), int(n_rad), int(fe_refine)
+    if n_ang < 2 or n_rad < 2 or fe_refine < 1:
+        raise InputError(
+            f"need n_ang >= 2, n_rad >= 2, fe_refine >= 1, got {n_ang}, {n_rad}, {fe_refine}"
+        )
+    pts, quads, ufe = _plate_fe(fe_refine * n_ang, fe_refine * n_rad)
+    cloud = read_mesh(plate_with_hole_mesh(n_ang, n_rad), horizon_ratio=float(ratio))
+    bonds = find_bonds(cloud, cloud.horizon)
+    uref = evaluate_q4(pts, quads, ufe, cloud.points)
+    x, y = cloud.points.T
+    ring = np.argsort(np.hypot(x, y))[: 4 * n_ang]
+    side = np.flatnonzero(np.abs(x) > np.abs(y))
+    right = side[np.argsort(-x[side])[:n_ang]]
+    left = side[np.argsort(x[side])[:n_ang]]
+    strips = np.concatenate([left, right])
+    if model == "xosb":
+        mdl: Model = XOSB(_PLATE_E, _PLATE_NU, linearization=linearization)
+    else:
+        mdl = LPS(_PLATE_E, _PLATE_NU, weighted_volume="analytic", linearization=linearization)
+    solver = "direct" if linearization == "energy" else "amg-gmres"
+    prob = StaticProblem(mdl, cloud, bonds, dirichlet=[Dirichlet(strips, uref[strips])])
+    h = float(np.sqrt(np.median(cloud.volumes)))
+    return TradeoffCase(
+        prob, {"solver": solver, "rtol": 1e-10}, reference=uref, measure=np.sort(ring), h=h
+    )
+
+
+# --- R2D plate with a square hole (spec 003 §7.2) ------------------------------------------
+
+_SQ_E, _SQ_NU, _SQ_SIDE, _SQ_HOLE, _SQ_U = 1000.0, 0.3, 50.0, 10.0, 0.5  # MPa, mm
+
+
+def square_hole_plate(
+    model: str = "correspondence:stress_points",
+    *,
+    h: float = 2.0,
+    seed: int = 0,
+) -> TradeoffCase:
+    """Plate [0, 50]² mm minus the square hole [0, 10)² on a node lattice; Q4 reference.
+
+    The quarter model of spec 003 §7.2 (its R2D reconstruction in
+    ``examples/correspondence_controls.py``): particles at the nodes ``(i h, j h)`` with
+    ``V = h²``, E = 1000 MPa, ν = 0.3, plane stress; ``u_x = 0`` on ``x = 0``,
+    ``u_y = 0`` on ``y = 0``, ``u_x = 0.5`` mm on ``x = 50``, ``u_y = 0.5`` mm on
+    ``y = 50`` (tangential components free); nearest-neighbour families (δ = h).  The
+    reference is the Q4 solution (:func:`pdlin.verification.solve_q4`) with its nodes at
+    the particles; the error is measured on every particle.
+
+    Parameters
+    ----------
+    model : str
+        ``'correspondence:<control>'`` (default stress points, spec 003).
+    h : float
+        Lattice spacing in mm (50 / h must be an integer).
+    seed : int
+        Seed of the stress-point pattern.
+
+    Examples
+    --------
+    >>> case = square_hole_plate(h=5.0)
+    >>> case.problem.cloud.n, case.reference.shape
+    (117, (117, 2))
+    """
+    from ..models.correspondence import Correspondence
+    from ..operators.bc import resolve_dirichlet
+    from ..verification.fem import solve_q4
+
+    base, _, control = str(model).partition(":")
+    if base not in ("correspondence", "cor"):
+        raise InputError(
+            f"square_hole_plate supports model='correspondence:<control>', got {model!r}"
+        )
+    h = float(h)
+    n = int(round(_SQ_SIDE / h)) + 1
+    if not (h > 0 and abs((n - 1) * h - _SQ_SIDE) < 1e-9 * _SQ_SIDE and n >= 7):
+        raise InputError(f"h must divide 50 into at least 6 intervals, got h={h!r}")
+    full = grid((n, n), spacing=h, origin=[-0.5 * h, -0.5 * h])
+    tol = 1e-9 * h
+    keep = np.flatnonzero(~np.all(full.points < _SQ_HOLE - tol, axis=1))
+    new = np.full(full.n, -1, dtype=np.intp)
+    new[keep] = np.arange(keep.size)
+    i, j = (a.ravel() for a in np.meshgrid(np.arange(n - 1), np.arange(n - 1), indexing="ij"))
+    cell = ~((i * h < _SQ_HOLE - tol) & (j * h < _SQ_HOLE - tol))
+    i, j = i[cell], j[cell]
+    quads = np.stack(
+        [new[i * n + j], new[(i + 1) * n + j], new[(i + 1) * n + j + 1], new[i * n + j + 1]],
+        axis=1,
+    )
+    cloud = full.subset(keep)
+    x, y = cloud.points.T
+    t = 1e-9 * _SQ_SIDE
+    bcs = [
+        Dirichlet(np.flatnonzero(x < t), 0.0, components="x"),
+        Dirichlet(np.flatnonzero(y < t), 0.0, components="y"),
+        Dirichlet(np.flatnonzero(x > _SQ_SIDE - t), _SQ_U, components="x"),
+        Dirichlet(np.flatnonzero(y > _SQ_SIDE - t), _SQ_U, components="y"),
+    ]
+    dofs, vals = resolve_dirichlet(cloud, bcs)
+    u_fe = solve_q4(cloud.points, quads, _SQ_E, _SQ_NU, dofs, vals, plane="stress")
+    bonds = find_bonds(cloud, ratio=1.0)
+    kw: dict[str, Any] = {"seed": int(seed)} if (control or "none") == "stress_points" else {}
+    mdl = Correspondence(E=_SQ_E, nu=_SQ_NU, plane="stress", control=control or "none", **kw)
+    prob = StaticProblem(mdl, cloud, bonds, dirichlet=bcs)
+    return TradeoffCase(prob, {"solver": "direct"}, reference=u_fe, h=h, delta=h)
+
+
 #: bundled factories by name (``[tradeoff] problem = ...`` in scene files)
-FACTORIES = {
+FACTORIES: dict[str, Callable[..., TradeoffCase]] = {
     "graded_bar": graded_bar,
     "tension_bar": tension_bar,
     "affine_patch": affine_patch,
     "plate_with_hole": plate_with_hole,
     "anisotropic_block": anisotropic_block,
+    "square_hole_plate": square_hole_plate,
+    "plate_with_hole_ogrid": plate_with_hole_ogrid,
 }
