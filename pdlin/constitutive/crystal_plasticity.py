@@ -1103,7 +1103,7 @@ class CrystalPlasticity:
         """Warnings about a committed state: points whose active-set search did not settle.
 
         Called by the nonlinear drivers after each converged load step (see
-        :meth:`pdlin.models.Model.committed_issues`).
+        :meth:`pdlin.Model.committed_issues`).
 
         Examples
         --------
