@@ -2,7 +2,7 @@
 
 Usage::
 
-    python benchmarks/bench_petsc.py                      # 3D LPS 40^3 and 2D BB 400^2, 1 and 2 ranks
+    python benchmarks/bench_petsc.py        # 3D LPS 40^3 and 2D BB 400^2, 1 and 2 ranks
     python benchmarks/bench_petsc.py --cases lps3d:24 bb2d:200 --ranks 1 2
 
 Each configuration runs as ``mpiexec -n P python benchmarks/bench_petsc.py --worker CASE``;
@@ -124,9 +124,12 @@ def main() -> None:
             t = {k: max(r["timings"][k] for r in recs) for k in recs[0]["timings"]}
             base = t["total"] if base is None else base
             r0 = recs[0]
-            halo = " / ".join(f"{r['local_rows'] // (3 if '3d' in case else 2):,} + "
-                              f"{r['local_points_with_halo'] - r['local_rows'] // (3 if '3d' in case else 2):,}"
-                              for r in recs)  # fmt: skip
+            dim = 3 if "3d" in case else 2
+            own = [r["local_rows"] // dim for r in recs]
+            halo = " / ".join(
+                f"{o:,} + {r['local_points_with_halo'] - o:,}"
+                for o, r in zip(own, recs, strict=True)
+            )
             rss = " / ".join(f"{r['peak_rss_mb']:.0f}" for r in recs)
             print(
                 f"| {case} | {r0['points']:,} | {r0['bonds']:,} | {p} | {r0['ksp']} | "

@@ -346,7 +346,7 @@ def solve(
             )
         from .backends.petsc import solve_petsc
 
-        return solve_petsc(  # type: ignore[no-any-return]
+        return solve_petsc(
             problem, solver, rtol=rtol, maxiter=maxiter, petsc_options=petsc_options,
             progress=progress,
         )  # fmt: skip

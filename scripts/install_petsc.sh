@@ -6,13 +6,15 @@
 #   1. petsc4py already importable             -> done
 #   2. Debian/Ubuntu with apt and root         -> apt-get install libpetsc-real-dev (PETSc 3.18 with
 #      MUMPS, hypre, SuperLU_DIST; OpenMPI) and build petsc4py 3.18 from its PyPI sdist against it
-#      (pre-generated C source: no Cython needed; builds against numpy 2), then mpi4py against the
-#      same OpenMPI
+#      (pre-generated C source: no Cython needed; builds against numpy 2); with --mpi4py also
+#      mpi4py against the same OpenMPI (pdlin itself does not need it)
 #   3. otherwise                               -> print "PETSc not installed: <reason>" and exit 0
 #      (a source build of PETSc, `pip install petsc petsc4py`, takes ~1 h on 2 cores: do it by hand)
 #
-# Usage: scripts/install_petsc.sh [PYTHON]   (default: python on PATH)
+# Usage: scripts/install_petsc.sh [--mpi4py] [PYTHON]   (default: python on PATH)
 set -u
+WITH_MPI4PY=0
+if [ "${1:-}" = "--mpi4py" ]; then WITH_MPI4PY=1; shift; fi
 PY="${1:-python}"
 t0=$(date +%s)
 say() { echo "install_petsc: $*"; }
@@ -39,14 +41,16 @@ fi
 command -v mpicc >/dev/null 2>&1 || skip "mpicc not found after installing libpetsc-real-dev"
 
 say "building petsc4py ${PETSC_VER} against $PETSC_DIR_DEB (a few minutes)"
-"$PY" -m pip install -q "setuptools<70" wheel >/dev/null 2>&1 || true
+"$PY" -m pip install -q numpy "setuptools<70" wheel >/dev/null 2>&1 || true
 PETSC_DIR="$PETSC_DIR_DEB" PETSC_ARCH="" "$PY" -m pip install -q --no-build-isolation \
     "petsc4py==${PETSC_VER}.*" >/tmp/install_petsc_pip.log 2>&1 \
     || skip "pip could not build petsc4py ${PETSC_VER} (log: /tmp/install_petsc_pip.log)"
 
-say "building mpi4py against $(mpicc -showme:version 2>/dev/null | head -1 || echo mpicc)"
-MPICC=mpicc "$PY" -m pip install -q --no-binary mpi4py mpi4py >>/tmp/install_petsc_pip.log 2>&1 \
-    || say "mpi4py not installed (optional; log: /tmp/install_petsc_pip.log)"
+if [ "$WITH_MPI4PY" = 1 ]; then
+    say "building mpi4py against $(mpicc -showme:version 2>/dev/null | head -1 || echo mpicc)"
+    MPICC=mpicc "$PY" -m pip install -q --no-binary mpi4py mpi4py >>/tmp/install_petsc_pip.log 2>&1 \
+        || say "mpi4py not installed (optional; log: /tmp/install_petsc_pip.log)"
+fi
 
 "$PY" -c "import petsc4py; petsc4py.init([]); from petsc4py import PETSc; \
 print('install_petsc: petsc4py', petsc4py.__version__, 'PETSc', '.'.join(map(str, PETSc.Sys.getVersion())), \

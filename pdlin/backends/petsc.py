@@ -132,7 +132,7 @@ def rcb_partition(points: Any, nparts: int) -> np.ndarray:
     --------
     >>> import numpy as np
     >>> from pdlin.backends.petsc import rcb_partition
-    >>> pts = np.stack(np.meshgrid(np.arange(4.0), np.arange(2.0), indexing="ij"), -1).reshape(-1, 2)
+    >>> pts = np.stack(np.meshgrid(np.arange(4.0), [0.0, 1.0], indexing="ij"), -1).reshape(-1, 2)
     >>> rcb_partition(pts, 2).tolist()   # split across x, the longest axis
     [0, 0, 0, 0, 1, 1, 1, 1]
     """
@@ -187,7 +187,9 @@ class _Layout:
 def _layout(cloud: PointCloud, rank: int, size: int, partition: str) -> _Layout:
     n = cloud.n
     if size > n:
-        raise InputError(f"the number of MPI ranks must be <= the number of points ({n}), got {size}")
+        raise InputError(
+            f"the number of MPI ranks must be <= the number of points ({n}), got {size}"
+        )
     if partition == "rcb":
         labels = rcb_partition(cloud.points, size)
     else:  # natural: contiguous ranges of the cloud's own order
@@ -214,7 +216,7 @@ def _reach(cloud: PointCloud, hor: np.ndarray, options: Mapping[str, Any]) -> fl
 
 
 def _halo(cloud: PointCloud, owned: np.ndarray, hops: int, radius: float) -> np.ndarray:
-    """Old indices of the points within ``hops`` x ``radius`` graph steps of ``owned``, not owned."""
+    """Old indices of the points ``hops`` radius-steps or fewer from ``owned`` (owned excluded)."""
     tree = cKDTree(cloud.points)
     member = np.zeros(cloud.n, dtype=bool)
     member[owned] = True
@@ -261,6 +263,7 @@ def local_rows(
     *,
     horizon: Any = None,
     bond_options: Mapping[str, Any] | None = None,
+    timings: dict[str, float] | None = None,
 ) -> tuple[sp.bsr_array, np.ndarray, PointCloud, Bonds]:
     """Rows of the stiffness K for some points, without assembling the rest.
 
@@ -280,6 +283,8 @@ def local_rows(
         As for :func:`pdlin.find_bonds` (default ``cloud.horizon``).
     bond_options : mapping, optional
         Other :func:`pdlin.find_bonds` keyword arguments (``ratio`` included).
+    timings : dict, optional
+        Receives the seconds spent in 'bonds' (halo and bond search) and 'assembly'.
 
     Returns
     -------
@@ -303,6 +308,7 @@ def local_rows(
     >>> bool(abs(rows - K.tocsr()[:60]).max() < 1e-12 * abs(K).max()), index.size < cloud.n
     (True, True)
     """
+    t0 = time.perf_counter()
     own = np.asarray(owned, dtype=np.int64)
     opts = dict(bond_options or {})
     hor = resolve_horizon(cloud, horizon, opts.pop("ratio", None))
@@ -323,15 +329,23 @@ def local_rows(
                 f"first index {p} at {cloud.points[p].tolist()}; increase the horizon or pass "
                 "allow_isolated=True"
             )
+    t1 = time.perf_counter()
     K = model.stiffness(local, bonds)
     d = cloud.dim
-    K = K if isinstance(K, sp.bsr_array) and K.blocksize == (d, d) else sp.bsr_array(K, blocksize=(d, d))
+    K = (
+        K
+        if isinstance(K, sp.bsr_array) and K.blocksize == (d, d)
+        else sp.bsr_array(K, blocksize=(d, d))
+    )
     nnzb = int(K.indptr[m])
     rows = sp.bsr_array(
         (K.data[:nnzb], index[K.indices[:nnzb]], K.indptr[: m + 1].copy()),
         shape=(m * d, cloud.n * d),
         blocksize=(d, d),
     )
+    if timings is not None:
+        timings["bonds"] = timings.get("bonds", 0.0) + t1 - t0
+        timings["assembly"] = timings.get("assembly", 0.0) + time.perf_counter() - t1
     return rows, index, local, bonds
 
 
@@ -357,7 +371,9 @@ def _result_class() -> type:
 
         def deformation_gradient(self) -> np.ndarray:
             if "deformation_gradient" not in self.point_fields:
-                raise InputError("the deformation gradient was not computed (singular shape tensor)")
+                raise InputError(
+                    "the deformation gradient was not computed (singular shape tensor)"
+                )
             d = self.u.shape[1]
             return self.point_fields["deformation_gradient"].reshape(-1, d, d)
 
@@ -576,12 +592,20 @@ def solve_petsc(
         rows, index, local, bonds = None, None, None, None  # set below
     timings["bonds"] = time.perf_counter() - t0
 
-    say("assembly (owned rows)")
+    say("bonds and assembly of the owned rows")
     t0 = time.perf_counter()
+    part: dict[str, float] = {}
     if rows is None:
         rows, index, local, bonds = local_rows(
-            model, cloud, owned, horizon=problem.horizon, bond_options=problem.bond_options
+            model,
+            cloud,
+            owned,
+            horizon=problem.horizon,
+            bond_options=problem.bond_options,
+            timings=part,
         )
+        timings["bonds"] += part["bonds"]
+        t0 += part["bonds"]
     assert index is not None and local is not None and bonds is not None
     rows = sp.bsr_array(rows)
     rows.sort_indices()
@@ -619,7 +643,11 @@ def solve_petsc(
         A = PETSc.Mat().createBAIJ(
             size=((m * d, N), (m * d, N)),
             bsize=d,
-            csr=(A_loc.indptr.astype(PETSc.IntType), A_loc.indices.astype(PETSc.IntType), A_loc.data.reshape(-1)),
+            csr=(
+                A_loc.indptr.astype(PETSc.IntType),
+                A_loc.indices.astype(PETSc.IntType),
+                A_loc.data.reshape(-1),
+            ),
             comm=comm,
         )
     else:

@@ -65,9 +65,7 @@ def test_local_rows_equal_global_rows(name):
     lab = rcb_partition(cloud.points, 2)
     for part in (0, 1):
         owned = np.flatnonzero(lab == part)
-        rows, index, _, bonds = local_rows(
-            prob.model, cloud, owned, bond_options=prob.bond_options
-        )
+        rows, index, _, bonds = local_rows(prob.model, cloud, owned, bond_options=prob.bond_options)
         dofs = (owned[:, None] * d + np.arange(d)).reshape(-1)
         diff = abs(rows.tocsr() - K[dofs]).max()
         assert diff <= 1e-12 * abs(K).max(), (name, part, diff)
