@@ -338,11 +338,13 @@ def local_rows(
         else sp.bsr_array(K, blocksize=(d, d))
     )
     nnzb = int(K.indptr[m])
+    # copies: the halo rows of the local K are freed with it
     rows = sp.bsr_array(
-        (K.data[:nnzb], index[K.indices[:nnzb]], K.indptr[: m + 1].copy()),
+        (K.data[:nnzb].copy(), index[K.indices[:nnzb]], K.indptr[: m + 1].copy()),
         shape=(m * d, cloud.n * d),
         blocksize=(d, d),
     )
+    del K
     if timings is not None:
         timings["bonds"] = timings.get("bonds", 0.0) + t1 - t0
         timings["assembly"] = timings.get("assembly", 0.0) + time.perf_counter() - t1
@@ -617,7 +619,7 @@ def solve_petsc(
     row_dofs = (owned[:, None] * d + np.arange(d)).reshape(-1)
     b_loc = f_ext[row_dofs] - rows @ uc
     pres_rows = np.flatnonzero(~free[row_dofs])
-    K_pres = sp.csr_array(rows)[pres_rows]  # prescribed rows, kept for the reactions
+    K_pres = _scalar_rows(rows, pres_rows)  # prescribed rows, kept for the reactions
     brow = np.repeat(np.arange(m), np.diff(rows.indptr))
     cols = rows.indices.astype(np.int64)
     isdiag = owned[brow] == cols
@@ -629,7 +631,9 @@ def solve_petsc(
     s = _global_sum(PETSc, s_sum) / n_free if n_free else 1.0
     fr = free.reshape(-1, d)[owned[brow]]
     fc = free.reshape(-1, d)[cols]
-    data = rows.data * fr[:, :, None] * fc[:, None, :]
+    data = rows.data  # eliminated in place: rows is this rank's own copy
+    data *= fr[:, :, None]
+    data *= fc[:, None, :]
     for k in range(d):  # identity s on the prescribed diagonal entries
         fixed = ~free[owned[brow[pos]] * d + k]
         data[pos[fixed], k, k] = s
@@ -659,10 +663,11 @@ def solve_petsc(
             csr=(C.indptr.astype(PETSc.IntType), C.indices.astype(PETSc.IntType), C.data),
             comm=comm,
         )
+        del C
     A.assemble()
     n_bonds_local = int(bonds.indptr[m])
     nnz_local = int(A_loc.indptr[-1]) * d * d
-    del data, A_loc
+    del data, A_loc, rows  # PETSc holds its copy
     timings["assembly"] = time.perf_counter() - t0
 
     # -- KSP -------------------------------------------------------------------------------
@@ -671,6 +676,12 @@ def solve_petsc(
     if name == "auto":
         name = "amg-cg" if symmetric else "amg-gmres"
     ksp_type, pc_type = _KSP[name]
+    if mat_type == "baij" and pc_type == "gamg":
+        raise InputError(
+            f"mat_type='baij' does not work with solver {name!r}: PETSc's GAMG needs an AIJ "
+            "matrix (MatCreateGraph); use mat_type='aij' (block size dim) or a solver without "
+            "GAMG ('direct', 'jacobi-cg', 'ilu-gmres')"
+        )
     if not symmetric and ksp_type == "cg":
         ksp_type = "gmres"
     say(f"solve (PETSc {ksp_type} + {pc_type}, {size} rank(s))")
@@ -710,7 +721,7 @@ def solve_petsc(
         # options chose another Krylov method or norm
         if pc_type != "lu" and ksp.getType() == ksp_type and not opts.hasName("ksp_norm_type"):
             if ksp_type == "gmres" and not opts.hasName("ksp_pc_side"):
-                ksp.getPC().setSide(PETSc.PC.Side.RIGHT)
+                ksp.setPCSide(PETSc.PC.Side.RIGHT)
             ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
         bvec = A.createVecLeft()
         bvec.setArray(b_loc)
@@ -818,6 +829,24 @@ def solve_petsc(
         info=info,
         point_fields=point_fields,
     )
+
+
+def _scalar_rows(A: sp.bsr_array, rows: np.ndarray) -> sp.csr_array:
+    """Scalar rows ``rows`` of a BSR array as CSR, converting only their block rows."""
+    r = A.blocksize[0]
+    brows = np.unique(rows // r)
+    counts = np.diff(A.indptr)[brows]
+    total = int(counts.sum())
+    starts = np.repeat(A.indptr[brows] - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts)
+    take = starts + np.arange(total)
+    indptr = np.concatenate([[0], np.cumsum(counts)])
+    sub = sp.bsr_array(
+        (A.data[take], A.indices[take], indptr),
+        shape=(brows.size * r, A.shape[1]),
+        blocksize=A.blocksize,
+    ).tocsr()
+    local = np.searchsorted(brows, rows // r) * r + rows % r
+    return sp.csr_array(sub[local])
 
 
 def gather_counts(PETSc: Any, value: int, size: int) -> list[int]:

@@ -237,3 +237,25 @@ def test_two_ranks_match_scipy(tmp_path):
             assert max(r0["local_points_with_halo"], r1["local_points_with_halo"]) < prob.cloud.n
             assert r0["n_bonds"] == ref.bonds.n_bonds  # summed over ranks: the global bond count
             print(f"{key} on 2 ranks: {r0['n_iter']} iterations, rows {r0['rows_per_rank']}")
+
+
+@needs_petsc
+def test_baij_gmres_and_nonsymmetric_paths():
+    from pdlin.backends.petsc import solve_petsc
+
+    prob = cases.problem("lps-2d")
+    ref = pdlin.solve(prob, "direct")
+    for solver in ("direct", "ilu-gmres", "jacobi-cg"):  # MATMPIBAIJ, block size 2
+        res = solve_petsc(prob, solver, rtol=1e-12, mat_type="baij")
+        assert res.info["mat_type"] == "baij" and _rel(res.u, ref.u) < 1e-8, solver
+    with pytest.raises(InputError, match="GAMG needs an AIJ"):
+        solve_petsc(prob, "amg-cg", mat_type="baij")
+    # the force-state linearization of LPS is nonsymmetric: 'auto' runs GMRES + GAMG
+    paper = pdlin.StaticProblem(
+        pdlin.LPS(E=1.0, nu=0.25, linearization="paper"), prob.cloud,
+        bond_options=prob.bond_options, dirichlet=prob.dirichlet, loads=prob.loads,
+    )  # fmt: skip
+    ref_p = pdlin.solve(paper, "direct")
+    res = pdlin.solve(paper, rtol=1e-12, backend="petsc")
+    assert res.info["ksp_type"] == "gmres" and res.info["pc_type"] == "gamg"
+    assert _rel(res.u, ref_p.u) < 1e-8
