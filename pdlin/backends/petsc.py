@@ -46,9 +46,11 @@ from scipy.spatial import cKDTree
 
 from .._validation import integer, tolerance
 from ..errors import ConvergenceError, InputError, InputTypeError, NoNeighborsError
+from ..fields import small_strain
 from ..geometry.bonds import Bonds, find_bonds, resolve_horizon
 from ..geometry.cloud import PointCloud
 from ..operators.bc import check_constraints, load_vector, resolve_dirichlet
+from ..problem import StaticResult
 
 __all__ = [
     "PetscStaticResult",
@@ -352,66 +354,50 @@ def local_rows(
 
 
 @dataclasses.dataclass
-class PetscStaticResult:
-    """Marker base; the real class is built by :func:`_result_class` (a StaticResult)."""
+class PetscStaticResult(StaticResult):
+    """A :class:`~pdlin.StaticResult` of the PETSc backend.
 
+    ``bonds`` holds this rank's local-cloud bonds (the owned points first); the
+    point fields were computed per rank on the owned points and gathered, so
+    :meth:`fields`, :meth:`deformation_gradient` and :meth:`stress` are plain
+    lookups (no collective call: rank 0 alone may write them).
+    """
 
-def _result_class() -> type:
-    from ..problem import StaticResult
+    point_fields: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
 
-    @dataclasses.dataclass
-    class _PetscStaticResult(StaticResult):
-        """A :class:`~pdlin.StaticResult` of the PETSc backend.
+    def deformation_gradient(self) -> np.ndarray:
+        if "deformation_gradient" not in self.point_fields:
+            raise InputError("the deformation gradient was not computed (singular shape tensor)")
+        d = self.u.shape[1]
+        return self.point_fields["deformation_gradient"].reshape(-1, d, d)
 
-        ``bonds`` holds this rank's local-cloud bonds (the owned points first);
-        the point fields were computed per rank on the owned points and
-        gathered, so :meth:`fields`, :meth:`deformation_gradient` and
-        :meth:`stress` are plain lookups (no collective call).
-        """
+    def stress(self) -> np.ndarray:
+        if "stress" not in self.point_fields:
+            raise InputError(f"model {type(self.problem.model).__name__} gave no stress")
+        d = self.u.shape[1]
+        return self.point_fields["stress"].reshape(-1, d, d)
 
-        point_fields: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    def fields(self) -> dict[str, np.ndarray]:
+        out: dict[str, np.ndarray] = {
+            "displacement": self.u,
+            "reaction": self.reactions,
+            "family_size": self.point_fields["family_size"],
+            "volume": np.asarray(self.problem.cloud.volumes),
+            "material": np.asarray(self.problem.cloud.material, dtype=float),
+        }
+        if "deformation_gradient" in self.point_fields:
+            F = self.point_fields["deformation_gradient"]
+            out["deformation_gradient"] = F
+            out["strain"] = small_strain(self.deformation_gradient()).reshape(F.shape[0], -1)
+        if "stress" in self.point_fields:
+            out["stress"] = self.point_fields["stress"]
+        return out
 
-        def deformation_gradient(self) -> np.ndarray:
-            if "deformation_gradient" not in self.point_fields:
-                raise InputError(
-                    "the deformation gradient was not computed (singular shape tensor)"
-                )
-            d = self.u.shape[1]
-            return self.point_fields["deformation_gradient"].reshape(-1, d, d)
-
-        def stress(self) -> np.ndarray:
-            if "stress" not in self.point_fields:
-                raise InputError(f"model {type(self.problem.model).__name__} gave no stress")
-            d = self.u.shape[1]
-            return self.point_fields["stress"].reshape(-1, d, d)
-
-        def fields(self) -> dict[str, np.ndarray]:
-            out: dict[str, np.ndarray] = {
-                "displacement": self.u,
-                "reaction": self.reactions,
-                "family_size": self.point_fields["family_size"],
-                "volume": np.asarray(self.problem.cloud.volumes),
-                "material": np.asarray(self.problem.cloud.material, dtype=float),
-            }
-            if "deformation_gradient" in self.point_fields:
-                F = self.point_fields["deformation_gradient"]
-                d = self.u.shape[1]
-                out["deformation_gradient"] = F
-                eps = 0.5 * (F.reshape(-1, d, d) + F.reshape(-1, d, d).transpose(0, 2, 1))
-                out["strain"] = (eps - np.eye(d)).reshape(F.shape[0], -1)
-            if "stress" in self.point_fields:
-                out["stress"] = self.point_fields["stress"]
-            return out
-
-        def summary(self) -> dict[str, Any]:
-            s = super().summary()
-            s["bonds"] = int(self.info.get("n_bonds", s["bonds"]))
-            s["ranks"] = int(self.info.get("ranks", 1))
-            return s
-
-    _PetscStaticResult.__name__ = "PetscStaticResult"
-    _PetscStaticResult.__qualname__ = "PetscStaticResult"
-    return _PetscStaticResult
+    def summary(self) -> dict[str, Any]:
+        s = super().summary()
+        s["bonds"] = int(self.info.get("n_bonds", s["bonds"]))
+        s["ranks"] = int(self.info.get("ranks", 1))
+        return s
 
 
 #: pdlin solver name -> (KSP type, PC type) for symmetric / nonsymmetric operators
@@ -814,8 +800,7 @@ def solve_petsc(
         "operator": "assembled",
         "operator_reason": "the PETSc backend assembles K",
     }
-    cls = _result_class()
-    return cls(
+    return PetscStaticResult(
         problem=problem,
         bonds=bonds,
         u=u,
@@ -875,7 +860,7 @@ def _point_fields(
     try:
         F = deformation_gradient(local, bonds, u_local, n_owners=m).reshape(m, d * d)
         ok = 1.0
-    except InputError as exc:
+    except (InputError, np.linalg.LinAlgError) as exc:
         log.warning("strain not written: %s", exc)
         F, ok = np.zeros((m, d * d)), 0.0
     if _global_sum(PETSc, 1.0 - ok) == 0.0:
@@ -884,7 +869,7 @@ def _point_fields(
         try:
             S = np.asarray(model.stress(local, bonds, u_local))[:m].reshape(m, d * d)
             ok = 1.0
-        except InputError as exc:
+        except (InputError, np.linalg.LinAlgError) as exc:
             log.warning("stress not written: %s", exc)
             S, ok = np.zeros((m, d * d)), 0.0
         if _global_sum(PETSc, 1.0 - ok) == 0.0:
