@@ -210,7 +210,6 @@ def _mpi_env() -> dict[str, str]:
     }
 
 
-@pytest.mark.slow  # ~40-75 s: 12 two-rank solves and 6 scipy references
 @needs_petsc
 @pytest.mark.skipif(_mpiexec() is None, reason="mpiexec not on PATH: two-rank PETSc tests skipped")
 def test_two_ranks_match_scipy(tmp_path):
