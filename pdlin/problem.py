@@ -259,6 +259,8 @@ def solve(
     progress: Callable[[str], None] | None = None,
     operator: str = "auto",
     preconditioner: Model | None = None,
+    backend: str = "scipy",
+    petsc_options: Mapping[str, Any] | None = None,
 ) -> StaticResult:
     """Assemble, constrain and solve a static problem; verify the residual.
 
@@ -297,6 +299,13 @@ def solve(
         :class:`~pdlin.LPS` (``linearization='paper'``) solved by GMRES with
         the AMG of the symmetric energy-consistent ``K_E`` (spec 002 §11 B8).
         ``result.info['preconditioner']`` names the model used.
+    backend : {'scipy', 'petsc'}
+        'petsc' assembles and solves on PETSc through petsc4py, distributed
+        over the MPI ranks when run under ``mpiexec -n P``
+        (:func:`pdlin.backends.petsc.solve_petsc`, ``docs/petsc.md``);
+        ``operator`` and ``preconditioner`` are scipy-only.
+    petsc_options : mapping, optional
+        PETSc options for ``backend='petsc'`` (``{"ksp_monitor": None}``).
 
     Returns
     -------
@@ -316,6 +325,31 @@ def solve(
         raise InputTypeError(f"problem must be a StaticProblem, got {type(problem).__name__}")
     if solver not in SOLVERS:
         raise InputError(f"solver must be one of {SOLVERS}, got {solver!r}")
+    from .backends import BACKENDS
+
+    if backend not in BACKENDS:
+        raise InputError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    if petsc_options is not None and backend != "petsc":
+        raise InputError(f"petsc_options needs backend='petsc', got backend={backend!r}")
+    if backend == "petsc":
+        if (
+            operator not in ("auto", "assembled")
+            or preconditioner is not None
+            or keep_stiffness
+            or amg_options is not None
+        ):
+            raise InputError(
+                "backend='petsc' assembles its own distributed K: operator, preconditioner, "
+                "amg_options and keep_stiffness are scipy-only (PETSc's GAMG takes "
+                f"petsc_options), got operator={operator!r}, preconditioner={preconditioner!r}, "
+                f"amg_options={amg_options!r}, keep_stiffness={keep_stiffness!r}"
+            )
+        from .backends.petsc import solve_petsc
+
+        return solve_petsc(
+            problem, solver, rtol=rtol, maxiter=maxiter, petsc_options=petsc_options,
+            progress=progress,
+        )  # fmt: skip
     rtol = tolerance(rtol, "rtol")
     if maxiter is not None:
         maxiter = integer(maxiter, "maxiter", minimum=1)

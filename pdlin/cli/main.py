@@ -76,7 +76,18 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.resume:
         raise PdlinError("--resume needs a nonlinear scene with solver.checkpoint")
     solver = args.solver or scene.solver
-    extra = {"operator": chosen["operator"]} if chosen and "operator" in chosen else {}
+    extra: dict[str, Any] = (
+        {"operator": chosen["operator"]} if chosen and "operator" in chosen else {}
+    )
+    writer = True
+    backend = args.backend or scene.backend
+    if backend != "scipy":  # under mpiexec every rank solves, rank 0 writes
+        from ..backends.petsc import comm_rank_size
+
+        extra.update(backend=backend, petsc_options=scene.petsc_options)
+        writer = comm_rank_size()[0] == 0
+        if not writer:
+            prog = _Progress(True)
     result = solve(
         scene.problem,
         solver=solver,
@@ -86,6 +97,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         **extra,
     )
     out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.vtu"))
+    if not writer:
+        return 0
     prog(f"writing {out}")
     fields = result.fields()
     if scene.fields:
@@ -585,6 +598,11 @@ def build_parser() -> argparse.ArgumentParser:
         ".pvd, .xdmf, .npz, .e/.exo series)",
     )
     r.add_argument("--solver", help="override the scene's solver")
+    r.add_argument(
+        "--backend",
+        choices=("scipy", "petsc"),
+        help="override the scene's solver.backend (petsc: run under mpiexec -n P)",
+    )
     r.add_argument("--json", action="store_true", help="print the summary as JSON")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     r.add_argument(

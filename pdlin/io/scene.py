@@ -155,7 +155,7 @@ _NONLINEAR_KEYS = (
     "dt",
     "damping",
 )
-_SOLVER = {"name", "rtol", "maxiter", "nonlinear", *_NONLINEAR_KEYS}
+_SOLVER = {"name", "rtol", "maxiter", "nonlinear", "backend", "petsc_options", *_NONLINEAR_KEYS}
 _OUTPUT = {"path", "fields", "homogenized"}
 
 
@@ -370,6 +370,10 @@ class Scene:
     case: Any = None
     #: ``[about]`` table: description and typical runtime
     about: dict[str, str] = field(default_factory=dict)
+    #: linear-solve backend ('scipy' or 'petsc', ``[solver] backend``)
+    backend: str = "scipy"
+    #: PETSc options of the 'petsc' backend (``[solver.petsc_options]``)
+    petsc_options: dict[str, Any] | None = None
 
     @property
     def cloud(self) -> PointCloud:
@@ -764,6 +768,8 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         calibration=calibration,
         nonlinear=nonlinear,
         homogenized=None if hom is None else (Path(hom) if Path(hom).is_absolute() else base / hom),
+        backend=str(scfg.get("backend", "scipy")),
+        petsc_options=None if "petsc_options" not in scfg else dict(scfg["petsc_options"]),
     )
 
 
@@ -956,6 +962,23 @@ def _solver_options(scfg: Mapping[str, Any]) -> None:
         mi = scfg["maxiter"]
         if isinstance(mi, bool) or not isinstance(mi, int) or mi < 1:
             raise SceneError(f"solver.maxiter must be an integer >= 1, got {mi!r}")
+    from ..backends import BACKENDS
+
+    if "backend" in scfg and scfg["backend"] not in BACKENDS:
+        raise SceneError(f"solver.backend must be one of {list(BACKENDS)}, got {scfg['backend']!r}")
+    if "petsc_options" in scfg:
+        po = scfg["petsc_options"]
+        if not isinstance(po, Mapping) or not all(
+            isinstance(v, str | int | float) and not isinstance(v, bool) for v in po.values()
+        ):
+            raise SceneError(
+                "solver.petsc_options must be a table of PETSc option names to strings or "
+                f"numbers, got {po!r}"
+            )
+        if scfg.get("backend", "scipy") != "petsc":
+            raise SceneError("solver.petsc_options needs solver.backend = 'petsc'")
+    if scfg.get("backend") == "petsc" and "nonlinear" in scfg:
+        raise SceneError("solver.backend = 'petsc' solves linear scenes; remove solver.nonlinear")
 
 
 def _nonlinear_options(
