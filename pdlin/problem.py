@@ -302,7 +302,7 @@ def solve(
     backend : {'scipy', 'petsc'}
         'petsc' assembles and solves on PETSc through petsc4py, distributed
         over the MPI ranks when run under ``mpiexec -n P``
-        (:func:`pdlin.backends.petsc.solve_petsc`, ``docs/petsc.md``);
+        (``pdlin.backends.petsc.solve_petsc``, ``docs/petsc.md``);
         ``operator`` and ``preconditioner`` are scipy-only.
     petsc_options : mapping, optional
         PETSc options for ``backend='petsc'`` (``{"ksp_monitor": None}``).
