@@ -31,6 +31,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy import integrate
 
+from .._threads import RowChunked, sparse_product
 from .._validation import as_displacement, as_float_array
 from ..constitutive.symmetry import isotropic_constants
 from ..errors import AccuracyWarning, InputError, ModelError, ShapeError
@@ -888,7 +889,7 @@ class OrdinaryStateBased(Model):
         del Y
         Xb = sp.bsr_array(X.tobsr(blocksize=(1, d)))
         del X
-        Kt = sp.bsr_array(Yt @ Xb)
+        Kt = sp.bsr_array(sparse_product(Yt, Xb))  # block rows on threads, bitwise the same
         del Yt, Xb
         Kb = sp.bsr_array(Kt.transpose())
         del Kt
@@ -906,8 +907,10 @@ class OrdinaryStateBased(Model):
         d, n = cloud.dim, cloud.n
         co = self._coefficients(cloud, bonds)
         unit = bonds.xi / bonds.length[:, None]
-        B = _bond_operator(bonds, unit, n, d)
-        Bt = B.T.tocsr()
+        B0 = _bond_operator(bonds, unit, n, d)
+        # row-chunked products on threads (bitwise the plain products)
+        B, Bt = RowChunked(B0), RowChunked(B0.T.tocsr())
+        del B0
         own = bonds.i
         r = bonds.length
         a, c, w = co["a"], co["c"], co["w"]

@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .._threads import get_num_threads, thread_map
+from .._threads import RowChunked, sparse_product, thread_map
 from .._validation import as_displacement, as_float_array, check_finite, integer
 from ..constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
 from ..constitutive.tensors import _mandel_weights, _pairs
@@ -494,47 +494,11 @@ def _rows_matmul(A: np.ndarray, M: np.ndarray, row_scale: np.ndarray | None = No
 def _gram_bsr(W: sp.bsr_array, d: int) -> sp.bsr_array:
     """``Wᵀ W`` as BSR (blocks d x d), block rows in chunks on threads.
 
-    Each block row of the product is computed by scipy's sparsetools exactly as in the
-    one-call product (row by row, same order), so the result is bitwise that of
-    ``W.T @ W`` for any thread count; sparsetools releases the GIL.
+    :func:`pdlin._threads.sparse_product` computes each block row of the product exactly
+    as the one-call product does, so the result is bitwise that of ``W.T @ W`` for any
+    thread count.
     """
-    Wt = sp.bsr_array(W.T)
-    nbr = Wt.shape[0] // d
-    nt = get_num_threads()
-    if nt <= 1 or nbr < 2 * nt:
-        return sp.bsr_array(Wt @ W, blocksize=(d, d))
-    # about 4 chunks per thread, cut at equal numbers of stored blocks
-    cuts = np.searchsorted(Wt.indptr, np.linspace(0, Wt.indptr[-1], 4 * nt + 1)[1:-1])
-    edges = np.unique(np.concatenate([[0], cuts, [nbr]])).tolist()
-
-    def part(k: int) -> sp.bsr_array:
-        a, b = edges[k], edges[k + 1]
-        ptr = Wt.indptr[a : b + 1]
-        rows = sp.bsr_array(
-            (Wt.data[ptr[0] : ptr[-1]], Wt.indices[ptr[0] : ptr[-1]], ptr - ptr[0]),
-            shape=((b - a) * d, Wt.shape[1]),
-            blocksize=Wt.blocksize,
-        )
-        return sp.bsr_array(rows @ W, blocksize=(d, d))
-
-    parts = thread_map(part, range(len(edges) - 1))
-    offs = np.cumsum([0] + [int(q.indptr[-1]) for q in parts]).tolist()
-    data = np.empty((offs[-1], d, d))
-    indices = np.empty(offs[-1], dtype=parts[0].indices.dtype)
-    indptr = np.empty(nbr + 1, dtype=np.int64)
-    indptr[0] = 0
-
-    def gather(k: int) -> None:  # the copies (and first touches of the pages) on threads
-        q, o = parts[k], offs[k]
-        data[o : offs[k + 1]] = q.data
-        indices[o : offs[k + 1]] = q.indices
-        indptr[edges[k] + 1 : edges[k + 1] + 1] = q.indptr[1:] + o
-
-    thread_map(gather, range(len(parts)))
-    if offs[-1] < np.iinfo(np.int32).max:
-        indptr = indptr.astype(np.int32)
-        indices = indices.astype(np.int32, copy=False)
-    return sp.bsr_array((data, indices, indptr), shape=(W.shape[1], W.shape[1]), blocksize=(d, d))
+    return sp.bsr_array(sparse_product(sp.bsr_array(W.T), W), blocksize=(d, d))
 
 
 def _drop_zero_blocks(K: sp.bsr_array) -> sp.bsr_array:
@@ -1486,7 +1450,8 @@ class Correspondence(Model):
             if self.control == "penalty" and self.penalty > 0
             else None
         )
-        G, Gt = p.G, sp.csr_array(p.G.T)
+        # row-chunked products on threads (bitwise the plain products)
+        G, Gt = RowChunked(p.G), RowChunked(sp.csr_array(p.G.T))
         D = p.D
         d2 = cloud.dim**2
         extra = self._control_products(cloud, bonds, p)  # springs / ADS: (S N x, Nᵀ S x)
