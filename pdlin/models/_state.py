@@ -882,17 +882,16 @@ class OrdinaryStateBased(Model):
             Y = sp.vstack([theta_op, Bw], format="csr")
             del gam_b
         del B, Bw, theta_op
-        # block product: (d x 1) blocks of Yᵀ times (1 x d) blocks of X give the d x d
-        # blocks of Kᵀ directly (faster than a scalar CSR product + tobsr); the final
-        # O(nnz) block transpose returns K with sorted block indices (cheaper than a sort)
-        Yt = sp.bsr_array(Y.T.tocsr().tobsr(blocksize=(d, 1)))
-        del Y
-        Xb = sp.bsr_array(X.tobsr(blocksize=(1, d)))
+        # block product: (d x 1) blocks of Xᵀ times (1 x d) blocks of Y give the d x d
+        # blocks of K directly (faster than a scalar CSR product + tobsr); the block rows
+        # run on threads (sparse_product: bitwise the one-call product; each entry sums
+        # over the stacked rows in increasing order, as (Yᵀ X)ᵀ did), then one index sort
+        Xt = sp.bsr_array(X.T.tocsr().tobsr(blocksize=(d, 1)))
         del X
-        Kt = sp.bsr_array(sparse_product(Yt, Xb))  # block rows on threads, bitwise the same
-        del Yt, Xb
-        Kb = sp.bsr_array(Kt.transpose())
-        del Kt
+        Yb = sp.bsr_array(Y.tobsr(blocksize=(1, d)))
+        del Y
+        Kb = sp.bsr_array(sparse_product(Xt, Yb))
+        del Xt, Yb
         if not Kb.has_sorted_indices:
             Kb.sort_indices()
         return Kb
