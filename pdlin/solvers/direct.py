@@ -18,8 +18,8 @@ SuperLU (scipy) is always present.  The optional backends are imported lazily:
   available.
 
 ``backend='auto'`` picks CHOLMOD, then PARDISO, then SuperLU for symmetric
-matrices and PARDISO, then SuperLU for nonsymmetric ones (PARDISO only from
-:data:`PARDISO_AUTO_MIN` unknowns on); a Cholesky that
+matrices and PARDISO, then SuperLU for nonsymmetric ones (SuperLU alone below
+:data:`AUTO_MIN` unknowns); a Cholesky that
 finds the matrix not positive definite falls back down the list and the
 reason is kept in :attr:`DirectSolver.info` (``'fallback'``).
 """
@@ -37,7 +37,7 @@ import scipy.sparse.linalg as spla
 
 from ..errors import ConvergenceError, InputError, MissingDependencyError
 
-__all__ = ["DIRECT_BACKENDS", "PARDISO_AUTO_MIN", "available_direct_backends", "DirectSolver"]
+__all__ = ["DIRECT_BACKENDS", "AUTO_MIN", "available_direct_backends", "DirectSolver"]
 
 log = logging.getLogger(__name__)
 
@@ -93,15 +93,17 @@ def available_direct_backends() -> dict[str, bool]:
     return out
 
 
-#: ``'auto'`` uses PARDISO from this many unknowns on: below, its analysis phase and
-#: thread start-up (~0.3-0.7 s measured at n = 100) cost more than SuperLU's whole solve
-PARDISO_AUTO_MIN = 20_000
+#: ``'auto'`` uses the optional backends from this many unknowns on.  Below, SuperLU is
+#: fast (< 1 s), PARDISO's analysis and thread start-up alone take 0.3-0.7 s (measured at
+#: n = 100), and small solves keep SuperLU's measured round-off (``tests/extremes``: a 1D
+#: bar at contrast 1e4 loses 10x more digits under CHOLMOD's nested-dissection order)
+AUTO_MIN = 20_000
 
 
 def _auto_chain(symmetric: bool, n: int) -> list[str]:
     avail = available_direct_backends()
-    if n < PARDISO_AUTO_MIN:
-        avail["pardiso"] = avail["mumps"] = False
+    if n < AUTO_MIN:
+        return ["superlu"]
     order = (
         ["cholmod", "pardiso", "mumps", "superlu"] if symmetric else ["pardiso", "mumps", "superlu"]
     )
@@ -348,8 +350,8 @@ class DirectSolver:
     backend : {'auto', 'superlu', 'cholmod', 'pardiso', 'mumps'}
         ``'auto'``: CHOLMOD (supernodal Cholesky), then PARDISO, then SuperLU
         for symmetric ``A``; PARDISO, MUMPS, then SuperLU for nonsymmetric
-        ``A``, skipping those not installed (PARDISO and MUMPS from
-        :data:`PARDISO_AUTO_MIN` unknowns on).  SuperLU runs in symmetric mode
+        ``A``, skipping those not installed; SuperLU alone below
+        :data:`AUTO_MIN` unknowns.  SuperLU runs in symmetric mode
         (minimum degree on ``A + Aᵀ``, diagonal pivots) for symmetric ``A``.
 
     Attributes

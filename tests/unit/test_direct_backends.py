@@ -80,12 +80,16 @@ def test_cholmod_refuses_nonsymmetric() -> None:
         DirectSolver(A, symmetric=False, backend="cholmod")
 
 
-def test_auto_choice_is_reported() -> None:
+def test_auto_choice_is_reported(monkeypatch: pytest.MonkeyPatch) -> None:
     prob = _problem("lps", 2)
     res = pdlin.solve(prob, "direct")
-    # small symmetric K: CHOLMOD when installed, else SuperLU (PARDISO/MUMPS only from
-    # PARDISO_AUTO_MIN unknowns on)
-    expected = "cholmod" if AVAILABLE["cholmod"] else "superlu"
+    # small K (< AUTO_MIN unknowns): SuperLU
+    assert res.info["direct_backend"] == "superlu"
+    assert res.summary()["direct_backend"] == "superlu"
+    # from AUTO_MIN on: the first installed of CHOLMOD, PARDISO, MUMPS for symmetric K
+    monkeypatch.setattr(direct_mod, "AUTO_MIN", 10)
+    res = pdlin.solve(prob, "direct")
+    expected = next((b for b in ("cholmod", "pardiso", "mumps") if AVAILABLE[b]), "superlu")
     assert res.info["direct_backend"] == expected
     assert res.summary()["direct_backend"] == expected
 
@@ -93,19 +97,26 @@ def test_auto_choice_is_reported() -> None:
 def test_auto_chain_order(monkeypatch: pytest.MonkeyPatch) -> None:
     every = {"superlu": True, "cholmod": True, "pardiso": True, "mumps": True}
     monkeypatch.setattr(direct_mod, "available_direct_backends", lambda: dict(every))
-    big = direct_mod.PARDISO_AUTO_MIN
+    big = direct_mod.AUTO_MIN
     assert direct_mod._auto_chain(True, big) == ["cholmod", "pardiso", "mumps", "superlu"]
     assert direct_mod._auto_chain(False, big) == ["pardiso", "mumps", "superlu"]
     assert direct_mod._auto_chain(False, 10) == ["superlu"]
-    assert direct_mod._auto_chain(True, 10) == ["cholmod", "superlu"]
+    assert direct_mod._auto_chain(True, big - 1) == ["superlu"]
 
 
 def test_auto_falls_back_on_indefinite_matrix() -> None:
     """A symmetric indefinite matrix: CHOLMOD fails, auto goes on and says why."""
     _need("cholmod")
     A = sp.csc_matrix(np.array([[1.0, 2.0], [2.0, 1.0]]))  # eigenvalues 3 and -1
-    s = DirectSolver(A)
-    assert s.backend == "superlu" and "not positive definite" in s.info["fallback"]
+    mp = pytest.MonkeyPatch()
+    mp.setattr(direct_mod, "AUTO_MIN", 1)
+    try:
+        s = DirectSolver(A)
+    finally:
+        mp.undo()
+    # the next of the chain (PARDISO's SPD mode fails too; MUMPS' LDLᵀ or SuperLU succeed)
+    assert s.backend in ("mumps", "superlu")
+    assert "cholmod: not positive definite" in s.info["fallback"]
     # x = A⁻¹ (3, 3) = (1, 1) by hand
     np.testing.assert_allclose(s.solve(np.array([3.0, 3.0])), [1.0, 1.0], rtol=1e-14)
     with pytest.raises(ConvergenceError, match="not positive definite"):
