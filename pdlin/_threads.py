@@ -33,6 +33,19 @@ _pool_size = 0
 _local = threading.local()
 
 
+def _after_fork_in_child() -> None:
+    """A forked child inherits the pool object but not its threads: start afresh."""
+    global _lock, _pool, _pool_size
+    _lock = threading.Lock()
+    _pool = None
+    _pool_size = 0
+    _local.__dict__.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_after_fork_in_child)
+
+
 def _cpu_count() -> int:
     try:
         return max(1, len(os.sched_getaffinity(0)))

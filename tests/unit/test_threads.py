@@ -151,3 +151,22 @@ def test_solve_identical_across_thread_counts() -> None:
         us.append(pdlin.solve(prob, "amg-cg", operator="matrix-free").u)
     assert np.array_equal(us[0], us[1])
     assert _threads._n_threads == 2
+
+
+def test_thread_map_works_in_a_forked_child() -> None:
+    """A forked child (the tradeoff harness, benchmarks) gets a fresh pool, not a dead one."""
+    import multiprocessing as mp
+
+    pdlin.set_num_threads(2)
+    assert thread_map(lambda x: x + 1, range(4)) == [1, 2, 3, 4]  # the parent's pool exists
+    ctx = mp.get_context("fork")
+    q = ctx.Queue()
+
+    def child() -> None:
+        q.put(thread_map(lambda x: 2 * x, range(8)))
+
+    p = ctx.Process(target=child)
+    p.start()
+    out = q.get(timeout=30)  # a dead pool would block here
+    p.join(timeout=10)
+    assert out == [2 * x for x in range(8)]
