@@ -31,7 +31,6 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy import integrate
 
-from .._threads import RowChunked, sparse_product
 from .._validation import as_displacement, as_float_array
 from ..constitutive.symmetry import isotropic_constants
 from ..errors import AccuracyWarning, InputError, ModelError, ShapeError
@@ -882,16 +881,17 @@ class OrdinaryStateBased(Model):
             Y = sp.vstack([theta_op, Bw], format="csr")
             del gam_b
         del B, Bw, theta_op
-        # block product: (d x 1) blocks of Xᵀ times (1 x d) blocks of Y give the d x d
-        # blocks of K directly (faster than a scalar CSR product + tobsr); the block rows
-        # run on threads (sparse_product: bitwise the one-call product; each entry sums
-        # over the stacked rows in increasing order, as (Yᵀ X)ᵀ did), then one index sort
-        Xt = sp.bsr_array(X.T.tocsr().tobsr(blocksize=(d, 1)))
-        del X
-        Yb = sp.bsr_array(Y.tobsr(blocksize=(1, d)))
+        # block product: (d x 1) blocks of Yᵀ times (1 x d) blocks of X give the d x d
+        # blocks of Kᵀ directly (faster than a scalar CSR product + tobsr); the final
+        # O(nnz) block transpose returns K with sorted block indices (cheaper than a sort)
+        Yt = sp.bsr_array(Y.T.tocsr().tobsr(blocksize=(d, 1)))
         del Y
-        Kb = sp.bsr_array(sparse_product(Xt, Yb))
-        del Xt, Yb
+        Xb = sp.bsr_array(X.tobsr(blocksize=(1, d)))
+        del X
+        Kt = sp.bsr_array(Yt @ Xb)
+        del Yt, Xb
+        Kb = sp.bsr_array(Kt.transpose())
+        del Kt
         if not Kb.has_sorted_indices:
             Kb.sort_indices()
         return Kb
@@ -906,10 +906,8 @@ class OrdinaryStateBased(Model):
         d, n = cloud.dim, cloud.n
         co = self._coefficients(cloud, bonds)
         unit = bonds.xi / bonds.length[:, None]
-        B0 = _bond_operator(bonds, unit, n, d)
-        # row-chunked products on threads (bitwise the plain products)
-        B, Bt = RowChunked(B0), RowChunked(B0.T.tocsr())
-        del B0
+        B = _bond_operator(bonds, unit, n, d)
+        Bt = B.T.tocsr()
         own = bonds.i
         r = bonds.length
         a, c, w = co["a"], co["c"], co["w"]

@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .._threads import RowChunked, sparse_product, thread_map
+from .._threads import thread_map
 from .._validation import as_displacement, as_float_array, check_finite, integer
 from ..constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
 from ..constitutive.tensors import _mandel_weights, _pairs
@@ -489,16 +489,6 @@ def _rows_matmul(A: np.ndarray, M: np.ndarray, row_scale: np.ndarray | None = No
 
     thread_map(chunk, range(len(edges) - 1))
     return out
-
-
-def _gram_bsr(W: sp.bsr_array, d: int) -> sp.bsr_array:
-    """``Wᵀ W`` as BSR (blocks d x d), block rows in chunks on threads.
-
-    :func:`pdlin._threads.sparse_product` computes each block row of the product exactly
-    as the one-call product does, so the result is bitwise that of ``W.T @ W`` for any
-    thread count.
-    """
-    return sp.bsr_array(sparse_product(sp.bsr_array(W.T), W), blocksize=(d, d))
 
 
 def _drop_zero_blocks(K: sp.bsr_array) -> sp.bsr_array:
@@ -1392,7 +1382,7 @@ class Correspondence(Model):
         Wdata = self._root_blocks(p, blk, bdata, scale) if (scale >= 0).all() else None
         if Wdata is not None:
             W = sp.bsr_array((Wdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
-            return _drop_zero_blocks(_gram_bsr(W, d))
+            return _drop_zero_blocks(sp.bsr_array(W.T @ W, blocksize=(d, d)))
         Bdata = bdata()
         B = sp.bsr_array((Bdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
         ar = np.arange(n_gp + 1, dtype=np.int32)
@@ -1450,8 +1440,7 @@ class Correspondence(Model):
             if self.control == "penalty" and self.penalty > 0
             else None
         )
-        # row-chunked products on threads (bitwise the plain products)
-        G, Gt = RowChunked(p.G), RowChunked(sp.csr_array(p.G.T))
+        G, Gt = p.G, sp.csr_array(p.G.T)
         D = p.D
         d2 = cloud.dim**2
         extra = self._control_products(cloud, bonds, p)  # springs / ADS: (S N x, Nᵀ S x)
