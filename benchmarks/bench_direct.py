@@ -126,6 +126,8 @@ def main() -> None:
     ap.add_argument("--backends", default="superlu,cholmod,pardiso,mumps")
     ap.add_argument("--threads", default="1,2")
     ap.add_argument("--limit", type=float, default=150.0, help="seconds per row")
+    ap.add_argument("--cases", default="none:2,stress_points:2,stress_points:1",
+                    help="control:δ/h list")  # fmt: skip
     ap.add_argument("--one", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
@@ -148,7 +150,7 @@ def main() -> None:
         "nnz(A) | nnz(factor) | flops | flop bound (s) |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    cases = [(n, 2, "none"), (n, 2, "stress_points"), (n, 1, "stress_points")]
+    cases = [(n, int(c.split(":")[1]), c.split(":")[0]) for c in args.cases.split(",")]
     for nn, m, control in cases:
         for backend in args.backends.split(","):
             if not avail.get(backend, False):
