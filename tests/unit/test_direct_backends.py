@@ -72,6 +72,13 @@ def test_nonsymmetric_backend_matches_superlu(backend: str) -> None:
     res = pdlin.solve(prob, "direct", direct_backend=backend)
     assert res.info["direct_backend"] == backend
     assert np.abs(res.u - ref.u).max() / np.abs(ref.u).max() < 1e-10
+    # refactorization of a nonsymmetric matrix of the same pattern (Newton tangents)
+    sysm = pdlin.constrained_system(prob)
+    A, b = sysm.eliminate(sysm.assemble())
+    s = DirectSolver(A, symmetric=False, backend=backend)
+    x1 = s.solve(b)
+    s.refactor(2.0 * A)
+    np.testing.assert_allclose(s.solve(b), 0.5 * x1, rtol=1e-9, atol=1e-12 * np.abs(x1).max())
 
 
 def test_cholmod_refuses_nonsymmetric() -> None:
