@@ -9,6 +9,7 @@ from . import (
     errors,
     sweeps,  # noqa: E402  (after problem: the harness calls pdlin.solve)
 )
+from ._threads import get_num_threads, set_num_threads
 from .calibration import CalibrationResult, calibrate_micromoduli
 from .constitutive.crystal_plasticity import (
     CrystalPlasticity,
@@ -65,6 +66,8 @@ from .system import ConstrainedSystem, constrained_system
 __version__ = "0.1.0"
 
 __all__ = [
+    "set_num_threads",
+    "get_num_threads",
     "errors",
     "constitutive",
     "ConvergenceError",

@@ -18,6 +18,7 @@ __all__ = [
     "NoNeighborsError",
     "FloatingBodyError",
     "ConvergenceError",
+    "MissingDependencyError",
     "SceneError",
     "ModelError",
     "TrialStateWarning",
@@ -77,6 +78,10 @@ class ConvergenceError(PdlinError, RuntimeError):
     def __init__(self, message: str, result: object | None = None) -> None:
         super().__init__(message)
         self.result = result
+
+
+class MissingDependencyError(PdlinError, ImportError):
+    """An optional dependency is not installed; the message names the extra to install."""
 
 
 class TrialStateWarning(RuntimeWarning):

@@ -554,6 +554,8 @@ def solve_nonlinear(
     u_prev: np.ndarray | None = u_p
     t_prev: float | None = t_p
 
+    direct_cache: dict[str, Any] = {}  # the tangent's factorization, reused across steps
+
     def newton_to(t_new: float, u_from: np.ndarray, st: dict[str, np.ndarray]) -> StepOutcome:
         u0 = pred(u_from, st, t_cur, u_prev, t_prev, t_new, t_new / te, values(t_new))
         return newton_step(
@@ -565,6 +567,7 @@ def solve_nonlinear(
             maxiter=maxiter,
             line_search=line_search,
             linear_solver=linear_solver,
+            direct_cache=direct_cache,
         )
 
     def adr_to(t_new: float, u_from: np.ndarray, st: dict[str, np.ndarray]) -> StepOutcome:

@@ -241,6 +241,11 @@ class StaticResult:
             "dim": int(u.shape[1]),
             "bonds": int(self.bonds.n_bonds),
             "solver": self.info.get("solver"),
+            **(
+                {"direct_backend": self.info["direct_backend"]}
+                if "direct_backend" in self.info
+                else {}
+            ),
             "iterations": int(self.n_iter),
             "relative_residual": float(self.relative_residual),
             "max_abs_u": [float(v) for v in np.abs(u).max(axis=0)],
@@ -261,6 +266,7 @@ def solve(
     preconditioner: Model | None = None,
     backend: str = "scipy",
     petsc_options: Mapping[str, Any] | None = None,
+    direct_backend: str = "auto",
 ) -> StaticResult:
     """Assemble, constrain and solve a static problem; verify the residual.
 
@@ -306,6 +312,12 @@ def solve(
         ``operator`` and ``preconditioner`` are scipy-only.
     petsc_options : mapping, optional
         PETSc options for ``backend='petsc'`` (``{"ksp_monitor": None}``).
+    direct_backend : {'auto', 'superlu', 'cholmod', 'pardiso', 'mumps'}
+        Factorization of ``solver='direct'`` (and of ``'auto'`` on small
+        problems): ``'auto'`` takes CHOLMOD's supernodal Cholesky for
+        symmetric K, PARDISO, then SuperLU, whichever is installed
+        (``pip install "pdlin[direct]"``, ``docs/large_problems.md``).
+        ``result.info['direct_backend']`` names the one that ran.
 
     Returns
     -------
@@ -408,6 +420,7 @@ def solve(
         symmetric=system.symmetric,
         amg_options=dict(amg_options or {}),
         preconditioner_matrix=precond,
+        direct_backend=direct_backend,
     )
     timings["setup"] = lin.setup_time
     timings["solve"] = lin.solve_time

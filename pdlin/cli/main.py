@@ -94,6 +94,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         rtol=scene.rtol,
         maxiter=scene.maxiter,
         progress=prog,
+        direct_backend=scene.direct_backend,
         **extra,
     )
     out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.vtu"))
@@ -139,7 +140,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
                 f"-point solve at h = {sr['coarse_spacing']:.4g} ({sr['t_coarse']:.3f} s)"
             )
         print(
-            f"solver       {summary['solver']}: {summary['iterations']} iteration(s), "
+            f"solver       {summary['solver']}"
+            + (f" ({summary['direct_backend']})" if "direct_backend" in summary else "")
+            + f": {summary['iterations']} iteration(s), "
             f"relative residual {summary['relative_residual']:.2e}"
         )
         print("max |u|      " + ", ".join(f"{v:.6e}" for v in u))

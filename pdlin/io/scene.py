@@ -155,7 +155,16 @@ _NONLINEAR_KEYS = (
     "dt",
     "damping",
 )
-_SOLVER = {"name", "rtol", "maxiter", "nonlinear", "backend", "petsc_options", *_NONLINEAR_KEYS}
+_SOLVER = {
+    "name",
+    "rtol",
+    "maxiter",
+    "direct_backend",
+    "nonlinear",
+    "backend",
+    "petsc_options",
+    *_NONLINEAR_KEYS,
+}
 _OUTPUT = {"path", "fields", "homogenized"}
 
 
@@ -349,6 +358,8 @@ class Scene:
     solver: str = "auto"
     rtol: float = 1e-8
     maxiter: int | None = None
+    #: factorization of ``solver = "direct"`` (``pdlin.solve(direct_backend=...)``)
+    direct_backend: str = "auto"
     output: Path | None = None
     fields: list[str] | None = None
     base_dir: Path = field(default_factory=Path.cwd)
@@ -762,6 +773,7 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         solver=str(scfg.get("name", "auto")),
         rtol=float(scfg.get("rtol", 1e-8)),
         maxiter=None if scfg.get("maxiter") is None else int(scfg["maxiter"]),
+        direct_backend=str(scfg.get("direct_backend", "auto")),
         output=None if out is None else (Path(out) if Path(out).is_absolute() else base / out),
         fields=ocfg.get("fields"),
         base_dir=base,
@@ -950,10 +962,15 @@ def _problem_scene(top: Mapping[str, Any], base: Path) -> Scene:
 
 def _solver_options(scfg: Mapping[str, Any]) -> None:
     """Type and range checks of the [solver] table's linear-solve keys."""
-    from ..solvers.linear import SOLVERS
+    from ..solvers.linear import DIRECT_BACKENDS, SOLVERS
 
     if "name" in scfg and scfg["name"] not in SOLVERS:
         raise SceneError(f"solver.name must be one of {list(SOLVERS)}, got {scfg['name']!r}")
+    if "direct_backend" in scfg and scfg["direct_backend"] not in DIRECT_BACKENDS:
+        raise SceneError(
+            f"solver.direct_backend must be one of {list(DIRECT_BACKENDS)}, got "
+            f"{scfg['direct_backend']!r}"
+        )
     if "rtol" in scfg:
         rtol = _number(scfg["rtol"], "solver.rtol")
         if not (np.isfinite(rtol) and 0 < rtol < 1):

@@ -30,6 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .._threads import thread_map
 from .._validation import as_displacement, as_float_array, check_finite, integer
 from ..constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
 from ..constitutive.tensors import _mandel_weights, _pairs
@@ -468,6 +469,26 @@ def _mean_per_point(owner: np.ndarray, values: np.ndarray, n: int) -> np.ndarray
     flat = values.reshape(len(owner), d * d)
     out = np.stack([np.bincount(owner, weights=flat[:, k], minlength=n) for k in range(d * d)], 1)
     return (out / cnt[:, None]).reshape(n, d, d)
+
+
+#: rows per chunk of the threaded dense products (fixed: results do not depend on the
+#: thread count)
+_ROW_CHUNK = 1 << 15
+
+
+def _rows_matmul(A: np.ndarray, M: np.ndarray, row_scale: np.ndarray | None = None) -> np.ndarray:
+    """``A @ M`` (times ``row_scale`` per row), computed in fixed row chunks on threads."""
+    out = np.empty((A.shape[0], M.shape[1]))
+    edges = list(range(0, A.shape[0], _ROW_CHUNK)) + [A.shape[0]]
+
+    def chunk(k: int) -> None:
+        a, b = edges[k], edges[k + 1]
+        np.matmul(A[a:b], M, out=out[a:b])
+        if row_scale is not None:
+            out[a:b] *= row_scale[a:b, None]
+
+    thread_map(chunk, range(len(edges) - 1))
+    return out
 
 
 def _drop_zero_blocks(K: sp.bsr_array) -> sp.bsr_array:
@@ -1350,15 +1371,19 @@ class Correspondence(Model):
         # B block (a, i) = Σ_q P[a, i*d + q] c_q  (G block is I_d ⊗ c)
         Pr = P.reshape(nv * d, d)
         nblk = blk.col.size
-        Bdata = (blk.val @ Pr.T).reshape(nblk, nv, d)
+
+        def bdata() -> np.ndarray:
+            return _rows_matmul(blk.val, Pr.T).reshape(nblk, nv, d)
+
         n_gp = p.Cv.shape[0]
         vol = np.asarray(cloud.volumes) * (1.0 if d == 3 else cloud.thickness)
         scale = p.weight * vol[p.gp_owner] * p.energy
         shape = (n_gp * nv, p.n_points * d)
-        Wdata = self._root_blocks(p, blk, Bdata, scale) if (scale >= 0).all() else None
+        Wdata = self._root_blocks(p, blk, bdata, scale) if (scale >= 0).all() else None
         if Wdata is not None:
             W = sp.bsr_array((Wdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
             return _drop_zero_blocks(sp.bsr_array(W.T @ W, blocksize=(d, d)))
+        Bdata = bdata()
         B = sp.bsr_array((Bdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
         ar = np.arange(n_gp + 1, dtype=np.int32)
         Db = sp.bsr_array(
@@ -1371,25 +1396,32 @@ class Correspondence(Model):
 
     @staticmethod
     def _root_blocks(
-        p: _Plan, blk: _GradientBlocks, Bdata: np.ndarray, scale: np.ndarray
+        p: _Plan, blk: _GradientBlocks, bdata: Any, scale: np.ndarray
     ) -> np.ndarray | None:
-        """Blocks of ``W = √scale Lᵀ B`` (``C = L Lᵀ``), or None if a ``C`` is not SPD."""
-        nblk, nv, d = Bdata.shape
-        root = np.sqrt(scale)[blk.row][:, None, None]
+        """Blocks of ``W = √scale Lᵀ B`` (``C = L Lᵀ``), or None if a ``C`` is not SPD.
+
+        ``bdata()`` returns the ``(nblk, n_v, d)`` blocks of ``B`` (only needed when the
+        material varies between gradient points).
+        """
+        nblk = blk.col.size
+        d = blk.val.shape[1]
+        nv = p.Cv.shape[1]
+        root = np.sqrt(scale)[blk.row]
         try:
             if (p.Cv == p.Cv[0]).all():  # one material: one (n_v·d x d) map for all blocks
                 L0 = np.linalg.cholesky(p.Cv[0])
                 M = (L0.T @ voigt_projector(d)).reshape(nv * d, d)
-                W = blk.val @ M.T  # one (nblk, n_v·d) buffer, scaled in place
-                W *= root[:, :, 0]
+                # one (nblk, n_v·d) product, scaled in place, in fixed row chunks on threads
+                W = _rows_matmul(blk.val, M.T, root)
                 return W.reshape(nblk, nv, d)
             Lr = np.linalg.cholesky(p.Cv)[blk.row]
         except np.linalg.LinAlgError:
             return None
+        Bdata = bdata()
         W = np.zeros((nblk, nv, d))
         for b in range(nv):  # Lᵀ B per block
             W += Lr[:, b, :, None] * Bdata[:, b, None, :]
-        return W * root
+        return W * root[:, None, None]
 
     def apply(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
         """Matrix-free ``K u`` through G (and the bonds for the penalty), ``(n*d,)``."""

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from .._threads import thread_map
 from ..errors import InputTypeError, ShapeError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
@@ -103,7 +104,9 @@ def pair_stiffness_bsr(
     # diagonal block
     starts = np.searchsorted(bptr, np.arange(0, nb, _CHUNK), side="right") - 1
     row_edges = np.unique(np.concatenate([[0], starts, [n]]))  # empty rows stay covered
-    for r0, r1 in zip(row_edges[:-1], row_edges[1:], strict=True):
+
+    def chunk(rows: tuple[int, int]) -> None:
+        r0, r1 = rows
         b0, b1 = int(bptr[r0]), int(bptr[r1])
         owner = bonds.i[b0:b1] - r0
         jj = bonds.j[b0:b1]
@@ -136,6 +139,10 @@ def pair_stiffness_bsr(
                 dsum[:, b, a] = dsum[:, a, b]
         np.negative(dsum, out=dsum)
         data[diag_pos] = dsum
+
+    # chunks write disjoint slots of indices / data: threads (numpy releases the GIL),
+    # the same arithmetic per chunk for any thread count
+    thread_map(chunk, list(zip(row_edges[:-1].tolist(), row_edges[1:].tolist(), strict=True)))
     return sp.bsr_array((data, indices, indptr), shape=(n * d, n * d), blocksize=(d, d))
 
 

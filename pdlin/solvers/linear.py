@@ -18,12 +18,14 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..errors import ConvergenceError, InputError, NonFiniteError
+from .direct import DIRECT_BACKENDS, DirectSolver
 
 __all__ = [
     "AMGHierarchy",
     "block_relative_strength",
     "LinearSolveInfo",
     "DirectSolver",
+    "DIRECT_BACKENDS",
     "amg_hierarchy",
     "AMG_DEFAULTS",
     "solve_linear",
@@ -399,80 +401,6 @@ class LinearSolveInfo:
     info: dict[str, Any] = field(default_factory=dict)
 
 
-class DirectSolver:
-    """Sparse LU factorization (SuperLU) reusable for many right-hand sides.
-
-    For symmetric matrices the symmetric mode (diagonal pivoting with a
-    minimum-degree ordering of ``A + Aᵀ``) is used, which is what a
-    Cholesky factorization would do and typically 3-10x faster than the
-    default column ordering.
-
-    Examples
-    --------
-    >>> import numpy as np, scipy.sparse as sp
-    >>> A = sp.csr_array(np.array([[4.0, 1.0], [1.0, 3.0]]))
-    >>> lu = DirectSolver(A)
-    >>> lu.solve(np.array([1.0, 2.0])).round(6)
-    array([0.090909, 0.636364])
-    """
-
-    def __init__(self, A: sp.sparray, *, symmetric: bool | None = None) -> None:
-        t0 = time.perf_counter()
-        csc = sp.csc_matrix(A)
-        if symmetric is None:
-            symmetric = _is_symmetric(A)
-        self.symmetric = bool(symmetric)
-        if self.symmetric:
-            self._lu = spla.splu(
-                csc,
-                permc_spec="MMD_AT_PLUS_A",
-                diag_pivot_thresh=0.0,
-                options={"SymmetricMode": True},
-            )
-        elif _pattern_symmetric(csc):
-            # nonsymmetric values on a symmetric pattern (e.g. the consistent tangent
-            # Gᵀ (dP/dF) G of crystal plasticity): a symmetric ordering of A + Aᵀ with a
-            # preference for diagonal pivots (threshold partial pivoting kept) fills in
-            # less than COLAMD (measured 31 vs 72 ms at 2,500 particles, 308 vs 491 ms at
-            # 10⁴); the caller's residual check and refinement guard the pivoting
-            self._lu = spla.splu(
-                csc,
-                permc_spec="MMD_AT_PLUS_A",
-                diag_pivot_thresh=0.1,
-                options={"SymmetricMode": True},
-            )
-        else:
-            self._lu = spla.splu(csc, permc_spec="COLAMD")
-        self.setup_time = time.perf_counter() - t0
-        self.shape = A.shape
-        self.fill = int(self._lu.L.nnz + self._lu.U.nnz)
-
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        """Solve for one or several right-hand sides (columns of ``b``)."""
-        x = self._lu.solve(np.asarray(b, dtype=float))
-        if not np.all(np.isfinite(x)):
-            raise ConvergenceError("direct solve produced non-finite values (singular matrix?)")
-        return x
-
-
-def _pattern_symmetric(A: sp.csc_matrix) -> bool:
-    """Whether the sparsity pattern of ``A`` equals that of ``Aᵀ`` (values ignored)."""
-    P = sp.csr_array((np.ones(A.nnz), A.indices, A.indptr), shape=A.shape)  # pattern of Aᵀ
-    Q = sp.csr_array((np.ones(A.nnz), A.indices, A.indptr), shape=A.shape).T.tocsr()
-    if P.nnz != Q.nnz:
-        return False
-    P.sort_indices()
-    Q.sort_indices()
-    return bool(np.array_equal(P.indptr, Q.indptr) and np.array_equal(P.indices, Q.indices))
-
-
-def _is_symmetric(A: sp.sparray, tol: float = 1e-12) -> bool:
-    Ac = sp.csr_array(A)
-    d = Ac - Ac.T
-    nrm = spla.norm(Ac, "fro") if Ac.nnz else 1.0
-    return bool(spla.norm(d, "fro") <= tol * max(nrm, 1e-300)) if d.nnz else True
-
-
 def amg_hierarchy(
     A: sp.sparray,
     B: np.ndarray | None = None,
@@ -622,6 +550,8 @@ def solve_linear(
     amg_options: dict[str, Any] | None = None,
     check_rtol: float | None = None,
     preconditioner_matrix: sp.sparray | None = None,
+    direct_backend: str = "auto",
+    direct_cache: dict[str, Any] | None = None,
 ) -> LinearSolveInfo:
     """Solve ``A x = b`` and verify the true residual.
 
@@ -630,7 +560,8 @@ def solve_linear(
     A : sparse array
     b : (n,) ndarray
     solver : str
-        One of :data:`SOLVERS`: ``'direct'`` (SuperLU), ``'amg-cg'``
+        One of :data:`SOLVERS`: ``'direct'`` (sparse factorization, see
+        ``direct_backend``), ``'amg-cg'``
         (smoothed-aggregation AMG preconditioned CG; default for symmetric
         systems larger than 5,000 DOFs), ``'cg'`` (unpreconditioned),
         ``'jacobi-cg'``, ``'ilu-gmres'``, ``'amg-gmres'``, ``'gmres'``.
@@ -649,6 +580,17 @@ def solve_linear(
         Build the AMG / Jacobi / ILU preconditioner from this matrix instead
         of ``A`` (e.g. an assembled one-hop surrogate when ``A`` is a
         matrix-free ``LinearOperator``).
+    direct_backend : str
+        One of :data:`~pdlin.solvers.direct.DIRECT_BACKENDS`, for
+        ``solver='direct'``: ``'auto'`` takes CHOLMOD (symmetric), PARDISO,
+        then SuperLU, whichever is installed; ``info['direct_backend']``
+        names the one that ran (see :class:`DirectSolver`).
+    direct_cache : dict, optional
+        Keeps the :class:`DirectSolver` of a ``'direct'`` solve under key
+        ``'solver'``; a later call with the same dict and a matrix of the same
+        shape refactorizes it with :meth:`DirectSolver.refactor`, reusing the
+        ordering and symbolic analysis when the pattern is unchanged (Newton
+        tangents).  ``info['direct_reused']`` says whether it did.
 
     Returns
     -------
@@ -661,6 +603,8 @@ def solve_linear(
     """
     if solver not in SOLVERS:
         raise InputError(f"solver must be one of {SOLVERS}, got {solver!r}")
+    if direct_backend not in DIRECT_BACKENDS:
+        raise InputError(f"direct_backend must be one of {DIRECT_BACKENDS}, got {direct_backend!r}")
     n = A.shape[0]
     if b.shape != (n,):
         raise InputError(f"b must have shape ({n},), got {b.shape}")
@@ -684,7 +628,7 @@ def solve_linear(
         info_out = _solve_scaled(
             A, b * bscale, solver, rtol, maxiter, near_null, blocksize, symmetric,
             None if x0 is None else np.asarray(x0, dtype=float) * bscale, amg_options,
-            check_rtol, preconditioner_matrix,
+            check_rtol, preconditioner_matrix, direct_backend, direct_cache,
         )  # fmt: skip
     except ConvergenceError as exc:
         if isinstance(exc.result, LinearSolveInfo):  # the partial result, in the caller's units
@@ -712,6 +656,8 @@ def _solve_scaled(
     amg_options: dict[str, Any] | None,
     check_rtol: float | None,
     preconditioner_matrix: Any,
+    direct_backend: str = "auto",
+    direct_cache: dict[str, Any] | None = None,
 ) -> LinearSolveInfo:
     """The body of :func:`solve_linear` for a right-hand side of unit magnitude."""
     n = A.shape[0]
@@ -733,8 +679,28 @@ def _solve_scaled(
         if not sp.issparse(A):
             raise InputError("solver 'direct' needs an assembled matrix, got a LinearOperator")
         t0 = time.perf_counter()
+        lu = None if direct_cache is None else direct_cache.get("solver")
+        reused = False
+        if (
+            isinstance(lu, DirectSolver)
+            and lu.shape == A.shape
+            and lu.symmetric == bool(symmetric)
+            and direct_backend in ("auto", lu.backend)
+        ):
+            try:
+                lu.refactor(A)
+                reused = True
+            except ConvergenceError:  # e.g. no longer positive definite: start afresh
+                lu = None
+        else:
+            lu = None
         try:
-            lu = DirectSolver(A, symmetric=symmetric)
+            if lu is None:
+                lu = DirectSolver(A, symmetric=symmetric, backend=direct_backend)
+                if direct_cache is not None:
+                    direct_cache["solver"] = lu
+        except ConvergenceError:
+            raise
         except RuntimeError as exc:  # SuperLU: "Factor is exactly singular"
             raise ConvergenceError(
                 f"direct solve: the matrix is exactly singular (SuperLU: {exc}); the Dirichlet "
@@ -744,7 +710,13 @@ def _solve_scaled(
         t1 = time.perf_counter()
         x = lu.solve(b)
         t2 = time.perf_counter()
-        info["fill_nnz"] = lu.fill
+        info["direct_backend"] = lu.backend
+        info["direct_reused"] = reused
+        info["direct_ordering"] = lu.info["ordering"]
+        if "fallback" in lu.info:
+            info["direct_fallback"] = lu.info["fallback"]
+        if lu.backend != "cholmod":  # CHOLMOD's nnz(L) needs a copy of L: on request only
+            info["fill_nnz"] = lu.fill
         rr = _check(A, x, b, rtol, solver)
         residuals = [1.0, rr]
         tol = 1e-8 if check_rtol is None else check_rtol

@@ -114,6 +114,7 @@ def newton_step(
     linear_solver: str = "auto",
     linear_rtol: float = 1e-10,
     nonmonotone: int = 3,
+    direct_cache: dict[str, Any] | None = None,
 ) -> StepOutcome:
     """Newton-Raphson with a consistent tangent and backtracking line search.
 
@@ -126,7 +127,10 @@ def newton_step(
     smooth), the best trial is taken anyway, at most ``nonmonotone`` times per
     step and only if it does not raise ``‖r‖`` tenfold.
     Converged when ``‖r_free‖ <= rtol * scale`` (``scale`` the larger of
-    ``‖λ f_ext‖`` and the reaction force norm).
+    ``‖λ f_ext‖`` and the reaction force norm).  A ``direct_cache`` dict
+    shared between calls keeps the direct factorization, so successive
+    tangents of one pattern reuse its ordering and symbolic analysis
+    (:func:`~pdlin.solvers.solve_linear`).
 
     Raises
     ------
@@ -171,6 +175,7 @@ def newton_step(
                 near_null=system.near_null() if solver.startswith("amg") else None,
                 blocksize=system.dim,
                 symmetric=system.symmetric,
+                direct_cache=direct_cache,
             )
         except ConvergenceError as exc:
             raise StepFailed(f"Newton: linear solve failed at iteration {it}: {exc}") from exc

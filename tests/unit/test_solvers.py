@@ -12,6 +12,7 @@ from pdlin.errors import ConvergenceError, InputError
 from pdlin.operators.bc import eliminate_dirichlet, load_vector, resolve_dirichlet
 from pdlin.operators.rigid import rigid_body_modes
 from pdlin.solvers import SOLVERS, DirectSolver, amg_hierarchy, solve_linear
+from pdlin.solvers import direct as direct_mod
 from pdlin.solvers import linear as linear_mod
 
 Bar = tuple[sp.sparray, np.ndarray, np.ndarray, int, sp.sparray]
@@ -96,14 +97,14 @@ def test_direct_singular_system_fails_the_residual_check(bar: tuple) -> None:
 def test_direct_solver_reuses_factorization(monkeypatch: pytest.MonkeyPatch) -> None:
     A, b, _, _, _ = _bar((12, 6))
     calls = []
-    real = linear_mod.spla.splu
+    real = direct_mod.spla.splu
 
     def counting(*args: object, **kwargs: object) -> object:
         calls.append(1)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(linear_mod.spla, "splu", counting)
-    lu = DirectSolver(A)
+    monkeypatch.setattr(direct_mod.spla, "splu", counting)
+    lu = DirectSolver(A, backend="superlu")
     rhs = np.column_stack([b, 2.0 * b, np.random.default_rng(1).normal(size=b.size)])
     X = lu.solve(rhs)
     x1 = lu.solve(b)
