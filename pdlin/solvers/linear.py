@@ -18,6 +18,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..errors import ConvergenceError, InputError, NonFiniteError
+from .conditioning import CONDITION_AUTO_MAX, condition_estimate, warn_if_ill_conditioned
 from .direct import DIRECT_BACKENDS, DirectSolver
 
 __all__ = [
@@ -552,6 +553,7 @@ def solve_linear(
     preconditioner_matrix: sp.sparray | None = None,
     direct_backend: str = "auto",
     direct_cache: dict[str, Any] | None = None,
+    condition: bool | str = "auto",
 ) -> LinearSolveInfo:
     """Solve ``A x = b`` and verify the true residual.
 
@@ -591,6 +593,15 @@ def solve_linear(
         shape refactorizes it with :meth:`DirectSolver.refactor`, reusing the
         ordering and symbolic analysis when the pattern is unchanged (Newton
         tangents).  ``info['direct_reused']`` says whether it did.
+    condition : bool or 'auto'
+        Estimate the 1-norm condition number of a ``'direct'`` solve from its
+        factorization (:func:`pdlin.solvers.conditioning.condition_estimate`,
+        a few extra solves) into ``info['condition_estimate']``, with an
+        :class:`~pdlin.errors.AccuracyWarning` above
+        :data:`~pdlin.solvers.conditioning.CONDITION_WARN` (a near-singular
+        system: small residual, inaccurate solution).  ``'auto'``: symmetric
+        systems up to :data:`~pdlin.solvers.conditioning.CONDITION_AUTO_MAX`
+        unknowns.
 
     Returns
     -------
@@ -628,7 +639,7 @@ def solve_linear(
         info_out = _solve_scaled(
             A, b * bscale, solver, rtol, maxiter, near_null, blocksize, symmetric,
             None if x0 is None else np.asarray(x0, dtype=float) * bscale, amg_options,
-            check_rtol, preconditioner_matrix, direct_backend, direct_cache,
+            check_rtol, preconditioner_matrix, direct_backend, direct_cache, condition,
         )  # fmt: skip
     except ConvergenceError as exc:
         if isinstance(exc.result, LinearSolveInfo):  # the partial result, in the caller's units
@@ -658,6 +669,7 @@ def _solve_scaled(
     preconditioner_matrix: Any,
     direct_backend: str = "auto",
     direct_cache: dict[str, Any] | None = None,
+    condition: bool | str = "auto",
 ) -> LinearSolveInfo:
     """The body of :func:`solve_linear` for a right-hand side of unit magnitude."""
     n = A.shape[0]
@@ -730,6 +742,12 @@ def _solve_scaled(
                 f"direct solve: true relative residual {rr:.3e} exceeds {tol:.1e} "
                 "(matrix singular or badly conditioned)"
             )
+        if condition is True or (
+            condition == "auto" and symmetric and A.shape[0] <= CONDITION_AUTO_MAX
+        ):
+            kappa = condition_estimate(A, lu.solve, symmetric=bool(symmetric))
+            info["condition_estimate"] = kappa
+            warn_if_ill_conditioned(kappa, f"direct solve ({lu.backend})")
         return LinearSolveInfo(x, solver, 1, residuals, rr, t1 - t0, t2 - t1, info)
 
     t0 = time.perf_counter()

@@ -91,6 +91,13 @@ def _laminate(ratio: float, layout: str, solver: str) -> pdlin.StaticResult:
     prob = pdlin.StaticProblem(
         pdlin.BondBased(E=E, average="harmonic"), cloud, horizon=delta, dirichlet=[bc]
     )
+    if solver == "direct" and layout == "series" and max(ratio, 1 / ratio) >= 1e8:
+        # the stiff bands between soft ones hang on them (their transverse motion is held
+        # by the soft bands only): condition estimate of the equilibrated K measured 1.0e11,
+        # so the direct solve says how many digits it guarantees (the fields still agree
+        # with AMG to 1.5e-6 of max|u|: the bound κ ε is pessimistic here)
+        with pytest.warns(pdlin.errors.AccuracyWarning, match="condition number estimate"):
+            return pdlin.solve(prob, solver=solver, rtol=1e-10, keep_stiffness=True)
     return pdlin.solve(prob, solver=solver, rtol=1e-10, keep_stiffness=True)
 
 
