@@ -1,5 +1,12 @@
 """Solvers: direct, AMG-preconditioned Krylov, and the nonlinear step drivers (Newton, ADR)."""
 
+from .conditioning import (
+    CONDITION_AUTO_MAX,
+    CONDITION_WARN,
+    condition_estimate,
+    warn_if_ill_conditioned,
+)
+from .direct import AUTO_MIN, DIRECT_BACKENDS, available_direct_backends
 from .linear import (
     AMG_DEFAULTS,
     SOLVERS,
@@ -18,6 +25,13 @@ from .nonlinear import (
 )
 
 __all__ = [
+    "AUTO_MIN",
+    "DIRECT_BACKENDS",
+    "available_direct_backends",
+    "CONDITION_AUTO_MAX",
+    "CONDITION_WARN",
+    "condition_estimate",
+    "warn_if_ill_conditioned",
     "AMG_DEFAULTS",
     "SOLVERS",
     "DirectSolver",

@@ -19,7 +19,7 @@ SuperLU (scipy) is always present.  The optional backends are imported lazily:
 
 ``backend='auto'`` picks CHOLMOD, then PARDISO, then SuperLU for symmetric
 matrices and PARDISO, then SuperLU for nonsymmetric ones (SuperLU alone below
-:data:`AUTO_MIN` unknowns); a Cholesky that
+:data:`~pdlin.solvers.AUTO_MIN` unknowns); a Cholesky that
 finds the matrix not positive definite falls back down the list and the
 reason is kept in :attr:`DirectSolver.info` (``'fallback'``).
 """
@@ -351,7 +351,7 @@ class DirectSolver:
         ``'auto'``: CHOLMOD (supernodal Cholesky), then PARDISO, then SuperLU
         for symmetric ``A``; PARDISO, MUMPS, then SuperLU for nonsymmetric
         ``A``, skipping those not installed; SuperLU alone below
-        :data:`AUTO_MIN` unknowns.  SuperLU runs in symmetric mode
+        :data:`~pdlin.solvers.AUTO_MIN` unknowns.  SuperLU runs in symmetric mode
         (minimum degree on ``A + Aᵀ``, diagonal pivots) for symmetric ``A``.
 
     Attributes

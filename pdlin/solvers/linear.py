@@ -583,7 +583,7 @@ def solve_linear(
         of ``A`` (e.g. an assembled one-hop surrogate when ``A`` is a
         matrix-free ``LinearOperator``).
     direct_backend : str
-        One of :data:`~pdlin.solvers.direct.DIRECT_BACKENDS`, for
+        One of :data:`~pdlin.solvers.DIRECT_BACKENDS`, for
         ``solver='direct'``: ``'auto'`` takes CHOLMOD (symmetric), PARDISO,
         then SuperLU, whichever is installed; ``info['direct_backend']``
         names the one that ran (see :class:`DirectSolver`).
@@ -595,12 +595,12 @@ def solve_linear(
         tangents).  ``info['direct_reused']`` says whether it did.
     condition : bool or 'auto'
         Estimate the 1-norm condition number of a ``'direct'`` solve from its
-        factorization (:func:`pdlin.solvers.conditioning.condition_estimate`,
+        factorization (:func:`pdlin.solvers.condition_estimate`,
         a few extra solves) into ``info['condition_estimate']``, with an
         :class:`~pdlin.errors.AccuracyWarning` above
-        :data:`~pdlin.solvers.conditioning.CONDITION_WARN` (a near-singular
+        :data:`~pdlin.solvers.CONDITION_WARN` (a near-singular
         system: small residual, inaccurate solution).  ``'auto'``: symmetric
-        systems up to :data:`~pdlin.solvers.conditioning.CONDITION_AUTO_MAX`
+        systems up to :data:`~pdlin.solvers.CONDITION_AUTO_MAX`
         unknowns.
 
     Returns
