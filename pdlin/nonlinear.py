@@ -599,6 +599,43 @@ def solve_nonlinear(
             floor=floor,
         )
 
+    def substeps(
+        step_fn: Callable[[float, np.ndarray, dict[str, np.ndarray]], StepOutcome],
+        t_target: float,
+        u_start: np.ndarray,
+        st_start: dict[str, np.ndarray],
+        damp: list[np.ndarray] | None,
+    ) -> tuple[StepOutcome | None, str, tuple[int, int, int]]:
+        """Reach ``t_target`` with ``step_fn``, halving a failed (sub)step at most
+        ``max_cutbacks`` times; each converged sub-step's state starts the next."""
+        nonlocal t_cur, u_prev, t_prev
+        pending = [t_target]
+        cur_u, cur_state = u_start, st_start
+        n_it = n_calls = n_cut = 0
+        out: StepOutcome | None = None
+        while pending:
+            target = pending[-1]
+            try:
+                out = step_fn(target, cur_u, cur_state)
+            except StepFailed as exc:
+                if exc.outcome is not None:
+                    n_it += exc.outcome.iterations
+                    n_calls += exc.outcome.calls
+                if n_cut < max_cutbacks:
+                    n_cut += 1
+                    pending.append(0.5 * (t_cur + target))
+                    log.info("t = %.6g: %s; cutting back to t = %.6g", target, exc, pending[-1])
+                    continue
+                return None, str(exc), (n_it, n_calls, n_cut)
+            n_it += out.iterations
+            n_calls += out.calls
+            if damp is not None and out.damping is not None:
+                damp.append(out.damping)
+            u_prev, t_prev = cur_u, t_cur
+            cur_u, cur_state, t_cur = out.u, out.response.state, target
+            pending.pop()
+        return out, "", (n_it, n_calls, n_cut)
+
     for k in range(start, K):
         with warnings.catch_warnings():
             # trial iterates may leave a material's state questionable (e.g. a crystal's
@@ -616,31 +653,8 @@ def solve_nonlinear(
             # the sub-step loop shares these with the predictor closures
             t_cur, u_prev, t_prev = t_c, u_p, t_p
             if method in ("newton", "auto"):
-                pending = [t_target]
-                cur_u, cur_state = step_u, step_state
-                while pending:
-                    target = pending[-1]
-                    try:
-                        out = newton_to(target, cur_u, cur_state)
-                    except StepFailed as exc:
-                        if exc.outcome is not None:
-                            n_it += exc.outcome.iterations
-                            n_calls += exc.outcome.calls
-                        if n_cut < max_cutbacks:
-                            n_cut += 1
-                            pending.append(0.5 * (t_cur + target))
-                            log.info(
-                                "step %d: %s; cutting back to t = %.6g", k + 1, exc, pending[-1]
-                            )
-                            continue
-                        why = str(exc)
-                        out = None
-                        break
-                    n_it += out.iterations
-                    n_calls += out.calls
-                    u_prev, t_prev = cur_u, t_cur
-                    cur_u, cur_state, t_cur = out.u, out.response.state, target
-                    pending.pop()
+                out, why, counts = substeps(newton_to, t_target, step_u, step_state, None)
+                n_it, n_calls, n_cut = counts
                 if out is None:
                     if method == "newton":
                         raise ConvergenceError(
@@ -652,17 +666,14 @@ def solve_nonlinear(
                 else:
                     used = "newton"
             if method == "adr" or out is None:
-                try:
-                    out = adr_to(t_target, step_u, step_state)
-                except StepFailed as exc:
+                out, adr_why, counts = substeps(adr_to, t_target, step_u, step_state, damp)
+                n_it, n_calls, n_cut = n_it + counts[0], n_calls + counts[1], n_cut + counts[2]
+                if out is None:
                     prefix = f"Newton failed ({why}); " if why else ""
                     raise ConvergenceError(
-                        f"{prefix}ADR failed at load step {k + 1} (t = {t_target:.6g}): {exc}"
-                    ) from exc
-                n_it += out.iterations
-                n_calls += out.calls
-                if out.damping is not None:
-                    damp.append(out.damping)
+                        f"{prefix}ADR failed at load step {k + 1} (t = {t_target:.6g}) after "
+                        f"{counts[2]} cut-back(s): {adr_why}"
+                    )
                 e1s[k] = np.nan if out.e1 is None else out.e1
                 e2s[k] = np.nan if out.e2 is None else out.e2
                 if method == "adr":

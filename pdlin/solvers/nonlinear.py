@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import ConvergenceError, InputError, ModelError
+from ..errors import ConvergenceError, InputError, ModelError, NonFiniteError
 from .linear import solve_linear
 
 __all__ = [
@@ -78,6 +78,16 @@ class StepFailed(ConvergenceError):
     def __init__(self, message: str, outcome: StepOutcome | None = None) -> None:
         super().__init__(message, outcome)
         self.outcome = outcome
+
+
+def _respond(system: Any, u: np.ndarray, committed: Any, what: str, tangent: bool = False) -> Any:
+    """``system.respond`` where a non-finite constitutive response (a material update
+    that failed at a trial state, e.g. a return mapping diverging at an overshooting
+    ADR iterate) fails the step, so that the driver cuts it back, instead of escaping."""
+    try:
+        return system.respond(u, committed, tangent=tangent)
+    except NonFiniteError as exc:
+        raise StepFailed(f"{what}: non-finite constitutive response ({exc})") from exc
 
 
 def _residual(system: Any, resp: Any, factor: float) -> np.ndarray:
@@ -138,7 +148,7 @@ def newton_step(
         On ``maxiter`` iterations, a failed line search or a non-finite force.
     """
     u = np.array(u0, dtype=float).reshape(-1)
-    resp = system.respond(u, committed, tangent=True)
+    resp = _respond(system, u, committed, "Newton: start of the step", tangent=True)
     calls = int(resp.calls)
     r = _residual(system, resp, factor)
     scale0 = _force_scale(system, resp, factor)
@@ -189,7 +199,14 @@ def newton_step(
         want_tangent = rel * rel > 0.1 * rtol
         for _ls in range(max_backtracks + 1 if line_search else 1):
             trial_u = u + alpha * du
-            trial = system.respond(trial_u, committed, tangent=alpha == 1.0 and want_tangent)
+            try:
+                trial = _respond(
+                    system, trial_u, committed, "Newton", tangent=alpha == 1.0 and want_tangent
+                )
+            except StepFailed:  # a non-finite material response: backtrack like a NaN ‖r‖
+                alpha *= 0.5
+                backtracks += 1
+                continue
             calls += int(trial.calls)
             rt = _residual(system, trial, factor)
             nt = float(np.linalg.norm(rt))
@@ -218,7 +235,7 @@ def newton_step(
             nt = float(np.linalg.norm(rt))
             scale_t = max(scale0, _force_scale(system, trial, factor))
             if not (nt <= rtol * scale_t or nt == 0.0):  # another iteration needs K_T
-                trial = system.respond(u, committed, tangent=True)
+                trial = _respond(system, u, committed, f"Newton iteration {it}", tangent=True)
                 calls += int(trial.calls)
                 rt = _residual(system, trial, factor)
         resp, r = trial, rt
@@ -270,7 +287,7 @@ def adr_density(
     if not (dt > 0 and safety >= 1.0):
         raise InputError(f"dt must be > 0 and safety >= 1, got dt = {dt}, safety = {safety}")
     x = np.zeros(system.ndof) if u is None else np.asarray(u, dtype=float).reshape(-1)
-    resp = system.respond(x, committed, tangent=True)
+    resp = _respond(system, x, committed, "ADR density", tangent=True)
     if resp.tangent is None:
         raise ModelError(
             f"{type(system.model).__name__}.respond(tangent=True) returned no tangent; "
@@ -329,7 +346,7 @@ def adr_step(
     npts = system.n
     u = np.array(u0, dtype=float).reshape(-1)
     u_prev = u.copy()
-    resp = system.respond(u, committed)
+    resp = _respond(system, u, committed, "ADR: start of the step")
     calls = int(resp.calls)
     r = _residual(system, resp, factor)
     scale = _force_scale(system, resp, factor)
@@ -346,7 +363,7 @@ def adr_step(
         cdt = c * dt
         u_new = (h2 * a + 4.0 * u + (cdt - 2.0) * u_prev) / (2.0 + cdt)
         u_new[~free] = u[~free]
-        resp_new = system.respond(u_new, committed)
+        resp_new = _respond(system, u_new, committed, f"ADR iteration {it}")
         calls += int(resp_new.calls)
         r_new = _residual(system, resp_new, factor)
         n1 = float(np.linalg.norm(r_new))

@@ -285,3 +285,33 @@ def test_committed_issues_are_warned_per_step_and_trial_warnings_ignored(method)
         "load step 2 (t = 0.666667): 20 point(s) past the threshold",
         "load step 3 (t = 1): 20 point(s) past the threshold",
     ]
+
+
+class _FragileChain(CubicChain):
+    """CubicChain whose material update fails (NonFiniteError) when a bond's strain grows
+    by more than 0.001 in one call beyond the committed history (a return mapping that
+    diverges on too large an increment)."""
+
+    def respond(self, cloud: Any, bonds: Any, u: Any, state: Any, *, tangent: bool = False):
+        i, j = self._pairs(bonds)
+        e = np.ravel(u)[j] - np.ravel(u)[i]
+        if np.any(np.abs(e) - state["emax"][i] > 1e-3):
+            raise pdlin.errors.NonFiniteError("P must be finite, got nan (increment too large)")
+        return super().respond(cloud, bonds, u, state, tangent=tangent)
+
+
+@pytest.mark.parametrize("method", ["newton", "adr"])
+def test_failed_material_update_cuts_the_step_back(method):
+    # one load step to a bond strain of 0.0025 cannot be taken at once (the material fails
+    # above an increment of 0.001): the driver halves it twice (0.0025 -> 0.00125 -> 0.000625)
+    # instead of letting the material's error escape, and converges to the exact solution
+    p = _chain()
+    prob = pdlin.StaticProblem(_FragileChain(), p.cloud, p.bonds, dirichlet=list(p.dirichlet))
+    res = pdlin.solve_nonlinear(prob, steps=1, method=method, max_cutbacks=4)
+    assert res.cutbacks[0] >= 2
+    x = prob.cloud.points[:, 0]
+    u_exact = 0.05 * (x - x[0]) / (x[-1] - x[0])
+    np.testing.assert_allclose(res.u[-1, :, 0], u_exact, rtol=1e-6, atol=1e-9)
+    # with no cut-back allowed the step fails loudly as a ConvergenceError naming the cause
+    with pytest.raises(ConvergenceError, match="non-finite constitutive response"):
+        pdlin.solve_nonlinear(prob, steps=1, method=method, max_cutbacks=0)
