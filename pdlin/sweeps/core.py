@@ -257,6 +257,24 @@ def _reset_peak_rss() -> float:
     return _rss_kb("VmRSS")
 
 
+def _run_measured(run: Callable[[], Any], memory: str, t0: float) -> tuple[Any, float, float]:
+    """``run()`` with its wall time since ``t0`` and peak memory (MB) per ``memory`` mode."""
+    if memory == "tracemalloc":
+        tracemalloc.start()
+    rss0 = _reset_peak_rss() if memory == "rss" else 0.0
+    peak = float("nan")
+    try:
+        res = run()
+    finally:
+        if memory == "tracemalloc":
+            peak = tracemalloc.get_traced_memory()[1] / 2**20
+            tracemalloc.stop()
+    wall = time.perf_counter() - t0
+    if memory == "rss":
+        peak = max(_rss_kb("VmHWM") - rss0, 0.0) / 1024.0
+    return res, wall, peak
+
+
 def _measure_point(
     factory: Callable[..., Any],
     params: dict[str, Any],
@@ -276,20 +294,7 @@ def _measure_point(
             "a nonlinear material); this case is solved by pdlin.solve"
         )
     kw = {**case.solve_kwargs, **skw}
-    if memory == "tracemalloc":
-        tracemalloc.start()
-    rss0 = _reset_peak_rss() if memory == "rss" else 0.0
-    try:
-        res = solve(case.problem, **kw)
-    finally:
-        if memory == "tracemalloc":
-            peak = tracemalloc.get_traced_memory()[1] / 2**20
-            tracemalloc.stop()
-    wall = time.perf_counter() - t0
-    if memory == "rss":
-        peak = max(_rss_kb("VmHWM") - rss0, 0.0) / 1024.0
-    elif memory == "none":
-        peak = float("nan")
+    res, wall, peak = _run_measured(lambda: solve(case.problem, **kw), memory, t0)
     cloud = case.problem.cloud
     d = cloud.dim
     system = res.system
@@ -348,20 +353,7 @@ def _measure_nonlinear(
         raise InputError("sweep key 'operator' applies to linear solves only")
     mapped = {("linear_solver" if k == "solver" else k): v for k, v in skw.items()}
     kw.update(mapped)
-    if memory == "tracemalloc":
-        tracemalloc.start()
-    rss0 = _reset_peak_rss() if memory == "rss" else 0.0
-    try:
-        res = solve_nonlinear(case.problem, **kw)
-    finally:
-        if memory == "tracemalloc":
-            peak = tracemalloc.get_traced_memory()[1] / 2**20
-            tracemalloc.stop()
-    wall = time.perf_counter() - t0
-    if memory == "rss":
-        peak = max(_rss_kb("VmHWM") - rss0, 0.0) / 1024.0
-    elif memory == "none":
-        peak = float("nan")
+    res, wall, peak = _run_measured(lambda: solve_nonlinear(case.problem, **kw), memory, t0)
     if res.homogenized_stress is None:
         raise InputError("a nonlinear tradeoff case needs a model with a stress response")
     cloud = case.problem.cloud
