@@ -797,7 +797,7 @@ def _subregion_scene(top: Mapping[str, Any], base: Path) -> Scene:
 
     from ..problem import solve
     from ..submodeling import subregion
-    from ..sweeps.scene import _apply
+    from ..sweeps.scene import rescale_grid
 
     sub = _check_keys(top["subregion"], _SUBREGION, "subregion")
     data = {k: copy.deepcopy(v) for k, v in top.items() if k != "subregion"}
@@ -815,10 +815,7 @@ def _subregion_scene(top: Mapping[str, Any], base: Path) -> Scene:
         raise SceneError("subregion supports linear scenes (the driver is one linear solve)")
     spacing = float(np.max(np.asarray(geo.get("spacing", 1.0), dtype=float)))
     coarse_data = copy.deepcopy(data)
-    try:
-        _apply(coarse_data, "h", float(spacing) * factor)
-    except SceneError as exc:
-        raise SceneError(f"subregion.coarse: {exc}") from exc
+    rescale_grid(coarse_data, spacing * factor, "subregion.coarse")
     coarse = scene_from_dict(coarse_data, base)
     t0 = time.perf_counter()
     kw: dict[str, Any] = {"solver": coarse.solver, "rtol": coarse.rtol}

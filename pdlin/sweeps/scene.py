@@ -169,6 +169,28 @@ def _set(data: dict[str, Any], path: str, value: Any) -> None:
     node[parts[-1]] = value
 
 
+def rescale_grid(data: dict[str, Any], h: float, where: str) -> None:
+    """Set a grid scene's spacing to ``h``, keeping its box (the shape is rescaled).
+
+    Shared by sweeps over ``h`` and the coarse run of ``[subregion]`` scenes; ``where``
+    names the scene key that asked for it in the errors.
+    """
+    geo = data.get("geometry", {})
+    if geo.get("type", "grid") != "grid":
+        raise SceneError(f"{where}: needs geometry.type = 'grid'")
+    old = np.broadcast_to(np.asarray(geo.get("spacing", 1.0), dtype=float), (len(geo["shape"]),))
+    size = np.asarray(geo["shape"], dtype=float) * old
+    geo["shape"] = [max(int(round(s / h)), 1) for s in size]
+    geo["spacing"] = h
+    for kind in ("dirichlet", "load"):
+        for k, bc in enumerate(data.get(kind, [])):
+            if "points" in bc:
+                raise SceneError(
+                    f"{where}: the spacing changes the grid, so {kind}[{k}].points (point "
+                    "indices) would select other points; use set or box"
+                )
+
+
 def _apply(data: dict[str, Any], key: str, value: Any) -> None:
     if key == "model":
         base, _, control = str(value).partition(":")
@@ -190,22 +212,7 @@ def _apply(data: dict[str, Any], key: str, value: Any) -> None:
     elif key == "influence":
         data.setdefault("horizon", {})["influence"] = value
     elif key == "h":
-        geo = data.get("geometry", {})
-        if geo.get("type", "grid") != "grid":
-            raise SceneError("tradeoff.sweep.h needs geometry.type = 'grid'")
-        old = np.broadcast_to(
-            np.asarray(geo.get("spacing", 1.0), dtype=float), (len(geo["shape"]),)
-        )
-        size = np.asarray(geo["shape"], dtype=float) * old
-        geo["shape"] = [max(int(round(s / float(value))), 1) for s in size]
-        geo["spacing"] = float(value)
-        for kind in ("dirichlet", "load"):
-            for k, bc in enumerate(data.get(kind, [])):
-                if "points" in bc:
-                    raise SceneError(
-                        f"tradeoff.sweep.h changes the grid, so {kind}[{k}].points (point "
-                        "indices) would select other points; use set or box"
-                    )
+        rescale_grid(data, float(value), "tradeoff.sweep.h")
     elif "." in key:
         _set(data, key, value)
     else:
