@@ -214,7 +214,9 @@ class _Pardiso:
         self._s = mod.PyPardisoSolver(mtype=2 if symmetric else 11)
         self._s.set_statistical_info_off()
         self._s.iparm[0] = 1  # iparm(1): user settings below, PARDISO defaults otherwise
-        self._s.iparm[1] = 2  # iparm(2): METIS nested dissection
+        # iparm(2): METIS nested dissection, the parallel (OpenMP) version: same ordering
+        # and fill, analysis 1.65 -> 1.27 s on 2 threads (401² stress points, δ = 2h)
+        self._s.iparm[1] = 3
         self._s.iparm[9] = 8 if symmetric else 13  # iparm(10): pivot perturbation 1e-8 / 1e-13
         self._s.iparm[10] = 0 if symmetric else 1  # iparm(11): scaling (nonsymmetric)
         self._s.iparm[12] = 0 if symmetric else 1  # iparm(13): weighted matching
@@ -226,7 +228,7 @@ class _Pardiso:
         self.refactor(A)
 
     def _matrix(self, A: sp.csc_matrix) -> sp.csr_matrix:
-        M = sp.triu(A, format="csr") if self.symmetric else sp.csr_matrix(A)
+        M = _triu(A) if self.symmetric else sp.csr_matrix(A)
         M.sort_indices()
         M.data = np.ascontiguousarray(M.data, dtype=np.float64)
         return M
@@ -288,7 +290,8 @@ class _Mumps:
         self.refactor(A)
 
     def refactor(self, csc: sp.csc_matrix) -> None:
-        M = (sp.triu(csc, format="csc") if self.symmetric else sp.csc_matrix(csc)).tocoo()
+        # MUMPS reads the upper triangle of a symmetric matrix in any order (coordinates)
+        M = (_triu(csc) if self.symmetric else sp.csc_matrix(csc)).tocoo()
         same = self._pattern is not None and (
             np.array_equal(M.row, self._pattern[0]) and np.array_equal(M.col, self._pattern[1])
         )
@@ -329,6 +332,33 @@ def _pattern_symmetric(A: sp.csc_matrix) -> bool:
     P.sort_indices()
     Q.sort_indices()
     return bool(np.array_equal(P.indptr, Q.indptr) and np.array_equal(P.indices, Q.indices))
+
+
+def _as_csc(A: Any, symmetric: bool) -> sp.csc_matrix:
+    """``A`` in CSC form; a symmetric ``A`` reuses its CSR arrays (CSR of ``A`` is CSC of
+    ``Aᵀ = A``): BSR -> CSR is a block expansion, 20x cheaper than BSR -> CSC (measured
+    0.025 vs 0.49 s at 16.6 million nonzeros)."""
+    if not symmetric or sp.issparse(A) and A.format == "csc":
+        return sp.csc_matrix(A)
+    R = sp.csr_matrix(A)
+    R.sort_indices()
+    return sp.csc_matrix((R.data, R.indices, R.indptr), shape=R.shape)
+
+
+def _triu(A: sp.csc_matrix) -> sp.csr_matrix:
+    """Upper triangle (diagonal included) of a symmetric ``A`` in CSR with sorted rows.
+
+    The CSC arrays of a symmetric matrix are its CSR arrays, so the upper triangle is a
+    mask over each row's columns (vectorized; 10x faster than ``scipy.sparse.triu``).
+    """
+    A.sort_indices()
+    n = A.shape[0]
+    counts = np.diff(A.indptr)
+    rows = np.repeat(np.arange(n, dtype=A.indices.dtype), counts)
+    keep = A.indices >= rows
+    indptr = np.zeros(n + 1, dtype=A.indptr.dtype)
+    np.cumsum(np.bincount(rows[keep], minlength=n), out=indptr[1:])
+    return sp.csr_matrix((A.data[keep], A.indices[keep], indptr), shape=A.shape)
 
 
 def _is_symmetric(A: Any, tol: float = 1e-12) -> bool:
@@ -387,10 +417,10 @@ class DirectSolver:
         if backend not in DIRECT_BACKENDS:
             raise InputError(f"direct_backend must be one of {DIRECT_BACKENDS}, got {backend!r}")
         t0 = time.perf_counter()
-        csc = sp.csc_matrix(A)
         if symmetric is None:
             symmetric = _is_symmetric(A)
         self.symmetric = bool(symmetric)
+        csc = _as_csc(A, self.symmetric)
         if backend == "cholmod" and not self.symmetric:
             raise InputError(
                 "direct_backend='cholmod' needs a symmetric matrix (Cholesky); this one is "
@@ -450,7 +480,7 @@ class DirectSolver:
             raise InputError(f"refactor: A must have shape {self.shape}, got {A.shape}")
         t0 = time.perf_counter()
         try:
-            self._impl.refactor(sp.csc_matrix(A))
+            self._impl.refactor(_as_csc(A, self.symmetric))
         except _NotPositiveDefinite as exc:
             raise ConvergenceError(
                 f"direct solve ({self.backend}): the matrix is not positive definite ({exc})"

@@ -240,3 +240,26 @@ def test_cli_reports_backend(tmp_path: Path, capsys: pytest.CaptureFixture[str])
 
     with pytest.raises(SceneError, match="solver.direct_backend"):
         load_scene(scene)
+
+
+@pytest.mark.parametrize("fmt", ("bsr", "csr", "csc", "coo"))
+def test_conversions_keep_the_matrix(fmt: str) -> None:
+    # the cheap CSR-as-CSC reading of a symmetric matrix and the vectorized upper
+    # triangle must equal scipy's own conversions exactly (empty rows included)
+    rng = np.random.default_rng(3)
+    B = sp.random(40, 40, density=0.1, random_state=rng, format="csr")
+    A = B + B.T + sp.diags(np.arange(40.0) % 3)  # symmetric, rows 0, 3, ... may be empty
+    A = sp.csr_array(A)
+    A = A.tobsr(blocksize=(2, 2)) if fmt == "bsr" else A.asformat(fmt)
+    csc = direct_mod._as_csc(A, symmetric=True)
+    assert csc.format == "csc"
+    assert (csc != sp.csc_matrix(A)).nnz == 0
+    U = direct_mod._triu(csc)
+    ref = sp.triu(sp.csc_matrix(A), format="csr")
+    ref.sort_indices()
+    assert U.has_sorted_indices
+    assert np.array_equal(U.indptr, ref.indptr) and np.array_equal(U.indices, ref.indices)
+    assert np.array_equal(U.data, ref.data)
+    # a nonsymmetric matrix is converted, not reinterpreted
+    N = sp.csr_array(sp.random(30, 30, density=0.2, random_state=rng))
+    assert (direct_mod._as_csc(N, symmetric=False) != sp.csc_matrix(N)).nnz == 0
