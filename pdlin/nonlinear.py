@@ -68,7 +68,7 @@ class NonlinearResult:
         gives their step indices and :meth:`state_at` looks one up.
     iterations, calls, cutbacks : (k,) ndarray of int
         Newton iterations or ADR iterations, constitutive evaluations and
-        step halvings per step (summed over sub-steps).
+        failed increments (cut-backs) per step (summed over sub-steps).
     methods : list of str
         Driver that converged each step: ``'newton'``, ``'adr'`` or
         ``'adr (newton failed)'`` (``method='auto'`` fell back).
@@ -332,7 +332,7 @@ def solve_nonlinear(
         'newton': Newton-Raphson with the consistent tangent, backtracking
         line search and step cut-back.  'adr': adaptive dynamic relaxation
         (Kilic-Madenci; spec 001 §4).  'auto': Newton, falling back to ADR
-        from the step's committed state on a step that Newton fails even
+        from Newton's last converged increment when an increment fails even
         after ``max_cutbacks`` halvings (``result.methods`` says so).
     t_end : float, optional
         Time of the full load (default 1): the end of ``steps`` equal steps,
@@ -352,7 +352,10 @@ def solve_nonlinear(
     rtol, maxiter, line_search, max_cutbacks, linear_solver
         Newton: convergence ``‖r_free‖ <= rtol`` x force scale (the larger of
         ``‖λ f_ext‖`` and the reaction norm), iteration budget per (sub)step,
-        backtracking on/off, number of step halvings, inner linear solver
+        backtracking on/off, how often one increment may be halved (Newton and
+        ADR; the smallest increment is the step / 2**max_cutbacks; a converged
+        increment is doubled after easy convergence and the last one starts the
+        next step), inner linear solver
         ('auto': direct up to 2·10⁵ DOFs in 2D / 3·10⁴ in 3D, then AMG-Krylov).
     e_l, density, density_safety, dt, damping, c0, adr_maxiter, floor
         ADR: target of the relative criteria e₁, e₂ (spec 001 Eqs. 19-20);
@@ -599,42 +602,63 @@ def solve_nonlinear(
             floor=floor,
         )
 
+    # automatic incrementation: the last converged increment of each driver, as a
+    # fraction of its load step, starts the next step (grown after easy convergence)
+    inc_frac = {"newton": 1.0, "adr": 1.0}
+
     def substeps(
         step_fn: Callable[[float, np.ndarray, dict[str, np.ndarray]], StepOutcome],
+        driver: str,
         t_target: float,
         u_start: np.ndarray,
         st_start: dict[str, np.ndarray],
         damp: list[np.ndarray] | None,
-    ) -> tuple[StepOutcome | None, str, tuple[int, int, int]]:
-        """Reach ``t_target`` with ``step_fn``, halving a failed (sub)step at most
-        ``max_cutbacks`` times; each converged sub-step's state starts the next."""
+    ) -> tuple[StepOutcome | None, str, tuple[int, int, int], tuple[np.ndarray, dict[str, Any]]]:
+        """Reach ``t_target`` from ``t_cur`` with ``step_fn`` in automatic increments.
+
+        The first increment is the driver's last converged one (a fraction of the
+        step); a failed increment is halved (a cut-back) down to ``1 / 2**max_cutbacks``
+        of the step, a converged one commits its sub-step state and is doubled (up to
+        the whole step) when it was easy: a Newton increment in at most ``maxiter // 4``
+        iterations, any ADR increment (ADR's iterations per increment hardly depend on
+        its size).  Returns the outcome of the last sub-step (None when an increment
+        fails at the smallest size), why it failed, the counts (iterations,
+        constitutive calls, cut-backs) and the last converged (u, state), from which
+        a fallback driver continues."""
         nonlocal t_cur, u_prev, t_prev
-        pending = [t_target]
+        span = t_target - t_cur
+        smallest = span / 2.0**max_cutbacks
+        inc = min(1.0, inc_frac[driver]) * span
         cur_u, cur_state = u_start, st_start
         n_it = n_calls = n_cut = 0
         out: StepOutcome | None = None
-        while pending:
-            target = pending[-1]
+        easy = max(2, maxiter // 4)
+        while t_target - t_cur > 1e-12 * span:
+            last = t_target - t_cur <= inc * (1.0 + 1e-9)
+            target = t_target if last else t_cur + inc
             try:
                 out = step_fn(target, cur_u, cur_state)
             except StepFailed as exc:
                 if exc.outcome is not None:
                     n_it += exc.outcome.iterations
                     n_calls += exc.outcome.calls
-                if n_cut < max_cutbacks:
-                    n_cut += 1
-                    pending.append(0.5 * (t_cur + target))
-                    log.info("t = %.6g: %s; cutting back to t = %.6g", target, exc, pending[-1])
-                    continue
-                return None, str(exc), (n_it, n_calls, n_cut)
+                n_cut += 1
+                if 0.5 * min(inc, t_target - t_cur) < smallest * (1.0 - 1e-9):
+                    inc_frac[driver] = inc / span
+                    return None, str(exc), (n_it, n_calls, n_cut), (cur_u, cur_state)
+                inc = 0.5 * min(inc, t_target - t_cur)
+                log.info("t = %.6g: %s; cutting back to t = %.6g", target, exc, t_cur + inc)
+                continue
             n_it += out.iterations
             n_calls += out.calls
             if damp is not None and out.damping is not None:
                 damp.append(out.damping)
             u_prev, t_prev = cur_u, t_cur
             cur_u, cur_state, t_cur = out.u, out.response.state, target
-            pending.pop()
-        return out, "", (n_it, n_calls, n_cut)
+            if driver == "adr" or out.iterations <= easy:
+                inc = min(span, 2.0 * inc)
+        inc_frac[driver] = inc / span
+        return out, "", (n_it, n_calls, n_cut), (cur_u, cur_state)
 
     for k in range(start, K):
         with warnings.catch_warnings():
@@ -653,7 +677,9 @@ def solve_nonlinear(
             # the sub-step loop shares these with the predictor closures
             t_cur, u_prev, t_prev = t_c, u_p, t_p
             if method in ("newton", "auto"):
-                out, why, counts = substeps(newton_to, t_target, step_u, step_state, None)
+                out, why, counts, (step_u, step_state) = substeps(
+                    newton_to, "newton", t_target, step_u, step_state, None
+                )
                 n_it, n_calls, n_cut = counts
                 if out is None:
                     if method == "newton":
@@ -661,12 +687,14 @@ def solve_nonlinear(
                             f"Newton failed at load step {k + 1} (t = {t_target:.6g}) after "
                             f"{n_cut} cut-back(s): {why}"
                         )
+                    # ADR continues from Newton's last converged increment
                     used = "adr (newton failed)"
-                    t_cur, u_prev, t_prev = t_c, u_p, t_p
                 else:
                     used = "newton"
             if method == "adr" or out is None:
-                out, adr_why, counts = substeps(adr_to, t_target, step_u, step_state, damp)
+                out, adr_why, counts, _ = substeps(
+                    adr_to, "adr", t_target, step_u, step_state, damp
+                )
                 n_it, n_calls, n_cut = n_it + counts[0], n_calls + counts[1], n_cut + counts[2]
                 if out is None:
                     prefix = f"Newton failed ({why}); " if why else ""

@@ -315,3 +315,72 @@ def test_failed_material_update_cuts_the_step_back(method):
     # with no cut-back allowed the step fails loudly as a ConvergenceError naming the cause
     with pytest.raises(ConvergenceError, match="non-finite constitutive response"):
         pdlin.solve_nonlinear(prob, steps=1, method=method, max_cutbacks=0)
+
+
+def test_cutback_depth_not_count_bounds_the_increments():
+    # max_cutbacks bounds how often one increment is halved (smallest increment: the step
+    # / 2**max_cutbacks), not the failures of a step: with 2, increments of 0.0025 / 4 =
+    # 0.000625 <= 0.001 (the _FragileChain limit) pass, and every later try of a doubled
+    # increment (0.00125) fails once more, so the step has more failures than 2
+    p = _chain()
+    prob = pdlin.StaticProblem(_FragileChain(), p.cloud, p.bonds, dirichlet=list(p.dirichlet))
+    res = pdlin.solve_nonlinear(prob, steps=1, method="newton", max_cutbacks=2)
+    assert res.cutbacks[0] > 2
+    x = prob.cloud.points[:, 0]
+    np.testing.assert_allclose(res.u[-1, :, 0], 0.05 * (x - x[0]) / (x[-1] - x[0]), atol=1e-9)
+    # one level less and the smallest increment (0.00125) is still too large
+    with pytest.raises(ConvergenceError, match="after 2 cut-back"):
+        pdlin.solve_nonlinear(prob, steps=1, method="newton", max_cutbacks=1)
+
+
+def test_increment_carries_into_the_next_step(monkeypatch):
+    # a Newton that refuses load increments above 0.3 (of the load factor) and reports
+    # every converged increment as hard (10 iterations, so it is not grown): step 1
+    # (increment 0.5) is cut back once to 0.25 and finishes in two increments; step 2
+    # starts from the carried 0.25 and is never cut back (halving from the full step
+    # each time would fail once per step)
+    import pdlin.nonlinear as nl
+
+    real_newton = nl.newton_step
+    last = [0.0]
+
+    def newton_limited(system, u0, committed, *, factor, **kw):
+        if factor - last[0] > 0.3 + 1e-12:
+            raise nl.StepFailed("Newton: increment too large (test)")
+        out = real_newton(system, u0, committed, factor=factor, **kw)
+        last[0] = factor
+        out.iterations = 10
+        return out
+
+    monkeypatch.setattr(nl, "newton_step", newton_limited)
+    res = pdlin.solve_nonlinear(_chain(u_end=0.05, beta=10.0), steps=2, method="newton")
+    assert res.cutbacks.tolist() == [1, 0]
+    assert res.iterations.tolist() == [20, 20]  # two increments of 10 per step
+
+
+def test_auto_continues_with_adr_from_newtons_last_increment(monkeypatch):
+    # Newton converges up to half of the load and fails beyond; ADR must take over from
+    # Newton's converged half step (its start state already has the history of t = 0.5)
+    import pdlin.nonlinear as nl
+
+    real_newton, real_adr = nl.newton_step, nl.adr_step
+    seen: list[float] = []
+
+    def newton_half(system, u0, committed, *, factor, **kw):
+        if factor > 0.5 + 1e-12:
+            raise nl.StepFailed("Newton: refused beyond half the load (test)")
+        return real_newton(system, u0, committed, factor=factor, **kw)
+
+    def adr_logged(system, u0, committed, **kw):
+        seen.append(float(np.max(committed["emax"])))
+        return real_adr(system, u0, committed, **kw)
+
+    monkeypatch.setattr(nl, "newton_step", newton_half)
+    monkeypatch.setattr(nl, "adr_step", adr_logged)
+    prob = _chain(u_end=0.05, beta=10.0)
+    res = pdlin.solve_nonlinear(prob, steps=1, method="auto", max_cutbacks=2, e_l=1e-10)
+    assert res.methods == ["adr (newton failed)"]
+    # committed history at ADR's start: the strain of half the load, 0.05 / 20 / 2
+    np.testing.assert_allclose(seen[0], 0.05 / 40, rtol=1e-9)
+    x = prob.cloud.points[:, 0]
+    np.testing.assert_allclose(res.u[-1, :, 0], 0.05 * (x - x[0]) / (x[-1] - x[0]), atol=1e-8)
