@@ -26,8 +26,12 @@ reason is kept in :attr:`DirectSolver.info` (``'fallback'``).
 
 from __future__ import annotations
 
+import glob
 import importlib
 import logging
+import os
+import site
+import sys
 import time
 from typing import Any
 
@@ -58,8 +62,30 @@ class _NotPositiveDefinite(Exception):
     """A Cholesky factorization met a non-positive pivot."""
 
 
+def _mkl_rt_path() -> str | None:
+    """The MKL runtime library of the pip ``mkl`` wheel (``<prefix>/lib/libmkl_rt.so.N``).
+
+    pypardiso looks for it on every solver it creates (``find_library``, then a recursive
+    glob of the environment: 0.35-0.7 s each, measured; its import creates one solver)
+    unless ``PYPARDISO_MKL_RT`` names it, so pdlin finds it once, non-recursively.
+    """
+    for base in (sys.prefix, site.USER_BASE or ""):
+        hits = [
+            path
+            for pattern in ("lib/libmkl_rt.so*", "lib/libmkl_rt*.dylib", "Library/bin/mkl_rt*.dll")
+            for path in glob.glob(os.path.join(base, pattern))
+        ]
+        if hits:
+            return min(hits, key=len)
+    return None
+
+
 def _import(name: str) -> Any:
     """Import the module of backend ``name`` or raise MissingDependencyError."""
+    if name == "pardiso" and not os.environ.get("PYPARDISO_MKL_RT"):
+        path = _mkl_rt_path()
+        if path is not None:  # pypardiso's own variable: skips its search in every solver
+            os.environ["PYPARDISO_MKL_RT"] = path
     try:
         return importlib.import_module(_MODULES[name])
     except Exception as exc:  # ImportError, or a binary built against another numpy

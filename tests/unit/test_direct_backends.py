@@ -263,3 +263,21 @@ def test_conversions_keep_the_matrix(fmt: str) -> None:
     # a nonsymmetric matrix is converted, not reinterpreted
     N = sp.csr_array(sp.random(30, 30, density=0.2, random_state=rng))
     assert (direct_mod._as_csc(N, symmetric=False) != sp.csc_matrix(N)).nnz == 0
+
+
+def test_pardiso_solvers_skip_pypardisos_library_search(monkeypatch: pytest.MonkeyPatch) -> None:
+    # pypardiso searches the environment for libmkl_rt (a recursive glob, 0.35-0.7 s) on
+    # every solver unless PYPARDISO_MKL_RT names it; pdlin sets it once from the wheel's
+    # lib folder, so a new PARDISO factorization must not search again
+    _need("pardiso")
+    direct_mod._import("pardiso")
+    import pypardiso.pardiso_wrapper as pw
+
+    def no_search(*args: object, **kwargs: object) -> list[str]:
+        raise AssertionError("pypardiso searched for libmkl_rt again")
+
+    monkeypatch.setattr(pw.glob, "glob", no_search)
+    monkeypatch.setattr(pw, "find_library", no_search)
+    A = sp.csr_array(sp.diags([4.0] * 30) + sp.diags([1.0] * 29, 1) + sp.diags([1.0] * 29, -1))
+    s = DirectSolver(A, symmetric=True, backend="pardiso")
+    np.testing.assert_allclose(A @ s.solve(np.ones(30)), np.ones(30), rtol=1e-12)
