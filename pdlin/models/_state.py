@@ -31,6 +31,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy import integrate
 
+from .._kernels import bsr_matmul, csr_matvec, numba_enabled
 from .._validation import as_displacement, as_float_array
 from ..constitutive.symmetry import isotropic_constants
 from ..errors import AccuracyWarning, InputError, ModelError, ShapeError
@@ -881,6 +882,15 @@ class OrdinaryStateBased(Model):
             Y = sp.vstack([theta_op, Bw], format="csr")
             del gam_b
         del B, Bw, theta_op
+        if numba_enabled():
+            # row-parallel product with sorted block columns (pdlin._kernels): (d x 1)
+            # blocks of Xᵀ times (1 x d) blocks of Y give the d x d blocks of K, each
+            # entry the same products in the same order as the scipy path below
+            Xt = sp.bsr_array(X.T.tocsr().tobsr(blocksize=(d, 1)))
+            del X
+            Yb = sp.bsr_array(Y.tobsr(blocksize=(1, d)))
+            del Y
+            return bsr_matmul(Xt, Yb)
         # block product: (d x 1) blocks of Yᵀ times (1 x d) blocks of X give the d x d
         # blocks of Kᵀ directly (faster than a scalar CSR product + tobsr); the final
         # O(nnz) block transpose returns K with sorted block indices (cheaper than a sort)
@@ -917,13 +927,13 @@ class OrdinaryStateBased(Model):
         rv = r * bonds.volume_j
 
         def matvec(x: np.ndarray) -> np.ndarray:
-            e = B @ np.ravel(x)
+            e = csr_matvec(B, np.ravel(x).astype(float, copy=False))
             theta = np.bincount(own, weights=a * e, minlength=n)[own]
             cd = c * (e - theta * r / d)
             t = kh * theta + cd
             if not paper:
                 t -= zc * np.bincount(own, weights=cd * rv, minlength=n)[own]
-            return Bt @ (w * t)
+            return csr_matvec(Bt, w * t)
 
         return spla.LinearOperator((n * d, n * d), matvec=matvec, dtype=float)
 
