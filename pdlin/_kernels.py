@@ -32,7 +32,7 @@ import scipy.sparse as sp
 
 from ._threads import get_num_threads
 
-__all__ = ["numba_enabled", "bsr_matmul", "csr_matvec"]
+__all__ = ["numba_enabled", "use_numba", "bsr_matmul", "csr_matvec"]
 
 log = logging.getLogger(__name__)
 
@@ -90,6 +90,20 @@ def numba_enabled() -> bool:
     return _kernels() is not None
 
 
+def use_numba(work: int) -> bool:
+    """Whether an operation of ``work`` stored entries goes to numba (large enough, enabled).
+
+    Small operations stay on scipy without importing numba (its import alone takes ~1 s).
+
+    Examples
+    --------
+    >>> from pdlin._kernels import use_numba
+    >>> use_numba(10)
+    False
+    """
+    return work >= _MIN_WORK and numba_enabled()
+
+
 def _set_threads() -> None:
     import numba
 
@@ -130,9 +144,9 @@ def bsr_matmul(A: Any, B: Any) -> sp.bsr_array:
     N2, S = B.blocksize
     if A.shape[1] != B.shape[0] or N != N2:
         raise ValueError(f"bsr_matmul: blocks {A.blocksize} x {B.blocksize} do not chain")
-    mod = _kernels()
     real = A.dtype == np.float64 and B.dtype == np.float64
-    if mod is None or not real or A.nnz * B.blocksize[1] < _MIN_WORK:
+    mod = _kernels() if real and use_numba(A.nnz * S) else None
+    if mod is None:
         return sp.bsr_array(A @ B, blocksize=(R, S))
     a_ptr = np.asarray(A.indptr, dtype=np.int64)
     b_ptr = np.asarray(B.indptr, dtype=np.int64)
@@ -181,9 +195,10 @@ def csr_matvec(A: Any, x: np.ndarray) -> np.ndarray:
     >>> csr_matvec(A, np.array([1.0, 1.0, 1.0]))
     array([3., 3.])
     """
-    mod = _kernels()
     xv = np.asarray(x)
-    if mod is None or A.dtype != np.float64 or xv.dtype != np.float64 or A.nnz < _MIN_WORK:
+    real = A.dtype == np.float64 and xv.dtype == np.float64
+    mod = _kernels() if real and use_numba(A.nnz) else None
+    if mod is None:
         return np.asarray(A @ xv)
     if xv.shape != (A.shape[1],):
         raise ValueError(f"csr_matvec: x must have shape ({A.shape[1]},), got {xv.shape}")
