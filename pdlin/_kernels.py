@@ -9,14 +9,23 @@ numba installed (``pip install "pdlin[fast]"``) these products run row-parallel 
   sorted block columns and values); used by the LPS / XOSB assembly (``Yᵀ X``) and the
   correspondence assembly (``Wᵀ W``, ``Bᵀ (D B)`` and the tangent ``Gᵀ (A G)``);
 - :func:`csr_matvec`: ``A @ x`` of a CSR array (the matrix-free products of LPS / XOSB
-  and correspondence).
+  and correspondence);
+- :func:`bsr_transpose` and :func:`drop_small_blocks`: the transposes and the zero-block
+  dropping of the correspondence assembly.
 
 Each output row is computed by one thread in a fixed order, so results are bitwise
 identical for any thread count, and the arithmetic is scipy's (same operations in the
 same order: equal values; the BSR product's block columns come out sorted where scipy
 leaves them unsorted).  Without numba, or with ``PDLIN_NUMBA=0`` in the environment,
-every function is the plain scipy product.  The first call compiles the kernels (a few
-seconds, ``cache=True`` keeps them on disk for later processes).
+every function is the plain scipy product.  Operations below ``_MIN_WORK`` stored entries
+stay on scipy without importing numba.  The first call compiles the kernels (~10 s for all
+signatures; ``cache=True`` keeps them in ``pdlin/__pycache__`` for later processes, where
+loading takes ~0.2 s plus numba's import, ~1 s).
+
+numba's threading layer is set to ``'forksafe'`` (tbb if installed, else numba's
+workqueue) unless ``NUMBA_THREADING_LAYER`` is set: GNU OpenMP, its default without tbb,
+aborts a forked child (multiprocessing) that runs a parallel kernel.  The workqueue layer
+must not be entered by two threads at once, so the calls here hold a lock.
 """
 
 from __future__ import annotations
@@ -32,7 +41,14 @@ import scipy.sparse as sp
 
 from ._threads import get_num_threads
 
-__all__ = ["numba_enabled", "use_numba", "bsr_matmul", "csr_matvec"]
+__all__ = [
+    "numba_enabled",
+    "use_numba",
+    "bsr_matmul",
+    "bsr_transpose",
+    "csr_matvec",
+    "drop_small_blocks",
+]
 
 log = logging.getLogger(__name__)
 
@@ -207,3 +223,71 @@ def csr_matvec(A: Any, x: np.ndarray) -> np.ndarray:
     with _lock:
         _set_threads()
         return np.asarray(mod.csr_matvec(ptr, A.indices, A.data, np.ascontiguousarray(xv), edges))
+
+
+def bsr_transpose(A: Any) -> sp.bsr_array:
+    """``Aᵀ`` of a BSR array as BSR (blocks ``C x R``), the blocks of each row in source order.
+
+    Equal to scipy's ``A.T`` (the same blocks in the same order); with numba, chunks of rows
+    scatter their blocks in parallel.
+
+    Examples
+    --------
+    >>> import numpy as np, scipy.sparse as sp
+    >>> from pdlin._kernels import bsr_transpose
+    >>> A = sp.bsr_array(np.arange(24.0).reshape(4, 6), blocksize=(2, 3))
+    >>> At = bsr_transpose(A)
+    >>> At.blocksize, bool(np.array_equal(At.toarray(), A.toarray().T))
+    ((3, 2), True)
+    """
+    R, C = A.blocksize
+    mod = _kernels() if A.dtype == np.float64 and use_numba(A.nnz) else None
+    if mod is None:
+        return sp.bsr_array(A.T)
+    ptr = np.asarray(A.indptr, dtype=np.int64)
+    with _lock:
+        _set_threads()
+        t_ptr, t_ind, t_dat = mod.bsr_transpose(
+            ptr, A.indices, np.ascontiguousarray(A.data), A.shape[1] // C,
+            _edges(ptr, 4 * get_num_threads()),
+        )  # fmt: skip
+    out = sp.bsr_array(
+        (t_dat, t_ind, t_ptr.astype(A.indices.dtype)),
+        shape=(A.shape[1], A.shape[0]),
+        blocksize=(C, R),
+    )
+    out.has_sorted_indices = True
+    return out
+
+
+def drop_small_blocks(K: Any, factor: float) -> sp.bsr_array | None:
+    """``K`` without off-diagonal blocks with ``max|K_ij|² <= factor max|K_ii| max|K_jj|``.
+
+    The numba version of the correspondence model's zero-block dropping (the same test, the
+    same kept blocks); ``None`` when the numba kernels are not in use (the caller's numpy
+    path then runs).
+
+    Examples
+    --------
+    >>> import numpy as np, scipy.sparse as sp
+    >>> from pdlin._kernels import drop_small_blocks
+    >>> K = sp.bsr_array(np.array([[4.0, 1e-30], [1e-30, 4.0]]), blocksize=(1, 1))
+    >>> out = drop_small_blocks(K, 1e-20)
+    >>> out is None or out.nnz == 2
+    True
+    """
+    mod = _kernels() if K.dtype == np.float64 and use_numba(K.nnz) else None
+    if mod is None:
+        return None
+    ptr = np.asarray(K.indptr, dtype=np.int64)
+    with _lock:
+        _set_threads()
+        new_ptr, new_ind, new_dat = mod.drop_small_blocks(
+            ptr, K.indices, np.ascontiguousarray(K.data), float(factor),
+            _edges(ptr, 4 * get_num_threads()),
+        )  # fmt: skip
+    out = sp.bsr_array(
+        (new_dat, new_ind, new_ptr.astype(K.indices.dtype)), shape=K.shape, blocksize=K.blocksize
+    )
+    out.has_sorted_indices = bool(K.has_sorted_indices)
+    return out

@@ -201,3 +201,40 @@ def test_models_equal_with_and_without_numba(monkeypatch: pytest.MonkeyPatch, di
         scale = np.abs(K0.data).max()
         assert np.abs(K1.data - K0.data).max() <= 1e-14 * scale, name
         assert np.abs(y1 - y0).max() <= 1e-14 * np.abs(y0).max(), name
+
+
+@pytest.mark.parametrize("blocksize", [(1, 1), (2, 3), (3, 6), (3, 3)])
+def test_bsr_transpose_equals_scipy(blocksize: tuple[int, int]) -> None:
+    rng = np.random.default_rng(blocksize[0] + 5 * blocksize[1])
+    A = _random_bsr(rng, 53, 41, blocksize, 0.1, empty_rows=[0, 52], empty_cols=[4, 40])
+    ref = sp.bsr_array(A.T)  # scipy's bsr_transpose
+    for nt in (1, 2):
+        pdlin.set_num_threads(nt)
+        At = _kernels.bsr_transpose(A)
+        assert At.blocksize == ref.blocksize and At.shape == ref.shape
+        assert np.array_equal(At.indptr, ref.indptr)
+        assert np.array_equal(At.indices, ref.indices)
+        assert np.array_equal(At.data, ref.data)  # a copy: bitwise
+
+
+def test_drop_small_blocks_equals_the_numpy_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The numba zero-block dropping keeps exactly the blocks of the correspondence numpy code."""
+    from pdlin.models.correspondence import _drop_zero_blocks
+
+    rng = np.random.default_rng(11)
+    n = 60
+    A = _random_bsr(rng, n, n, (2, 2), 0.1)
+    K = sp.bsr_array(bsr_matmul(A, sp.bsr_array(A.T, blocksize=(2, 2))))  # SPD-like pattern
+    K.data[::3] *= 1e-18  # a third of the blocks at round-off size: dropped
+    K.data[K.indices == np.repeat(np.arange(n), np.diff(K.indptr))] *= 1e-18  # small diagonals
+    K.data[5] = 0.0
+    monkeypatch.setattr(_kernels, "_loaded", False)
+    ref = _drop_zero_blocks(K)
+    monkeypatch.setattr(_kernels, "_loaded", None)
+    assert ref.nnz < K.nnz  # the case drops blocks
+    for nt in (1, 2):
+        pdlin.set_num_threads(nt)
+        out = _drop_zero_blocks(K)
+        assert np.array_equal(out.indptr, ref.indptr)
+        assert np.array_equal(out.indices, ref.indices)
+        assert np.array_equal(out.data, ref.data)
