@@ -1,26 +1,28 @@
 """Optional compiled kernels (numba) for the sparse products that scipy runs on one core.
 
 scipy's sparse products (sparsetools) hold the GIL, so threads cannot share them.  With
-numba installed (``pip install "pdlin[fast]"``) these products run row-parallel on
+numba installed (``pip install "pdlin[fast]"``) these run row-parallel on
 :func:`pdlin.get_num_threads` threads instead:
 
 - :func:`bsr_matmul`: ``A @ B`` of two BSR arrays (block sizes ``R x N`` and ``N x S``,
   any of 1, 2, 3, ...), a two-pass row-parallel Gustavson product (blocks per row, then
-  sorted block columns and values); used by the LPS / XOSB assembly (``Yᵀ X``) and the
-  correspondence assembly (``Wᵀ W``, ``Bᵀ (D B)`` and the tangent ``Gᵀ (A G)``);
-- :func:`csr_matvec`: ``A @ x`` of a CSR array (the matrix-free products of LPS / XOSB
-  and correspondence);
+  sorted block columns and values); used by the LPS / XOSB assembly (``K = Xᵀ Y``) and
+  the correspondence assembly (``Wᵀ W``, ``Bᵀ (D B)`` and the tangent ``Gᵀ (A G)``);
 - :func:`bsr_transpose` and :func:`drop_small_blocks`: the transposes and the zero-block
   dropping of the correspondence assembly.
 
+The matrix-free products stay scipy's mat-vecs: a numba CSR mat-vec was measured slower
+on one thread (0.099 vs 0.064 s per LPS ``K x``, 27,000 points in 3D) and no faster on two.
+
 Each output row is computed by one thread in a fixed order, so results are bitwise
 identical for any thread count, and the arithmetic is scipy's (same operations in the
-same order: equal values; the BSR product's block columns come out sorted where scipy
-leaves them unsorted).  Without numba, or with ``PDLIN_NUMBA=0`` in the environment,
-every function is the plain scipy product.  Operations below ``_MIN_WORK`` stored entries
-stay on scipy without importing numba.  The first call compiles the kernels (~10 s for all
-signatures; ``cache=True`` keeps them in ``pdlin/__pycache__`` for later processes, where
-loading takes ~0.2 s plus numba's import, ~1 s).
+same order for the same operands: equal values; the product's block columns come out
+sorted where scipy leaves them unsorted).  Without numba, or with ``PDLIN_NUMBA=0`` in
+the environment, every function is the plain scipy operation.  Operations below
+``_MIN_WORK`` stored entries stay on scipy without importing numba.  The first call
+compiles the kernels (~13 s for all signatures; ``cache=True`` keeps them in
+``pdlin/__pycache__`` for later processes, where loading takes ~0.5 s plus numba's
+import, ~1 s).
 
 numba's threading layer is set to ``'forksafe'`` (tbb if installed, else numba's
 workqueue) unless ``NUMBA_THREADING_LAYER`` is set: GNU OpenMP, its default without tbb,
@@ -46,7 +48,6 @@ __all__ = [
     "use_numba",
     "bsr_matmul",
     "bsr_transpose",
-    "csr_matvec",
     "drop_small_blocks",
 ]
 
@@ -66,7 +67,7 @@ def _new_lock_in_child() -> None:
 if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_new_lock_in_child)
 
-#: smallest product (block products) / mat-vec (stored entries) sent to numba: below it
+#: smallest operation (stored entries, times S for a product) sent to numba: below it
 #: scipy's call overhead is smaller than the threads' start-up
 _MIN_WORK = 1 << 14
 
@@ -198,31 +199,6 @@ def bsr_matmul(A: Any, B: Any) -> sp.bsr_array:
     )
     out.has_sorted_indices = True
     return out
-
-
-def csr_matvec(A: Any, x: np.ndarray) -> np.ndarray:
-    """``A @ x`` of a CSR array and a vector (row-parallel with numba, else scipy).
-
-    Examples
-    --------
-    >>> import numpy as np, scipy.sparse as sp
-    >>> from pdlin._kernels import csr_matvec
-    >>> A = sp.csr_array(np.array([[1.0, 0.0, 2.0], [0.0, 3.0, 0.0]]))
-    >>> csr_matvec(A, np.array([1.0, 1.0, 1.0]))
-    array([3., 3.])
-    """
-    xv = np.asarray(x)
-    real = A.dtype == np.float64 and xv.dtype == np.float64
-    mod = _kernels() if real and use_numba(A.nnz) else None
-    if mod is None:
-        return np.asarray(A @ xv)
-    if xv.shape != (A.shape[1],):
-        raise ValueError(f"csr_matvec: x must have shape ({A.shape[1]},), got {xv.shape}")
-    ptr = np.asarray(A.indptr, dtype=np.int64)
-    edges = _edges(ptr, 4 * get_num_threads())
-    with _lock:
-        _set_threads()
-        return np.asarray(mod.csr_matvec(ptr, A.indices, A.data, np.ascontiguousarray(xv), edges))
 
 
 def bsr_transpose(A: Any) -> sp.bsr_array:

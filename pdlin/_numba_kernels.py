@@ -5,7 +5,7 @@ chunk, from the same operands in the same order whatever the thread count, so re
 bitwise identical for 1, 2, ... threads.  The arithmetic is that of scipy's sparsetools
 (``bsr_matmat``: each block ``C_ij += A_ik B_kj`` accumulated over the stored ``k`` of row
 ``i`` in storage order, every entry as ``c + a_0 b_0 + a_1 b_1 ...`` from left to right;
-``csr_matvec``: row sums in storage order; ``bsr_transpose``: the blocks of each output row
+``bsr_transpose``: the blocks of each output row
 in source-row order), without fused multiply-adds (numba does not enable floating-point
 contraction by default), so the values equal scipy's for the same operands; the block
 columns of each product row come out sorted.
@@ -98,19 +98,6 @@ def bsr_fill(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bc
                 _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 3, 9, 3)
             else:
                 _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, R, N, S)
-
-
-@numba.njit(parallel=True, cache=True)
-def csr_matvec(ptr, ind, dat, x, edges):
-    """``y = A @ x`` of a CSR matrix, row sums in storage order."""
-    y = np.empty(ptr.size - 1)
-    for c in numba.prange(edges.size - 1):
-        for i in range(edges[c], edges[c + 1]):
-            acc = 0.0
-            for jj in range(ptr[i], ptr[i + 1]):
-                acc += dat[jj] * x[ind[jj]]
-            y[i] = acc
-    return y
 
 
 @numba.njit(parallel=True, cache=True)

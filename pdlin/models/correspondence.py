@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .._kernels import bsr_matmul, bsr_transpose, csr_matvec, drop_small_blocks
+from .._kernels import bsr_matmul, bsr_transpose, drop_small_blocks
 from .._threads import thread_map
 from .._validation import as_displacement, as_float_array, check_finite, integer
 from ..constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
@@ -1451,8 +1451,8 @@ class Correspondence(Model):
 
         def mv(x: np.ndarray) -> np.ndarray:
             x = np.asarray(x, dtype=float).reshape(-1)
-            s = np.einsum("gij,gj->gi", D, csr_matvec(G, x).reshape(-1, d2)).ravel()
-            out = csr_matvec(Gt, s)
+            s = np.einsum("gij,gj->gi", D, (G @ x).reshape(-1, d2)).ravel()
+            out = np.asarray(Gt @ s)
             if k is not None:
                 out = out + self._penalty_force(cloud, bonds, p, k, x)
             if extra is not None:
