@@ -7,12 +7,12 @@ numba installed (``pip install "pdlin[fast]"``) these run row-parallel on
 - :func:`bsr_matmul`: ``A @ B`` of two BSR arrays (block sizes ``R x N`` and ``N x S``,
   any of 1, 2, 3, ...), a two-pass row-parallel Gustavson product (blocks per row, then
   sorted block columns and values); used by the LPS / XOSB assembly (``K = Xᵀ Y``) and
-  the correspondence assembly (``Wᵀ W``, ``Bᵀ (D B)`` and the tangent ``Gᵀ (A G)``);
-- :func:`bsr_transpose` and :func:`drop_small_blocks`: the transposes and the zero-block
-  dropping of the correspondence assembly.
+  the correspondence assembly (``Wᵀ W``, ``Bᵀ (D B)`` and the tangent ``Gᵀ (A G)``).
 
-The matrix-free products stay scipy's mat-vecs: a numba CSR mat-vec was measured slower
-on one thread (0.099 vs 0.064 s per LPS ``K x``, 27,000 points in 3D) and no faster on two.
+Measured and left to scipy / numpy (numba did not win, see docs/large_problems.md): the
+matrix-free mat-vecs (a numba CSR mat-vec took 0.099 vs 0.064 s per LPS ``K x`` on one
+thread, 27,000 points in 3D, and was no faster on two), the BSR transpose (0.058 vs
+0.045 s) and the zero-block dropping (0.15 vs 0.08 s) of the correspondence assembly.
 
 Each output row is computed by one thread in a fixed order, so results are bitwise
 identical for any thread count, and the arithmetic is scipy's (same operations in the
@@ -47,8 +47,6 @@ __all__ = [
     "numba_enabled",
     "use_numba",
     "bsr_matmul",
-    "bsr_transpose",
-    "drop_small_blocks",
 ]
 
 log = logging.getLogger(__name__)
@@ -198,72 +196,4 @@ def bsr_matmul(A: Any, B: Any) -> sp.bsr_array:
         (c_dat, c_ind, c_ptr.astype(idt)), shape=(A.shape[0], B.shape[1]), blocksize=(R, S)
     )
     out.has_sorted_indices = True
-    return out
-
-
-def bsr_transpose(A: Any) -> sp.bsr_array:
-    """``Aᵀ`` of a BSR array as BSR (blocks ``C x R``), the blocks of each row in source order.
-
-    Equal to scipy's ``A.T`` (the same blocks in the same order); with numba, chunks of rows
-    scatter their blocks in parallel.
-
-    Examples
-    --------
-    >>> import numpy as np, scipy.sparse as sp
-    >>> from pdlin._kernels import bsr_transpose
-    >>> A = sp.bsr_array(np.arange(24.0).reshape(4, 6), blocksize=(2, 3))
-    >>> At = bsr_transpose(A)
-    >>> At.blocksize, bool(np.array_equal(At.toarray(), A.toarray().T))
-    ((3, 2), True)
-    """
-    R, C = A.blocksize
-    mod = _kernels() if A.dtype == np.float64 and use_numba(A.nnz) else None
-    if mod is None:
-        return sp.bsr_array(A.T)
-    ptr = np.asarray(A.indptr, dtype=np.int64)
-    with _lock:
-        _set_threads()
-        t_ptr, t_ind, t_dat = mod.bsr_transpose(
-            ptr, A.indices, np.ascontiguousarray(A.data), A.shape[1] // C,
-            _edges(ptr, 4 * get_num_threads()),
-        )  # fmt: skip
-    out = sp.bsr_array(
-        (t_dat, t_ind, t_ptr.astype(A.indices.dtype)),
-        shape=(A.shape[1], A.shape[0]),
-        blocksize=(C, R),
-    )
-    out.has_sorted_indices = True
-    return out
-
-
-def drop_small_blocks(K: Any, factor: float) -> sp.bsr_array | None:
-    """``K`` without off-diagonal blocks with ``max|K_ij|² <= factor max|K_ii| max|K_jj|``.
-
-    The numba version of the correspondence model's zero-block dropping (the same test, the
-    same kept blocks); ``None`` when the numba kernels are not in use (the caller's numpy
-    path then runs).
-
-    Examples
-    --------
-    >>> import numpy as np, scipy.sparse as sp
-    >>> from pdlin._kernels import drop_small_blocks
-    >>> K = sp.bsr_array(np.array([[4.0, 1e-30], [1e-30, 4.0]]), blocksize=(1, 1))
-    >>> out = drop_small_blocks(K, 1e-20)
-    >>> out is None or out.nnz == 2
-    True
-    """
-    mod = _kernels() if K.dtype == np.float64 and use_numba(K.nnz) else None
-    if mod is None:
-        return None
-    ptr = np.asarray(K.indptr, dtype=np.int64)
-    with _lock:
-        _set_threads()
-        new_ptr, new_ind, new_dat = mod.drop_small_blocks(
-            ptr, K.indices, np.ascontiguousarray(K.data), float(factor),
-            _edges(ptr, 4 * get_num_threads()),
-        )  # fmt: skip
-    out = sp.bsr_array(
-        (new_dat, new_ind, new_ptr.astype(K.indices.dtype)), shape=K.shape, blocksize=K.blocksize
-    )
-    out.has_sorted_indices = bool(K.has_sorted_indices)
     return out

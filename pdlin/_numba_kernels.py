@@ -1,14 +1,13 @@
 """numba kernels of :mod:`pdlin._kernels` (imported only when numba is installed).
 
-Work is split into fixed chunks of rows (``prange``); each output entry is written by one
+Work is split into fixed chunks of rows (``prange``); each output row is computed by one
 chunk, from the same operands in the same order whatever the thread count, so results are
 bitwise identical for 1, 2, ... threads.  The arithmetic is that of scipy's sparsetools
-(``bsr_matmat``: each block ``C_ij += A_ik B_kj`` accumulated over the stored ``k`` of row
-``i`` in storage order, every entry as ``c + a_0 b_0 + a_1 b_1 ...`` from left to right;
-``bsr_transpose``: the blocks of each output row
-in source-row order), without fused multiply-adds (numba does not enable floating-point
-contraction by default), so the values equal scipy's for the same operands; the block
-columns of each product row come out sorted.
+``bsr_matmat`` (each block ``C_ij += A_ik B_kj`` accumulated over the stored ``k`` of row
+``i`` in storage order, every entry as ``c + a_0 b_0 + a_1 b_1 ...`` from left to right),
+without fused multiply-adds (numba does not enable floating-point contraction by default),
+so the values equal scipy's for the same operands; the block columns of each row come out
+sorted.
 """
 
 from __future__ import annotations
@@ -98,86 +97,3 @@ def bsr_fill(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bc
                 _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 3, 9, 3)
             else:
                 _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, R, N, S)
-
-
-@numba.njit(parallel=True, cache=True)
-def bsr_transpose(ptr, ind, dat, n_bcol, edges):
-    """Blocks of ``Aᵀ`` (sorted: scipy's order), chunks of rows scatter in parallel."""
-    n_ch = edges.size - 1
-    R = dat.shape[1]
-    C = dat.shape[2]
-    counts = np.zeros((n_ch, n_bcol), np.int64)
-    for c in numba.prange(n_ch):
-        for p in range(ptr[edges[c]], ptr[edges[c + 1]]):
-            counts[c, ind[p]] += 1
-    t_ptr = np.zeros(n_bcol + 1, np.int64)
-    start = np.empty((n_ch, n_bcol), np.int64)
-    pos = 0
-    for j in range(n_bcol):  # output row j: the blocks of chunk 0, then chunk 1, ...
-        t_ptr[j] = pos
-        for c in range(n_ch):
-            start[c, j] = pos
-            pos += counts[c, j]
-    t_ptr[n_bcol] = pos
-    t_ind = np.empty(pos, ind.dtype)
-    t_dat = np.empty((pos, C, R), dat.dtype)
-    for c in numba.prange(n_ch):
-        nxt = start[c]
-        for i in range(edges[c], edges[c + 1]):
-            for p in range(ptr[i], ptr[i + 1]):
-                j = ind[p]
-                q = nxt[j]
-                nxt[j] = q + 1
-                t_ind[q] = i
-                for r in range(R):
-                    for s in range(C):
-                        t_dat[q, s, r] = dat[p, r, s]
-    return t_ptr, t_ind, t_dat
-
-
-@numba.njit(parallel=True, cache=True)
-def drop_small_blocks(ptr, ind, dat, factor, edges):
-    """Keep block (i, j) if ``max|K_ij|² > max|K_ii| max|K_jj| factor`` or i == j."""
-    n_row = ptr.size - 1
-    n_ch = edges.size - 1
-    R = dat.shape[1]
-    C = dat.shape[2]
-    size = np.empty(ind.size)
-    dsize = np.zeros(n_row)
-    for c in numba.prange(n_ch):
-        for i in range(edges[c], edges[c + 1]):
-            for p in range(ptr[i], ptr[i + 1]):
-                m = 0.0
-                for r in range(R):
-                    for s in range(C):
-                        m = max(m, abs(dat[p, r, s]))
-                size[p] = m
-                if ind[p] == i:
-                    dsize[i] = m
-    counts = np.zeros(n_row, np.int64)
-    keep = np.empty(ind.size, np.bool_)
-    for c in numba.prange(n_ch):
-        for i in range(edges[c], edges[c + 1]):
-            cnt = 0
-            for p in range(ptr[i], ptr[i + 1]):
-                j = ind[p]
-                tol = dsize[i] * dsize[j]
-                tol *= factor
-                k = size[p] * size[p] > tol or j == i
-                keep[p] = k
-                cnt += k
-            counts[i] = cnt
-    new_ptr = np.zeros(n_row + 1, np.int64)
-    for i in range(n_row):
-        new_ptr[i + 1] = new_ptr[i] + counts[i]
-    new_ind = np.empty(new_ptr[n_row], ind.dtype)
-    new_dat = np.empty((new_ptr[n_row], R, C), dat.dtype)
-    for c in numba.prange(n_ch):
-        for i in range(edges[c], edges[c + 1]):
-            q = new_ptr[i]
-            for p in range(ptr[i], ptr[i + 1]):
-                if keep[p]:
-                    new_ind[q] = ind[p]
-                    new_dat[q] = dat[p]
-                    q += 1
-    return new_ptr, new_ind, new_dat

@@ -7,10 +7,10 @@ Two kinds of kernels run on :func:`get_num_threads` threads:
   and the dense block products of the correspondence assembly.  The hot loops run over
   independent chunks of owner rows (bonds of a row are contiguous); each chunk writes its
   own slots of the output while numpy releases the GIL inside its array operations.
-- with the optional extra ``pdlin[fast]`` (numba), the sparse products, transposes and
-  zero-block dropping of the LPS / XOSB / correspondence assembly (:mod:`pdlin._kernels`,
-  numba ``prange`` over row chunks).  Without numba they are scipy's sparsetools, which
-  hold the GIL and stay serial, as do the matrix-free mat-vecs in every case.
+- with the optional extra ``pdlin[fast]`` (numba), the sparse products of the LPS / XOSB /
+  correspondence assembly (:mod:`pdlin._kernels`, numba ``prange`` over row chunks).
+  Without numba they are scipy's sparsetools, which hold the GIL and stay serial, as do
+  the matrix-free mat-vecs in every case.
 
 Every chunk does the same arithmetic in the same order whatever the thread count, so
 results are bitwise identical for 1, 2, ... threads.

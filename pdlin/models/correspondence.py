@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .._kernels import bsr_matmul, bsr_transpose, drop_small_blocks
+from .._kernels import bsr_matmul
 from .._threads import thread_map
 from .._validation import as_displacement, as_float_array, check_finite, integer
 from ..constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
@@ -503,9 +503,6 @@ def _drop_zero_blocks(K: sp.bsr_array) -> sp.bsr_array:
     the round-off of the product itself, symmetric in ``(i, j)`` (``K`` stays bitwise
     symmetric) and independent of the units. Diagonal blocks are always kept.
     """
-    fast = drop_small_blocks(K, (16.0 * np.finfo(float).eps) ** 2)  # numba, row-parallel
-    if fast is not None:
-        return fast
     nrow = K.shape[0] // K.blocksize[0]
     brow = np.repeat(np.arange(nrow), np.diff(K.indptr))
     flat = K.data.reshape(K.data.shape[0], -1)
@@ -1386,7 +1383,7 @@ class Correspondence(Model):
         Wdata = self._root_blocks(p, blk, bdata, scale) if (scale >= 0).all() else None
         if Wdata is not None:
             W = sp.bsr_array((Wdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
-            return _drop_zero_blocks(bsr_matmul(bsr_transpose(W), W))
+            return _drop_zero_blocks(bsr_matmul(sp.bsr_array(W.T), W))
         Bdata = bdata()
         B = sp.bsr_array((Bdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
         ar = np.arange(n_gp + 1, dtype=np.int32)
@@ -1395,7 +1392,7 @@ class Correspondence(Model):
             shape=(n_gp * nv, n_gp * nv),
             blocksize=(nv, nv),
         )
-        K = bsr_matmul(bsr_transpose(B), bsr_matmul(Db, B))
+        K = bsr_matmul(sp.bsr_array(B.T), bsr_matmul(Db, B))
         return sp.bsr_array(0.5 * (K + K.T), blocksize=(d, d))
 
     @staticmethod
@@ -1741,7 +1738,7 @@ class Correspondence(Model):
         shape = (n_gp * d * d, p.n_points * d)
         Gb = sp.bsr_array((Gd, blk.col, blk.indptr), shape=shape, blocksize=(d * d, d))
         AGb = sp.bsr_array((AG, blk.col, blk.indptr), shape=shape, blocksize=(d * d, d))
-        K = _drop_zero_blocks(bsr_matmul(bsr_transpose(Gb), AGb))
+        K = _drop_zero_blocks(bsr_matmul(sp.bsr_array(Gb.T), AGb))
         Kc = self._addon_matrix(cloud, bonds, p)
         if Kc is not None:
             K = sp.bsr_array(sp.csr_array(K) + Kc, blocksize=(d, d))
