@@ -20,7 +20,7 @@ same order for the same operands: equal values; the product's block columns come
 sorted where scipy leaves them unsorted).  Without numba, or with ``PDLIN_NUMBA=0`` in
 the environment, every function is the plain scipy operation.  Operations below
 ``_MIN_WORK`` stored entries stay on scipy without importing numba.  The first call
-compiles the kernels (~13 s for all signatures; ``cache=True`` keeps them in
+compiles the kernels (~7 s for all signatures; ``cache=True`` keeps them in
 ``pdlin/__pycache__`` for later processes, where loading takes ~0.5 s plus numba's
 import, ~1 s).
 
