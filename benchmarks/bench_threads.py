@@ -1,14 +1,21 @@
-"""1 vs 2 threads on pdlin's chunked kernels (issue 13, "Use both cores on one machine").
+"""1 vs 2 threads on pdlin's threaded kernels (issue 13, "Use both cores on one machine").
 
-For each kernel the script alternates ``pdlin.set_num_threads(1)`` and ``(2)`` runs
-back to back ``--repeat`` times and reports the best time of each and their ratio; it
-also checks that the results are bitwise identical.  Kernels: assembly of the
-bond-based (3D) and correspondence (2D, 401², δ = 2h, no control and stress points)
-stiffness, and LPS (3D) as a reference that is not threaded (its cost is scipy's sparse
-product, which holds the GIL).  The serial parts of each assembly (sparse products,
-zero-block dropping, transposes) are included, so the ratio is that of the whole call.
+For each kernel the script alternates ``pdlin.set_num_threads(1)`` and ``(2)`` runs back to
+back ``--repeat`` times and reports the best time of each and their ratio; it also checks
+that the results are bitwise identical.  Kernels: assembly of the bond-based (3D), LPS and
+XOSB (3D) and correspondence (2D, 401², δ = 2h, no control and stress points) stiffness,
+and the matrix-free products ``K x`` of LPS and correspondence (scipy's mat-vecs, serial:
+a numba mat-vec did not win).  The bond-based assembly
+runs on pdlin's thread pool (numpy releases the GIL); the sparse products of the other
+models use the optional numba kernels (``pip install "pdlin[fast]"``, pdlin/_kernels.py)
+when numba is installed, else scipy (which holds the GIL: no speed-up).  The column
+"scipy path" is the same call with the numba kernels switched off (1 thread), i.e. pdlin
+without the ``fast`` extra; "vs scipy" is that time over the 2-thread time.  The serial
+parts of each call (zero-block dropping, transposes, coefficients) are included, so the
+ratios are those of the whole call.  numba's compile (or cache load) happens in a warm-up
+before the timings and is printed.
 
-Usage: ``python benchmarks/bench_threads.py`` (~3 min), ``--quick`` (small sizes).
+Usage: ``python benchmarks/bench_threads.py`` (~4 min), ``--quick`` (small sizes).
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
 
 import pdlin  # noqa: E402
+from pdlin import _kernels  # noqa: E402
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -41,7 +49,18 @@ def _same(a: Any, b: Any) -> bool:
     return bool(np.array_equal(a, b))
 
 
-def measure(fn: Callable[[], Any], repeat: int) -> tuple[float, float, bool]:
+def _rel_diff(a: Any, b: Any) -> float:
+    if sp.issparse(a):
+        a, b = sp.csr_array(a), sp.csr_array(b)
+        return float(abs(a - b).max() / abs(a).max())
+    return float(np.abs(a - b).max() / np.abs(a).max())
+
+
+def _set_numba(on: bool) -> None:
+    _kernels._loaded = None if on else False
+
+
+def measure(fn: Callable[[], Any], repeat: int) -> tuple[float, float, bool, Any]:
     best = {1: float("inf"), 2: float("inf")}
     out: dict[int, Any] = {}
     for _ in range(repeat):
@@ -51,7 +70,43 @@ def measure(fn: Callable[[], Any], repeat: int) -> tuple[float, float, bool]:
             out[nt] = fn()
             best[nt] = min(best[nt], time.perf_counter() - t)
     pdlin.set_num_threads(None)
-    return best[1], best[2], _same(out[1], out[2])
+    return best[1], best[2], _same(out[1], out[2]), out[1]
+
+
+def measure_scipy(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
+    """Best time of ``fn`` on the scipy path (numba kernels off), 1 thread."""
+    _set_numba(False)
+    pdlin.set_num_threads(1)
+    best, out = float("inf"), None
+    try:
+        for _ in range(repeat):
+            t = time.perf_counter()
+            out = fn()
+            best = min(best, time.perf_counter() - t)
+    finally:
+        _set_numba(True)
+        pdlin.set_num_threads(None)
+    return best, out
+
+
+def warm_up() -> str:
+    """Compile (or load from numba's cache) every kernel signature the rows use."""
+    if not _kernels.numba_enabled():
+        return "numba not installed: every product is scipy's"
+    t = time.perf_counter()
+    for dim in (2, 3):
+        cloud = pdlin.grid((12,) * dim, spacing=0.1)
+        bonds = pdlin.find_bonds(cloud, ratio=3.015)
+        pdlin.LPS(E=1.0, nu=0.3).stiffness(cloud, bonds)
+        c = pdlin.Correspondence(E=1.0, nu=0.25, plane="strain")
+        c.stiffness(cloud, pdlin.find_bonds(cloud, ratio=2.0))
+    import numba
+
+    return (
+        f"numba {numba.__version__} ({numba.threading_layer()} threading layer): warm-up "
+        f"(compile on a first run, else cache load; the same products on small grids) "
+        f"{time.perf_counter() - t:.1f} s, not in the timings"
+    )
 
 
 def main() -> None:
@@ -60,28 +115,38 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
     q = args.quick
+    load = os.getloadavg()[0]
     print(
         f"# bench_threads.py {'--quick ' if q else ''}"
         f"({datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, python "
         f"{platform.python_version()}, numpy {np.__version__}, {os.cpu_count()} cores, "
-        f"best of {args.repeat} alternating runs)\n"
+        f"load {load:.2f}, best of {args.repeat} alternating runs)\n"
     )
-    print("| kernel | size | 1 thread (s) | 2 threads (s) | speed-up | bitwise equal |")
-    print("|---|---|---|---|---|---|")
-    rows: list[tuple[str, str, Callable[[], Any]]] = []
+    print(f"{warm_up()}\n")
+    print(
+        "| kernel | size | scipy path, 1 thread (s) | 1 thread (s) | 2 threads (s) | speed-up "
+        "2 vs 1 | vs scipy path | bitwise equal 1/2 threads | rel. diff. to scipy path |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
+    rows: list[tuple[str, str, Callable[[], Any], bool]] = []
 
     n3 = 20 if q else 40
     c3 = pdlin.grid((n3,) * 3, spacing=1.0 / n3)
     b3 = pdlin.find_bonds(c3, ratio=3.015)
     bb = pdlin.BondBased(E=1.0, nu=0.25)
     size3 = f"{c3.n:,} pts, {b3.n_bonds:,} bonds"
-    rows.append(("bond-based K (3D, δ = 3.015h)", size3, lambda: bb.stiffness(c3, b3)))
+    rows.append(("bond-based K (3D, δ = 3.015h)", size3, lambda: bb.stiffness(c3, b3), False))
     nl = 16 if q else 30
     cl = pdlin.grid((nl,) * 3, spacing=1.0 / nl)
     bl = pdlin.find_bonds(cl, ratio=3.015)
-    lps = pdlin.LPS(E=1.0, nu=0.25)
     sizel = f"{cl.n:,} pts, {bl.n_bonds:,} bonds"
-    rows.append(("LPS K (3D, δ = 3.015h; not threaded)", sizel, lambda: lps.stiffness(cl, bl)))
+    lps = pdlin.LPS(E=1.0, nu=0.25)
+    xosb = pdlin.XOSB(E=1.0, nu=0.25)
+    rows.append(("LPS K (3D, δ = 3.015h)", sizel, lambda: lps.stiffness(cl, bl), True))
+    rows.append(("XOSB K (3D, δ = 3.015h)", sizel, lambda: xosb.stiffness(cl, bl), True))
+    xl = np.random.default_rng(0).normal(size=cl.n * 3)
+    op_l = lps.operator(cl, bl)
+    rows.append(("LPS K x, matrix-free (3D; scipy mat-vecs)", sizel, lambda: op_l @ xl, False))
     n2 = 201 if q else 401
     c2 = pdlin.grid((n2, n2), spacing=1.0 / n2)
     bn = pdlin.find_bonds(c2, ratio=2.0, influence="inverse")
@@ -94,11 +159,25 @@ def main() -> None:
             E=1.0, nu=0.25, control=control, plane="strain"
         ).stiffness(c2, bonds)
 
-    rows.append(("correspondence K, no control (δ = 2h)", size2, corr("none", bn)))
-    rows.append(("correspondence K, stress points (δ = 2h)", size2, corr("stress_points", bs)))
-    for name, size, fn in rows:
-        t1, t2, same = measure(fn, args.repeat)
-        print(f"| {name} | {size} | {t1:.2f} | {t2:.2f} | {t1 / t2:.2f} | {same} |", flush=True)
+    rows.append(("correspondence K, no control (δ = 2h)", size2, corr("none", bn), True))
+    sp_name = "correspondence K, stress points (δ = 2h)"
+    rows.append((sp_name, size2, corr("stress_points", bs), True))
+    cm = pdlin.Correspondence(E=1.0, nu=0.25, control="none", plane="strain")
+    op_c = cm.operator(c2, bn)
+    x2 = np.random.default_rng(0).normal(size=c2.n * 2)
+    mf_name = "correspondence K x, matrix-free (δ = 2h; scipy mat-vecs)"
+    rows.append((mf_name, size2, lambda: op_c @ x2, False))
+    for name, size, fn, uses_numba in rows:
+        t1, t2, same, out = measure(fn, args.repeat)
+        if uses_numba and _kernels.numba_enabled():
+            ts, ref = measure_scipy(fn, args.repeat)
+            scipy_cols = f"{ts:.3f} | {t1:.3f} | {t2:.3f} | {t1 / t2:.2f} | {ts / t2:.2f}"
+            diff = f"{_rel_diff(ref, out):.1e}"
+        else:
+            scipy_cols = f"— | {t1:.3f} | {t2:.3f} | {t1 / t2:.2f} | {t1 / t2:.2f}"
+            diff = "—"
+        print(f"| {name} | {size} | {scipy_cols} | {same} | {diff} |", flush=True)
+    print(f"\nload average after the run: {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":

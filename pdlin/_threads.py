@@ -1,18 +1,25 @@
-"""Thread count of pdlin's chunked kernels (bond-based and correspondence assembly).
+"""Thread count of pdlin's parallel kernels.
 
-pdlin's hot loops run over independent chunks of owner rows (bonds of a row are
-contiguous); each chunk writes its own slots of the output, so chunks can run on
-several threads while numpy releases the GIL inside its array operations.  scipy's
-sparse products (sparsetools, scipy 1.17) hold the GIL, so the sparse-product parts of
-the state-based and correspondence assembly and the matrix-free products stay serial
-(measured: two threads on row chunks of a CSR product or mat-vec ran no faster).  Every
-chunk does the same arithmetic in the same order whatever the thread count, so
+Two kinds of kernels run on :func:`get_num_threads` threads:
+
+- numpy kernels on pdlin's thread pool (:func:`thread_map`): the bond-based assembly
+  (block formation, scatter, per-row sums by ``np.add.reduceat``, the bond coefficients)
+  and the dense block products of the correspondence assembly.  The hot loops run over
+  independent chunks of owner rows (bonds of a row are contiguous); each chunk writes its
+  own slots of the output while numpy releases the GIL inside its array operations.
+- with the optional extra ``pdlin[fast]`` (numba), the sparse products of the LPS / XOSB /
+  correspondence assembly (:mod:`pdlin._kernels`, numba ``prange`` over row chunks).
+  Without numba they are scipy's sparsetools, which hold the GIL and stay serial, as do
+  the matrix-free mat-vecs in every case.
+
+Every chunk does the same arithmetic in the same order whatever the thread count, so
 results are bitwise identical for 1, 2, ... threads.
 
 The count is ``pdlin.set_num_threads(n)``, else the environment variable
-``PDLIN_NUM_THREADS``, else the CPUs this process may run on (its affinity mask).
-BLAS / MKL threads of the direct backends follow their own variables
-(``OPENBLAS_NUM_THREADS``, ``MKL_NUM_THREADS``, ``OMP_NUM_THREADS``).
+``PDLIN_NUM_THREADS``, else the CPUs this process may run on (its affinity mask); numba's
+kernels use the same count (capped at numba's ``NUMBA_NUM_THREADS``).  BLAS / MKL threads
+of the direct backends follow their own variables (``OPENBLAS_NUM_THREADS``,
+``MKL_NUM_THREADS``, ``OMP_NUM_THREADS``).
 """
 
 from __future__ import annotations

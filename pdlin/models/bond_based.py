@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import logging
 import warnings
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -310,12 +311,17 @@ class BondBased(Model):
 
     def bond_micromodulus(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
         """Micromodulus per directed bond, ``(nb,)``."""
+        c = self._micromodulus(cloud, bonds)
+        return np.full(bonds.n_bonds, c) if isinstance(c, float) else c
+
+    def _micromodulus(self, cloud: PointCloud, bonds: Bonds) -> float | np.ndarray:
+        """:meth:`bond_micromodulus`, a float when it is the same for every bond."""
         self.check(cloud.dim)
         nb = bonds.n_bonds
         if self.micromodulus is not None:
             c = self.micromodulus
             if c.ndim == 0:
-                return np.full(nb, float(c))
+                return float(c)
             if c.shape != (nb,):
                 raise ShapeError(
                     f"micromodulus must be a scalar or have shape ({nb},), got {c.shape}"
@@ -345,7 +351,7 @@ class BondBased(Model):
                 )
                 * Eb
             )
-            return np.broadcast_to(cb, (nb,)).astype(float)
+            return float(cb) if np.ndim(cb) == 0 else np.broadcast_to(cb, (nb,)).astype(float)
         cb = standard_micromodulus(
             1.0,
             bonds.horizon_ij,
@@ -407,25 +413,47 @@ class BondBased(Model):
 
     def bond_stiffness(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
         """Scalar bond stiffness ``k_b = c ω V_i V_j t / |ξ|`` (nodal units, corrected c)."""
-        c = self.corrected_micromodulus(cloud, bonds)
+        return self._bond_stiffness_fn(cloud, bonds)(0, bonds.n_bonds)
+
+    def _bond_stiffness_fn(
+        self, cloud: PointCloud, bonds: Bonds
+    ) -> Callable[[int, int], np.ndarray]:
+        """``fn(b0, b1)``: :meth:`bond_stiffness` of the bonds ``b0:b1`` (elementwise).
+
+        The assembly evaluates it chunk by chunk on its worker threads.
+        """
+        c = self._micromodulus(cloud, bonds)
+        sf = self.surface_factors(cloud, bonds)
         vol = _effective_volumes(cloud)
-        k = c * bonds.omega
-        k = k * vol[bonds.i]
-        k *= bonds.volume_j * _measure(cloud)
-        k /= bonds.length
-        if k.size and k.min() < 0:
-            b = int(np.argmin(k))
-            raise ModelError(
-                f"bond stiffness c*omega must be >= 0 (energy positivity), got {k[b]:.3g} at "
-                f"bond {b} (omega {bonds.omega[b]:.3g}); signed influence weights belong to "
-                "correspondence models"
-            )
-        return k
+        meas = _measure(cloud)
+
+        def fn(b0: int, b1: int) -> np.ndarray:
+            cb = c if isinstance(c, float) else c[b0:b1]
+            if sf is not None:
+                cb = cb * sf.bond[b0:b1]
+            k = cb * bonds.omega[b0:b1]
+            k = k * vol[bonds.i[b0:b1]]
+            k *= bonds.volume_j[b0:b1] * meas
+            k /= bonds.length[b0:b1]
+            if k.size and k.min() < 0:
+                b = int(np.argmin(k))
+                raise ModelError(
+                    f"bond stiffness c*omega must be >= 0 (energy positivity), got {k[b]:.3g} "
+                    f"at bond {b0 + b} (omega {bonds.omega[b0 + b]:.3g}); signed influence "
+                    "weights belong to correspondence models"
+                )
+            return k
+
+        return fn
 
     # -- operators ----------------------------------------------------------
     def stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.bsr_array:
-        """Assembled BSR stiffness (see class docstring)."""
-        return pair_stiffness_bsr(bonds, self.bond_stiffness(cloud, bonds))
+        """Assembled BSR stiffness (see class docstring).
+
+        The bond stiffness is computed chunk by chunk inside the threaded assembly
+        (:func:`pdlin.set_num_threads`): bitwise the same for any thread count.
+        """
+        return pair_stiffness_bsr(bonds, self._bond_stiffness_fn(cloud, bonds))
 
     def internal_force(
         self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, *, linear: bool = True

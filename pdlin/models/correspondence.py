@@ -30,6 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .._kernels import bsr_matmul
 from .._threads import thread_map
 from .._validation import as_displacement, as_float_array, check_finite, integer
 from ..constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
@@ -1382,7 +1383,7 @@ class Correspondence(Model):
         Wdata = self._root_blocks(p, blk, bdata, scale) if (scale >= 0).all() else None
         if Wdata is not None:
             W = sp.bsr_array((Wdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
-            return _drop_zero_blocks(sp.bsr_array(W.T @ W, blocksize=(d, d)))
+            return _drop_zero_blocks(bsr_matmul(sp.bsr_array(W.T), W))
         Bdata = bdata()
         B = sp.bsr_array((Bdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
         ar = np.arange(n_gp + 1, dtype=np.int32)
@@ -1391,7 +1392,7 @@ class Correspondence(Model):
             shape=(n_gp * nv, n_gp * nv),
             blocksize=(nv, nv),
         )
-        K = sp.bsr_array(B.T @ (Db @ B))
+        K = bsr_matmul(sp.bsr_array(B.T), bsr_matmul(Db, B))
         return sp.bsr_array(0.5 * (K + K.T), blocksize=(d, d))
 
     @staticmethod
@@ -1737,7 +1738,7 @@ class Correspondence(Model):
         shape = (n_gp * d * d, p.n_points * d)
         Gb = sp.bsr_array((Gd, blk.col, blk.indptr), shape=shape, blocksize=(d * d, d))
         AGb = sp.bsr_array((AG, blk.col, blk.indptr), shape=shape, blocksize=(d * d, d))
-        K = _drop_zero_blocks(sp.bsr_array(Gb.T @ AGb, blocksize=(d, d)))
+        K = _drop_zero_blocks(bsr_matmul(sp.bsr_array(Gb.T), AGb))
         Kc = self._addon_matrix(cloud, bonds, p)
         if Kc is not None:
             K = sp.bsr_array(sp.csr_array(K) + Kc, blocksize=(d, d))

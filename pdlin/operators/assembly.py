@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -66,7 +67,9 @@ def bond_pattern_bsr(bonds: Bonds) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
 
 
 def pair_stiffness_bsr(
-    bonds: Bonds, coef: np.ndarray, directions: np.ndarray | None = None
+    bonds: Bonds,
+    coef: np.ndarray | Callable[[int, int], np.ndarray],
+    directions: np.ndarray | None = None,
 ) -> sp.bsr_array:
     """Assemble ``K`` of a pairwise (bond-based) operator as a BSR array.
 
@@ -78,7 +81,10 @@ def pair_stiffness_bsr(
     Parameters
     ----------
     bonds : Bonds
-    coef : (nb,) ndarray
+    coef : (nb,) ndarray or callable
+        ``k_b`` per bond, or ``coef(b0, b1)`` returning ``k_b`` of the bonds
+        ``b0:b1`` (computed chunk by chunk on the worker threads; it must be
+        elementwise, so that its values do not depend on the chunking).
     directions : (nb, dim) ndarray, optional
         Unit vectors (default ``xi / |xi|``).
 
@@ -89,7 +95,7 @@ def pair_stiffness_bsr(
     d = bonds.dim
     n = bonds.n_points
     nb = bonds.n_bonds
-    if coef.shape != (nb,):
+    if not callable(coef) and coef.shape != (nb,):
         raise ShapeError(f"coef must have shape ({nb},), got {coef.shape}")
     bptr = np.asarray(bonds.indptr, dtype=np.int64)
     idt = _index_dtype(nb + n)
@@ -101,21 +107,25 @@ def pair_stiffness_bsr(
     # arrays), the per-bond blocks k n nᵀ formed once in a cache-sized
     # buffer and copied to their BSR slots as whole dim x dim blocks, and
     # their per-row sums (the bonds of a row are contiguous) for the
-    # diagonal block
+    # diagonal block; everything per chunk releases the GIL (np.add.reduceat, not
+    # np.bincount, whose min/max pass holds it)
     starts = np.searchsorted(bptr, np.arange(0, nb, _CHUNK), side="right") - 1
     row_edges = np.unique(np.concatenate([[0], starts, [n]]))  # empty rows stay covered
 
     def chunk(rows: tuple[int, int]) -> None:
         r0, r1 = rows
         b0, b1 = int(bptr[r0]), int(bptr[r1])
-        owner = bonds.i[b0:b1] - r0
         jj = bonds.j[b0:b1]
         upper = jj > bonds.i[b0:b1]
         bond_pos = np.arange(b0, b1, dtype=np.int64)
         bond_pos += bonds.i[b0:b1]
         bond_pos += upper
-        nless = np.bincount(owner[~upper], minlength=r1 - r0)
-        diag_pos = bptr[r0:r1] + np.arange(r0, r1, dtype=np.int64) + nless
+        # rows with bonds (np.add.reduceat needs non-empty segments; empty rows sum to 0)
+        full = bptr[r0 + 1 : r1 + 1] > bptr[r0:r1]
+        seg0 = bptr[r0:r1][full] - b0
+        diag_pos = bptr[r0:r1] + np.arange(r0, r1, dtype=np.int64)
+        if b1 > b0:  # the diagonal block follows the row's bonds with j < i
+            diag_pos[full] += np.add.reduceat(~upper, seg0, dtype=np.int64)
         indices[bond_pos] = jj
         indices[diag_pos] = np.arange(r0, r1)
         if directions is None:
@@ -124,20 +134,21 @@ def pair_stiffness_bsr(
             unit_t = np.asarray(directions[b0:b1]).T
         # component-major (d, d, m) blocks: contiguous inner loops; same
         # operation order as the component formula (-k n_a) n_b
-        ku_t = unit_t * -coef[b0:b1]
+        kb = coef(b0, b1) if callable(coef) else coef[b0:b1]
+        ku_t = unit_t * -kb
         blk_t = np.empty((d, d, b1 - b0))
         np.multiply(ku_t[:, None, :], np.ascontiguousarray(unit_t)[None, :, :], out=blk_t)
         for a in range(d):  # exact symmetry: K[i, j] block b,a reuses entry a,b
             for b in range(a + 1, d):
                 blk_t[b, a] = blk_t[a, b]
         data[bond_pos] = blk_t.transpose(2, 0, 1)
-        # diagonal: sequential per-row sums (np.bincount) of the bond blocks
-        dsum = np.empty((r1 - r0, d, d))
-        for a in range(d):
-            for b in range(a, d):
-                dsum[:, a, b] = np.bincount(owner, weights=blk_t[a, b], minlength=r1 - r0)
-                dsum[:, b, a] = dsum[:, a, b]
-        np.negative(dsum, out=dsum)
+        # diagonal: per-row sums of the bond blocks over the contiguous row segments
+        # (np.add.reduceat; empty rows, whose segment reduceat cannot express, get 0)
+        dsum = np.zeros((r1 - r0, d, d))
+        if b1 > b0:
+            seg = np.add.reduceat(blk_t.reshape(d * d, b1 - b0), seg0, axis=1)
+            np.negative(seg, out=seg)
+            dsum[full] = seg.T.reshape(-1, d, d)
         data[diag_pos] = dsum
 
     # chunks write disjoint slots of indices / data: threads (numpy releases the GIL),

@@ -74,6 +74,11 @@ def _case(kind: str) -> tuple:
         cloud = pdlin.grid((14, 14, 14), spacing=0.1)
         bonds = pdlin.find_bonds(cloud, ratio=3.015)
         return pdlin.BondBased(E=1.0, nu=0.25), cloud, bonds
+    if kind in ("lps3", "xosb2"):  # numba's row-parallel product (pdlin[fast]) or scipy
+        cloud = pdlin.grid((12, 11, 10) if kind == "lps3" else (60, 50), spacing=0.1)
+        bonds = pdlin.find_bonds(cloud, ratio=3.015)
+        cls = pdlin.LPS if kind == "lps3" else pdlin.XOSB
+        return cls(E=1.0, nu=0.3, plane="strain"), cloud, bonds
     cloud = pdlin.grid((60, 50), spacing=0.1)
     bonds = pdlin.find_bonds(cloud, ratio=2.0, influence="inverse")
     control = "none" if kind == "corr-none" else "stress_points"
@@ -82,7 +87,7 @@ def _case(kind: str) -> tuple:
     return pdlin.Correspondence(E=1.0, nu=0.25, control=control, plane="strain"), cloud, bonds
 
 
-@pytest.mark.parametrize("kind", ["bb3", "corr-none", "corr-sp"])
+@pytest.mark.parametrize("kind", ["bb3", "lps3", "xosb2", "corr-none", "corr-sp"])
 def test_assembly_and_products_identical_across_thread_counts(kind: str) -> None:
     """1, 2 and 3 threads give bitwise the same K (and matrix-free K x)."""
     model, cloud, bonds = _case(kind)
@@ -133,3 +138,66 @@ def test_thread_map_works_in_a_forked_child() -> None:
     out = q.get(timeout=30)  # a dead pool would block here
     p.join(timeout=10)
     assert out == [2 * x for x in range(8)]
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_pair_stiffness_chunks_with_empty_rows(monkeypatch: pytest.MonkeyPatch, dim: int) -> None:
+    """Per-row sums over contiguous segments (np.add.reduceat) with isolated points, tiny chunks.
+
+    Reference: the dense sum over bonds of ``k n nᵀ`` into the four blocks (independent loop).
+    """
+    from pdlin.operators import assembly
+
+    rng = np.random.default_rng(dim)
+    cloud = pdlin.PointCloud(rng.random((200, dim)), volumes=np.full(200, 1e-3))
+    horizon = {1: 0.004, 2: 0.05, 3: 0.12}[dim]
+    bonds = pdlin.find_bonds(cloud, horizon=horizon, allow_isolated=True)
+    empty = np.flatnonzero(np.diff(bonds.indptr) == 0)
+    assert empty.size > 5 and bonds.n_bonds > 100  # isolated points inside chunks and at ends
+    k = rng.random(bonds.n_bonds)
+    unit = bonds.xi / bonds.length[:, None]
+    ref = np.zeros((200 * dim, 200 * dim))
+    for b in range(bonds.n_bonds):
+        i, j = bonds.i[b] * dim, bonds.j[b] * dim
+        blk = k[b] * np.outer(unit[b], unit[b])
+        ref[i : i + dim, j : j + dim] -= blk
+        ref[i : i + dim, i : i + dim] += blk
+    for chunk in (7, 37, 1 << 16):
+        monkeypatch.setattr(assembly, "_CHUNK", chunk)
+        for nt in (1, 2):
+            pdlin.set_num_threads(nt)
+            K = assembly.pair_stiffness_bsr(bonds, k)
+            K.check_format(full_check=True)
+            assert K.has_sorted_indices
+            assert np.abs(K.toarray() - ref).max() <= 1e-14 * np.abs(ref).max()
+            Kf = assembly.pair_stiffness_bsr(bonds, lambda b0, b1: k[b0:b1])  # chunked coef
+            assert np.array_equal(Kf.data, K.data) and np.array_equal(Kf.indices, K.indices)
+            # an isolated point stores one block, its (zero) diagonal
+            assert (np.diff(K.indptr)[empty] == 1).all()
+            assert (K.indices[K.indptr[empty]] == empty).all()
+            assert not K.data[K.indptr[empty]].any()
+
+
+def test_bond_stiffness_error_names_the_global_bond(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A negative bond stiffness found inside a chunk names its index among all bonds."""
+    import re
+
+    from pdlin.models.weights import as_influence, higher_order_weights
+    from pdlin.operators import assembly
+
+    cloud = pdlin.grid((8, 8))
+    h = float(np.max(cloud.lattice.spacing))
+    infl = as_influence(higher_order_weights(2, 2), h)  # some ω < 0 (paper Table 2)
+    bonds = pdlin.find_bonds(cloud, ratio=2.0, influence=infl, allow_negative_influence=True)
+    model = pdlin.BondBased(micromodulus=1.0)
+    msgs = []
+    for chunk, nt in ((1 << 16, 1), (40, 1), (40, 2)):
+        monkeypatch.setattr(assembly, "_CHUNK", chunk)
+        pdlin.set_num_threads(nt)
+        with pytest.raises(pdlin.errors.ModelError, match="energy positivity") as err:
+            model.stiffness(cloud, bonds)
+        msgs.append(str(err.value))
+    b = [int(re.search(r"at bond (\d+) ", m).group(1)) for m in msgs]  # type: ignore[union-attr]
+    assert b[0] == int(np.argmin(bonds.omega / bonds.length))  # one chunk: the global argmin
+    assert bonds.omega[b[1]] < 0 and b[1] >= int(np.flatnonzero(bonds.omega < 0)[0])
+    assert msgs[1] == msgs[2]  # the same chunk reports it for any thread count

@@ -1,0 +1,199 @@
+"""Optional compiled kernels (numba) for the sparse products that scipy runs on one core.
+
+scipy's sparse products (sparsetools) hold the GIL, so threads cannot share them.  With
+numba installed (``pip install "pdlin[fast]"``) these run row-parallel on
+:func:`pdlin.get_num_threads` threads instead:
+
+- :func:`bsr_matmul`: ``A @ B`` of two BSR arrays (block sizes ``R x N`` and ``N x S``,
+  any of 1, 2, 3, ...), a two-pass row-parallel Gustavson product (blocks per row, then
+  sorted block columns and values); used by the LPS / XOSB assembly (``K = Xᵀ Y``) and
+  the correspondence assembly (``Wᵀ W``, ``Bᵀ (D B)`` and the tangent ``Gᵀ (A G)``).
+
+Measured and left to scipy / numpy (numba did not win, see docs/large_problems.md): the
+matrix-free mat-vecs (a numba CSR mat-vec took 0.099 vs 0.064 s per LPS ``K x`` on one
+thread, 27,000 points in 3D, and was no faster on two), the BSR transpose (0.058 vs
+0.045 s) and the zero-block dropping (0.15 vs 0.08 s) of the correspondence assembly.
+
+Each output row is computed by one thread in a fixed order, so results are bitwise
+identical for any thread count, and the arithmetic is scipy's (same operations in the
+same order for the same operands: equal values; the product's block columns come out
+sorted where scipy leaves them unsorted).  Without numba, or with ``PDLIN_NUMBA=0`` in
+the environment, every function is the plain scipy operation.  Operations below
+``_MIN_WORK`` stored entries stay on scipy without importing numba.  The first call
+compiles the kernels (~7 s for all signatures; ``cache=True`` keeps them in
+``pdlin/__pycache__`` for later processes, where loading takes ~0.5 s plus numba's
+import, ~1 s).
+
+numba's threading layer is set to ``'forksafe'`` (tbb if installed, else numba's
+workqueue) unless ``NUMBA_THREADING_LAYER`` is set: GNU OpenMP, its default without tbb,
+aborts a forked child (multiprocessing) that runs a parallel kernel.  The workqueue layer
+must not be entered by two threads at once, so the calls here hold a lock.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from ._threads import get_num_threads
+
+__all__ = [
+    "numba_enabled",
+    "use_numba",
+    "bsr_matmul",
+]
+
+log = logging.getLogger(__name__)
+
+#: the kernel module once imported, ``False`` when numba is missing or disabled
+_loaded: ModuleType | bool | None = None
+#: one kernel call at a time: numba's workqueue layer aborts on concurrent calls
+_lock = threading.Lock()
+
+
+def _new_lock_in_child() -> None:
+    global _lock
+    _lock = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_new_lock_in_child)
+
+#: smallest operation (stored entries, times S for a product) sent to numba: below it
+#: scipy's call overhead is smaller than the threads' start-up
+_MIN_WORK = 1 << 14
+
+
+def _kernels() -> ModuleType | None:
+    global _loaded
+    if _loaded is None:
+        if os.environ.get("PDLIN_NUMBA", "").strip() == "0":
+            _loaded = False
+        else:
+            try:
+                import numba
+            except ImportError:
+                _loaded = False
+            else:
+                if "NUMBA_THREADING_LAYER" not in os.environ:
+                    # GNU OpenMP (numba's default layer where tbb is missing) aborts a
+                    # forked child that runs a parallel kernel (multiprocessing's fork):
+                    # 'forksafe' takes tbb if installed, else numba's own workqueue
+                    cfg: Any = numba.config
+                    cfg.THREADING_LAYER = "forksafe"
+                from . import _numba_kernels
+
+                _loaded = _numba_kernels
+    return _loaded if isinstance(_loaded, ModuleType) else None
+
+
+def numba_enabled() -> bool:
+    """Whether the numba kernels are in use (numba installed and not ``PDLIN_NUMBA=0``).
+
+    Examples
+    --------
+    >>> from pdlin._kernels import numba_enabled
+    >>> numba_enabled() in (True, False)
+    True
+    """
+    return _kernels() is not None
+
+
+def use_numba(work: int) -> bool:
+    """Whether an operation of ``work`` stored entries goes to numba (large enough, enabled).
+
+    Small operations stay on scipy without importing numba (its import alone takes ~1 s).
+
+    Examples
+    --------
+    >>> from pdlin._kernels import use_numba
+    >>> use_numba(10)
+    False
+    """
+    return work >= _MIN_WORK and numba_enabled()
+
+
+def _set_threads() -> None:
+    import numba
+
+    cfg: Any = numba.config
+    numba.set_num_threads(max(1, min(get_num_threads(), int(cfg.NUMBA_NUM_THREADS))))
+
+
+def _edges(weight: np.ndarray, n_chunks: int) -> np.ndarray:
+    """Row chunk edges of about equal ``weight`` (cumulative, ``(n_rows + 1,)``)."""
+    n_rows = weight.size - 1
+    n_chunks = max(1, min(n_chunks, n_rows))
+    targets = np.linspace(0, float(weight[-1]), n_chunks + 1)
+    edges = np.searchsorted(weight, targets[1:-1], side="left")
+    return np.unique(np.concatenate([[0], edges, [n_rows]])).astype(np.int64)
+
+
+def bsr_matmul(A: Any, B: Any) -> sp.bsr_array:
+    """``A @ B`` of two BSR arrays whose block sizes chain (``R x N`` times ``N x S``).
+
+    Parameters
+    ----------
+    A, B : scipy.sparse BSR arrays (real)
+
+    Returns
+    -------
+    scipy.sparse.bsr_array of blocksize ``(R, S)``; with numba, sorted block columns.
+
+    Examples
+    --------
+    >>> import numpy as np, scipy.sparse as sp
+    >>> from pdlin._kernels import bsr_matmul
+    >>> A = sp.bsr_array(np.arange(24.0).reshape(4, 6), blocksize=(2, 3))
+    >>> C = bsr_matmul(A, sp.bsr_array(A.T, blocksize=(3, 2)))
+    >>> C.blocksize, bool(np.array_equal(C.toarray(), A.toarray() @ A.toarray().T))
+    ((2, 2), True)
+    """
+    R, N = A.blocksize
+    N2, S = B.blocksize
+    if A.shape[1] != B.shape[0] or N != N2:
+        raise ValueError(f"bsr_matmul: blocks {A.blocksize} x {B.blocksize} do not chain")
+    real = A.dtype == np.float64 and B.dtype == np.float64
+    mod = _kernels() if real and use_numba(A.nnz * S) else None
+    if mod is None:
+        return sp.bsr_array(A @ B, blocksize=(R, S))
+    a_ptr = np.asarray(A.indptr, dtype=np.int64)
+    b_ptr = np.asarray(B.indptr, dtype=np.int64)
+    a_ind = np.ascontiguousarray(A.indices)
+    b_ind = np.ascontiguousarray(B.indices)
+    if b_ind.dtype != a_ind.dtype:
+        a_ind = a_ind.astype(np.int64)
+        b_ind = b_ind.astype(np.int64)
+    a_dat = np.ascontiguousarray(A.data)
+    b_dat = np.ascontiguousarray(B.data)
+    n_row = A.shape[0] // R
+    n_bcol = B.shape[1] // S
+    n_chunks = 4 * get_num_threads()
+    with _lock:
+        _set_threads()
+        nnz, work = mod.bsr_row_counts(a_ptr, a_ind, b_ptr, b_ind, n_bcol, _edges(a_ptr, n_chunks))
+    c_ptr = np.zeros(n_row + 1, dtype=np.int64)
+    np.cumsum(nnz, out=c_ptr[1:])
+    total = int(c_ptr[-1])
+    idt = np.int32 if max(total, n_bcol) < np.iinfo(np.int32).max else np.int64
+    c_ind = np.empty(total, dtype=idt)
+    c_dat = np.empty((total, R, S))
+    cum = np.zeros(n_row + 1, dtype=np.int64)
+    np.cumsum(work, out=cum[1:])
+    with _lock:
+        _set_threads()
+        mod.bsr_fill(
+            a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bcol,
+            _edges(cum, n_chunks),
+        )  # fmt: skip
+    out = sp.bsr_array(
+        (c_dat, c_ind, c_ptr.astype(idt)), shape=(A.shape[0], B.shape[1]), blocksize=(R, S)
+    )
+    out.has_sorted_indices = True
+    return out

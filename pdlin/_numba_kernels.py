@@ -1,0 +1,99 @@
+"""numba kernels of :mod:`pdlin._kernels` (imported only when numba is installed).
+
+Work is split into fixed chunks of rows (``prange``); each output row is computed by one
+chunk, from the same operands in the same order whatever the thread count, so results are
+bitwise identical for 1, 2, ... threads.  The arithmetic is that of scipy's sparsetools
+``bsr_matmat`` (each block ``C_ij += A_ik B_kj`` accumulated over the stored ``k`` of row
+``i`` in storage order, every entry as ``c + a_0 b_0 + a_1 b_1 ...`` from left to right),
+without fused multiply-adds (numba does not enable floating-point contraction by default),
+so the values equal scipy's for the same operands; the block columns of each row come out
+sorted.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(parallel=True, cache=True)
+def bsr_row_counts(a_ptr, a_ind, b_ptr, b_ind, n_bcol, edges):
+    """Blocks per output row of ``A @ B`` and block products per row (the work)."""
+    n_row = a_ptr.size - 1
+    nnz = np.zeros(n_row, np.int64)
+    work = np.zeros(n_row, np.int64)
+    for c in numba.prange(edges.size - 1):
+        mark = np.full(n_bcol, -1, np.int64)
+        for i in range(edges[c], edges[c + 1]):
+            cnt = 0
+            w = 0
+            for jj in range(a_ptr[i], a_ptr[i + 1]):
+                k = a_ind[jj]
+                w += b_ptr[k + 1] - b_ptr[k]
+                for kk in range(b_ptr[k], b_ptr[k + 1]):
+                    j = b_ind[kk]
+                    if mark[j] != i:
+                        mark[j] = i
+                        cnt += 1
+            nnz[i] = cnt
+            work[i] = w
+    return nnz, work
+
+
+@numba.njit(inline="always", cache=True)
+def _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, R, N, S):
+    """Blocks of output row ``i``: ``C_ij += A_ik B_kj`` over the stored ``k`` in order."""
+    for jj in range(a_ptr[i], a_ptr[i + 1]):
+        k = a_ind[jj]
+        for kk in range(b_ptr[k], b_ptr[k + 1]):
+            q = pos[b_ind[kk]]
+            for r in range(R):
+                for s in range(S):
+                    acc = c_dat[q, r, s]
+                    for t in range(N):
+                        acc += a_dat[jj, r, t] * b_dat[kk, t, s]
+                    c_dat[q, r, s] = acc
+
+
+@numba.njit(parallel=True, cache=True)
+def bsr_fill(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bcol, edges):
+    """Sorted block columns and blocks of ``C = A @ B`` (``c_ptr`` from the counts)."""
+    R = a_dat.shape[1]
+    N = a_dat.shape[2]
+    S = b_dat.shape[2]
+    for c in numba.prange(edges.size - 1):
+        pos = np.full(n_bcol, -1, np.int64)
+        for i in range(edges[c], edges[c + 1]):
+            p0 = c_ptr[i]
+            p = p0
+            for jj in range(a_ptr[i], a_ptr[i + 1]):
+                k = a_ind[jj]
+                for kk in range(b_ptr[k], b_ptr[k + 1]):
+                    j = b_ind[kk]
+                    if pos[j] < p0:  # rows of a chunk run in order: older marks are < p0
+                        pos[j] = p
+                        c_ind[p] = j
+                        p += 1
+            c_ind[p0:p].sort()
+            for q in range(p0, p):
+                pos[c_ind[q]] = q
+                for r in range(R):
+                    for s in range(S):
+                        c_dat[q, r, s] = 0.0
+            # constant block sizes for the common cases (LLVM unrolls the block product)
+            if R == 1 and N == 1 and S == 1:
+                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 1, 1, 1)
+            elif R == 2 and N == 1 and S == 2:
+                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 2, 1, 2)
+            elif R == 3 and N == 1 and S == 3:
+                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 3, 1, 3)
+            elif R == 2 and N == 3 and S == 2:
+                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 2, 3, 2)
+            elif R == 3 and N == 6 and S == 3:
+                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 3, 6, 3)
+            elif R == 2 and N == 4 and S == 2:
+                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 2, 4, 2)
+            elif R == 3 and N == 9 and S == 3:
+                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 3, 9, 3)
+            else:
+                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, R, N, S)
