@@ -17,7 +17,8 @@ SuperLU (scipy) is always present.  The optional backends are imported lazily:
   upper triangle for symmetric matrices, LU otherwise, SCOTCH ordering when
   available.
 
-``backend='auto'`` picks CHOLMOD, then PARDISO, then SuperLU for symmetric
+``backend='auto'`` picks PARDISO, then CHOLMOD (CHOLMOD first when pdlin runs on
+one thread), then MUMPS, then SuperLU for symmetric
 matrices and PARDISO, then SuperLU for nonsymmetric ones (SuperLU alone below
 :data:`~pdlin.solvers.AUTO_MIN` unknowns); a Cholesky that
 finds the matrix not positive definite falls back down the list and the
@@ -39,6 +40,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .._threads import get_num_threads
 from ..errors import ConvergenceError, InputError, MissingDependencyError
 
 __all__ = ["DIRECT_BACKENDS", "AUTO_MIN", "available_direct_backends", "DirectSolver"]
@@ -130,10 +132,14 @@ def _auto_chain(symmetric: bool, n: int) -> list[str]:
     avail = available_direct_backends()
     if n < AUTO_MIN:
         return ["superlu"]
-    order = (
-        ["cholmod", "pardiso", "mumps", "superlu"] if symmetric else ["pardiso", "mumps", "superlu"]
-    )
-    return [b for b in order if avail[b]]
+    if not symmetric:
+        return [b for b in ("pardiso", "mumps", "superlu") if avail[b]]
+    # symmetric: PARDISO first when pdlin may use several threads (on 2 cores it was
+    # faster on every 401² anchor row: 9.8 vs 11.4 s unstabilized, 5.7 vs 8.3 s with stress
+    # points), CHOLMOD first on one (14.2 vs 17.2 s unstabilized; benchmarks/README.md)
+    multi = get_num_threads() > 1
+    order = ["pardiso", "cholmod"] if multi else ["cholmod", "pardiso"]
+    return [b for b in [*order, "mumps", "superlu"] if avail[b]]
 
 
 # -- backends ------------------------------------------------------------------------------
@@ -404,9 +410,10 @@ class DirectSolver:
     symmetric : bool, optional
         Whether ``A`` is symmetric (checked numerically when omitted).
     backend : {'auto', 'superlu', 'cholmod', 'pardiso', 'mumps'}
-        ``'auto'``: CHOLMOD (supernodal Cholesky), then PARDISO, then SuperLU
-        for symmetric ``A``; PARDISO, MUMPS, then SuperLU for nonsymmetric
-        ``A``, skipping those not installed; SuperLU alone below
+        ``'auto'``: PARDISO, then CHOLMOD (supernodal Cholesky; first when
+        :func:`pdlin.get_num_threads` is 1), MUMPS, then SuperLU for symmetric
+        ``A``; PARDISO, MUMPS, then SuperLU for nonsymmetric ``A``, skipping
+        those not installed; SuperLU alone below
         :data:`~pdlin.solvers.AUTO_MIN` unknowns.  SuperLU runs in symmetric mode
         (minimum degree on ``A + Aᵀ``, diagonal pivots) for symmetric ``A``.
 

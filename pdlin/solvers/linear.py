@@ -584,9 +584,9 @@ def solve_linear(
         matrix-free ``LinearOperator``).
     direct_backend : str
         One of :data:`~pdlin.solvers.DIRECT_BACKENDS`, for
-        ``solver='direct'``: ``'auto'`` takes CHOLMOD (symmetric), PARDISO,
-        then SuperLU, whichever is installed; ``info['direct_backend']``
-        names the one that ran (see :class:`DirectSolver`).
+        ``solver='direct'``: ``'auto'`` takes PARDISO or CHOLMOD (symmetric;
+        CHOLMOD first on one thread), MUMPS, then SuperLU, whichever is
+        installed; ``info['direct_backend']`` names the one that ran (see :class:`DirectSolver`).
     direct_cache : dict, optional
         Keeps the :class:`DirectSolver` of a ``'direct'`` solve under key
         ``'solver'``; a later call with the same dict and a matrix of the same

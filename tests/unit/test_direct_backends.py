@@ -94,7 +94,9 @@ def test_auto_choice_is_reported(monkeypatch: pytest.MonkeyPatch) -> None:
     assert res.info["direct_backend"] == "superlu"
     assert res.summary()["direct_backend"] == "superlu"
     # from AUTO_MIN on: the first installed of CHOLMOD, PARDISO, MUMPS for symmetric K
+    # (on one thread; on several PARDISO comes first, test_auto_chain_order)
     monkeypatch.setattr(direct_mod, "AUTO_MIN", 10)
+    monkeypatch.setattr(direct_mod, "get_num_threads", lambda: 1)
     res = pdlin.solve(prob, "direct")
     expected = next((b for b in ("cholmod", "pardiso", "mumps") if AVAILABLE[b]), "superlu")
     assert res.info["direct_backend"] == expected
@@ -105,7 +107,10 @@ def test_auto_chain_order(monkeypatch: pytest.MonkeyPatch) -> None:
     every = {"superlu": True, "cholmod": True, "pardiso": True, "mumps": True}
     monkeypatch.setattr(direct_mod, "available_direct_backends", lambda: dict(every))
     big = direct_mod.AUTO_MIN
+    monkeypatch.setattr(direct_mod, "get_num_threads", lambda: 1)
     assert direct_mod._auto_chain(True, big) == ["cholmod", "pardiso", "mumps", "superlu"]
+    monkeypatch.setattr(direct_mod, "get_num_threads", lambda: 2)
+    assert direct_mod._auto_chain(True, big) == ["pardiso", "cholmod", "mumps", "superlu"]
     assert direct_mod._auto_chain(False, big) == ["pardiso", "mumps", "superlu"]
     assert direct_mod._auto_chain(False, 10) == ["superlu"]
     assert direct_mod._auto_chain(True, big - 1) == ["superlu"]
