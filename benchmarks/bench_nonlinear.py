@@ -18,7 +18,9 @@ seconds on a shared machine, one BLAS thread; nothing is asserted):
    Newton elastic steps in one iteration", from table 1, and a cProfile split of one Newton
    and one ADR run (respond = constitutive update + tangent assembly + nodal force, linear
    solve, Dirichlet elimination, predictor, ADR density).
-3. **10⁵ particles** (316 x 316): Newton for the first ``--big-steps`` load steps.
+3. **10⁵ particles** (316 x 316): ``--big-method`` (Newton by default; ``auto`` for the
+   end-to-end run) for the first ``--big-steps`` load steps, optionally with a checkpoint
+   that a later run resumes (``--big-checkpoint PATH``: a killed run loses no committed step).
 4. **B2 accuracy-cost**: ADR with e_l in ``--e-l`` from the committed state of a tight
    Newton reference (rtol 1e-12, ``checkpoint=`` + ``resume=True``), homogenized-stress error
    against Newton's next step (spec 001 §6: never pointwise), for an elastic and a plastic step.
@@ -304,14 +306,19 @@ def table_profile(n: int, load: str, methods: list[str], steps: int, budget: flo
         print()
 
 
-def _big(n: int, steps: int, load: str) -> dict[str, Any]:
+def _big(
+    n: int, steps: int, load: str, method: str = "newton", checkpoint: str | None = None
+) -> dict[str, Any]:
     prob, _ = problem(n, load)
     t0 = time.perf_counter()
+    resume = checkpoint is not None and Path(checkpoint).exists()
     res = pdlin.solve_nonlinear(
         prob,
         times=np.arange(1.0, steps + 1.0),
         t_end=30.0,
-        method="newton",
+        method=method,
+        checkpoint=checkpoint,
+        resume=resume,
         keep_states=False,
         progress=lambda msg: print(f"    {msg} (RSS {_peak_mb():.0f} MB)", flush=True),
     )
@@ -326,21 +333,26 @@ def _big(n: int, steps: int, load: str) -> dict[str, Any]:
         "wall": time.perf_counter() - t0,
         "peak_mb": _peak_mb(),
         "hom": res.homogenized_stress,
+        "methods": list(res.methods),
+        "resumed_from": res.resumed_from,
     }
 
 
-def table_big(n: int, steps: int, load: str) -> None:
-    print(f"\n## 10⁵ feasibility: {n}² = {n * n:,} particles, {load}, Newton, steps 1-{steps}\n")
-    r = forked(_big, n, steps, load)
+def table_big(
+    n: int, steps: int, load: str, method: str = "newton", checkpoint: str | None = None
+) -> None:
+    print(f"\n## 10⁵ feasibility: {n}² = {n * n:,} particles, {load}, {method}, steps 1-{steps}\n")
+    r = forked(_big, n, steps, load, method, checkpoint)
     if isinstance(r, str):
         print(f"failed: {r}")
         return
-    print("| step | s | iterations | calls | cut-backs |")
-    print("|---|---|---|---|---|")
-    for k in range(len(r["step_times"])):
+    print("| step | s | method | iterations | calls | cut-backs |")
+    print("|---|---|---|---|---|---|")
+    first = int(r["resumed_from"])  # steps before it came from the checkpoint (no times)
+    for k in range(first, len(r["step_times"])):
         print(
-            f"| {k + 1} | {r['step_times'][k]:.1f} | {int(r['iterations'][k])} | "
-            f"{int(r['calls'][k]):,} | {int(r['cutbacks'][k])} |"
+            f"| {k + 1} | {r['step_times'][k]:.1f} | {r['methods'][k]} | "
+            f"{int(r['iterations'][k])} | {int(r['calls'][k]):,} | {int(r['cutbacks'][k])} |"
         )
     print(
         f"\nsetup {r['setup']:.1f} s, wall {r['wall']:.1f} s, peak RSS {r['peak_mb']:.0f} MB, "
@@ -491,6 +503,10 @@ def main(argv: list[str] | None = None) -> int:
         "--big", type=int, help="grid side of the 10⁵ run (0: skip; default 316, 0 with --quick)"
     )
     ap.add_argument("--big-steps", type=int, default=3)
+    ap.add_argument("--big-method", default="newton", choices=["newton", "auto", "adr"])
+    ap.add_argument(
+        "--big-checkpoint", help="checkpoint file of the 10⁵ run (resumed when it exists)"
+    )
     ap.add_argument("--b2-size", type=int, default=25)
     ap.add_argument(
         "--b2-steps",
@@ -543,7 +559,7 @@ def main(argv: list[str] | None = None) -> int:
             n_prof, args.loads[0], ["newton", "adr-spec"], args.steps, args.profile_budget
         )
     if "big" in args.sections and args.big > 0:
-        table_big(args.big, args.big_steps, args.loads[0])
+        table_big(args.big, args.big_steps, args.loads[0], args.big_method, args.big_checkpoint)
     if "b2" in args.sections:
         table_b2(args.b2_size, args.loads[0], args.b2_steps, args.e_l)
     if "t20" in args.sections:
