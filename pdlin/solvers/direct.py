@@ -153,25 +153,23 @@ class _SuperLU:
         self._factor(A)
 
     def _factor(self, csc: sp.csc_matrix) -> None:
-        if self.symmetric:
-            self.ordering = "MMD_AT_PLUS_A (symmetric mode)"
-            self._lu = spla.splu(
-                csc,
-                permc_spec="MMD_AT_PLUS_A",
-                diag_pivot_thresh=0.0,
-                options={"SymmetricMode": True},
+        if self.symmetric or _pattern_symmetric(csc):
+            # symmetric mode: a symmetric ordering of A + Aᵀ.  Symmetric A: diagonal
+            # pivots.  Nonsymmetric values on a symmetric pattern (e.g. the consistent
+            # tangent Gᵀ (dP/dF) G of crystal plasticity): a preference for diagonal pivots
+            # (threshold partial pivoting kept) fills in less than COLAMD (measured 31 vs
+            # 72 ms at 2,500 particles, 308 vs 491 ms at 10⁴); the caller's residual check
+            # and refinement guard the pivoting
+            thresh = 0.0 if self.symmetric else 0.1
+            self.ordering = (
+                "MMD_AT_PLUS_A (symmetric mode)"
+                if self.symmetric
+                else "MMD_AT_PLUS_A (threshold 0.1)"
             )
-        elif _pattern_symmetric(csc):
-            # nonsymmetric values on a symmetric pattern (e.g. the consistent tangent
-            # Gᵀ (dP/dF) G of crystal plasticity): a symmetric ordering of A + Aᵀ with a
-            # preference for diagonal pivots (threshold partial pivoting kept) fills in
-            # less than COLAMD (measured 31 vs 72 ms at 2,500 particles, 308 vs 491 ms at
-            # 10⁴); the caller's residual check and refinement guard the pivoting
-            self.ordering = "MMD_AT_PLUS_A (threshold 0.1)"
             self._lu = spla.splu(
                 csc,
                 permc_spec="MMD_AT_PLUS_A",
-                diag_pivot_thresh=0.1,
+                diag_pivot_thresh=thresh,
                 options={"SymmetricMode": True},
             )
         else:
