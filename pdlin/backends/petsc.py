@@ -857,23 +857,25 @@ def _point_fields(
     out: dict[str, np.ndarray] = {}
     fam = np.asarray(bonds.family_size[:m], dtype=float)
     out["family_size"] = _gather_width(PETSc, gather.layout, fam[:, None]).reshape(-1)
-    try:
-        F = deformation_gradient(local, bonds, u_local, n_owners=m).reshape(m, d * d)
-        ok = 1.0
-    except (InputError, np.linalg.LinAlgError) as exc:
-        log.warning("strain not written: %s", exc)
-        F, ok = np.zeros((m, d * d)), 0.0
-    if _global_sum(PETSc, 1.0 - ok) == 0.0:
-        out["deformation_gradient"] = _gather_width(PETSc, gather.layout, F)
-    if hasattr(model, "stress"):
+
+    def collective(name: str, what: str, compute: Any) -> None:
+        # every rank computes its owned rows; written only when no rank failed
         try:
-            S = np.asarray(model.stress(local, bonds, u_local))[:m].reshape(m, d * d)
+            vals = np.asarray(compute())[:m].reshape(m, d * d)
             ok = 1.0
         except (InputError, np.linalg.LinAlgError) as exc:
-            log.warning("stress not written: %s", exc)
-            S, ok = np.zeros((m, d * d)), 0.0
+            log.warning("%s not written: %s", what, exc)
+            vals, ok = np.zeros((m, d * d)), 0.0
         if _global_sum(PETSc, 1.0 - ok) == 0.0:
-            out["stress"] = _gather_width(PETSc, gather.layout, S)
+            out[name] = _gather_width(PETSc, gather.layout, vals)
+
+    collective(
+        "deformation_gradient",
+        "strain",
+        lambda: deformation_gradient(local, bonds, u_local, n_owners=m),
+    )
+    if hasattr(model, "stress"):
+        collective("stress", "stress", lambda: model.stress(local, bonds, u_local))
     return out
 
 
