@@ -142,6 +142,32 @@ def _spacing(r: ResultFile, fields: dict[str, np.ndarray]) -> float:
     return float(np.median(d[:, 1]))
 
 
+def _step_field(
+    r: ResultFile, step: int, field: str, component: str | None, scale: float
+) -> tuple[int, dict[str, np.ndarray], np.ndarray, str, np.ndarray]:
+    """Step index, fields, plotted values and label of ``field`` and the points moved by
+    ``scale`` x displacement (``(n, dim)``), with the checks both plotters share."""
+    k = r.step_index(step)
+    fields = r.steps[k]
+    if field not in fields:
+        raise InputError(
+            f"field (--field) {field!r} is not in {r.path.name}; available: {sorted(fields)}"
+        )
+    values, label = _component(field, fields[field], r.dim, component)
+    pts = np.asarray(r.points, dtype=float)
+    scale = float(scale)
+    if not np.isfinite(scale):
+        raise InputError(f"scale (--scale) must be finite, got {scale}")
+    if scale != 0.0:
+        if "displacement" not in fields:
+            raise InputError(
+                f"scale (--scale) {scale} needs a displacement field; {r.path.name} has "
+                f"{sorted(fields)}"
+            )
+        pts = pts + scale * np.asarray(fields["displacement"])[:, : r.dim]
+    return k, fields, values, label, pts
+
+
 def plot_result(
     result: str | Path | ResultFile,
     *,
@@ -193,24 +219,8 @@ def plot_result(
     """
     plt = _plt()
     r = result if isinstance(result, ResultFile) else read_result(result)
-    k = r.step_index(step)
-    fields = r.steps[k]
-    if field not in fields:
-        raise InputError(
-            f"field (--field) {field!r} is not in {r.path.name}; available: {sorted(fields)}"
-        )
-    values, label = _component(field, fields[field], r.dim, component)
-    pts = np.asarray(r.points, dtype=float)
+    k, fields, values, label, pts = _step_field(r, step, field, component, scale)
     scale = float(scale)
-    if not np.isfinite(scale):
-        raise InputError(f"scale (--scale) must be finite, got {scale}")
-    if scale != 0.0:
-        if "displacement" not in fields:
-            raise InputError(
-                f"scale (--scale) {scale} needs a displacement field; {r.path.name} has "
-                f"{sorted(fields)}"
-            )
-        pts = pts + scale * np.asarray(fields["displacement"])[:, : r.dim]
     if r.dim == 3:
         if slice is None:
             lo, hi = r.points.min(axis=0), r.points.max(axis=0)
@@ -436,19 +446,9 @@ def render_result(
     from .io.results import _staging
 
     r = result if isinstance(result, ResultFile) else read_result(result)
-    k = r.step_index(step)
-    fields = r.steps[k]
-    if field not in fields:
-        raise InputError(
-            f"field (--field) {field!r} is not in {r.path.name}; available: {sorted(fields)}"
-        )
-    values, label = _component(field, fields[field], r.dim, component)
+    k, _, values, label, deformed = _step_field(r, step, field, component, scale)
     pts = np.zeros((r.points.shape[0], 3))
-    pts[:, : r.dim] = r.points
-    if float(scale) != 0.0:
-        if "displacement" not in fields:
-            raise InputError(f"scale (--scale) {scale} needs a displacement field")
-        pts[:, : r.dim] += float(scale) * np.asarray(fields["displacement"])[:, : r.dim]
+    pts[:, : r.dim] = deformed
     cloud = pv.PolyData(pts)
     cloud[label] = values
     pl = pv.Plotter(off_screen=True, window_size=list(window_size))
