@@ -104,6 +104,8 @@ class NonlinearResult:
     residuals: np.ndarray
     timings: dict[str, Any] = field(default_factory=dict)
     resumed_from: int = 0
+    #: ADR iterations Newton ran at stalls per step (``relax`` of :func:`solve_nonlinear`)
+    relaxations: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     #: load-step index (0-based) of each entry of ``states``: all steps, or with
     #: ``keep_states=False`` the last one, and after a resume the checkpoint's last
     #: committed step followed by the steps solved in this call
@@ -141,6 +143,7 @@ class NonlinearResult:
             "iterations": int(self.iterations.sum()),
             "constitutive_calls": int(self.calls.sum()),
             "cutbacks": int(self.cutbacks.sum()),
+            "relaxation_iterations": int(self.relaxations.sum()),
             "fallbacks": int(sum(1 for m in self.methods if "failed" in m)),
             "max_relative_residual": float(np.max(self.residuals)) if self.n_steps else 0.0,
             "timings": {
@@ -296,6 +299,7 @@ def solve_nonlinear(
     line_search: bool = True,
     max_cutbacks: int = 8,
     linear_solver: str = "auto",
+    relax: int = 0,
     e_l: float = 1e-6,
     density: Any = "gershgorin",
     density_safety: float = 1.1,
@@ -357,6 +361,18 @@ def solve_nonlinear(
         increment is doubled after easy convergence and the last one starts the
         next step), inner linear solver
         ('auto': direct up to 2·10⁵ DOFs in 2D / 3·10⁴ in 3D, then AMG-Krylov).
+    relax : int
+        Newton's relaxation at stalls (0, the default: off; e.g. 50): when five
+        Newton iterations reduce ``‖r‖`` less than twofold, or a line search
+        fails, up to ``relax`` ADR iterations from the current iterate (at rest,
+        Gershgorin density of the current tangent and at least that of the
+        elastic one), and Newton resumes from the last of them.
+        At active-set switches (a crystal whose slip systems load or unload)
+        ``r(u)`` has kinks, and Newton can stall jumping across them; the
+        relaxation settles such local errors (``result.relaxations`` counts its
+        iterations).  It lets ``method='newton'`` through stalls it would fail;
+        with ``'auto'`` it was not faster than the ADR fallback in the measured
+        runs (docs/nonlinear.md), hence off by default.
     e_l, density, density_safety, dt, damping, c0, adr_maxiter, floor
         ADR: target of the relative criteria e₁, e₂ (spec 001 Eqs. 19-20);
         fictitious density ``'gershgorin'`` (Kilic-Madenci, ``Λ_ii = s ¼ Δt²
@@ -422,7 +438,7 @@ def solve_nonlinear(
     for name, val, lo in (("rtol", rtol, 0.0), ("e_l", e_l, 0.0), ("floor", floor, 0.0)):
         if not (isinstance(val, int | float) and math.isfinite(val) and val > lo):
             raise InputError(f"{name} must be a positive number, got {val!r}")
-    for name, ival in (("maxiter", maxiter), ("max_cutbacks", max_cutbacks)):
+    for name, ival in (("maxiter", maxiter), ("max_cutbacks", max_cutbacks), ("relax", relax)):
         if isinstance(ival, bool) or not isinstance(ival, int) or ival < 0:
             raise InputError(f"{name} must be an integer >= 0, got {ival!r}")
     for name, opt in (("damping", damping), ("c0", c0)):
@@ -496,6 +512,7 @@ def solve_nonlinear(
     iters = np.zeros(K, dtype=np.int64)
     calls = np.zeros(K, dtype=np.int64)
     cuts = np.zeros(K, dtype=np.int64)
+    relax_hist = np.zeros(K, dtype=np.int64)
     e1s = np.full(K, np.nan)
     e2s = np.full(K, np.nan)
     resid = np.zeros(K)
@@ -529,6 +546,8 @@ def solve_nonlinear(
         reac_hist[:start] = data["reactions"][:start]
         for arr, key in ((iters, "iterations"), (calls, "calls"), (cuts, "cutbacks")):
             arr[:start] = data[key][:start]
+        if "relaxations" in data:  # absent from checkpoints of earlier versions
+            relax_hist[:start] = data["relaxations"][:start]
         e1s[:start], e2s[:start] = data["e1"][:start], data["e2"][:start]
         resid[:start] = data["residuals"][:start]
         if "stress" in data:
@@ -559,6 +578,14 @@ def solve_nonlinear(
 
     direct_cache: dict[str, Any] = {}  # the tangent's factorization, reused across steps
 
+    def relax_density() -> np.ndarray | None:
+        """Newton's relaxation density at stalls: at least the elastic tangent's bound."""
+        if relax == 0:
+            return None
+        if "relax" not in lam0:
+            lam0["relax"] = adr_density(system, state0, None, dt=1.0, safety=1.1)
+        return lam0["relax"]
+
     def newton_to(t_new: float, u_from: np.ndarray, st: dict[str, np.ndarray]) -> StepOutcome:
         u0 = pred(u_from, st, t_cur, u_prev, t_prev, t_new, t_new / te, values(t_new))
         return newton_step(
@@ -571,6 +598,8 @@ def solve_nonlinear(
             line_search=line_search,
             linear_solver=linear_solver,
             direct_cache=direct_cache,
+            relax=relax,
+            relax_density=relax_density(),
         )
 
     def adr_to(t_new: float, u_from: np.ndarray, st: dict[str, np.ndarray]) -> StepOutcome:
@@ -605,6 +634,7 @@ def solve_nonlinear(
     # automatic incrementation: the last converged increment of each driver, as a
     # fraction of its load step, starts the next step (grown after easy convergence)
     inc_frac = {"newton": 1.0, "adr": 1.0}
+    n_relax = [0]  # Newton's relaxation iterations in the current load step
 
     def substeps(
         step_fn: Callable[[float, np.ndarray, dict[str, np.ndarray]], StepOutcome],
@@ -642,6 +672,7 @@ def solve_nonlinear(
                 if exc.outcome is not None:
                     n_it += exc.outcome.iterations
                     n_calls += exc.outcome.calls
+                    n_relax[0] += exc.outcome.relaxation
                 n_cut += 1
                 if 0.5 * min(inc, t_target - t_cur) < smallest * (1.0 - 1e-9):
                     inc_frac[driver] = inc / span
@@ -651,6 +682,7 @@ def solve_nonlinear(
                 continue
             n_it += out.iterations
             n_calls += out.calls
+            n_relax[0] += out.relaxation
             if damp is not None and out.damping is not None:
                 damp.append(out.damping)
             u_prev, t_prev = cur_u, t_cur
@@ -669,6 +701,7 @@ def solve_nonlinear(
             t_target = float(tt[k])
             step_u, step_state = u_c, state_c
             n_it = n_calls = n_cut = 0
+            n_relax[0] = 0
             pred.calls = 0
             damp: list[np.ndarray] = []
             out: StepOutcome | None = None
@@ -726,6 +759,7 @@ def solve_nonlinear(
                 stress_hist[k] = sig
                 hom_hist[k] = np.einsum("i,iab->ab", hom_w, sig) / hom_w.sum()
             iters[k], calls[k], cuts[k] = n_it, n_calls + pred.calls, n_cut
+            relax_hist[k] = n_relax[0]
             resid[k] = out.residual
             methods[k], messages[k] = used, why
             damping_hist[k] = np.concatenate(damp) if damp else np.zeros(0)
@@ -754,6 +788,7 @@ def solve_nonlinear(
                 "iterations": iters[: k + 1],
                 "calls": calls[: k + 1],
                 "cutbacks": cuts[: k + 1],
+                "relaxations": relax_hist[: k + 1],
                 "e1": e1s[: k + 1],
                 "e2": e2s[: k + 1],
                 "residuals": resid[: k + 1],
@@ -767,7 +802,9 @@ def solve_nonlinear(
             _write_atomic_npz(ckpt, arrays)
         say(
             f"step {k + 1}/{K} t = {t_target:.6g}: {used}, {n_it} iteration(s), "
-            f"{n_cut} cut-back(s), residual {out.residual:.2e}, {step_time[k]:.2f} s"
+            f"{n_cut} cut-back(s), "
+            + (f"{n_relax[0]} relaxation iteration(s), " if n_relax[0] else "")
+            + f"residual {out.residual:.2e}, {step_time[k]:.2f} s"
         )
 
     timings["steps"] = step_time
@@ -786,6 +823,7 @@ def solve_nonlinear(
         iterations=iters,
         calls=calls,
         cutbacks=cuts,
+        relaxations=relax_hist,
         methods=methods,
         messages=messages,
         damping=damping_hist,

@@ -151,6 +151,7 @@ _NONLINEAR_KEYS = (
     "predictor",
     "checkpoint",
     "max_cutbacks",
+    "relax",
     "density",
     "dt",
     "damping",
@@ -1018,7 +1019,7 @@ def _nonlinear_options(
     opts: dict[str, Any] = {"method": method}
     for k in given:
         opts[k] = scfg[k]
-    for k in ("steps", "max_cutbacks"):
+    for k in ("steps", "max_cutbacks", "relax"):
         if k in opts:
             v = opts[k]
             lo = 1 if k == "steps" else 0

@@ -58,6 +58,10 @@ class StepOutcome:
         ADR damping coefficient per iteration.
     e1, e2 : float, optional
         ADR's final relative criteria (spec 001 Eqs. 19-20).
+    line_search : int
+        Newton's backtracking steps.
+    relaxation : int
+        ADR iterations Newton ran at stalls (``relax`` of :func:`newton_step`).
     """
 
     u: np.ndarray
@@ -70,6 +74,7 @@ class StepOutcome:
     e1: float | None = None
     e2: float | None = None
     line_search: int = 0
+    relaxation: int = 0
 
 
 class StepFailed(ConvergenceError):
@@ -111,6 +116,9 @@ def _linear_solver(system: Any, solver: str) -> str:
     return "amg-cg" if system.symmetric else "amg-gmres"
 
 
+_STALL_WINDOW = 5  # Newton iterations over which a stall is judged
+
+
 def newton_step(
     system: Any,
     u0: np.ndarray,
@@ -125,6 +133,9 @@ def newton_step(
     linear_rtol: float = 1e-10,
     nonmonotone: int = 3,
     direct_cache: dict[str, Any] | None = None,
+    relax: int = 0,
+    relax_density: np.ndarray | None = None,
+    stall: float = 0.5,
 ) -> StepOutcome:
     """Newton-Raphson with a consistent tangent and backtracking line search.
 
@@ -136,6 +147,17 @@ def newton_step(
     no α decreases ``‖r‖`` (the tangent of an active-set model is only piecewise
     smooth), the best trial is taken anyway, at most ``nonmonotone`` times per
     step and only if it does not raise ``‖r‖`` tenfold.
+
+    With ``relax > 0``, a stall (five iterations that together reduced
+    ``‖r‖`` by less than the factor ``stall``, or a failed line search after the
+    ``nonmonotone`` budget) is followed by
+    ``relax`` ADR iterations from that iterate at rest (density: the Gershgorin
+    bound ``1.1 · ¼ Σ_j |K_ij|`` of the current tangent, at least
+    ``relax_density``; Δt = 1).  Newton stalls where points of an active-set
+    model sit on a switch (a kink of ``r(u)``) at equilibrium: its iterates
+    jump across the kink, each side's linearization pointing past it; a few
+    explicit relaxation sweeps settle such local errors (they are
+    high-frequency), and Newton resumes with the right linearization.
     Converged when ``‖r_free‖ <= rtol * scale`` (``scale`` the larger of
     ``‖λ f_ext‖`` and the reaction force norm).  A ``direct_cache`` dict
     shared between calls keeps the direct factorization, so successive
@@ -155,6 +177,8 @@ def newton_step(
     history: list[float] = []
     solver = _linear_solver(system, linear_solver)
     backtracks = 0
+    relaxed = 0
+    last_relax = 0
     nonmonotone_left = int(nonmonotone)
     for it in range(maxiter + 1):
         norm = float(np.linalg.norm(r))
@@ -163,8 +187,11 @@ def newton_step(
         scale = max(scale0, _force_scale(system, resp, factor))
         rel = norm / scale if scale > 0 else norm
         history.append(rel)
+        log.debug("Newton iteration %d: relative residual %.3e", it, rel)
         if norm <= rtol * scale or norm == 0.0:
-            return StepOutcome(u, resp, it, calls, rel, history, line_search=backtracks)
+            return StepOutcome(
+                u, resp, it, calls, rel, history, line_search=backtracks, relaxation=relaxed
+            )
         if it == maxiter:
             break
         K = resp.tangent
@@ -192,7 +219,7 @@ def newton_step(
         du = lin.x
         du[system.dofs] = 0.0
         alpha = 1.0
-        accepted = False
+        accepted = stalled = False
         best: tuple[float, np.ndarray, Any, np.ndarray] | None = None
         # the full step's tangent is wanted unless it is likely the last iteration
         # (quadratic convergence from here would end below rtol)
@@ -224,13 +251,54 @@ def newton_step(
             nonmonotone_left -= 1
             _, trial_u, trial, rt = best
             accepted = True
+        if not accepted and relax > 0:
+            trial_u, trial, rt = u, resp, r  # relax from here rather than give up
+            accepted = stalled = True
         if not accepted:
             raise StepFailed(
                 f"Newton: line search failed at iteration {it} (‖r‖ = {norm:.3e}, no decrease "
                 f"down to α = {2 * alpha:.2e})",
-                StepOutcome(u, resp, it, calls, rel, history, line_search=backtracks),
+                StepOutcome(
+                    u, resp, it, calls, rel, history, line_search=backtracks, relaxation=relaxed
+                ),
             )
         u = trial_u
+        if relax > 0 and not stalled and it - last_relax >= _STALL_WINDOW:
+            # the last iterations did not reduce ‖r‖ by the factor ``stall``
+            stalled = float(np.linalg.norm(rt)) / scale > stall * history[-_STALL_WINDOW]
+        if stalled and relax > 0:
+            last_relax = it
+            lam = 1.1 * 0.25 * np.asarray(abs(sp.csr_array(K)).sum(axis=1)).ravel()
+            if relax_density is not None:
+                lam = np.maximum(lam, relax_density)
+            lam[~system.free] = 1.0
+            scale_t = max(scale0, _force_scale(system, trial, factor))
+            run = _adr_run(
+                system,
+                u,
+                trial,
+                rt,
+                committed,
+                factor=factor,
+                density=lam,
+                dt=1.0,
+                e_l=0.0,
+                maxiter=relax,
+                c0=1.0,
+                damping=None,
+                floor=rtol,
+                scale=scale_t,
+            )
+            calls += run.outcome.calls - int(trial.calls)
+            relaxed += run.outcome.iterations
+            log.debug(
+                "Newton iteration %d: stalled; %d relaxation iterations -> relative residual %.3e",
+                it,
+                run.outcome.iterations,
+                run.outcome.residual,
+            )
+            u, trial = run.outcome.u, run.outcome.response
+            rt = _residual(system, trial, factor)
         if trial.tangent is None:
             nt = float(np.linalg.norm(rt))
             scale_t = max(scale0, _force_scale(system, trial, factor))
@@ -242,7 +310,16 @@ def newton_step(
     raise StepFailed(
         f"Newton: no convergence in {maxiter} iterations (relative residual {history[-1]:.3e} "
         f"> {rtol:.1e})",
-        StepOutcome(u, resp, maxiter, calls, history[-1], history, line_search=backtracks),
+        StepOutcome(
+            u,
+            resp,
+            maxiter,
+            calls,
+            history[-1],
+            history,
+            line_search=backtracks,
+            relaxation=relaxed,
+        ),
     )
 
 
@@ -342,21 +419,75 @@ def adr_step(
         raise InputError(f"density must be {system.ndof} positive finite numbers")
     if not (dt > 0 and math.isfinite(dt)):
         raise InputError(f"dt must be a positive number, got {dt}")
-    free = system.free
-    npts = system.n
     u = np.array(u0, dtype=float).reshape(-1)
-    u_prev = u.copy()
     resp = _respond(system, u, committed, "ADR: start of the step")
-    calls = int(resp.calls)
     r = _residual(system, resp, factor)
     scale = _force_scale(system, resp, factor)
+    if float(np.linalg.norm(r)) <= floor * scale:
+        return StepOutcome(u, resp, 0, int(resp.calls), 0.0, [0.0], np.zeros(0), 0.0, 0.0)
+    run = _adr_run(
+        system,
+        u,
+        resp,
+        r,
+        committed,
+        factor=factor,
+        density=lam,
+        dt=dt,
+        e_l=e_l,
+        maxiter=maxiter,
+        c0=c0,
+        damping=damping,
+        floor=floor,
+        scale=scale,
+    )
+    out = run.outcome
+    if run.converged:
+        return out
+    e1, e2 = out.e1, out.e2
+    raise StepFailed(
+        f"ADR: no convergence in {maxiter} iterations (e1 = {e1:.3e}, e2 = {e2:.3e}, "
+        f"target {e_l:.1e})",
+        out,
+    )
+
+
+@dataclass
+class _AdrRun:
+    outcome: StepOutcome
+    converged: bool
+
+
+def _adr_run(
+    system: Any,
+    u: np.ndarray,
+    resp: Any,
+    r: np.ndarray,
+    committed: dict[str, np.ndarray],
+    *,
+    factor: float,
+    density: np.ndarray,
+    dt: float,
+    e_l: float,
+    maxiter: int,
+    c0: float,
+    damping: float | None,
+    floor: float,
+    scale: float,
+) -> _AdrRun:
+    """The ADR iterations of :func:`adr_step` from ``u`` at rest (``u⁻¹ = u⁰``), its
+    response ``resp`` and residual ``r``; stops on the criteria or after ``maxiter``
+    iterations (not converged: the outcome holds the last iterate)."""
+    lam = density
+    free = system.free
+    npts = system.n
+    u_prev = u.copy()
+    calls = int(resp.calls)
     history: list[float] = []
     cs: list[float] = []
     c = float(c0) if damping is None else float(damping)
     eps1_0 = eps2_0 = None
     e1 = e2 = float("nan")
-    if float(np.linalg.norm(r)) <= floor * scale:
-        return StepOutcome(u, resp, 0, calls, 0.0, [0.0], np.zeros(0), 0.0, 0.0)
     h2 = 2.0 * dt * dt
     for it in range(1, maxiter + 1):
         a = np.where(free, r / lam, 0.0)
@@ -383,13 +514,12 @@ def adr_step(
         eps2 = float(np.linalg.norm(du)) / npts
         if eps1_0 is None:
             eps1_0, eps2_0 = max(eps1, 1e-300), max(eps2, 1e-300)
+        assert eps2_0 is not None
         e1, e2 = eps1 / eps1_0, eps2 / eps2_0
         history.append(n1 / scale if scale > 0 else n1)
         u_prev, u, r, resp = u, u_new, r_new, resp_new
         if (e1 < e_l and e2 < e_l) or n1 <= floor * scale:
-            return StepOutcome(u, resp, it, calls, history[-1], history, np.array(cs), e1, e2)
-    raise StepFailed(
-        f"ADR: no convergence in {maxiter} iterations (e1 = {e1:.3e}, e2 = {e2:.3e}, "
-        f"target {e_l:.1e})",
-        StepOutcome(u, resp, maxiter, calls, history[-1], history, np.array(cs), e1, e2),
-    )
+            out = StepOutcome(u, resp, it, calls, history[-1], history, np.array(cs), e1, e2)
+            return _AdrRun(out, True)
+    out = StepOutcome(u, resp, maxiter, calls, history[-1], history, np.array(cs), e1, e2)
+    return _AdrRun(out, False)

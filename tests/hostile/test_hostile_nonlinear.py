@@ -42,6 +42,12 @@ CASES = [
         r"max_cutbacks must be an integer >= 0, got -1",
     ),
     (
+        "relax-float",
+        lambda: _nl(relax=2.5),
+        InputError,
+        r"relax must be an integer >= 0, got 2.5",
+    ),
+    (
         "e-l-neg",
         lambda: _nl(method="adr", e_l=-1),
         InputError,

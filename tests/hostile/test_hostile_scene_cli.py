@@ -195,6 +195,11 @@ SCENE_CASES = [
     ),
     (
         "solver",
+        {"nonlinear": "newton", "relax": -5},
+        r"solver.relax must be an integer >= 0, got -5",
+    ),
+    (
+        "solver",
         {"nonlinear": "newton", "checkpoint": 3},
         r"solver.checkpoint must be a path string, got 3",
     ),
