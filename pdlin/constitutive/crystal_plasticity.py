@@ -237,8 +237,20 @@ def euler_to_rotation(angles: ArrayLike) -> FloatArray:
 
 
 def _rotation_2d(theta: FloatArray) -> FloatArray:
+    """Rotation matrices ``[[cos θ, -sin θ], [sin θ, cos θ]]``, shape ``θ.shape + (2, 2)``.
+
+    Examples
+    --------
+    >>> _rotation_2d(np.array([0.0, np.pi / 2])).round(12).tolist()
+    [[[1.0, 0.0], [0.0, 1.0]], [[0.0, -1.0], [1.0, 0.0]]]
+    """
     c, s = np.cos(theta), np.sin(theta)
-    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+    out = np.empty(np.shape(theta) + (2, 2), dtype=np.result_type(c, s))
+    out[..., 0, 0] = c
+    out[..., 0, 1] = -s
+    out[..., 1, 0] = s
+    out[..., 1, 1] = c
+    return out
 
 
 def _orientation_arrays(
@@ -389,7 +401,7 @@ def cauchy_stress(P: ArrayLike, F: ArrayLike) -> FloatArray:
         raise ShapeError(
             f"P and F must have the same shape (..., d, d), got P {p.shape} and F {f.shape}"
         )
-    return np.asarray(p @ _T(f) / _det(f)[..., None, None], dtype=np.float64)
+    return np.asarray(_mm(p, _T(f)) / _det(f)[..., None, None], dtype=np.float64)
 
 
 def _von_mises(sigma: FloatArray) -> FloatArray:
