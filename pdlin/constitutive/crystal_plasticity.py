@@ -1249,7 +1249,7 @@ class CrystalPlasticity:
             # rate form (spec §3.2): Ω Δt = ΔRᵉ Rᵉᵀ, Δθ = (Ω21 − Ω12)/2
             Rp = _rotation_2d(theta_prev - theta0)
             Rn = _rotation_2d(phi)
-            W = (Rn - Rp) @ _T(Rn)
+            W = _mm(Rn - Rp, _T(Rn))
             state["theta_rate"] = np.asarray(state_n.get("theta_rate", np.zeros(n))) + 0.5 * (
                 W[:, 1, 0] - W[:, 0, 1]
             )
