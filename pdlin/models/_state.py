@@ -31,7 +31,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy import integrate
 
-from .._kernels import bsr_matmul, use_numba
+from .._kernels import bsr_matmul, csr_to_bsr_rows, csr_to_bsr_t, use_numba
 from .._validation import as_displacement, as_float_array
 from ..constitutive.symmetry import isotropic_constants
 from ..errors import AccuracyWarning, InputError, ModelError, ShapeError
@@ -865,36 +865,38 @@ class OrdinaryStateBased(Model):
             g = co["kV"] + s - 2.0 * np.where(prop, rho, 0.0)
             gdiag = sp.dia_array((g, 0), shape=(n, n))
             if prop.all():
-                X = sp.vstack([theta_op, B], format="csr")
-                Y = sp.vstack([gdiag @ theta_op, Bw], format="csr")
+                Xs = [theta_op, B]
+                Ys = [gdiag @ theta_op, Bw]
             else:
                 rows = np.flatnonzero(~prop)
                 gam = _point_operator(bonds, gcoef, unit, n, d)[rows]
-                X = sp.vstack([theta_op, gam, B], format="csr")
-                Y = sp.vstack(
-                    [gdiag @ theta_op - _take_rows(gam, rows, n), -theta_op[rows], Bw], format="csr"
-                )
+                Xs = [theta_op, gam, B]
+                Ys = [gdiag @ theta_op - _take_rows(gam, rows, n), -theta_op[rows], Bw]
                 del gam
         else:
             wb = co["w"] * r * (co["kh"] / r - co["c"] / d)  # w β
-            gam_b = _point_operator(bonds, wb, unit, n, d)
-            X = sp.vstack([gam_b, B], format="csr")
-            Y = sp.vstack([theta_op, Bw], format="csr")
-            del gam_b
+            Xs = [_point_operator(bonds, wb, unit, n, d), B]
+            Ys = [theta_op, Bw]
         del B, Bw, theta_op
-        if use_numba(X.nnz * d):
+        if use_numba(sum(x.nnz for x in Xs) * d):
             # row-parallel product with sorted block columns (pdlin._kernels): (d x 1)
             # blocks of Xᵀ times (1 x d) blocks of Y give the d x d blocks of K directly
             # (no transpose); each entry sums the products of the scipy path below in
-            # another order (BSR conversion order), equal to ~1e-15 relative
-            Xt = sp.bsr_array(X.T.tocsr().tobsr(blocksize=(d, 1)))
-            del X
-            Yb = sp.bsr_array(Y.tobsr(blocksize=(1, d)))
-            del Y
+            # another order (BSR conversion order), equal to ~1e-15 relative.  X and Y
+            # go to blocks from their stacked pieces in row chunks on the threads
+            # (scipy's vstack, CSR -> CSC and tobsr: serial), the same blocks bitwise
+            Xt = csr_to_bsr_t(Xs, d)
+            del Xs
+            Yb = csr_to_bsr_rows(Ys, d)
+            del Ys
             Kb = bsr_matmul(Xt, Yb)
             if not Kb.has_sorted_indices:  # scipy fallback of a product below _MIN_WORK
                 Kb.sort_indices()
             return Kb
+        X = sp.vstack(Xs, format="csr")
+        del Xs
+        Y = sp.vstack(Ys, format="csr")
+        del Ys
         # block product: (d x 1) blocks of Yᵀ times (1 x d) blocks of X give the d x d
         # blocks of Kᵀ directly (faster than a scalar CSR product + tobsr); the final
         # O(nnz) block transpose returns K with sorted block indices (cheaper than a sort)
