@@ -32,6 +32,7 @@ import scipy.sparse.linalg as spla
 from scipy import integrate
 
 from .._kernels import bsr_matmul, csr_to_bsr_rows, csr_to_bsr_t, use_numba
+from .._threads import thread_map
 from .._validation import as_displacement, as_float_array
 from ..constitutive.symmetry import isotropic_constants
 from ..errors import AccuracyWarning, InputError, ModelError, ShapeError
@@ -424,22 +425,74 @@ def compute_weights(
 def _point_operator(
     bonds: Bonds, coef: np.ndarray, unit: np.ndarray, n: int, d: int
 ) -> sp.csr_array:
-    """``Pᵀ diag(coef) B`` as an ``n x n·d`` CSR array (row i = Σ_{b∈i} coef_b B_b)."""
+    """``Pᵀ diag(coef) B`` as an ``n x n·d`` CSR array (row i = Σ_{b∈i} coef_b B_b).
+
+    Row ``i`` holds the ``d``-blocks ``coef_b n_b`` at the neighbors ``j_b`` and
+    ``-Σ_b coef_b n_b`` at ``i``, sorted by column, explicit zeros kept.  With the
+    neighbors of each family increasing (the :class:`Bonds` order) the blocks are written
+    in place in point chunks on the threads (:func:`pdlin._threads.thread_map`), each
+    per-point sum over the same bonds in the same order as one global ``np.bincount``;
+    otherwise a COO -> CSR conversion sorts them.  Both give the same array bitwise.
+    """
     cn = coef[:, None] * unit  # (nb, d)
-    diag = np.empty((n, d))
-    for k in range(d):
-        diag[:, k] = -np.bincount(bonds.i, weights=cn[:, k], minlength=n)
-    rows = np.concatenate([np.repeat(bonds.i, d), np.repeat(np.arange(n), d)])
-    cols = np.concatenate(
-        [
-            (d * bonds.j[:, None] + np.arange(d)).ravel(),
-            (d * np.arange(n)[:, None] + np.arange(d)).ravel(),
-        ]
-    )
-    data = np.concatenate([cn.ravel(), diag.ravel()])
-    out = sp.coo_array((data, (rows, cols)), shape=(n, n * d)).tocsr()
-    out.sum_duplicates()
+    ii, jj = bonds.i, bonds.j
+    ptr = np.asarray(bonds.indptr, dtype=np.int64)
+    nb = ii.size
+    if not _families_sorted(bonds):
+        diag = np.empty((n, d))
+        for k in range(d):
+            diag[:, k] = -np.bincount(ii, weights=cn[:, k], minlength=n)
+        rows = np.concatenate([np.repeat(ii, d), np.repeat(np.arange(n), d)])
+        cols = np.concatenate(
+            [
+                (d * jj[:, None] + np.arange(d)).ravel(),
+                (d * np.arange(n)[:, None] + np.arange(d)).ravel(),
+            ]
+        )
+        data = np.concatenate([cn.ravel(), diag.ravel()])
+        out = sp.coo_array((data, (rows, cols)), shape=(n, n * d)).tocsr()
+        out.sum_duplicates()
+        return out
+    nblk = nb + n
+    idt = np.int32 if nblk * d < np.iinfo(np.int32).max else np.int64
+    blk = np.empty((nblk, d))
+    col = np.empty((nblk, d), dtype=idt)
+    ar = np.arange(d, dtype=idt)
+
+    def chunk(rng: tuple[int, int]) -> None:
+        p0, p1 = rng
+        b0, b1 = int(ptr[p0]), int(ptr[p1])
+        own = ii[b0:b1]
+        nbr = jj[b0:b1]
+        # block slot of bond b: b + i_b (one diagonal block per earlier row) + [j_b > i_b]
+        pos = np.arange(b0, b1) + own + (nbr > own)
+        blk[pos] = cn[b0:b1]
+        col[pos] = nbr[:, None].astype(idt) * d + ar
+        loc = own - p0
+        pts = np.arange(p0, p1)
+        lt = np.bincount(loc[nbr < own], minlength=p1 - p0)  # neighbors before the owner
+        dpos = ptr[p0:p1] + pts + lt
+        for k in range(d):
+            blk[dpos, k] = -np.bincount(loc, weights=cn[b0:b1, k], minlength=p1 - p0)
+        col[dpos] = pts[:, None].astype(idt) * d + ar
+
+    thread_map(chunk, _row_chunks(ptr, 1 << 18))
+    indptr = (d * (ptr + np.arange(n + 1))).astype(idt)
+    out = sp.csr_array((blk.ravel(), col.ravel(), indptr), shape=(n, n * d))
+    out.has_sorted_indices = True
     return out
+
+
+def _families_sorted(bonds: Bonds) -> bool:
+    """Whether every family lists distinct neighbors other than its owner, increasing."""
+    ii, jj = bonds.i, bonds.j
+    if ii.size == 0:
+        return True
+    if np.any(ii == jj):
+        return False
+    step = np.diff(jj) > 0
+    same_row = ii[1:] == ii[:-1]
+    return bool(np.all(step | ~same_row)) and bool(np.all(np.diff(ii) >= 0))
 
 
 def _force_angular(rho: float, d: int) -> float:
@@ -475,14 +528,42 @@ def _take_rows(rows_op: sp.csr_array, rows: np.ndarray, n: int) -> sp.csr_array:
 
 
 def _bond_operator(bonds: Bonds, unit: np.ndarray, n: int, d: int) -> sp.csr_array:
-    """``B`` (nb x n·d): row b = -n_bᵀ at the owner, +n_bᵀ at the neighbor."""
+    """``B`` (nb x n·d): row b = -n_bᵀ at the owner, +n_bᵀ at the neighbor.
+
+    Written in fixed bond chunks on the threads (:func:`pdlin._threads.thread_map`).
+    """
     nb = bonds.n_bonds
-    cols = np.concatenate(
-        [d * bonds.i[:, None] + np.arange(d), d * bonds.j[:, None] + np.arange(d)], axis=1
-    )
-    data = np.concatenate([-unit, unit], axis=1)
-    indptr = np.arange(0, 2 * d * nb + 1, 2 * d, dtype=np.int64)
+    idt = np.int32 if max(n * d, 2 * d * nb) < np.iinfo(np.int32).max else np.int64
+    cols = np.empty((nb, 2 * d), dtype=idt)
+    data = np.empty((nb, 2 * d))
+    ar = np.arange(d, dtype=idt)
+
+    def chunk(rng: tuple[int, int]) -> None:
+        b0, b1 = rng
+        cols[b0:b1, :d] = bonds.i[b0:b1, None].astype(idt) * d + ar
+        cols[b0:b1, d:] = bonds.j[b0:b1, None].astype(idt) * d + ar
+        np.negative(unit[b0:b1], out=data[b0:b1, :d])
+        data[b0:b1, d:] = unit[b0:b1]
+
+    step = 1 << 18
+    thread_map(chunk, [(b, min(b + step, nb)) for b in range(0, nb, step)])
+    indptr = np.arange(0, 2 * d * nb + 1, 2 * d, dtype=idt)
     return sp.csr_array((data.ravel(), cols.ravel(), indptr), shape=(nb, n * d))
+
+
+def _scale_rows(data: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """``data`` of ``B`` (``2·d`` entries per row) times ``w`` per row, in chunks on threads."""
+    k = data.size // max(w.size, 1)
+    src = data.reshape(w.size, k)
+    out = np.empty_like(src)
+
+    def chunk(rng: tuple[int, int]) -> None:
+        b0, b1 = rng
+        np.multiply(src[b0:b1], w[b0:b1, None], out=out[b0:b1])
+
+    step = 1 << 18
+    thread_map(chunk, [(b, min(b + step, w.size)) for b in range(0, w.size, step)])
+    return out.ravel()
 
 
 #: κ/μ from which LPS-type models check their dilatation (ν ≈ 0.49 in plane strain and 3D;
@@ -847,7 +928,7 @@ class OrdinaryStateBased(Model):
         wc = co["w"] * co["c"]
         B = _bond_operator(bonds, unit, n, d)
         theta_op = _point_operator(bonds, co["a"], unit, n, d)
-        Bw = sp.csr_array((B.data * np.repeat(wc, 2 * d), B.indices, B.indptr), shape=B.shape)
+        Bw = sp.csr_array((_scale_rows(B.data, wc), B.indices, B.indptr), shape=B.shape)
         if self.linearization == "energy":
             gcoef = wc * r / d
             s = np.bincount(bonds.i, weights=wc * r * r / d**2, minlength=n)
