@@ -1,0 +1,228 @@
+"""Threaded construction of the LPS / XOSB factors (issue 13): equal to the serial scipy one.
+
+The expected values are scipy's own conversions (``vstack``, ``.T.tocsr()``, ``tobsr``,
+COO -> CSR) and the assembly as it was before the threaded construction (re-built here
+from the same coefficients), compared bitwise (sign of zero included where stated) for
+1, 2 and 3 threads and with the numba kernels on and off (``PDLIN_NUMBA=0``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import pdlin
+from pdlin import _kernels
+from pdlin._kernels import csr_to_bsr_rows, csr_to_bsr_t
+from pdlin.models import _state
+
+
+@pytest.fixture(autouse=True)
+def _reset(monkeypatch: pytest.MonkeyPatch):
+    monkeypatch.setattr(_kernels, "_MIN_WORK", 0)  # the tests' arrays are small
+    monkeypatch.setattr(_kernels, "_loaded", None)
+    monkeypatch.delenv("PDLIN_NUMBA", raising=False)
+    yield
+    pdlin.set_num_threads(None)
+
+
+def _numba(monkeypatch: pytest.MonkeyPatch, on: bool) -> None:
+    if on:
+        pytest.importorskip("numba")
+        monkeypatch.setattr(_kernels, "_loaded", None)
+        assert _kernels.numba_enabled()
+    else:
+        monkeypatch.setattr(_kernels, "_loaded", False)  # as PDLIN_NUMBA=0 or no numba
+
+
+def _bits_equal(A: sp.sparray, B: sp.sparray) -> bool:
+    """Same shape, index arrays and data bits (-0.0 != 0.0)."""
+    return (
+        A.shape == B.shape
+        and np.array_equal(A.indptr, B.indptr)
+        and np.array_equal(A.indices, B.indices)
+        and A.data.shape == B.data.shape
+        and np.array_equal(A.data.view(np.int64), B.data.view(np.int64))
+    )
+
+
+def _messy_csr(rng: np.random.Generator, m: int, n_cols: int) -> sp.csr_array:
+    """Canonical-free CSR: rows in reversed column order, explicit +0.0 and -0.0 entries."""
+    X = sp.random_array((m, n_cols), density=0.1, rng=rng, format="csr")
+    X.data[::7] = 0.0
+    X.data[::13] = -0.0
+    X.data[::11] *= -1.0
+    ind, dat = X.indices.copy(), X.data.copy()
+    for r in range(0, m, 3):
+        a, b = X.indptr[r], X.indptr[r + 1]
+        ind[a:b] = ind[a:b][::-1]
+        dat[a:b] = dat[a:b][::-1]
+    return sp.csr_array((dat, ind, X.indptr), shape=X.shape)
+
+
+@pytest.mark.parametrize("numba_on", [True, False])
+@pytest.mark.parametrize("d", [1, 2, 3])
+def test_block_conversions_equal_scipy(monkeypatch: pytest.MonkeyPatch, d: int, numba_on) -> None:
+    _numba(monkeypatch, numba_on)
+    rng = np.random.default_rng(d)
+    X = _messy_csr(rng, 300, 60 * d)
+    pieces = [sp.csr_array(X[:100]), sp.csr_array(X[100:101]), sp.csr_array(X[101:])]
+    # scipy's serial conversions (the expected arrays)
+    ref_t = sp.bsr_array(X.T.tocsr().tobsr(blocksize=(d, 1)))
+    ref_t.sort_indices()
+    ref_rows = sp.bsr_array(X.tobsr(blocksize=(1, d)))
+    for nt in (1, 2, 3):
+        pdlin.set_num_threads(nt)
+        for arg in (X, pieces):
+            Xt = csr_to_bsr_t(arg, d)
+            assert Xt.blocksize == (d, 1) and Xt.has_sorted_indices
+            assert _bits_equal(Xt, ref_t)
+            Xb = csr_to_bsr_rows(arg, d)
+            assert Xb.blocksize == (1, d)
+            assert _bits_equal(Xb, ref_rows)
+
+
+def test_block_conversions_whole_blocks_keep_scipy_order(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Rows storing whole d-blocks: scipy's first-appearance order is the sorted one."""
+    _numba(monkeypatch, True)
+    cloud = pdlin.grid((6, 5, 4), spacing=0.1)
+    bonds = pdlin.find_bonds(cloud, ratio=2.0)
+    unit = bonds.xi / bonds.length[:, None]
+    B = _state._bond_operator(bonds, unit, cloud.n, 3)
+    ref = sp.bsr_array(B.T.tocsr().tobsr(blocksize=(3, 1)))  # scipy's order, not re-sorted
+    assert _bits_equal(csr_to_bsr_t(B, 3), ref)
+
+
+def test_block_conversions_reject_bad_shapes() -> None:
+    X = sp.csr_array(np.ones((2, 5)))
+    with pytest.raises(ValueError, match="multiple of 2|stack in 2 columns"):
+        csr_to_bsr_t(X, 2)
+    with pytest.raises(ValueError, match="stack in 2 columns"):
+        csr_to_bsr_rows([sp.csr_array(np.ones((2, 4))), sp.csr_array(np.ones((2, 6)))], 2)
+    with pytest.raises(ValueError, match="no array"):
+        csr_to_bsr_rows([], 2)
+
+
+def _point_operator_coo(bonds, coef, unit, n, d):
+    """The point operator as built before: COO -> CSR with sorted, summed duplicates."""
+    cn = coef[:, None] * unit
+    diag = np.empty((n, d))
+    for k in range(d):
+        diag[:, k] = -np.bincount(bonds.i, weights=cn[:, k], minlength=n)
+    rows = np.concatenate([np.repeat(bonds.i, d), np.repeat(np.arange(n), d)])
+    cols = np.concatenate(
+        [
+            (d * bonds.j[:, None] + np.arange(d)).ravel(),
+            (d * np.arange(n)[:, None] + np.arange(d)).ravel(),
+        ]
+    )
+    data = np.concatenate([cn.ravel(), diag.ravel()])
+    out = sp.coo_array((data, (rows, cols)), shape=(n, n * d)).tocsr()
+    out.sum_duplicates()
+    return out
+
+
+def _bond_operator_ref(bonds, unit, n, d):
+    """``B`` as built before (one concatenation)."""
+    cols = np.concatenate(
+        [d * bonds.i[:, None] + np.arange(d), d * bonds.j[:, None] + np.arange(d)], axis=1
+    )
+    data = np.concatenate([-unit, unit], axis=1)
+    indptr = np.arange(0, 2 * d * bonds.n_bonds + 1, 2 * d)
+    return sp.csr_array((data.ravel(), cols.ravel(), indptr), shape=(bonds.n_bonds, n * d))
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_point_and_bond_operators_equal_serial(dim: int) -> None:
+    cloud = pdlin.grid((23, 19) if dim == 2 else (9, 8, 7), spacing=0.1)
+    bonds = pdlin.find_bonds(cloud, ratio=3.015)
+    unit = bonds.xi / bonds.length[:, None]
+    coef = np.random.default_rng(dim).normal(size=bonds.n_bonds)
+    coef[::5] = 0.0  # zero blocks stay stored
+    ref_p = _point_operator_coo(bonds, coef, unit, cloud.n, dim)
+    ref_b = _bond_operator_ref(bonds, unit, cloud.n, dim)
+    for nt in (1, 2, 3):
+        pdlin.set_num_threads(nt)
+        assert _bits_equal(_state._point_operator(bonds, coef, unit, cloud.n, dim), ref_p)
+        assert _bits_equal(_state._bond_operator(bonds, unit, cloud.n, dim), ref_b)
+    # families out of order (not the Bonds layout): the COO path sorts them
+    perm = np.arange(bonds.n_bonds)
+    a, b = bonds.indptr[3], bonds.indptr[4]
+    perm[a:b] = perm[a:b][::-1]
+    shuffled = pdlin.Bonds(
+        bonds.n_points,
+        bonds.i[perm],
+        bonds.j[perm],
+        bonds.xi[perm],
+        bonds.length[perm],
+        bonds.omega[perm],
+        bonds.volume_j[perm],
+        bonds.indptr,
+        bonds.horizon,
+    )
+    assert not _state._families_sorted(shuffled)
+    got = _state._point_operator(shuffled, coef[perm], unit[perm], cloud.n, dim)
+    assert _bits_equal(got, _point_operator_coo(shuffled, coef[perm], unit[perm], cloud.n, dim))
+
+
+def _stiffness_before(model, cloud, bonds) -> sp.bsr_array:
+    """K as assembled before the threaded construction (energy linearization, all points
+    with ω^d ∝ ω^h, as LPS): vstack, scipy's CSR -> CSC and tobsr, then the product."""
+    d, n = cloud.dim, cloud.n
+    co = model._coefficients(cloud, bonds)
+    unit = bonds.xi / bonds.length[:, None]
+    r = bonds.length
+    wc = co["w"] * co["c"]
+    B = _bond_operator_ref(bonds, unit, n, d)
+    theta = _point_operator_coo(bonds, co["a"], unit, n, d)
+    Bw = sp.csr_array((B.data * np.repeat(wc, 2 * d), B.indices, B.indptr), shape=B.shape)
+    gcoef = wc * r / d
+    s = np.bincount(bonds.i, weights=wc * r * r / d**2, minlength=n)
+    a = co["a"]
+    rho = np.bincount(bonds.i, weights=gcoef * a, minlength=n)
+    den = np.bincount(bonds.i, weights=a * a, minlength=n)
+    rho = np.divide(rho, den, out=np.zeros(n), where=den > 0)
+    g = co["kV"] + s - 2.0 * rho
+    X = sp.vstack([theta, B], format="csr")
+    Y = sp.vstack([sp.dia_array((g, 0), shape=(n, n)) @ theta, Bw], format="csr")
+    if _kernels.numba_enabled():
+        Xt = sp.bsr_array(X.T.tocsr().tobsr(blocksize=(d, 1)))
+        return _kernels.bsr_matmul(Xt, sp.bsr_array(Y.tobsr(blocksize=(1, d))))
+    Yt = sp.bsr_array(Y.T.tocsr().tobsr(blocksize=(d, 1)))
+    K = sp.bsr_array(sp.bsr_array(Yt @ sp.bsr_array(X.tobsr(blocksize=(1, d)))).transpose())
+    K.sort_indices()
+    return K
+
+
+@pytest.mark.parametrize("numba_on", [True, False])
+@pytest.mark.parametrize("dim", [2, 3])
+def test_lps_stiffness_equals_serial_construction(monkeypatch, dim: int, numba_on) -> None:
+    """LPS K: bitwise the assembly before the threaded construction, for 1, 2, 3 threads."""
+    _numba(monkeypatch, numba_on)
+    cloud = pdlin.grid((19, 17) if dim == 2 else (8, 7, 6), spacing=0.1)
+    bonds = pdlin.find_bonds(cloud, ratio=3.015)
+    model = pdlin.LPS(E=2.0, nu=0.3, plane="strain")
+    ref = sp.bsr_array(_stiffness_before(model, cloud, bonds), blocksize=(dim, dim))
+    for nt in (1, 2, 3):
+        pdlin.set_num_threads(nt)
+        K = model.stiffness(cloud, bonds)
+        assert K.blocksize == (dim, dim)
+        assert _bits_equal(K, ref), nt
+
+
+@pytest.mark.parametrize("linearization", ["energy", "paper"])
+def test_xosb_stiffness_identical_across_threads(monkeypatch, linearization: str) -> None:
+    """XOSB (fallback rows, both linearizations): the same K bitwise for 1, 2, 3 threads."""
+    _numba(monkeypatch, True)
+    cloud = pdlin.grid((8, 7, 6), spacing=0.1)
+    bonds = pdlin.find_bonds(cloud, ratio=3.015)
+    model = pdlin.XOSB(E=1.0, nu=0.3, linearization=linearization)
+    out = []
+    for nt in (1, 2, 3):
+        pdlin.set_num_threads(nt)
+        out.append(model.stiffness(cloud, bonds))
+    assert all(_bits_equal(K, out[0]) for K in out[1:])
+    x = np.random.default_rng(1).normal(size=cloud.n * 3)
+    y_mf = model.operator(cloud, bonds) @ x  # the matrix-free product, an independent path
+    assert np.abs(out[0] @ x - y_mf).max() <= 1e-10 * np.abs(y_mf).max()
