@@ -226,3 +226,47 @@ def test_xosb_stiffness_identical_across_threads(monkeypatch, linearization: str
     x = np.random.default_rng(1).normal(size=cloud.n * 3)
     y_mf = model.operator(cloud, bonds) @ x  # the matrix-free product, an independent path
     assert np.abs(out[0] @ x - y_mf).max() <= 1e-10 * np.abs(y_mf).max()
+
+
+def _drop_zero_blocks_before(K: sp.bsr_array) -> sp.bsr_array:
+    """Correspondence zero-block dropping as it was before threading (one serial pass)."""
+    nrow = K.shape[0] // K.blocksize[0]
+    brow = np.repeat(np.arange(nrow), np.diff(K.indptr))
+    flat = K.data.reshape(K.data.shape[0], -1)
+    size = np.abs(flat).max(axis=1)
+    on_diag = K.indices == brow
+    dsize = np.zeros(nrow)
+    dsize[brow[on_diag]] = size[on_diag]
+    tol = dsize[brow] * dsize[K.indices] * (16.0 * np.finfo(float).eps) ** 2
+    keep = (size * size > tol) | on_diag
+    counts = np.bincount(brow[keep], minlength=nrow)
+    indptr = np.concatenate([[0], np.cumsum(counts)]).astype(K.indptr.dtype)
+    return sp.bsr_array(
+        (K.data[keep], K.indices[keep], indptr), shape=K.shape, blocksize=K.blocksize
+    )
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_drop_zero_blocks_threaded_equals_serial(monkeypatch: pytest.MonkeyPatch, dim) -> None:
+    """δ = h: the nearest-neighbour blocks of Wᵀ W cancel and are dropped; the threaded
+    pass (small chunks: many per thread, empty block rows included) keeps the same blocks."""
+    from pdlin.models import correspondence as corr
+
+    cloud = pdlin.grid((9, 8, 7) if dim == 3 else (31, 23), spacing=0.1)
+    bonds = pdlin.find_bonds(cloud, ratio=1.0)
+    model = pdlin.Correspondence(E=1.0, nu=0.25, control="none", plane="strain")
+    plan = model._plan(cloud, bonds)
+    monkeypatch.setattr(corr, "_drop_zero_blocks", lambda K: K)
+    K = sp.bsr_array(model._core_stiffness(cloud, plan))
+    monkeypatch.undo()
+    # one block row emptied (dense -> BSR stores no zero block)
+    K = sp.bsr_array(
+        K.toarray() * (np.arange(K.shape[0]) // dim != 5)[:, None], blocksize=K.blocksize
+    )
+    ref = _drop_zero_blocks_before(K)
+    assert ref.nnz < K.nnz  # blocks were dropped
+    chunks = corr._block_row_chunks
+    monkeypatch.setattr(corr, "_block_row_chunks", lambda ptr: chunks(ptr, 37))
+    for nt in (1, 2, 3):
+        pdlin.set_num_threads(nt)
+        assert _bits_equal(corr._drop_zero_blocks(K), ref)
