@@ -207,3 +207,25 @@ def csr_row_block_fill(indptr, indices, data, d, n_pts, out_ptr, edges, out_ind,
                         out_dat[q - 1, 0, 0] = data[jj]
                         continue
                 out_dat[slot[p], 0, col - p * d] += data[jj]
+
+
+@numba.njit(parallel=True, cache=True)
+def bsr_t_fill(indptr, indices, data, off, edges, out_ind, out_dat):
+    """Blocks of ``Aᵀ`` (BSR, each block transposed): each chunk fills its own slots.
+
+    ``off`` from :func:`csr_t_block_offsets` of the block pattern; block columns (rows of
+    ``A``) come out sorted, as scipy's ``bsr_transpose`` leaves them.
+    """
+    R = data.shape[1]
+    C = data.shape[2]
+    for c in numba.prange(edges.size - 1):
+        pos = off[c].copy()
+        for r in range(edges[c], edges[c + 1]):
+            for jj in range(indptr[r], indptr[r + 1]):
+                k = indices[jj]
+                q = pos[k]
+                pos[k] = q + 1
+                out_ind[q] = r
+                for a in range(R):
+                    for b in range(C):
+                        out_dat[q, b, a] = data[jj, a, b]

@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .._kernels import bsr_matmul
+from .._kernels import bsr_matmul, bsr_transpose
 from .._threads import thread_map
 from .._validation import as_displacement, as_float_array, check_finite, integer
 from ..constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
@@ -256,10 +256,19 @@ def _coefficients(
         Kinv = np.linalg.inv(K)
     if override_rows is not None and override_rows.size:
         Kinv[override_rows] = override_kinv
-    c = np.zeros_like(xi)
-    for q in range(d):  # Σ_q K⁻¹[:, q] ξ_q, gathered per component (no batched einsum)
-        c += Kinv[:, :, q][owner_b] * xi[:, q : q + 1]
-    return w[:, None] * c
+    out = np.empty_like(xi)
+    cols = [np.ascontiguousarray(Kinv[:, :, q]) for q in range(d)]
+
+    def chunk(k: int) -> None:  # fixed bond chunks on the threads (elementwise)
+        b0, b1 = k * _ROW_CHUNK, min((k + 1) * _ROW_CHUNK, xi.shape[0])
+        own = owner_b[b0:b1]
+        c = np.zeros((b1 - b0, d))
+        for q in range(d):  # Σ_q K⁻¹[:, q] ξ_q, gathered per component (no batched einsum)
+            c += cols[q][own] * xi[b0:b1, q : q + 1]
+        np.multiply(w[b0:b1, None], c, out=out[b0:b1])
+
+    thread_map(chunk, range(-(-xi.shape[0] // _ROW_CHUNK)))
+    return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -1126,7 +1135,13 @@ class Correspondence(Model):
         def stiffness_fn() -> tuple[np.ndarray, np.ndarray]:
             Cv = self.voigt_stiffness(cloud)[gp_owner]
             P = voigt_projector(d)
-            D = (P.T @ Cv @ P) * scale[:, None, None]  # Pᵀ C P per gradient point (batched)
+            D = np.empty((Cv.shape[0], d * d, d * d))
+
+            def chunk(k: int) -> None:  # Pᵀ C P per gradient point, fixed chunks on threads
+                g0, g1 = k * _ROW_CHUNK, min((k + 1) * _ROW_CHUNK, Cv.shape[0])
+                D[g0:g1] = (P.T @ Cv[g0:g1] @ P) * scale[g0:g1, None, None]
+
+            thread_map(chunk, range(-(-Cv.shape[0] // _ROW_CHUNK)))
             return D, Cv
 
         plan = _Plan(gp_owner, gp_of_bond, w, energy, omega, blocks, n, stiffness_fn)
@@ -1430,7 +1445,7 @@ class Correspondence(Model):
         Wdata = self._root_blocks(p, blk, bdata, scale) if (scale >= 0).all() else None
         if Wdata is not None:
             W = sp.bsr_array((Wdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
-            return _drop_zero_blocks(bsr_matmul(sp.bsr_array(W.T), W))
+            return _drop_zero_blocks(bsr_matmul(bsr_transpose(W), W))
         Bdata = bdata()
         B = sp.bsr_array((Bdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
         ar = np.arange(n_gp + 1, dtype=np.int32)
@@ -1439,7 +1454,7 @@ class Correspondence(Model):
             shape=(n_gp * nv, n_gp * nv),
             blocksize=(nv, nv),
         )
-        K = bsr_matmul(sp.bsr_array(B.T), bsr_matmul(Db, B))
+        K = bsr_matmul(bsr_transpose(B), bsr_matmul(Db, B))
         return sp.bsr_array(0.5 * (K + K.T), blocksize=(d, d))
 
     @staticmethod
@@ -1785,7 +1800,7 @@ class Correspondence(Model):
         shape = (n_gp * d * d, p.n_points * d)
         Gb = sp.bsr_array((Gd, blk.col, blk.indptr), shape=shape, blocksize=(d * d, d))
         AGb = sp.bsr_array((AG, blk.col, blk.indptr), shape=shape, blocksize=(d * d, d))
-        K = _drop_zero_blocks(bsr_matmul(sp.bsr_array(Gb.T), AGb))
+        K = _drop_zero_blocks(bsr_matmul(bsr_transpose(Gb), AGb))
         Kc = self._addon_matrix(cloud, bonds, p)
         if Kc is not None:
             K = sp.bsr_array(sp.csr_array(K) + Kc, blocksize=(d, d))

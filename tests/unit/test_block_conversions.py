@@ -270,3 +270,68 @@ def test_drop_zero_blocks_threaded_equals_serial(monkeypatch: pytest.MonkeyPatch
     for nt in (1, 2, 3):
         pdlin.set_num_threads(nt)
         assert _bits_equal(corr._drop_zero_blocks(K), ref)
+
+
+@pytest.mark.parametrize("numba_on", [True, False])
+@pytest.mark.parametrize("blocksize", [(1, 1), (3, 2), (6, 3)])
+def test_bsr_transpose_equals_scipy(monkeypatch: pytest.MonkeyPatch, blocksize, numba_on) -> None:
+    _numba(monkeypatch, numba_on)
+    R, C = blocksize
+    rng = np.random.default_rng(R * 10 + C)
+    mask = rng.random((50, 40)) < 0.2
+    mask[3] = False  # an empty block row and an empty block column
+    mask[:, 7] = False
+    rows, cols = np.nonzero(mask)
+    data = rng.normal(size=(rows.size, R, C))
+    data[::5] = -0.0
+    indptr = np.concatenate([[0], np.cumsum(mask.sum(axis=1))])
+    A = sp.bsr_array((data, cols, indptr), shape=(50 * R, 40 * C), blocksize=(R, C))
+    ref = sp.bsr_array(A.T)  # scipy's serial bsr_transpose
+    for nt in (1, 2, 3):
+        pdlin.set_num_threads(nt)
+        At = _kernels.bsr_transpose(A)
+        assert At.blocksize == (C, R)
+        assert _bits_equal(At, ref)
+
+
+def _coefficients_before(owner_b, n_gp, omega, volume_j, xi):
+    """Correspondence bond coefficients ``ω V_j K⁻¹ ξ`` as computed before (2D / 3D)."""
+    from pdlin.fields import _per_point_outer
+
+    w = omega * volume_j
+    K = _per_point_outer(owner_b, n_gp, w, xi, xi)
+    if xi.shape[1] == 2:
+        det = K[:, 0, 0] * K[:, 1, 1] - K[:, 0, 1] * K[:, 1, 0]
+        Kinv = np.empty_like(K)
+        Kinv[:, 0, 0], Kinv[:, 1, 1] = K[:, 1, 1], K[:, 0, 0]
+        Kinv[:, 0, 1], Kinv[:, 1, 0] = -K[:, 0, 1], -K[:, 1, 0]
+        Kinv /= det[:, None, None]
+    else:
+        Kinv = np.linalg.inv(K)
+    c = np.zeros_like(xi)
+    for q in range(xi.shape[1]):
+        c += Kinv[:, :, q][owner_b] * xi[:, q : q + 1]
+    return w[:, None] * c
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_correspondence_coefficients_and_moduli_threaded(monkeypatch, dim: int) -> None:
+    """Bond coefficients and Pᵀ C P per gradient point in small chunks on 1-3 threads:
+    bitwise the serial computation."""
+    from pdlin.models import correspondence as corr
+
+    cloud = pdlin.grid((17, 15) if dim == 2 else (7, 6, 5), spacing=0.1)
+    bonds = pdlin.find_bonds(cloud, ratio=2.0, influence="inverse")
+    ref = _coefficients_before(bonds.i, cloud.n, bonds.omega, bonds.volume_j, bonds.xi)
+    model = pdlin.Correspondence(E=1.0, nu=0.25, plane="strain")
+    Cv = model.voigt_stiffness(cloud)
+    P = corr.voigt_projector(dim)
+    vol = np.asarray(cloud.volumes) * (1.0 if dim == 3 else cloud.thickness)
+    D_ref = (P.T @ Cv @ P) * vol[:, None, None]  # weight 1, every point carries energy
+    monkeypatch.setattr(corr, "_ROW_CHUNK", 50)  # many chunks per thread
+    for nt in (1, 2, 3):
+        pdlin.set_num_threads(nt)
+        got = corr._coefficients(bonds.i, cloud.n, bonds.omega, bonds.volume_j, bonds.xi)
+        assert np.array_equal(got.view(np.int64), ref.view(np.int64))
+        model = pdlin.Correspondence(E=1.0, nu=0.25, plane="strain", control="none")
+        assert np.array_equal(model._plan(cloud, bonds).D, D_ref)
