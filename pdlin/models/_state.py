@@ -22,6 +22,7 @@ The linearized stiffness (``f = -K u``) is assembled with one sparse product
 from __future__ import annotations
 
 import logging
+import threading
 import warnings
 from dataclasses import dataclass
 from typing import Any
@@ -369,8 +370,11 @@ def compute_weights(
     indptr = np.asarray(bonds.indptr, dtype=np.int64)
     scale = np.asarray(bonds.horizon, dtype=float)
     th, td = TARGET_H[d], TARGET_D[d]
-    buffers: dict[int, np.ndarray] = {}
-    for r0, r1 in _row_chunks(indptr):
+    local = threading.local()  # one set of work buffers per thread
+
+    def chunk(rng: tuple[int, int]) -> None:
+        r0, r1 = rng
+        buffers: dict[int, np.ndarray] = local.__dict__.setdefault("buffers", {})
         b0, b1 = int(indptr[r0]), int(indptr[r1])
         loc = bonds.i[b0:b1] - r0
         ptr = indptr[r0 : r1 + 1] - b0
@@ -402,6 +406,9 @@ def compute_weights(
             singular[r0:r1] |= bad
             corr = np.einsum("km,km->m", phi, lam.T[:, loc])
             out[b0:b1] = ws + corr / s2
+
+    # fixed chunks of owner rows on the threads: each writes its own rows and bonds
+    thread_map(chunk, _row_chunks(indptr))
     if singular.any():
         idx = np.flatnonzero(singular)
         warnings.warn(

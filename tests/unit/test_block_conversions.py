@@ -335,3 +335,32 @@ def test_correspondence_coefficients_and_moduli_threaded(monkeypatch, dim: int) 
         assert np.array_equal(got.view(np.int64), ref.view(np.int64))
         model = pdlin.Correspondence(E=1.0, nu=0.25, plane="strain", control="none")
         assert np.array_equal(model._plan(cloud, bonds).D, D_ref)
+
+
+def test_per_point_outer_threaded_equals_one_bincount(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Shape-tensor sums in chunks of whole owners (1-3 threads): bitwise one bincount per
+    entry over all bonds (the computation before); unsorted owners take the single pass."""
+    from pdlin import fields
+
+    cloud = pdlin.grid((23, 19), spacing=0.1)
+    bonds = pdlin.find_bonds(cloud, ratio=2.0)
+    w = np.random.default_rng(0).random(bonds.n_bonds)
+    n = cloud.n + 3  # three owners without bonds at the end
+
+    def before(owner):
+        out = np.empty((n, 2, 2))
+        for r in range(2):
+            for c in range(2):
+                wa = w[order] * bonds.xi[order, r]
+                out[:, r, c] = np.bincount(owner, weights=wa * bonds.xi[order, c], minlength=n)
+        return out
+
+    monkeypatch.setattr(fields, "_CHUNK", 40)  # many chunks
+    for order in (np.arange(bonds.n_bonds), np.random.default_rng(1).permutation(bonds.n_bonds)):
+        ref = before(bonds.i[order])
+        for nt in (1, 2, 3):
+            pdlin.set_num_threads(nt)
+            got = fields._per_point_outer(
+                bonds.i[order], n, w[order], bonds.xi[order], bonds.xi[order]
+            )
+            assert np.array_equal(got.view(np.int64), ref.view(np.int64))
