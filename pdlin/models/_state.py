@@ -499,7 +499,11 @@ def _families_sorted(bonds: Bonds) -> bool:
         return False
     step = np.diff(jj) > 0
     same_row = ii[1:] == ii[:-1]
-    return bool(np.all(step | ~same_row)) and bool(np.all(np.diff(ii) >= 0))
+    if not (bool(np.all(step | ~same_row)) and bool(np.all(np.diff(ii) >= 0))):
+        return False
+    # owners agree with the row pointer (the chunks are cut by it)
+    counts = np.bincount(ii, minlength=bonds.indptr.size - 1)
+    return counts.size == bonds.indptr.size - 1 and bool(np.all(counts == np.diff(bonds.indptr)))
 
 
 def _force_angular(rho: float, d: int) -> float:

@@ -49,7 +49,8 @@ def _bits_equal(A: sp.sparray, B: sp.sparray) -> bool:
 
 def _messy_csr(rng: np.random.Generator, m: int, n_cols: int) -> sp.csr_array:
     """Canonical-free CSR: rows in reversed column order, explicit +0.0 and -0.0 entries."""
-    X = sp.random_array((m, n_cols), density=0.1, rng=rng, format="csr")
+    dense = rng.normal(size=(m, n_cols)) * (rng.random((m, n_cols)) < 0.1)
+    X = sp.csr_array(dense)
     X.data[::7] = 0.0
     X.data[::13] = -0.0
     X.data[::11] *= -1.0
