@@ -365,3 +365,30 @@ def test_per_point_outer_threaded_equals_one_bincount(monkeypatch: pytest.Monkey
                 bonds.i[order], n, w[order], bonds.xi[order], bonds.xi[order]
             )
             assert np.array_equal(got.view(np.int64), ref.view(np.int64))
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_gradient_blocks_owner_sorted_path_equals_sort(monkeypatch, dim: int) -> None:
+    """No control: G's blocks written in place in point chunks (1-3 threads) equal the
+    sorting path's arrays bitwise (diagonals snapped to 0 on intact horizons included)."""
+    from pdlin.models import correspondence as corr
+
+    cloud = pdlin.grid((21, 17) if dim == 2 else (8, 7, 6), spacing=0.1)
+    bonds = pdlin.find_bonds(cloud, ratio=2.0, influence="inverse")
+    c = corr._coefficients(bonds.i, cloud.n, bonds.omega, bonds.volume_j, bonds.xi)
+    args = (np.arange(cloud.n), bonds.i, bonds.j, c, cloud.n)
+    fast = corr._owner_sorted_blocks
+    monkeypatch.setattr(corr, "_owner_sorted_blocks", lambda *a: None)
+    ref = corr._gradient_blocks(*args)  # one sort of the (g, point) keys
+    monkeypatch.setattr(corr, "_owner_sorted_blocks", fast)
+    assert (ref.val[ref.diag] == 0.0).any()  # interior diagonals snapped
+    for nt in (1, 2, 3):
+        pdlin.set_num_threads(nt)
+        got = corr._gradient_blocks(*args)
+        for f in ("indptr", "col", "diag", "bond_block", "owner_block"):
+            a, b = getattr(got, f), getattr(ref, f)
+            assert a.dtype == b.dtype and np.array_equal(a, b), f
+        assert np.array_equal(got.val.view(np.int64), ref.val.view(np.int64))
+    # other layouts take the sorting path
+    assert fast(np.arange(cloud.n)[::-1].copy(), *args[1:]) is None
+    assert fast(np.arange(cloud.n), bonds.i[::-1].copy(), *args[2:]) is None
