@@ -22,34 +22,45 @@ def _per_point_outer(
 ) -> np.ndarray:
     """out[p] = Σ_{bonds of p} w a ⊗ b, vectorized with one bincount per entry.
 
-    Owner-sorted bonds (the :class:`Bonds` order) run in fixed chunks of whole owners on
-    the threads (each sum over the same bonds in the same order: the same bits).
+    When the bonds split into consecutive runs whose owners do not interleave (sorted
+    owners, as in :class:`Bonds`, or the two half families of a point's stress points),
+    fixed runs of about ``_CHUNK`` bonds are summed on the threads, each owner's sum over
+    the same bonds in the same order as one global ``np.bincount``: the same bits.
     """
     d = a.shape[1]
-    out = np.empty((n, d, d))
     nb = owner.size
 
-    def fill(p0: int, p1: int, b0: int, b1: int) -> None:
+    def fill(out: np.ndarray, p0: int, p1: int, b0: int, b1: int) -> None:
         own = owner[b0:b1] - p0 if p0 else owner[b0:b1]
         for r in range(d):
             wa = w[b0:b1] * a[b0:b1, r]
             for c in range(d):
                 out[p0:p1, r, c] = np.bincount(own, weights=wa * b[b0:b1, c], minlength=p1 - p0)
 
-    if nb < 2 * _CHUNK or not bool(np.all(owner[1:] >= owner[:-1])):
-        fill(0, n, 0, nb)
+    if nb < 2 * _CHUNK:
+        out = np.empty((n, d, d))
+        fill(out, 0, n, 0, nb)
+        return out
+    # a cut before bond e is clean when every owner before it is below every owner after it
+    pre_max = np.maximum.accumulate(owner)
+    suf_min = np.minimum.accumulate(owner[::-1])[::-1]
+    clean = np.flatnonzero(pre_max[:-1] < suf_min[1:]) + 1
+    pick = np.searchsorted(clean, np.arange(_CHUNK, nb, _CHUNK))
+    cuts = np.unique(clean[pick[pick < clean.size]])
+    if cuts.size == 0:
+        out = np.empty((n, d, d))
+        fill(out, 0, n, 0, nb)
         return out
     from ._threads import thread_map
 
-    starts = owner[np.arange(_CHUNK, nb, _CHUNK)]
-    p_edges = np.unique(np.concatenate([[0], starts, [n]]))
-    b_edges = np.searchsorted(owner, p_edges, side="left")
-    b_edges[-1] = nb
+    b_edges = np.concatenate([[0], cuts, [nb]])
+    p_edges = np.concatenate([[0], suf_min[cuts], [n]])  # owners of run k: [p_k, p_{k+1})
+    out = np.empty((n, d, d))
     spans = [
         (int(p_edges[k]), int(p_edges[k + 1]), int(b_edges[k]), int(b_edges[k + 1]))
-        for k in range(p_edges.size - 1)
+        for k in range(b_edges.size - 1)
     ]
-    thread_map(lambda sp_: fill(*sp_), spans)
+    thread_map(lambda sp_: fill(out, *sp_), spans)
     return out
 
 

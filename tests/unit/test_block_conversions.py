@@ -339,31 +339,34 @@ def test_correspondence_coefficients_and_moduli_threaded(monkeypatch, dim: int) 
 
 
 def test_per_point_outer_threaded_equals_one_bincount(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Shape-tensor sums in chunks of whole owners (1-3 threads): bitwise one bincount per
-    entry over all bonds (the computation before); unsorted owners take the single pass."""
+    """Shape-tensor sums in runs of non-interleaving owners (1-3 threads): bitwise one
+    bincount per entry over all bonds (the computation before)."""
     from pdlin import fields
 
     cloud = pdlin.grid((23, 19), spacing=0.1)
     bonds = pdlin.find_bonds(cloud, ratio=2.0)
     w = np.random.default_rng(0).random(bonds.n_bonds)
-    n = cloud.n + 3  # three owners without bonds at the end
+    xi = bonds.xi
+    side = (xi[:, 0] > 0).astype(np.int64)
+    cases = [
+        (bonds.i, cloud.n + 3),  # sorted owners, three without bonds at the end
+        (2 * bonds.i + side, 2 * cloud.n),  # stress-point halves: interleaved within a point
+        (np.random.default_rng(1).permutation(bonds.i), cloud.n),  # shuffled: one pass
+    ]
 
-    def before(owner):
+    def before(owner, n):
         out = np.empty((n, 2, 2))
         for r in range(2):
             for c in range(2):
-                wa = w[order] * bonds.xi[order, r]
-                out[:, r, c] = np.bincount(owner, weights=wa * bonds.xi[order, c], minlength=n)
+                out[:, r, c] = np.bincount(owner, weights=w * xi[:, r] * xi[:, c], minlength=n)
         return out
 
-    monkeypatch.setattr(fields, "_CHUNK", 40)  # many chunks
-    for order in (np.arange(bonds.n_bonds), np.random.default_rng(1).permutation(bonds.n_bonds)):
-        ref = before(bonds.i[order])
+    monkeypatch.setattr(fields, "_CHUNK", 40)  # many runs
+    for owner, n in cases:
+        ref = before(owner, n)
         for nt in (1, 2, 3):
             pdlin.set_num_threads(nt)
-            got = fields._per_point_outer(
-                bonds.i[order], n, w[order], bonds.xi[order], bonds.xi[order]
-            )
+            got = fields._per_point_outer(owner, n, w, xi, xi)
             assert np.array_equal(got.view(np.int64), ref.view(np.int64))
 
 
