@@ -41,12 +41,19 @@ def _per_point_outer(
         out = np.empty((n, d, d))
         fill(out, 0, n, 0, nb)
         return out
-    # a cut before bond e is clean when every owner before it is below every owner after it
-    pre_max = np.maximum.accumulate(owner)
-    suf_min = np.minimum.accumulate(owner[::-1])[::-1]
-    clean = np.flatnonzero(pre_max[:-1] < suf_min[1:]) + 1
-    pick = np.searchsorted(clean, np.arange(_CHUNK, nb, _CHUNK))
-    cuts = np.unique(clean[pick[pick < clean.size]])
+    targets = np.arange(_CHUNK, nb, _CHUNK)
+    if bool(np.all(owner[1:] >= owner[:-1])):  # sorted: cut where an owner's run starts
+        cuts = np.unique(np.searchsorted(owner, owner[targets], side="left"))
+        cuts = cuts[cuts > 0]
+        first = owner[cuts]
+    else:
+        # a cut before bond e is clean when every owner before it is below every one after
+        pre_max = np.maximum.accumulate(owner)
+        suf_min = np.minimum.accumulate(owner[::-1])[::-1]
+        clean = np.flatnonzero(pre_max[:-1] < suf_min[1:]) + 1
+        pick = np.searchsorted(clean, targets)
+        cuts = np.unique(clean[pick[pick < clean.size]])
+        first = suf_min[cuts]
     if cuts.size == 0:
         out = np.empty((n, d, d))
         fill(out, 0, n, 0, nb)
@@ -54,13 +61,17 @@ def _per_point_outer(
     from ._threads import thread_map
 
     b_edges = np.concatenate([[0], cuts, [nb]])
-    p_edges = np.concatenate([[0], suf_min[cuts], [n]])  # owners of run k: [p_k, p_{k+1})
+    p_edges = np.concatenate([[0], first, [n]])  # owners of run k: [p_k, p_{k+1})
     out = np.empty((n, d, d))
     spans = [
         (int(p_edges[k]), int(p_edges[k + 1]), int(b_edges[k]), int(b_edges[k + 1]))
         for k in range(b_edges.size - 1)
     ]
-    thread_map(lambda sp_: fill(out, *sp_), spans)
+
+    def chunk(span: tuple[int, int, int, int]) -> None:
+        fill(out, *span)
+
+    thread_map(chunk, spans)
     return out
 
 
