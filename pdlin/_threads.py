@@ -6,10 +6,11 @@ Two kinds of kernels run on :func:`get_num_threads` threads:
   (block formation, scatter, per-row sums by ``np.add.reduceat``, the bond coefficients),
   the LPS / XOSB factors (the point operators ``Pᵀ diag(c) B`` written sorted in place,
   the bond operator ``B`` and its weighted copy) and, in the correspondence assembly, the
-  bond coefficients, ``Pᵀ C P`` per gradient point, the dense block products and the
-  zero-block dropping.  The hot loops run over fixed chunks of owner rows, bonds or block
-  rows (bonds of a row are contiguous); each chunk writes its own slots of the output
-  while numpy releases the GIL inside its array operations.
+  bond coefficients, the shape tensors, ``Pᵀ C P`` per gradient point, the blocks of G
+  (no control), the dense block products and the zero-block dropping; the XOSB weights.
+  The hot loops run over fixed chunks of owner rows, bonds or block rows (bonds of a row
+  are contiguous); each chunk writes its own slots of the output while numpy releases the
+  GIL inside its array operations.
 - with the optional extra ``pdlin[fast]`` (numba), the sparse products of the LPS / XOSB /
   correspondence assembly, the block conversions of the LPS / XOSB factors and the BSR
   transpose of the correspondence ``Wᵀ W`` (:mod:`pdlin._kernels`, numba ``prange`` over
