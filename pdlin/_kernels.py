@@ -279,7 +279,8 @@ def csr_to_bsr_t(X: Any, d: int) -> sp.bsr_array:
     n_row = sum(x.shape[0] for x in parts)
     n_pts = parts[0].shape[1] // d
     arrays = [_csr_arrays(x) for x in parts]
-    edges = [_edges(a[0], 4 * get_num_threads()) for a in arrays]
+    # one chunk per thread: counts and offsets take 16 bytes per (chunk, point)
+    edges = [_edges(a[0], get_num_threads()) for a in arrays]
     with _lock:
         _set_threads()
         cnt = [
@@ -384,7 +385,7 @@ def bsr_transpose(A: Any) -> sp.bsr_array:
     ind = np.ascontiguousarray(A.indices)
     dat = np.ascontiguousarray(A.data)
     n_bcol = A.shape[1] // C
-    edges = _edges(ptr, 4 * get_num_threads())
+    edges = _edges(ptr, get_num_threads())  # one chunk per thread (16 B per column each)
     with _lock:
         _set_threads()
         cnt = mod.csr_t_block_counts(ptr, ind, 1, n_bcol, edges)
