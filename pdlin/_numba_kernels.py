@@ -97,3 +97,135 @@ def bsr_fill(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bc
                 _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 3, 9, 3)
             else:
                 _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, R, N, S)
+
+
+@numba.njit(parallel=True, cache=True)
+def csr_t_block_counts(indptr, indices, d, n_pts, edges):
+    """Blocks per (row chunk, point) of ``Xᵀ`` in ``d x 1`` blocks: ``(n_chunks, n_pts)``.
+
+    A block is one (row of ``X``, point ``p``) pair with a stored entry in the columns
+    ``p d .. p d + d - 1``.
+    """
+    n_chunks = edges.size - 1
+    cnt = np.zeros((n_chunks, n_pts), np.int64)
+    for c in numba.prange(n_chunks):
+        mark = np.full(n_pts, -1, np.int64)
+        for r in range(edges[c], edges[c + 1]):
+            for jj in range(indptr[r], indptr[r + 1]):
+                p = indices[jj] // d
+                if mark[p] != r:
+                    mark[p] = r
+                    cnt[c, p] += 1
+    return cnt
+
+
+@numba.njit(cache=True)
+def csr_t_block_offsets(cnt):
+    """Row pointer of ``Xᵀ`` (per point) and each chunk's first slot per point."""
+    n_chunks, n_pts = cnt.shape
+    ptr = np.zeros(n_pts + 1, np.int64)
+    off = np.empty((n_chunks, n_pts), np.int64)
+    acc = 0
+    for p in range(n_pts):
+        for c in range(n_chunks):
+            off[c, p] = acc
+            acc += cnt[c, p]
+        ptr[p + 1] = acc
+    return ptr, off
+
+
+@numba.njit(parallel=True, cache=True)
+def csr_t_block_fill(indptr, indices, data, d, off, edges, row0, out_ind, out_dat):
+    """Blocks of ``Xᵀ`` (``d x 1``): each chunk fills its own slots, rows in order.
+
+    Within a point the chunks' slots follow each other and a chunk's rows run in order,
+    so the block columns (rows of ``X``, ``row0`` + local row: the piece's first row in
+    a vertical stack) come out sorted; each block is ``0 + x₁ + x₂ ...`` over the stored
+    entries in storage order, as scipy's ``tobsr`` sums them.
+    """
+    n_chunks = edges.size - 1
+    n_pts = off.shape[1]
+    for c in numba.prange(n_chunks):
+        mark = np.full(n_pts, -1, np.int64)
+        slot = np.empty(n_pts, np.int64)
+        pos = off[c].copy()
+        for r in range(edges[c], edges[c + 1]):
+            for jj in range(indptr[r], indptr[r + 1]):
+                col = indices[jj]
+                p = col // d
+                if mark[p] != r:
+                    mark[p] = r
+                    q = pos[p]
+                    pos[p] = q + 1
+                    slot[p] = q
+                    out_ind[q] = row0 + r
+                    for k in range(d):
+                        out_dat[q, k, 0] = 0.0
+                    if d == 1:  # scipy copies 1 x 1 blocks (keeps -0.0)
+                        out_dat[q, 0, 0] = data[jj]
+                        continue
+                out_dat[slot[p], col - p * d, 0] += data[jj]
+
+
+@numba.njit(parallel=True, cache=True)
+def csr_row_block_counts(indptr, indices, d, n_pts, edges):
+    """Blocks per row of ``Y`` in ``1 x d`` blocks (distinct points per row)."""
+    n_row = indptr.size - 1
+    nnz = np.zeros(n_row, np.int64)
+    for c in numba.prange(edges.size - 1):
+        mark = np.full(n_pts, -1, np.int64)
+        for r in range(edges[c], edges[c + 1]):
+            cnt = 0
+            for jj in range(indptr[r], indptr[r + 1]):
+                p = indices[jj] // d
+                if mark[p] != r:
+                    mark[p] = r
+                    cnt += 1
+            nnz[r] = cnt
+    return nnz
+
+
+@numba.njit(parallel=True, cache=True)
+def csr_row_block_fill(indptr, indices, data, d, n_pts, out_ptr, edges, out_ind, out_dat):
+    """Blocks of ``Y`` (``1 x d``) in order of first appearance, as scipy's ``tobsr``."""
+    for c in numba.prange(edges.size - 1):
+        mark = np.full(n_pts, -1, np.int64)
+        slot = np.empty(n_pts, np.int64)
+        for r in range(edges[c], edges[c + 1]):
+            q = out_ptr[r]
+            for jj in range(indptr[r], indptr[r + 1]):
+                col = indices[jj]
+                p = col // d
+                if mark[p] != r:
+                    mark[p] = r
+                    slot[p] = q
+                    out_ind[q] = p
+                    for k in range(d):
+                        out_dat[q, 0, k] = 0.0
+                    q += 1
+                    if d == 1:  # scipy copies 1 x 1 blocks (keeps -0.0)
+                        out_dat[q - 1, 0, 0] = data[jj]
+                        continue
+                out_dat[slot[p], 0, col - p * d] += data[jj]
+
+
+@numba.njit(parallel=True, cache=True)
+def bsr_t_fill(indptr, indices, data, off, edges, out_ind, out_dat):
+    """Blocks of ``Aᵀ`` (BSR, each block transposed): each chunk fills its own slots.
+
+    ``off`` from :func:`csr_t_block_offsets` of the block pattern; block columns (rows of
+    ``A``) come out sorted, as scipy's ``bsr_transpose`` leaves them.
+    """
+    R = data.shape[1]
+    C = data.shape[2]
+    for c in numba.prange(edges.size - 1):
+        pos = off[c].copy()
+        for r in range(edges[c], edges[c + 1]):
+            for jj in range(indptr[r], indptr[r + 1]):
+                k = indices[jj]
+                q = pos[k]
+                pos[k] = q + 1
+                out_ind[q] = r
+                for a in range(R):
+                    for b in range(C):
+                        out_dat[q, b, a] = data[jj, a, b]

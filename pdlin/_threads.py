@@ -3,14 +3,19 @@
 Two kinds of kernels run on :func:`get_num_threads` threads:
 
 - numpy kernels on pdlin's thread pool (:func:`thread_map`): the bond-based assembly
-  (block formation, scatter, per-row sums by ``np.add.reduceat``, the bond coefficients)
-  and the dense block products of the correspondence assembly.  The hot loops run over
-  independent chunks of owner rows (bonds of a row are contiguous); each chunk writes its
-  own slots of the output while numpy releases the GIL inside its array operations.
+  (block formation, scatter, per-row sums by ``np.add.reduceat``, the bond coefficients),
+  the LPS / XOSB factors (the point operators ``Pᵀ diag(c) B`` written sorted in place,
+  the bond operator ``B`` and its weighted copy) and, in the correspondence assembly, the
+  bond coefficients, the shape tensors, ``Pᵀ C P`` per gradient point, the blocks of G
+  (no control), the dense block products and the zero-block dropping; the XOSB weights.
+  The hot loops run over fixed chunks of owner rows, bonds or block rows (bonds of a row
+  are contiguous); each chunk writes its own slots of the output while numpy releases the
+  GIL inside its array operations.
 - with the optional extra ``pdlin[fast]`` (numba), the sparse products of the LPS / XOSB /
-  correspondence assembly (:mod:`pdlin._kernels`, numba ``prange`` over row chunks).
-  Without numba they are scipy's sparsetools, which hold the GIL and stay serial, as do
-  the matrix-free mat-vecs in every case.
+  correspondence assembly, the block conversions of the LPS / XOSB factors and the BSR
+  transpose of the correspondence ``Wᵀ W`` (:mod:`pdlin._kernels`, numba ``prange`` over
+  row chunks).  Without numba they are scipy's sparsetools, which hold the GIL and stay
+  serial, as do the matrix-free mat-vecs in every case.
 
 Every chunk does the same arithmetic in the same order whatever the thread count, so
 results are bitwise identical for 1, 2, ... threads.

@@ -20,14 +20,63 @@ __all__ = [
 def _per_point_outer(
     owner: np.ndarray, n: int, w: np.ndarray, a: np.ndarray, b: np.ndarray
 ) -> np.ndarray:
-    """out[p] = Σ_{bonds of p} w a ⊗ b, vectorized with one bincount per entry."""
+    """out[p] = Σ_{bonds of p} w a ⊗ b, vectorized with one bincount per entry.
+
+    When the bonds split into consecutive runs whose owners do not interleave (sorted
+    owners, as in :class:`Bonds`, or the two half families of a point's stress points),
+    fixed runs of about ``_CHUNK`` bonds are summed on the threads, each owner's sum over
+    the same bonds in the same order as one global ``np.bincount``: the same bits.
+    """
     d = a.shape[1]
+    nb = owner.size
+
+    def fill(out: np.ndarray, p0: int, p1: int, b0: int, b1: int) -> None:
+        own = owner[b0:b1] - p0 if p0 else owner[b0:b1]
+        for r in range(d):
+            wa = w[b0:b1] * a[b0:b1, r]
+            for c in range(d):
+                out[p0:p1, r, c] = np.bincount(own, weights=wa * b[b0:b1, c], minlength=p1 - p0)
+
+    if nb < 2 * _CHUNK:
+        out = np.empty((n, d, d))
+        fill(out, 0, n, 0, nb)
+        return out
+    targets = np.arange(_CHUNK, nb, _CHUNK)
+    if bool(np.all(owner[1:] >= owner[:-1])):  # sorted: cut where an owner's run starts
+        cuts = np.unique(np.searchsorted(owner, owner[targets], side="left"))
+        cuts = cuts[cuts > 0]
+        first = owner[cuts]
+    else:
+        # a cut before bond e is clean when every owner before it is below every one after
+        pre_max = np.maximum.accumulate(owner)
+        suf_min = np.minimum.accumulate(owner[::-1])[::-1]
+        clean = np.flatnonzero(pre_max[:-1] < suf_min[1:]) + 1
+        pick = np.searchsorted(clean, targets)
+        cuts = np.unique(clean[pick[pick < clean.size]])
+        first = suf_min[cuts]
+    if cuts.size == 0:
+        out = np.empty((n, d, d))
+        fill(out, 0, n, 0, nb)
+        return out
+    from ._threads import thread_map
+
+    b_edges = np.concatenate([[0], cuts, [nb]])
+    p_edges = np.concatenate([[0], first, [n]])  # owners of run k: [p_k, p_{k+1})
     out = np.empty((n, d, d))
-    for r in range(d):
-        wa = w * a[:, r]
-        for c in range(d):
-            out[:, r, c] = np.bincount(owner, weights=wa * b[:, c], minlength=n)
+    spans = [
+        (int(p_edges[k]), int(p_edges[k + 1]), int(b_edges[k]), int(b_edges[k + 1]))
+        for k in range(b_edges.size - 1)
+    ]
+
+    def chunk(span: tuple[int, int, int, int]) -> None:
+        fill(out, *span)
+
+    thread_map(chunk, spans)
     return out
+
+
+#: bonds per chunk of the threaded per-point sums
+_CHUNK = 1 << 16
 
 
 def shape_tensor(bonds: Bonds) -> np.ndarray:

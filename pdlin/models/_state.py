@@ -22,6 +22,7 @@ The linearized stiffness (``f = -K u``) is assembled with one sparse product
 from __future__ import annotations
 
 import logging
+import threading
 import warnings
 from dataclasses import dataclass
 from typing import Any
@@ -31,7 +32,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy import integrate
 
-from .._kernels import bsr_matmul, use_numba
+from .._kernels import bsr_matmul, csr_to_bsr_rows, csr_to_bsr_t, use_numba
+from .._threads import thread_map
 from .._validation import as_displacement, as_float_array
 from ..constitutive.symmetry import isotropic_constants
 from ..errors import AccuracyWarning, InputError, ModelError, ShapeError
@@ -368,8 +370,11 @@ def compute_weights(
     indptr = np.asarray(bonds.indptr, dtype=np.int64)
     scale = np.asarray(bonds.horizon, dtype=float)
     th, td = TARGET_H[d], TARGET_D[d]
-    buffers: dict[int, np.ndarray] = {}
-    for r0, r1 in _row_chunks(indptr):
+    local = threading.local()  # one set of work buffers per thread
+
+    def chunk(rng: tuple[int, int]) -> None:
+        r0, r1 = rng
+        buffers: dict[int, np.ndarray] = local.__dict__.setdefault("buffers", {})
         b0, b1 = int(indptr[r0]), int(indptr[r1])
         loc = bonds.i[b0:b1] - r0
         ptr = indptr[r0 : r1 + 1] - b0
@@ -401,6 +406,9 @@ def compute_weights(
             singular[r0:r1] |= bad
             corr = np.einsum("km,km->m", phi, lam.T[:, loc])
             out[b0:b1] = ws + corr / s2
+
+    # fixed chunks of owner rows on the threads: each writes its own rows and bonds
+    thread_map(chunk, _row_chunks(indptr))
     if singular.any():
         idx = np.flatnonzero(singular)
         warnings.warn(
@@ -424,22 +432,78 @@ def compute_weights(
 def _point_operator(
     bonds: Bonds, coef: np.ndarray, unit: np.ndarray, n: int, d: int
 ) -> sp.csr_array:
-    """``Pᵀ diag(coef) B`` as an ``n x n·d`` CSR array (row i = Σ_{b∈i} coef_b B_b)."""
+    """``Pᵀ diag(coef) B`` as an ``n x n·d`` CSR array (row i = Σ_{b∈i} coef_b B_b).
+
+    Row ``i`` holds the ``d``-blocks ``coef_b n_b`` at the neighbors ``j_b`` and
+    ``-Σ_b coef_b n_b`` at ``i``, sorted by column, explicit zeros kept.  With the
+    neighbors of each family increasing (the :class:`Bonds` order) the blocks are written
+    in place in point chunks on the threads (:func:`pdlin._threads.thread_map`), each
+    per-point sum over the same bonds in the same order as one global ``np.bincount``;
+    otherwise a COO -> CSR conversion sorts them.  Both give the same array bitwise.
+    """
     cn = coef[:, None] * unit  # (nb, d)
-    diag = np.empty((n, d))
-    for k in range(d):
-        diag[:, k] = -np.bincount(bonds.i, weights=cn[:, k], minlength=n)
-    rows = np.concatenate([np.repeat(bonds.i, d), np.repeat(np.arange(n), d)])
-    cols = np.concatenate(
-        [
-            (d * bonds.j[:, None] + np.arange(d)).ravel(),
-            (d * np.arange(n)[:, None] + np.arange(d)).ravel(),
-        ]
-    )
-    data = np.concatenate([cn.ravel(), diag.ravel()])
-    out = sp.coo_array((data, (rows, cols)), shape=(n, n * d)).tocsr()
-    out.sum_duplicates()
+    ii, jj = bonds.i, bonds.j
+    ptr = np.asarray(bonds.indptr, dtype=np.int64)
+    nb = ii.size
+    if not _families_sorted(bonds):
+        diag = np.empty((n, d))
+        for k in range(d):
+            diag[:, k] = -np.bincount(ii, weights=cn[:, k], minlength=n)
+        rows = np.concatenate([np.repeat(ii, d), np.repeat(np.arange(n), d)])
+        cols = np.concatenate(
+            [
+                (d * jj[:, None] + np.arange(d)).ravel(),
+                (d * np.arange(n)[:, None] + np.arange(d)).ravel(),
+            ]
+        )
+        data = np.concatenate([cn.ravel(), diag.ravel()])
+        out = sp.coo_array((data, (rows, cols)), shape=(n, n * d)).tocsr()
+        out.sum_duplicates()
+        return out
+    nblk = nb + n
+    idt = np.int32 if nblk * d < np.iinfo(np.int32).max else np.int64
+    blk = np.empty((nblk, d))
+    col = np.empty((nblk, d), dtype=idt)
+    ar = np.arange(d, dtype=idt)
+
+    def chunk(rng: tuple[int, int]) -> None:
+        p0, p1 = rng
+        b0, b1 = int(ptr[p0]), int(ptr[p1])
+        own = ii[b0:b1]
+        nbr = jj[b0:b1]
+        # block slot of bond b: b + i_b (one diagonal block per earlier row) + [j_b > i_b]
+        pos = np.arange(b0, b1) + own + (nbr > own)
+        blk[pos] = cn[b0:b1]
+        col[pos] = nbr[:, None].astype(idt) * d + ar
+        loc = own - p0
+        pts = np.arange(p0, p1)
+        lt = np.bincount(loc[nbr < own], minlength=p1 - p0)  # neighbors before the owner
+        dpos = ptr[p0:p1] + pts + lt
+        for k in range(d):
+            blk[dpos, k] = -np.bincount(loc, weights=cn[b0:b1, k], minlength=p1 - p0)
+        col[dpos] = pts[:, None].astype(idt) * d + ar
+
+    thread_map(chunk, _row_chunks(ptr, 1 << 18))
+    indptr = (d * (ptr + np.arange(n + 1))).astype(idt)
+    out = sp.csr_array((blk.ravel(), col.ravel(), indptr), shape=(n, n * d))
+    out.has_sorted_indices = True
     return out
+
+
+def _families_sorted(bonds: Bonds) -> bool:
+    """Whether every family lists distinct neighbors other than its owner, increasing."""
+    ii, jj = bonds.i, bonds.j
+    if ii.size == 0:
+        return True
+    if np.any(ii == jj):
+        return False
+    step = np.diff(jj) > 0
+    same_row = ii[1:] == ii[:-1]
+    if not (bool(np.all(step | ~same_row)) and bool(np.all(np.diff(ii) >= 0))):
+        return False
+    # owners agree with the row pointer (the chunks are cut by it)
+    counts = np.bincount(ii, minlength=bonds.indptr.size - 1)
+    return counts.size == bonds.indptr.size - 1 and bool(np.all(counts == np.diff(bonds.indptr)))
 
 
 def _force_angular(rho: float, d: int) -> float:
@@ -475,14 +539,42 @@ def _take_rows(rows_op: sp.csr_array, rows: np.ndarray, n: int) -> sp.csr_array:
 
 
 def _bond_operator(bonds: Bonds, unit: np.ndarray, n: int, d: int) -> sp.csr_array:
-    """``B`` (nb x n·d): row b = -n_bᵀ at the owner, +n_bᵀ at the neighbor."""
+    """``B`` (nb x n·d): row b = -n_bᵀ at the owner, +n_bᵀ at the neighbor.
+
+    Written in fixed bond chunks on the threads (:func:`pdlin._threads.thread_map`).
+    """
     nb = bonds.n_bonds
-    cols = np.concatenate(
-        [d * bonds.i[:, None] + np.arange(d), d * bonds.j[:, None] + np.arange(d)], axis=1
-    )
-    data = np.concatenate([-unit, unit], axis=1)
-    indptr = np.arange(0, 2 * d * nb + 1, 2 * d, dtype=np.int64)
+    idt = np.int32 if max(n * d, 2 * d * nb) < np.iinfo(np.int32).max else np.int64
+    cols = np.empty((nb, 2 * d), dtype=idt)
+    data = np.empty((nb, 2 * d))
+    ar = np.arange(d, dtype=idt)
+
+    def chunk(rng: tuple[int, int]) -> None:
+        b0, b1 = rng
+        cols[b0:b1, :d] = bonds.i[b0:b1, None].astype(idt) * d + ar
+        cols[b0:b1, d:] = bonds.j[b0:b1, None].astype(idt) * d + ar
+        np.negative(unit[b0:b1], out=data[b0:b1, :d])
+        data[b0:b1, d:] = unit[b0:b1]
+
+    step = 1 << 18
+    thread_map(chunk, [(b, min(b + step, nb)) for b in range(0, nb, step)])
+    indptr = np.arange(0, 2 * d * nb + 1, 2 * d, dtype=idt)
     return sp.csr_array((data.ravel(), cols.ravel(), indptr), shape=(nb, n * d))
+
+
+def _scale_rows(data: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """``data`` of ``B`` (``2·d`` entries per row) times ``w`` per row, in chunks on threads."""
+    k = data.size // max(w.size, 1)
+    src = data.reshape(w.size, k)
+    out = np.empty_like(src)
+
+    def chunk(rng: tuple[int, int]) -> None:
+        b0, b1 = rng
+        np.multiply(src[b0:b1], w[b0:b1, None], out=out[b0:b1])
+
+    step = 1 << 18
+    thread_map(chunk, [(b, min(b + step, w.size)) for b in range(0, w.size, step)])
+    return out.ravel()
 
 
 #: κ/μ from which LPS-type models check their dilatation (ν ≈ 0.49 in plane strain and 3D;
@@ -847,7 +939,7 @@ class OrdinaryStateBased(Model):
         wc = co["w"] * co["c"]
         B = _bond_operator(bonds, unit, n, d)
         theta_op = _point_operator(bonds, co["a"], unit, n, d)
-        Bw = sp.csr_array((B.data * np.repeat(wc, 2 * d), B.indices, B.indptr), shape=B.shape)
+        Bw = sp.csr_array((_scale_rows(B.data, wc), B.indices, B.indptr), shape=B.shape)
         if self.linearization == "energy":
             gcoef = wc * r / d
             s = np.bincount(bonds.i, weights=wc * r * r / d**2, minlength=n)
@@ -865,36 +957,38 @@ class OrdinaryStateBased(Model):
             g = co["kV"] + s - 2.0 * np.where(prop, rho, 0.0)
             gdiag = sp.dia_array((g, 0), shape=(n, n))
             if prop.all():
-                X = sp.vstack([theta_op, B], format="csr")
-                Y = sp.vstack([gdiag @ theta_op, Bw], format="csr")
+                Xs = [theta_op, B]
+                Ys = [gdiag @ theta_op, Bw]
             else:
                 rows = np.flatnonzero(~prop)
                 gam = _point_operator(bonds, gcoef, unit, n, d)[rows]
-                X = sp.vstack([theta_op, gam, B], format="csr")
-                Y = sp.vstack(
-                    [gdiag @ theta_op - _take_rows(gam, rows, n), -theta_op[rows], Bw], format="csr"
-                )
+                Xs = [theta_op, gam, B]
+                Ys = [gdiag @ theta_op - _take_rows(gam, rows, n), -theta_op[rows], Bw]
                 del gam
         else:
             wb = co["w"] * r * (co["kh"] / r - co["c"] / d)  # w β
-            gam_b = _point_operator(bonds, wb, unit, n, d)
-            X = sp.vstack([gam_b, B], format="csr")
-            Y = sp.vstack([theta_op, Bw], format="csr")
-            del gam_b
+            Xs = [_point_operator(bonds, wb, unit, n, d), B]
+            Ys = [theta_op, Bw]
         del B, Bw, theta_op
-        if use_numba(X.nnz * d):
+        if use_numba(sum(x.nnz for x in Xs) * d):
             # row-parallel product with sorted block columns (pdlin._kernels): (d x 1)
             # blocks of Xᵀ times (1 x d) blocks of Y give the d x d blocks of K directly
             # (no transpose); each entry sums the products of the scipy path below in
-            # another order (BSR conversion order), equal to ~1e-15 relative
-            Xt = sp.bsr_array(X.T.tocsr().tobsr(blocksize=(d, 1)))
-            del X
-            Yb = sp.bsr_array(Y.tobsr(blocksize=(1, d)))
-            del Y
+            # another order (BSR conversion order), equal to ~1e-15 relative.  X and Y
+            # go to blocks from their stacked pieces in row chunks on the threads
+            # (scipy's vstack, CSR -> CSC and tobsr: serial), the same blocks bitwise
+            Xt = csr_to_bsr_t(Xs, d)
+            del Xs
+            Yb = csr_to_bsr_rows(Ys, d)
+            del Ys
             Kb = bsr_matmul(Xt, Yb)
             if not Kb.has_sorted_indices:  # scipy fallback of a product below _MIN_WORK
                 Kb.sort_indices()
             return Kb
+        X = sp.vstack(Xs, format="csr")
+        del Xs
+        Y = sp.vstack(Ys, format="csr")
+        del Ys
         # block product: (d x 1) blocks of Yᵀ times (1 x d) blocks of X give the d x d
         # blocks of Kᵀ directly (faster than a scalar CSR product + tobsr); the final
         # O(nnz) block transpose returns K with sorted block indices (cheaper than a sort)
