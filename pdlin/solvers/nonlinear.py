@@ -262,6 +262,12 @@ def newton_step(
                     u, resp, it, calls, rel, history, line_search=backtracks, relaxation=relaxed
                 ),
             )
+        log.debug(
+            "Newton iteration %d: step length %.3g (%s)",
+            it,
+            alpha,
+            "relaxing" if stalled else ("accepted" if alpha > 0 else "watchdog"),
+        )
         u = trial_u
         if relax > 0 and not stalled and it - last_relax >= _STALL_WINDOW:
             # the last iterations did not reduce ‖r‖ by the factor ``stall``
