@@ -634,7 +634,6 @@ def solve_nonlinear(
     # automatic incrementation: the last converged increment of each driver, as a
     # fraction of its load step, starts the next step (grown after easy convergence)
     inc_frac = {"newton": 1.0, "adr": 1.0}
-    n_relax = [0]  # Newton's relaxation iterations in the current load step
 
     def substeps(
         step_fn: Callable[[float, np.ndarray, dict[str, np.ndarray]], StepOutcome],
@@ -643,7 +642,9 @@ def solve_nonlinear(
         u_start: np.ndarray,
         st_start: dict[str, np.ndarray],
         damp: list[np.ndarray] | None,
-    ) -> tuple[StepOutcome | None, str, tuple[int, int, int], tuple[np.ndarray, dict[str, Any]]]:
+    ) -> tuple[
+        StepOutcome | None, str, tuple[int, int, int, int], tuple[np.ndarray, dict[str, Any]]
+    ]:
         """Reach ``t_target`` from ``t_cur`` with ``step_fn`` in automatic increments.
 
         The first increment is the driver's last converged one (a fraction of the
@@ -653,14 +654,15 @@ def solve_nonlinear(
         iterations, any ADR increment (ADR's iterations per increment hardly depend on
         its size).  Returns the outcome of the last sub-step (None when an increment
         fails at the smallest size), why it failed, the counts (iterations,
-        constitutive calls, cut-backs) and the last converged (u, state), from which
+        constitutive calls, cut-backs, Newton's relaxation iterations) and the last
+        converged (u, state), from which
         a fallback driver continues."""
         nonlocal t_cur, u_prev, t_prev
         span = t_target - t_cur
         smallest = span / 2.0**max_cutbacks
         inc = min(1.0, inc_frac[driver]) * span
         cur_u, cur_state = u_start, st_start
-        n_it = n_calls = n_cut = 0
+        n_it = n_calls = n_cut = n_rel = 0
         out: StepOutcome | None = None
         easy = max(2, maxiter // 4)
         while t_target - t_cur > 1e-12 * span:
@@ -672,17 +674,17 @@ def solve_nonlinear(
                 if exc.outcome is not None:
                     n_it += exc.outcome.iterations
                     n_calls += exc.outcome.calls
-                    n_relax[0] += exc.outcome.relaxation
+                    n_rel += exc.outcome.relaxation
                 n_cut += 1
                 if 0.5 * min(inc, t_target - t_cur) < smallest * (1.0 - 1e-9):
                     inc_frac[driver] = inc / span
-                    return None, str(exc), (n_it, n_calls, n_cut), (cur_u, cur_state)
+                    return None, str(exc), (n_it, n_calls, n_cut, n_rel), (cur_u, cur_state)
                 inc = 0.5 * min(inc, t_target - t_cur)
                 log.info("t = %.6g: %s; cutting back to t = %.6g", target, exc, t_cur + inc)
                 continue
             n_it += out.iterations
             n_calls += out.calls
-            n_relax[0] += out.relaxation
+            n_rel += out.relaxation
             if damp is not None and out.damping is not None:
                 damp.append(out.damping)
             u_prev, t_prev = cur_u, t_cur
@@ -690,7 +692,7 @@ def solve_nonlinear(
             if driver == "adr" or out.iterations <= easy:
                 inc = min(span, 2.0 * inc)
         inc_frac[driver] = inc / span
-        return out, "", (n_it, n_calls, n_cut), (cur_u, cur_state)
+        return out, "", (n_it, n_calls, n_cut, n_rel), (cur_u, cur_state)
 
     for k in range(start, K):
         with warnings.catch_warnings():
@@ -700,8 +702,7 @@ def solve_nonlinear(
             t0 = time.perf_counter()
             t_target = float(tt[k])
             step_u, step_state = u_c, state_c
-            n_it = n_calls = n_cut = 0
-            n_relax[0] = 0
+            n_it = n_calls = n_cut = n_rel = 0
             pred.calls = 0
             damp: list[np.ndarray] = []
             out: StepOutcome | None = None
@@ -713,7 +714,7 @@ def solve_nonlinear(
                 out, why, counts, (step_u, step_state) = substeps(
                     newton_to, "newton", t_target, step_u, step_state, None
                 )
-                n_it, n_calls, n_cut = counts
+                n_it, n_calls, n_cut, n_rel = counts
                 if out is None:
                     if method == "newton":
                         raise ConvergenceError(
@@ -729,6 +730,7 @@ def solve_nonlinear(
                     adr_to, "adr", t_target, step_u, step_state, damp
                 )
                 n_it, n_calls, n_cut = n_it + counts[0], n_calls + counts[1], n_cut + counts[2]
+                n_rel += counts[3]
                 if out is None:
                     prefix = f"Newton failed ({why}); " if why else ""
                     raise ConvergenceError(
@@ -759,7 +761,7 @@ def solve_nonlinear(
                 stress_hist[k] = sig
                 hom_hist[k] = np.einsum("i,iab->ab", hom_w, sig) / hom_w.sum()
             iters[k], calls[k], cuts[k] = n_it, n_calls + pred.calls, n_cut
-            relax_hist[k] = n_relax[0]
+            relax_hist[k] = n_rel
             resid[k] = out.residual
             methods[k], messages[k] = used, why
             damping_hist[k] = np.concatenate(damp) if damp else np.zeros(0)
@@ -803,7 +805,7 @@ def solve_nonlinear(
         say(
             f"step {k + 1}/{K} t = {t_target:.6g}: {used}, {n_it} iteration(s), "
             f"{n_cut} cut-back(s), "
-            + (f"{n_relax[0]} relaxation iteration(s), " if n_relax[0] else "")
+            + (f"{n_rel} relaxation iteration(s), " if n_rel else "")
             + f"residual {out.residual:.2e}, {step_time[k]:.2f} s"
         )
 

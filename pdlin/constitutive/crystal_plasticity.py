@@ -366,7 +366,7 @@ def _solve(A: NDArray[Any], b: NDArray[Any]) -> NDArray[Any]:
     """
     if A.shape[-2:] == (2, 2) and A.ndim == 3:
         a00, a01, a10, a11 = A[:, 0, 0], A[:, 0, 1], A[:, 1, 0], A[:, 1, 1]
-        det = a00 * a11 - a01 * a10
+        det = _det(A)
         scale = np.maximum(np.abs(a00 * a11), np.abs(a01 * a10))
         ok = np.abs(det) > 1e-14 * scale
         if np.all(ok):

@@ -220,7 +220,8 @@ def newton_step(
         du[system.dofs] = 0.0
         alpha = 1.0
         accepted = stalled = False
-        best: tuple[float, np.ndarray, Any, np.ndarray] | None = None
+        how = "accepted"
+        best: tuple[float, np.ndarray, Any, np.ndarray, float] | None = None
         # the full step's tangent is wanted unless it is likely the last iteration
         # (quadratic convergence from here would end below rtol)
         want_tangent = rel * rel > 0.1 * rtol
@@ -241,7 +242,7 @@ def newton_step(
                 accepted = True
                 break
             if math.isfinite(nt) and (best is None or nt < best[0]):
-                best = (nt, trial_u, trial, rt)
+                best = (nt, trial_u, trial, rt, alpha)
             alpha *= 0.5
             backtracks += 1
         if not accepted and best is not None and nonmonotone_left > 0 and best[0] < 10.0 * norm:
@@ -249,11 +250,13 @@ def newton_step(
             # smooth and the Newton direction need not decrease ‖r‖; take the best trial a
             # few times per step rather than give up at once (maxiter still bounds the step)
             nonmonotone_left -= 1
-            _, trial_u, trial, rt = best
+            _, trial_u, trial, rt, alpha = best
             accepted = True
+            how = "watchdog"
         if not accepted and relax > 0:
             trial_u, trial, rt = u, resp, r  # relax from here rather than give up
             accepted = stalled = True
+            alpha, how = 0.0, "line search failed"
         if not accepted:
             raise StepFailed(
                 f"Newton: line search failed at iteration {it} (‖r‖ = {norm:.3e}, no decrease "
@@ -262,19 +265,14 @@ def newton_step(
                     u, resp, it, calls, rel, history, line_search=backtracks, relaxation=relaxed
                 ),
             )
-        log.debug(
-            "Newton iteration %d: step length %.3g (%s)",
-            it,
-            alpha,
-            "relaxing" if stalled else ("accepted" if alpha > 0 else "watchdog"),
-        )
+        log.debug("Newton iteration %d: step length %.3g (%s)", it, alpha, how)
         u = trial_u
         if relax > 0 and not stalled and it - last_relax >= _STALL_WINDOW:
             # the last iterations did not reduce ‖r‖ by the factor ``stall``
             stalled = float(np.linalg.norm(rt)) / scale > stall * history[-_STALL_WINDOW]
         if stalled and relax > 0:
             last_relax = it
-            lam = 1.1 * 0.25 * np.asarray(abs(sp.csr_array(K)).sum(axis=1)).ravel()
+            lam = _gershgorin(K, 1.0, 1.1)
             if relax_density is not None:
                 lam = np.maximum(lam, relax_density)
             lam[~system.free] = 1.0
@@ -348,6 +346,12 @@ def adr_time_step(spacing: float, E_max: float, density: float = 1.0) -> float:
     return float(spacing) * math.sqrt(float(density) / float(E_max))
 
 
+def _gershgorin(K: Any, dt: float, safety: float) -> np.ndarray:
+    """``safety · ¼ Δt² Σ_j |K_ij|`` per row: the stable central-difference density."""
+    rows = np.asarray(abs(sp.csr_array(K)).sum(axis=1)).ravel()
+    return np.asarray(safety * 0.25 * dt * dt * rows)
+
+
 def adr_density(
     system: Any,
     committed: dict[str, np.ndarray],
@@ -376,9 +380,7 @@ def adr_density(
             f"{type(system.model).__name__}.respond(tangent=True) returned no tangent; "
             "pass the ADR density explicitly"
         )
-    K = sp.csr_array(resp.tangent)
-    rows = np.asarray(abs(K).sum(axis=1)).ravel()
-    lam = safety * 0.25 * dt * dt * rows
+    lam = _gershgorin(resp.tangent, dt, safety)
     free = system.free
     if np.any(lam[free] <= 0):
         bad = int(np.flatnonzero(free & (lam <= 0))[0])
