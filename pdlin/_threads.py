@@ -35,6 +35,8 @@ from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypeVar
 
+import numpy as np
+
 from .errors import InputError, InputTypeError
 
 __all__ = ["set_num_threads", "get_num_threads", "thread_map"]
@@ -165,3 +167,30 @@ def thread_map(fn: Callable[[T], Any], items: Iterable[T]) -> list[Any]:
             _local.inside = False
 
     return list(_executor(n).map(run, seq))
+
+
+def even_chunks(n: int, size: int) -> list[tuple[int, int]]:
+    """Ranges ``[a, b)`` of ``size`` items covering ``range(n)`` (the last one shorter).
+
+    Examples
+    --------
+    >>> even_chunks(5, 2)
+    [(0, 2), (2, 4), (4, 5)]
+    """
+    return [(a, min(a + size, n)) for a in range(0, n, size)]
+
+
+def ptr_chunks(ptr: Any, size: int) -> list[tuple[int, int]]:
+    """Ranges of rows of a CSR-style row pointer holding about ``size`` entries each
+    (rows never split; empty input gives one range).
+
+    Examples
+    --------
+    >>> ptr_chunks(np.array([0, 3, 3, 7, 8]), 4)
+    [(0, 2), (2, 4)]
+    """
+    p = np.asarray(ptr, dtype=np.int64)
+    n = p.size - 1
+    starts = np.searchsorted(p, np.arange(0, max(int(p[-1]), 1), size), side="right") - 1
+    edges = np.unique(np.concatenate([[0], np.clip(starts, 0, n), [n]]))
+    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)]

@@ -33,7 +33,7 @@ import scipy.sparse.linalg as spla
 from scipy import integrate
 
 from .._kernels import bsr_matmul, csr_to_bsr_rows, csr_to_bsr_t, use_numba
-from .._threads import thread_map
+from .._threads import even_chunks, ptr_chunks, thread_map
 from .._validation import as_displacement, as_float_array
 from ..constitutive.symmetry import isotropic_constants
 from ..errors import AccuracyWarning, InputError, ModelError, ShapeError
@@ -266,11 +266,7 @@ class StateWeights:
 
 def _row_chunks(indptr: np.ndarray, chunk: int = _CHUNK) -> list[tuple[int, int]]:
     """Ranges of owner rows holding about ``chunk`` bonds each (rows never split)."""
-    n = indptr.size - 1
-    nb = int(indptr[-1])
-    starts = np.searchsorted(indptr, np.arange(0, max(nb, 1), chunk), side="right") - 1
-    edges = np.unique(np.concatenate([[0], np.clip(starts, 0, n), [n]]))
-    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    return ptr_chunks(indptr, chunk)
 
 
 def _solve_eigh(
@@ -556,8 +552,7 @@ def _bond_operator(bonds: Bonds, unit: np.ndarray, n: int, d: int) -> sp.csr_arr
         np.negative(unit[b0:b1], out=data[b0:b1, :d])
         data[b0:b1, d:] = unit[b0:b1]
 
-    step = 1 << 18
-    thread_map(chunk, [(b, min(b + step, nb)) for b in range(0, nb, step)])
+    thread_map(chunk, even_chunks(nb, 1 << 18))
     indptr = np.arange(0, 2 * d * nb + 1, 2 * d, dtype=idt)
     return sp.csr_array((data.ravel(), cols.ravel(), indptr), shape=(nb, n * d))
 
@@ -572,8 +567,7 @@ def _scale_rows(data: np.ndarray, w: np.ndarray) -> np.ndarray:
         b0, b1 = rng
         np.multiply(src[b0:b1], w[b0:b1, None], out=out[b0:b1])
 
-    step = 1 << 18
-    thread_map(chunk, [(b, min(b + step, w.size)) for b in range(0, w.size, step)])
+    thread_map(chunk, even_chunks(w.size, 1 << 18))
     return out.ravel()
 
 

@@ -31,7 +31,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .._kernels import bsr_matmul, bsr_transpose
-from .._threads import thread_map
+from .._threads import even_chunks, ptr_chunks, thread_map
 from .._validation import as_displacement, as_float_array, check_finite, integer
 from ..constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
 from ..constitutive.tensors import _mandel_weights, _pairs
@@ -259,15 +259,15 @@ def _coefficients(
     out = np.empty_like(xi)
     cols = [np.ascontiguousarray(Kinv[:, :, q]) for q in range(d)]
 
-    def chunk(k: int) -> None:  # fixed bond chunks on the threads (elementwise)
-        b0, b1 = k * _ROW_CHUNK, min((k + 1) * _ROW_CHUNK, xi.shape[0])
+    def chunk(rng: tuple[int, int]) -> None:  # fixed bond chunks on the threads (elementwise)
+        b0, b1 = rng
         own = owner_b[b0:b1]
         c = np.zeros((b1 - b0, d))
         for q in range(d):  # Σ_q K⁻¹[:, q] ξ_q, gathered per component (no batched einsum)
             c += cols[q][own] * xi[b0:b1, q : q + 1]
         np.multiply(w[b0:b1, None], c, out=out[b0:b1])
 
-    thread_map(chunk, range(-(-xi.shape[0] // _ROW_CHUNK)))
+    thread_map(chunk, even_chunks(xi.shape[0], _ROW_CHUNK))
     return out
 
 
@@ -544,20 +544,21 @@ def _mean_per_point(owner: np.ndarray, values: np.ndarray, n: int) -> np.ndarray
 #: rows per chunk of the threaded dense products (fixed: results do not depend on the
 #: thread count)
 _ROW_CHUNK = 1 << 15
+#: stored blocks per chunk of block rows in the zero-block dropping
+_DROP_CHUNK = 1 << 16
 
 
 def _rows_matmul(A: np.ndarray, M: np.ndarray, row_scale: np.ndarray | None = None) -> np.ndarray:
     """``A @ M`` (times ``row_scale`` per row), computed in fixed row chunks on threads."""
     out = np.empty((A.shape[0], M.shape[1]))
-    edges = list(range(0, A.shape[0], _ROW_CHUNK)) + [A.shape[0]]
 
-    def chunk(k: int) -> None:
-        a, b = edges[k], edges[k + 1]
+    def chunk(rng: tuple[int, int]) -> None:
+        a, b = rng
         np.matmul(A[a:b], M, out=out[a:b])
         if row_scale is not None:
             out[a:b] *= row_scale[a:b, None]
 
-    thread_map(chunk, range(len(edges) - 1))
+    thread_map(chunk, even_chunks(A.shape[0], _ROW_CHUNK))
     return out
 
 
@@ -579,8 +580,7 @@ def _drop_zero_blocks(K: sp.bsr_array) -> sp.bsr_array:
     dsize = np.zeros(nrow)
     # fixed chunks of block rows on the threads (elementwise work: results do not depend
     # on the thread count); the kept blocks are copied chunk by chunk into their slots
-    edges = _block_row_chunks(ptr)
-    chunks = list(zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True))
+    chunks = ptr_chunks(ptr, _DROP_CHUNK)
 
     def sizes(rng: tuple[int, int]) -> None:
         r0, r1 = rng
@@ -635,13 +635,6 @@ def _drop_zero_blocks(K: sp.bsr_array) -> sp.bsr_array:
 
     thread_map(copy, chunks)
     return sp.bsr_array((data, indices, indptr), shape=K.shape, blocksize=K.blocksize)
-
-
-def _block_row_chunks(ptr: np.ndarray, blocks: int = 1 << 16) -> np.ndarray:
-    """Edges of block-row ranges holding about ``blocks`` stored blocks each."""
-    n = ptr.size - 1
-    starts = np.searchsorted(ptr, np.arange(0, max(int(ptr[-1]), 1), blocks), side="right") - 1
-    return np.unique(np.concatenate([[0], np.clip(starts, 0, n), [n]]))
 
 
 def _with_diagonal_blocks(K: sp.sparray, d: int) -> sp.bsr_array:
@@ -1197,11 +1190,11 @@ class Correspondence(Model):
             P = voigt_projector(d)
             D = np.empty((Cv.shape[0], d * d, d * d))
 
-            def chunk(k: int) -> None:  # Pᵀ C P per gradient point, fixed chunks on threads
-                g0, g1 = k * _ROW_CHUNK, min((k + 1) * _ROW_CHUNK, Cv.shape[0])
+            def chunk(rng: tuple[int, int]) -> None:  # Pᵀ C P per gradient point, on threads
+                g0, g1 = rng
                 D[g0:g1] = (P.T @ Cv[g0:g1] @ P) * scale[g0:g1, None, None]
 
-            thread_map(chunk, range(-(-Cv.shape[0] // _ROW_CHUNK)))
+            thread_map(chunk, even_chunks(Cv.shape[0], _ROW_CHUNK))
             return D, Cv
 
         plan = _Plan(gp_owner, gp_of_bond, w, energy, omega, blocks, n, stiffness_fn)

@@ -266,8 +266,7 @@ def test_drop_zero_blocks_threaded_equals_serial(monkeypatch: pytest.MonkeyPatch
     )
     ref = _drop_zero_blocks_before(K)
     assert ref.nnz < K.nnz  # blocks were dropped
-    chunks = corr._block_row_chunks
-    monkeypatch.setattr(corr, "_block_row_chunks", lambda ptr: chunks(ptr, 37))
+    monkeypatch.setattr(corr, "_DROP_CHUNK", 37)  # many chunks on this small K
     for nt in (1, 2, 3):
         pdlin.set_num_threads(nt)
         assert _bits_equal(corr._drop_zero_blocks(K), ref)
