@@ -26,6 +26,9 @@ seconds on a shared machine, one BLAS thread; nothing is asserted):
    against Newton's next step (spec 001 §6: never pointwise), for an elastic and a plastic step.
 5. **T20**: adaptive ADR damping vs constant c = 200, 500, 2000 on 25 x 25 shear steps 1-12:
    iterations per step, max damping in the first and last 10 % of each step's iterations.
+6. **Predictors** (``--sections predictors``, only on request): ``method='auto'`` with each
+   of ``--predictors``: time, Newton iterations, cut-backs, ADR fallbacks and the largest
+   homogenized-stress difference to a fine path (``--fine`` equal increments per step).
 
 Every run is a forked child process (its peak RSS is the run's). ``--quick`` (the default
 when no size is given) runs 15 x 15 and 25 x 25 only, about 2 minutes.
@@ -290,6 +293,59 @@ def table_aim(rows: list[dict[str, Any]], n_aim: int) -> None:
         print(f"| {r['load']} | {r['method']} | {_fmt_t(tot, est)} | {met} | {its} |")
 
 
+def table_predictors(
+    sizes: list[int], loads: list[str], predictors: list[str], steps: int, sub: int
+) -> None:
+    """Newton's predictors (``method='auto'``): cost, and the homogenized stress against a
+    fine path (``sub`` equal Newton increments per load step, the committed-state tangent
+    predictor); the fine path with the default predictor gives the floor of that error
+    (spec 001 §6: plastic equilibria are not unique, the path of a path-dependent material
+    depends on its increments)."""
+    print(
+        f"\n## Predictors: method='auto', {steps} load steps; homogenized σ against a fine "
+        f"path ({sub} increments per step)\n"
+    )
+    head = (
+        "| particles | load | predictor | total s | Newton it | it max | cut-backs | "
+        "fallbacks | max ‖Δσ̄‖ / max ‖σ̄‖ vs fine path |"
+    )
+    print(head)
+    print("|" + "---|" * (head.count("|") - 1))
+    fine_times = np.arange(1, steps * sub + 1) / sub
+    for n in sizes:
+        for load in loads:
+            ref = forked(
+                run,
+                n,
+                load,
+                "auto",
+                steps,
+                1e9,
+                extra={"predictor": "committed-tangent", "times": fine_times},
+            )
+            if isinstance(ref, str):
+                print(f"| {n * n:,} | {load} | fine path failed: {ref} |")
+                continue
+            ref_hom = ref["hom"][sub - 1 :: sub]
+            scale = float(np.abs(ref_hom).max())
+            cases = [(f"fine: {sub} x, tangent", {"predictor": "tangent", "times": fine_times})]
+            cases += [(p, {"predictor": p}) for p in predictors]
+            for label, extra in cases:
+                r = forked(run, n, load, "auto", steps, 1e9, extra=extra)
+                if isinstance(r, str):
+                    print(f"| {n * n:,} | {load} | {label} | failed: {r} |")
+                    continue
+                hom = r["hom"][sub - 1 :: sub] if "times" in extra else r["hom"]
+                err = float(np.abs(hom - ref_hom).max()) / scale
+                fb = sum("failed" in m for m in r["methods"])
+                it = r["iterations"]
+                print(
+                    f"| {n * n:,} | {load} | {label} | {r['wall']:.1f} | {int(it.sum())} | "
+                    f"{int(it.max())} | {int(r['cutbacks'].sum())} | {fb} | {err:.1e} |",
+                    flush=True,
+                )
+
+
 def table_profile(n: int, load: str, methods: list[str], steps: int, budget: float) -> None:
     print(f"\n## Profile: {n * n:,} particles, {load}, cProfile cumulative seconds\n")
     for m in methods:
@@ -519,7 +575,17 @@ def main(argv: list[str] | None = None) -> int:
         "--sections",
         nargs="+",
         default=["b1", "aim", "profile", "big", "b2", "t20"],
-        choices=["b1", "aim", "profile", "big", "b2", "t20"],
+        choices=["b1", "aim", "profile", "big", "b2", "t20", "predictors"],
+        help="tables to print ('predictors' only on request)",
+    )
+    ap.add_argument(
+        "--predictors",
+        nargs="+",
+        default=["tangent", "committed-tangent", "extrapolate"],
+        help="Newton predictors of the 'predictors' table",
+    )
+    ap.add_argument(
+        "--fine", type=int, default=4, help="increments per step of the predictors' fine path"
     )
     ap.add_argument(
         "--profile-budget", type=float, default=90.0, help="seconds per profiled run (default 90)"
@@ -553,6 +619,8 @@ def main(argv: list[str] | None = None) -> int:
         rows = table_b1(args.sizes, args.loads, args.methods, args.steps, args.budget)
     if "aim" in args.sections and rows:
         table_aim(rows, args.aim_size)
+    if "predictors" in args.sections:
+        table_predictors(args.sizes, args.loads, args.predictors, args.steps, args.fine)
     if "profile" in args.sections:
         n_prof = args.aim_size
         table_profile(

@@ -42,7 +42,7 @@ __all__ = ["NonlinearResult", "solve_nonlinear", "METHODS", "PREDICTORS"]
 log = logging.getLogger(__name__)
 
 METHODS = ("newton", "adr", "auto")
-PREDICTORS = ("auto", "affine", "tangent", "extrapolate", "previous")
+PREDICTORS = ("auto", "affine", "tangent", "committed-tangent", "extrapolate", "previous")
 _CHECKPOINT_VERSION = 1
 
 
@@ -207,6 +207,9 @@ class _Predictor:
         self.kind = kind
         self.path = path
         self.calls = 0
+        # the state at the start of the last converged increment, whose end is the
+        # committed solution: the continuation tangent's state (None before the first)
+        self.prev_state: dict[str, np.ndarray] | None = None
 
     def resolved(self, driver: str) -> str:
         """The predictor a driver uses: 'auto' is the tangent one for Newton (half the
@@ -238,6 +241,8 @@ class _Predictor:
             E = scipy.linalg.expm(L * (t_new - t_c))
             u0 = ((X + u_c.reshape(X.shape)) @ E.T - X).reshape(-1)
         elif kind == "tangent":
+            u0 = self._tangent(u_c, self.prev_state or state, factor, values)
+        elif kind == "committed-tangent":
             u0 = self._tangent(u_c, state, factor, values)
         elif kind == "extrapolate" and u_p is not None and t_p is not None and t_c > t_p:
             u0 = u_c + (t_new - t_c) / (t_c - t_p) * (u_c - u_p)
@@ -249,7 +254,14 @@ class _Predictor:
     def _tangent(
         self, u_c: np.ndarray, state: dict[str, np.ndarray], factor: float, values: np.ndarray
     ) -> np.ndarray:
-        """``u_c + Δu`` with ``K_T(u_c) Δu = r(u_c)`` and the prescribed increment imposed."""
+        """``u_c + Δu`` with ``K_T(u_c) Δu = r(u_c)`` and the prescribed increment imposed.
+
+        ``K_T`` and ``f_int`` are ``respond(u_c, state)``: from the committed state (the
+        response at ``u_c`` of a zero increment: for crystal plasticity the elastic
+        tangent), or from the state at the start of the last converged increment (the
+        consistent tangent at that increment's end, which carries its active sets on
+        into the next step; the force is the committed one up to the step tolerance).
+        """
         sysm = self.system
         resp = sysm.respond(u_c, state, tangent=True)
         self.calls += int(resp.calls)
@@ -345,14 +357,18 @@ def solve_nonlinear(
         ``t_end`` they keep growing proportionally).
     times : sequence of float, optional
         Explicit step times (increasing, > 0).
-    predictor : {'auto', 'affine', 'tangent', 'extrapolate', 'previous'}
+    predictor : {'auto', 'affine', 'tangent', 'committed-tangent', 'extrapolate', 'previous'}
         Start of each step: the incremental affine map of a velocity-gradient
         path (spec 001 §4.3); the tangent predictor ``u + Δu`` with
-        ``K_T(u) Δu = r(u)`` from the committed state and the prescribed
-        increment imposed (one linear solve; exact for linear models); a
-        linear extrapolation of the last two steps; or the last solution.
-        'auto': tangent for Newton steps; for ADR steps affine when the
-        prescribed paths share one velocity gradient, else tangent.
+        ``K_T(u) Δu = r(u)`` and the prescribed increment imposed (one linear
+        solve; exact for linear models), ``K_T`` the consistent tangent at the
+        end of the last converged increment (its active sets carried on; from
+        the committed state at the first step); 'committed-tangent' the same
+        with ``K_T`` from the committed state (a zero increment: for crystal
+        plasticity the elastic tangent); a linear extrapolation of the last
+        two steps; or the last solution. 'auto': tangent for Newton steps;
+        for ADR steps affine when the prescribed paths share one velocity
+        gradient, else tangent.
     rtol, maxiter, line_search, max_cutbacks, linear_solver
         Newton: convergence ``‖r_free‖ <= rtol`` x force scale (the larger of
         ``‖λ f_ext‖`` and the reaction norm), iteration budget per (sub)step,
@@ -562,6 +578,10 @@ def solve_nonlinear(
         t_c = float(tt[start - 1]) if start else 0.0
         if start >= 2:
             u_p, t_p = u_hist[start - 2].reshape(-1).copy(), float(tt[start - 2])
+        prev = {
+            k[len("prev_state__") :]: data[k] for k in data.files if k.startswith("prev_state__")
+        }
+        pred.prev_state = prev or None  # absent from checkpoints of earlier versions
         states = [dict(state_c)] if start else []
         state_steps = [start - 1] if start else []
         say(f"resuming from {ckpt} after step {start} of {K}")
@@ -688,6 +708,7 @@ def solve_nonlinear(
             if damp is not None and out.damping is not None:
                 damp.append(out.damping)
             u_prev, t_prev = cur_u, t_cur
+            pred.prev_state = cur_state
             cur_u, cur_state, t_cur = out.u, out.response.state, target
             if driver == "adr" or out.iterations <= easy:
                 inc = min(span, 2.0 * inc)
@@ -801,6 +822,8 @@ def solve_nonlinear(
                 arrays["homogenized_stress"] = hom_hist[: k + 1]
             for key, value in state_c.items():
                 arrays[f"state__{key}"] = np.asarray(value)
+            for key, value in (pred.prev_state or {}).items():
+                arrays[f"prev_state__{key}"] = np.asarray(value)
             _write_atomic_npz(ckpt, arrays)
         say(
             f"step {k + 1}/{K} t = {t_target:.6g}: {used}, {n_it} iteration(s), "
