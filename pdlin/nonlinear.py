@@ -696,6 +696,9 @@ def solve_nonlinear(
                     n_calls += exc.outcome.calls
                     n_rel += exc.outcome.relaxation
                 n_cut += 1
+                # the retry starts from the committed-state (elastic) tangent; the next
+                # converged increment re-arms the continuation tangent
+                pred.prev_state = None
                 if 0.5 * min(inc, t_target - t_cur) < smallest * (1.0 - 1e-9):
                     inc_frac[driver] = inc / span
                     return None, str(exc), (n_it, n_calls, n_cut, n_rel), (cur_u, cur_state)

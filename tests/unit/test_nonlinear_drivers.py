@@ -96,6 +96,55 @@ def test_newton_solves_the_hardening_chain_and_commits_history():
     np.testing.assert_allclose(res.reactions[-1].sum(), 0.0, atol=1e-12)
 
 
+class SpyChain(CubicChain):
+    """The cubic chain, recording ``(u, state['emax'])`` of every tangent evaluation."""
+
+    def __init__(self, *args: Any, **kw: Any) -> None:
+        super().__init__(*args, **kw)
+        self.tangent_calls: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def respond(self, cloud: Any, bonds: Any, u: Any, state: Any, *, tangent: bool = False):
+        if tangent:
+            self.tangent_calls.append((np.ravel(u).copy(), state["emax"].copy()))
+        return super().respond(cloud, bonds, u, state, tangent=tangent)
+
+
+@pytest.mark.parametrize("predictor", ["tangent", "committed-tangent"])
+def test_tangent_predictor_states(predictor):
+    # the default tangent predictor takes K_T at the committed solution u_k from the state
+    # at the start of the increment that reached u_k (the last Newton tangent: its history
+    # carried on), the committed-tangent predictor from the committed state; after a
+    # cut-back the retry starts from the committed state. Graded chain, maxiter=2: step 2
+    # needs one cut-back, step 3 none (counts measured 2026-11-25)
+    base = _chain(u_end=0.2, graded=True)
+    spy = SpyChain(k=base.model.k)
+    prob = pdlin.StaticProblem(spy, base.cloud, base.bonds, dirichlet=base.dirichlet)
+    ends: list[int] = []  # tangent calls made when each step ended
+    res = pdlin.solve_nonlinear(
+        prob,
+        steps=3,
+        method="newton",
+        maxiter=2,
+        predictor=predictor,
+        progress=lambda msg: msg.startswith("step ") and ends.append(len(spy.tangent_calls)),
+    )
+    assert res.cutbacks[1] >= 1 and res.cutbacks[2] == 0
+    for k in (1, 2):  # steps 2 and 3: the predictor's tangent calls at u_k
+        calls = spy.tangent_calls[ends[k - 1] : ends[k]]
+        at = [st for u, st in calls if np.array_equal(u, res.u[k - 1].ravel())]
+        committed = res.states[k - 1]["emax"]
+        assert at
+        if predictor == "committed-tangent":
+            assert all(np.array_equal(st, committed) for st in at)
+            continue
+        # the first try continues the last increment (its start state: less history)
+        assert np.all(at[0] <= committed) and not np.array_equal(at[0], committed)
+        if res.cutbacks[k]:  # the retry after the cut-back: the committed state
+            assert np.array_equal(at[-1], committed)
+        else:
+            assert len(at) == 1
+
+
 def test_newton_converges_quadratically():
     prob = _chain(u_end=0.2, graded=True)
     res = pdlin.solve_nonlinear(prob, steps=1, method="newton", predictor="tangent")
