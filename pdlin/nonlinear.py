@@ -42,6 +42,11 @@ __all__ = ["NonlinearResult", "solve_nonlinear", "METHODS", "PREDICTORS"]
 log = logging.getLogger(__name__)
 
 METHODS = ("newton", "adr", "auto")
+#: failed tries in a row after which the tangent predictor restarts from the committed
+#: state (measured 2026-11-25, docs/nonlinear.md: 1 doubled the 100² shear run, 3 or more
+#: left a 50² compression path stalling at one kink through 15 cut-backs)
+_RESTART_ELASTIC = 2
+
 PREDICTORS = ("auto", "affine", "tangent", "committed-tangent", "extrapolate", "previous")
 _CHECKPOINT_VERSION = 1
 
@@ -433,8 +438,8 @@ def solve_nonlinear(
     Examples
     --------
     A bond-based bar pulled in 4 steps: from the last solution Newton
-    converges in one iteration per step (the default extrapolating predictor
-    is exact here after step 1), and ADR reaches the same solution.
+    converges in one iteration per step (the default tangent predictor would
+    be exact here, a linear model), and ADR reaches the same solution.
 
     >>> import numpy as np, pdlin
     >>> cloud = pdlin.grid((20,), spacing=0.05)
@@ -683,6 +688,7 @@ def solve_nonlinear(
         inc = min(1.0, inc_frac[driver]) * span
         cur_u, cur_state = u_start, st_start
         n_it = n_calls = n_cut = n_rel = 0
+        fails_in_row = 0
         out: StepOutcome | None = None
         easy = max(2, maxiter // 4)
         while t_target - t_cur > 1e-12 * span:
@@ -696,9 +702,12 @@ def solve_nonlinear(
                     n_calls += exc.outcome.calls
                     n_rel += exc.outcome.relaxation
                 n_cut += 1
-                # the retry starts from the committed-state (elastic) tangent; the next
-                # converged increment re-arms the continuation tangent
-                pred.prev_state = None
+                # after _RESTART_ELASTIC failed tries in a row the retries start from
+                # the committed-state (elastic) tangent; the next converged increment
+                # re-arms the continuation tangent
+                fails_in_row += 1
+                if fails_in_row >= _RESTART_ELASTIC:
+                    pred.prev_state = None
                 if 0.5 * min(inc, t_target - t_cur) < smallest * (1.0 - 1e-9):
                     inc_frac[driver] = inc / span
                     return None, str(exc), (n_it, n_calls, n_cut, n_rel), (cur_u, cur_state)
@@ -712,6 +721,7 @@ def solve_nonlinear(
                 damp.append(out.damping)
             u_prev, t_prev = cur_u, t_cur
             pred.prev_state = cur_state
+            fails_in_row = 0
             cur_u, cur_state, t_cur = out.u, out.response.state, target
             if driver == "adr" or out.iterations <= easy:
                 inc = min(span, 2.0 * inc)
