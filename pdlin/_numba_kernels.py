@@ -229,3 +229,59 @@ def bsr_t_fill(indptr, indices, data, off, edges, out_ind, out_dat):
                 for a in range(R):
                     for b in range(C):
                         out_dat[q, b, a] = data[jj, a, b]
+
+
+@numba.njit(nogil=True, cache=True)
+def pair_blocks_fill(
+    r0, r1, bptr, bj, vec, length, unit_given, kb, kb0, indices, data
+):  # pragma: no cover
+    """Blocks of the rows ``r0:r1`` of a pairwise operator, written once into the BSR slots.
+
+    Bond ``b = (r, j)`` of row ``r`` (bonds CSR-sorted, increasing ``j``) gets the block
+    ``-k_b n nᵀ`` (``k_b = kb[b - kb0]``; ``n = vec[b]`` when ``unit_given``, else
+    ``vec[b] * (1 / length[b])``) at slot ``b + r`` (``+ 1`` past the diagonal when
+    ``j > r``); the diagonal block is the negated sum of the row's blocks in bond order
+    (``+0`` for a row without bonds). Serial (``nogil``): the caller runs disjoint row
+    chunks on its threads. The arithmetic is the numpy path's (``(n_a * -k_b) * n_c``, the
+    lower triangle copied from the upper, sums in bond order).
+    """
+    d = vec.shape[1]
+    acc = np.empty((d, d))
+    n = np.empty(d)
+    for r in range(r0, r1):
+        b0 = bptr[r]
+        b1 = bptr[r + 1]
+        acc[:, :] = 0.0
+        nless = 0
+        for b in range(b0, b1):
+            j = bj[b]
+            pos = b + r
+            if j > r:
+                pos += 1
+            else:
+                nless += 1
+            indices[pos] = j
+            if unit_given:
+                for a in range(d):
+                    n[a] = vec[b, a]
+            else:
+                inv = 1.0 / length[b]
+                for a in range(d):
+                    n[a] = vec[b, a] * inv
+            mk = -kb[b - kb0]
+            for a in range(d):
+                ka = n[a] * mk
+                for c in range(a, d):
+                    v = ka * n[c]
+                    data[pos, a, c] = v
+                    acc[a, c] += v
+                    if c > a:
+                        data[pos, c, a] = v
+        diag = b0 + r + nless
+        indices[diag] = r
+        for a in range(d):
+            for c in range(a, d):
+                v = -acc[a, c] if b1 > b0 else 0.0
+                data[diag, a, c] = v
+                if c > a:
+                    data[diag, c, a] = v

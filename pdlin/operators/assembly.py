@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from .._kernels import _kernels, use_numba
 from .._threads import thread_map
 from ..errors import InputTypeError, ShapeError
 from ..geometry.bonds import Bonds
@@ -111,6 +112,25 @@ def pair_stiffness_bsr(
     # np.bincount, whose min/max pass holds it)
     starts = np.searchsorted(bptr, np.arange(0, nb, _CHUNK), side="right") - 1
     row_edges = np.unique(np.concatenate([[0], starts, [n]]))  # empty rows stay covered
+    # with numba: one fused pass per chunk writes each block once (the numpy path below
+    # makes component-major temporaries and a strided copy: ~3x the memory traffic, and
+    # one thread already saturates the write bandwidth, docs/large_problems.md)
+    mod = _kernels() if use_numba(nb * d * d) else None
+    if mod is not None:
+        unit_given = directions is not None
+        vec = np.ascontiguousarray(directions if unit_given else bonds.xi, dtype=np.float64)
+        length = np.ascontiguousarray(bonds.length, dtype=np.float64)
+        bj = np.ascontiguousarray(bonds.j)
+
+        def fused(rows: tuple[int, int]) -> None:
+            r0, r1 = rows
+            b0, b1 = int(bptr[r0]), int(bptr[r1])
+            kb = coef(b0, b1) if callable(coef) else coef[b0:b1]
+            kb = np.ascontiguousarray(kb, dtype=np.float64)
+            mod.pair_blocks_fill(r0, r1, bptr, bj, vec, length, unit_given, kb, b0, indices, data)
+
+        thread_map(fused, list(zip(row_edges[:-1].tolist(), row_edges[1:].tolist(), strict=True)))
+        return sp.bsr_array((data, indices, indptr), shape=(n * d, n * d), blocksize=(d, d))
 
     def chunk(rows: tuple[int, int]) -> None:
         r0, r1 = rows

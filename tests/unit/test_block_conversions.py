@@ -394,3 +394,44 @@ def test_gradient_blocks_owner_sorted_path_equals_sort(monkeypatch, dim: int) ->
     # other layouts take the sorting path
     assert fast(np.arange(cloud.n)[::-1].copy(), *args[1:]) is None
     assert fast(np.arange(cloud.n), bonds.i[::-1].copy(), *args[2:]) is None
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+@pytest.mark.parametrize("given_directions", [False, True])
+def test_pair_stiffness_fused_kernel_equals_numpy_path(
+    monkeypatch: pytest.MonkeyPatch, dim: int, given_directions: bool
+) -> None:
+    """The numba pass that writes each bond block once (pair_blocks_fill) against the numpy
+    chunk path: same index arrays, off-diagonal blocks bitwise (same formula), diagonal sums
+    to round-off (1e-15 of the largest entry: summation order), bitwise equal for 1-3
+    threads; isolated points (empty rows) inside chunks and tiny chunks included."""
+    from pdlin.operators import assembly
+
+    pytest.importorskip("numba")
+    rng = np.random.default_rng(10 + dim)
+    cloud = pdlin.PointCloud(rng.random((300, dim)), volumes=np.full(300, 1e-3))
+    horizon = {1: 0.004, 2: 0.05, 3: 0.12}[dim]
+    bonds = pdlin.find_bonds(cloud, horizon=horizon, allow_isolated=True)
+    assert (np.diff(bonds.indptr) == 0).sum() > 5 and bonds.n_bonds > 100
+    k = rng.random(bonds.n_bonds)
+    dirs = None
+    if given_directions:  # unit vectors not equal to xi / |xi|: the given ones must be used
+        raw = bonds.xi + 0.1 * rng.standard_normal(bonds.xi.shape)
+        dirs = raw / np.linalg.norm(raw, axis=1)[:, None]
+    monkeypatch.setattr(assembly, "_CHUNK", 37)
+    _numba(monkeypatch, False)
+    ref = assembly.pair_stiffness_bsr(bonds, k, dirs)
+    _numba(monkeypatch, True)
+    rows = np.repeat(np.arange(bonds.n_points), np.diff(ref.indptr))
+    off = ref.indices != rows
+    first = None
+    for nt in (1, 2, 3):
+        pdlin.set_num_threads(nt)
+        K = assembly.pair_stiffness_bsr(bonds, lambda b0, b1: k[b0:b1], dirs)
+        K.check_format(full_check=True)
+        assert np.array_equal(K.indptr, ref.indptr) and np.array_equal(K.indices, ref.indices)
+        assert np.array_equal(K.data[off], ref.data[off])
+        scale = np.abs(ref.data).max()
+        assert np.abs(K.data[~off] - ref.data[~off]).max() <= 1e-15 * scale
+        first = K if first is None else first
+        assert _bits_equal(K, first)
