@@ -10,7 +10,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._kernels import _kernels, use_numba
-from .._threads import thread_map
+from .._threads import ptr_chunks, thread_map
 from ..errors import InputTypeError, ShapeError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
@@ -110,27 +110,23 @@ def pair_stiffness_bsr(
     # their per-row sums (the bonds of a row are contiguous) for the
     # diagonal block; everything per chunk releases the GIL (np.add.reduceat, not
     # np.bincount, whose min/max pass holds it)
-    starts = np.searchsorted(bptr, np.arange(0, nb, _CHUNK), side="right") - 1
-    row_edges = np.unique(np.concatenate([[0], starts, [n]]))  # empty rows stay covered
+    chunks = ptr_chunks(bptr, _CHUNK)  # empty rows stay covered
     # with numba: one fused pass per chunk writes each block once (the numpy path below
     # makes component-major temporaries and a strided copy: ~3x the memory traffic, and
     # one thread already saturates the write bandwidth, docs/large_problems.md)
     mod = _kernels() if use_numba(nb * d * d) else None
+    fused: Callable[[tuple[int, int]], None] | None = None
     if mod is not None:
+        fill = mod.pair_blocks_fill
         unit_given = directions is not None
         vec = np.ascontiguousarray(directions if unit_given else bonds.xi, dtype=np.float64)
-        length = np.ascontiguousarray(bonds.length, dtype=np.float64)
-        bj = np.ascontiguousarray(bonds.j)
 
         def fused(rows: tuple[int, int]) -> None:
             r0, r1 = rows
             b0, b1 = int(bptr[r0]), int(bptr[r1])
             kb = coef(b0, b1) if callable(coef) else coef[b0:b1]
             kb = np.ascontiguousarray(kb, dtype=np.float64)
-            mod.pair_blocks_fill(r0, r1, bptr, bj, vec, length, unit_given, kb, b0, indices, data)
-
-        thread_map(fused, list(zip(row_edges[:-1].tolist(), row_edges[1:].tolist(), strict=True)))
-        return sp.bsr_array((data, indices, indptr), shape=(n * d, n * d), blocksize=(d, d))
+            fill(r0, r1, bptr, bonds.j, vec, bonds.length, unit_given, kb, b0, indices, data)
 
     def chunk(rows: tuple[int, int]) -> None:
         r0, r1 = rows
@@ -173,7 +169,7 @@ def pair_stiffness_bsr(
 
     # chunks write disjoint slots of indices / data: threads (numpy releases the GIL),
     # the same arithmetic per chunk for any thread count
-    thread_map(chunk, list(zip(row_edges[:-1].tolist(), row_edges[1:].tolist(), strict=True)))
+    thread_map(chunk if fused is None else fused, chunks)
     return sp.bsr_array((data, indices, indptr), shape=(n * d, n * d), blocksize=(d, d))
 
 
