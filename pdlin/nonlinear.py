@@ -215,6 +215,19 @@ class _Predictor:
         # the state at the start of the last converged increment, whose end is the
         # committed solution: the continuation tangent's state (None before the first)
         self.prev_state: dict[str, np.ndarray] | None = None
+        self._fails = 0  # failed tries since the last converged increment
+
+    def converged(self, start_state: dict[str, np.ndarray]) -> None:
+        """An increment from ``start_state`` converged: the continuation tangent's state."""
+        self.prev_state = start_state
+        self._fails = 0
+
+    def failed(self) -> None:
+        """A try failed: after ``_RESTART_ELASTIC`` in a row the retries start from the
+        committed-state (elastic) tangent until an increment converges again."""
+        self._fails += 1
+        if self._fails >= _RESTART_ELASTIC:
+            self.prev_state = None
 
     def resolved(self, driver: str) -> str:
         """The predictor a driver uses: 'auto' is the tangent one for Newton (half the
@@ -688,7 +701,6 @@ def solve_nonlinear(
         inc = min(1.0, inc_frac[driver]) * span
         cur_u, cur_state = u_start, st_start
         n_it = n_calls = n_cut = n_rel = 0
-        fails_in_row = 0
         out: StepOutcome | None = None
         easy = max(2, maxiter // 4)
         while t_target - t_cur > 1e-12 * span:
@@ -702,12 +714,7 @@ def solve_nonlinear(
                     n_calls += exc.outcome.calls
                     n_rel += exc.outcome.relaxation
                 n_cut += 1
-                # after _RESTART_ELASTIC failed tries in a row the retries start from
-                # the committed-state (elastic) tangent; the next converged increment
-                # re-arms the continuation tangent
-                fails_in_row += 1
-                if fails_in_row >= _RESTART_ELASTIC:
-                    pred.prev_state = None
+                pred.failed()
                 if 0.5 * min(inc, t_target - t_cur) < smallest * (1.0 - 1e-9):
                     inc_frac[driver] = inc / span
                     return None, str(exc), (n_it, n_calls, n_cut, n_rel), (cur_u, cur_state)
@@ -720,8 +727,7 @@ def solve_nonlinear(
             if damp is not None and out.damping is not None:
                 damp.append(out.damping)
             u_prev, t_prev = cur_u, t_cur
-            pred.prev_state = cur_state
-            fails_in_row = 0
+            pred.converged(cur_state)
             cur_u, cur_state, t_cur = out.u, out.response.state, target
             if driver == "adr" or out.iterations <= easy:
                 inc = min(span, 2.0 * inc)
