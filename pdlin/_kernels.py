@@ -156,16 +156,21 @@ def _edges(weight: np.ndarray, n_chunks: int) -> np.ndarray:
     return np.unique(np.concatenate([[0], edges, [n_rows]])).astype(np.int64)
 
 
-def bsr_matmul(A: Any, B: Any) -> sp.bsr_array:
+def bsr_matmul(A: Any, B: Any, *, block_sizes: bool = False) -> Any:
     """``A @ B`` of two BSR arrays whose block sizes chain (``R x N`` times ``N x S``).
 
     Parameters
     ----------
     A, B : scipy.sparse BSR arrays (real)
+    block_sizes : bool
+        Also return ``(size, dsize)``: ``max |block|`` of every stored block of the
+        product and that of each block row's diagonal block (0 without one), computed
+        while each row is in cache; None on the scipy path.
 
     Returns
     -------
     scipy.sparse.bsr_array of blocksize ``(R, S)``; with numba, sorted block columns.
+    With ``block_sizes``, the tuple ``(product, sizes)``.
 
     Examples
     --------
@@ -183,7 +188,8 @@ def bsr_matmul(A: Any, B: Any) -> sp.bsr_array:
     real = A.dtype == np.float64 and B.dtype == np.float64
     mod = _kernels() if real and use_numba(A.nnz * S) else None
     if mod is None:
-        return sp.bsr_array(A @ B, blocksize=(R, S))
+        prod = sp.bsr_array(A @ B, blocksize=(R, S))
+        return (prod, None) if block_sizes else prod
     a_ptr = np.asarray(A.indptr, dtype=np.int64)
     b_ptr = np.asarray(B.indptr, dtype=np.int64)
     a_ind = np.ascontiguousarray(A.indices)
@@ -207,16 +213,26 @@ def bsr_matmul(A: Any, B: Any) -> sp.bsr_array:
     c_dat = np.empty((total, R, S))
     cum = np.zeros(n_row + 1, dtype=np.int64)
     np.cumsum(work, out=cum[1:])
+    sizes: tuple[np.ndarray, np.ndarray] | None = None
     with _lock:
         _set_threads()
-        mod.bsr_fill(
-            a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bcol,
-            _edges(cum, n_chunks),
-        )  # fmt: skip
+        if block_sizes:
+            sizes = (np.empty(total), np.empty(n_row))
+            mod.bsr_fill_sizes(
+                a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bcol,
+                _edges(cum, n_chunks), *sizes,
+            )  # fmt: skip
+        else:
+            mod.bsr_fill(
+                a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bcol,
+                _edges(cum, n_chunks),
+            )  # fmt: skip
     out = sp.bsr_array(
         (c_dat, c_ind, c_ptr.astype(idt)), shape=(A.shape[0], B.shape[1]), blocksize=(R, S)
     )
     out.has_sorted_indices = True
+    if block_sizes:
+        return out, sizes
     return out
 
 

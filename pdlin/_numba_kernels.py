@@ -58,45 +58,96 @@ def _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, R, N, 
 @numba.njit(parallel=True, cache=True)
 def bsr_fill(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bcol, edges):
     """Sorted block columns and blocks of ``C = A @ B`` (``c_ptr`` from the counts)."""
+    size = np.empty(0)
+    for c in numba.prange(edges.size - 1):
+        _fill_chunk(
+            a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bcol,
+            edges[c], edges[c + 1], False, size, size,
+        )  # fmt: skip
+
+
+@numba.njit(parallel=True, cache=True)
+def bsr_fill_sizes(
+    a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bcol, edges, size, dsize
+):
+    """:func:`bsr_fill` that also writes ``size[q] = max |C block q|`` and ``dsize[i]``, that
+    of row ``i``'s diagonal block (0 without one), while each row is in cache."""
+    for c in numba.prange(edges.size - 1):
+        _fill_chunk(
+            a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bcol,
+            edges[c], edges[c + 1], True, size, dsize,
+        )  # fmt: skip
+
+
+@numba.njit(cache=True)
+def _fill_chunk(
+    a_ptr,
+    a_ind,
+    a_dat,
+    b_ptr,
+    b_ind,
+    b_dat,
+    c_ptr,
+    c_ind,
+    c_dat,
+    n_bcol,
+    i0,
+    i1,
+    sizes,
+    size,
+    dsize,
+):
+    """Rows ``i0:i1`` of :func:`bsr_fill` (with the block sizes when ``sizes``)."""
     R = a_dat.shape[1]
     N = a_dat.shape[2]
     S = b_dat.shape[2]
-    for c in numba.prange(edges.size - 1):
-        pos = np.full(n_bcol, -1, np.int64)
-        for i in range(edges[c], edges[c + 1]):
-            p0 = c_ptr[i]
-            p = p0
-            for jj in range(a_ptr[i], a_ptr[i + 1]):
-                k = a_ind[jj]
-                for kk in range(b_ptr[k], b_ptr[k + 1]):
-                    j = b_ind[kk]
-                    if pos[j] < p0:  # rows of a chunk run in order: older marks are < p0
-                        pos[j] = p
-                        c_ind[p] = j
-                        p += 1
-            c_ind[p0:p].sort()
+    pos = np.full(n_bcol, -1, np.int64)
+    for i in range(i0, i1):
+        p0 = c_ptr[i]
+        p = p0
+        for jj in range(a_ptr[i], a_ptr[i + 1]):
+            k = a_ind[jj]
+            for kk in range(b_ptr[k], b_ptr[k + 1]):
+                j = b_ind[kk]
+                if pos[j] < p0:  # rows of a chunk run in order: older marks are < p0
+                    pos[j] = p
+                    c_ind[p] = j
+                    p += 1
+        c_ind[p0:p].sort()
+        for q in range(p0, p):
+            pos[c_ind[q]] = q
+            for r in range(R):
+                for s in range(S):
+                    c_dat[q, r, s] = 0.0
+        # constant block sizes for the common cases (LLVM unrolls the block product)
+        if R == 1 and N == 1 and S == 1:
+            _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 1, 1, 1)
+        elif R == 2 and N == 1 and S == 2:
+            _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 2, 1, 2)
+        elif R == 3 and N == 1 and S == 3:
+            _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 3, 1, 3)
+        elif R == 2 and N == 3 and S == 2:
+            _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 2, 3, 2)
+        elif R == 3 and N == 6 and S == 3:
+            _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 3, 6, 3)
+        elif R == 2 and N == 4 and S == 2:
+            _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 2, 4, 2)
+        elif R == 3 and N == 9 and S == 3:
+            _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 3, 9, 3)
+        else:
+            _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, R, N, S)
+        if sizes:
+            dsize[i] = 0.0
             for q in range(p0, p):
-                pos[c_ind[q]] = q
+                m = 0.0
                 for r in range(R):
                     for s in range(S):
-                        c_dat[q, r, s] = 0.0
-            # constant block sizes for the common cases (LLVM unrolls the block product)
-            if R == 1 and N == 1 and S == 1:
-                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 1, 1, 1)
-            elif R == 2 and N == 1 and S == 2:
-                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 2, 1, 2)
-            elif R == 3 and N == 1 and S == 3:
-                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 3, 1, 3)
-            elif R == 2 and N == 3 and S == 2:
-                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 2, 3, 2)
-            elif R == 3 and N == 6 and S == 3:
-                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 3, 6, 3)
-            elif R == 2 and N == 4 and S == 2:
-                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 2, 4, 2)
-            elif R == 3 and N == 9 and S == 3:
-                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, 3, 9, 3)
-            else:
-                _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, R, N, S)
+                        v = abs(c_dat[q, r, s])
+                        if v > m:
+                            m = v
+                size[q] = m
+                if c_ind[q] == i:
+                    dsize[i] = m
 
 
 @numba.njit(parallel=True, cache=True)
@@ -285,3 +336,263 @@ def pair_blocks_fill(
                 data[diag, a, c] = v
                 if c > a:
                     data[diag, c, a] = v
+
+
+@numba.njit(nogil=True, cache=True)
+def outer_sums_fill(p0, p1, b0, b1, owner, w, a, b, out):  # pragma: no cover
+    """``out[p] = Σ w a ⊗ b`` over the bonds ``b0:b1`` of the owners ``p0:p1``.
+
+    Serial (``nogil``): the caller runs disjoint (owner, bond) runs on its threads. Each
+    sum is ``0 + (w a_r) b_c + ...`` in bond order, ``np.bincount``'s arithmetic.
+    """
+    d = a.shape[1]
+    for p in range(p0, p1):
+        for r in range(d):
+            for c in range(d):
+                out[p, r, c] = 0.0
+    for e in range(b0, b1):
+        p = owner[e]
+        for r in range(d):
+            wa = w[e] * a[e, r]
+            for c in range(d):
+                out[p, r, c] += wa * b[e, c]
+
+
+@numba.njit(nogil=True, cache=True)
+def bond_coefficients_fill(b0, b1, owner, w, xi, kinv, out):  # pragma: no cover
+    """``out[e] = w_e K⁻¹_g ξ_e`` (``g = owner[e]``) for the bonds ``b0:b1``.
+
+    Each component is ``w (0 + K⁻¹_a0 ξ_0 + K⁻¹_a1 ξ_1 ...)``: the numpy path's order.
+    """
+    d = xi.shape[1]
+    for e in range(b0, b1):
+        g = owner[e]
+        for r in range(d):
+            s = 0.0
+            for q in range(d):
+                s += kinv[g, r, q] * xi[e, q]
+            out[e, r] = w[e] * s
+
+
+@numba.njit(nogil=True, cache=True)
+def gradient_blocks_fill(
+    p0,
+    p1,
+    bptr,
+    gptr,
+    gp_of_bond,
+    j,
+    c,
+    indptr,
+    col,
+    val,
+    is_diag,
+    bond_block,
+    owner_block,
+    tiny,
+):  # pragma: no cover
+    """Blocks of the gradient points of the points ``p0:p1`` (correspondence ``G``).
+
+    Point ``p`` owns the gradient points ``gptr[p]:gptr[p+1]`` and the bonds
+    ``bptr[p]:bptr[p+1]`` (increasing neighbours ``j != p``); gradient point ``g`` gets one
+    block per bond (value ``c_e``, column ``j_e``) and the owner's block (column ``p``,
+    value ``-Σ c`` in bond order, snapped to 0 where ``|Σ c| <= tiny Σ |c|``) in column
+    order from ``indptr[g]``. The values are those of the sorting path.
+    """
+    d = c.shape[1]
+    dsum = np.empty(d)
+    ssum = np.empty(d)
+    for p in range(p0, p1):
+        b0 = bptr[p]
+        b1 = bptr[p + 1]
+        for g in range(gptr[p], gptr[p + 1]):
+            base = indptr[g]
+            k = 0
+            nless = 0
+            for q in range(d):
+                dsum[q] = 0.0
+                ssum[q] = 0.0
+            for e in range(b0, b1):
+                if gp_of_bond[e] != g:
+                    continue
+                jj = j[e]
+                pos = base + k
+                if jj > p:
+                    pos += 1
+                else:
+                    nless += 1
+                k += 1
+                bond_block[e] = pos
+                col[pos] = jj
+                is_diag[pos] = False
+                for q in range(d):
+                    v = c[e, q]
+                    val[pos, q] = v
+                    dsum[q] += v
+                    ssum[q] += abs(v)
+            dpos = base + nless
+            owner_block[g] = dpos
+            col[dpos] = p
+            is_diag[dpos] = True
+            for q in range(d):
+                v = -dsum[q]
+                if abs(v) <= tiny * ssum[q]:
+                    v = 0.0
+                val[dpos, q] = v
+
+
+@numba.njit(nogil=True, cache=True)
+def half_space_fill(b0, b1, xi, basis, vnorm, out):  # pragma: no cover
+    """Stress-point sides of the bonds ``b0:b1`` for every case (``out[s, e]``).
+
+    Case ``s`` puts bond ``e`` on side 1 when the first basis vector ``v`` of the case
+    with ``|ξ·v| > 1e-9 |ξ| |v|`` has ``ξ·v > 0`` (``basis (n_cases, m, d)``, ``vnorm``
+    their norms).
+    """
+    n_cases = basis.shape[0]
+    m = basis.shape[1]
+    d = xi.shape[1]
+    for e in range(b0, b1):
+        nrm = 0.0
+        for q in range(d):
+            nrm += xi[e, q] * xi[e, q]
+        tol = 1e-9 * np.sqrt(nrm)
+        for s in range(n_cases):
+            key = 0.0
+            for k in range(m):
+                proj = 0.0
+                for q in range(d):
+                    proj += xi[e, q] * basis[s, k, q]
+                if abs(proj) > tol * vnorm[s, k]:
+                    key = proj
+                    break
+            out[s, e] = key > 0.0
+
+
+@numba.njit(inline="always", cache=True)
+def _ratio_ok_2d(a, b, c, min_ratio):  # pragma: no cover
+    mid = 0.5 * (a + c)
+    rad = np.hypot(0.5 * (a - c), b)
+    return mid - rad >= min_ratio * max(mid + rad, 1e-300)
+
+
+@numba.njit(nogil=True, cache=True)
+def sp_halves_2d(p0, p1, bptr, xi, wv, geo, sides, min_ratio, bal_tol, ok):  # pragma: no cover
+    """Per point ``p0:p1`` (2D): in every case both half families' shape tensors are well
+    conditioned (``λ_min/λ_max >= min_ratio``) and balanced (``‖2 K_1 - K‖_F <= bal_tol
+    ‖K‖_F`` on the ``geo`` weights): ``_halves_well_conditioned`` per point chunk."""
+    n_cases = sides.shape[0]
+    for p in range(p0, p1):
+        b0 = bptr[p]
+        b1 = bptr[p + 1]
+        k00 = k01 = k11 = 0.0
+        g00 = g01 = g11 = 0.0
+        for e in range(b0, b1):
+            x0 = xi[e, 0]
+            x1 = xi[e, 1]
+            k00 += wv[e] * x0 * x0
+            k01 += wv[e] * x0 * x1
+            k11 += wv[e] * x1 * x1
+            g00 += geo[e] * x0 * x0
+            g01 += geo[e] * x0 * x1
+            g11 += geo[e] * x1 * x1
+        scale = np.sqrt(g00 * g00 + 2.0 * g01 * g01 + g11 * g11)
+        good = True
+        for s in range(n_cases):
+            h00 = h01 = h11 = 0.0
+            q00 = q01 = q11 = 0.0
+            for e in range(b0, b1):
+                if sides[s, e]:
+                    x0 = xi[e, 0]
+                    x1 = xi[e, 1]
+                    h00 += wv[e] * x0 * x0
+                    h01 += wv[e] * x0 * x1
+                    h11 += wv[e] * x1 * x1
+                    q00 += geo[e] * x0 * x0
+                    q01 += geo[e] * x0 * x1
+                    q11 += geo[e] * x1 * x1
+            d00 = 2.0 * q00 - g00
+            d01 = 2.0 * q01 - g01
+            d11 = 2.0 * q11 - g11
+            balanced = np.sqrt(d00 * d00 + 2.0 * d01 * d01 + d11 * d11) <= bal_tol * scale
+            if not (
+                balanced
+                and _ratio_ok_2d(h00, h01, h11, min_ratio)
+                and _ratio_ok_2d(k00 - h00, k01 - h01, k11 - h11, min_ratio)
+            ):
+                good = False
+                break
+        ok[p] = good
+
+
+@numba.njit(nogil=True, cache=True)
+def block_sizes_fill(r0, r1, ptr, ind, data, size, dsize):  # pragma: no cover
+    """``size[k] = max |block k|`` for the blocks of the rows ``r0:r1`` and ``dsize[r]`` that
+    of row ``r``'s diagonal block (0 when it has none)."""
+    R = data.shape[1]
+    C = data.shape[2]
+    for r in range(r0, r1):
+        dsize[r] = 0.0
+        for k in range(ptr[r], ptr[r + 1]):
+            m = 0.0
+            for a in range(R):
+                for b in range(C):
+                    v = abs(data[k, a, b])
+                    if v > m:
+                        m = v
+            size[k] = m
+            if ind[k] == r:
+                dsize[r] = m
+
+
+@numba.njit(nogil=True, cache=True)
+def block_keep_fill(r0, r1, ptr, ind, size, dsize, eps2, keep, counts):  # pragma: no cover
+    """Keep a block when ``size² > eps2 dsize[r] dsize[c]`` or it is diagonal; kept per row."""
+    for r in range(r0, r1):
+        cnt = 0
+        for k in range(ptr[r], ptr[r + 1]):
+            c = ind[k]
+            kp = c == r or size[k] * size[k] > eps2 * (dsize[r] * dsize[c])
+            keep[k] = kp
+            if kp:
+                cnt += 1
+        counts[r] = cnt
+
+
+@numba.njit(nogil=True, cache=True)
+def block_compress_fill(
+    r0, r1, ptr, ind, data, keep, out_ptr, out_ind, out_dat
+):  # pragma: no cover
+    """Copy the kept blocks of the rows ``r0:r1`` to their slots from ``out_ptr``."""
+    R = data.shape[1]
+    C = data.shape[2]
+    for r in range(r0, r1):
+        q = out_ptr[r]
+        for k in range(ptr[r], ptr[r + 1]):
+            if keep[k]:
+                out_ind[q] = ind[k]
+                for a in range(R):
+                    for b in range(C):
+                        out_dat[q, a, b] = data[k, a, b]
+                q += 1
+
+
+@numba.njit(nogil=True, cache=True)
+def rows_with_diagonal(r0, r1, ptr, ind, has):  # pragma: no cover
+    """``has[r]``: block row ``r`` of a BSR array stores its diagonal block."""
+    for r in range(r0, r1):
+        h = False
+        for k in range(ptr[r], ptr[r + 1]):
+            if ind[k] == r:
+                h = True
+                break
+        has[r] = h
+
+
+@numba.njit(nogil=True, cache=True)
+def sp_gp_of_bond(p0, p1, bptr, base, full, chosen, first, out):  # pragma: no cover
+    """Gradient point of each bond of the points ``p0:p1``: ``base[p]``, plus 1 (stress
+    point 2) when ``p`` has two and the bond is not on side 1 of ``p``'s case."""
+    for p in range(p0, p1):
+        for e in range(bptr[p], bptr[p + 1]):
+            out[e] = base[p] + (1 if full[p] and not first[chosen[p], e] else 0)

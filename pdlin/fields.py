@@ -41,6 +41,19 @@ def _per_point_outer(
         out = np.empty((n, d, d))
         fill(out, 0, n, 0, nb)
         return out
+    from ._kernels import _kernels
+
+    mod = _kernels()
+    if mod is not None:  # one nogil pass per run (np.bincount holds the GIL): same sums
+        kern = mod.outer_sums_fill
+        own_c = np.ascontiguousarray(owner, dtype=np.int64)
+        w_c = np.ascontiguousarray(w, dtype=np.float64)
+        a_c = np.ascontiguousarray(a, dtype=np.float64)
+        b_c = a_c if b is a else np.ascontiguousarray(b, dtype=np.float64)
+
+        def fill(out: np.ndarray, p0: int, p1: int, b0: int, b1: int) -> None:
+            kern(p0, p1, b0, b1, own_c, w_c, a_c, b_c, out)
+
     targets = np.arange(_CHUNK, nb, _CHUNK)
     if bool(np.all(owner[1:] >= owner[:-1])):  # sorted: cut where an owner's run starts
         cuts = np.unique(np.searchsorted(owner, owner[targets], side="left"))

@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .._kernels import bsr_matmul, bsr_transpose
+from .._kernels import _kernels, bsr_matmul, bsr_transpose, use_numba
 from .._threads import even_chunks, ptr_chunks, thread_map
 from .._validation import as_displacement, as_float_array, check_finite, integer
 from ..constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
@@ -82,22 +82,44 @@ SP_MIN_RATIO = 1e-2
 SP_BALANCE_TOL = 1e-6
 
 
+def _half_space_basis(s: np.ndarray, d: int) -> list[np.ndarray]:
+    """The orthogonal basis of case ``s`` whose projections decide a bond's side."""
+    basis = [np.asarray(s, dtype=float)]
+    if d >= 2:
+        t = np.zeros(d)
+        t[0], t[1] = -s[1], s[0]
+        basis.append(t)
+    if d == 3:
+        basis.append(np.cross(basis[0], basis[1]))
+    return basis
+
+
+def _sides(bonds: Bonds, cases: np.ndarray) -> np.ndarray:
+    """``(n_cases, nb)`` bool: :func:`_half_space` of every case (numba: bond chunks on
+    the threads)."""
+    xi = bonds.xi
+    mod = _kernels() if use_numba(xi.size * cases.shape[0]) else None
+    if mod is None:
+        return np.stack([_half_space(xi, s) for s in cases])
+    d = xi.shape[1]
+    basis = np.array([_half_space_basis(s, d) for s in cases])  # (n_cases, d, d)
+    vnorm = np.linalg.norm(basis, axis=2)
+    out = np.empty((cases.shape[0], xi.shape[0]), dtype=bool)
+    xi_c = np.ascontiguousarray(xi, dtype=np.float64)
+    kern = mod.half_space_fill
+    thread_map(
+        lambda r: kern(r[0], r[1], xi_c, basis, vnorm, out), even_chunks(xi.shape[0], _ROW_CHUNK)
+    )
+    return out
+
+
 def _half_space(xi: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Bonds owned by stress point 1 of case ``s``: ``s·ξ > 0``, ties by orthogonal vectors.
 
     ``ξ`` and ``-ξ`` always land on different sides, so the two halves of a point-symmetric
     family are mirror images (each holds half of its shape tensor).
     """
-    d = xi.shape[1]
-    basis = [np.asarray(s, dtype=float)]
-    if d >= 2:
-        t = np.zeros(d)
-        t[0], t[1] = -s[1], s[0]
-        if d == 3:
-            t[2] = 0.0
-        basis.append(t)
-    if d == 3:
-        basis.append(np.cross(basis[0], basis[1]))
+    basis = _half_space_basis(s, xi.shape[1])
     tol = 1e-9 * np.linalg.norm(xi, axis=1)
     key = np.zeros(xi.shape[0])
     undecided = np.ones(xi.shape[0], dtype=bool)
@@ -168,8 +190,27 @@ def _halves_well_conditioned(
     surfaces; unbalanced halves of truncated families are not (measured: 1.1 % patch-test
     error on a free-surface 2D bar at δ = 3h).
     """
-    full_k = _per_point_outer(bonds.i, n, omega_v, bonds.xi, bonds.xi)
     geo = omega_v if omega is None else omega
+    mod = _kernels() if use_numba(bonds.xi.size * sides.shape[0]) else None
+    if mod is not None and bonds.dim == 2 and bonds.n_points == n:
+        # one nogil pass per point chunk on the threads (the same tensors; the decisions
+        # compare with tolerances far above round-off)
+        ok2 = np.empty(n, dtype=bool)
+        bptr = np.asarray(bonds.indptr, dtype=np.int64)
+        args = (
+            bptr,
+            np.ascontiguousarray(bonds.xi, dtype=np.float64),
+            np.ascontiguousarray(omega_v, dtype=np.float64),
+            np.ascontiguousarray(geo, dtype=np.float64),
+            np.ascontiguousarray(sides),
+            SP_MIN_RATIO,
+            SP_BALANCE_TOL,
+            ok2,
+        )
+        kern = mod.sp_halves_2d
+        thread_map(lambda r: kern(r[0], r[1], *args), ptr_chunks(bptr, _POINT_CHUNK))
+        return ok2
+    full_k = _per_point_outer(bonds.i, n, omega_v, bonds.xi, bonds.xi)
     full_g = _per_point_outer(bonds.i, n, geo, bonds.xi, bonds.xi)
     scale = np.sqrt(np.einsum("nij,nij->n", full_g, full_g))
     ok = np.ones(n, dtype=bool)
@@ -225,11 +266,32 @@ def _coefficients(
     kinv_override: Mapping[int, np.ndarray] | None = None,
     override_rows: np.ndarray | None = None,
     override_kinv: np.ndarray | None = None,
+    ptrs: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
-    """Bond coefficients ``c_b = ω V_j K_g⁻¹ ξ`` (nb, d); K_g from the gradient point's bonds."""
+    """Bond coefficients ``c_b = ω V_j K_g⁻¹ ξ`` (nb, d); K_g from the gradient point's bonds.
+
+    ``ptrs = (bptr, gptr)``: point ``p`` owns the bonds ``bptr[p]:bptr[p+1]`` and the
+    gradient points ``gptr[p]:gptr[p+1]`` of those bonds (no control, stress points):
+    with numba the shape tensors are then summed over point chunks on the threads.
+    """
     d = xi.shape[1]
     w = omega * volume_j
-    K = _per_point_outer(owner_b, n_gp, w, xi, xi)  # the shape tensor of pdlin.fields
+    mod = _kernels() if ptrs is not None and use_numba(xi.size) else None
+    K: np.ndarray
+    if mod is not None and ptrs is not None:
+        bptr, gptr = ptrs
+        kern = mod.outer_sums_fill
+        K = np.empty((n_gp, d, d))
+        own_c = np.ascontiguousarray(owner_b, dtype=np.int64)
+        xi_c = np.ascontiguousarray(xi, dtype=np.float64)
+        w_c = np.ascontiguousarray(w, dtype=np.float64)
+
+        def sums(r: tuple[int, int]) -> None:  # each sum in bond order: np.bincount's bits
+            kern(gptr[r[0]], gptr[r[1]], bptr[r[0]], bptr[r[1]], own_c, w_c, xi_c, xi_c, K)
+
+        thread_map(sums, ptr_chunks(bptr, _POINT_CHUNK))
+    else:
+        K = _per_point_outer(owner_b, n_gp, w, xi, xi)  # the shape tensor of pdlin.fields
     if override_rows is not None and override_rows.size:
         assert override_kinv is not None
         K[override_rows] = np.linalg.inv(override_kinv)
@@ -256,7 +318,20 @@ def _coefficients(
         Kinv = np.linalg.inv(K)
     if override_rows is not None and override_rows.size:
         Kinv[override_rows] = override_kinv
+    Kinv = np.ascontiguousarray(Kinv, dtype=np.float64)
     out = np.empty_like(xi)
+    mod = _kernels() if use_numba(xi.size) else None
+    if mod is not None:  # one nogil pass per bond chunk, the numpy path's arithmetic
+        kern = mod.bond_coefficients_fill
+        own_c = np.ascontiguousarray(owner_b, dtype=np.int64)
+        xi_c = np.ascontiguousarray(xi, dtype=np.float64)
+        w_c = np.ascontiguousarray(w, dtype=np.float64)
+
+        def fused(rng: tuple[int, int]) -> None:
+            kern(rng[0], rng[1], own_c, w_c, xi_c, Kinv, out)
+
+        thread_map(fused, even_chunks(xi.shape[0], _ROW_CHUNK))
+        return out
     cols = [np.ascontiguousarray(Kinv[:, :, q]) for q in range(d)]
 
     def chunk(rng: tuple[int, int]) -> None:  # fixed bond chunks on the threads (elementwise)
@@ -293,7 +368,12 @@ class _GradientBlocks:
 
 
 def _gradient_blocks(
-    gp_owner: np.ndarray, gp_of_bond: np.ndarray, j: np.ndarray, c: np.ndarray, n_points: int
+    gp_owner: np.ndarray,
+    gp_of_bond: np.ndarray,
+    j: np.ndarray,
+    c: np.ndarray,
+    n_points: int,
+    ptrs: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> _GradientBlocks:
     """Block structure of G from bond coefficients; round-off diagonals snapped to 0.
 
@@ -302,7 +382,9 @@ def _gradient_blocks(
     """
     d = c.shape[1]
     n_gp = gp_owner.size
-    fast = _owner_sorted_blocks(gp_owner, gp_of_bond, j, c, n_points)
+    fast = _fused_blocks(gp_owner, gp_of_bond, j, c, n_points, ptrs)
+    if fast is None:
+        fast = _owner_sorted_blocks(gp_owner, gp_of_bond, j, c, n_points)
     if fast is not None:
         return fast
     # diagonal -Σ_b c_gb per gradient point; exact zero on intact (symmetric) horizons
@@ -338,6 +420,67 @@ def _gradient_blocks(
     np.cumsum(np.bincount(g, minlength=n_gp), out=indptr[1:])
     nb = j.size
     return _GradientBlocks(indptr, keys - g * n_points, vals, is_diag, block_of[:nb], block_of[nb:])
+
+
+def _fused_blocks(
+    gp_owner: np.ndarray,
+    gp_of_bond: np.ndarray,
+    j: np.ndarray,
+    c: np.ndarray,
+    n_points: int,
+    ptrs: tuple[np.ndarray, np.ndarray] | None = None,
+) -> _GradientBlocks | None:
+    """The blocks of :func:`_gradient_blocks` in one numba pass per point chunk, when each
+    point owns consecutive gradient points and the bonds of those gradient points in the
+    :class:`Bonds` order (no control, stress points): None otherwise (or without numba).
+
+    A gradient point's blocks are its bonds in order (increasing, distinct neighbours,
+    none the owner) with the owner's block among them: their slots are known from the
+    counts, so point chunks write them on the threads (``np.bincount``, which the sorting
+    path sums with, holds the GIL); the sums run over the same bonds in the same order:
+    the same arrays bitwise.
+    """
+    n_gp, nb, d = gp_owner.size, j.size, c.shape[1]
+    mod = _kernels() if use_numba(nb * d) else None
+    if mod is None or n_gp == 0:
+        return None
+    if ptrs is not None:  # the structure is known (see _coefficients)
+        bptr, gptr = ptrs
+        own_b = np.repeat(np.arange(n_points), np.diff(bptr))
+    else:
+        if not bool(np.all(gp_owner[1:] >= gp_owner[:-1])):
+            return None
+        own_b = gp_owner[gp_of_bond]  # point of each bond
+        if not bool(np.all(own_b[1:] >= own_b[:-1])):
+            return None
+        pts = np.arange(n_points + 1)
+        gptr = np.searchsorted(gp_owner, pts).astype(np.int64)
+        bptr = np.searchsorted(own_b, pts).astype(np.int64)
+    if bool(np.any(j == own_b)) or not bool(np.all((j[1:] > j[:-1]) | (own_b[1:] != own_b[:-1]))):
+        return None
+    per_gp = np.bincount(gp_of_bond, minlength=n_gp)
+    indptr = np.zeros(n_gp + 1, dtype=np.int64)
+    np.cumsum(per_gp + 1, out=indptr[1:])
+    nblk = int(indptr[-1])
+    col = np.empty(nblk, dtype=np.int64)
+    val = np.empty((nblk, d))
+    is_diag = np.empty(nblk, dtype=bool)
+    bond_block = np.empty(nb, dtype=np.int64)
+    owner_block = np.empty(n_gp, dtype=np.int64)
+    kern = mod.gradient_blocks_fill
+    gob = np.ascontiguousarray(gp_of_bond, dtype=np.int64)
+    jc = np.ascontiguousarray(j, dtype=np.int64)
+    cc = np.ascontiguousarray(c, dtype=np.float64)
+    tiny = 64 * np.finfo(float).eps
+
+    def chunk(rng: tuple[int, int]) -> None:
+        kern(
+            rng[0], rng[1], bptr, gptr, gob, jc, cc, indptr, col, val, is_diag, bond_block,
+            owner_block, tiny,
+        )  # fmt: skip
+
+    thread_map(chunk, ptr_chunks(bptr, _POINT_CHUNK))
+    return _GradientBlocks(indptr, col, val, is_diag, bond_block, owner_block)
 
 
 def _owner_sorted_blocks(
@@ -546,6 +689,9 @@ def _mean_per_point(owner: np.ndarray, values: np.ndarray, n: int) -> np.ndarray
 _ROW_CHUNK = 1 << 15
 #: stored blocks per chunk of block rows in the zero-block dropping
 _DROP_CHUNK = 1 << 16
+#: bonds per chunk of points in the numba passes over points (coefficients, G's blocks,
+#: stress-point sides)
+_POINT_CHUNK = 1 << 16
 
 
 def _rows_matmul(A: np.ndarray, M: np.ndarray, row_scale: np.ndarray | None = None) -> np.ndarray:
@@ -562,7 +708,9 @@ def _rows_matmul(A: np.ndarray, M: np.ndarray, row_scale: np.ndarray | None = No
     return out
 
 
-def _drop_zero_blocks(K: sp.bsr_array) -> sp.bsr_array:
+def _drop_zero_blocks(
+    K: sp.bsr_array, sizes: tuple[np.ndarray, np.ndarray] | None = None
+) -> sp.bsr_array:
     """``K`` without its stored blocks that cancel in exact arithmetic.
 
     At δ = h the nearest-neighbour blocks of ``Wᵀ W`` cancel exactly (the decoupled
@@ -571,10 +719,14 @@ def _drop_zero_blocks(K: sp.bsr_array) -> sp.bsr_array:
     entries ~1e-17 of the diagonal, 4.6 % more blocks on a 24³ grid), so an off-diagonal
     block ``(i, j)`` is dropped when ``max|K_ij| <= 16 ε sqrt(max|K_ii| max|K_jj|)``: below
     the round-off of the product itself, symmetric in ``(i, j)`` (``K`` stays bitwise
-    symmetric) and independent of the units. Diagonal blocks are always kept.
+    symmetric) and independent of the units. Diagonal blocks are always kept. ``sizes``:
+    the block sizes of :func:`pdlin._kernels.bsr_matmul` (``block_sizes=True``), if known.
     """
     nrow = K.shape[0] // K.blocksize[0]
     ptr = np.asarray(K.indptr, dtype=np.int64)
+    mod = _kernels() if use_numba(K.data.size) else None
+    if mod is not None:
+        return _drop_zero_blocks_fused(K, mod, sizes)
     flat = K.data.reshape(K.data.shape[0], -1)
     size = np.empty(flat.shape[0])
     dsize = np.zeros(nrow)
@@ -582,7 +734,7 @@ def _drop_zero_blocks(K: sp.bsr_array) -> sp.bsr_array:
     # on the thread count); the kept blocks are copied chunk by chunk into their slots
     chunks = ptr_chunks(ptr, _DROP_CHUNK)
 
-    def sizes(rng: tuple[int, int]) -> None:
+    def block_sizes(rng: tuple[int, int]) -> None:
         r0, r1 = rng
         b0, b1 = int(ptr[r0]), int(ptr[r1])
         sz = size[b0:b1]
@@ -594,7 +746,7 @@ def _drop_zero_blocks(K: sp.bsr_array) -> sp.bsr_array:
         on = K.indices[b0:b1] == brow
         dsize[brow[on]] = sz[on]
 
-    thread_map(sizes, chunks)
+    thread_map(block_sizes, chunks)
     keep = np.empty(flat.shape[0], dtype=bool)
     counts = np.empty(nrow, dtype=np.int64)
     eps2 = (16.0 * np.finfo(float).eps) ** 2
@@ -637,6 +789,47 @@ def _drop_zero_blocks(K: sp.bsr_array) -> sp.bsr_array:
     return sp.bsr_array((data, indices, indptr), shape=K.shape, blocksize=K.blocksize)
 
 
+def _drop_zero_blocks_fused(
+    K: sp.bsr_array, mod: Any, sizes: tuple[np.ndarray, np.ndarray] | None
+) -> sp.bsr_array:
+    """:func:`_drop_zero_blocks` in nogil numba passes over row chunks on the threads
+    (block sizes unless given, kept blocks, copy): the same decisions and arrays."""
+    nrow = K.shape[0] // K.blocksize[0]
+    ptr = np.asarray(K.indptr, dtype=np.int64)
+    ind = np.ascontiguousarray(K.indices)
+    data = np.ascontiguousarray(K.data)
+    chunks = ptr_chunks(ptr, _DROP_CHUNK)
+    if sizes is None:
+        size = np.empty(data.shape[0])
+        dsize = np.empty(nrow)
+        thread_map(lambda r: mod.block_sizes_fill(r[0], r[1], ptr, ind, data, size, dsize), chunks)
+    else:
+        size, dsize = sizes
+    keep = np.empty(data.shape[0], dtype=bool)
+    counts = np.empty(nrow, dtype=np.int64)
+    eps2 = (16.0 * np.finfo(float).eps) ** 2
+    thread_map(
+        lambda r: mod.block_keep_fill(r[0], r[1], ptr, ind, size, dsize, eps2, keep, counts),
+        chunks,
+    )
+    if int(counts.sum()) == data.shape[0]:
+        return K
+    indptr = np.zeros(nrow + 1, dtype=np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    total = int(indptr[-1])
+    out_dat = np.empty((total,) + data.shape[1:])
+    out_ind = np.empty(total, dtype=ind.dtype)
+    thread_map(
+        lambda r: mod.block_compress_fill(
+            r[0], r[1], ptr, ind, data, keep, indptr, out_ind, out_dat
+        ),
+        chunks,
+    )
+    return sp.bsr_array(
+        (out_dat, out_ind, indptr.astype(K.indptr.dtype)), shape=K.shape, blocksize=K.blocksize
+    )
+
+
 def _with_diagonal_blocks(K: sp.sparray, d: int) -> sp.bsr_array:
     """``K`` as BSR with every diagonal block stored (explicit zeros where empty).
 
@@ -645,9 +838,19 @@ def _with_diagonal_blocks(K: sp.sparray, d: int) -> sp.bsr_array:
     """
     Kb = sp.bsr_array(K, blocksize=(d, d))
     nrow = Kb.shape[0] // d
-    rows = np.repeat(np.arange(nrow), np.diff(Kb.indptr))
-    has = np.zeros(nrow, dtype=bool)
-    has[rows[Kb.indices == rows]] = True
+    mod = _kernels() if use_numba(Kb.indices.size) else None
+    if mod is not None:  # row chunks on the threads
+        has = np.empty(nrow, dtype=bool)
+        ptr = np.asarray(Kb.indptr, dtype=np.int64)
+        ind = np.ascontiguousarray(Kb.indices)
+        thread_map(
+            lambda r: mod.rows_with_diagonal(r[0], r[1], ptr, ind, has),
+            ptr_chunks(ptr, _DROP_CHUNK),
+        )
+    else:
+        rows = np.repeat(np.arange(nrow), np.diff(Kb.indptr))
+        has = np.zeros(nrow, dtype=bool)
+        has[rows[Kb.indices == rows]] = True
     if has.all():
         return Kb
     Kc = sp.coo_array(Kb)
@@ -670,22 +873,24 @@ class _Plan:
     omega: np.ndarray  # (nb,) weights used
     blocks: _GradientBlocks  # G by (gradient point, point) blocks
     n_points: int
-    #: () -> (D, Cv): D (n_gp, d*d, d*d) w V C_ijkl (0 for energy-free points), Cv (n_gp, nv,
-    #: nv) Voigt stiffness of the owner; evaluated on first use (a nonlinear material's
-    #: small-strain tangent is only needed by the linearized operators)
+    #: () -> Cv (n_gp, nv, nv): Voigt stiffness of the owner (read-only; a broadcast view
+    #: for one material), and (Cv) -> D (n_gp, d*d, d*d): w V C_ijkl (0 for energy-free
+    #: points); both evaluated on first use (a nonlinear material's small-strain tangent
+    #: is only needed by the linearized operators; the assembly needs Cv only)
     stiffness_fn: Any = dataclasses.field(compare=False, repr=False)
+    d_fn: Any = dataclasses.field(compare=False, repr=False)
     _lazy: dict[str, Any] = dataclasses.field(default_factory=dict, compare=False, repr=False)
 
     @property
     def D(self) -> np.ndarray:
         if "D" not in self._lazy:
-            self._lazy["D"], self._lazy["Cv"] = self.stiffness_fn()
+            self._lazy["D"] = self.d_fn(self.Cv)
         return self._lazy["D"]
 
     @property
     def Cv(self) -> np.ndarray:
         if "Cv" not in self._lazy:
-            self._lazy["D"], self._lazy["Cv"] = self.stiffness_fn()
+            self._lazy["Cv"] = self.stiffness_fn()
         return self._lazy["Cv"]
 
     @property
@@ -1100,7 +1305,7 @@ class Correspondence(Model):
         # SP1 of case s owns the bonds with s·ξ > 0 (ties broken by the next vectors of an
         # orthogonal basis); for nearest-neighbour axis bonds this is spec 003's
         # {s_k e_k} / {-s_k e_k} split, for larger horizons its half-space extension
-        first = np.stack([_half_space(bonds.xi, s) for s in cases])  # (n_cases, nb)
+        first = _sides(bonds, cases)  # (n_cases, nb)
         omega = self.bond_weights(cloud, bonds)
         full = _halves_well_conditioned(bonds, omega * bonds.volume_j, first, n, omega)
         if bonds.n_bonds and not full.any():
@@ -1129,8 +1334,19 @@ class Correspondence(Model):
         n_sp = np.where(full, 2, 1)
         base = np.zeros(n, dtype=np.intp)
         np.cumsum(n_sp[:-1], out=base[1:])
-        second = full[bonds.i] & ~first[chosen[bonds.i], np.arange(bonds.n_bonds)]
-        gp_of_bond = base[bonds.i] + second
+        mod = _kernels() if use_numba(bonds.n_bonds) else None
+        if mod is not None:  # point chunks on the threads
+            gp_of_bond = np.empty(bonds.n_bonds, dtype=np.intp)
+            bptr = np.asarray(bonds.indptr, dtype=np.int64)
+            thread_map(
+                lambda r: mod.sp_gp_of_bond(
+                    r[0], r[1], bptr, base, full, chosen, first, gp_of_bond
+                ),
+                ptr_chunks(bptr, _POINT_CHUNK),
+            )
+        else:
+            second = full[bonds.i] & ~first[chosen[bonds.i], np.arange(bonds.n_bonds)]
+            gp_of_bond = base[bonds.i] + second
         gp_owner = np.repeat(np.arange(n), n_sp)
         # one-SP weight: spec 003 §4.3 (w_s for every SP) on the paper's nearest-neighbour
         # families; beyond them a one-SP particle is an ordinary gradient point carrying its
@@ -1177,16 +1393,25 @@ class Correspondence(Model):
                 # a half family holds half the intact tensor (§4.2, one bond per axis at
                 # δ = h); a one-SP particle of weight 2 w_s beyond δ = h holds all of it
                 kinv = kinv[None] * (2.0 * self.sp_weight / w[rows])[:, None, None]
+        # each point owns its bonds and the gradient points of those (_gradient_points)
+        gptr = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(np.bincount(gp_owner, minlength=n), out=gptr[1:])
+        ptrs = (np.asarray(bonds.indptr, dtype=np.int64), gptr)
         c = _coefficients(
             gp_of_bond, n_gp, omega, bonds.volume_j, bonds.xi,
-            override_rows=rows, override_kinv=kinv,
+            override_rows=rows, override_kinv=kinv, ptrs=ptrs,
         )  # fmt: skip
-        blocks = _gradient_blocks(gp_owner, gp_of_bond, bonds.j, c, n)
+        blocks = _gradient_blocks(gp_owner, gp_of_bond, bonds.j, c, n, ptrs)
         vol = np.asarray(cloud.volumes) * (1.0 if d == 3 else cloud.thickness)
         scale = w * vol[gp_owner] * energy
 
-        def stiffness_fn() -> tuple[np.ndarray, np.ndarray]:
-            Cv = self.voigt_stiffness(cloud)[gp_owner]
+        def stiffness_fn() -> np.ndarray:
+            V = self.voigt_stiffness(cloud)
+            if V.ndim == 3 and V.shape[0] and V.strides[0] == 0:  # one C: a view, no copy
+                return np.broadcast_to(V[0], (n_gp,) + V.shape[1:])
+            return V[gp_owner]
+
+        def d_fn(Cv: np.ndarray) -> np.ndarray:
             P = voigt_projector(d)
             D = np.empty((Cv.shape[0], d * d, d * d))
 
@@ -1195,11 +1420,11 @@ class Correspondence(Model):
                 D[g0:g1] = (P.T @ Cv[g0:g1] @ P) * scale[g0:g1, None, None]
 
             thread_map(chunk, even_chunks(Cv.shape[0], _ROW_CHUNK))
-            return D, Cv
+            return D
 
-        plan = _Plan(gp_owner, gp_of_bond, w, energy, omega, blocks, n, stiffness_fn)
+        plan = _Plan(gp_owner, gp_of_bond, w, energy, omega, blocks, n, stiffness_fn, d_fn)
         if self.material is None:  # validate C now (errors at plan time)
-            plan.D  # noqa: B018
+            plan.Cv  # noqa: B018
         if self.control == "ads":  # S N is symmetric for constant ω, any V (see the docs)
             const = bool(np.allclose(omega, omega[0], rtol=1e-12))
             self.symmetric = const and _symmetric_tangent(self.material)
@@ -1498,7 +1723,8 @@ class Correspondence(Model):
         Wdata = self._root_blocks(p, blk, bdata, scale) if (scale >= 0).all() else None
         if Wdata is not None:
             W = sp.bsr_array((Wdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
-            return _drop_zero_blocks(bsr_matmul(bsr_transpose(W), W))
+            K, sizes = bsr_matmul(bsr_transpose(W), W, block_sizes=True)
+            return _drop_zero_blocks(K, sizes)
         Bdata = bdata()
         B = sp.bsr_array((Bdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
         ar = np.arange(n_gp + 1, dtype=np.int32)
@@ -1524,7 +1750,8 @@ class Correspondence(Model):
         nv = p.Cv.shape[1]
         root = np.sqrt(scale)[blk.row]
         try:
-            if (p.Cv == p.Cv[0]).all():  # one material: one (n_v·d x d) map for all blocks
+            one = p.Cv.strides[0] == 0 or bool((p.Cv == p.Cv[0]).all())
+            if one:  # one material: one (n_v·d x d) map for all blocks
                 L0 = np.linalg.cholesky(p.Cv[0])
                 M = (L0.T @ voigt_projector(d)).reshape(nv * d, d)
                 # one (nblk, n_v·d) product, scaled in place, in fixed row chunks on threads

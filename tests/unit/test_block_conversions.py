@@ -8,6 +8,8 @@ from the same coefficients), compared bitwise (sign of zero included where state
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -247,19 +249,24 @@ def _drop_zero_blocks_before(K: sp.bsr_array) -> sp.bsr_array:
     )
 
 
+@pytest.mark.parametrize("numba_on", [True, False])
 @pytest.mark.parametrize("dim", [2, 3])
-def test_drop_zero_blocks_threaded_equals_serial(monkeypatch: pytest.MonkeyPatch, dim) -> None:
+def test_drop_zero_blocks_threaded_equals_serial(
+    monkeypatch: pytest.MonkeyPatch, dim, numba_on
+) -> None:
     """δ = h: the nearest-neighbour blocks of Wᵀ W cancel and are dropped; the threaded
-    pass (small chunks: many per thread, empty block rows included) keeps the same blocks."""
+    pass (small chunks: many per thread, empty block rows included) keeps the same blocks,
+    numpy chunks or numba passes, with the block sizes computed or given by the product."""
     from pdlin.models import correspondence as corr
 
     cloud = pdlin.grid((9, 8, 7) if dim == 3 else (31, 23), spacing=0.1)
     bonds = pdlin.find_bonds(cloud, ratio=1.0)
     model = pdlin.Correspondence(E=1.0, nu=0.25, control="none", plane="strain")
     plan = model._plan(cloud, bonds)
-    monkeypatch.setattr(corr, "_drop_zero_blocks", lambda K: K)
+    monkeypatch.setattr(corr, "_drop_zero_blocks", lambda K, sizes=None: K)
     K = sp.bsr_array(model._core_stiffness(cloud, plan))
     monkeypatch.undo()
+    _numba(monkeypatch, numba_on)
     # one block row emptied (dense -> BSR stores no zero block)
     K = sp.bsr_array(
         K.toarray() * (np.arange(K.shape[0]) // dim != 5)[:, None], blocksize=K.blocksize
@@ -267,9 +274,15 @@ def test_drop_zero_blocks_threaded_equals_serial(monkeypatch: pytest.MonkeyPatch
     ref = _drop_zero_blocks_before(K)
     assert ref.nnz < K.nnz  # blocks were dropped
     monkeypatch.setattr(corr, "_DROP_CHUNK", 37)  # many chunks on this small K
+    monkeypatch.setattr(_kernels, "_MIN_WORK", 0)
+    size = np.abs(K.data).max(axis=(1, 2))
+    rows = np.repeat(np.arange(K.shape[0] // dim), np.diff(K.indptr))
+    dsize = np.zeros(K.shape[0] // dim)
+    dsize[rows[K.indices == rows]] = size[K.indices == rows]
     for nt in (1, 2, 3):
         pdlin.set_num_threads(nt)
         assert _bits_equal(corr._drop_zero_blocks(K), ref)
+        assert _bits_equal(corr._drop_zero_blocks(K, (size, dsize)), ref)
 
 
 @pytest.mark.parametrize("numba_on", [True, False])
@@ -369,31 +382,52 @@ def test_per_point_outer_threaded_equals_one_bincount(monkeypatch: pytest.Monkey
             assert np.array_equal(got.view(np.int64), ref.view(np.int64))
 
 
+@pytest.mark.parametrize("numba_on", [True, False])
+@pytest.mark.parametrize("control", ["none", "stress_points"])
 @pytest.mark.parametrize("dim", [2, 3])
-def test_gradient_blocks_owner_sorted_path_equals_sort(monkeypatch, dim: int) -> None:
-    """No control: G's blocks written in place in point chunks (1-3 threads) equal the
-    sorting path's arrays bitwise (diagonals snapped to 0 on intact horizons included)."""
+def test_gradient_blocks_fast_paths_equal_sort(monkeypatch, dim: int, control, numba_on) -> None:
+    """G's blocks written in place in point chunks (1-3 threads; numba: one or two gradient
+    points per point, with or without the known point structure; numpy: one per point) equal
+    the sorting path's arrays bitwise (diagonals snapped to 0 on intact horizons included)."""
     from pdlin.models import correspondence as corr
 
+    _numba(monkeypatch, numba_on)
     cloud = pdlin.grid((21, 17) if dim == 2 else (8, 7, 6), spacing=0.1)
     bonds = pdlin.find_bonds(cloud, ratio=2.0, influence="inverse")
-    c = corr._coefficients(bonds.i, cloud.n, bonds.omega, bonds.volume_j, bonds.xi)
-    args = (np.arange(cloud.n), bonds.i, bonds.j, c, cloud.n)
-    fast = corr._owner_sorted_blocks
+    model = pdlin.Correspondence(E=1.0, nu=0.25, plane="strain", control=control)
+    gp_owner, gp_of_bond, _ = model._gradient_points(cloud, bonds)
+    n_gp = gp_owner.size
+    c = corr._coefficients(gp_of_bond, n_gp, bonds.omega, bonds.volume_j, bonds.xi)
+    gptr = np.concatenate([[0], np.cumsum(np.bincount(gp_owner, minlength=cloud.n))])
+    ptrs = (np.asarray(bonds.indptr, dtype=np.int64), gptr.astype(np.int64))
+    args = (gp_owner, gp_of_bond, bonds.j, c, cloud.n)
+    fused, owner_sorted = corr._fused_blocks, corr._owner_sorted_blocks
+    monkeypatch.setattr(corr, "_fused_blocks", lambda *a: None)
     monkeypatch.setattr(corr, "_owner_sorted_blocks", lambda *a: None)
     ref = corr._gradient_blocks(*args)  # one sort of the (g, point) keys
-    monkeypatch.setattr(corr, "_owner_sorted_blocks", fast)
+    monkeypatch.setattr(corr, "_fused_blocks", fused)
+    monkeypatch.setattr(corr, "_owner_sorted_blocks", owner_sorted)
     assert (ref.val[ref.diag] == 0.0).any()  # interior diagonals snapped
+    assert (n_gp > cloud.n) == (control == "stress_points")
     for nt in (1, 2, 3):
         pdlin.set_num_threads(nt)
-        got = corr._gradient_blocks(*args)
-        for f in ("indptr", "col", "diag", "bond_block", "owner_block"):
-            a, b = getattr(got, f), getattr(ref, f)
-            assert a.dtype == b.dtype and np.array_equal(a, b), f
-        assert np.array_equal(got.val.view(np.int64), ref.val.view(np.int64))
+        paths = [corr._gradient_blocks(*args), corr._gradient_blocks(*args, ptrs)]
+        paths += [fused(*args), fused(*args, ptrs), owner_sorted(*args)]
+        assert (paths[2] is not None) == numba_on
+        assert (paths[4] is not None) == (control == "none")
+        for got in paths:
+            if got is None:
+                continue
+            for f in ("indptr", "col", "diag", "bond_block", "owner_block"):
+                a, b = getattr(got, f), getattr(ref, f)
+                assert a.dtype == b.dtype and np.array_equal(a, b), f
+            assert np.array_equal(got.val.view(np.int64), ref.val.view(np.int64))
     # other layouts take the sorting path
-    assert fast(np.arange(cloud.n)[::-1].copy(), *args[1:]) is None
-    assert fast(np.arange(cloud.n), bonds.i[::-1].copy(), *args[2:]) is None
+    order = np.arange(n_gp)[::-1].copy()
+    assert fused(order, *args[1:]) is None and owner_sorted(order, *args[1:]) is None
+    flipped = args[1][::-1].copy()
+    assert fused(args[0], flipped, *args[2:]) is None
+    assert owner_sorted(args[0], flipped, *args[2:]) is None
 
 
 @pytest.mark.parametrize("dim", [1, 2, 3])
@@ -435,3 +469,44 @@ def test_pair_stiffness_fused_kernel_equals_numpy_path(
         assert np.abs(K.data[~off] - ref.data[~off]).max() <= 1e-15 * scale
         first = K if first is None else first
         assert _bits_equal(K, first)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_stress_point_plan_numba_equals_numpy(monkeypatch: pytest.MonkeyPatch, dim: int) -> None:
+    """Stress points: sides, balanced halves, gradient points of the bonds and the bond
+    coefficients summed over point chunks (numba, 1-3 threads, many small chunks) equal the
+    numpy path's arrays bitwise, on a lattice (two stress points inside, one at the
+    surface) and on a perturbed cloud (unbalanced halves: mostly one)."""
+    from pdlin.models import correspondence as corr
+
+    pytest.importorskip("numba")
+    shape = (19, 16) if dim == 2 else (7, 6, 6)
+    lattice = pdlin.grid(shape, spacing=0.1)
+    pts = lattice.points + np.random.default_rng(3).normal(scale=0.004, size=lattice.points.shape)
+    perturbed = pdlin.PointCloud(pts, volumes=lattice.volumes)
+    for cloud, horizon in ((lattice, 0.2001), (perturbed, 0.25)):
+        bonds = pdlin.find_bonds(cloud, horizon=horizon)
+
+        def plan(cloud: pdlin.PointCloud, bonds: pdlin.Bonds) -> tuple[np.ndarray, ...]:
+            model = pdlin.Correspondence(E=1.0, nu=0.25, plane="strain", control="stress_points")
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)  # perturbed: no two-SP point
+                owner, gob, w = model._gradient_points(cloud, bonds)
+            gptr = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=cloud.n))])
+            ptrs = (np.asarray(bonds.indptr, dtype=np.int64), gptr.astype(np.int64))
+            args = (gob, owner.size, bonds.omega, bonds.volume_j, bonds.xi)
+            c = corr._coefficients(*args, ptrs=ptrs)
+            return owner, gob, w, c, corr._coefficients(*args)
+
+        monkeypatch.setattr(_kernels, "_loaded", False)
+        ref = plan(cloud, bonds)
+        monkeypatch.setattr(_kernels, "_loaded", None)
+        monkeypatch.setattr(corr, "_POINT_CHUNK", 40)
+        monkeypatch.setattr(corr, "_ROW_CHUNK", 50)
+        assert ref[0].size > cloud.n or cloud is perturbed  # two stress points somewhere
+        for nt in (1, 2, 3):
+            pdlin.set_num_threads(nt)
+            got = plan(cloud, bonds)
+            for a, b in zip(got, ref, strict=True):
+                assert a.dtype == b.dtype and np.array_equal(a, b)
+            assert np.array_equal(got[3].view(np.int64), ref[3].view(np.int64))

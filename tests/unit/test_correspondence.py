@@ -684,7 +684,7 @@ def test_stiffness_falls_back_for_indefinite_material_blocks():
     p = model._plan(cloud, bonds)
     bad = p.Cv.copy()
     bad[5] = np.diag([1.0, -0.5, 0.3])  # indefinite: no Cholesky factor
-    q = dataclasses.replace(p, stiffness_fn=lambda: (p.D, bad), _lazy={})
+    q = dataclasses.replace(p, stiffness_fn=lambda: bad, _lazy={})
     K = sp.csr_array(model._core_stiffness(cloud, q)).toarray()
     assert np.array_equal(K, K.T)  # the fallback symmetrizes
     P = voigt_projector(2)

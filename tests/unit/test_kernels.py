@@ -95,6 +95,30 @@ def test_bsr_matmul_identical_across_thread_counts(shape) -> None:
         assert np.array_equal(C.data, out[0].data)
 
 
+@pytest.mark.parametrize("shape", [(2, 3, 2), (3, 6, 3), (1, 1, 1)])
+def test_bsr_matmul_block_sizes(shape) -> None:
+    """``block_sizes=True``: the same product bitwise, ``max |block|`` of every stored block
+    and of each row's diagonal block (0 where a row stores none), on 1-3 threads."""
+    R, N, S = shape
+    rng = np.random.default_rng(11)
+    A = _random_bsr(rng, 60, 50, (R, N), 0.08, empty_rows=[4, 59])
+    B = _random_bsr(rng, 50, 60, (N, S), 0.08)
+    plain = bsr_matmul(A, B)
+    for nt in (1, 2, 3):
+        pdlin.set_num_threads(nt)
+        C, (size, dsize) = bsr_matmul(A, B, block_sizes=True)
+        assert np.array_equal(C.indptr, plain.indptr)
+        assert np.array_equal(C.indices, plain.indices)
+        assert np.array_equal(C.data, plain.data)
+        assert np.array_equal(size, np.abs(C.data).max(axis=(1, 2)))
+        rows = np.repeat(np.arange(60), np.diff(C.indptr))
+        ref = np.zeros(60)
+        on = C.indices == rows
+        ref[rows[on]] = size[on]
+        assert np.array_equal(dsize, ref)
+        assert not on[np.isin(rows, [4, 59])].any() and dsize[[4, 59]].tolist() == [0.0, 0.0]
+
+
 def test_disabled_by_environment_and_fallback(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("PDLIN_NUMBA", "0")
     assert not _kernels.numba_enabled()
