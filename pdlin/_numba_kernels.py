@@ -390,6 +390,7 @@ def gradient_blocks_fill(
     bond_block,
     owner_block,
     tiny,
+    layout_ok,
 ):  # pragma: no cover
     """Blocks of the gradient points of the points ``p0:p1`` (correspondence ``G``).
 
@@ -397,7 +398,9 @@ def gradient_blocks_fill(
     ``bptr[p]:bptr[p+1]`` (increasing neighbours ``j != p``); gradient point ``g`` gets one
     block per bond (value ``c_e``, column ``j_e``) and the owner's block (column ``p``,
     value ``-Σ c`` in bond order, snapped to 0 where ``|Σ c| <= tiny Σ |c|``) in column
-    order from ``indptr[g]``. The values are those of the sorting path.
+    order from ``indptr[g]``. The values are those of the sorting path. ``layout_ok[p]`` is
+    False when a bond of ``p`` breaks that layout (neighbours not increasing, or ``p``
+    itself): the caller then discards the blocks.
     """
     d = c.shape[1]
     dsum = np.empty(d)
@@ -405,6 +408,11 @@ def gradient_blocks_fill(
     for p in range(p0, p1):
         b0 = bptr[p]
         b1 = bptr[p + 1]
+        ok = True
+        for e in range(b0, b1):
+            if j[e] == p or (e > b0 and j[e] <= j[e - 1]):
+                ok = False
+        layout_ok[p] = ok
         for g in range(gptr[p], gptr[p + 1]):
             base = indptr[g]
             k = 0
@@ -596,3 +604,52 @@ def sp_gp_of_bond(p0, p1, bptr, base, full, chosen, first, out):  # pragma: no c
     for p in range(p0, p1):
         for e in range(bptr[p], bptr[p + 1]):
             out[e] = base[p] + (1 if full[p] and not first[chosen[p], e] else 0)
+
+
+@numba.njit(nogil=True, cache=True)
+def coefficients_2d_fill(p0, p1, bptr, gptr, owner, w, xi, K, bad, out):  # pragma: no cover
+    """2D bond coefficients ``w_e K_g⁻¹ ξ_e`` of the points ``p0:p1`` in one pass: shape
+    tensors ``K_g`` (sums in bond order), their inverses (adjugate / det) and the
+    coefficients, with the arithmetic of the numpy path; ``bad[g]`` flags a singular
+    ``K_g`` (``|det| <= 1e-12 (|tr| / 2)²``), whose coefficients are left unset."""
+    for p in range(p0, p1):
+        g0 = gptr[p]
+        g1 = gptr[p + 1]
+        for g in range(g0, g1):
+            K[g, 0, 0] = 0.0
+            K[g, 0, 1] = 0.0
+            K[g, 1, 0] = 0.0
+            K[g, 1, 1] = 0.0
+        b0 = bptr[p]
+        b1 = bptr[p + 1]
+        for e in range(b0, b1):
+            g = owner[e]
+            for r in range(2):
+                wa = w[e] * xi[e, r]
+                for c in range(2):
+                    K[g, r, c] += wa * xi[e, c]
+        for g in range(g0, g1):
+            k00 = K[g, 0, 0]
+            k01 = K[g, 0, 1]
+            k10 = K[g, 1, 0]
+            k11 = K[g, 1, 1]
+            det = k00 * k11 - k01 * k10
+            tr = abs(k00 + k11)
+            ref = max(tr / 2, 1e-300)
+            bad[g] = not (abs(det) > 1e-12 * (ref * ref))
+            if bad[g]:
+                continue
+            # the inverse, stored in place of K
+            K[g, 0, 0] = k11 / det
+            K[g, 1, 1] = k00 / det
+            K[g, 0, 1] = -k01 / det
+            K[g, 1, 0] = -k10 / det
+        for e in range(b0, b1):
+            g = owner[e]
+            if bad[g]:
+                continue
+            for r in range(2):
+                s = 0.0
+                s += K[g, r, 0] * xi[e, 0]
+                s += K[g, r, 1] * xi[e, 1]
+                out[e, r] = w[e] * s

@@ -82,6 +82,45 @@ SP_MIN_RATIO = 1e-2
 SP_BALANCE_TOL = 1e-6
 
 
+def _coefficients_2d_fused(
+    mod: Any,
+    ptrs: tuple[np.ndarray, np.ndarray],
+    owner_b: np.ndarray,
+    n_gp: int,
+    w: np.ndarray,
+    xi: np.ndarray,
+) -> np.ndarray:
+    """:func:`_coefficients` in 2D as one numba pass per point chunk (shape tensors, their
+    inverses and the coefficients; the numpy path's arithmetic and error)."""
+    bptr, gptr = ptrs
+    K = np.empty((n_gp, 2, 2))
+    bad = np.empty(n_gp, dtype=bool)
+    out = np.empty_like(xi, dtype=np.float64)
+    args = (
+        bptr,
+        gptr,
+        np.ascontiguousarray(owner_b, dtype=np.int64),
+        np.ascontiguousarray(w, dtype=np.float64),
+        np.ascontiguousarray(xi, dtype=np.float64),
+        K,
+        bad,
+        out,
+    )
+    kern = mod.coefficients_2d_fill
+    thread_map(lambda r: kern(r[0], r[1], *args), ptr_chunks(bptr, _POINT_CHUNK))
+    if bad.any():
+        _raise_singular(np.flatnonzero(bad), 2)
+    return out
+
+
+def _raise_singular(bad: np.ndarray, d: int) -> None:
+    raise ModelError(
+        f"shape tensor must be invertible at every gradient point, got {bad.size} singular "
+        f"one(s) (first: gradient point {int(bad[0])}); its bonds do not span {d}D "
+        "(isolated points, one-point-wide strips, or weights with Ω = 0)"
+    )
+
+
 def _half_space_basis(s: np.ndarray, d: int) -> list[np.ndarray]:
     """The orthogonal basis of case ``s`` whose projections decide a bond's side."""
     basis = [np.asarray(s, dtype=float)]
@@ -278,6 +317,8 @@ def _coefficients(
     w = omega * volume_j
     mod = _kernels() if ptrs is not None and use_numba(xi.size) else None
     K: np.ndarray
+    if mod is not None and ptrs is not None and d == 2 and override_rows is None:
+        return _coefficients_2d_fused(mod, ptrs, owner_b, n_gp, w, xi)
     if mod is not None and ptrs is not None:
         bptr, gptr = ptrs
         kern = mod.outer_sums_fill
@@ -302,11 +343,7 @@ def _coefficients(
         det = np.linalg.det(K)
     bad = np.flatnonzero(~(np.abs(det) > 1e-12 * np.maximum(tr / d, 1e-300) ** d))
     if bad.size:
-        raise ModelError(
-            f"shape tensor must be invertible at every gradient point, got {bad.size} singular "
-            f"one(s) (first: gradient point {int(bad[0])}); its bonds do not span {d}D "
-            "(isolated points, one-point-wide strips, or weights with Ω = 0)"
-        )
+        _raise_singular(bad, d)
     if d == 2:  # adjugate / det (as accurate as LU for 2 x 2)
         Kinv = np.empty_like(K)
         Kinv[:, 0, 0] = K[:, 1, 1]
@@ -446,7 +483,6 @@ def _fused_blocks(
         return None
     if ptrs is not None:  # the structure is known (see _coefficients)
         bptr, gptr = ptrs
-        own_b = np.repeat(np.arange(n_points), np.diff(bptr))
     else:
         if not bool(np.all(gp_owner[1:] >= gp_owner[:-1])):
             return None
@@ -456,8 +492,6 @@ def _fused_blocks(
         pts = np.arange(n_points + 1)
         gptr = np.searchsorted(gp_owner, pts).astype(np.int64)
         bptr = np.searchsorted(own_b, pts).astype(np.int64)
-    if bool(np.any(j == own_b)) or not bool(np.all((j[1:] > j[:-1]) | (own_b[1:] != own_b[:-1]))):
-        return None
     per_gp = np.bincount(gp_of_bond, minlength=n_gp)
     indptr = np.zeros(n_gp + 1, dtype=np.int64)
     np.cumsum(per_gp + 1, out=indptr[1:])
@@ -472,14 +506,17 @@ def _fused_blocks(
     jc = np.ascontiguousarray(j, dtype=np.int64)
     cc = np.ascontiguousarray(c, dtype=np.float64)
     tiny = 64 * np.finfo(float).eps
+    layout_ok = np.empty(n_points, dtype=bool)
 
     def chunk(rng: tuple[int, int]) -> None:
         kern(
             rng[0], rng[1], bptr, gptr, gob, jc, cc, indptr, col, val, is_diag, bond_block,
-            owner_block, tiny,
+            owner_block, tiny, layout_ok,
         )  # fmt: skip
 
     thread_map(chunk, ptr_chunks(bptr, _POINT_CHUNK))
+    if not layout_ok.all():  # repeated neighbours (periodic images) or a bond to itself
+        return None
     return _GradientBlocks(indptr, col, val, is_diag, bond_block, owner_block)
 
 

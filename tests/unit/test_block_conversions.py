@@ -510,3 +510,31 @@ def test_stress_point_plan_numba_equals_numpy(monkeypatch: pytest.MonkeyPatch, d
             for a, b in zip(got, ref, strict=True):
                 assert a.dtype == b.dtype and np.array_equal(a, b)
             assert np.array_equal(got[3].view(np.int64), ref[3].view(np.int64))
+
+
+def test_gradient_blocks_fused_declines_repeated_neighbours(monkeypatch) -> None:
+    """A point bonded twice to one neighbour (periodic images) or to itself: the numba pass
+    flags the layout and the sorting path, which sums the repeated pairs, builds G."""
+    from pdlin.models import correspondence as corr
+
+    pytest.importorskip("numba")
+    cloud = pdlin.grid((6, 5), spacing=1.0)
+    bonds = pdlin.find_bonds(cloud, ratio=2.0)
+    n = cloud.n
+    c = corr._coefficients(bonds.i, n, bonds.omega, bonds.volume_j, bonds.xi)
+    ptrs = (np.asarray(bonds.indptr, dtype=np.int64), np.arange(n + 1, dtype=np.int64))
+    fused = corr._fused_blocks
+    b0 = int(bonds.indptr[7])  # the bonds of point 7
+    for change in ("repeat", "self"):
+        j = bonds.j.copy()
+        j[b0 + 1] = j[b0] if change == "repeat" else 7
+        args = (np.arange(n), bonds.i, j, c, n)
+        assert fused(*args) is None and fused(*args, ptrs) is None
+        got = corr._gradient_blocks(*args, ptrs)
+        monkeypatch.setattr(corr, "_fused_blocks", lambda *a: None)
+        monkeypatch.setattr(corr, "_owner_sorted_blocks", lambda *a: None)
+        ref = corr._gradient_blocks(*args)
+        monkeypatch.setattr(corr, "_fused_blocks", fused)
+        assert got.col.size == bonds.n_bonds + n - 1  # the repeated pair summed into one
+        for f in ("indptr", "col", "val", "diag", "bond_block", "owner_block"):
+            assert np.array_equal(getattr(got, f), getattr(ref, f)), f
