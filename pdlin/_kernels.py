@@ -17,8 +17,17 @@ numba installed (``pip install "pdlin[fast]"``) these run row-parallel on
   threads and 1.8 x faster than its numpy chunks on one, docs/large_problems.md);
 - :func:`bsr_matmul`: ``A @ B`` of two BSR arrays (block sizes ``R x N`` and ``N x S``,
   any of 1, 2, 3, ...), a two-pass row-parallel Gustavson product (blocks per row, then
-  sorted block columns and values); used by the LPS / XOSB assembly (``K = Xᵀ Y``) and
-  the correspondence assembly (``Wᵀ W``, ``Bᵀ (D B)`` and the tangent ``Gᵀ (A G)``).
+  sorted block columns and values; optionally the largest entry of every block, computed
+  while the row is in cache); used by the LPS / XOSB assembly (``K = Xᵀ Y``) and
+  the correspondence assembly (``Wᵀ W``, ``Bᵀ (D B)`` and the tangent ``Gᵀ (A G)``);
+- the correspondence plan and its clean-up, each a ``nogil`` pass over point (or block
+  row) chunks on pdlin's thread pool, the numpy path's arithmetic in the same order (the
+  same arrays bitwise; ``np.bincount``, which that path sums with, holds the GIL):
+  per-point outer-product sums (shape tensors, :func:`pdlin.fields.shape_tensor`), the
+  bond coefficients ``ω V K⁻¹ ξ`` (in 2D shape tensor, inverse and coefficients in one
+  pass), the blocks of ``G`` for one or two gradient points per point, the stress-point
+  sides and balanced-halves test (2D), the gradient point of each bond, the zero-block
+  dropping of ``Wᵀ W`` and the check for stored diagonal blocks.
 
 The conversions and the transpose count blocks per (row chunk, column) in a first
 pass, so each chunk then writes its own slots; on one thread (CPU time, measured while
