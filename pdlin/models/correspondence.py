@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -731,14 +731,21 @@ _DROP_CHUNK = 1 << 16
 _POINT_CHUNK = 1 << 16
 
 
-def _rows_matmul(A: np.ndarray, M: np.ndarray, row_scale: np.ndarray | None = None) -> np.ndarray:
-    """``A @ M`` (times ``row_scale`` per row), computed in fixed row chunks on threads."""
+def _rows_matmul(
+    A: np.ndarray,
+    M: np.ndarray,
+    row_scale: np.ndarray | Callable[[int, int], np.ndarray] | None = None,
+) -> np.ndarray:
+    """``A @ M`` (times ``row_scale`` per row: an array, or a function giving the scales of
+    the rows ``a:b``), computed in fixed row chunks on threads."""
     out = np.empty((A.shape[0], M.shape[1]))
 
     def chunk(rng: tuple[int, int]) -> None:
         a, b = rng
         np.matmul(A[a:b], M, out=out[a:b])
-        if row_scale is not None:
+        if callable(row_scale):
+            out[a:b] *= row_scale(a, b)[:, None]
+        elif row_scale is not None:
             out[a:b] *= row_scale[a:b, None]
 
     thread_map(chunk, even_chunks(A.shape[0], _ROW_CHUNK))
@@ -1247,8 +1254,9 @@ class Correspondence(Model):
                     if d == 3
                     else isotropic_2d(1.0, self.nu, plane=self.plane)
                 )
-            Eb = np.broadcast_to(E, (n,))
-            return Eb[:, None, None] * base[None]
+            if E.ndim == 0:  # one material: a read-only view, as for one C below
+                return np.broadcast_to(E * base, (n, nv, nv))
+            return E[:, None, None] * base[None]
         C = self.C
         per_material = isinstance(C, Mapping) or (
             isinstance(C, list | tuple) and len(C) > 0 and np.ndim(C[0]) == 2
@@ -1785,14 +1793,22 @@ class Correspondence(Model):
         nblk = blk.col.size
         d = blk.val.shape[1]
         nv = p.Cv.shape[1]
-        root = np.sqrt(scale)[blk.row]
+        sq = np.sqrt(scale)
+        ptr = blk.indptr
         try:
             one = p.Cv.strides[0] == 0 or bool((p.Cv == p.Cv[0]).all())
             if one:  # one material: one (n_v·d x d) map for all blocks
                 L0 = np.linalg.cholesky(p.Cv[0])
                 M = (L0.T @ voigt_projector(d)).reshape(nv * d, d)
+
+                def root_rows(a: int, b: int) -> np.ndarray:  # √scale of blocks a:b
+                    g0 = int(np.searchsorted(ptr, a, side="right")) - 1
+                    g1 = int(np.searchsorted(ptr, b, side="left"))
+                    cnt = np.minimum(ptr[g0 + 1 : g1 + 1], b) - np.maximum(ptr[g0:g1], a)
+                    return np.repeat(sq[g0:g1], cnt)
+
                 # one (nblk, n_v·d) product, scaled in place, in fixed row chunks on threads
-                W = _rows_matmul(blk.val, M.T, root)
+                W = _rows_matmul(blk.val, M.T, root_rows)
                 return W.reshape(nblk, nv, d)
             Lr = np.linalg.cholesky(p.Cv)[blk.row]
         except np.linalg.LinAlgError:
@@ -1801,7 +1817,7 @@ class Correspondence(Model):
         W = np.zeros((nblk, nv, d))
         for b in range(nv):  # Lᵀ B per block
             W += Lr[:, b, :, None] * Bdata[:, b, None, :]
-        return W * root[:, None, None]
+        return W * sq[blk.row][:, None, None]
 
     def apply(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
         """Matrix-free ``K u`` through G (and the bonds for the penalty), ``(n*d,)``."""
