@@ -25,7 +25,9 @@ def _per_point_outer(
     When the bonds split into consecutive runs whose owners do not interleave (sorted
     owners, as in :class:`Bonds`, or the two half families of a point's stress points),
     fixed runs of about ``_CHUNK`` bonds are summed on the threads, each owner's sum over
-    the same bonds in the same order as one global ``np.bincount``: the same bits.
+    the same bonds in the same order as one global ``np.bincount``: the same bits (with
+    numba, each run is one ``nogil`` pass of that arithmetic, since ``np.bincount`` holds
+    the GIL and its chunks would run one at a time).
     """
     d = a.shape[1]
     nb = owner.size

@@ -538,3 +538,25 @@ def test_gradient_blocks_fused_declines_repeated_neighbours(monkeypatch) -> None
         assert got.col.size == bonds.n_bonds + n - 1  # the repeated pair summed into one
         for f in ("indptr", "col", "val", "diag", "bond_block", "owner_block"):
             assert np.array_equal(getattr(got, f), getattr(ref, f)), f
+
+
+def test_fused_2d_coefficients_report_singular_shape_tensors() -> None:
+    """A one-point-wide strip has collinear bonds: the fused 2D pass raises the numpy
+    path's error (count and first gradient point) instead of dividing by det = 0."""
+    from pdlin.errors import ModelError
+    from pdlin.models import correspondence as corr
+
+    pytest.importorskip("numba")
+    cloud = pdlin.grid((40, 1), spacing=0.1)
+    bonds = pdlin.find_bonds(cloud, ratio=2.0)
+    n = cloud.n
+    ptrs = (np.asarray(bonds.indptr, dtype=np.int64), np.arange(n + 1, dtype=np.int64))
+    args = (bonds.i, n, bonds.omega, bonds.volume_j, bonds.xi)
+    with pytest.raises(
+        ModelError, match="got 40 singular one\\(s\\) \\(first: gradient point 0\\)"
+    ):
+        corr._coefficients(*args, ptrs=ptrs)
+    with pytest.raises(
+        ModelError, match="got 40 singular one\\(s\\) \\(first: gradient point 0\\)"
+    ):
+        corr._coefficients(*args)
