@@ -63,7 +63,7 @@ import logging
 import os
 import threading
 from types import ModuleType
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
 import scipy.sparse as sp
@@ -163,6 +163,16 @@ def _edges(weight: np.ndarray, n_chunks: int) -> np.ndarray:
     targets = np.linspace(0, float(weight[-1]), n_chunks + 1)
     edges = np.searchsorted(weight, targets[1:-1], side="left")
     return np.unique(np.concatenate([[0], edges, [n_rows]])).astype(np.int64)
+
+
+@overload
+def bsr_matmul(A: Any, B: Any, *, block_sizes: Literal[False] = ...) -> sp.bsr_array: ...
+
+
+@overload
+def bsr_matmul(
+    A: Any, B: Any, *, block_sizes: Literal[True]
+) -> tuple[sp.bsr_array, tuple[np.ndarray, np.ndarray] | None]: ...
 
 
 def bsr_matmul(A: Any, B: Any, *, block_sizes: bool = False) -> Any:
