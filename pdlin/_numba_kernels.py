@@ -653,3 +653,69 @@ def coefficients_2d_fill(p0, p1, bptr, gptr, owner, w, xi, K, bad, out):  # prag
                 s += K[g, r, 0] * xi[e, 0]
                 s += K[g, r, 1] * xi[e, 1]
                 out[e, r] = w[e] * s
+
+
+@numba.njit(inline="always", cache=True)
+def _cell_slot(ukeys, key):  # pragma: no cover
+    """Index of ``key`` in the sorted ``ukeys`` or -1."""
+    lo = 0
+    hi = ukeys.size
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if ukeys[mid] < key:
+            lo = mid + 1
+        else:
+            hi = mid
+    if lo < ukeys.size and ukeys[lo] == key:
+        return lo
+    return -1
+
+
+@numba.njit(nogil=True, cache=True)
+def cell_pairs(
+    p0, p1, pts, cell, dims, strides, offsets, ukeys, cell_ptr, order, r2, ptr, out, out_xi
+):  # pragma: no cover
+    """Neighbours ``j != i`` with ``|x_j - x_i|² <= r2`` of the points ``p0:p1`` from a cell
+    list (cells of edge ``>= sqrt(r2)``, the points of occupied cell ``ukeys[c]`` are
+    ``order[cell_ptr[c]:cell_ptr[c+1]]``). With ``out`` empty only the counts are written
+    (``ptr[i]``); else each row ``out[ptr[i]:ptr[i+1]]`` gets its neighbours, sorted, and
+    ``out_xi`` their bond vectors ``x_j - x_i``."""
+    d = pts.shape[1]
+    count_only = out.size == 0
+    nbr = np.empty(d, np.int64)
+    for i in range(p0, p1):
+        c = 0
+        base = 0 if count_only else ptr[i]
+        for o in range(offsets.shape[0]):
+            key = 0
+            inside = True
+            for k in range(d):
+                nbr[k] = cell[i, k] + offsets[o, k]
+                if nbr[k] < 0 or nbr[k] >= dims[k]:
+                    inside = False
+                key += nbr[k] * strides[k]
+            if not inside:
+                continue
+            slot = _cell_slot(ukeys, key)
+            if slot < 0:
+                continue
+            for q in range(cell_ptr[slot], cell_ptr[slot + 1]):
+                j = order[q]
+                if j == i:
+                    continue
+                s = 0.0
+                for k in range(d):
+                    t = pts[j, k] - pts[i, k]
+                    s += t * t
+                if s <= r2:
+                    if not count_only:
+                        out[base + c] = j
+                    c += 1
+        if count_only:
+            ptr[i] = c
+        else:
+            out[base : base + c].sort()
+            for q in range(base, base + c):
+                j = out[q]
+                for k in range(d):
+                    out_xi[q, k] = pts[j, k] - pts[i, k]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -329,12 +330,86 @@ def _lattice_pairs(
     return rows, j, vec[cols], length[cols]
 
 
+#: points per chunk of the threaded cell-list search
+_CELL_CHUNK = 1 << 13
+
+
+def _cell_candidates(
+    pts: np.ndarray, reach: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Directed candidate bonds ``(i, j, ξ = x_j - x_i)`` with ``|ξ| <= reach (1 + 1e-9)``,
+    CSR sorted, from a cell list searched in point chunks on the threads (numba); None
+    without numba, for small clouds or when the cell grid would not fit in int64 keys."""
+    from .._kernels import _kernels, use_numba
+    from .._threads import even_chunks, thread_map
+
+    n, d = pts.shape
+    mod = _kernels() if use_numba(n * 64) else None
+    if mod is None or not (reach > 0 and np.isfinite(reach)):
+        return None
+    r = reach * (1.0 + 1e-9)
+    lo = pts.min(axis=0)
+    span = (pts.max(axis=0) - lo) / r
+    if float(np.prod(np.floor(span) + 1.0)) > 2.0**62:
+        return None
+    cell = np.floor((pts - lo) / r).astype(np.int64)
+    dims = cell.max(axis=0) + 1
+    strides = np.ones(d, dtype=np.int64)
+    for k in range(d - 2, -1, -1):
+        strides[k] = strides[k + 1] * dims[k + 1]
+    key = cell @ strides
+    order = np.argsort(key, kind="stable")
+    ukeys, first = np.unique(key[order], return_index=True)
+    cell_ptr = np.append(first, n).astype(np.int64)
+    offsets = np.stack(
+        [g.ravel() for g in np.meshgrid(*([np.arange(-1, 2)] * d), indexing="ij")], axis=1
+    ).astype(np.int64)
+    args = (pts, cell, dims, strides, offsets, ukeys, cell_ptr, order, r * r)
+    counts = np.empty(n, dtype=np.int64)
+    chunks = even_chunks(n, _CELL_CHUNK)
+    empty, empty_xi = np.empty(0, dtype=np.int64), np.empty((0, d))
+    thread_map(lambda c: mod.cell_pairs(c[0], c[1], *args, counts, empty, empty_xi), chunks)
+    ptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(counts, out=ptr[1:])
+    j = np.empty(int(ptr[-1]), dtype=np.int64)
+    xi = np.empty((j.size, d))
+    thread_map(lambda c: mod.cell_pairs(c[0], c[1], *args, ptr, j, xi), chunks)
+    return np.repeat(np.arange(n, dtype=np.int64), counts), j, xi
+
+
 def _tree_pairs(
     cloud: PointCloud, hor: np.ndarray, shape: str, axes: np.ndarray | None, rtol: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Directed bonds from a cKDTree radius search, sorted into CSR order."""
+    """Directed bonds from a cKDTree radius search (or, with numba, a threaded cell-list
+    search), sorted into CSR order."""
     pts = cloud.points
     n = cloud.n
+    if shape in ("sphere", "cube"):
+        reach = float(hor.max()) * (1 + rtol)
+    else:
+        assert axes is not None
+        reach = float(np.max(axes)) * (1 + rtol)
+    if shape in ("cube", "box"):
+        reach *= math.sqrt(cloud.dim)  # the corner of the cube / box
+    cand = _cell_candidates(np.ascontiguousarray(pts, dtype=np.float64), reach)
+    if cand is not None:
+        i, j, xi = cand
+        length = np.sqrt(np.einsum("ij,ij->i", xi, xi))
+        scale = float(np.max(np.ptp(pts, axis=0))) if n > 1 else 1.0
+        dup = length <= 1e-12 * max(scale, 1e-300)
+        if dup.any():
+            k = int(np.flatnonzero(dup)[0])
+            p0, p1 = int(min(i[k], j[k])), int(max(i[k], j[k]))
+            raise DuplicatePointError(
+                f"points must be distinct, got points {p0} and {p1} both at {pts[p0].tolist()}",
+                p0,
+                p1,
+            )
+        hij = np.full(1, hor[0]) if bool(np.all(hor == hor[0])) else np.maximum(hor[i], hor[j])
+        keep = _shape_mask(xi, length, hij, shape, axes, rtol)
+        if keep.all():  # spheres: the candidates' margin rarely holds a bond
+            return i, j, xi, length
+        return i[keep], j[keep], xi[keep], length[keep]
     tree = cKDTree(pts)
     if shape == "cube":
         pairs = tree.query_pairs(float(hor.max()) * (1 + rtol), p=np.inf, output_type="ndarray")
