@@ -339,11 +339,16 @@ def _cell_candidates(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Directed candidate bonds ``(i, j, ξ = x_j - x_i)`` with ``|ξ| <= reach (1 + 1e-9)``,
     CSR sorted, from a cell list searched in point chunks on the threads (numba); None
-    without numba, for small clouds or when the cell grid would not fit in int64 keys."""
+    without numba, for small clouds, on one thread in 1D / 2D (where scipy's tree is as
+    fast) or when the cell grid would not fit in int64 keys."""
     from .._kernels import _kernels, use_numba
-    from .._threads import even_chunks, thread_map
+    from .._threads import even_chunks, get_num_threads, thread_map
 
     n, d = pts.shape
+    if d < 3 and get_num_threads() == 1:
+        # one thread in 1D / 2D: scipy's tree is as fast (401², δ = 2h: 0.17 s against
+        # 0.22 s; 3D 64,000 points, δ = 3.015h: 0.84 s against 0.43 s)
+        return None
     mod = _kernels() if use_numba(n * 64) else None
     if mod is None or not (reach > 0 and np.isfinite(reach)):
         return None
