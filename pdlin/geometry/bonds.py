@@ -382,6 +382,25 @@ def _cell_candidates(
     return np.repeat(np.arange(n, dtype=np.int64), counts), j, xi
 
 
+def _lengths_of_distinct(
+    pts: np.ndarray, a: np.ndarray, b: np.ndarray, xi: np.ndarray
+) -> np.ndarray:
+    """Bond lengths ``|ξ|``; raises for a pair of coincident points (``|ξ| <= 1e-12`` of the
+    cloud's extent), naming the first pair."""
+    length = np.sqrt(np.einsum("ij,ij->i", xi, xi))
+    scale = float(np.max(np.ptp(pts, axis=0))) if pts.shape[0] > 1 else 1.0
+    dup = length <= 1e-12 * max(scale, 1e-300)
+    if dup.any():
+        k = int(np.flatnonzero(dup)[0])
+        p0, p1 = int(min(a[k], b[k])), int(max(a[k], b[k]))
+        raise DuplicatePointError(
+            f"points must be distinct, got points {p0} and {p1} both at {pts[p0].tolist()}",
+            p0,
+            p1,
+        )
+    return length
+
+
 def _tree_pairs(
     cloud: PointCloud, hor: np.ndarray, shape: str, axes: np.ndarray | None, rtol: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -399,17 +418,7 @@ def _tree_pairs(
     cand = _cell_candidates(np.ascontiguousarray(pts, dtype=np.float64), reach)
     if cand is not None:
         i, j, xi = cand
-        length = np.sqrt(np.einsum("ij,ij->i", xi, xi))
-        scale = float(np.max(np.ptp(pts, axis=0))) if n > 1 else 1.0
-        dup = length <= 1e-12 * max(scale, 1e-300)
-        if dup.any():
-            k = int(np.flatnonzero(dup)[0])
-            p0, p1 = int(min(i[k], j[k])), int(max(i[k], j[k]))
-            raise DuplicatePointError(
-                f"points must be distinct, got points {p0} and {p1} both at {pts[p0].tolist()}",
-                p0,
-                p1,
-            )
+        length = _lengths_of_distinct(pts, i, j, xi)
         hij = np.full(1, hor[0]) if bool(np.all(hor == hor[0])) else np.maximum(hor[i], hor[j])
         keep = _shape_mask(xi, length, hij, shape, axes, rtol)
         if keep.all():  # spheres: the candidates' margin rarely holds a bond
@@ -429,17 +438,7 @@ def _tree_pairs(
     a = pairs[:, 0].astype(np.int64)
     b = pairs[:, 1].astype(np.int64)
     xi = pts[b] - pts[a]
-    length = np.sqrt(np.einsum("ij,ij->i", xi, xi))
-    scale = float(np.max(np.ptp(pts, axis=0))) if n > 1 else 1.0
-    dup = length <= 1e-12 * max(scale, 1e-300)
-    if dup.any():
-        k = int(np.flatnonzero(dup)[0])
-        p0, p1 = int(min(a[k], b[k])), int(max(a[k], b[k]))
-        raise DuplicatePointError(
-            f"points must be distinct, got points {p0} and {p1} both at {pts[p0].tolist()}",
-            p0,
-            p1,
-        )
+    length = _lengths_of_distinct(pts, a, b, xi)
     hij = np.maximum(hor[a], hor[b])
     keep = _shape_mask(xi, length, hij, shape, axes, rtol)
     a, b, xi, length = a[keep], b[keep], xi[keep], length[keep]
