@@ -8,6 +8,12 @@ bitwise identical for 1, 2, ... threads.  The arithmetic is that of scipy's spar
 without fused multiply-adds (numba does not enable floating-point contraction by default),
 so the values equal scipy's for the same operands; the block columns of each row come out
 sorted.
+
+The ``nogil`` kernels without ``prange`` (``*_fill``, ``cell_pairs``, ...) are serial: their
+callers run disjoint chunks of rows, points or bonds on pdlin's thread pool
+(:func:`pdlin._threads.thread_map`), each chunk writing only its own slots, and each repeats
+the numpy path's arithmetic in its order (sums in bond order, no contraction), so their
+arrays equal the numpy path's bitwise for any chunking and thread count.
 """
 
 from __future__ import annotations
