@@ -236,6 +236,11 @@ def euler_to_rotation(angles: ArrayLike) -> FloatArray:
     return np.asarray(Rotation.from_euler("ZXZ", a).as_matrix(), dtype=np.float64)
 
 
+#: points per chunk of the threaded :meth:`CrystalPlasticity.update` (fixed: the results do
+#: not depend on the thread count; smaller chunks cost more Python overhead per point)
+_UPDATE_CHUNK = 8192
+
+
 def _rotation_2d(theta: FloatArray) -> FloatArray:
     """Rotation matrices ``[[cos θ, -sin θ], [sin θ, cos θ]]``, shape ``θ.shape + (2, 2)``.
 
@@ -1191,8 +1196,47 @@ class CrystalPlasticity:
             ``dPdF[p, i, j, k, l] = ∂P_ij/∂F_kl`` (complex-step, active set frozen).
         """
         f = _check_F(F, self.dim)
-        n, d = f.shape[0], self.dim
+        n = f.shape[0]
         self._check_state(state_n, n)
+        if n >= 2 * _UPDATE_CHUNK:
+            # fixed chunks of points on pdlin's threads (numpy releases the GIL in the
+            # batched arithmetic; every point's update is independent): the same arrays
+            # for any thread count
+            from .._threads import even_chunks, thread_map
+
+            def rows(v: Any, a: int, b: int) -> Any:
+                return v[a:b] if isinstance(v, np.ndarray) and v.ndim and len(v) == n else v
+
+            parts = thread_map(
+                lambda c: self._update_points(
+                    f[c[0] : c[1]], {k: rows(v, c[0], c[1]) for k, v in state_n.items()}, tangent
+                ),
+                even_chunks(n, _UPDATE_CHUNK),
+            )
+            P = np.concatenate([q[0] for q in parts])
+            state = {k: np.concatenate([q[1][k] for q in parts]) for k in parts[0][1]}
+            D = np.concatenate([q[2] for q in parts]) if tangent else None
+        else:
+            P, state, D = self._update_points(f, state_n, tangent)
+        n_bad = int(np.count_nonzero(state["unsettled"]))
+        if n_bad:
+            first = int(np.argmax(state["unsettled"]))
+            warnings.warn(
+                f"CrystalPlasticity: the active-set search did not settle at {n_bad} of {n} "
+                f"point(s) (first index {first}): an inactive slip system still has "
+                f"|tau| > s (1 + {self.yield_tol:g}) after {self.max_passes} re-activation "
+                "passes or the search cycled; the solution with the smallest violation is "
+                "kept (state['unsettled']). Reduce the strain increment or raise max_passes.",
+                ActiveSetWarning,
+                stacklevel=2,
+            )
+        return P, state, D
+
+    def _update_points(
+        self, f: FloatArray, state_n: Mapping[str, Any], tangent: bool
+    ) -> tuple[FloatArray, dict[str, FloatArray], FloatArray | None]:
+        """:meth:`update` of a batch of points (validated), without the warning."""
+        n, d = f.shape[0], self.dim
         R0 = np.asarray(state_n["R0"], dtype=np.float64)
         Fp_n = np.asarray(state_n["Fp"], dtype=np.float64)
         s_n = np.asarray(state_n["s"], dtype=np.float64)
@@ -1225,18 +1269,6 @@ class CrystalPlasticity:
             "reactivated": out["reactivated"].astype(np.float64),
             "unsettled": out["unsettled"].astype(np.float64),
         }
-        n_bad = int(out["unsettled"].sum())
-        if n_bad:
-            first = int(np.argmax(out["unsettled"]))
-            warnings.warn(
-                f"CrystalPlasticity: the active-set search did not settle at {n_bad} of {n} "
-                f"point(s) (first index {first}): an inactive slip system still has "
-                f"|tau| > s (1 + {self.yield_tol:g}) after {self.max_passes} re-activation "
-                "passes or the search cycled; the solution with the smallest violation is "
-                "kept (state['unsettled']). Reduce the strain increment or raise max_passes.",
-                ActiveSetWarning,
-                stacklevel=2,
-            )
         if d == 2:
             # spec §3.2 closed form θ = θ0 + atan2(Fe21 − Fe12, Fe11 + Fe22)
             phi = np.arctan2(Fe[:, 1, 0] - Fe[:, 0, 1], Fe[:, 0, 0] + Fe[:, 1, 1])

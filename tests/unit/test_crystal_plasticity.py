@@ -587,3 +587,55 @@ def test_analytic_tangent_equals_complex_step(slip, renormalize, rng):
     np.testing.assert_allclose(Da, Db, rtol=0, atol=1e-12 * np.abs(Db).max())
     if renormalize:
         _assert_tangent(a, F[:8], {k: v[:8] for k, v in r.states[-1].items()})
+
+
+@pytest.mark.parametrize("slip", ["planar-2", "fcc", "hcp"])
+def test_update_in_point_chunks_on_threads(monkeypatch, slip):
+    """Above two chunks the update runs in fixed point chunks on the threads: P, every state
+    array and the consistent tangent are bitwise the same for 1-3 threads, equal the
+    one-batch update to round-off (BLAS / LAPACK batched products and solves differ in the
+    last bit with the batch size), and the unsettled warning counts and indexes the points
+    of the whole batch."""
+    import warnings
+
+    from pdlin.constitutive import crystal_plasticity as cpm
+
+    mat = CrystalPlasticity(slip, max_passes=0) if slip == "fcc" else CrystalPlasticity(slip)
+    rng = np.random.default_rng(7)
+    *_, (state, F, _) = _t8_path(mat, rng, n=90, steps=6)
+
+    def run() -> tuple:
+        with warnings.catch_warnings(record=True) as rec:
+            warnings.simplefilter("always")
+            out = mat.update(F, state, tangent=True)
+        return out, [str(w.message) for w in rec]
+
+    monkeypatch.setattr(cpm, "_UPDATE_CHUNK", 1 << 20)  # one batch
+    ref, ref_msg = run()
+    assert bool(ref_msg) == (slip == "fcc")  # fcc without re-activation passes: unsettled
+    monkeypatch.setattr(cpm, "_UPDATE_CHUNK", 13)  # 7 chunks
+    first = None
+    try:
+        for nt in (1, 2, 3):
+            pdlin.set_num_threads(nt)
+            (P, st, D), msg = run()
+            assert msg == ref_msg
+            assert st.keys() == ref[1].keys()
+            if first is None:
+                first = (P, st, D)
+                tol = 1e-13
+                np.testing.assert_allclose(P, ref[0], rtol=tol, atol=tol * np.abs(ref[0]).max())
+                np.testing.assert_allclose(D, ref[2], rtol=tol, atol=tol * np.abs(ref[2]).max())
+                for k in st:
+                    scale = max(np.abs(ref[1][k]).max(), 1.0)
+                    # 3D reorientation = arccos(½(tr Rᵉ - 1)): an ulp of the cosine near 1 is
+                    # ~1e-8 of a small angle
+                    atol = 1e-6 if k == "reorientation" else tol * scale
+                    np.testing.assert_allclose(st[k], ref[1][k], rtol=0, atol=atol, err_msg=k)
+            else:
+                np.testing.assert_array_equal(P, first[0])
+                np.testing.assert_array_equal(D, first[2])
+                for k in st:
+                    np.testing.assert_array_equal(st[k], first[1][k], err_msg=k)
+    finally:
+        pdlin.set_num_threads(None)
