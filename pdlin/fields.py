@@ -18,7 +18,12 @@ __all__ = [
 
 
 def _per_point_outer(
-    owner: np.ndarray, n: int, w: np.ndarray, a: np.ndarray, b: np.ndarray
+    owner: np.ndarray,
+    n: int,
+    w: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    runs: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """out[p] = Σ_{bonds of p} w a ⊗ b, vectorized with one bincount per entry.
 
@@ -27,7 +32,9 @@ def _per_point_outer(
     fixed runs of about ``_CHUNK`` bonds are summed on the threads, each owner's sum over
     the same bonds in the same order as one global ``np.bincount``: the same bits (with
     numba, each run is one ``nogil`` pass of that arithmetic, since ``np.bincount`` holds
-    the GIL and its chunks would run one at a time).
+    the GIL and its chunks would run one at a time). ``runs = (bptr, optr)``: the bonds
+    ``bptr[k]:bptr[k+1]`` have the owners ``optr[k]:optr[k+1]`` (e.g. the gradient points of
+    point ``k``), so the runs are known without a pass over the owners.
     """
     d = a.shape[1]
     nb = owner.size
@@ -57,7 +64,13 @@ def _per_point_outer(
             kern(p0, p1, b0, b1, own_c, w_c, a_c, b_c, out)
 
     targets = np.arange(_CHUNK, nb, _CHUNK)
-    if bool(np.all(owner[1:] >= owner[:-1])):  # sorted: cut where an owner's run starts
+    if runs is not None:
+        from ._threads import ptr_chunks
+
+        bptr, optr = runs
+        ends = np.array([e for _, e in ptr_chunks(bptr, _CHUNK)][:-1], dtype=np.int64)
+        cuts, first = bptr[ends], optr[ends]
+    elif bool(np.all(owner[1:] >= owner[:-1])):  # sorted: cut where an owner's run starts
         cuts = np.unique(np.searchsorted(owner, owner[targets], side="left"))
         cuts = cuts[cuts > 0]
         first = owner[cuts]

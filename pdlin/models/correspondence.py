@@ -310,29 +310,16 @@ def _coefficients(
     """Bond coefficients ``c_b = ω V_j K_g⁻¹ ξ`` (nb, d); K_g from the gradient point's bonds.
 
     ``ptrs = (bptr, gptr)``: point ``p`` owns the bonds ``bptr[p]:bptr[p+1]`` and the
-    gradient points ``gptr[p]:gptr[p+1]`` of those bonds (no control, stress points):
-    with numba the shape tensors are then summed over point chunks on the threads.
+    gradient points ``gptr[p]:gptr[p+1]`` of those bonds (no control, stress points): the
+    shape tensors are then summed over point chunks on the threads without a pass to find
+    them, and in 2D with numba tensors, inverses and coefficients are one pass.
     """
     d = xi.shape[1]
     w = omega * volume_j
     mod = _kernels() if ptrs is not None and use_numba(xi.size) else None
-    K: np.ndarray
     if mod is not None and ptrs is not None and d == 2 and override_rows is None:
         return _coefficients_2d_fused(mod, ptrs, owner_b, n_gp, w, xi)
-    if mod is not None and ptrs is not None:
-        bptr, gptr = ptrs
-        kern = mod.outer_sums_fill
-        K = np.empty((n_gp, d, d))
-        own_c = np.ascontiguousarray(owner_b, dtype=np.int64)
-        xi_c = np.ascontiguousarray(xi, dtype=np.float64)
-        w_c = np.ascontiguousarray(w, dtype=np.float64)
-
-        def sums(r: tuple[int, int]) -> None:  # each sum in bond order: np.bincount's bits
-            kern(gptr[r[0]], gptr[r[1]], bptr[r[0]], bptr[r[1]], own_c, w_c, xi_c, xi_c, K)
-
-        thread_map(sums, ptr_chunks(bptr, _POINT_CHUNK))
-    else:
-        K = _per_point_outer(owner_b, n_gp, w, xi, xi)  # the shape tensor of pdlin.fields
+    K = _per_point_outer(owner_b, n_gp, w, xi, xi, runs=ptrs)  # pdlin.fields' shape tensor
     if override_rows is not None and override_rows.size:
         assert override_kinv is not None
         K[override_rows] = np.linalg.inv(override_kinv)

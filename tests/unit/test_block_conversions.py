@@ -380,6 +380,17 @@ def test_per_point_outer_threaded_equals_one_bincount(monkeypatch: pytest.Monkey
             pdlin.set_num_threads(nt)
             got = fields._per_point_outer(owner, n, w, xi, xi)
             assert np.array_equal(got.view(np.int64), ref.view(np.int64))
+    # the stress-point halves with their runs given (point p: bonds indptr[p]:indptr[p+1],
+    # owners 2p and 2p + 1), numba passes and numpy chunks
+    owner, n = cases[1]
+    runs = (np.asarray(bonds.indptr, dtype=np.int64), 2 * np.arange(cloud.n + 1))
+    ref = before(owner, n)
+    for numba_on in (True, False):
+        monkeypatch.setattr(_kernels, "_loaded", None if numba_on else False)
+        for nt in (1, 2, 3):
+            pdlin.set_num_threads(nt)
+            got = fields._per_point_outer(owner, n, w, xi, xi, runs=runs)
+            assert np.array_equal(got.view(np.int64), ref.view(np.int64))
 
 
 @pytest.mark.parametrize("numba_on", [True, False])
