@@ -143,17 +143,24 @@ def _fill_chunk(
         else:
             _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, R, N, S)
         if sizes:
-            dsize[i] = 0.0
-            for q in range(p0, p):
-                m = 0.0
-                for r in range(R):
-                    for s in range(S):
-                        v = abs(c_dat[q, r, s])
-                        if v > m:
-                            m = v
-                size[q] = m
-                if c_ind[q] == i:
-                    dsize[i] = m
+            _row_block_sizes(i, p0, p, c_ind, c_dat, size, dsize)
+
+
+@numba.njit(inline="always", cache=True)
+def _row_block_sizes(r, k0, k1, ind, data, size, dsize):  # pragma: no cover
+    """``size[k] = max |block k|`` for the blocks ``k0:k1`` of block row ``r`` and ``dsize[r]``
+    that of its diagonal block (0 when it has none)."""
+    dsize[r] = 0.0
+    for k in range(k0, k1):
+        m = 0.0
+        for a in range(data.shape[1]):
+            for b in range(data.shape[2]):
+                v = abs(data[k, a, b])
+                if v > m:
+                    m = v
+        size[k] = m
+        if ind[k] == r:
+            dsize[r] = m
 
 
 @numba.njit(parallel=True, cache=True)
@@ -543,20 +550,8 @@ def sp_halves_2d(p0, p1, bptr, xi, wv, geo, sides, min_ratio, bal_tol, ok):  # p
 def block_sizes_fill(r0, r1, ptr, ind, data, size, dsize):  # pragma: no cover
     """``size[k] = max |block k|`` for the blocks of the rows ``r0:r1`` and ``dsize[r]`` that
     of row ``r``'s diagonal block (0 when it has none)."""
-    R = data.shape[1]
-    C = data.shape[2]
     for r in range(r0, r1):
-        dsize[r] = 0.0
-        for k in range(ptr[r], ptr[r + 1]):
-            m = 0.0
-            for a in range(R):
-                for b in range(C):
-                    v = abs(data[k, a, b])
-                    if v > m:
-                        m = v
-            size[k] = m
-            if ind[k] == r:
-                dsize[r] = m
+        _row_block_sizes(r, ptr[r], ptr[r + 1], ind, data, size, dsize)
 
 
 @numba.njit(nogil=True, cache=True)
