@@ -720,3 +720,207 @@ def cell_pairs(
                 j = out[q]
                 for k in range(d):
                     out_xi[q, k] = pts[j, k] - pts[i, k]
+
+
+@numba.njit(nogil=True, cache=True)
+def cp_planar_fill(  # pragma: no cover
+    p0, p1, f, R0, Fp_n, s_n, gamma_n, ep_n, theta0, theta_n, rate_n,
+    CS0, AelM, S0, Cm, Q, h0, ss, expo, renorm,
+    P, Fp, s, gamma, dgamma, tau, dep, ep, plastic, sign, pruned, theta, R, reor, rate, bad,
+):  # fmt: skip
+    """Planar double-slip return mapping with §3.6 pruning (``CrystalPlasticity('planar-2',
+    active_set='prune')``) of points ``p0 .. p1`` and their trial state, in the order of
+    the numpy path's operations (``_update_points``).  Sums over the 4 tensor entries or
+    the 2 systems run left to right (the numpy path's small matrix products go through
+    BLAS, so the two agree to round-off, not bitwise).  ``bad[i]`` marks a point whose
+    2 x 2 active-set matrix is singular (numpy's pseudo-inverse path): its outputs are
+    left for the caller to recompute."""
+    N = 2
+    fac = np.empty(N)
+    H = np.empty((N, N))
+    A = np.empty((N, N))
+    ttr = np.empty(N)
+    sg = np.empty(N)
+    b = np.empty(N)
+    act = np.empty(N, np.bool_)
+    trial = np.empty(N, np.bool_)
+    dg = np.zeros(N)
+    Et = np.empty(4)
+    Ce = np.empty(4)
+    g = np.empty(4)
+    tb = np.empty(4)
+    for i in range(p0, p1):
+        bad[i] = False
+        r00, r01, r10, r11 = R0[i, 0, 0], R0[i, 0, 1], R0[i, 1, 0], R0[i, 1, 1]
+        f00, f01, f10, f11 = f[i, 0, 0], f[i, 0, 1], f[i, 1, 0], f[i, 1, 1]
+        # Fc = (R0ᵀ f) R0
+        a00 = r00 * f00 + r10 * f10
+        a01 = r00 * f01 + r10 * f11
+        a10 = r01 * f00 + r11 * f10
+        a11 = r01 * f01 + r11 * f11
+        c00 = a00 * r00 + a01 * r10
+        c01 = a00 * r01 + a01 * r11
+        c10 = a10 * r00 + a11 * r10
+        c11 = a10 * r01 + a11 * r11
+        # hardening matrix h^{αβ} = Q^{αβ} h0 sgn(r)|r|^a, r = 1 - s/ss (of β)
+        for be in range(N):
+            rr = 1.0 - s_n[i, be] / ss[be]
+            sgr = 1.0 if rr > 0.0 else (-1.0 if rr < 0.0 else 0.0)
+            fac[be] = h0[be] * sgr * abs(rr) ** expo[be]
+        for al in range(N):
+            for be in range(N):
+                H[al, be] = Q[al, be] * fac[be]
+        # trial state: Fe_tr = Fc Fp_n⁻¹, Ce = Fe_trᵀ Fe_tr, E = ½(Ce − I)
+        q00, q01, q10, q11 = Fp_n[i, 0, 0], Fp_n[i, 0, 1], Fp_n[i, 1, 0], Fp_n[i, 1, 1]
+        det = q00 * q11 - q01 * q10
+        i00, i01, i10, i11 = q11 / det, -q01 / det, -q10 / det, q00 / det
+        e00 = c00 * i00 + c01 * i10
+        e01 = c00 * i01 + c01 * i11
+        e10 = c10 * i00 + c11 * i10
+        e11 = c10 * i01 + c11 * i11
+        Ce[0] = e00 * e00 + e10 * e10
+        Ce[1] = e00 * e01 + e10 * e11
+        Ce[2] = e01 * e00 + e11 * e10
+        Ce[3] = e01 * e01 + e11 * e11
+        Et[0] = 0.5 * (Ce[0] - 1.0)
+        Et[1] = 0.5 * Ce[1]
+        Et[2] = 0.5 * Ce[2]
+        Et[3] = 0.5 * (Ce[3] - 1.0)
+        anyact = False
+        for al in range(N):
+            t = 0.0
+            for k in range(4):
+                t += Et[k] * CS0[al, k]
+            ttr[al] = t
+            sg[al] = -1.0 if t < 0.0 else 1.0
+            b[al] = sg[al] * t - s_n[i, al]
+            act[al] = b[al] > 0.0
+            trial[al] = act[al]
+            dg[al] = 0.0
+            anyact = anyact or act[al]
+        if anyact:
+            for al in range(N):
+                for be in range(N):
+                    t = 0.0
+                    for k in range(4):
+                        t += Ce[k] * AelM[al * N + be, k]
+                    A[al, be] = H[al, be] + sg[al] * sg[be] * t
+            # §3.6 step 5: solve on the active set, drop Δγ <= 0, repeat
+            while True:
+                m00 = A[0, 0] if act[0] else 1.0
+                m11 = A[1, 1] if act[1] else 1.0
+                m01 = A[0, 1] if act[0] and act[1] else 0.0
+                m10 = A[1, 0] if act[0] and act[1] else 0.0
+                y0 = b[0] if act[0] else 0.0
+                y1 = b[1] if act[1] else 0.0
+                dt = m00 * m11 - m01 * m10
+                scl = max(abs(m00 * m11), abs(m01 * m10))
+                if not abs(dt) > 1e-14 * scl:
+                    bad[i] = True
+                    break
+                x0 = (m11 * y0 - m01 * y1) / dt
+                x1 = (m00 * y1 - m10 * y0) / dt
+                if (x0 > 0.0 or not act[0]) and (x1 > 0.0 or not act[1]):
+                    dg[0] = x0 if act[0] else 0.0
+                    dg[1] = x1 if act[1] else 0.0
+                    break
+                act[0] = act[0] and x0 > 0.0
+                act[1] = act[1] and x1 > 0.0
+                if not (act[0] or act[1]):
+                    break
+            if bad[i]:
+                continue
+        # §3.6 step 6: Fp = (I + Σ Δγ sgn S0) Fp_n, Fe = Fc Fp⁻¹, T̄ = 𝓛[½(FeᵀFe − I)]
+        g[:] = 0.0
+        for al in range(N):
+            w = dg[al] * sg[al]
+            for k in range(4):
+                g[k] += w * S0[al, k]
+        g0, g1, g2, g3 = 1.0 + g[0], g[1], g[2], 1.0 + g[3]
+        u00 = g0 * q00 + g1 * q10
+        u01 = g0 * q01 + g1 * q11
+        u10 = g2 * q00 + g3 * q10
+        u11 = g2 * q01 + g3 * q11
+        if renorm:
+            dd = np.sqrt(u00 * u11 - u01 * u10)
+            u00, u01, u10, u11 = u00 / dd, u01 / dd, u10 / dd, u11 / dd
+        Fp[i, 0, 0], Fp[i, 0, 1], Fp[i, 1, 0], Fp[i, 1, 1] = u00, u01, u10, u11
+        det = u00 * u11 - u01 * u10
+        i00, i01, i10, i11 = u11 / det, -u01 / det, -u10 / det, u00 / det
+        e00 = c00 * i00 + c01 * i10
+        e01 = c00 * i01 + c01 * i11
+        e10 = c10 * i00 + c11 * i10
+        e11 = c10 * i01 + c11 * i11
+        Et[0] = 0.5 * ((e00 * e00 + e10 * e10) - 1.0)
+        Et[1] = 0.5 * (e00 * e01 + e10 * e11)
+        Et[2] = 0.5 * (e01 * e00 + e11 * e10)
+        Et[3] = 0.5 * ((e01 * e01 + e11 * e11) - 1.0)
+        for k in range(4):
+            t = 0.0
+            for ll in range(4):
+                t += Et[ll] * Cm[k, ll]
+            tb[k] = t
+        # P = (Fe T̄) Fp⁻ᵀ in the crystal frame, then R0 P R0ᵀ
+        v00 = e00 * tb[0] + e01 * tb[2]
+        v01 = e00 * tb[1] + e01 * tb[3]
+        v10 = e10 * tb[0] + e11 * tb[2]
+        v11 = e10 * tb[1] + e11 * tb[3]
+        w00 = v00 * i00 + v01 * i01
+        w01 = v00 * i10 + v01 * i11
+        w10 = v10 * i00 + v11 * i01
+        w11 = v10 * i10 + v11 * i11
+        z00 = r00 * w00 + r01 * w10
+        z01 = r00 * w01 + r01 * w11
+        z10 = r10 * w00 + r11 * w10
+        z11 = r10 * w01 + r11 * w11
+        p00 = z00 * r00 + z01 * r01
+        p01 = z00 * r10 + z01 * r11
+        p10 = z10 * r00 + z11 * r01
+        p11 = z10 * r10 + z11 * r11
+        P[i, 0, 0], P[i, 0, 1], P[i, 1, 0], P[i, 1, 1] = p00, p01, p10, p11
+        # trial state variables
+        work = 0.0
+        npl = 0.0
+        npr = 0.0
+        for al in range(N):
+            t = 0.0
+            for be in range(N):
+                t += H[al, be] * dg[be]
+            s[i, al] = s_n[i, al] + t
+            ta = 0.0
+            for k in range(4):
+                ta += tb[k] * S0[al, k]
+            tau[i, al] = ta
+            gamma[i, al] = gamma_n[i, al] + dg[al]
+            dgamma[i, al] = dg[al]
+            sign[i, al] = sg[al]
+            work += abs(ta) * dg[al]
+            if dg[al] > 0.0:
+                npl = 1.0
+            if trial[al] and not act[al]:
+                npr += 1.0
+        plastic[i] = npl
+        pruned[i] = npr
+        # Cauchy stress σ = P fᵀ / det f (σ33 = 0) for the von Mises measure
+        df = f00 * f11 - f01 * f10
+        sxx = (p00 * f00 + p01 * f01) / df
+        sxy = (p00 * f10 + p01 * f11) / df
+        syy = (p10 * f10 + p11 * f11) / df
+        seff = np.sqrt(sxx**2 - sxx * syy + syy**2 + 3.0 * sxy**2)
+        dp = work / seff if seff > 0.0 else 0.0
+        dep[i] = dp
+        ep[i] = ep_n[i] + dp
+        # lattice rotation: θ = θ0 + atan2(Fe21 − Fe12, Fe11 + Fe22), rate form of §3.2
+        phi = np.arctan2(e10 - e01, e00 + e11)
+        th0 = theta0[i]
+        th = th0 + phi
+        theta[i] = th
+        cth, sth = np.cos(th), np.sin(th)
+        R[i, 0, 0], R[i, 0, 1], R[i, 1, 0], R[i, 1, 1] = cth, -sth, sth, cth
+        reor[i] = phi * (180.0 / np.pi)
+        cp, sp_ = np.cos(theta_n[i] - th0), np.sin(theta_n[i] - th0)
+        cn, sn = np.cos(phi), np.sin(phi)
+        d00, d01, d10, d11 = cn - cp, -sn + sp_, sn - sp_, cn - cp
+        wa = d10 * cn + d11 * -sn
+        wb = d00 * sn + d01 * cn
+        rate[i] = rate_n[i] + 0.5 * (wa - wb)

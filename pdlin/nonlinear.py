@@ -328,6 +328,7 @@ def solve_nonlinear(
     maxiter: int = 25,
     line_search: bool = True,
     max_cutbacks: int = 8,
+    fallback_cutbacks: int = 2,
     linear_solver: str = "auto",
     relax: int = 0,
     e_l: float = 1e-6,
@@ -367,7 +368,8 @@ def solve_nonlinear(
         line search and step cut-back.  'adr': adaptive dynamic relaxation
         (Kilic-Madenci; spec 001 §4).  'auto': Newton, falling back to ADR
         from Newton's last converged increment when an increment fails even
-        after ``max_cutbacks`` halvings (``result.methods`` says so).
+        after ``max_cutbacks`` halvings (``result.methods`` says so; after
+        such a step, see ``fallback_cutbacks``).
     t_end : float, optional
         Time of the full load (default 1): the end of ``steps`` equal steps,
         and the time at which plain prescribed values and loads reach their
@@ -395,6 +397,15 @@ def solve_nonlinear(
         increment is doubled after easy convergence and the last one starts the
         next step), inner linear solver
         ('auto': direct up to 2·10⁵ DOFs in 2D / 3·10⁴ in 3D, then AMG-Krylov).
+    fallback_cutbacks : int
+        ``method='auto'``: Newton's halvings in a load step that follows an
+        ADR fallback (``max_cutbacks`` again once Newton carries a step); the
+        step starts with a whole-step increment.  Where Newton failed the
+        last step it likely fails this one too, and each failed increment
+        costs up to ``maxiter`` tangents and linear solves, while ADR's cost
+        hardly depends on how much of the step is left (10⁵ crystal-plasticity
+        points: ≈ 20 min of creeping Newton increments per step before the
+        fallback with ``max_cutbacks`` halvings, docs/nonlinear.md).
     relax : int
         Newton's relaxation at stalls (0, the default: off; e.g. 50): when five
         Newton iterations reduce ``‖r‖`` less than twofold, or a line search
@@ -472,7 +483,12 @@ def solve_nonlinear(
     for name, val, lo in (("rtol", rtol, 0.0), ("e_l", e_l, 0.0), ("floor", floor, 0.0)):
         if not (isinstance(val, int | float) and math.isfinite(val) and val > lo):
             raise InputError(f"{name} must be a positive number, got {val!r}")
-    for name, ival in (("maxiter", maxiter), ("max_cutbacks", max_cutbacks), ("relax", relax)):
+    for name, ival in (
+        ("maxiter", maxiter),
+        ("max_cutbacks", max_cutbacks),
+        ("fallback_cutbacks", fallback_cutbacks),
+        ("relax", relax),
+    ):
         if isinstance(ival, bool) or not isinstance(ival, int) or ival < 0:
             raise InputError(f"{name} must be an integer >= 0, got {ival!r}")
     for name, opt in (("damping", damping), ("c0", c0)):
@@ -680,13 +696,14 @@ def solve_nonlinear(
         u_start: np.ndarray,
         st_start: dict[str, np.ndarray],
         damp: list[np.ndarray] | None,
+        cutbacks: int,
     ) -> tuple[
         StepOutcome | None, str, tuple[int, int, int, int], tuple[np.ndarray, dict[str, Any]]
     ]:
         """Reach ``t_target`` from ``t_cur`` with ``step_fn`` in automatic increments.
 
         The first increment is the driver's last converged one (a fraction of the
-        step); a failed increment is halved (a cut-back) down to ``1 / 2**max_cutbacks``
+        step); a failed increment is halved (a cut-back) down to ``1 / 2**cutbacks``
         of the step, a converged one commits its sub-step state and is doubled (up to
         the whole step) when it was easy: a Newton increment in at most ``maxiter // 4``
         iterations, any ADR increment (ADR's iterations per increment hardly depend on
@@ -697,8 +714,8 @@ def solve_nonlinear(
         a fallback driver continues."""
         nonlocal t_cur, u_prev, t_prev
         span = t_target - t_cur
-        smallest = span / 2.0**max_cutbacks
-        inc = min(1.0, inc_frac[driver]) * span
+        smallest = span / 2.0**cutbacks
+        inc = max(min(1.0, inc_frac[driver]) * span, smallest)
         cur_u, cur_state = u_start, st_start
         n_it = n_calls = n_cut = n_rel = 0
         out: StepOutcome | None = None
@@ -751,8 +768,12 @@ def solve_nonlinear(
             # the sub-step loop shares these with the predictor closures
             t_cur, u_prev, t_prev = t_c, u_p, t_p
             if method in ("newton", "auto"):
+                cut_n = max_cutbacks
+                if method == "auto" and k and methods[k - 1] == "adr (newton failed)":
+                    cut_n = min(max_cutbacks, fallback_cutbacks)
+                    inc_frac["newton"] = 1.0
                 out, why, counts, (step_u, step_state) = substeps(
-                    newton_to, "newton", t_target, step_u, step_state, None
+                    newton_to, "newton", t_target, step_u, step_state, None, cut_n
                 )
                 n_it, n_calls, n_cut, n_rel = counts
                 if out is None:
@@ -767,7 +788,7 @@ def solve_nonlinear(
                     used = "newton"
             if method == "adr" or out is None:
                 out, adr_why, counts, _ = substeps(
-                    adr_to, "adr", t_target, step_u, step_state, damp
+                    adr_to, "adr", t_target, step_u, step_state, damp, max_cutbacks
                 )
                 n_it, n_calls, n_cut = n_it + counts[0], n_calls + counts[1], n_cut + counts[2]
                 n_rel += counts[3]

@@ -239,6 +239,9 @@ def euler_to_rotation(angles: ArrayLike) -> FloatArray:
 #: points per chunk of the threaded :meth:`CrystalPlasticity.update` (fixed: the results do
 #: not depend on the thread count; smaller chunks cost more Python overhead per point)
 _UPDATE_CHUNK = 8192
+#: smallest batch of points that :meth:`CrystalPlasticity.update` sends to the numba
+#: kernel of planar double slip (below it numpy's call overhead is small)
+_NUMBA_MIN_POINTS = 256
 
 
 def _rotation_2d(theta: FloatArray) -> FloatArray:
@@ -1198,7 +1201,10 @@ class CrystalPlasticity:
         f = _check_F(F, self.dim)
         n = f.shape[0]
         self._check_state(state_n, n)
-        if n >= 2 * _UPDATE_CHUNK:
+        if not tangent and n >= _NUMBA_MIN_POINTS and self._numba_ok():
+            P, state = self._update_numba(f, state_n)
+            D = None
+        elif n >= 2 * _UPDATE_CHUNK:
             # fixed chunks of points on pdlin's threads (numpy releases the GIL in the
             # batched arithmetic; every point's update is independent): the same arrays
             # for any thread count
@@ -1231,6 +1237,115 @@ class CrystalPlasticity:
                 stacklevel=2,
             )
         return P, state, D
+
+    def _numba_ok(self) -> bool:
+        """Whether :meth:`update` without tangent runs the compiled planar kernel."""
+        if self.slip != "planar-2" or self.active_set != "prune":
+            return False
+        from .._kernels import numba_enabled
+
+        return numba_enabled()
+
+    def _update_numba(
+        self, f: FloatArray, state_n: Mapping[str, Any]
+    ) -> tuple[FloatArray, dict[str, FloatArray]]:
+        """:meth:`update` without tangent of planar double slip with §3.6 pruning in the
+        numba kernel ``cp_planar_fill`` (chunks of points on pdlin's threads); points
+        whose active-set matrix is singular are redone by the numpy path.  Equal to
+        :meth:`_update_points` to round-off (its 4-term products run through BLAS)."""
+        from .._kernels import _kernels
+        from .._threads import even_chunks, thread_map
+
+        mod = _kernels()
+        assert mod is not None
+        n = f.shape[0]
+
+        def arr(key: str, default: Any = None) -> FloatArray:
+            v = state_n.get(key, default)
+            return np.ascontiguousarray(v, dtype=np.float64)
+
+        R0 = np.asarray(state_n["R0"], dtype=np.float64)
+        R0c = np.ascontiguousarray(R0)
+        theta0 = arr("theta0", np.arctan2(R0[:, 1, 0], R0[:, 0, 0]))
+        ins = (
+            np.ascontiguousarray(f),
+            R0c,
+            arr("Fp"),
+            arr("s"),
+            arr("gamma"),
+            arr("ep", np.zeros(n)),
+            theta0,
+            arr("theta", theta0),
+            arr("theta_rate", np.zeros(n)),
+        )
+        consts = (
+            np.ascontiguousarray(self._CS0flat),
+            np.ascontiguousarray(self._AelM),
+            np.ascontiguousarray(self._S0flat),
+            np.ascontiguousarray(self._Cflat),
+            np.ascontiguousarray(self.Q, dtype=np.float64),
+            np.ascontiguousarray(self.h0, dtype=np.float64),
+            np.ascontiguousarray(self.ss, dtype=np.float64),
+            np.ascontiguousarray(self.a, dtype=np.float64),
+            bool(self.renormalize),
+        )
+        N = self.nslip
+        P = np.empty((n, 2, 2))
+        st: dict[str, FloatArray] = {
+            "Fp": np.empty((n, 2, 2)),
+            "s": np.empty((n, N)),
+            "gamma": np.empty((n, N)),
+            "dgamma": np.empty((n, N)),
+            "tau": np.empty((n, N)),
+            "dep": np.empty(n),
+            "ep": np.empty(n),
+            "plastic": np.empty(n),
+            "sign": np.empty((n, N)),
+            "pruned": np.empty(n),
+            "theta": np.empty(n),
+            "R": np.empty((n, 2, 2)),
+            "reorientation": np.empty(n),
+            "theta_rate": np.empty(n),
+        }
+        bad = np.zeros(n, dtype=np.bool_)
+        outs = (
+            P, st["Fp"], st["s"], st["gamma"], st["dgamma"], st["tau"], st["dep"], st["ep"],
+            st["plastic"], st["sign"], st["pruned"], st["theta"], st["R"],
+            st["reorientation"], st["theta_rate"], bad,
+        )  # fmt: skip
+        kern = mod.cp_planar_fill
+        thread_map(lambda c: kern(c[0], c[1], *ins, *consts, *outs), even_chunks(n, _UPDATE_CHUNK))
+        state: dict[str, FloatArray] = {
+            "Fp": st["Fp"],
+            "s": st["s"],
+            "gamma": st["gamma"],
+            "dgamma": st["dgamma"],
+            "tau": st["tau"],
+            "R0": R0,
+            "dep": st["dep"],
+            "ep": st["ep"],
+            "plastic": st["plastic"],
+            "sign": st["sign"],
+            "pruned": st["pruned"],
+            "reactivated": np.zeros(n),
+            "unsettled": np.zeros(n),
+            "theta0": theta0,
+            "theta": st["theta"],
+            "R": st["R"],
+            "reorientation": st["reorientation"],
+            "theta_rate": st["theta_rate"],
+        }
+        idx = np.flatnonzero(bad)
+        if idx.size:  # singular active-set matrices: numpy's pseudo-inverse path
+            sub = {
+                k: (v[idx] if isinstance(v, np.ndarray) and v.ndim and len(v) == n else v)
+                for k, v in state_n.items()
+            }
+            Pb, sb, _ = self._update_points(f[idx], sub, False)
+            P[idx] = Pb
+            for k, v in sb.items():
+                state[k][idx] = v
+        return P, state
 
     def _update_points(
         self, f: FloatArray, state_n: Mapping[str, Any], tangent: bool

@@ -151,6 +151,7 @@ _NONLINEAR_KEYS = (
     "predictor",
     "checkpoint",
     "max_cutbacks",
+    "fallback_cutbacks",
     "relax",
     "density",
     "dt",
@@ -1019,7 +1020,7 @@ def _nonlinear_options(
     opts: dict[str, Any] = {"method": method}
     for k in given:
         opts[k] = scfg[k]
-    for k in ("steps", "max_cutbacks", "relax"):
+    for k in ("steps", "max_cutbacks", "fallback_cutbacks", "relax"):
         if k in opts:
             v = opts[k]
             lo = 1 if k == "steps" else 0

@@ -33,17 +33,35 @@ class Response:
         Consistent tangent stiffness ``K_T = -∂f_int/∂u`` (BSR, blocksize
         dim), when asked for.
     stress : (n, dim, dim) ndarray, optional
-        Cauchy stress per point at ``u`` (for output and homogenization).
+        Cauchy stress per point at ``u`` (for output and homogenization).  A
+        model may give a function of no arguments instead: it is called on the
+        first read of ``stress`` (drivers read it once per converged step, not
+        at every ADR iteration or line-search trial).
     calls : int
         Constitutive evaluations spent (points x updates), for the driver's
         counters.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> r = Response(np.zeros((2, 1)), stress=lambda: np.ones((2, 1, 1)))
+    >>> r.stress.shape
+    (2, 1, 1)
     """
 
     force: np.ndarray
     state: dict[str, np.ndarray] = field(default_factory=dict)
     tangent: sp.sparray | None = None
-    stress: np.ndarray | None = None
+    stress: Any = None
     calls: int = 0
+
+    def __getattribute__(self, name: str) -> Any:
+        value = object.__getattribute__(self, name)
+        if name != "stress" or not callable(value):
+            return value
+        value = np.asarray(value())  # the lazy stress, evaluated once
+        object.__setattr__(self, "stress", value)
+        return value
 
 
 class Model(ABC):

@@ -2206,7 +2206,11 @@ class Correspondence(Model):
             from ..constitutive.crystal_plasticity import cauchy_stress
 
             cauchy = cauchy_stress
-        sigma = _mean_per_point(p.gp_owner, np.asarray(cauchy(P, F)), n)
+        owner = p.gp_owner
+
+        def sigma() -> np.ndarray:  # on first read (once per converged step)
+            return _mean_per_point(owner, np.asarray(cauchy(P, F)), n)
+
         return Response(force.reshape(n, d), dict(trial), K, sigma, int(n_gp))
 
     def stress(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:

@@ -589,6 +589,107 @@ def test_analytic_tangent_equals_complex_step(slip, renormalize, rng):
         _assert_tangent(a, F[:8], {k: v[:8] for k, v in r.states[-1].items()})
 
 
+def _numba_kernels():
+    pytest.importorskip("numba")
+    from pdlin._kernels import _kernels
+
+    mod = _kernels()
+    if mod is None:
+        pytest.skip("numba disabled (PDLIN_NUMBA=0)")
+    return mod
+
+
+@pytest.mark.parametrize("renormalize", [False, True])
+def test_planar_update_numba_kernel_matches_numpy(monkeypatch, renormalize):
+    """Planar double slip with §3.6 pruning (its default active set) runs ``update``
+    without tangent in the numba kernel from ``_NUMBA_MIN_POINTS`` points on: P and every
+    state array equal the numpy path's to round-off (the numpy path's 4-term products go
+    through BLAS), active sets, slip signs and prune counts exactly, for a fresh state (no
+    θ keys) and committed plastic ones; bitwise the same for 1-3 threads."""
+    from pdlin.constitutive import crystal_plasticity as cpm
+
+    mod = _numba_kernels()
+    calls = []
+    real = mod.cp_planar_fill
+
+    def counted(*args):
+        calls.append(args[1] - args[0])
+        return real(*args)
+
+    monkeypatch.setattr(mod, "cp_planar_fill", counted)
+    monkeypatch.setattr(cpm, "_UPDATE_CHUNK", 97)
+    mat = CrystalPlasticity(renormalize=renormalize)
+    rng = np.random.default_rng(11)
+    cases = [(k, st, F) for k, (st, F, _) in enumerate(_t8_path(mat, rng, n=600, steps=15))]
+    plastic = pruned = 0.0
+    for k, state, F in cases[::7]:
+        ref_P, ref, _ = mat._update_points(F, state, False)
+        plastic += ref["plastic"].sum()
+        pruned += ref["pruned"].sum()
+        first = None
+        for nt in (1, 2, 3):
+            pdlin.set_num_threads(nt)
+            try:
+                calls.clear()
+                P, st, D = mat.update(F, state)
+            finally:
+                pdlin.set_num_threads(None)
+            assert D is None and sum(calls) == 600 and max(calls) == 97
+            assert st.keys() == ref.keys()
+            if first is None:
+                first = (P, st)
+                np.testing.assert_allclose(P, ref_P, rtol=0, atol=1e-13 * np.abs(ref_P).max())
+                for key in st:
+                    scale = max(np.abs(ref[key]).max(), 1.0)
+                    np.testing.assert_allclose(
+                        st[key], ref[key], rtol=0, atol=1e-13 * scale, err_msg=f"{k}: {key}"
+                    )
+                for key in ("sign", "pruned", "plastic", "reactivated", "unsettled"):
+                    np.testing.assert_array_equal(st[key], ref[key], err_msg=key)
+                np.testing.assert_array_equal(st["dgamma"] > 0, ref["dgamma"] > 0)
+            else:
+                np.testing.assert_array_equal(P, first[0])
+                for key in st:
+                    np.testing.assert_array_equal(st[key], first[1][key], err_msg=key)
+    # the compared states slip and prune (seed 11: 154 plastic points, 7 pruned systems;
+    # otherwise the test would not discriminate)
+    assert plastic > 100 and pruned > 5, (plastic, pruned)
+
+
+def test_planar_update_numba_kernel_singular_points_and_scope(monkeypatch):
+    """Points the kernel marks singular are redone by the numpy path (their kernel
+    outputs discarded); a tangent, re-activation or 3D slip keep the numpy path."""
+    mod = _numba_kernels()
+    real = mod.cp_planar_fill
+
+    def every_fifth_bad(p0, p1, *args):
+        real(p0, p1, *args)
+        P, bad = args[-16], args[-1]
+        bad[p0:p1:5] = True
+        P[p0:p1:5] = np.nan  # must not survive
+
+    mat = CrystalPlasticity()
+    rng = np.random.default_rng(3)
+    *_, (state, F, _) = _t8_path(mat, rng, n=400, steps=6)
+    ref_P, ref, _ = mat._update_points(F, state, False)
+    monkeypatch.setattr(mod, "cp_planar_fill", every_fifth_bad)
+    P, st, _ = mat.update(F, state)
+    np.testing.assert_allclose(P, ref_P, rtol=0, atol=1e-13 * np.abs(ref_P).max())
+    np.testing.assert_array_equal(P[::5], ref_P[::5])  # the numpy path's own values
+    for key in ref:
+        scale = max(np.abs(ref[key]).max(), 1.0)
+        np.testing.assert_allclose(st[key], ref[key], rtol=0, atol=1e-13 * scale, err_msg=key)
+
+    def forbidden(*args):
+        raise AssertionError("the numba kernel must not run here")
+
+    monkeypatch.setattr(mod, "cp_planar_fill", forbidden)
+    mat.update(F, state, tangent=True)
+    CrystalPlasticity(active_set="reactivate").update(F, state)
+    m3 = CrystalPlasticity("fcc")
+    m3.update(np.broadcast_to(np.eye(3), (300, 3, 3)).copy(), m3.initial_state(300))
+
+
 @pytest.mark.parametrize("slip", ["planar-2", "fcc", "hcp"])
 def test_update_in_point_chunks_on_threads(monkeypatch, slip):
     """Above two chunks the update runs in fixed point chunks on the threads: P, every state

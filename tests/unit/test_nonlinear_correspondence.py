@@ -163,6 +163,24 @@ def test_response_stress_and_calls():
     np.testing.assert_allclose(r.stress, ref, rtol=1e-14, atol=1e-12)
 
 
+def test_response_stress_is_computed_on_first_read_only(monkeypatch):
+    """ADR iterations and line-search trials never read the stress: respond defers the
+    per-particle Cauchy mean to the first read of ``stress`` and keeps it."""
+    from pdlin.models import correspondence as cm
+
+    cloud = _cloud(6)
+    bonds = pdlin.find_bonds(cloud, ratio=1.0)
+    model = pdlin.Correspondence(material=_cp(cloud, seed=3))
+    state = model.initial_state(cloud, bonds)
+    means = []
+    real = cm._mean_per_point
+    monkeypatch.setattr(cm, "_mean_per_point", lambda *a: means.append(1) or real(*a))
+    r = model.respond(cloud, bonds, _plastic_u(cloud, 3), state)
+    assert means == []
+    first = r.stress
+    assert r.stress is first and means == [1] and first.shape == (cloud.n, 2, 2)
+
+
 # ---------------------------------------------------------------------------------------
 # tangent
 

@@ -410,6 +410,49 @@ def test_increment_carries_into_the_next_step(monkeypatch):
     assert res.iterations.tolist() == [20, 20]  # two increments of 10 per step
 
 
+@pytest.mark.parametrize(
+    ("first_ok", "fallback_cutbacks", "expected"),
+    [
+        # Newton fails every increment: 6 tries (whole step, 1/2 ... 1/32) in step 1; after
+        # that fallback, step 2 tries the whole step and one half (fallback_cutbacks=1)
+        (False, 1, [6, 2]),
+        (False, 5, [6, 6]),  # the limit at max_cutbacks: as many tries as step 1
+        (True, 1, [0, 6]),  # step 1 by Newton: step 2 keeps max_cutbacks halvings
+    ],
+)
+def test_auto_after_a_fallback_newton_tries_fewer_halvings(
+    monkeypatch, first_ok, fallback_cutbacks, expected
+):
+    """After a load step that Newton failed (ADR fallback), 'auto' gives the next step's
+    Newton ``fallback_cutbacks`` halvings from a whole-step increment, not ``max_cutbacks``
+    from the tiny increment it failed at (a 10⁵-point polycrystal spent ≈ 20 min per step on
+    creeping Newton increments before the fallback)."""
+    import pdlin.nonlinear as nl
+
+    real_newton = nl.newton_step
+    tries: list[tuple[float, float]] = []
+
+    def newton(system, u0, committed, *, factor, **kw):
+        tries.append((factor, float(np.max(committed["emax"]))))
+        if first_ok and factor <= 0.5 + 1e-12:
+            return real_newton(system, u0, committed, factor=factor, **kw)
+        raise nl.StepFailed("Newton: refused (test)")
+
+    monkeypatch.setattr(nl, "newton_step", newton)
+    prob = _chain(u_end=0.05, beta=10.0)
+    res = pdlin.solve_nonlinear(
+        prob, steps=2, method="auto", max_cutbacks=5, fallback_cutbacks=fallback_cutbacks,
+        e_l=1e-10,
+    )  # fmt: skip
+    assert res.cutbacks.tolist() == expected
+    second = [f for f, _ in tries[len(tries) - expected[1] :]]
+    assert second[0] == pytest.approx(1.0)  # step 2 starts with its whole increment
+    assert second[1] == pytest.approx(0.75)  # then halves it
+    assert res.methods[1] == "adr (newton failed)"
+    x = prob.cloud.points[:, 0]  # uniform chain: u linear in x
+    np.testing.assert_allclose(res.u[-1, :, 0], 0.05 * (x - x[0]) / (x[-1] - x[0]), atol=1e-8)
+
+
 def test_auto_continues_with_adr_from_newtons_last_increment(monkeypatch):
     # Newton converges up to half of the load and fails beyond; ADR must take over from
     # Newton's converged half step (its start state already has the history of t = 0.5)
