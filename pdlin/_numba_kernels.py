@@ -924,3 +924,191 @@ def cp_planar_fill(  # pragma: no cover
         wa = d10 * cn + d11 * -sn
         wb = d00 * sn + d01 * cn
         rate[i] = rate_n[i] + 0.5 * (wa - wb)
+
+
+@numba.njit(inline="always", cache=True)
+def _mm2(a00, a01, a10, a11, b00, b01, b10, b11):  # pragma: no cover
+    """2 x 2 product in the order of ``crystal_plasticity._mm``."""
+    return (
+        a00 * b00 + a01 * b10,
+        a00 * b01 + a01 * b11,
+        a10 * b00 + a11 * b10,
+        a10 * b01 + a11 * b11,
+    )
+
+
+@numba.njit(nogil=True, cache=True)
+def cp_planar_tangent_fill(  # pragma: no cover
+    p0, p1, f, R0, Fp_n, s_n, Fp, dgamma, sign,
+    CS0, AelM, S0, Cm, Q, h0, ss, expo, renorm, D,
+):  # fmt: skip
+    """Consistent tangent ``D[i, j, k, l] = ∂P_ij/∂F_kl`` of :func:`cp_planar_fill`'s
+    update (active set ``Δγ > 0`` and signs frozen) for points ``p0 .. p1``: the forward
+    linearization of ``CrystalPlasticity._tangent_analytic`` per point and direction
+    ``e_k ⊗ e_l``, from the committed state and the update's ``Fp``, ``dgamma``, ``sign``."""
+    N = 2
+    fac = np.empty(N)
+    H = np.empty((N, N))
+    A = np.empty((N, N))
+    act = np.empty(N, np.bool_)
+    sg = np.empty(N)
+    dg = np.empty(N)
+    Ce = np.empty(4)
+    tb = np.empty(4)
+    Et = np.empty(4)
+    gg = np.empty(4)
+    z00 = z01 = z10 = z11 = w00 = w01 = w10 = w11 = Jr = 1.0
+    for i in range(p0, p1):
+        r00, r01, r10, r11 = R0[i, 0, 0], R0[i, 0, 1], R0[i, 1, 0], R0[i, 1, 1]
+        f00, f01, f10, f11 = f[i, 0, 0], f[i, 0, 1], f[i, 1, 0], f[i, 1, 1]
+        a00, a01, a10, a11 = _mm2(r00, r10, r01, r11, f00, f01, f10, f11)
+        c00, c01, c10, c11 = _mm2(a00, a01, a10, a11, r00, r01, r10, r11)
+        for be in range(N):
+            rr = 1.0 - s_n[i, be] / ss[be]
+            sgr = 1.0 if rr > 0.0 else (-1.0 if rr < 0.0 else 0.0)
+            fac[be] = h0[be] * sgr * abs(rr) ** expo[be]
+        for al in range(N):
+            for be in range(N):
+                H[al, be] = Q[al, be] * fac[be]
+        q00, q01, q10, q11 = Fp_n[i, 0, 0], Fp_n[i, 0, 1], Fp_n[i, 1, 0], Fp_n[i, 1, 1]
+        det = q00 * q11 - q01 * q10
+        n00, n01, n10, n11 = q11 / det, -q01 / det, -q10 / det, q00 / det  # Fp_n⁻¹
+        t00, t01, t10, t11 = _mm2(c00, c01, c10, c11, n00, n01, n10, n11)  # Fe_tr
+        Ce[0] = t00 * t00 + t10 * t10
+        Ce[1] = t00 * t01 + t10 * t11
+        Ce[2] = t01 * t00 + t11 * t10
+        Ce[3] = t01 * t01 + t11 * t11
+        anyact = False
+        for al in range(N):
+            dg[al] = dgamma[i, al]
+            sg[al] = sign[i, al]
+            act[al] = dg[al] > 0.0
+            anyact = anyact or act[al]
+        if anyact:
+            for al in range(N):
+                for be in range(N):
+                    t = 0.0
+                    for k in range(4):
+                        t += Ce[k] * AelM[al * N + be, k]
+                    A[al, be] = H[al, be] + sg[al] * sg[be] * t
+        m00 = A[0, 0] if act[0] else 1.0
+        m11 = A[1, 1] if act[1] else 1.0
+        m01 = A[0, 1] if act[0] and act[1] else 0.0
+        m10 = A[1, 0] if act[0] and act[1] else 0.0
+        mdet = m00 * m11 - m01 * m10
+        # final state: Fp⁻¹, Fe = Fc Fp⁻¹, T̄ = 𝓛[½(FeᵀFe − I)]
+        u00, u01, u10, u11 = Fp[i, 0, 0], Fp[i, 0, 1], Fp[i, 1, 0], Fp[i, 1, 1]
+        det = u00 * u11 - u01 * u10
+        i00, i01, i10, i11 = u11 / det, -u01 / det, -u10 / det, u00 / det
+        e00, e01, e10, e11 = _mm2(c00, c01, c10, c11, i00, i01, i10, i11)
+        Et[0] = 0.5 * ((e00 * e00 + e10 * e10) - 1.0)
+        Et[1] = 0.5 * (e00 * e01 + e10 * e11)
+        Et[2] = 0.5 * (e01 * e00 + e11 * e10)
+        Et[3] = 0.5 * ((e01 * e01 + e11 * e11) - 1.0)
+        for k in range(4):
+            t = 0.0
+            for ll in range(4):
+                t += Et[ll] * Cm[k, ll]
+            tb[k] = t
+        # T̄ Fp⁻ᵀ and Fe T̄ (constant over the directions)
+        x00, x01, x10, x11 = _mm2(tb[0], tb[1], tb[2], tb[3], i00, i10, i01, i11)
+        y00, y01, y10, y11 = _mm2(e00, e01, e10, e11, tb[0], tb[1], tb[2], tb[3])
+        if renorm:
+            gg[:] = 0.0
+            for al in range(N):
+                w = dg[al] * sg[al]
+                for k in range(4):
+                    gg[k] += w * S0[al, k]
+            z00, z01, z10, z11 = _mm2(
+                1.0 + gg[0], gg[1], gg[2], 1.0 + gg[3], q00, q01, q10, q11
+            )  # Fq = G Fp_n
+            J = z00 * z11 - z01 * z10
+            w00, w01, w10, w11 = z11 / J, -z01 / J, -z10 / J, z00 / J  # Fq⁻¹
+            Jr = np.sqrt(J)
+        for kk in range(2):
+            for ll in range(2):
+                # crystal-frame direction dF_ij = R0_ki R0_lj
+                d00 = R0[i, kk, 0] * R0[i, ll, 0]
+                d01 = R0[i, kk, 0] * R0[i, ll, 1]
+                d10 = R0[i, kk, 1] * R0[i, ll, 0]
+                d11 = R0[i, kk, 1] * R0[i, ll, 1]
+                v00, v01, v10, v11 = _mm2(d00, d01, d10, d11, n00, n01, n10, n11)
+                # dCe = dFe_trᵀ Fe_tr + its transpose
+                g00, g01, g10, g11 = _mm2(v00, v10, v01, v11, t00, t01, t10, t11)
+                g00, g01, g10, g11 = g00 + g00, g01 + g10, g10 + g01, g11 + g11
+                ddg0 = 0.0
+                ddg1 = 0.0
+                if anyact:
+                    rh0 = 0.0
+                    rh1 = 0.0
+                    for al in range(N):
+                        if not act[al]:
+                            continue
+                        db = 0.5 * sg[al] * (
+                            g00 * CS0[al, 0] + g01 * CS0[al, 1] + g10 * CS0[al, 2]
+                            + g11 * CS0[al, 3]
+                        )  # fmt: skip
+                        dax = 0.0
+                        for be in range(N):
+                            w = sg[be] * dg[be]
+                            s00, s01, s10, s11 = _mm2(
+                                g00, g01, g10, g11, S0[be, 0], S0[be, 1], S0[be, 2], S0[be, 3]
+                            )
+                            dax += w * (
+                                s00 * CS0[al, 0] + s01 * CS0[al, 1] + s10 * CS0[al, 2]
+                                + s11 * CS0[al, 3]
+                            )  # fmt: skip
+                        if al == 0:
+                            rh0 = db - sg[al] * dax
+                        else:
+                            rh1 = db - sg[al] * dax
+                    x0 = (m11 * rh0 - m01 * rh1) / mdet
+                    x1 = (m00 * rh1 - m10 * rh0) / mdet
+                    ddg0 = x0 if act[0] else 0.0
+                    ddg1 = x1 if act[1] else 0.0
+                # dG = Σ dΔγ sgn S0, dFp = dG Fp_n
+                o0 = ddg0 * sg[0]
+                o1 = ddg1 * sg[1]
+                h00 = o0 * S0[0, 0] + o1 * S0[1, 0]
+                h01 = o0 * S0[0, 1] + o1 * S0[1, 1]
+                h10 = o0 * S0[0, 2] + o1 * S0[1, 2]
+                h11 = o0 * S0[0, 3] + o1 * S0[1, 3]
+                p00, p01, p10, p11 = _mm2(h00, h01, h10, h11, q00, q01, q10, q11)
+                if renorm:
+                    tr = w00 * p00 + w01 * p10 + w10 * p01 + w11 * p11
+                    p00 = (p00 - tr / 2.0 * z00) / Jr
+                    p01 = (p01 - tr / 2.0 * z01) / Jr
+                    p10 = (p10 - tr / 2.0 * z10) / Jr
+                    p11 = (p11 - tr / 2.0 * z11) / Jr
+                # dFp⁻¹ = −Fp⁻¹ dFp Fp⁻¹
+                k00, k01, k10, k11 = _mm2(i00, i01, i10, i11, p00, p01, p10, p11)
+                k00, k01, k10, k11 = _mm2(k00, k01, k10, k11, i00, i01, i10, i11)
+                k00, k01, k10, k11 = -k00, -k01, -k10, -k11
+                # dFe = dF Fp⁻¹ + Fc dFp⁻¹
+                l00, l01, l10, l11 = _mm2(d00, d01, d10, d11, i00, i01, i10, i11)
+                m_00, m_01, m_10, m_11 = _mm2(c00, c01, c10, c11, k00, k01, k10, k11)
+                l00, l01, l10, l11 = l00 + m_00, l01 + m_01, l10 + m_10, l11 + m_11
+                # dE = ½(dFeᵀ Fe + Feᵀ dFe), dT = 𝓛[dE]
+                j00, j01, j10, j11 = _mm2(l00, l10, l01, l11, e00, e01, e10, e11)
+                Et[0] = 0.5 * (j00 + j00)
+                Et[1] = 0.5 * (j01 + j10)
+                Et[2] = 0.5 * (j10 + j01)
+                Et[3] = 0.5 * (j11 + j11)
+                dt0 = Et[0] * Cm[0, 0] + Et[1] * Cm[0, 1] + Et[2] * Cm[0, 2] + Et[3] * Cm[0, 3]
+                dt1 = Et[0] * Cm[1, 0] + Et[1] * Cm[1, 1] + Et[2] * Cm[1, 2] + Et[3] * Cm[1, 3]
+                dt2 = Et[0] * Cm[2, 0] + Et[1] * Cm[2, 1] + Et[2] * Cm[2, 2] + Et[3] * Cm[2, 3]
+                dt3 = Et[0] * Cm[3, 0] + Et[1] * Cm[3, 1] + Et[2] * Cm[3, 2] + Et[3] * Cm[3, 3]
+                # dP = dFe (T̄ Fp⁻ᵀ) + (Fe dT) Fp⁻ᵀ + (Fe T̄) dFp⁻ᵀ
+                a00, a01, a10, a11 = _mm2(l00, l01, l10, l11, x00, x01, x10, x11)
+                b00, b01, b10, b11 = _mm2(e00, e01, e10, e11, dt0, dt1, dt2, dt3)
+                b00, b01, b10, b11 = _mm2(b00, b01, b10, b11, i00, i10, i01, i11)
+                a00, a01, a10, a11 = a00 + b00, a01 + b01, a10 + b10, a11 + b11
+                b00, b01, b10, b11 = _mm2(y00, y01, y10, y11, k00, k10, k01, k11)
+                a00, a01, a10, a11 = a00 + b00, a01 + b01, a10 + b10, a11 + b11
+                # back to the sample frame: R0 dP R0ᵀ
+                a00, a01, a10, a11 = _mm2(r00, r01, r10, r11, a00, a01, a10, a11)
+                a00, a01, a10, a11 = _mm2(a00, a01, a10, a11, r00, r10, r01, r11)
+                D[i, 0, 0, kk, ll] = a00
+                D[i, 0, 1, kk, ll] = a01
+                D[i, 1, 0, kk, ll] = a10
+                D[i, 1, 1, kk, ll] = a11

@@ -1201,9 +1201,8 @@ class CrystalPlasticity:
         f = _check_F(F, self.dim)
         n = f.shape[0]
         self._check_state(state_n, n)
-        if not tangent and n >= _NUMBA_MIN_POINTS and self._numba_ok():
-            P, state = self._update_numba(f, state_n)
-            D = None
+        if n >= _NUMBA_MIN_POINTS and self._numba_ok(tangent):
+            P, state, D = self._update_numba(f, state_n, tangent)
         elif n >= 2 * _UPDATE_CHUNK:
             # fixed chunks of points on pdlin's threads (numpy releases the GIL in the
             # batched arithmetic; every point's update is independent): the same arrays
@@ -1238,21 +1237,24 @@ class CrystalPlasticity:
             )
         return P, state, D
 
-    def _numba_ok(self) -> bool:
-        """Whether :meth:`update` without tangent runs the compiled planar kernel."""
+    def _numba_ok(self, tangent: bool) -> bool:
+        """Whether :meth:`update` runs the compiled planar kernels."""
         if self.slip != "planar-2" or self.active_set != "prune":
+            return False
+        if tangent and self.tangent_method != "analytic":
             return False
         from .._kernels import numba_enabled
 
         return numba_enabled()
 
     def _update_numba(
-        self, f: FloatArray, state_n: Mapping[str, Any]
-    ) -> tuple[FloatArray, dict[str, FloatArray]]:
-        """:meth:`update` without tangent of planar double slip with §3.6 pruning in the
-        numba kernel ``cp_planar_fill`` (chunks of points on pdlin's threads); points
-        whose active-set matrix is singular are redone by the numpy path.  Equal to
-        :meth:`_update_points` to round-off (its 4-term products run through BLAS)."""
+        self, f: FloatArray, state_n: Mapping[str, Any], tangent: bool
+    ) -> tuple[FloatArray, dict[str, FloatArray], FloatArray | None]:
+        """:meth:`update` of planar double slip with §3.6 pruning in the numba kernels
+        ``cp_planar_fill`` and (``tangent``) ``cp_planar_tangent_fill``, the analytic
+        tangent (chunks of points on pdlin's threads); points whose active-set matrix is
+        singular are redone by the numpy path.  Equal to :meth:`_update_points` to
+        round-off (its 4-term products and 2 x 2 solves run through BLAS / LAPACK)."""
         from .._kernels import _kernels
         from .._threads import even_chunks, thread_map
 
@@ -1314,7 +1316,17 @@ class CrystalPlasticity:
             st["reorientation"], st["theta_rate"], bad,
         )  # fmt: skip
         kern = mod.cp_planar_fill
-        thread_map(lambda c: kern(c[0], c[1], *ins, *consts, *outs), even_chunks(n, _UPDATE_CHUNK))
+        tkern = mod.cp_planar_tangent_fill
+        D = np.empty((n, 2, 2, 2, 2)) if tangent else None
+        t_ins = (ins[0], R0c, ins[2], ins[3])
+
+        def run(c: tuple[int, int]) -> None:
+            kern(c[0], c[1], *ins, *consts, *outs)
+            if D is not None:
+                t_outs = (st["Fp"], st["dgamma"], st["sign"])
+                tkern(c[0], c[1], *t_ins, *t_outs, *consts, D)
+
+        thread_map(run, even_chunks(n, _UPDATE_CHUNK))
         state: dict[str, FloatArray] = {
             "Fp": st["Fp"],
             "s": st["s"],
@@ -1341,11 +1353,13 @@ class CrystalPlasticity:
                 k: (v[idx] if isinstance(v, np.ndarray) and v.ndim and len(v) == n else v)
                 for k, v in state_n.items()
             }
-            Pb, sb, _ = self._update_points(f[idx], sub, False)
+            Pb, sb, Db = self._update_points(f[idx], sub, tangent)
             P[idx] = Pb
             for k, v in sb.items():
                 state[k][idx] = v
-        return P, state
+            if D is not None:
+                D[idx] = Db
+        return P, state, D
 
     def _update_points(
         self, f: FloatArray, state_n: Mapping[str, Any], tangent: bool

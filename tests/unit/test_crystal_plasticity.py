@@ -601,64 +601,90 @@ def _numba_kernels():
 
 @pytest.mark.parametrize("renormalize", [False, True])
 def test_planar_update_numba_kernel_matches_numpy(monkeypatch, renormalize):
-    """Planar double slip with §3.6 pruning (its default active set) runs ``update``
-    without tangent in the numba kernel from ``_NUMBA_MIN_POINTS`` points on: P and every
-    state array equal the numpy path's to round-off (the numpy path's 4-term products go
-    through BLAS), active sets, slip signs and prune counts exactly, for a fresh state (no
-    θ keys) and committed plastic ones; bitwise the same for 1-3 threads."""
+    """Planar double slip with §3.6 pruning (its default active set) runs ``update`` in the
+    numba kernels from ``_NUMBA_MIN_POINTS`` points on: P, every state array and the
+    analytic consistent tangent equal the numpy path's to round-off (its 4-term products
+    and 2 x 2 solves go through BLAS / LAPACK), active sets, slip signs and prune counts
+    exactly, for a fresh state (no θ keys) and committed plastic ones; bitwise the same for
+    1-3 threads."""
     from pdlin.constitutive import crystal_plasticity as cpm
 
     mod = _numba_kernels()
     calls = []
-    real = mod.cp_planar_fill
+    real, real_t = mod.cp_planar_fill, mod.cp_planar_tangent_fill
 
     def counted(*args):
         calls.append(args[1] - args[0])
         return real(*args)
 
+    def counted_t(*args):
+        calls.append(-(args[1] - args[0]))
+        return real_t(*args)
+
     monkeypatch.setattr(mod, "cp_planar_fill", counted)
+    monkeypatch.setattr(mod, "cp_planar_tangent_fill", counted_t)
     monkeypatch.setattr(cpm, "_UPDATE_CHUNK", 97)
     mat = CrystalPlasticity(renormalize=renormalize)
     rng = np.random.default_rng(11)
     cases = [(k, st, F) for k, (st, F, _) in enumerate(_t8_path(mat, rng, n=600, steps=15))]
     plastic = pruned = 0.0
     for k, state, F in cases[::7]:
-        ref_P, ref, _ = mat._update_points(F, state, False)
+        ref_P, ref, ref_D = mat._update_points(F, state, True)
         plastic += ref["plastic"].sum()
         pruned += ref["pruned"].sum()
-        first = None
-        for nt in (1, 2, 3):
-            pdlin.set_num_threads(nt)
-            try:
-                calls.clear()
-                P, st, D = mat.update(F, state)
-            finally:
-                pdlin.set_num_threads(None)
-            assert D is None and sum(calls) == 600 and max(calls) == 97
-            assert st.keys() == ref.keys()
-            if first is None:
-                first = (P, st)
-                np.testing.assert_allclose(P, ref_P, rtol=0, atol=1e-13 * np.abs(ref_P).max())
-                for key in st:
-                    scale = max(np.abs(ref[key]).max(), 1.0)
-                    np.testing.assert_allclose(
-                        st[key], ref[key], rtol=0, atol=1e-13 * scale, err_msg=f"{k}: {key}"
-                    )
-                for key in ("sign", "pruned", "plastic", "reactivated", "unsettled"):
-                    np.testing.assert_array_equal(st[key], ref[key], err_msg=key)
-                np.testing.assert_array_equal(st["dgamma"] > 0, ref["dgamma"] > 0)
-            else:
-                np.testing.assert_array_equal(P, first[0])
-                for key in st:
-                    np.testing.assert_array_equal(st[key], first[1][key], err_msg=key)
+        for tangent in (False, True):
+            first = None
+            for nt in (1, 2, 3):
+                pdlin.set_num_threads(nt)
+                try:
+                    calls.clear()
+                    P, st, D = mat.update(F, state, tangent=tangent)
+                finally:
+                    pdlin.set_num_threads(None)
+                assert sum(c for c in calls if c > 0) == 600 and max(calls) == 97
+                assert sum(c for c in calls if c < 0) == (-600 if tangent else 0)
+                assert (D is None) != tangent
+                assert st.keys() == ref.keys()
+                if first is None:
+                    first = (P, st, D)
+                    np.testing.assert_allclose(P, ref_P, rtol=0, atol=1e-13 * np.abs(ref_P).max())
+                    if tangent:
+                        atol = 1e-13 * np.abs(ref_D).max()
+                        np.testing.assert_allclose(D, ref_D, rtol=0, atol=atol)
+                    for key in st:
+                        scale = max(np.abs(ref[key]).max(), 1.0)
+                        np.testing.assert_allclose(
+                            st[key], ref[key], rtol=0, atol=1e-13 * scale, err_msg=f"{k}: {key}"
+                        )
+                    for key in ("sign", "pruned", "plastic", "reactivated", "unsettled"):
+                        np.testing.assert_array_equal(st[key], ref[key], err_msg=key)
+                    np.testing.assert_array_equal(st["dgamma"] > 0, ref["dgamma"] > 0)
+                else:
+                    np.testing.assert_array_equal(P, first[0])
+                    if tangent:
+                        np.testing.assert_array_equal(D, first[2])
+                    for key in st:
+                        np.testing.assert_array_equal(st[key], first[1][key], err_msg=key)
     # the compared states slip and prune (seed 11: 154 plastic points, 7 pruned systems;
     # otherwise the test would not discriminate)
     assert plastic > 100 and pruned > 5, (plastic, pruned)
 
 
+def test_planar_numba_tangent_matches_finite_differences():
+    """The compiled tangent is the derivative of the compiled update (central differences
+    of P through the kernel, 1e-6 relative; points away from active-set switches)."""
+    _numba_kernels()
+    mat = CrystalPlasticity()
+    rng = np.random.default_rng(5)
+    *_, (state, F, _) = _t8_path(mat, rng, n=300, steps=10)
+    assert mat.update(F, state)[1]["plastic"].sum() > 20  # seed 5: plastic points compared
+    _assert_tangent(mat, F, state)
+
+
 def test_planar_update_numba_kernel_singular_points_and_scope(monkeypatch):
     """Points the kernel marks singular are redone by the numpy path (their kernel
-    outputs discarded); a tangent, re-activation or 3D slip keep the numpy path."""
+    outputs discarded, the tangent's too); the complex-step tangent, re-activation or 3D
+    slip keep the numpy path."""
     mod = _numba_kernels()
     real = mod.cp_planar_fill
 
@@ -671,20 +697,25 @@ def test_planar_update_numba_kernel_singular_points_and_scope(monkeypatch):
     mat = CrystalPlasticity()
     rng = np.random.default_rng(3)
     *_, (state, F, _) = _t8_path(mat, rng, n=400, steps=6)
-    ref_P, ref, _ = mat._update_points(F, state, False)
+    ref_P, ref, ref_D = mat._update_points(F, state, True)
     monkeypatch.setattr(mod, "cp_planar_fill", every_fifth_bad)
-    P, st, _ = mat.update(F, state)
-    np.testing.assert_allclose(P, ref_P, rtol=0, atol=1e-13 * np.abs(ref_P).max())
-    np.testing.assert_array_equal(P[::5], ref_P[::5])  # the numpy path's own values
-    for key in ref:
-        scale = max(np.abs(ref[key]).max(), 1.0)
-        np.testing.assert_allclose(st[key], ref[key], rtol=0, atol=1e-13 * scale, err_msg=key)
+    for tangent in (False, True):
+        P, st, D = mat.update(F, state, tangent=tangent)
+        np.testing.assert_allclose(P, ref_P, rtol=0, atol=1e-13 * np.abs(ref_P).max())
+        np.testing.assert_array_equal(P[::5], ref_P[::5])  # the numpy path's own values
+        if tangent:
+            np.testing.assert_array_equal(D[::5], ref_D[::5])
+            np.testing.assert_allclose(D, ref_D, rtol=0, atol=1e-13 * np.abs(ref_D).max())
+        for key in ref:
+            scale = max(np.abs(ref[key]).max(), 1.0)
+            np.testing.assert_allclose(st[key], ref[key], rtol=0, atol=1e-13 * scale, err_msg=key)
 
     def forbidden(*args):
         raise AssertionError("the numba kernel must not run here")
 
     monkeypatch.setattr(mod, "cp_planar_fill", forbidden)
-    mat.update(F, state, tangent=True)
+    monkeypatch.setattr(mod, "cp_planar_tangent_fill", forbidden)
+    CrystalPlasticity(tangent="complex-step").update(F, state, tangent=True)
     CrystalPlasticity(active_set="reactivate").update(F, state)
     m3 = CrystalPlasticity("fcc")
     m3.update(np.broadcast_to(np.eye(3), (300, 3, 3)).copy(), m3.initial_state(300))
