@@ -42,6 +42,12 @@ CASES = [
         r"max_cutbacks must be an integer >= 0, got -1",
     ),
     (
+        "fallback-cutbacks",
+        lambda: _nl(fallback_cutbacks=True),
+        InputError,
+        r"fallback_cutbacks must be an integer >= 0, got True",
+    ),
+    (
         "relax-float",
         lambda: _nl(relax=2.5),
         InputError,

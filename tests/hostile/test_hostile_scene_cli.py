@@ -200,6 +200,11 @@ SCENE_CASES = [
     ),
     (
         "solver",
+        {"nonlinear": "auto", "fallback_cutbacks": 1.5},
+        r"solver.fallback_cutbacks must be an integer >= 0, got 1.5",
+    ),
+    (
+        "solver",
         {"nonlinear": "newton", "checkpoint": 3},
         r"solver.checkpoint must be a path string, got 3",
     ),
