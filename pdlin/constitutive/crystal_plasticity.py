@@ -852,6 +852,12 @@ class CrystalPlasticity:
                     f"state_n[{key!r}] must have shape {shape} to match F, got "
                     f"{np.shape(state[key])}"
                 )
+        for key in ("ep", "theta0", "theta", "theta_rate"):  # optional, one value per point
+            if key in state and np.shape(state[key]) != (n,):
+                raise ShapeError(
+                    f"state_n[{key!r}] must have shape ({n},) to match F, got "
+                    f"{np.shape(state[key])}"
+                )
 
     # -- return mapping kernel (crystal frame) -----------------------------------------
     def _hardening_matrix(self, s_n: FloatArray) -> FloatArray:

@@ -558,6 +558,14 @@ def test_bad_shapes():
         mat.update(np.zeros((3, 3, 3)), st)
     with pytest.raises(ShapeError, match=r"state_n\['Fp'\] must have shape \(4, 2, 2\)"):
         mat.update(np.broadcast_to(np.eye(2), (4, 2, 2)), st)
+    # the optional per-point keys too (the compiled update reads them point by point): a
+    # short one is an error, not a broadcast
+    big = mat.initial_state(300)
+    F = np.broadcast_to(np.eye(2), (300, 2, 2))
+    for key in ("ep", "theta0", "theta", "theta_rate"):
+        bad = {**big, key: np.zeros(1)}
+        with pytest.raises(ShapeError, match=rf"state_n\['{key}'\] must have shape \(300,\)"):
+            mat.update(F, bad)
     with pytest.raises(ShapeError, match=r"orientation must be .* shape \(3,\)"):
         mat.initial_state(3, np.zeros(5))
     with pytest.raises(ShapeError, match="orientation must be rotation matrices"):
