@@ -590,6 +590,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--profile-budget", type=float, default=90.0, help="seconds per profiled run (default 90)"
     )
+    ap.add_argument(
+        "--threads",
+        type=int,
+        help="pdlin threads (pdlin.set_num_threads; default: pdlin's, i.e. PDLIN_NUM_THREADS "
+        "or every core). The issue's aim is on one core: --threads 1",
+    )
     mode = ap.add_mutually_exclusive_group()
     mode.add_argument(
         "--quick",
@@ -598,6 +604,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     mode.add_argument("--full", action="store_true", help="225 to 10,000 particles and the 10⁵ run")
     args = ap.parse_args(argv)
+    if args.threads is not None:
+        pdlin.set_num_threads(args.threads)
     quick = not args.full and args.sizes is None
     if args.sizes is None:
         args.sizes = [15, 25, 50, 100] if args.full else [15, 25]
@@ -611,7 +619,7 @@ def main(argv: list[str] | None = None) -> int:
         f"# bench_nonlinear {datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC, python "
         f"{platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "
         f"{os.cpu_count()} cores, BLAS threads {os.environ.get('OPENBLAS_NUM_THREADS')}, "
-        f"load average {os.getloadavg()[0]:.1f}"
+        f"pdlin threads {pdlin.get_num_threads()}, load average {os.getloadavg()[0]:.1f}"
     )
     t_all = time.perf_counter()
     rows: list[dict[str, Any]] = []
