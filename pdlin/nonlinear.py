@@ -316,6 +316,10 @@ def _write_atomic_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
     os.replace(tmp, path)
 
 
+#: ``result.methods`` entry of a load step that Newton failed and ADR finished
+_FELL_BACK = "adr (newton failed)"
+
+
 def solve_nonlinear(
     problem: StaticProblem,
     steps: int = 10,
@@ -399,13 +403,15 @@ def solve_nonlinear(
         ('auto': direct up to 2·10⁵ DOFs in 2D / 3·10⁴ in 3D, then AMG-Krylov).
     fallback_cutbacks : int
         ``method='auto'``: Newton's halvings in a load step that follows an
-        ADR fallback (``max_cutbacks`` again once Newton carries a step); the
-        step starts with a whole-step increment.  Where Newton failed the
-        last step it likely fails this one too, and each failed increment
-        costs up to ``maxiter`` tangents and linear solves, while ADR's cost
-        hardly depends on how much of the step is left (10⁵ crystal-plasticity
-        points: ≈ 20 min of creeping Newton increments per step before the
-        fallback with ``max_cutbacks`` halvings, docs/nonlinear.md).
+        ADR fallback, one fewer for every further consecutive fallback step
+        down to the whole step alone (``max_cutbacks`` again once Newton
+        carries a step); the step starts with a whole-step increment.  Where
+        Newton failed the last step it likely fails this one too, and each
+        failed increment costs up to ``maxiter`` tangents and linear solves,
+        while ADR's cost hardly depends on how much of the step is left (10⁵
+        crystal-plasticity points: ≈ 20 min of creeping Newton increments per
+        step before the fallback with ``max_cutbacks`` halvings,
+        docs/nonlinear.md).
     relax : int
         Newton's relaxation at stalls (0, the default: off; e.g. 50): when five
         Newton iterations reduce ``‖r‖`` less than twofold, or a line search
@@ -769,8 +775,12 @@ def solve_nonlinear(
             t_cur, u_prev, t_prev = t_c, u_p, t_p
             if method in ("newton", "auto"):
                 cut_n = max_cutbacks
-                if method == "auto" and k and methods[k - 1] == "adr (newton failed)":
-                    cut_n = min(max_cutbacks, fallback_cutbacks)
+                streak = 0  # load steps just before this one that Newton failed
+                while method == "auto" and streak < k and methods[k - 1 - streak] == _FELL_BACK:
+                    streak += 1
+                if streak:
+                    # one halving fewer per further failed step, down to the whole step alone
+                    cut_n = min(max_cutbacks, max(0, fallback_cutbacks - (streak - 1)))
                     inc_frac["newton"] = 1.0
                 out, why, counts, (step_u, step_state) = substeps(
                     newton_to, "newton", t_target, step_u, step_state, None, cut_n
@@ -783,7 +793,7 @@ def solve_nonlinear(
                             f"{n_cut} cut-back(s): {why}"
                         )
                     # ADR continues from Newton's last converged increment
-                    used = "adr (newton failed)"
+                    used = _FELL_BACK
                 else:
                     used = "newton"
             if method == "adr" or out is None:

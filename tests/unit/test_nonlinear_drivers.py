@@ -453,6 +453,31 @@ def test_auto_after_a_fallback_newton_tries_fewer_halvings(
     np.testing.assert_allclose(res.u[-1, :, 0], 0.05 * (x - x[0]) / (x[-1] - x[0]), atol=1e-8)
 
 
+def test_auto_newton_tries_shrink_over_consecutive_fallbacks(monkeypatch):
+    """Every further load step that Newton fails in a row takes one halving off the next
+    step's Newton (fallback_cutbacks = 2: 2, 1, then the whole step alone); a step that
+    Newton carries restores max_cutbacks."""
+    import pdlin.nonlinear as nl
+
+    real_newton = nl.newton_step
+    ok_at = {4 / 6}  # load factors at which Newton is allowed to converge (step 4 of 6)
+
+    def newton(system, u0, committed, *, factor, **kw):
+        if any(abs(factor - f) < 1e-12 for f in ok_at):
+            return real_newton(system, u0, committed, factor=factor, **kw)
+        raise nl.StepFailed("Newton: refused (test)")
+
+    monkeypatch.setattr(nl, "newton_step", newton)
+    prob = _chain(u_end=0.05, beta=10.0)
+    res = pdlin.solve_nonlinear(
+        prob, steps=6, method="auto", max_cutbacks=4, fallback_cutbacks=2, e_l=1e-10
+    )
+    # tries per step: 5 (whole + 4 halvings), 3, 2, then step 4 by Newton at once (the
+    # whole step, streak 3: no halving), step 5 again 5 tries, step 6 after one fallback 3
+    assert res.cutbacks.tolist() == [5, 3, 2, 0, 5, 3]
+    assert res.methods == [nl._FELL_BACK] * 3 + ["newton"] + [nl._FELL_BACK] * 2
+
+
 def test_auto_continues_with_adr_from_newtons_last_increment(monkeypatch):
     # Newton converges up to half of the load and fails beyond; ADR must take over from
     # Newton's converged half step (its start state already has the history of t = 0.5)
