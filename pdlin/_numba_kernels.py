@@ -722,6 +722,90 @@ def cell_pairs(
                     out_xi[q, k] = pts[j, k] - pts[i, k]
 
 
+@numba.njit(inline="always", cache=True)
+def _mm2(a00, a01, a10, a11, b00, b01, b10, b11):  # pragma: no cover
+    """2 x 2 product in the order of ``crystal_plasticity._mm``."""
+    return (
+        a00 * b00 + a01 * b10,
+        a00 * b01 + a01 * b11,
+        a10 * b00 + a11 * b10,
+        a10 * b01 + a11 * b11,
+    )
+
+
+@numba.njit(inline="always", cache=True)
+def _inv2(a00, a01, a10, a11):  # pragma: no cover
+    """2 x 2 inverse in the order of ``crystal_plasticity._inv``."""
+    det = a00 * a11 - a01 * a10
+    return a11 / det, -a01 / det, -a10 / det, a00 / det
+
+
+@numba.njit(inline="always", cache=True)
+def _cp_crystal_frame(R0, f, i):  # pragma: no cover
+    """``Fc = (R0ᵀ f) R0`` of point ``i``."""
+    r00, r01, r10, r11 = R0[i, 0, 0], R0[i, 0, 1], R0[i, 1, 0], R0[i, 1, 1]
+    a00, a01, a10, a11 = _mm2(r00, r10, r01, r11, f[i, 0, 0], f[i, 0, 1], f[i, 1, 0], f[i, 1, 1])
+    return _mm2(a00, a01, a10, a11, r00, r01, r10, r11)
+
+
+@numba.njit(inline="always", cache=True)
+def _cp_hardening(s_n, i, Q, h0, ss, expo, fac, H):  # pragma: no cover
+    """``H^{αβ} = Q^{αβ} h0 sgn(r)|r|^a``, ``r = 1 - s/ss`` of β, into ``H``."""
+    N = H.shape[0]
+    for be in range(N):
+        rr = 1.0 - s_n[i, be] / ss[be]
+        sgr = 1.0 if rr > 0.0 else (-1.0 if rr < 0.0 else 0.0)
+        fac[be] = h0[be] * sgr * abs(rr) ** expo[be]
+    for al in range(N):
+        for be in range(N):
+            H[al, be] = Q[al, be] * fac[be]
+
+
+@numba.njit(inline="always", cache=True)
+def _cp_cauchy_green(e00, e01, e10, e11, Ce):  # pragma: no cover
+    """``Ce = Feᵀ Fe`` (flat) into ``Ce``."""
+    Ce[0] = e00 * e00 + e10 * e10
+    Ce[1] = e00 * e01 + e10 * e11
+    Ce[2] = e01 * e00 + e11 * e10
+    Ce[3] = e01 * e01 + e11 * e11
+
+
+@numba.njit(inline="always", cache=True)
+def _cp_slip_matrix(Ce, AelM, H, sg, A):  # pragma: no cover
+    """``A^{αβ} = H^{αβ} + sgn_α sgn_β (Cᵉ S₀^β) : 𝓛[S₀^α]`` into ``A``."""
+    N = A.shape[0]
+    for al in range(N):
+        for be in range(N):
+            t = 0.0
+            for k in range(4):
+                t += Ce[k] * AelM[al * N + be, k]
+            A[al, be] = H[al, be] + sg[al] * sg[be] * t
+
+
+@numba.njit(inline="always", cache=True)
+def _cp_masked(A, act):  # pragma: no cover
+    """The 2 x 2 active-set matrix: ``A`` on active rows / columns, identity elsewhere."""
+    m00 = A[0, 0] if act[0] else 1.0
+    m11 = A[1, 1] if act[1] else 1.0
+    m01 = A[0, 1] if act[0] and act[1] else 0.0
+    m10 = A[1, 0] if act[0] and act[1] else 0.0
+    return m00, m01, m10, m11
+
+
+@numba.njit(inline="always", cache=True)
+def _cp_second_pk(e00, e01, e10, e11, Cm, Et, tb):  # pragma: no cover
+    """``T̄ = 𝓛[½(FeᵀFe − I)]`` (flat) into ``tb`` (``Et`` scratch)."""
+    Et[0] = 0.5 * ((e00 * e00 + e10 * e10) - 1.0)
+    Et[1] = 0.5 * (e00 * e01 + e10 * e11)
+    Et[2] = 0.5 * (e01 * e00 + e11 * e10)
+    Et[3] = 0.5 * ((e01 * e01 + e11 * e11) - 1.0)
+    for k in range(4):
+        t = 0.0
+        for ll in range(4):
+            t += Et[ll] * Cm[k, ll]
+        tb[k] = t
+
+
 @numba.njit(nogil=True, cache=True)
 def cp_planar_fill(  # pragma: no cover
     p0, p1, f, R0, Fp_n, s_n, gamma_n, ep_n, theta0, theta_n, rate_n,
@@ -753,35 +837,13 @@ def cp_planar_fill(  # pragma: no cover
         bad[i] = False
         r00, r01, r10, r11 = R0[i, 0, 0], R0[i, 0, 1], R0[i, 1, 0], R0[i, 1, 1]
         f00, f01, f10, f11 = f[i, 0, 0], f[i, 0, 1], f[i, 1, 0], f[i, 1, 1]
-        # Fc = (R0ᵀ f) R0
-        a00 = r00 * f00 + r10 * f10
-        a01 = r00 * f01 + r10 * f11
-        a10 = r01 * f00 + r11 * f10
-        a11 = r01 * f01 + r11 * f11
-        c00 = a00 * r00 + a01 * r10
-        c01 = a00 * r01 + a01 * r11
-        c10 = a10 * r00 + a11 * r10
-        c11 = a10 * r01 + a11 * r11
-        # hardening matrix h^{αβ} = Q^{αβ} h0 sgn(r)|r|^a, r = 1 - s/ss (of β)
-        for be in range(N):
-            rr = 1.0 - s_n[i, be] / ss[be]
-            sgr = 1.0 if rr > 0.0 else (-1.0 if rr < 0.0 else 0.0)
-            fac[be] = h0[be] * sgr * abs(rr) ** expo[be]
-        for al in range(N):
-            for be in range(N):
-                H[al, be] = Q[al, be] * fac[be]
+        c00, c01, c10, c11 = _cp_crystal_frame(R0, f, i)
+        _cp_hardening(s_n, i, Q, h0, ss, expo, fac, H)
         # trial state: Fe_tr = Fc Fp_n⁻¹, Ce = Fe_trᵀ Fe_tr, E = ½(Ce − I)
         q00, q01, q10, q11 = Fp_n[i, 0, 0], Fp_n[i, 0, 1], Fp_n[i, 1, 0], Fp_n[i, 1, 1]
-        det = q00 * q11 - q01 * q10
-        i00, i01, i10, i11 = q11 / det, -q01 / det, -q10 / det, q00 / det
-        e00 = c00 * i00 + c01 * i10
-        e01 = c00 * i01 + c01 * i11
-        e10 = c10 * i00 + c11 * i10
-        e11 = c10 * i01 + c11 * i11
-        Ce[0] = e00 * e00 + e10 * e10
-        Ce[1] = e00 * e01 + e10 * e11
-        Ce[2] = e01 * e00 + e11 * e10
-        Ce[3] = e01 * e01 + e11 * e11
+        i00, i01, i10, i11 = _inv2(q00, q01, q10, q11)
+        e00, e01, e10, e11 = _mm2(c00, c01, c10, c11, i00, i01, i10, i11)
+        _cp_cauchy_green(e00, e01, e10, e11, Ce)
         Et[0] = 0.5 * (Ce[0] - 1.0)
         Et[1] = 0.5 * Ce[1]
         Et[2] = 0.5 * Ce[2]
@@ -799,18 +861,10 @@ def cp_planar_fill(  # pragma: no cover
             dg[al] = 0.0
             anyact = anyact or act[al]
         if anyact:
-            for al in range(N):
-                for be in range(N):
-                    t = 0.0
-                    for k in range(4):
-                        t += Ce[k] * AelM[al * N + be, k]
-                    A[al, be] = H[al, be] + sg[al] * sg[be] * t
+            _cp_slip_matrix(Ce, AelM, H, sg, A)
             # §3.6 step 5: solve on the active set, drop Δγ <= 0, repeat
             while True:
-                m00 = A[0, 0] if act[0] else 1.0
-                m11 = A[1, 1] if act[1] else 1.0
-                m01 = A[0, 1] if act[0] and act[1] else 0.0
-                m10 = A[1, 0] if act[0] and act[1] else 0.0
+                m00, m01, m10, m11 = _cp_masked(A, act)
                 y0 = b[0] if act[0] else 0.0
                 y1 = b[1] if act[1] else 0.0
                 dt = m00 * m11 - m01 * m10
@@ -845,21 +899,9 @@ def cp_planar_fill(  # pragma: no cover
             dd = np.sqrt(u00 * u11 - u01 * u10)
             u00, u01, u10, u11 = u00 / dd, u01 / dd, u10 / dd, u11 / dd
         Fp[i, 0, 0], Fp[i, 0, 1], Fp[i, 1, 0], Fp[i, 1, 1] = u00, u01, u10, u11
-        det = u00 * u11 - u01 * u10
-        i00, i01, i10, i11 = u11 / det, -u01 / det, -u10 / det, u00 / det
-        e00 = c00 * i00 + c01 * i10
-        e01 = c00 * i01 + c01 * i11
-        e10 = c10 * i00 + c11 * i10
-        e11 = c10 * i01 + c11 * i11
-        Et[0] = 0.5 * ((e00 * e00 + e10 * e10) - 1.0)
-        Et[1] = 0.5 * (e00 * e01 + e10 * e11)
-        Et[2] = 0.5 * (e01 * e00 + e11 * e10)
-        Et[3] = 0.5 * ((e01 * e01 + e11 * e11) - 1.0)
-        for k in range(4):
-            t = 0.0
-            for ll in range(4):
-                t += Et[ll] * Cm[k, ll]
-            tb[k] = t
+        i00, i01, i10, i11 = _inv2(u00, u01, u10, u11)
+        e00, e01, e10, e11 = _mm2(c00, c01, c10, c11, i00, i01, i10, i11)
+        _cp_second_pk(e00, e01, e10, e11, Cm, Et, tb)
         # P = (Fe T̄) Fp⁻ᵀ in the crystal frame, then R0 P R0ᵀ
         v00 = e00 * tb[0] + e01 * tb[2]
         v01 = e00 * tb[1] + e01 * tb[3]
@@ -926,17 +968,6 @@ def cp_planar_fill(  # pragma: no cover
         rate[i] = rate_n[i] + 0.5 * (wa - wb)
 
 
-@numba.njit(inline="always", cache=True)
-def _mm2(a00, a01, a10, a11, b00, b01, b10, b11):  # pragma: no cover
-    """2 x 2 product in the order of ``crystal_plasticity._mm``."""
-    return (
-        a00 * b00 + a01 * b10,
-        a00 * b01 + a01 * b11,
-        a10 * b00 + a11 * b10,
-        a10 * b01 + a11 * b11,
-    )
-
-
 @numba.njit(nogil=True, cache=True)
 def cp_planar_tangent_fill(  # pragma: no cover
     p0, p1, f, R0, Fp_n, s_n, Fp, dgamma, sign,
@@ -960,24 +991,12 @@ def cp_planar_tangent_fill(  # pragma: no cover
     z00 = z01 = z10 = z11 = w00 = w01 = w10 = w11 = Jr = 1.0
     for i in range(p0, p1):
         r00, r01, r10, r11 = R0[i, 0, 0], R0[i, 0, 1], R0[i, 1, 0], R0[i, 1, 1]
-        f00, f01, f10, f11 = f[i, 0, 0], f[i, 0, 1], f[i, 1, 0], f[i, 1, 1]
-        a00, a01, a10, a11 = _mm2(r00, r10, r01, r11, f00, f01, f10, f11)
-        c00, c01, c10, c11 = _mm2(a00, a01, a10, a11, r00, r01, r10, r11)
-        for be in range(N):
-            rr = 1.0 - s_n[i, be] / ss[be]
-            sgr = 1.0 if rr > 0.0 else (-1.0 if rr < 0.0 else 0.0)
-            fac[be] = h0[be] * sgr * abs(rr) ** expo[be]
-        for al in range(N):
-            for be in range(N):
-                H[al, be] = Q[al, be] * fac[be]
+        c00, c01, c10, c11 = _cp_crystal_frame(R0, f, i)
+        _cp_hardening(s_n, i, Q, h0, ss, expo, fac, H)
         q00, q01, q10, q11 = Fp_n[i, 0, 0], Fp_n[i, 0, 1], Fp_n[i, 1, 0], Fp_n[i, 1, 1]
-        det = q00 * q11 - q01 * q10
-        n00, n01, n10, n11 = q11 / det, -q01 / det, -q10 / det, q00 / det  # Fp_n⁻¹
+        n00, n01, n10, n11 = _inv2(q00, q01, q10, q11)  # Fp_n⁻¹
         t00, t01, t10, t11 = _mm2(c00, c01, c10, c11, n00, n01, n10, n11)  # Fe_tr
-        Ce[0] = t00 * t00 + t10 * t10
-        Ce[1] = t00 * t01 + t10 * t11
-        Ce[2] = t01 * t00 + t11 * t10
-        Ce[3] = t01 * t01 + t11 * t11
+        _cp_cauchy_green(t00, t01, t10, t11, Ce)
         anyact = False
         for al in range(N):
             dg[al] = dgamma[i, al]
@@ -985,31 +1004,13 @@ def cp_planar_tangent_fill(  # pragma: no cover
             act[al] = dg[al] > 0.0
             anyact = anyact or act[al]
         if anyact:
-            for al in range(N):
-                for be in range(N):
-                    t = 0.0
-                    for k in range(4):
-                        t += Ce[k] * AelM[al * N + be, k]
-                    A[al, be] = H[al, be] + sg[al] * sg[be] * t
-        m00 = A[0, 0] if act[0] else 1.0
-        m11 = A[1, 1] if act[1] else 1.0
-        m01 = A[0, 1] if act[0] and act[1] else 0.0
-        m10 = A[1, 0] if act[0] and act[1] else 0.0
+            _cp_slip_matrix(Ce, AelM, H, sg, A)
+        m00, m01, m10, m11 = _cp_masked(A, act)
         mdet = m00 * m11 - m01 * m10
         # final state: Fp⁻¹, Fe = Fc Fp⁻¹, T̄ = 𝓛[½(FeᵀFe − I)]
-        u00, u01, u10, u11 = Fp[i, 0, 0], Fp[i, 0, 1], Fp[i, 1, 0], Fp[i, 1, 1]
-        det = u00 * u11 - u01 * u10
-        i00, i01, i10, i11 = u11 / det, -u01 / det, -u10 / det, u00 / det
+        i00, i01, i10, i11 = _inv2(Fp[i, 0, 0], Fp[i, 0, 1], Fp[i, 1, 0], Fp[i, 1, 1])
         e00, e01, e10, e11 = _mm2(c00, c01, c10, c11, i00, i01, i10, i11)
-        Et[0] = 0.5 * ((e00 * e00 + e10 * e10) - 1.0)
-        Et[1] = 0.5 * (e00 * e01 + e10 * e11)
-        Et[2] = 0.5 * (e01 * e00 + e11 * e10)
-        Et[3] = 0.5 * ((e01 * e01 + e11 * e11) - 1.0)
-        for k in range(4):
-            t = 0.0
-            for ll in range(4):
-                t += Et[ll] * Cm[k, ll]
-            tb[k] = t
+        _cp_second_pk(e00, e01, e10, e11, Cm, Et, tb)
         # T̄ Fp⁻ᵀ and Fe T̄ (constant over the directions)
         x00, x01, x10, x11 = _mm2(tb[0], tb[1], tb[2], tb[3], i00, i10, i01, i11)
         y00, y01, y10, y11 = _mm2(e00, e01, e10, e11, tb[0], tb[1], tb[2], tb[3])
