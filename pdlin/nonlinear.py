@@ -320,6 +320,23 @@ def _write_atomic_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
 _FELL_BACK = "adr (newton failed)"
 
 
+def _check_committed(u: np.ndarray, state: Any, k: int, t: float) -> None:
+    """Raise :class:`~pdlin.errors.ConvergenceError` when a converged load step would
+    commit a non-finite displacement or state variable (trial iterates may overflow;
+    their floating-point warnings are not issued, so this is where nothing may pass)."""
+    where = f"load step {k + 1} (t = {t:.6g})"
+    if not np.all(np.isfinite(u)):
+        raise ConvergenceError(f"{where}: the converged displacement is not finite")
+    for key, val in (state or {}).items():
+        arr = np.atleast_1d(np.asarray(val))
+        if arr.dtype.kind in "fc" and not np.all(np.isfinite(arr)):
+            bad = int(np.flatnonzero(~np.isfinite(arr.reshape(arr.shape[0], -1)).any(1))[0])
+            raise ConvergenceError(
+                f"{where}: the converged state variable {key!r} is not finite "
+                f"(first at gradient point {bad})"
+            )
+
+
 def solve_nonlinear(
     problem: StaticProblem,
     steps: int = 10,
@@ -836,6 +853,7 @@ def solve_nonlinear(
             resid[k] = out.residual
             methods[k], messages[k] = used, why
             damping_hist[k] = np.concatenate(damp) if damp else np.zeros(0)
+        _check_committed(u_new, resp.state, k, t_target)
         # commit
         u_p, t_p = u_c, t_c
         u_c, state_c, t_c = u_new, dict(resp.state), t_target

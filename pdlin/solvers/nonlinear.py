@@ -88,9 +88,16 @@ class StepFailed(ConvergenceError):
 def _respond(system: Any, u: np.ndarray, committed: Any, what: str, tangent: bool = False) -> Any:
     """``system.respond`` where a non-finite constitutive response (a material update
     that failed at a trial state, e.g. a return mapping diverging at an overshooting
-    ADR iterate) fails the step, so that the driver cuts it back, instead of escaping."""
+    ADR iterate) fails the step, so that the driver cuts it back, instead of escaping.
+
+    numpy's floating-point warnings (overflow, invalid, divide) are not issued for
+    trial iterates: the overflow of a diverging iterate is not the user's concern, and
+    every caller checks what it takes from the response (a non-finite residual fails the
+    step or the line-search trial; a committed state is checked by the load-step
+    driver), so nothing non-finite is kept."""
     try:
-        return system.respond(u, committed, tangent=tangent)
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return system.respond(u, committed, tangent=tangent)
     except NonFiniteError as exc:
         raise StepFailed(f"{what}: non-finite constitutive response ({exc})") from exc
 
@@ -214,7 +221,7 @@ def newton_step(
                 symmetric=system.symmetric,
                 direct_cache=direct_cache,
             )
-        except ConvergenceError as exc:
+        except (ConvergenceError, NonFiniteError) as exc:  # NonFinite: a non-finite K_T
             raise StepFailed(f"Newton: linear solve failed at iteration {it}: {exc}") from exc
         du = lin.x
         du[system.dofs] = 0.0
@@ -382,6 +389,12 @@ def adr_density(
         )
     lam = _gershgorin(resp.tangent, dt, safety)
     free = system.free
+    if not np.all(np.isfinite(lam[free])):
+        bad = int(np.flatnonzero(free & ~np.isfinite(lam))[0])
+        raise StepFailed(
+            f"ADR density: the tangent at u has a non-finite row at free dof {bad} "
+            f"(point {bad // system.dim})"
+        )
     if np.any(lam[free] <= 0):
         bad = int(np.flatnonzero(free & (lam <= 0))[0])
         raise ModelError(
