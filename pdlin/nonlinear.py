@@ -86,7 +86,9 @@ class NonlinearResult:
     residuals : (k,) ndarray
         Final relative residual ``‖r_free‖ / force scale`` per step.
     timings : dict
-        ``'setup'``, ``'total'`` seconds and ``'steps'`` (k,) per step.
+        ``'setup'``, ``'total'`` seconds (of this call) and ``'steps'`` (k,) wall seconds
+        per step; a resumed run's steps from the checkpoint carry the times measured by
+        the run that solved them (NaN from a checkpoint that recorded none).
     """
 
     problem: StaticProblem
@@ -621,6 +623,11 @@ def solve_nonlinear(
             arr[:start] = data[key][:start]
         if "relaxations" in data:  # absent from checkpoints of earlier versions
             relax_hist[:start] = data["relaxations"][:start]
+        # step wall times and Newton's failure messages of the steps the file holds (runs
+        # that wrote none: times unknown, NaN)
+        step_time[:start] = data["step_time"][:start] if "step_time" in data else np.nan
+        if "messages" in data:
+            messages[:start] = [str(m) for m in data["messages"][:start]]
         e1s[:start], e2s[:start] = data["e1"][:start], data["e2"][:start]
         resid[:start] = data["residuals"][:start]
         if "stress" in data:
@@ -884,6 +891,8 @@ def solve_nonlinear(
                 "e2": e2s[: k + 1],
                 "residuals": resid[: k + 1],
                 "methods": np.array(methods[: k + 1]),
+                "messages": np.array(messages[: k + 1]),
+                "step_time": step_time[: k + 1],
             }
             if stress_hist is not None and hom_hist is not None:
                 arrays["stress"] = stress_hist[: k + 1]

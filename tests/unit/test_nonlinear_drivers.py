@@ -156,7 +156,7 @@ def test_newton_converges_quadratically():
     assert res.residuals[0] <= 1e-8
 
 
-def test_cutback_then_success_and_auto_fallback_to_adr():
+def test_cutback_then_success_and_auto_fallback_to_adr(tmp_path):
     prob = _chain(u_end=0.2, graded=True, beta=1e3)
     # three iterations are too few for the full step: halvings make each piece easy enough
     res = pdlin.solve_nonlinear(prob, steps=1, method="newton", maxiter=3, predictor="tangent")
@@ -165,12 +165,17 @@ def test_cutback_then_success_and_auto_fallback_to_adr():
         pdlin.solve_nonlinear(
             prob, steps=1, method="newton", maxiter=1, max_cutbacks=0, predictor="tangent"
         )
+    ck = tmp_path / "auto.npz"
     auto = pdlin.solve_nonlinear(
         prob, steps=1, method="auto", maxiter=1, max_cutbacks=0, predictor="tangent",
-        e_l=1e-9,
+        e_l=1e-9, checkpoint=ck,
     )  # fmt: skip
     assert auto.methods == ["adr (newton failed)"]
     assert "no convergence in 1 iterations" in auto.messages[0]
+    # the checkpoint keeps why Newton failed and the step's time: a resumed run reports them
+    again = pdlin.solve_nonlinear(prob, steps=1, method="auto", checkpoint=ck, resume=True)
+    assert again.resumed_from == 1 and again.messages == auto.messages
+    assert again.timings["steps"].tolist() == auto.timings["steps"].tolist()
     # the step's iterations: Newton's failed one plus one damping value per ADR iteration
     assert auto.damping[0].size == auto.iterations[0] - 1 > 0
     np.testing.assert_allclose(auto.u[-1], res.u[-1], rtol=0, atol=1e-6 * 0.2)
@@ -247,8 +252,21 @@ def test_checkpoint_resume_keeps_committed_steps(tmp_path):
         )
     assert ck.exists() and not (tmp_path / "run.npz.tmp").exists()
     assert int(np.load(ck)["done"]) == 2
+    first = np.load(ck)["step_time"]
     res = pdlin.solve_nonlinear(prob, steps=4, method="newton", checkpoint=ck, resume=True)
     assert res.resumed_from == 2
+    # every step's wall time: steps 1-2 as measured by the killed run, 3-4 by this one
+    steps = res.timings["steps"]
+    assert first.shape == (2,) and np.all(first > 0) and steps[:2].tolist() == first.tolist()
+    assert np.all(steps[2:] > 0) and np.all(np.isfinite(steps))
+    # a checkpoint of an earlier version (no step times, no messages) still resumes; the
+    # unknown times are NaN, not zero
+    old = tmp_path / "old.npz"
+    with np.load(ck) as data:
+        np.savez(old, **{k: data[k] for k in data.files if k not in ("step_time", "messages")})
+    legacy = pdlin.solve_nonlinear(prob, steps=4, method="newton", checkpoint=old, resume=True)
+    assert np.isnan(legacy.timings["steps"][:4]).all() and legacy.messages == [""] * 4
+    np.testing.assert_allclose(legacy.u, full.u, rtol=1e-12, atol=1e-15)
     # the checkpoint's committed state and the two solved steps' states are kept
     assert res.state_steps == [1, 2, 3] and res.state_at(0) is None
     np.testing.assert_allclose(res.state_at(1)["emax"], full.states[1]["emax"], rtol=1e-12)
