@@ -1,0 +1,103 @@
+"""Zero-energy-mode controls on the crystal-plasticity polycrystal (issue 11, 10⁵ stall).
+
+Spec 001's polycrystal (``bench_nonlinear.problem``: n x n grid, δ = h, 21 Voronoi grains,
+planar-2 crystal plasticity, boundary ring under ``Dirichlet.velocity_gradient``, 30 load
+steps) solved with ``Correspondence(material=..., control=C)`` for each control C.  Prints
+one row per control: wall time, iterations, largest iterations of a step, cut-backs, ADR
+fallbacks, the high-frequency content of the displacement at step 1 and at the last step
+(``hf``: ``|u_i - mean of its four grid neighbours| / h`` over interior points, median /
+99 % / max; a smooth field gives O(h x strain gradient), zero-energy modes give values of
+the order of the strain and more) and the homogenized stress (σ_xy for shear, σ_yy for
+compression) at step 1 and at the last step.  Nothing is asserted.
+
+Usage::
+
+    python benchmarks/bench_cp_controls.py --n 50 --load shear --controls none stress_points penalty
+    python benchmarks/bench_cp_controls.py --n 100 --load shear --controls penalty
+    python benchmarks/bench_cp_controls.py --controls penalty:0.1 penalty:0.3   # coefficients
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import pdlin
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_nonlinear as bn  # noqa: E402
+
+
+def high_frequency(u: np.ndarray, points: np.ndarray, n: int, h: float) -> np.ndarray:
+    """``|u_i - mean of the four grid neighbours| / h`` at the interior points of the grid."""
+    ij = np.rint((points - points.min(axis=0)) / h).astype(int)
+    grid = np.zeros((n, n, u.shape[1]))
+    grid[ij[:, 0], ij[:, 1]] = u
+    avg = 0.25 * (grid[2:, 1:-1] + grid[:-2, 1:-1] + grid[1:-1, 2:] + grid[1:-1, :-2])
+    return np.asarray(np.linalg.norm(grid[1:-1, 1:-1] - avg, axis=2).ravel() / h)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=50, help="grid points per side (default 50)")
+    ap.add_argument("--load", choices=sorted(bn.LOADS), default="shear")
+    ap.add_argument("--method", choices=["newton", "adr", "auto"], default="auto")
+    ap.add_argument(
+        "--controls",
+        nargs="+",
+        default=["none", "stress_points", "penalty"],
+        help="controls of Correspondence; 'penalty:C' sets the penalty coefficient C",
+    )
+    ap.add_argument("--steps", type=int, default=30)
+    ap.add_argument("--threads", type=int, default=1, help="pdlin threads (default 1)")
+    args = ap.parse_args()
+    pdlin.set_num_threads(args.threads)
+    base, h = bn.problem(args.n, args.load)
+    material = base.model.material
+    comp = (0, 1) if args.load == "shear" else (1, 1)
+    print(
+        f"# {args.n}² = {args.n**2} particles, {args.load}, {args.method}, {args.steps} steps, "
+        f"{args.threads} pdlin thread(s)"
+    )
+    print(
+        "| control | s | iterations | max it/step | cut-backs | fallbacks "
+        "| hf step 1 median/99%/max | hf last step median/99%/max | σ step 1 / last (MPa) |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
+    for control in args.controls:
+        name, _, coef = control.partition(":")  # "penalty:0.1" = control 'penalty', penalty=0.1
+        kw = {"penalty": float(coef)} if coef else {}
+        model = pdlin.Correspondence(material=material, control=name, **kw)
+        prob = pdlin.StaticProblem(model, base.cloud, base.bonds, dirichlet=list(base.dirichlet))
+        t0 = time.perf_counter()
+        try:
+            res = pdlin.solve_nonlinear(
+                prob,
+                times=np.arange(1.0, args.steps + 1.0),
+                t_end=30.0,
+                method=args.method,
+                keep_states=False,
+            )
+        except pdlin.errors.ConvergenceError as exc:
+            print(f"| {control} | failed: {str(exc)[:120]} | | | | | | | |", flush=True)
+            continue
+        wall = time.perf_counter() - t0
+        hf = [high_frequency(res.u[k], prob.cloud.points, args.n, h) for k in (0, -1)]
+        q = ["/".join(f"{v:.1e}" for v in (np.median(a), np.quantile(a, 0.99), max(a))) for a in hf]
+        hom = res.homogenized_stress
+        assert hom is not None
+        fallbacks = sum("failed" in m for m in res.methods)
+        print(
+            f"| {control} | {wall:.1f} | {int(res.iterations.sum())} | "
+            f"{int(res.iterations.max())} | {int(res.cutbacks.sum())} | {fallbacks} | {q[0]} | "
+            f"{q[1]} | {hom[0][comp]:.3f} / {hom[-1][comp]:.3f} |",
+            flush=True,
+        )
+
+
+if __name__ == "__main__":
+    main()
