@@ -87,7 +87,9 @@ def main() -> None:
             continue
         wall = time.perf_counter() - t0
         hf = [high_frequency(res.u[k], prob.cloud.points, args.n, h) for k in (0, -1)]
-        q = ["/".join(f"{v:.1e}" for v in (np.median(a), np.quantile(a, 0.99), max(a))) for a in hf]
+        q = [
+            "/".join(f"{v:.1e}" for v in (np.median(a), np.quantile(a, 0.99), a.max())) for a in hf
+        ]
         hom = res.homogenized_stress
         assert hom is not None
         fallbacks = sum("failed" in m for m in res.methods)
