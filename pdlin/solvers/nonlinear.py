@@ -473,6 +473,31 @@ def adr_step(
     )
 
 
+def _runaway_message(
+    system: Any, it: int, u_start: np.ndarray, u: np.ndarray, r_new: np.ndarray
+) -> str:
+    """Why ADR stopped on a non-finite force: where it appeared and where the last finite
+    iterate had moved farthest from the start of the increment (the runaway's seat)."""
+    d = system.dim
+    bad = np.flatnonzero(~np.isfinite(r_new))
+    first = int(bad[0]) // d if bad.size else -1
+    with np.errstate(over="ignore", invalid="ignore"):
+        move = np.linalg.norm((u - u_start).reshape(-1, d), axis=1)
+    move = np.where(np.isfinite(move), move, np.inf)
+    p = int(np.argmax(move))
+    pts = getattr(getattr(system, "cloud", None), "points", None)
+    where = "" if pts is None else f" (x = {np.round(np.asarray(pts[p]), 6).tolist()})"
+    return (
+        f"ADR: non-finite force at iteration {it} (first at point {first}); the last finite "
+        f"iterate had moved farthest from the increment's start at point {p}{where}, "
+        f"|Δu| = {move[p]:.3g} against a median of {float(np.median(move)):.3g}. A density "
+        "too small for the stiffness along the iteration (dt too large; raise "
+        "density_safety), or a local mode without stiffness running away (e.g. a "
+        "zero-energy mode of an uncontrolled correspondence model softened by plasticity: "
+        "try a control, Correspondence(control=...))"
+    )
+
+
 @dataclass
 class _AdrRun:
     outcome: StepOutcome
@@ -502,6 +527,7 @@ def _adr_run(
     lam = density
     free = system.free
     npts = system.n
+    u_start = u.copy()
     u_prev = u.copy()
     calls = int(resp.calls)
     history: list[float] = []
@@ -518,9 +544,10 @@ def _adr_run(
         resp_new = _respond(system, u_new, committed, f"ADR iteration {it}")
         calls += int(resp_new.calls)
         r_new = _residual(system, resp_new, factor)
-        n1 = float(np.linalg.norm(r_new))
+        with np.errstate(over="ignore", invalid="ignore"):
+            n1 = float(np.linalg.norm(r_new))
         if not math.isfinite(n1):
-            raise StepFailed(f"ADR: non-finite force at iteration {it} (dt too large?)")
+            raise StepFailed(_runaway_message(system, it, u_start, u, r_new))
         du = u_new - u
         if damping is None:
             num_mask = free & (du != 0.0)

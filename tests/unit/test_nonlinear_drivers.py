@@ -605,3 +605,24 @@ def test_auto_continues_with_adr_from_newtons_last_increment(monkeypatch):
     np.testing.assert_allclose(seen[0], 0.05 / 40, rtol=1e-9)
     x = prob.cloud.points[:, 0]
     np.testing.assert_allclose(res.u[-1, :, 0], 0.05 * (x - x[0]) / (x[-1] - x[0]), atol=1e-8)
+
+
+def test_adr_divergence_names_where_the_iterates_ran_away():
+    # a graded linear chain whose density is the Gershgorin bound at safety 1 except at one
+    # point near its stiff end, 40 % below: the central differences blow up there; the
+    # error names the first non-finite force and the point that had moved farthest (that
+    # one), with the remedies
+    from pdlin.solvers import StepFailed, adr_density, adr_step
+
+    prob = _chain(n=21, beta=0.0, graded=True)
+    system = pdlin.constrained_system(prob)
+    st = system.initial_state()
+    lam = adr_density(system, st, None, dt=1.0, safety=1.0)
+    lam[-3] *= 0.6  # the point next to the stiff end's support
+    with pytest.raises(StepFailed) as err:
+        adr_step(system, system.prescribed(1.0), st, factor=1.0, density=lam, dt=1.0)
+    msg = str(err.value)
+    assert "non-finite force at iteration" in msg and "density_safety" in msg
+    assert "control" in msg
+    p = int(msg.split("farthest from the increment's start at point ")[1].split()[0])
+    assert p == 18  # the point whose density was lowered (points 0-20, x = 0.9)
