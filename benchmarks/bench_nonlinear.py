@@ -69,12 +69,18 @@ class _Stop(Exception):
     """Raised from the progress callback when a run exceeds its time budget."""
 
 
-def problem(n: int, load: str) -> tuple[Any, float]:
+def problem(n: int, load: str, control: str = "none") -> tuple[Any, float]:
+    """The seed polycrystal on n x n particles; ``control`` a Correspondence control, with
+    ``"penalty:C"`` for the penalty at coefficient C (default: none, spec 001's setting)."""
     h = 1.0 / n
     cloud = pdlin.grid((n, n), spacing=h)
     bonds = pdlin.find_bonds(cloud, ratio=1.0, influence="constant")
     _, theta = pdlin.voronoi_polycrystal(cloud, 21, seed=1)
-    model = pdlin.Correspondence(material=pdlin.CrystalPlasticity("planar-2", orientation=theta))
+    name, _, coef = control.partition(":")
+    kw: dict[str, Any] = {"penalty": float(coef)} if coef else {}
+    model = pdlin.Correspondence(
+        material=pdlin.CrystalPlasticity("planar-2", orientation=theta), control=name, **kw
+    )
     L = ETA * np.array(LOADS[load])
     bc = pdlin.Dirichlet.velocity_gradient("boundary", L)
     return pdlin.StaticProblem(model, cloud, bonds, dirichlet=[bc]), h
@@ -363,9 +369,14 @@ def table_profile(n: int, load: str, methods: list[str], steps: int, budget: flo
 
 
 def _big(
-    n: int, steps: int, load: str, method: str = "newton", checkpoint: str | None = None
+    n: int,
+    steps: int,
+    load: str,
+    method: str = "newton",
+    checkpoint: str | None = None,
+    control: str = "none",
 ) -> dict[str, Any]:
-    prob, _ = problem(n, load)
+    prob, _ = problem(n, load, control)
     t0 = time.perf_counter()
     resume = checkpoint is not None and Path(checkpoint).exists()
     res = pdlin.solve_nonlinear(
@@ -395,10 +406,18 @@ def _big(
 
 
 def table_big(
-    n: int, steps: int, load: str, method: str = "newton", checkpoint: str | None = None
+    n: int,
+    steps: int,
+    load: str,
+    method: str = "newton",
+    checkpoint: str | None = None,
+    control: str = "none",
 ) -> None:
-    print(f"\n## 10⁵ feasibility: {n}² = {n * n:,} particles, {load}, {method}, steps 1-{steps}\n")
-    r = forked(_big, n, steps, load, method, checkpoint)
+    print(
+        f"\n## 10⁵ feasibility: {n}² = {n * n:,} particles, {load}, {method}, control "
+        f"{control}, steps 1-{steps}\n"
+    )
+    r = forked(_big, n, steps, load, method, checkpoint, control)
     if isinstance(r, str):
         print(f"failed: {r}")
         return
@@ -563,6 +582,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--big-checkpoint", help="checkpoint file of the 10⁵ run (resumed when it exists)"
     )
+    ap.add_argument(
+        "--big-control",
+        default="none",
+        help="zero-energy-mode control of the 10⁵ run: none (spec 001), stress_points, "
+        "penalty or penalty:C (coefficient C; the end-to-end run uses penalty:0.1)",
+    )
     ap.add_argument("--b2-size", type=int, default=25)
     ap.add_argument(
         "--b2-steps",
@@ -635,7 +660,14 @@ def main(argv: list[str] | None = None) -> int:
             n_prof, args.loads[0], ["newton", "adr-spec"], args.steps, args.profile_budget
         )
     if "big" in args.sections and args.big > 0:
-        table_big(args.big, args.big_steps, args.loads[0], args.big_method, args.big_checkpoint)
+        table_big(
+            args.big,
+            args.big_steps,
+            args.loads[0],
+            args.big_method,
+            args.big_checkpoint,
+            args.big_control,
+        )
     if "b2" in args.sections:
         table_b2(args.b2_size, args.loads[0], args.b2_steps, args.e_l)
     if "t20" in args.sections:
