@@ -75,10 +75,12 @@ class NonlinearResult:
         Newton iterations or ADR iterations, constitutive evaluations and
         failed increments (cut-backs) per step (summed over sub-steps).
     methods : list of str
-        Driver that converged each step: ``'newton'``, ``'adr'`` or
-        ``'adr (newton failed)'`` (``method='auto'`` fell back).
+        Driver that converged each step: ``'newton'``, ``'adr'``,
+        ``'adr (newton failed)'`` (``method='auto'`` fell back) or ``'adr (newton
+        skipped)'`` (``auto`` did not try Newton, ``newton_backoff``).
     messages : list of str
-        Why Newton failed on a step that fell back (empty otherwise).
+        Why Newton failed on a step that fell back, or why it was skipped (empty
+        otherwise).
     damping : list of ndarray
         ADR damping coefficient per iteration of each step (empty for Newton).
     e1, e2 : (k,) ndarray
@@ -152,6 +154,7 @@ class NonlinearResult:
             "cutbacks": int(self.cutbacks.sum()),
             "relaxation_iterations": int(self.relaxations.sum()),
             "fallbacks": int(sum(1 for m in self.methods if "failed" in m)),
+            "newton_skipped": int(sum(1 for m in self.methods if m == _SKIPPED)),
             "max_relative_residual": float(np.max(self.residuals)) if self.n_steps else 0.0,
             "timings": {
                 "setup": round(float(self.timings.get("setup", 0.0)), 4),
@@ -320,6 +323,9 @@ def _write_atomic_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
 
 #: ``result.methods`` entry of a load step that Newton failed and ADR finished
 _FELL_BACK = "adr (newton failed)"
+#: ``result.methods`` entry of a load step that ``auto`` gave to ADR without trying Newton
+#: (``newton_backoff``)
+_SKIPPED = "adr (newton skipped)"
 
 
 def _check_committed(u: np.ndarray, state: Any, k: int, t: float) -> None:
@@ -352,6 +358,7 @@ def solve_nonlinear(
     line_search: bool = True,
     max_cutbacks: int = 8,
     fallback_cutbacks: int = 2,
+    newton_backoff: bool = True,
     linear_solver: str = "auto",
     relax: int = 0,
     e_l: float = 1e-6,
@@ -431,6 +438,14 @@ def solve_nonlinear(
         crystal-plasticity points: ≈ 20 min of creeping Newton increments per
         step before the fallback with ``max_cutbacks`` halvings,
         docs/nonlinear.md).
+    newton_backoff : bool
+        ``method='auto'``: once Newton has failed ``fallback_cutbacks + 1`` load steps in a
+        row (its tries then down to the whole step alone), try it only when the number of
+        steps in a row without Newton is a power of two (4, 8, 16, ...) and give the other
+        steps to ADR directly (``result.methods``: ``'adr (newton skipped)'``); a step
+        Newton carries ends the streak.  At 10⁵ crystal-plasticity points a failing
+        whole-step Newton try costs ≈ 1.5 min of an ≈ 9 min step (docs/nonlinear.md).
+        False: try Newton at every step.
     relax : int
         Newton's relaxation at stalls (0, the default: off; e.g. 50): when five
         Newton iterations reduce ``‖r‖`` less than twofold, or a line search
@@ -523,6 +538,8 @@ def solve_nonlinear(
             math.isfinite(opt) and opt >= 0
         ):
             raise InputError(f"{name} must be a finite number >= 0, got {opt!r}")
+    if not isinstance(newton_backoff, bool):
+        raise InputTypeError(f"newton_backoff must be True or False, got {newton_backoff!r}")
     if adr_maxiter is not None:
         adr_maxiter = integer(adr_maxiter, "adr_maxiter", minimum=1)
     if resume and checkpoint is None:
@@ -800,17 +817,35 @@ def solve_nonlinear(
             if method in ("newton", "auto"):
                 cut_n = max_cutbacks
                 streak = 0  # load steps just before this one that Newton failed
-                while method == "auto" and streak < k and methods[k - 1 - streak] == _FELL_BACK:
+                while (
+                    method == "auto"
+                    and streak < k
+                    and methods[k - 1 - streak] in (_FELL_BACK, _SKIPPED)
+                ):
                     streak += 1
                 if streak:
                     # one halving fewer per further failed step, down to the whole step alone
                     cut_n = min(max_cutbacks, max(0, fallback_cutbacks - (streak - 1)))
                     inc_frac["newton"] = 1.0
-                out, why, counts, (step_u, step_state) = substeps(
-                    newton_to, "newton", t_target, step_u, step_state, None, cut_n
+                skip = (
+                    newton_backoff
+                    and streak > fallback_cutbacks + 1
+                    and streak & (streak - 1) != 0  # not a power of two
                 )
+                if skip:
+                    counts = (0, 0, 0, 0)
+                    why = (
+                        f"Newton skipped: no Newton in the last {streak} load steps "
+                        "(newton_backoff: tried again when that count is a power of two)"
+                    )
+                else:
+                    out, why, counts, (step_u, step_state) = substeps(
+                        newton_to, "newton", t_target, step_u, step_state, None, cut_n
+                    )
                 n_it, n_calls, n_cut, n_rel = counts
-                if out is None:
+                if skip:
+                    used = _SKIPPED
+                elif out is None:
                     if method == "newton":
                         raise ConvergenceError(
                             f"Newton failed at load step {k + 1} (t = {t_target:.6g}) after "
@@ -827,7 +862,10 @@ def solve_nonlinear(
                 n_it, n_calls, n_cut = n_it + counts[0], n_calls + counts[1], n_cut + counts[2]
                 n_rel += counts[3]
                 if out is None:
-                    prefix = f"Newton failed ({why}); " if why else ""
+                    if used == _SKIPPED:
+                        prefix = f"{why}; "
+                    else:
+                        prefix = f"Newton failed ({why}); " if why else ""
                     raise ConvergenceError(
                         f"{prefix}ADR failed at load step {k + 1} (t = {t_target:.6g}) after "
                         f"{counts[2]} cut-back(s): {adr_why}"

@@ -152,6 +152,7 @@ _NONLINEAR_KEYS = (
     "checkpoint",
     "max_cutbacks",
     "fallback_cutbacks",
+    "newton_backoff",
     "relax",
     "density",
     "dt",
@@ -1026,6 +1027,10 @@ def _nonlinear_options(
             lo = 1 if k == "steps" else 0
             if isinstance(v, bool) or not isinstance(v, int) or v < lo:
                 raise SceneError(f"solver.{k} must be an integer >= {lo}, got {v!r}")
+    if "newton_backoff" in opts and not isinstance(opts["newton_backoff"], bool):
+        raise SceneError(
+            f"solver.newton_backoff must be true or false, got {opts['newton_backoff']!r}"
+        )
     for k in ("t_end", "e_l", "dt"):
         if k in opts:
             _number(opts[k], f"solver.{k}", positive=True)

@@ -205,6 +205,11 @@ SCENE_CASES = [
     ),
     (
         "solver",
+        {"nonlinear": "auto", "newton_backoff": "yes"},
+        r"solver.newton_backoff must be true or false, got 'yes'",
+    ),
+    (
+        "solver",
         {"nonlinear": "newton", "checkpoint": 3},
         r"solver.checkpoint must be a path string, got 3",
     ),

@@ -626,3 +626,63 @@ def test_adr_divergence_names_where_the_iterates_ran_away():
     assert "control" in msg
     p = int(msg.split("farthest from the increment's start at point ")[1].split()[0])
     assert p == 18  # the point whose density was lowered (points 0-20, x = 0.9)
+
+
+@pytest.mark.parametrize("backoff", [True, False])
+def test_auto_newton_backoff_after_a_long_fallback_streak(monkeypatch, backoff):
+    """Newton fails every step: after fallback_cutbacks + 1 = 3 failed steps in a row,
+    ``auto`` tries it only when the streak is a power of two (4, 8) and hands the other
+    steps to ADR directly; with newton_backoff=False it tries every step.  A resumed run
+    continues the streak from the checkpoint's methods."""
+    import pdlin.nonlinear as nl
+
+    tried: list[float] = []
+
+    def newton(system, u0, committed, *, factor, **kw):
+        tried.append(factor)
+        raise nl.StepFailed("Newton: refused (test)")
+
+    monkeypatch.setattr(nl, "newton_step", newton)
+    prob = _chain(u_end=0.05, beta=10.0)
+    kw = {"method": "auto", "max_cutbacks": 0, "e_l": 1e-10, "newton_backoff": backoff}
+    res = pdlin.solve_nonlinear(prob, steps=12, **kw)
+    steps = sorted({round(f * 12) for f in tried})  # load steps (1-based) Newton was tried in
+    if backoff:
+        # streaks 0, 1, 2, 3 (down to the whole step alone), then 4 and 8: steps 1-5 and 9
+        assert steps == [1, 2, 3, 4, 5, 9]
+        skipped = [6, 7, 8, 10, 11, 12]
+        assert [k + 1 for k, m in enumerate(res.methods) if m == nl._SKIPPED] == skipped
+        assert "Newton skipped" in res.messages[5] and res.summary()["newton_skipped"] == 6
+        assert res.summary()["fallbacks"] == 6
+    else:
+        assert steps == list(range(1, 13)) and nl._SKIPPED not in res.methods
+    # the same solution either way (ADR carries every step from the same states)
+    x = prob.cloud.points[:, 0]
+    np.testing.assert_allclose(
+        res.u[-1, :, 0], 0.05 * (x - x[0]) / (x[-1] - x[0]), rtol=1e-7, atol=1e-10
+    )
+
+
+def test_auto_newton_backoff_streak_survives_a_resume(monkeypatch, tmp_path):
+    import pdlin.nonlinear as nl
+
+    tried: list[float] = []
+
+    def newton(system, u0, committed, *, factor, **kw):
+        tried.append(factor)
+        raise nl.StepFailed("Newton: refused (test)")
+
+    monkeypatch.setattr(nl, "newton_step", newton)
+    prob = _chain(u_end=0.05, beta=10.0)
+    ck = tmp_path / "run.npz"
+    kw = {"method": "auto", "max_cutbacks": 0, "e_l": 1e-10, "t_end": 12.0, "checkpoint": ck}
+    pdlin.solve_nonlinear(prob, times=np.arange(1.0, 7.0), **kw)  # steps 1-6, 6 skipped
+    tried.clear()
+    res = pdlin.solve_nonlinear(prob, times=np.arange(1.0, 13.0), resume=True, **kw)
+    assert sorted({round(f * 12) for f in tried}) == [9]  # streak 8 at step 9 only
+    assert res.methods[5] == nl._SKIPPED and res.methods[6] == nl._SKIPPED
+
+
+def test_newton_backoff_must_be_a_bool():
+    with pytest.raises(pdlin.errors.InputTypeError, match="newton_backoff must be True or False"):
+        pdlin.solve_nonlinear(_chain(), steps=1, newton_backoff=1)
