@@ -816,7 +816,7 @@ def solve_nonlinear(
             t_cur, u_prev, t_prev = t_c, u_p, t_p
             if method in ("newton", "auto"):
                 cut_n = max_cutbacks
-                streak = 0  # load steps just before this one that Newton failed
+                streak = 0  # load steps just before this one without Newton (failed or skipped)
                 while (
                     method == "auto"
                     and streak < k
