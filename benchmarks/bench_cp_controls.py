@@ -69,9 +69,7 @@ def main() -> None:
     )
     print("|---|---|---|---|---|---|---|---|---|")
     for control in args.controls:
-        name, _, coef = control.partition(":")  # "penalty:0.1" = control 'penalty', penalty=0.1
-        kw = {"penalty": float(coef)} if coef else {}
-        model = pdlin.Correspondence(material=material, control=name, **kw)
+        model = bn.correspondence(material, control)  # "penalty:0.1": coefficient 0.1
         prob = pdlin.StaticProblem(model, base.cloud, base.bonds, dirichlet=list(base.dirichlet))
         t0 = time.perf_counter()
         try:

@@ -69,18 +69,22 @@ class _Stop(Exception):
     """Raised from the progress callback when a run exceeds its time budget."""
 
 
+def correspondence(material: Any, control: str = "none") -> Any:
+    """``Correspondence(material=material, control=...)`` from a control spec: a control
+    name, or ``"penalty:C"`` for the penalty at coefficient C."""
+    name, _, coef = control.partition(":")
+    kw: dict[str, Any] = {"penalty": float(coef)} if coef else {}
+    return pdlin.Correspondence(material=material, control=name, **kw)
+
+
 def problem(n: int, load: str, control: str = "none") -> tuple[Any, float]:
-    """The seed polycrystal on n x n particles; ``control`` a Correspondence control, with
-    ``"penalty:C"`` for the penalty at coefficient C (default: none, spec 001's setting)."""
+    """The seed polycrystal on n x n particles; ``control`` a spec of :func:`correspondence`
+    (default: none, spec 001's setting)."""
     h = 1.0 / n
     cloud = pdlin.grid((n, n), spacing=h)
     bonds = pdlin.find_bonds(cloud, ratio=1.0, influence="constant")
     _, theta = pdlin.voronoi_polycrystal(cloud, 21, seed=1)
-    name, _, coef = control.partition(":")
-    kw: dict[str, Any] = {"penalty": float(coef)} if coef else {}
-    model = pdlin.Correspondence(
-        material=pdlin.CrystalPlasticity("planar-2", orientation=theta), control=name, **kw
-    )
+    model = correspondence(pdlin.CrystalPlasticity("planar-2", orientation=theta), control)
     L = ETA * np.array(LOADS[load])
     bc = pdlin.Dirichlet.velocity_gradient("boundary", L)
     return pdlin.StaticProblem(model, cloud, bonds, dirichlet=[bc]), h

@@ -628,12 +628,8 @@ def test_adr_divergence_names_where_the_iterates_ran_away():
     assert p == 18  # the point whose density was lowered (points 0-20, x = 0.9)
 
 
-@pytest.mark.parametrize("backoff", [True, False])
-def test_auto_newton_backoff_after_a_long_fallback_streak(monkeypatch, backoff):
-    """Newton fails every step: after fallback_cutbacks + 1 = 3 failed steps in a row,
-    ``auto`` tries it only when the streak is a power of two (4, 8) and hands the other
-    steps to ADR directly; with newton_backoff=False it tries every step.  A resumed run
-    continues the streak from the checkpoint's methods."""
+def _refuse_newton(monkeypatch) -> list[float]:
+    """Make every Newton increment fail; returns the list of load factors it was tried at."""
     import pdlin.nonlinear as nl
 
     tried: list[float] = []
@@ -643,6 +639,17 @@ def test_auto_newton_backoff_after_a_long_fallback_streak(monkeypatch, backoff):
         raise nl.StepFailed("Newton: refused (test)")
 
     monkeypatch.setattr(nl, "newton_step", newton)
+    return tried
+
+
+@pytest.mark.parametrize("backoff", [True, False])
+def test_auto_newton_backoff_after_a_long_fallback_streak(monkeypatch, backoff):
+    """Newton fails every step: after fallback_cutbacks + 1 = 3 failed steps in a row,
+    ``auto`` tries it only when the streak is a power of two (4, 8) and hands the other
+    steps to ADR directly; with newton_backoff=False it tries every step."""
+    import pdlin.nonlinear as nl
+
+    tried = _refuse_newton(monkeypatch)
     prob = _chain(u_end=0.05, beta=10.0)
     kw = {"method": "auto", "max_cutbacks": 0, "e_l": 1e-10, "newton_backoff": backoff}
     res = pdlin.solve_nonlinear(prob, steps=12, **kw)
@@ -664,15 +671,10 @@ def test_auto_newton_backoff_after_a_long_fallback_streak(monkeypatch, backoff):
 
 
 def test_auto_newton_backoff_streak_survives_a_resume(monkeypatch, tmp_path):
+    # a resumed run continues the streak from the checkpoint's methods
     import pdlin.nonlinear as nl
 
-    tried: list[float] = []
-
-    def newton(system, u0, committed, *, factor, **kw):
-        tried.append(factor)
-        raise nl.StepFailed("Newton: refused (test)")
-
-    monkeypatch.setattr(nl, "newton_step", newton)
+    tried = _refuse_newton(monkeypatch)
     prob = _chain(u_end=0.05, beta=10.0)
     ck = tmp_path / "run.npz"
     kw = {"method": "auto", "max_cutbacks": 0, "e_l": 1e-10, "t_end": 12.0, "checkpoint": ck}
