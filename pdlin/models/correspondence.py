@@ -2062,32 +2062,15 @@ class Correspondence(Model):
         flat = arr.reshape(n_gp, d * d) * scale[:, None]
         return -np.asarray(p.G.T @ flat.ravel()).reshape(cloud.n, d)
 
-    def _linear_addons(self, cloud: PointCloud, bonds: Bonds, p: _Plan) -> tuple[Any, Any]:
-        """Penalty / springs / ADS as ``(x -> K_c x, K_c)`` (cached in the plan) or ``(None,
-        None)``."""
-        if "addon" in p._lazy:
-            return p._lazy["addon"]
-        apply: Any = None
-        if self.control == "penalty" and self.penalty > 0:
-            k = self._penalty_k(cloud, bonds, p)
-
-            def apply(x: np.ndarray) -> np.ndarray:
-                return self._penalty_force(cloud, bonds, p, k, x)
-
-        elif self.control in ("springs", "ads"):
-            prods = self._control_products(cloud, bonds, p)
-            apply = None if prods is None else prods[0]
-        p._lazy["addon"] = (apply, {})
-        return p._lazy["addon"]
-
     def _addon_matrix(self, cloud: PointCloud, bonds: Bonds, p: _Plan) -> sp.csr_array | None:
-        _, store = self._linear_addons(cloud, bonds, p)
-        if "K" not in store:
+        """Assembled penalty / springs / ADS stiffness ``K_c`` (None without such a control),
+        built once per plan: the nonlinear force ``-K_c u`` and the tangent's ``+K_c``."""
+        if "addon" not in p._lazy:
             if self.control == "penalty" and self.penalty > 0:
-                store["K"] = sp.csr_array(self._penalty_matrix(cloud, bonds, p))
+                p._lazy["addon"] = sp.csr_array(self._penalty_matrix(cloud, bonds, p))
             else:
-                store["K"] = self._control_matrix(cloud, bonds, p)
-        return store["K"]
+                p._lazy["addon"] = self._control_matrix(cloud, bonds, p)
+        return p._lazy["addon"]
 
     def tangent_matrix(self, cloud: PointCloud, bonds: Bonds, dPdF: Any) -> sp.bsr_array:
         """``K_T = Gᵀ blockdiag(w V dP/dF) G`` (+ the linear control stiffness), BSR.
@@ -2190,8 +2173,8 @@ class Correspondence(Model):
         P, trial, A = self.material.update(F, state, tangent=tangent)
         P = np.asarray(P, dtype=float)
         force = self.nodal_force(cloud, bonds, P).ravel()
-        # the control's assembled stiffness (built once per plan, the tangent's too): at 10⁵
-        # points its product costs 1.8 ms against 23 ms matrix-free (2D, δ = h penalty)
+        # the control's assembled stiffness (the tangent's too): at 10⁵ points its product
+        # costs 1.8 ms against 23 ms matrix-free (_penalty_force; 2D, δ = h penalty)
         Kc = self._addon_matrix(cloud, bonds, p)
         if Kc is not None:
             force -= Kc @ x
