@@ -498,6 +498,18 @@ def _runaway_message(
     )
 
 
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    """``a · b`` of two vectors without BLAS (numpy's own loop in ``einsum``).
+
+    OpenBLAS runs ``ddot`` (and so ``np.linalg.norm``) of long vectors on its own
+    threads, which then spin for a while after the call: in the ADR loop they took the
+    second core from pdlin's thread pool in the constitutive update that follows, which
+    then ran at the speed of one thread (12.2 against 7.8 ms per update at 10⁵ points on
+    two cores, 21.5 against 16.7 ms per ADR iteration; benchmarks/README.md).
+    """
+    return float(np.einsum("i,i->", a, b))
+
+
 @dataclass
 class _AdrRun:
     outcome: StepOutcome
@@ -545,7 +557,7 @@ def _adr_run(
         calls += int(resp_new.calls)
         r_new = _residual(system, resp_new, factor)
         with np.errstate(over="ignore", invalid="ignore"):
-            n1 = float(np.linalg.norm(r_new))
+            n1 = math.sqrt(_dot(r_new, r_new))
         if not math.isfinite(n1):
             raise StepFailed(_runaway_message(system, it, u_start, u, r_new))
         du = u_new - u
@@ -554,12 +566,12 @@ def _adr_run(
             k = np.zeros_like(u)
             k[num_mask] = -(r_new[num_mask] - r[num_mask]) / (lam[num_mask] * du[num_mask])
             uf = u_new[free]
-            den = float(uf @ uf)
-            q = float(uf @ (k[free] * uf)) / den if den > 0 else 0.0
+            den = _dot(uf, uf)
+            q = _dot(uf, k[free] * uf) / den if den > 0 else 0.0
             c = 2.0 * math.sqrt(q) if q > 0 else 0.0
         cs.append(c)
         eps1 = n1 / npts
-        eps2 = float(np.linalg.norm(du)) / npts
+        eps2 = math.sqrt(_dot(du, du)) / npts
         if eps1_0 is None:
             eps1_0, eps2_0 = max(eps1, 1e-300), max(eps2, 1e-300)
         assert eps2_0 is not None
