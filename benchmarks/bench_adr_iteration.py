@@ -1,0 +1,105 @@
+"""Cost of one ADR iteration on the crystal-plasticity polycrystal, and what BLAS threads do to it.
+
+ADR iterations of ``pdlin.solvers.nonlinear.adr_step`` on the 21-grain polycrystal of
+``bench_nonlinear.problem`` (planar-2 crystal plasticity, δ = h, n x n grid, pure shear,
+optionally a control) from the affine state at shear γ = ``--gamma`` over the initial
+state: milliseconds per iteration and per constitutive update, for pdlin's thread count
+1 and 2 and two ways of taking the loop's dot products and norms:
+
+- ``pdlin``: what the ADR loop does (``_dot``: numpy's ``einsum``, no BLAS);
+- ``blas``: the same products through BLAS (``a @ b``), as the loop did before.
+
+BLAS keeps its default thread count here (all cores), unlike the other benchmarks: with
+OpenBLAS a ``ddot`` of a long vector runs on BLAS's threads, which then spin for a while
+and take the cores of the constitutive update that follows.  Every case is a forked child
+(fresh BLAS and pdlin thread pools).  Nothing is asserted; wall-clock times on a shared
+machine.
+
+Examples
+--------
+``python benchmarks/bench_adr_iteration.py --n 316 --iterations 200``
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_nonlinear import forked, problem  # noqa: E402
+
+
+def _case(n: int, threads: int, dots: str, iterations: int, gamma: float, control: str) -> Any:
+    import pdlin
+    from pdlin.solvers import nonlinear as nl
+    from pdlin.system import constrained_system
+
+    pdlin.set_num_threads(threads)
+    if dots == "blas":
+        nl._dot = lambda a, b: float(a @ b)  # type: ignore[assignment]
+    prob, _ = problem(n, "shear", control)
+    system = constrained_system(prob)
+    state = system.initial_state()
+    pts = system.cloud.points
+    u = np.column_stack([gamma * pts[:, 1], np.zeros(len(pts))]).ravel()
+    material = prob.model.material
+    spent = [0.0, 0]
+    update = type(material).update
+
+    def timed(self: Any, *a: Any, **kw: Any) -> Any:
+        t0 = time.perf_counter()
+        out = update(self, *a, **kw)
+        spent[0] += time.perf_counter() - t0
+        spent[1] += 1
+        return out
+
+    type(material).update = timed  # type: ignore[method-assign]
+    density = nl.adr_density(system, state, u)
+    spent[:] = [0.0, 0]
+    t0 = time.perf_counter()
+    try:
+        nl.adr_step(system, u, state, factor=1.0, density=density, dt=1.0, maxiter=iterations)
+        done = "converged"
+    except nl.StepFailed:
+        done = f"{iterations} (budget)"
+    wall = time.perf_counter() - t0
+    return wall / iterations * 1e3, spent[0] / max(spent[1], 1) * 1e3, done
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--n", type=int, nargs="+", default=[100, 316], help="grid sides")
+    p.add_argument("--iterations", type=int, default=200)
+    p.add_argument("--gamma", type=float, default=0.01, help="affine shear of the start")
+    p.add_argument("--control", default="penalty:0.1", help="'none', 'penalty:C', ...")
+    args = p.parse_args(argv)
+    print(
+        f"ADR iterations from an affine shear γ = {args.gamma} (control {args.control}), "
+        f"{args.iterations} per case; BLAS at its default thread count"
+    )
+    print()
+    print("| particles | pdlin threads | dot products | ms per iteration | ms per update |")
+    print("|---|---|---|---|---|")
+    for n in args.n:
+        for threads in (1, 2):
+            res = {}
+            for dots in ("blas", "pdlin"):
+                out = forked(_case, n, threads, dots, args.iterations, args.gamma, args.control)
+                if isinstance(out, str):  # the child's error
+                    print(f"| {n * n:,} | {threads} | {dots} | {out} | |", flush=True)
+                    continue
+                it_ms, up_ms, _ = out
+                res[dots] = it_ms
+                print(f"| {n * n:,} | {threads} | {dots} | {it_ms:.2f} | {up_ms:.2f} |", flush=True)
+            if len(res) == 2:
+                print(f"| | | ratio blas / pdlin | {res['blas'] / res['pdlin']:.2f} x | |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
