@@ -688,3 +688,19 @@ def test_auto_newton_backoff_streak_survives_a_resume(monkeypatch, tmp_path):
 def test_newton_backoff_must_be_a_bool():
     with pytest.raises(pdlin.errors.InputTypeError, match="newton_backoff must be True or False"):
         pdlin.solve_nonlinear(_chain(), steps=1, newton_backoff=1)
+
+
+def test_adr_dot_is_the_blas_product_and_keeps_non_finite_values() -> None:
+    """The ADR loop's BLAS-free dot product (``_dot``, einsum) equals ``a @ b`` to
+    round-off on long vectors, and an inf / nan in either vector reaches the result (the
+    loop detects a runaway from ``sqrt(_dot(r, r))``)."""
+    from pdlin.solvers.nonlinear import _dot
+
+    rng = np.random.default_rng(7)
+    a, b = rng.standard_normal(200_001), rng.standard_normal(200_001)
+    assert _dot(a, b) == pytest.approx(float(a @ b), rel=1e-12, abs=1e-9)
+    assert _dot(a, a) == pytest.approx(float(np.linalg.norm(a)) ** 2, rel=1e-12)
+    a[12345] = np.inf
+    assert _dot(a, a) == np.inf
+    a[12345] = np.nan
+    assert np.isnan(_dot(a, b))
