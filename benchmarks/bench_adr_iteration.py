@@ -3,11 +3,18 @@
 ADR iterations of ``pdlin.solvers.nonlinear.adr_step`` on the 21-grain polycrystal of
 ``bench_nonlinear.problem`` (planar-2 crystal plasticity, δ = h, n x n grid, pure shear,
 optionally a control) from the affine state at shear γ = ``--gamma`` over the initial
-state: milliseconds per iteration and per constitutive update, for pdlin's thread count
-1 and 2 and two ways of taking the loop's dot products and norms:
+state: milliseconds per iteration and of them in the material's stress, for pdlin's
+thread count 1 and 2, two ways of taking the loop's dot products and norms:
 
 - ``pdlin``: what the ADR loop does (``_dot``: numpy's ``einsum``, no BLAS);
-- ``blas``: the same products through BLAS (``a @ b``), as the loop did before.
+- ``blas``: the same products through BLAS (``a @ b``), as the loop did before;
+
+and two ways of getting the stress in ``Correspondence.respond``:
+
+- ``piola``: what respond does without the tangent (``CrystalPlasticity.piola``: the
+  compiled kernel without the trial state, which is computed when the state is read);
+- ``update``: the full ``CrystalPlasticity.update`` at every iteration, as before
+  (``piola`` removed from the material's class in the child).
 
 BLAS keeps its default thread count here (all cores), unlike the other benchmarks: with
 OpenBLAS a ``ddot`` of a long vector runs on BLAS's threads, which then spin for a while
@@ -34,7 +41,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_nonlinear import forked, problem  # noqa: E402
 
 
-def _case(n: int, threads: int, dots: str, iterations: int, gamma: float, control: str) -> Any:
+def _case(
+    n: int, threads: int, dots: str, stress: str, iterations: int, gamma: float, control: str
+) -> Any:
     import pdlin
     from pdlin.solvers import nonlinear as nl
     from pdlin.system import constrained_system
@@ -47,20 +56,25 @@ def _case(n: int, threads: int, dots: str, iterations: int, gamma: float, contro
     state = system.initial_state()
     pts = system.cloud.points
     u = np.column_stack([gamma * pts[:, 1], np.zeros(len(pts))]).ravel()
-    material = prob.model.material
-    spent = [0.0, 0]
-    update = type(material).update
+    cls = type(prob.model.material)
+    if stress == "update":
+        del cls.piola  # a forked child: respond falls back to the full update
+    spent = [0.0]
 
-    def timed(self: Any, *a: Any, **kw: Any) -> Any:
-        t0 = time.perf_counter()
-        out = update(self, *a, **kw)
-        spent[0] += time.perf_counter() - t0
-        spent[1] += 1
-        return out
+    def timed(fn: Any) -> Any:
+        def call(self: Any, *a: Any, **kw: Any) -> Any:
+            t0 = time.perf_counter()
+            out = fn(self, *a, **kw)
+            spent[0] += time.perf_counter() - t0
+            return out
 
-    type(material).update = timed  # type: ignore[method-assign]
+        return call
+
+    for name in ("update", "piola"):
+        if hasattr(cls, name):
+            setattr(cls, name, timed(getattr(cls, name)))
     density = nl.adr_density(system, state, u)
-    spent[:] = [0.0, 0]
+    spent[0] = 0.0
     t0 = time.perf_counter()
     try:
         nl.adr_step(system, u, state, factor=1.0, density=density, dt=1.0, maxiter=iterations)
@@ -68,7 +82,7 @@ def _case(n: int, threads: int, dots: str, iterations: int, gamma: float, contro
     except nl.StepFailed:
         done = f"{iterations} (budget)"
     wall = time.perf_counter() - t0
-    return wall / iterations * 1e3, spent[0] / max(spent[1], 1) * 1e3, done
+    return wall / iterations * 1e3, spent[0] / iterations * 1e3, done
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -83,21 +97,25 @@ def main(argv: list[str] | None = None) -> int:
         f"{args.iterations} per case; BLAS at its default thread count"
     )
     print()
-    print("| particles | pdlin threads | dot products | ms per iteration | ms per update |")
-    print("|---|---|---|---|---|")
+    print(
+        "| particles | pdlin threads | dot products | stress | ms per iteration "
+        "| of it material | vs blas + update |"
+    )
+    print("|---|---|---|---|---|---|---|")
     for n in args.n:
         for threads in (1, 2):
-            res = {}
-            for dots in ("blas", "pdlin"):
-                out = forked(_case, n, threads, dots, args.iterations, args.gamma, args.control)
+            base = None
+            for dots, stress in (("blas", "update"), ("pdlin", "update"), ("pdlin", "piola")):
+                out = forked(
+                    _case, n, threads, dots, stress, args.iterations, args.gamma, args.control
+                )
+                row = f"| {n * n:,} | {threads} | {dots} | {stress} |"
                 if isinstance(out, str):  # the child's error
-                    print(f"| {n * n:,} | {threads} | {dots} | {out} | |", flush=True)
+                    print(f"{row} {out} | | |", flush=True)
                     continue
-                it_ms, up_ms, _ = out
-                res[dots] = it_ms
-                print(f"| {n * n:,} | {threads} | {dots} | {it_ms:.2f} | {up_ms:.2f} |", flush=True)
-            if len(res) == 2:
-                print(f"| | | ratio blas / pdlin | {res['blas'] / res['pdlin']:.2f} x | |")
+                it_ms, mat_ms, _ = out
+                base = it_ms if base is None else base
+                print(f"{row} {it_ms:.2f} | {mat_ms:.2f} | {base / it_ms:.2f} x |", flush=True)
     return 0
 
 

@@ -244,6 +244,14 @@ _UPDATE_CHUNK = 8192
 _NUMBA_MIN_POINTS = 256
 
 
+def _rows_of(state: Mapping[str, Any], idx: NDArray[np.intp], n: int) -> dict[str, Any]:
+    """The rows ``idx`` of every per-point array of ``state`` (others as they are)."""
+    return {
+        k: (v[idx] if isinstance(v, np.ndarray) and v.ndim and len(v) == n else v)
+        for k, v in state.items()
+    }
+
+
 def _rotation_2d(theta: FloatArray) -> FloatArray:
     """Rotation matrices ``[[cos θ, -sin θ], [sin θ, cos θ]]``, shape ``θ.shape + (2, 2)``.
 
@@ -1253,19 +1261,10 @@ class CrystalPlasticity:
 
         return numba_enabled()
 
-    def _update_numba(
-        self, f: FloatArray, state_n: Mapping[str, Any], tangent: bool
-    ) -> tuple[FloatArray, dict[str, FloatArray], FloatArray | None]:
-        """:meth:`update` of planar double slip with §3.6 pruning in the numba kernels
-        ``cp_planar_fill`` and (``tangent``) ``cp_planar_tangent_fill``, the analytic
-        tangent (chunks of points on pdlin's threads); points whose active-set matrix is
-        singular are redone by the numpy path.  Equal to :meth:`_update_points` to
-        round-off (its 4-term products and 2 x 2 solves run through BLAS / LAPACK)."""
-        from .._kernels import _kernels
-        from .._threads import even_chunks, thread_map
-
-        mod = _kernels()
-        assert mod is not None
+    def _numba_inputs(
+        self, f: FloatArray, state_n: Mapping[str, Any]
+    ) -> tuple[tuple[Any, ...], tuple[Any, ...]]:
+        """The input and constant arguments of ``cp_planar_fill`` (contiguous float64)."""
         n = f.shape[0]
 
         def arr(key: str, default: Any = None) -> FloatArray:
@@ -1274,12 +1273,11 @@ class CrystalPlasticity:
             v = state_n[key] if key in state_n else default()
             return np.ascontiguousarray(v, dtype=np.float64)
 
-        R0 = np.asarray(state_n["R0"], dtype=np.float64)
-        R0c = np.ascontiguousarray(R0)
+        R0 = np.ascontiguousarray(state_n["R0"], dtype=np.float64)
         theta0 = arr("theta0", lambda: np.arctan2(R0[:, 1, 0], R0[:, 0, 0]))
         ins = (
             np.ascontiguousarray(f),
-            R0c,
+            R0,
             arr("Fp"),
             arr("s"),
             arr("gamma"),
@@ -1299,6 +1297,24 @@ class CrystalPlasticity:
             np.ascontiguousarray(self.a, dtype=np.float64),
             bool(self.renormalize),
         )
+        return ins, consts
+
+    def _update_numba(
+        self, f: FloatArray, state_n: Mapping[str, Any], tangent: bool
+    ) -> tuple[FloatArray, dict[str, FloatArray], FloatArray | None]:
+        """:meth:`update` of planar double slip with §3.6 pruning in the numba kernels
+        ``cp_planar_fill`` and (``tangent``) ``cp_planar_tangent_fill``, the analytic
+        tangent (chunks of points on pdlin's threads); points whose active-set matrix is
+        singular are redone by the numpy path.  Equal to :meth:`_update_points` to
+        round-off (its 4-term products and 2 x 2 solves run through BLAS / LAPACK)."""
+        from .._kernels import _kernels
+        from .._threads import even_chunks, thread_map
+
+        mod = _kernels()
+        assert mod is not None
+        n = f.shape[0]
+        ins, consts = self._numba_inputs(f, state_n)
+        R0, theta0 = ins[1], ins[6]
         N = self.nslip
         P = np.empty((n, 2, 2))
         st: dict[str, FloatArray] = {
@@ -1326,10 +1342,10 @@ class CrystalPlasticity:
         kern = mod.cp_planar_fill
         tkern = mod.cp_planar_tangent_fill
         D = np.empty((n, 2, 2, 2, 2)) if tangent else None
-        t_ins = (ins[0], R0c, ins[2], ins[3])
+        t_ins = (ins[0], R0, ins[2], ins[3])
 
         def run(c: tuple[int, int]) -> None:
-            kern(c[0], c[1], *ins, *consts, *outs)
+            kern(c[0], c[1], *ins, *consts, *outs, True)
             if D is not None:
                 t_outs = (st["Fp"], st["dgamma"], st["sign"])
                 tkern(c[0], c[1], *t_ins, *t_outs, *consts, D)
@@ -1357,17 +1373,58 @@ class CrystalPlasticity:
         }
         idx = np.flatnonzero(bad)
         if idx.size:  # singular active-set matrices: numpy's pseudo-inverse path
-            sub = {
-                k: (v[idx] if isinstance(v, np.ndarray) and v.ndim and len(v) == n else v)
-                for k, v in state_n.items()
-            }
-            Pb, sb, Db = self._update_points(f[idx], sub, tangent)
+            Pb, sb, Db = self._update_points(f[idx], _rows_of(state_n, idx, n), tangent)
             P[idx] = Pb
             for k, v in sb.items():
                 state[k][idx] = v
             if D is not None:
                 D[idx] = Db
         return P, state, D
+
+    def piola(self, F: ArrayLike, state_n: Mapping[str, FloatArray]) -> FloatArray:
+        """First Piola–Kirchhoff stress at ``F`` from ``state_n``, without the trial state.
+
+        ``update(F, state_n)[0]``: what an iteration that only needs the force (ADR, a
+        line-search trial) asks for.  For planar double slip with §3.6 pruning the
+        compiled kernel then skips the trial state (Fᵖ, resistances, slips, plastic work,
+        lattice rotation): ≈ 40 % less work per point, the same ``P`` bitwise.  Other
+        slip families and active-set searches run the full :meth:`update`.
+
+        Examples
+        --------
+        >>> import numpy as np, pdlin
+        >>> cp = pdlin.CrystalPlasticity()
+        >>> state = cp.initial_state(300)
+        >>> F = np.broadcast_to([[1.0, 0.004], [0.0, 1.0]], (300, 2, 2))
+        >>> bool(np.array_equal(cp.piola(F, state), cp.update(F, state)[0]))
+        True
+        """
+        f = _check_F(F, self.dim)
+        n = f.shape[0]
+        self._check_state(state_n, n)
+        if not (n >= _NUMBA_MIN_POINTS and self._numba_ok(False)):
+            return self.update(f, state_n)[0]
+        from .._kernels import _kernels
+        from .._threads import even_chunks, thread_map
+
+        mod = _kernels()
+        assert mod is not None
+        ins, consts = self._numba_inputs(f, state_n)
+        N = self.nslip
+        P = np.empty((n, 2, 2))
+        bad = np.zeros(n, dtype=np.bool_)
+        one, pair, mat = np.empty(1), np.empty((1, N)), np.empty((1, 2, 2))  # not written
+        outs = (
+            P, mat, pair, pair, pair, pair, one, one, one, pair, one, one, mat, one, one, bad,
+        )  # fmt: skip
+        kern = mod.cp_planar_fill
+        thread_map(
+            lambda c: kern(c[0], c[1], *ins, *consts, *outs, False), even_chunks(n, _UPDATE_CHUNK)
+        )
+        idx = np.flatnonzero(bad)
+        if idx.size:  # singular active-set matrices: numpy's pseudo-inverse path
+            P[idx] = self._update_points(f[idx], _rows_of(state_n, idx, n), False)[0]
+        return P
 
     def _update_points(
         self, f: FloatArray, state_n: Mapping[str, Any], tangent: bool

@@ -28,7 +28,9 @@ class Response:
     state : dict of str -> ndarray
         Trial state at ``u`` (per point or per gradient point).  Drivers
         commit it when the load step converges; the model never mutates the
-        committed state it was given.
+        committed state it was given.  Like ``stress``, a model may give a
+        function of no arguments instead, called on the first read: an ADR
+        iteration or a line-search trial only needs the force.
     tangent : sparse array, optional
         Consistent tangent stiffness ``K_T = -∂f_int/∂u`` (BSR, blocksize
         dim), when asked for.
@@ -44,23 +46,25 @@ class Response:
     Examples
     --------
     >>> import numpy as np
-    >>> r = Response(np.zeros((2, 1)), stress=lambda: np.ones((2, 1, 1)))
-    >>> r.stress.shape
-    (2, 1, 1)
+    >>> r = Response(np.zeros((2, 1)), stress=lambda: np.ones((2, 1, 1)),
+    ...              state=lambda: {"ep": np.zeros(2)})
+    >>> r.stress.shape, sorted(r.state)
+    ((2, 1, 1), ['ep'])
     """
 
     force: np.ndarray
-    state: dict[str, np.ndarray] = field(default_factory=dict)
+    state: Any = field(default_factory=dict)
     tangent: sp.sparray | None = None
     stress: Any = None
     calls: int = 0
 
     def __getattribute__(self, name: str) -> Any:
         value = object.__getattribute__(self, name)
-        if name != "stress" or not callable(value):
+        if name not in ("stress", "state") or not callable(value):
             return value
-        value = np.asarray(value())  # the lazy stress, evaluated once
-        object.__setattr__(self, "stress", value)
+        # the lazy stress or state, evaluated once
+        value = np.asarray(value()) if name == "stress" else dict(value())
+        object.__setattr__(self, name, value)
         return value
 
 

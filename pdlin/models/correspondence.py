@@ -2123,7 +2123,9 @@ class Correspondence(Model):
         """Finite-strain force, trial state, tangent and Cauchy stress at ``u``.
 
         ``F_g = I + (G u)_g`` per gradient point; ``P, trial, dP/dF =
-        material.update(F, state, tangent=tangent)``; ``f = -Gᵀ vec(w V P)`` and
+        material.update(F, state, tangent=tangent)`` (without the tangent, from a
+        material that has ``piola(F, state)``: ``P`` from it and the trial state on the
+        first read of ``Response.state``); ``f = -Gᵀ vec(w V P)`` and
         ``K_T = Gᵀ blockdiag(w V dP/dF) G`` (:meth:`nodal_force`, :meth:`tangent_matrix`).
         Penalty, springs and ADS controls are linear add-ons: ``f -= K_c u``,
         ``K_T += K_c``.  ``state`` (from :meth:`initial_state` or a committed trial state)
@@ -2170,7 +2172,20 @@ class Correspondence(Model):
                 )
         x = uu.ravel()
         F = np.eye(d) + (p.G @ x).reshape(n_gp, d, d)
-        P, trial, A = self.material.update(F, state, tangent=tangent)
+        material = self.material
+        trial: Any
+        if not tangent and hasattr(material, "piola"):
+            # the force alone (an ADR iteration, a line-search trial): the material's
+            # stress without its trial state, which is computed on the first read of
+            # Response.state (once per converged step) from the same F and state
+            P, A = material.piola(F, state), None
+
+            def trial() -> dict[str, np.ndarray]:
+                return dict(material.update(F, state)[1])
+
+        else:
+            P, trial, A = material.update(F, state, tangent=tangent)
+            trial = dict(trial)
         P = np.asarray(P, dtype=float)
         force = self.nodal_force(cloud, bonds, P).ravel()
         # the control's assembled stiffness (the tangent's too): at 10⁵ points its product
@@ -2196,7 +2211,7 @@ class Correspondence(Model):
         def sigma() -> np.ndarray:  # on first read (once per converged step)
             return _mean_per_point(owner, np.asarray(cauchy(P, F)), n)
 
-        return Response(force.reshape(n, d), dict(trial), K, sigma, int(n_gp))
+        return Response(force.reshape(n, d), trial, K, sigma, int(n_gp))
 
     def stress(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
         """Cauchy stress per particle ``(n, d, d)``: the mean over its stress points."""

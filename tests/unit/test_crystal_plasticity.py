@@ -698,7 +698,7 @@ def test_planar_update_numba_kernel_singular_points_and_scope(monkeypatch):
 
     def every_fifth_bad(p0, p1, *args):
         real(p0, p1, *args)
-        P, bad = args[-16], args[-1]
+        P, bad = args[-17], args[-2]  # the last argument is `full`
         bad[p0:p1:5] = True
         P[p0:p1:5] = np.nan  # must not survive
 
@@ -717,6 +717,9 @@ def test_planar_update_numba_kernel_singular_points_and_scope(monkeypatch):
         for key in ref:
             scale = max(np.abs(ref[key]).max(), 1.0)
             np.testing.assert_allclose(st[key], ref[key], rtol=0, atol=1e-13 * scale, err_msg=key)
+    P = mat.piola(F, state)  # the stress-only kernel: the same fallback
+    np.testing.assert_array_equal(P[::5], ref_P[::5])
+    np.testing.assert_allclose(P, ref_P, rtol=0, atol=1e-13 * np.abs(ref_P).max())
 
     def forbidden(*args):
         raise AssertionError("the numba kernel must not run here")
@@ -779,3 +782,27 @@ def test_update_in_point_chunks_on_threads(monkeypatch, slip):
                     np.testing.assert_array_equal(st[k], first[1][k], err_msg=k)
     finally:
         pdlin.set_num_threads(None)
+
+
+def test_piola_is_the_updates_stress_bitwise_and_keeps_the_numpy_scope(monkeypatch):
+    """``piola`` (the kernel without the trial state) gives ``update``'s P bitwise on a
+    plastic path, for points elastic, on one system and pruned; outside the kernel's scope
+    (re-activation, fcc, fewer than _NUMBA_MIN_POINTS points) it is ``update(...)[0]``."""
+    _numba_kernels()
+    mat = CrystalPlasticity()
+    rng = np.random.default_rng(5)
+    *_, (state, F, _) = _t8_path(mat, rng, n=300, steps=10)
+    P_full, trial, _ = mat.update(F, state)
+    assert 20 < trial["plastic"].sum() < 300  # seed 5: elastic and plastic points
+    np.testing.assert_array_equal(mat.piola(F, state), P_full)
+    for other in (CrystalPlasticity(active_set="reactivate"), CrystalPlasticity("fcc")):
+        n = 300
+        Fo = np.broadcast_to(np.eye(other.dim), (n, other.dim, other.dim)).copy()
+        Fo[:, 0, 1] = np.linspace(0.0, 0.01, n)
+        so = other.initial_state(n)
+        np.testing.assert_array_equal(other.piola(Fo, so), other.update(Fo, so)[0])
+    few = F[:10]
+    sub = {k: (v[:10] if isinstance(v, np.ndarray) and v.ndim else v) for k, v in state.items()}
+    np.testing.assert_array_equal(mat.piola(few, sub), mat.update(few, sub)[0])
+    with pytest.raises(ShapeError, match="state_n"):
+        mat.piola(F, sub)

@@ -181,6 +181,31 @@ def test_response_stress_is_computed_on_first_read_only(monkeypatch):
     assert r.stress is first and means == [1] and first.shape == (cloud.n, 2, 2)
 
 
+def test_response_state_without_tangent_is_computed_on_first_read_only(monkeypatch):
+    """Without the tangent respond takes the force from ``material.piola`` and runs the
+    full update for the trial state only when ``state`` is read (once per converged step),
+    then keeps it; force and state equal those of the eager path (with the tangent)."""
+    cloud = _cloud(16)  # 256 gradient points: the compiled kernels when numba is there
+    bonds = pdlin.find_bonds(cloud, ratio=1.0)
+    mat = _cp(cloud, seed=3)
+    model = pdlin.Correspondence(material=mat)
+    state = model.initial_state(cloud, bonds)
+    updates = []
+    real = type(mat).update
+    monkeypatch.setattr(type(mat), "update", lambda *a, **k: updates.append(1) or real(*a, **k))
+    u = _plastic_u(cloud, 3)
+    r = model.respond(cloud, bonds, u, state)
+    assert updates == []
+    eager = model.respond(cloud, bonds, u, state, tangent=True)
+    assert updates == [1]
+    np.testing.assert_array_equal(r.force, eager.force)
+    trial = r.state
+    assert updates == [1, 1] and r.state is trial and trial["plastic"].any()
+    assert sorted(trial) == sorted(eager.state)
+    for key in trial:
+        np.testing.assert_array_equal(trial[key], eager.state[key], err_msg=key)
+
+
 # ---------------------------------------------------------------------------------------
 # tangent
 
