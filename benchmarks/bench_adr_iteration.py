@@ -9,12 +9,16 @@ thread count 1 and 2, two ways of taking the loop's dot products and norms:
 - ``pdlin``: what the ADR loop does (``_dot``: numpy's ``einsum``, no BLAS);
 - ``blas``: the same products through BLAS (``a @ b``), as the loop did before;
 
-and two ways of getting the stress in ``Correspondence.respond``:
+two ways of getting the stress in ``Correspondence.respond``:
 
 - ``piola``: what respond does without the tangent (``CrystalPlasticity.piola``: the
   compiled kernel without the trial state, which is computed when the state is read);
 - ``update``: the full ``CrystalPlasticity.update`` at every iteration, as before
-  (``piola`` removed from the material's class in the child).
+  (``piola`` removed from the material's class in the child);
+
+and two ADR loops: ``buffers`` (``_adr_run``: in-place vector work in preallocated
+buffers, no masked gathers) and ``masked`` (the loop before, kept here as
+:func:`_masked_loop`: fresh arrays and boolean-mask gathers every iteration).
 
 BLAS keeps its default thread count here (all cores), unlike the other benchmarks: with
 OpenBLAS a ``ddot`` of a long vector runs on BLAS's threads, which then spin for a while
@@ -41,8 +45,48 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_nonlinear import forked, problem  # noqa: E402
 
 
+def _masked_loop(nl: Any) -> Any:
+    """``_adr_run`` as it was before the buffers (2026-11-26, 8b7a6e2), for the baseline rows:
+    the vector work of an iteration (everything but respond and the residual) only."""
+    import math
+
+    def run(system: Any, u: Any, resp: Any, r: Any, committed: Any, **kw: Any) -> Any:
+        lam, free, npts, dt, c = kw["density"], system.free, system.n, kw["dt"], kw["c0"]
+        u_prev, calls, cs, eps0, h2 = u.copy(), 0, [], None, 2.0 * kw["dt"] ** 2
+        for it in range(1, kw["maxiter"] + 1):
+            a = np.where(free, r / lam, 0.0)
+            u_new = (h2 * a + 4.0 * u + (c * dt - 2.0) * u_prev) / (2.0 + c * dt)
+            u_new[~free] = u[~free]
+            resp_new = nl._respond(system, u_new, committed, f"ADR iteration {it}")
+            r_new = nl._residual(system, resp_new, kw["factor"])
+            n1 = math.sqrt(nl._dot(r_new, r_new))
+            du = u_new - u
+            mask = free & (du != 0.0)
+            k = np.zeros_like(u)
+            k[mask] = -(r_new[mask] - r[mask]) / (lam[mask] * du[mask])
+            uf = u_new[free]
+            q = nl._dot(uf, k[free] * uf) / nl._dot(uf, uf)
+            c = 2.0 * math.sqrt(q) if q > 0 else 0.0
+            cs.append(c)
+            eps = (n1 / npts, math.sqrt(nl._dot(du, du)) / npts)
+            eps0 = eps if eps0 is None else eps0
+            u_prev, u, r = u, u_new, r_new
+            calls += 1
+        out = nl.StepOutcome(u, resp_new, it, calls, n1, [], np.array(cs), 1.0, 1.0)
+        return nl._AdrRun(out, False)
+
+    return run
+
+
 def _case(
-    n: int, threads: int, dots: str, stress: str, iterations: int, gamma: float, control: str
+    n: int,
+    threads: int,
+    loop: str,
+    dots: str,
+    stress: str,
+    iterations: int,
+    gamma: float,
+    control: str,
 ) -> Any:
     import pdlin
     from pdlin.solvers import nonlinear as nl
@@ -51,6 +95,8 @@ def _case(
     pdlin.set_num_threads(threads)
     if dots == "blas":
         nl._dot = lambda a, b: float(a @ b)  # type: ignore[assignment]
+    if loop == "masked":
+        nl._adr_run = _masked_loop(nl)  # type: ignore[assignment]
     prob, _ = problem(n, "shear", control)
     system = constrained_system(prob)
     state = system.initial_state()
@@ -77,12 +123,13 @@ def _case(
     spent[0] = 0.0
     t0 = time.perf_counter()
     try:
-        nl.adr_step(system, u, state, factor=1.0, density=density, dt=1.0, maxiter=iterations)
-        done = "converged"
-    except nl.StepFailed:
-        done = f"{iterations} (budget)"
+        its = nl.adr_step(
+            system, u, state, factor=1.0, density=density, dt=1.0, maxiter=iterations
+        ).iterations
+    except nl.StepFailed as exc:  # the budget (or the baseline loop, which never stops)
+        its = exc.outcome.iterations if exc.outcome is not None else iterations
     wall = time.perf_counter() - t0
-    return wall / iterations * 1e3, spent[0] / iterations * 1e3, done
+    return wall / its * 1e3, spent[0] / its * 1e3, its
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -98,18 +145,32 @@ def main(argv: list[str] | None = None) -> int:
     )
     print()
     print(
-        "| particles | pdlin threads | dot products | stress | ms per iteration "
-        "| of it material | vs blas + update |"
+        "| particles | pdlin threads | loop | dot products | stress | ms per iteration "
+        "| of it material | vs first row |"
     )
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
+    cases = (
+        ("masked", "blas", "update"),
+        ("masked", "pdlin", "update"),
+        ("masked", "pdlin", "piola"),
+        ("buffers", "pdlin", "piola"),
+    )
     for n in args.n:
         for threads in (1, 2):
             base = None
-            for dots, stress in (("blas", "update"), ("pdlin", "update"), ("pdlin", "piola")):
+            for loop, dots, stress in cases:
                 out = forked(
-                    _case, n, threads, dots, stress, args.iterations, args.gamma, args.control
+                    _case,
+                    n,
+                    threads,
+                    loop,
+                    dots,
+                    stress,
+                    args.iterations,
+                    args.gamma,
+                    args.control,
                 )
-                row = f"| {n * n:,} | {threads} | {dots} | {stress} |"
+                row = f"| {n * n:,} | {threads} | {loop} | {dots} | {stress} |"
                 if isinstance(out, str):  # the child's error
                     print(f"{row} {out} | | |", flush=True)
                     continue
