@@ -30,7 +30,9 @@ class Response:
         commit it when the load step converges; the model never mutates the
         committed state it was given.  Like ``stress``, a model may give a
         function of no arguments instead, called on the first read: an ADR
-        iteration or a line-search trial only needs the force.
+        iteration or a line-search trial only needs the force.  It reads the
+        committed state as it is then, so a caller must not change that state
+        before reading ``state`` (the drivers never change a committed state).
     tangent : sparse array, optional
         Consistent tangent stiffness ``K_T = -∂f_int/∂u`` (BSR, blocksize
         dim), when asked for.
