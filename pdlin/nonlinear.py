@@ -374,6 +374,7 @@ def solve_nonlinear(
     checkpoint: str | os.PathLike[str] | None = None,
     resume: bool = False,
     progress: Callable[[str], None] | None = None,
+    progress_every: float = 60.0,
 ) -> NonlinearResult:
     """Solve a static problem with a nonlinear or history-dependent model in load steps.
 
@@ -485,7 +486,11 @@ def solve_nonlinear(
         steps, or several drivers can continue from one committed state).  Its
         folder must exist; ``resume=True`` needs a checkpoint.
     progress : callable, optional
-        Called with one line per step.
+        Called with one line per step and, during an ADR increment, one line every
+        ``progress_every`` seconds (iteration, e₁, e₂, damping, residual).
+    progress_every : float
+        Seconds between ADR's in-step progress lines (default 60; a 10⁵-particle
+        plastic step runs ≈ 30,000 iterations in ≈ 6 min).
 
     Returns
     -------
@@ -531,6 +536,14 @@ def solve_nonlinear(
     ):
         if isinstance(ival, bool) or not isinstance(ival, int) or ival < 0:
             raise InputError(f"{name} must be an integer >= 0, got {ival!r}")
+    if (
+        isinstance(progress_every, bool)
+        or not (isinstance(progress_every, int | float) and math.isfinite(progress_every))
+        or progress_every < 0
+    ):
+        raise InputError(
+            f"progress_every must be a finite number of seconds >= 0, got {progress_every!r}"
+        )
     for name, opt in (("damping", damping), ("c0", c0)):
         if opt is None and name == "damping":
             continue
@@ -730,6 +743,8 @@ def solve_nonlinear(
             c0=c0,
             damping=damping,
             floor=floor,
+            progress=None if progress is None else (lambda m: say(f"  t = {t_new:g}: {m}")),
+            progress_every=progress_every,
         )
 
     # automatic incrementation: the last converged increment of each driver, as a

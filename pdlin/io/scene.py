@@ -154,6 +154,7 @@ _NONLINEAR_KEYS = (
     "fallback_cutbacks",
     "newton_backoff",
     "relax",
+    "progress_every",
     "density",
     "dt",
     "damping",
@@ -1034,6 +1035,10 @@ def _nonlinear_options(
     for k in ("t_end", "e_l", "dt"):
         if k in opts:
             _number(opts[k], f"solver.{k}", positive=True)
+    if "progress_every" in opts:
+        every = _number(opts["progress_every"], "solver.progress_every")
+        if not (np.isfinite(every) and every >= 0):
+            raise SceneError(f"solver.progress_every must be seconds >= 0, got {every}")
     if "damping" in opts:
         dmp = _number(opts["damping"], "solver.damping")
         if not (np.isfinite(dmp) and dmp >= 0):

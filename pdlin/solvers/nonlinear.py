@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import logging
 import math
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -418,6 +420,8 @@ def adr_step(
     c0: float = 1.0,
     damping: float | None = None,
     floor: float = 1e-12,
+    progress: Callable[[str], None] | None = None,
+    progress_every: float = 60.0,
 ) -> StepOutcome:
     """Adaptive dynamic relaxation for one load step (spec 001 §4).
 
@@ -429,6 +433,8 @@ def adr_step(
     ``e₂ = ε₂/ε₂⁰ < e_l`` (``ε₁ = ‖r‖/N``, ``ε₂ = ‖δu‖/N``, ``ε⁰`` of the
     first iteration), or when ``‖r‖ <= floor`` x the force scale (the
     relative criteria degenerate when ``u⁰`` is already the solution).
+    ``progress`` (if given) is called every ``progress_every`` seconds with the
+    iteration, e₁, e₂, the damping and ‖r‖ relative to the force scale.
 
     Raises
     ------
@@ -461,6 +467,8 @@ def adr_step(
         damping=damping,
         floor=floor,
         scale=scale,
+        progress=progress,
+        progress_every=progress_every,
     )
     out = run.outcome
     if run.converged:
@@ -532,6 +540,8 @@ def _adr_run(
     damping: float | None,
     floor: float,
     scale: float,
+    progress: Callable[[str], None] | None = None,
+    progress_every: float = 60.0,
 ) -> _AdrRun:
     """The ADR iterations of :func:`adr_step` from ``u`` at rest (``u⁻¹ = u⁰``), its
     response ``resp`` and residual ``r``; stops on the criteria or after ``maxiter``
@@ -558,6 +568,7 @@ def _adr_run(
     eps1_0 = eps2_0 = None
     e1 = e2 = float("nan")
     h2 = 2.0 * dt * dt
+    t_said = time.perf_counter()
     for it in range(1, maxiter + 1):
         cdt = c * dt
         # uⁿ⁺¹ = [2Δt² Λ⁻¹rⁿ + 4uⁿ + (cΔt − 2) uⁿ⁻¹] / (2 + cΔt) on the free DOFs
@@ -595,6 +606,12 @@ def _adr_run(
         e1, e2 = eps1 / eps1_0, eps2 / eps2_0
         history.append(n1 / scale if scale > 0 else n1)
         spare, u_prev, u, r, resp = u_prev, u, u_new, r_new, resp_new
+        if progress is not None and it % 64 == 0 and time.perf_counter() - t_said >= progress_every:
+            t_said = time.perf_counter()
+            progress(
+                f"ADR iteration {it:,}: e1 = {e1:.2e}, e2 = {e2:.2e} (target {e_l:.0e}), "
+                f"c = {c:.3g}, |r|/scale = {history[-1]:.2e}"
+            )
         if (e1 < e_l and e2 < e_l) or n1 <= floor * scale:
             out = StepOutcome(u, resp, it, calls, history[-1], history, np.array(cs), e1, e2)
             return _AdrRun(out, True)

@@ -210,6 +210,16 @@ SCENE_CASES = [
     ),
     (
         "solver",
+        {"nonlinear": "adr", "progress_every": -5},
+        r"solver.progress_every must be seconds >= 0, got -5.0",
+    ),
+    (
+        "solver",
+        {"nonlinear": "adr", "progress_every": "often"},
+        r"solver.progress_every must be a number, got str 'often'",
+    ),
+    (
+        "solver",
         {"nonlinear": "newton", "checkpoint": 3},
         r"solver.checkpoint must be a path string, got 3",
     ),

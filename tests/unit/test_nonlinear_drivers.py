@@ -704,3 +704,33 @@ def test_adr_dot_is_the_blas_product_and_keeps_non_finite_values() -> None:
     assert _dot(a, a) == np.inf
     a[12345] = np.nan
     assert np.isnan(_dot(a, b))
+
+
+def test_adr_reports_progress_within_a_step():
+    """``progress_every`` seconds between ADR's in-step lines (iteration, e1, e2, damping,
+    residual; checked every 64 iterations): with 0 a line every 64 iterations, with a
+    long interval only the step lines; a bad value names the argument."""
+    prob = _chain(u_end=0.05, beta=10.0)
+    lines: list[str] = []
+    res = pdlin.solve_nonlinear(
+        prob,
+        steps=1,
+        method="adr",
+        e_l=1e-10,
+        predictor="previous",
+        progress=lines.append,
+        progress_every=0,
+    )
+    inner = [m for m in lines if "ADR iteration" in m]
+    assert res.iterations[0] >= 128 and len(inner) == res.iterations[0] // 64
+    assert inner[0].startswith("  t = 1: ADR iteration 64: e1 = ")
+    assert all(k in inner[0] for k in ("e2 = ", "(target 1e-10)", "c = ", "|r|/scale = "))
+    assert lines[-1].startswith("step 1/1")
+    quiet: list[str] = []
+    pdlin.solve_nonlinear(
+        prob, steps=1, method="adr", e_l=1e-10, predictor="previous", progress=quiet.append
+    )
+    assert not any("ADR iteration" in m for m in quiet) and len(quiet) == 1
+    for bad in (-1.0, float("nan"), True, "60"):
+        with pytest.raises(InputError, match="progress_every must be a finite number of seco"):
+            pdlin.solve_nonlinear(prob, steps=1, progress_every=bad)
