@@ -750,12 +750,17 @@ def _cp_crystal_frame(R0, f, i):  # pragma: no cover
 
 @numba.njit(inline="always", cache=True)
 def _cp_hardening(s_n, i, Q, h0, ss, expo, fac, H):  # pragma: no cover
-    """``H^{αβ} = Q^{αβ} h0 sgn(r)|r|^a``, ``r = 1 - s/ss`` of β, into ``H``."""
+    """``H^{αβ} = Q^{αβ} h0 sgn(r)|r|^a``, ``r = 1 - s/ss`` of β, into ``H``.
+
+    ``a = 2`` (the seed 001 material) as ``r r``, ``pow``'s value up to its last bit:
+    ``pow`` had been a quarter of the stress-only kernel's time (6.6 → 4.9 ms per 10⁵
+    elastic points on one thread)."""
     N = H.shape[0]
     for be in range(N):
         rr = 1.0 - s_n[i, be] / ss[be]
         sgr = 1.0 if rr > 0.0 else (-1.0 if rr < 0.0 else 0.0)
-        fac[be] = h0[be] * sgr * abs(rr) ** expo[be]
+        ar = rr * rr if expo[be] == 2.0 else abs(rr) ** expo[be]
+        fac[be] = h0[be] * sgr * ar
     for al in range(N):
         for be in range(N):
             H[al, be] = Q[al, be] * fac[be]
