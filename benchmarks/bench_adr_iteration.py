@@ -16,9 +16,13 @@ two ways of getting the stress in ``Correspondence.respond``:
 - ``update``: the full ``CrystalPlasticity.update`` at every iteration, as before
   (``piola`` removed from the material's class in the child);
 
-and two ADR loops: ``buffers`` (``_adr_run``: in-place vector work in preallocated
+two ADR loops: ``buffers`` (``_adr_run``: in-place vector work in preallocated
 buffers, no masked gathers) and ``masked`` (the loop before, kept here as
-:func:`_masked_loop`: fresh arrays and boolean-mask gathers every iteration).
+:func:`_masked_loop`: fresh arrays and boolean-mask gathers every iteration);
+
+and the mat-vecs ``G u``, ``Gᵀ (w V P)``, ``K_c u`` as ``blocks`` (row blocks on pdlin's
+threads, ``pdlin._threads.RowBlocks``, from 2 x ``ROW_BLOCK_NNZ`` entries) or ``plain``
+(scipy's serial product: the threshold raised in the child).
 
 BLAS keeps its default thread count here (all cores), unlike the other benchmarks: with
 OpenBLAS a ``ddot`` of a long vector runs on BLAS's threads, which then spin for a while
@@ -84,6 +88,7 @@ def _case(
     loop: str,
     dots: str,
     stress: str,
+    matvecs: str,
     iterations: int,
     gamma: float,
     control: str,
@@ -93,6 +98,10 @@ def _case(
     from pdlin.system import constrained_system
 
     pdlin.set_num_threads(threads)
+    if matvecs == "plain":
+        from pdlin import _threads
+
+        _threads.ROW_BLOCK_NNZ = 10**15
     if dots == "blas":
         nl._dot = lambda a, b: float(a @ b)  # type: ignore[assignment]
     if loop == "masked":
@@ -145,20 +154,21 @@ def main(argv: list[str] | None = None) -> int:
     )
     print()
     print(
-        "| particles | pdlin threads | loop | dot products | stress | ms per iteration "
-        "| of it material | vs first row |"
+        "| particles | pdlin threads | loop | dot products | stress | mat-vecs "
+        "| ms per iteration | of it material | vs first row |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     cases = (
-        ("masked", "blas", "update"),
-        ("masked", "pdlin", "update"),
-        ("masked", "pdlin", "piola"),
-        ("buffers", "pdlin", "piola"),
+        ("masked", "blas", "update", "plain"),
+        ("masked", "pdlin", "update", "plain"),
+        ("masked", "pdlin", "piola", "plain"),
+        ("buffers", "pdlin", "piola", "plain"),
+        ("buffers", "pdlin", "piola", "blocks"),
     )
     for n in args.n:
         for threads in (1, 2):
             base = None
-            for loop, dots, stress in cases:
+            for loop, dots, stress, matvecs in cases:
                 out = forked(
                     _case,
                     n,
@@ -166,11 +176,12 @@ def main(argv: list[str] | None = None) -> int:
                     loop,
                     dots,
                     stress,
+                    matvecs,
                     args.iterations,
                     args.gamma,
                     args.control,
                 )
-                row = f"| {n * n:,} | {threads} | {loop} | {dots} | {stress} |"
+                row = f"| {n * n:,} | {threads} | {loop} | {dots} | {stress} | {matvecs} |"
                 if isinstance(out, str):  # the child's error
                     print(f"{row} {out} | | |", flush=True)
                     continue

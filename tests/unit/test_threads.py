@@ -201,3 +201,46 @@ def test_bond_stiffness_error_names_the_global_bond(monkeypatch: pytest.MonkeyPa
     assert b[0] == int(np.argmin(bonds.omega / bonds.length))  # one chunk: the global argmin
     assert bonds.omega[b[1]] < 0 and b[1] >= int(np.flatnonzero(bonds.omega < 0)[0])
     assert msgs[1] == msgs[2]  # the same chunk reports it for any thread count
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_row_blocks_equal_the_scipy_products_bitwise(threads):
+    """RowBlocks(A) @ x == A @ x bitwise for any thread count, also for the CSC transpose
+    of a CSR matrix (its CSR rows sum in the order of csc_matvec); blocks never split a
+    row and cover all of them."""
+    from pdlin._threads import RowBlocks
+
+    rng = np.random.default_rng(4)
+    A = sp.random_array((700, 400), density=0.04, rng=rng, format="csr")
+    x, y = rng.standard_normal(400), rng.standard_normal(700)
+    try:
+        pdlin.set_num_threads(threads)
+        R, RT = RowBlocks(A, nnz=1500), RowBlocks(A.T, nnz=1500)
+        assert len(R.blocks) >= 5 and R.ranges[0][0] == 0 and R.ranges[-1][1] == 700
+        assert all(b == c for (_, b), (c, _) in zip(R.ranges[:-1], R.ranges[1:], strict=True))
+        np.testing.assert_array_equal(R @ x, A @ x)
+        np.testing.assert_array_equal(RT @ y, A.T @ y)
+    finally:
+        pdlin.set_num_threads(None)
+
+
+def test_correspondence_respond_on_row_blocks_is_bitwise_the_plain_one(monkeypatch):
+    """Above the size threshold the correspondence respond runs G u, Gᵀ(w V P) and the
+    penalty's K_c u on RowBlocks: force and stress equal the plain scipy products."""
+    cloud = pdlin.grid((20, 20), spacing=0.05)
+    bonds = pdlin.find_bonds(cloud, ratio=2.0)
+    F = np.array([[1.004, 0.006], [0.002, 0.998]])
+    u = cloud.points @ (F - np.eye(2)).T + 1e-4 * np.sin(7.0 * cloud.points[:, ::-1])
+    out = {}
+    for nnz in (10**9, 2_000):  # plain scipy, then blocks of 2,000 entries
+        monkeypatch.setattr(_threads, "ROW_BLOCK_NNZ", nnz)
+        model = pdlin.Correspondence(
+            material=pdlin.CrystalPlasticity(), control="penalty", penalty=0.1
+        )
+        state = model.initial_state(cloud, bonds)
+        r = model.respond(cloud, bonds, u, state)
+        blocks = model._plan(cloud, bonds)._lazy.get("row_blocks", {})
+        out[nnz] = (r.force, r.stress, sorted(blocks))
+    assert out[10**9][2] == [] and out[2_000][2] == ["G", "GT", "addon"]
+    np.testing.assert_array_equal(out[2_000][0], out[10**9][0])
+    np.testing.assert_array_equal(out[2_000][1], out[10**9][1])
