@@ -512,8 +512,8 @@ def _dot(a: np.ndarray, b: np.ndarray) -> float:
     OpenBLAS runs ``ddot`` (and so ``np.linalg.norm``) of long vectors on its own
     threads, which then spin for a while after the call: in the ADR loop they took the
     second core from pdlin's thread pool in the constitutive update that follows, which
-    then ran at the speed of one thread (11.1 against 7.5 ms per update at 10⁵ points on
-    two cores, 19.6 against 16.6 ms per ADR iteration; benchmarks/bench_adr_iteration.py).
+    then ran at the speed of one thread (9.6 against 5.9 ms per update at 10⁵ points on
+    two cores, 18.7 against 14.0 ms per ADR iteration; benchmarks/bench_adr_iteration.py).
     """
     return float(np.einsum("i,i->", a, b))
 
