@@ -220,6 +220,7 @@ def test_row_blocks_equal_the_scipy_products_bitwise(threads):
         assert all(b == c for (_, b), (c, _) in zip(R.ranges[:-1], R.ranges[1:], strict=True))
         np.testing.assert_array_equal(R @ x, A @ x)
         np.testing.assert_array_equal(RT @ y, A.T @ y)
+        assert all(np.shares_memory(b.data, A.data) for b in R.blocks)  # views, no copy
     finally:
         pdlin.set_num_threads(None)
 
