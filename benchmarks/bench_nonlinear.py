@@ -409,19 +409,14 @@ def _big(
     }
 
 
-def table_big(
-    n: int,
-    steps: int,
-    load: str,
-    method: str = "newton",
-    checkpoint: str | None = None,
-    control: str = "none",
-) -> None:
+def table_big(n: int, steps: int, load: str, **opts: Any) -> None:
+    """The table of :func:`_big` (its options ``method``, ``checkpoint``, ``control``)."""
+    method, control = opts.get("method", "newton"), opts.get("control", "none")
     print(
         f"\n## 10⁵ feasibility: {n}² = {n * n:,} particles, {load}, {method}, control "
         f"{control}, steps 1-{steps}\n"
     )
-    r = forked(_big, n, steps, load, method, checkpoint, control)
+    r = forked(_big, n, steps, load, **opts)
     if isinstance(r, str):
         print(f"failed: {r}")
         return
@@ -668,9 +663,9 @@ def main(argv: list[str] | None = None) -> int:
             args.big,
             args.big_steps,
             args.loads[0],
-            args.big_method,
-            args.big_checkpoint,
-            args.big_control,
+            method=args.big_method,
+            checkpoint=args.big_checkpoint,
+            control=args.big_control,
         )
     if "b2" in args.sections:
         table_b2(args.b2_size, args.loads[0], args.b2_steps, args.e_l)
