@@ -426,7 +426,11 @@ def solve_nonlinear(
         backtracking on/off, how often one increment may be halved (Newton and
         ADR; the smallest increment is the step / 2**max_cutbacks; a converged
         increment is doubled after easy convergence and the last one starts the
-        next step), inner linear solver
+        next step; ADR grows its increments back to a size that failed only
+        after a hold: the next load step stays below it, the one after starts with
+        it; while the retry fails the hold doubles, 1, 2, 4, ... load steps, and
+        after it converges the next larger size is held likewise), inner linear
+        solver
         ('auto': direct up to 2·10⁵ DOFs in 2D / 3·10⁴ in 3D, then AMG-Krylov).
     fallback_cutbacks : int
         ``method='auto'``: Newton's halvings in a load step that follows an
@@ -632,6 +636,9 @@ def solve_nonlinear(
     state_c = dict(state0)
     t_c, u_p, t_p = 0.0, None, None
     start = 0
+    # the automatic incrementation's memory (see substeps below), kept in the checkpoint
+    inc_frac0 = {"newton": 1.0, "adr": 1.0}
+    backoff0 = {"frac": 1.0, "until": -1, "hold": 0}
     ckpt = None if checkpoint is None else Path(checkpoint)
     if ckpt is not None and resume and ckpt.exists():
         data = np.load(ckpt, allow_pickle=False)
@@ -676,6 +683,10 @@ def solve_nonlinear(
             k[len("prev_state__") :]: data[k] for k in data.files if k.startswith("prev_state__")
         }
         pred.prev_state = prev or None  # absent from checkpoints of earlier versions
+        if "increments" in data:  # idem: a resumed run continues the same increments
+            inc_n, inc_a, b_frac, b_until, b_hold = (float(v) for v in data["increments"])
+            inc_frac0 = {"newton": inc_n, "adr": inc_a}
+            backoff0 = {"frac": b_frac, "until": int(b_until), "hold": int(b_hold)}
         states = [dict(state_c)] if start else []
         state_steps = [start - 1] if start else []
         say(f"resuming from {ckpt} after step {start} of {K}")
@@ -749,7 +760,15 @@ def solve_nonlinear(
 
     # automatic incrementation: the last converged increment of each driver, as a
     # fraction of its load step, starts the next step (grown after easy convergence)
-    inc_frac = {"newton": 1.0, "adr": 1.0}
+    inc_frac = inc_frac0
+    # ADR's backoff (any ADR increment is grown, so without it a size that fails would
+    # be tried again at every step, each time for a whole iteration budget: ≈ 11 min per
+    # load step at 10⁵ crystal-plasticity points): the held size `frac` (a fraction of
+    # its load step; the last that failed) caps the increments at half of it until load
+    # step `until`, which starts with that size again; `hold` load steps in between,
+    # doubled when the retry fails; when it converges, the next larger size is held
+    # (the same number of steps), up to the whole step, then the backoff ends
+    backoff = backoff0
 
     def substeps(
         step_fn: Callable[[float, np.ndarray, dict[str, np.ndarray]], StepOutcome],
@@ -777,7 +796,12 @@ def solve_nonlinear(
         nonlocal t_cur, u_prev, t_prev
         span = t_target - t_cur
         smallest = span / 2.0**cutbacks
-        inc = max(min(1.0, inc_frac[driver]) * span, smallest)
+        frac = min(1.0, inc_frac[driver])
+        held = driver == "adr" and k < backoff["until"]
+        if driver == "adr" and backoff["hold"] > 0:
+            # below the failed size while it is held, that size again when the hold ends
+            frac = min(frac, 0.5 * backoff["frac"]) if held else max(frac, backoff["frac"])
+        inc = max(min(1.0, frac) * span, smallest)
         cur_u, cur_state = u_start, st_start
         n_it = n_calls = n_cut = n_rel = 0
         out: StepOutcome | None = None
@@ -794,6 +818,13 @@ def solve_nonlinear(
                     n_rel += exc.outcome.relaxation
                 n_cut += 1
                 pred.failed()
+                if driver == "adr":
+                    f = inc / span
+                    # a retry of the held size (or larger) fails: hold it twice as long
+                    again = backoff["hold"] > 0 and f >= backoff["frac"] * (1.0 - 1e-9)
+                    hold = 2 * int(backoff["hold"]) if again else 1
+                    backoff.update(frac=f, until=k + 1 + hold, hold=hold)
+                    held = True
                 if 0.5 * min(inc, t_target - t_cur) < smallest * (1.0 - 1e-9):
                     inc_frac[driver] = inc / span
                     return None, str(exc), (n_it, n_calls, n_cut, n_rel), (cur_u, cur_state)
@@ -808,8 +839,23 @@ def solve_nonlinear(
             u_prev, t_prev = cur_u, t_cur
             pred.converged(cur_state)
             cur_u, cur_state, t_cur = out.u, out.response.state, target
+            if (
+                driver == "adr"
+                and backoff["hold"] > 0
+                and inc >= span * backoff["frac"] * (1.0 - 1e-9)
+            ):
+                # the held size converged: the next larger one is held next, as long
+                if backoff["frac"] >= 1.0 - 1e-9:
+                    backoff.update(frac=1.0, until=-1, hold=0)
+                    held = False
+                else:
+                    backoff.update(frac=min(1.0, 2.0 * backoff["frac"]))
+                    backoff.update(until=k + 1 + int(backoff["hold"]))
+                    held = True
             if driver == "adr" or out.iterations <= easy:
                 inc = min(span, 2.0 * inc)
+            if held:
+                inc = min(inc, max(0.5 * backoff["frac"] * span, smallest))
         inc_frac[driver] = inc / span
         return out, "", (n_it, n_calls, n_cut, n_rel), (cur_u, cur_state)
 
@@ -946,6 +992,16 @@ def solve_nonlinear(
                 "methods": np.array(methods[: k + 1]),
                 "messages": np.array(messages[: k + 1]),
                 "step_time": step_time[: k + 1],
+                "increments": np.array(
+                    [
+                        inc_frac["newton"],
+                        inc_frac["adr"],
+                        backoff["frac"],
+                        backoff["until"],
+                        backoff["hold"],
+                    ],
+                    dtype=float,
+                ),
             }
             if stress_hist is not None and hom_hist is not None:
                 arrays["stress"] = stress_hist[: k + 1]

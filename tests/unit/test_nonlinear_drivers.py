@@ -685,6 +685,76 @@ def test_auto_newton_backoff_streak_survives_a_resume(monkeypatch, tmp_path):
     assert res.methods[5] == nl._SKIPPED and res.methods[6] == nl._SKIPPED
 
 
+def _limit_adr(
+    monkeypatch, limits: dict[int, float], steps: int
+) -> tuple[list[tuple[int, float]], list[float]]:
+    """Make ADR refuse increments larger than ``limits[step]`` (a fraction of the load
+    step; 1-based steps, default: no limit) at once; returns (step, increment) per try
+    and the last converged load factor (a list, to reset it for a new run)."""
+    import pdlin.nonlinear as nl
+
+    real_adr = nl.adr_step
+    last = [0.0]
+    tries: list[tuple[int, float]] = []
+
+    def adr(system, u0, committed, *, factor, **kw):
+        step = int(np.ceil(factor * steps - 1e-9))
+        inc = (factor - last[0]) * steps
+        tries.append((step, round(inc, 9)))
+        if inc > limits.get(step, 1.0) + 1e-9:
+            raise nl.StepFailed("ADR: increment too large (test)")
+        out = real_adr(system, u0, committed, factor=factor, **kw)
+        last[0] = factor
+        return out
+
+    monkeypatch.setattr(nl, "adr_step", adr)
+    return tries, last
+
+
+@pytest.mark.parametrize(
+    ("limits", "expected", "whole_failed"),
+    [
+        # whole steps fail from step 3 on, halves converge: the whole step is retried at
+        # steps 5 (after a hold of 1 step), 8 (2) and 13 (4), not at every step
+        ({s: 0.6 for s in range(3, 14)}, [0, 0, 1, 0, 1, 0, 0, 1, 0, 0, 0, 0, 1], [3, 5, 8, 13]),
+        # halves fail at steps 3-4 too: quarters there; the half is retried at step 5 and
+        # converges, then the whole step (held as long, 1 step) at step 7, where it fails
+        # again (hold 2: retried at step 10, where it converges)
+        (
+            {3: 0.3, 4: 0.3, **{s: 0.6 for s in range(5, 10)}},
+            [0, 0, 2, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0],
+            [3, 7],
+        ),
+    ],
+)
+def test_adr_increment_backoff_after_a_failed_size(
+    monkeypatch, tmp_path, limits, expected, whole_failed
+):
+    """ADR grows every converged increment (its iterations hardly depend on the size), so
+    without a backoff a size that failed is tried again at every load step, each time for
+    a whole iteration budget (≈ 11 min at 10⁵ crystal-plasticity points)."""
+    tries, last = _limit_adr(monkeypatch, limits, 13)
+    prob = _chain(u_end=0.05, beta=10.0)
+    kw = {"method": "adr", "max_cutbacks": 3, "e_l": 1e-10}
+    res = pdlin.solve_nonlinear(prob, steps=13, **kw)
+    assert res.cutbacks.tolist() == expected
+    whole = [s for s, inc in tries if inc == 1.0]  # steps tried as one increment
+    assert [s for s in whole if limits.get(s, 1.0) < 1.0] == whole_failed
+    x = prob.cloud.points[:, 0]
+    np.testing.assert_allclose(res.u[-1, :, 0], 0.05 * (x - x[0]) / (x[-1] - x[0]), atol=1e-8)
+    # a run killed after step 6 and resumed makes the same tries (the checkpoint keeps
+    # the increments and the backoff)
+    ck = tmp_path / "run.npz"
+    first = list(tries)
+    tries.clear()
+    last[0] = 0.0
+    pdlin.solve_nonlinear(prob, times=np.arange(1.0, 7.0), t_end=13.0, checkpoint=ck, **kw)
+    pdlin.solve_nonlinear(
+        prob, times=np.arange(1.0, 14.0), t_end=13.0, checkpoint=ck, resume=True, **kw
+    )
+    assert tries == first
+
+
 def test_newton_backoff_must_be_a_bool():
     with pytest.raises(pdlin.errors.InputTypeError, match="newton_backoff must be True or False"):
         pdlin.solve_nonlinear(_chain(), steps=1, newton_backoff=1)
