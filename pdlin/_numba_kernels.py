@@ -1125,3 +1125,36 @@ def cp_planar_tangent_fill(  # pragma: no cover
                 D[i, 0, 1, kk, ll] = a01
                 D[i, 1, 0, kk, ll] = a10
                 D[i, 1, 1, kk, ll] = a11
+
+
+@numba.njit(nogil=True, cache=True)
+def adr_update_fill(i0, i1, r, inv_lam, u, u_prev, fixed, h2, cdt, out):  # pragma: no cover
+    """One central-difference ADR update of DOFs ``i0:i1`` (``_adr_run``'s numpy steps in
+    their order: ``((r Λ⁻¹) 2Δt² + 4u + (cΔt − 2) u⁻) / (2 + cΔt)``; prescribed DOFs keep
+    ``u``)."""
+    a = cdt - 2.0
+    b = 2.0 + cdt
+    for i in range(i0, i1):
+        if fixed[i]:
+            out[i] = u[i]
+        else:
+            v = r[i] * inv_lam[i]
+            v = v * h2
+            v = v + u[i] * 4.0
+            v = v + u_prev[i] * a
+            out[i] = v / b
+
+
+@numba.njit(nogil=True, cache=True)
+def adr_local_fill(i0, i1, r, r_new, lam, u_new, u, du, k, local):  # pragma: no cover
+    """``δu = uⁿ⁺¹ − uⁿ`` and (``local``) the diagonal local stiffness ``k = (rⁿ − rⁿ⁺¹) /
+    (Λ δu)`` of DOFs ``i0:i1``, ``Λ δu`` taken as ``∞`` where ``δu = 0`` (``_adr_run``'s
+    numpy steps in their order)."""
+    for i in range(i0, i1):
+        d = u_new[i] - u[i]
+        du[i] = d
+        if local:
+            m = lam[i] * d
+            if d == 0.0:
+                m = np.inf
+            k[i] = (r[i] - r_new[i]) / m

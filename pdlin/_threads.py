@@ -202,7 +202,7 @@ def ptr_chunks(ptr: Any, size: int) -> list[tuple[int, int]]:
 
 #: stored entries per row block of :class:`RowBlocks` (fixed: the products do not depend
 #: on the thread count)
-ROW_BLOCK_NNZ = 400_000
+ROW_BLOCK_NNZ = 200_000
 
 
 class RowBlocks:

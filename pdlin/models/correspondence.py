@@ -565,7 +565,12 @@ def _owner_sorted_blocks(
 
 
 def _blocks_to_csr(blk: _GradientBlocks, n_points: int) -> sp.csr_array:
-    """G in CSR, rows ``(g, i, q)``: every bond coefficient, nonzero owner entries only."""
+    """G in CSR, rows ``(g, i, q)``: the nonzero coefficients only.
+
+    Exact zeros are dropped: the owner's entries of a symmetric family, and the components
+    of bond coefficients ``c_gp`` that vanish — at δ = h on a grid half of them (an axial
+    bond's coefficient has no transverse component), so keeping them doubled the work of
+    every ``G u`` and ``Gᵀ s`` (the sums are the same without them)."""
     d = blk.val.shape[1]
     n_gp = blk.indptr.size - 1
     counts = np.diff(blk.indptr)
@@ -583,7 +588,7 @@ def _blocks_to_csr(blk: _GradientBlocks, n_points: int) -> sp.csr_array:
     indices = np.empty(n_full, dtype=idx_dtype)
     comp = np.arange(d)
     indices[off] = np.broadcast_to((blk.col[:, None] * d + comp)[:, :, None], off.shape)
-    drop_bq = blk.diag[:, None] & (blk.val == 0.0)  # (nblk, q): zero owner entries
+    drop_bq = blk.val == 0.0  # (nblk, q): zero coefficients (every i)
     lengths = np.repeat(counts, d * d)
     if drop_bq.any():
         keep = np.ones(n_full, dtype=bool)
@@ -2057,19 +2062,34 @@ class Correspondence(Model):
                 f"P must have shape ({n_gp}, {d}, {d}) (one per gradient point) or ({d}, {d}), "
                 f"got {arr.shape}"
             )
-        vol = np.asarray(cloud.volumes) * (1.0 if d == 3 else cloud.thickness)
-        scale = p.weight * vol[p.gp_owner] * p.energy
-        flat = arr.reshape(n_gp, d * d) * scale[:, None]
-        return -np.asarray(_threaded(p, "GT", p.G.T) @ flat.ravel()).reshape(cloud.n, d)
+        return self._force_of(cloud, p, arr.reshape(n_gp, d * d)).reshape(cloud.n, d)
+
+    def _force_of(self, cloud: PointCloud, p: _Plan, P: np.ndarray) -> np.ndarray:
+        """``-Gᵀ vec(w V P)`` for a checked ``(n_gp, d*d)`` stress, flat ``(n*d,)``.
+
+        The weights ``-w V`` (0 at energy-free points) are kept in the plan, the sign
+        folded into them (the same bits as negating the product)."""
+        if "neg_wv" not in p._lazy:
+            d = cloud.dim
+            vol = np.asarray(cloud.volumes) * (1.0 if d == 3 else cloud.thickness)
+            p._lazy["neg_wv"] = -(p.weight * vol[p.gp_owner] * p.energy)[:, None]
+        flat = P * p._lazy["neg_wv"]
+        return np.asarray(_threaded(p, "GT", p.G.T) @ flat.ravel())
 
     def _addon_matrix(self, cloud: PointCloud, bonds: Bonds, p: _Plan) -> sp.csr_array | None:
         """Assembled penalty / springs / ADS stiffness ``K_c`` (None without such a control),
         built once per plan: the nonlinear force ``-K_c u`` and the tangent's ``+K_c``."""
         if "addon" not in p._lazy:
             if self.control == "penalty" and self.penalty > 0:
-                p._lazy["addon"] = sp.csr_array(self._penalty_matrix(cloud, bonds, p))
+                Kc = sp.csr_array(self._penalty_matrix(cloud, bonds, p))
             else:
-                p._lazy["addon"] = self._control_matrix(cloud, bonds, p)
+                Kc = self._control_matrix(cloud, bonds, p)
+            if Kc is not None:
+                # without the zeros of its d x d blocks (multiples of I_d for the penalty:
+                # half of the CSR's entries in 2D), which every K_c u would multiply
+                Kc = sp.csr_array(Kc, copy=True)  # a copy: S of springs is kept elsewhere
+                Kc.eliminate_zeros()
+            p._lazy["addon"] = Kc
         return p._lazy["addon"]
 
     def tangent_matrix(self, cloud: PointCloud, bonds: Bonds, dPdF: Any) -> sp.bsr_array:
@@ -2171,7 +2191,10 @@ class Correspondence(Model):
                     f"shape {val.shape} (use model.initial_state(cloud, bonds))"
                 )
         x = uu.ravel()
-        F = np.eye(d) + (_threaded(p, "G", p.G) @ x).reshape(n_gp, d, d)
+        Gx = np.asarray(_threaded(p, "G", p.G) @ x)
+        if "eye" not in p._lazy:  # vec I per gradient point: I + G u as one contiguous add
+            p._lazy["eye"] = np.tile(np.eye(d).ravel(), n_gp)
+        F = np.add(Gx, p._lazy["eye"], out=Gx).reshape(n_gp, d, d)
         material = self.material
         trial: Any
         if not tangent and hasattr(material, "piola"):
@@ -2187,7 +2210,11 @@ class Correspondence(Model):
             P, trial, A = material.update(F, state, tangent=tangent)
             trial = dict(trial)
         P = np.asarray(P, dtype=float)
-        force = self.nodal_force(cloud, bonds, P).ravel()
+        if P.shape == (n_gp, d, d):  # the usual case, checked here without a copy
+            check_finite(P, "P")
+            force = self._force_of(cloud, p, P.reshape(n_gp, d * d))
+        else:  # validated (one P for all, or a shape error)
+            force = self.nodal_force(cloud, bonds, P).ravel()
         # the control's assembled stiffness (the tangent's too): at 10⁵ points its product
         # costs 1.8 ms against 23 ms matrix-free (_penalty_force; 2D, δ = h penalty)
         Kc = self._addon_matrix(cloud, bonds, p)
@@ -2428,7 +2455,7 @@ def _threaded(p: _Plan, key: str, A: Any) -> Any:
         return A
     cache = p._lazy.setdefault("row_blocks", {})
     if key not in cache:
-        cache[key] = RowBlocks(A)
+        cache[key] = RowBlocks(A, ROW_BLOCK_NNZ)
     return cache[key]
 
 

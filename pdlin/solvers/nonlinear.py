@@ -506,6 +506,17 @@ def _runaway_message(
     )
 
 
+#: DOFs per chunk of the compiled ADR update (fixed: the bits do not depend on threads)
+_ADR_CHUNK = 1 << 16
+
+
+def _adr_kernels(ndof: int) -> Any:
+    """The compiled kernels for an ADR loop over ``ndof`` DOFs, or None (numpy steps)."""
+    from .._kernels import _kernels, use_numba
+
+    return _kernels() if use_numba(ndof) else None
+
+
 def _dot(a: np.ndarray, b: np.ndarray) -> float:
     """``a · b`` of two vectors without BLAS (numpy's own loop in ``einsum``).
 
@@ -561,26 +572,58 @@ def _adr_run(
     inv_lam = np.where(free, 1.0 / lam, 0.0)
     free_w = free.astype(float)
     du, tmp, k = np.empty_like(u), np.empty_like(u), np.empty_like(u)
+    # with numba, the update and δu / k each in one pass over DOF chunks on pdlin's
+    # threads (the same arithmetic in the same order: the same bits as the numpy steps)
+    h2 = 2.0 * dt * dt
+    kern = _adr_kernels(u.size)
+    if kern is not None:
+        from .._threads import even_chunks, thread_map
+
+        chunks = even_chunks(u.size, _ADR_CHUNK)
+        lam_c = np.ascontiguousarray(lam, dtype=float)
+        fixed_mask = np.ascontiguousarray(~free)
+        local = damping is None
+
+        def par_update(
+            r: np.ndarray, u: np.ndarray, u_prev: np.ndarray, out: np.ndarray, cdt: float
+        ) -> None:
+            thread_map(
+                lambda ch: kern.adr_update_fill(
+                    ch[0], ch[1], r, inv_lam, u, u_prev, fixed_mask, h2, cdt, out
+                ),
+                chunks,
+            )
+
+        def par_local(r: np.ndarray, r_new: np.ndarray, u_new: np.ndarray, u: np.ndarray) -> None:
+            thread_map(
+                lambda ch: kern.adr_local_fill(
+                    ch[0], ch[1], r, r_new, lam_c, u_new, u, du, k, local
+                ),
+                chunks,
+            )
+
     calls = int(resp.calls)
     history: list[float] = []
     cs: list[float] = []
     c = float(c0) if damping is None else float(damping)
     eps1_0 = eps2_0 = None
     e1 = e2 = float("nan")
-    h2 = 2.0 * dt * dt
     t_said = time.perf_counter()
     for it in range(1, maxiter + 1):
         cdt = c * dt
         # uⁿ⁺¹ = [2Δt² Λ⁻¹rⁿ + 4uⁿ + (cΔt − 2) uⁿ⁻¹] / (2 + cΔt) on the free DOFs
         u_new = spare
-        np.multiply(r, inv_lam, out=u_new)
-        u_new *= h2
-        np.multiply(u, 4.0, out=tmp)
-        u_new += tmp
-        np.multiply(u_prev, cdt - 2.0, out=tmp)
-        u_new += tmp
-        u_new /= 2.0 + cdt
-        u_new[fixed] = u[fixed]
+        if kern is not None:
+            par_update(np.ascontiguousarray(r), u, u_prev, u_new, cdt)
+        else:
+            np.multiply(r, inv_lam, out=u_new)
+            u_new *= h2
+            np.multiply(u, 4.0, out=tmp)
+            u_new += tmp
+            np.multiply(u_prev, cdt - 2.0, out=tmp)
+            u_new += tmp
+            u_new /= 2.0 + cdt
+            u_new[fixed] = u[fixed]
         resp_new = _respond(system, u_new, committed, f"ADR iteration {it}")
         calls += int(resp_new.calls)
         r_new = _residual(system, resp_new, factor)
@@ -588,12 +631,16 @@ def _adr_run(
             n1 = math.sqrt(_dot(r_new, r_new))
         if not math.isfinite(n1):
             raise StepFailed(_runaway_message(system, it, u_start, u, r_new))
-        np.subtract(u_new, u, out=du)
+        if kern is not None:
+            par_local(np.ascontiguousarray(r), np.ascontiguousarray(r_new), u_new, u)
+        else:
+            np.subtract(u_new, u, out=du)
+            if damping is None:
+                np.subtract(r, r_new, out=tmp)
+                np.multiply(lam, du, out=k)
+                k[du == 0.0] = np.inf
+                np.divide(tmp, k, out=k)
         if damping is None:
-            np.subtract(r, r_new, out=tmp)
-            np.multiply(lam, du, out=k)
-            k[du == 0.0] = np.inf
-            np.divide(tmp, k, out=k)
             den = float(np.einsum("i,i,i->", u_new, u_new, free_w))
             q = float(np.einsum("i,i,i->", u_new, u_new, k)) / den if den > 0 else 0.0
             c = 2.0 * math.sqrt(q) if q > 0 else 0.0
