@@ -90,7 +90,7 @@ def _masked_loop(nl: Any) -> Any:
 
 
 def _with_stored_zeros() -> None:
-    """G and K_c as before 2026-11-27 (for the baseline rows): G keeps the vanishing
+    """G and K_c as in c606a50 (for the baseline rows): G keeps the vanishing
     components of bond coefficients (half its entries at δ = h), the penalty's CSR the
     zeros of its d x d blocks."""
     import scipy.sparse as sp
