@@ -490,11 +490,14 @@ def solve_nonlinear(
         steps, or several drivers can continue from one committed state).  Its
         folder must exist; ``resume=True`` needs a checkpoint.
     progress : callable, optional
-        Called with one line per step and, during an ADR increment, one line every
-        ``progress_every`` seconds (iteration, e₁, e₂, damping, residual).
+        Called with one line per step, one per failed increment (why, and the time it
+        is cut back to) and, during an increment, one line every ``progress_every``
+        seconds (ADR: iteration, e₁, e₂, damping, residual; Newton: iteration, residual,
+        step length).
     progress_every : float
-        Seconds between ADR's in-step progress lines (default 60; a 10⁵-particle
-        plastic step runs ≈ 30,000 iterations in ≈ 6 min).
+        Seconds between the in-step progress lines (default 60; a 10⁵-particle plastic
+        step runs ≈ 30,000 ADR iterations in ≈ 6 min, a failing Newton try there ≈ 1.5
+        min).
 
     Returns
     -------
@@ -725,6 +728,8 @@ def solve_nonlinear(
             direct_cache=direct_cache,
             relax=relax,
             relax_density=relax_density(),
+            progress=None if progress is None else (lambda m: say(f"  t = {t_new:g}: {m}")),
+            progress_every=progress_every,
         )
 
     def adr_to(t_new: float, u_from: np.ndarray, st: dict[str, np.ndarray]) -> StepOutcome:
@@ -830,6 +835,7 @@ def solve_nonlinear(
                     return None, str(exc), (n_it, n_calls, n_cut, n_rel), (cur_u, cur_state)
                 inc = 0.5 * min(inc, t_target - t_cur)
                 log.info("t = %.6g: %s; cutting back to t = %.6g", target, exc, t_cur + inc)
+                say(f"  t = {target:g}: {exc}; cutting back to t = {t_cur + inc:g}")
                 continue
             n_it += out.iterations
             n_calls += out.calls

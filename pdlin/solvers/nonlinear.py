@@ -145,6 +145,8 @@ def newton_step(
     relax: int = 0,
     relax_density: np.ndarray | None = None,
     stall: float = 0.5,
+    progress: Callable[[str], None] | None = None,
+    progress_every: float = 60.0,
 ) -> StepOutcome:
     """Newton-Raphson with a consistent tangent and backtracking line search.
 
@@ -171,13 +173,17 @@ def newton_step(
     ``‖λ f_ext‖`` and the reaction force norm).  A ``direct_cache`` dict
     shared between calls keeps the direct factorization, so successive
     tangents of one pattern reuse its ordering and symbolic analysis
-    (:func:`~pdlin.solvers.solve_linear`).
+    (:func:`~pdlin.solvers.solve_linear`).  ``progress`` (if given) is called every
+    ``progress_every`` seconds with the iteration, the relative residual and the last
+    step length (a Newton iteration at 10⁵ points takes seconds, a failing try minutes).
 
     Raises
     ------
     StepFailed
         On ``maxiter`` iterations, a failed line search or a non-finite force.
     """
+    t_said = time.perf_counter()
+    alpha = 1.0
     u = np.array(u0, dtype=float).reshape(-1)
     resp = _respond(system, u, committed, "Newton: start of the step", tangent=True)
     calls = int(resp.calls)
@@ -197,6 +203,12 @@ def newton_step(
         rel = norm / scale if scale > 0 else norm
         history.append(rel)
         log.debug("Newton iteration %d: relative residual %.3e", it, rel)
+        if progress is not None and it and time.perf_counter() - t_said >= progress_every:
+            t_said = time.perf_counter()
+            progress(
+                f"Newton iteration {it}: |r|/scale = {rel:.2e} (target {rtol:.0e}), "
+                f"step length {alpha:.3g}"
+            )
         if norm <= rtol * scale or norm == 0.0:
             return StepOutcome(
                 u, resp, it, calls, rel, history, line_search=backtracks, relaxation=relaxed

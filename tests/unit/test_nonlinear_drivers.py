@@ -806,6 +806,36 @@ def test_adr_reports_progress_within_a_step():
             pdlin.solve_nonlinear(prob, steps=1, progress_every=bad)
 
 
+def test_newton_and_cutbacks_report_progress_within_a_step():
+    """Newton's in-step lines (iteration, relative residual against rtol, last step length;
+    with ``progress_every=0`` one per iteration after the first) and one line per failed
+    increment (why, and the time it is cut back to): a 10⁵-point Newton try takes minutes
+    and printed nothing before the step ended."""
+    lines: list[str] = []
+    res = pdlin.solve_nonlinear(
+        _chain(),
+        steps=1,
+        method="newton",
+        predictor="previous",  # not the tangent predictor, exact for a uniform chain
+        progress=lines.append,
+        progress_every=0,
+    )
+    inner = [m for m in lines if "Newton iteration" in m]
+    assert res.iterations[0] >= 3 and len(inner) == res.iterations[0]
+    assert inner[0].startswith("  t = 1: Newton iteration 1: |r|/scale = ")
+    assert "(target 1e-08), step length " in inner[0]
+    # _FragileChain fails increments above a bond strain of 0.001: t = 1 and t = 0.5 fail
+    p = _chain()
+    prob = pdlin.StaticProblem(_FragileChain(), p.cloud, p.bonds, dirichlet=list(p.dirichlet))
+    lines.clear()
+    res = pdlin.solve_nonlinear(prob, steps=1, method="newton", progress=lines.append)
+    cut = [m for m in lines if "cutting back" in m]
+    assert len(cut) == res.cutbacks[0] >= 2
+    assert cut[0].startswith("  t = 1: Newton: start of the step: non-finite constitutive")
+    assert cut[0].endswith("; cutting back to t = 0.5")
+    assert not any("Newton iteration" in m for m in lines)  # 60 s between in-step lines
+
+
 @pytest.mark.parametrize("damping", [None, 0.05])
 def test_adr_compiled_update_is_the_numpy_update_bitwise(monkeypatch, damping):
     """With numba, ADR's update and δu / local stiffness run as compiled passes over DOF
