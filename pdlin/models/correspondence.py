@@ -2073,7 +2073,17 @@ class Correspondence(Model):
             d = cloud.dim
             vol = np.asarray(cloud.volumes) * (1.0 if d == 3 else cloud.thickness)
             p._lazy["neg_wv"] = -(p.weight * vol[p.gp_owner] * p.energy)[:, None]
-        flat = P * p._lazy["neg_wv"]
+        w = p._lazy["neg_wv"]
+        flat = np.empty_like(P)
+        if P.size >= _THREADED_MULTIPLY:  # numpy's loop releases the GIL: row chunks
+            from .._threads import even_chunks, thread_map
+
+            thread_map(
+                lambda c: np.multiply(P[c[0] : c[1]], w[c[0] : c[1]], out=flat[c[0] : c[1]]),
+                even_chunks(P.shape[0], _THREADED_MULTIPLY // (2 * P.shape[1])),
+            )
+        else:
+            np.multiply(P, w, out=flat)
         return np.asarray(_threaded(p, "GT", p.G.T) @ flat.ravel())
 
     def _addon_matrix(self, cloud: PointCloud, bonds: Bonds, p: _Plan) -> sp.csr_array | None:
@@ -2442,6 +2452,10 @@ def solve_matrix_free(
         maxiter=maxiter,
         operator="matrix-free",
     )
+
+
+#: entries of a stress array from which ``w V P`` is multiplied in row chunks on threads
+_THREADED_MULTIPLY = 1 << 18
 
 
 def _threaded(p: _Plan, key: str, A: Any) -> Any:

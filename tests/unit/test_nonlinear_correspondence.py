@@ -441,3 +441,21 @@ def test_operators_hold_no_explicit_zeros(control):
         assert all(
             np.array_equal(a, b) for a, b in zip(before, (S.data, S.indices, S.indptr), strict=True)
         )
+
+
+def test_force_weights_multiplied_in_row_chunks_on_threads(monkeypatch):
+    """``w V P`` of a large stress array is multiplied in row chunks on pdlin's threads
+    (from ``_THREADED_MULTIPLY`` entries); the nodal force is the same bitwise."""
+    from pdlin.models import correspondence as corr
+
+    cloud = _cloud(8)
+    bonds = pdlin.find_bonds(cloud, ratio=2.0)
+    model = pdlin.Correspondence(material=_cp(cloud, 4))
+    P = np.random.default_rng(5).standard_normal((cloud.n, 2, 2))
+    ref = model.nodal_force(cloud, bonds, P)
+    monkeypatch.setattr(corr, "_THREADED_MULTIPLY", 16)  # 2-row chunks
+    pdlin.set_num_threads(2)
+    try:
+        assert np.array_equal(model.nodal_force(cloud, bonds, P), ref)
+    finally:
+        pdlin.set_num_threads(None)
