@@ -45,6 +45,7 @@ Examples
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -97,36 +98,16 @@ def _with_stored_zeros() -> None:
 
     from pdlin.models import correspondence as corr
 
-    def blocks_to_csr(blk: Any, n_points: int) -> Any:  # _blocks_to_csr of c606a50
-        d = blk.val.shape[1]
-        n_gp = blk.indptr.size - 1
-        counts = np.diff(blk.indptr)
-        g = blk.row
-        pos = np.arange(g.size) - blk.indptr[g]
-        iq = np.arange(d * d).reshape(1, d, d)
-        off = (
-            (d * d * blk.indptr[g])[:, None, None]
-            + iq * counts[g][:, None, None]
-            + pos[:, None, None]
-        )
-        n_full = int(d * d * blk.indptr[-1])
-        data = np.empty(n_full)
-        data[off] = np.broadcast_to(blk.val[:, None, :], off.shape)
-        indices = np.empty(n_full, dtype=np.int32)
-        comp = np.arange(d)
-        indices[off] = np.broadcast_to((blk.col[:, None] * d + comp)[:, :, None], off.shape)
-        drop_bq = blk.diag[:, None] & (blk.val == 0.0)  # zero owner entries only
-        lengths = np.repeat(counts, d * d)
-        if drop_bq.any():
-            keep = np.ones(n_full, dtype=bool)
-            keep[off[np.broadcast_to(drop_bq[:, None, :], off.shape)]] = False
-            data, indices = data[keep], indices[keep]
-            b, q = np.nonzero(drop_bq)
-            rows = ((g[b][:, None] * d + comp) * d + q[:, None]).ravel()
-            lengths = lengths - np.bincount(rows, minlength=n_gp * d * d)
-        indptr = np.zeros(n_gp * d * d + 1, dtype=np.int32)
-        np.cumsum(lengths, out=indptr[1:])
-        return sp.csr_array((data, indices, indptr), shape=(n_gp * d * d, n_points * d))
+    live = corr._blocks_to_csr
+
+    def blocks_to_csr(blk: Any, n_points: int) -> Any:
+        # the live conversion keeps nonzeros only: mark the bond coefficients' vanishing
+        # components (not the owner's, which c606a50 dropped too) by NaN, convert, and
+        # put the zeros back into those slots
+        keep = (blk.val == 0.0) & ~blk.diag[:, None]
+        G = live(dataclasses.replace(blk, val=np.where(keep, np.nan, blk.val)), n_points)
+        G.data[np.isnan(G.data)] = 0.0
+        return G
 
     def addon_matrix(self: Any, cloud: Any, bonds: Any, p: Any) -> Any:
         if "addon" not in p._lazy:
