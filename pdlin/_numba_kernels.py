@@ -749,18 +749,24 @@ def _cp_crystal_frame(R0, f, i):  # pragma: no cover
 
 
 @numba.njit(inline="always", cache=True)
-def _cp_hardening(s_n, i, Q, h0, ss, expo, fac, H):  # pragma: no cover
-    """``H^{αβ} = Q^{αβ} h0 sgn(r)|r|^a``, ``r = 1 - s/ss`` of β, into ``H``.
+def _cp_hardening_factor(s_n, i, be, h0, ss, expo):  # pragma: no cover
+    """``h0 sgn(r)|r|^a``, ``r = 1 - s/ss``, of system ``be``.
 
     ``a = 2`` (the seed 001 material) as ``r r``, ``pow``'s value up to its last bit:
     ``pow`` had been a quarter of the stress-only kernel's time (6.6 → 4.9 ms per 10⁵
     elastic points on one thread)."""
+    rr = 1.0 - s_n[i, be] / ss[be]
+    sgr = 1.0 if rr > 0.0 else (-1.0 if rr < 0.0 else 0.0)
+    ar = rr * rr if expo[be] == 2.0 else abs(rr) ** expo[be]
+    return h0[be] * sgr * ar
+
+
+@numba.njit(inline="always", cache=True)
+def _cp_hardening(s_n, i, Q, h0, ss, expo, fac, H):  # pragma: no cover
+    """``H^{αβ} = Q^{αβ} h0 sgn(r)|r|^a``, ``r = 1 - s/ss`` of β, into ``H``."""
     N = H.shape[0]
     for be in range(N):
-        rr = 1.0 - s_n[i, be] / ss[be]
-        sgr = 1.0 if rr > 0.0 else (-1.0 if rr < 0.0 else 0.0)
-        ar = rr * rr if expo[be] == 2.0 else abs(rr) ** expo[be]
-        fac[be] = h0[be] * sgr * ar
+        fac[be] = _cp_hardening_factor(s_n, i, be, h0, ss, expo)
     for al in range(N):
         for be in range(N):
             H[al, be] = Q[al, be] * fac[be]
@@ -811,6 +817,32 @@ def _cp_second_pk(e00, e01, e10, e11, Cm, Et, tb):  # pragma: no cover
         tb[k] = t
 
 
+@numba.njit(inline="always", cache=True)
+def _dot4(a0, a1, a2, a3, M, row):  # pragma: no cover
+    """``Σ_k a_k M[row, k]`` summed left to right from 0 (the loops' order and bits)."""
+    t = 0.0
+    t += a0 * M[row, 0]
+    t += a1 * M[row, 1]
+    t += a2 * M[row, 2]
+    t += a3 * M[row, 3]
+    return t
+
+
+@numba.njit(inline="always", cache=True)
+def _sum2(a, b):  # pragma: no cover
+    """``a + b`` summed from 0 (a two-term loop's order and bits)."""
+    t = 0.0
+    t += a
+    t += b
+    return t
+
+
+@numba.njit(inline="always", cache=True)
+def _dot2(w0, w1, M, col):  # pragma: no cover
+    """``Σ_α w_α M[α, col]`` over two systems, summed from 0 (the loops' order)."""
+    return _sum2(w0 * M[0, col], w1 * M[1, col])
+
+
 @numba.njit(nogil=True, cache=True)
 def cp_planar_fill(  # pragma: no cover
     p0, p1, f, R0, Fp_n, s_n, gamma_n, ep_n, theta0, theta_n, rate_n,
@@ -827,79 +859,80 @@ def cp_planar_fill(  # pragma: no cover
     left for the caller to recompute.  With ``full`` false only ``P`` and ``bad`` are
     written (the other outputs may be dummies; :meth:`CrystalPlasticity.piola`): the
     trial state's Fp, resistances, slips, resolved shears, plastic work and lattice
-    rotation (seven trigonometric calls per point) are skipped, ≈ 40 % of the work."""
-    N = 2
-    fac = np.empty(N)
-    H = np.empty((N, N))
-    A = np.empty((N, N))
-    ttr = np.empty(N)
-    sg = np.empty(N)
-    b = np.empty(N)
-    act = np.empty(N, np.bool_)
-    trial = np.empty(N, np.bool_)
-    dg = np.zeros(N)
-    Et = np.empty(4)
-    Ce = np.empty(4)
-    g = np.empty(4)
-    tb = np.empty(4)
+    rotation (seven trigonometric calls per point) are skipped, ≈ 40 % of the work.
+
+    Every per-point quantity is a scalar local (the two systems unrolled), none a
+    scratch array (those live on the heap, their entries go through memory), and the
+    hardening matrix is formed only where a system is active or the trial state is
+    written: the stress-only sweep ≈ 1.1-1.2 x faster than with scratch arrays, the same
+    bits (10⁵ points of the seed polycrystal, one thread)."""
     for i in range(p0, p1):
         bad[i] = False
         r00, r01, r10, r11 = R0[i, 0, 0], R0[i, 0, 1], R0[i, 1, 0], R0[i, 1, 1]
         f00, f01, f10, f11 = f[i, 0, 0], f[i, 0, 1], f[i, 1, 0], f[i, 1, 1]
         c00, c01, c10, c11 = _cp_crystal_frame(R0, f, i)
-        _cp_hardening(s_n, i, Q, h0, ss, expo, fac, H)
         # trial state: Fe_tr = Fc Fp_n⁻¹, Ce = Fe_trᵀ Fe_tr, E = ½(Ce − I)
         q00, q01, q10, q11 = Fp_n[i, 0, 0], Fp_n[i, 0, 1], Fp_n[i, 1, 0], Fp_n[i, 1, 1]
         i00, i01, i10, i11 = _inv2(q00, q01, q10, q11)
         e00, e01, e10, e11 = _mm2(c00, c01, c10, c11, i00, i01, i10, i11)
-        _cp_cauchy_green(e00, e01, e10, e11, Ce)
-        Et[0] = 0.5 * (Ce[0] - 1.0)
-        Et[1] = 0.5 * Ce[1]
-        Et[2] = 0.5 * Ce[2]
-        Et[3] = 0.5 * (Ce[3] - 1.0)
-        anyact = False
-        for al in range(N):
-            t = 0.0
-            for k in range(4):
-                t += Et[k] * CS0[al, k]
-            ttr[al] = t
-            sg[al] = -1.0 if t < 0.0 else 1.0
-            b[al] = sg[al] * t - s_n[i, al]
-            act[al] = b[al] > 0.0
-            trial[al] = act[al]
-            dg[al] = 0.0
-            anyact = anyact or act[al]
-        if anyact:
-            _cp_slip_matrix(Ce, AelM, H, sg, A)
+        ce0 = e00 * e00 + e10 * e10
+        ce1 = e00 * e01 + e10 * e11
+        ce2 = e01 * e00 + e11 * e10
+        ce3 = e01 * e01 + e11 * e11
+        x0, x1, x2, x3 = 0.5 * (ce0 - 1.0), 0.5 * ce1, 0.5 * ce2, 0.5 * (ce3 - 1.0)
+        t0 = _dot4(x0, x1, x2, x3, CS0, 0)
+        t1 = _dot4(x0, x1, x2, x3, CS0, 1)
+        sg0 = -1.0 if t0 < 0.0 else 1.0
+        sg1 = -1.0 if t1 < 0.0 else 1.0
+        b0 = sg0 * t0 - s_n[i, 0]
+        b1 = sg1 * t1 - s_n[i, 1]
+        a0 = b0 > 0.0
+        a1 = b1 > 0.0
+        tr0, tr1 = a0, a1
+        dg0 = dg1 = 0.0
+        h00 = h01 = h10 = h11 = 0.0
+        if a0 or a1 or full:  # H^{αβ} = Q^{αβ} h0 sgn(r)|r|^a, r = 1 - s/ss of β
+            fa0 = _cp_hardening_factor(s_n, i, 0, h0, ss, expo)
+            fa1 = _cp_hardening_factor(s_n, i, 1, h0, ss, expo)
+            h00, h01 = Q[0, 0] * fa0, Q[0, 1] * fa1
+            h10, h11 = Q[1, 0] * fa0, Q[1, 1] * fa1
+        if a0 or a1:
+            # A^{αβ} = H^{αβ} + sgn_α sgn_β (Cᵉ S₀^β) : 𝓛[S₀^α]
+            A00 = h00 + sg0 * sg0 * _dot4(ce0, ce1, ce2, ce3, AelM, 0)
+            A01 = h01 + sg0 * sg1 * _dot4(ce0, ce1, ce2, ce3, AelM, 1)
+            A10 = h10 + sg1 * sg0 * _dot4(ce0, ce1, ce2, ce3, AelM, 2)
+            A11 = h11 + sg1 * sg1 * _dot4(ce0, ce1, ce2, ce3, AelM, 3)
             # §3.6 step 5: solve on the active set, drop Δγ <= 0, repeat
             while True:
-                m00, m01, m10, m11 = _cp_masked(A, act)
-                y0 = b[0] if act[0] else 0.0
-                y1 = b[1] if act[1] else 0.0
+                m00 = A00 if a0 else 1.0
+                m11 = A11 if a1 else 1.0
+                m01 = A01 if a0 and a1 else 0.0
+                m10 = A10 if a0 and a1 else 0.0
+                y0 = b0 if a0 else 0.0
+                y1 = b1 if a1 else 0.0
                 dt = m00 * m11 - m01 * m10
                 scl = max(abs(m00 * m11), abs(m01 * m10))
                 if not abs(dt) > 1e-14 * scl:
                     bad[i] = True
                     break
-                x0 = (m11 * y0 - m01 * y1) / dt
-                x1 = (m00 * y1 - m10 * y0) / dt
-                if (x0 > 0.0 or not act[0]) and (x1 > 0.0 or not act[1]):
-                    dg[0] = x0 if act[0] else 0.0
-                    dg[1] = x1 if act[1] else 0.0
+                z0 = (m11 * y0 - m01 * y1) / dt
+                z1 = (m00 * y1 - m10 * y0) / dt
+                if (z0 > 0.0 or not a0) and (z1 > 0.0 or not a1):
+                    dg0 = z0 if a0 else 0.0
+                    dg1 = z1 if a1 else 0.0
                     break
-                act[0] = act[0] and x0 > 0.0
-                act[1] = act[1] and x1 > 0.0
-                if not (act[0] or act[1]):
+                a0 = a0 and z0 > 0.0
+                a1 = a1 and z1 > 0.0
+                if not (a0 or a1):
                     break
             if bad[i]:
                 continue
         # §3.6 step 6: Fp = (I + Σ Δγ sgn S0) Fp_n, Fe = Fc Fp⁻¹, T̄ = 𝓛[½(FeᵀFe − I)]
-        g[:] = 0.0
-        for al in range(N):
-            w = dg[al] * sg[al]
-            for k in range(4):
-                g[k] += w * S0[al, k]
-        g0, g1, g2, g3 = 1.0 + g[0], g[1], g[2], 1.0 + g[3]
+        w0, w1 = dg0 * sg0, dg1 * sg1
+        g0 = 1.0 + _dot2(w0, w1, S0, 0)
+        g1 = _dot2(w0, w1, S0, 1)
+        g2 = _dot2(w0, w1, S0, 2)
+        g3 = 1.0 + _dot2(w0, w1, S0, 3)
         u00 = g0 * q00 + g1 * q10
         u01 = g0 * q01 + g1 * q11
         u10 = g2 * q00 + g3 * q10
@@ -911,12 +944,19 @@ def cp_planar_fill(  # pragma: no cover
             Fp[i, 0, 0], Fp[i, 0, 1], Fp[i, 1, 0], Fp[i, 1, 1] = u00, u01, u10, u11
         i00, i01, i10, i11 = _inv2(u00, u01, u10, u11)
         e00, e01, e10, e11 = _mm2(c00, c01, c10, c11, i00, i01, i10, i11)
-        _cp_second_pk(e00, e01, e10, e11, Cm, Et, tb)
+        x0 = 0.5 * ((e00 * e00 + e10 * e10) - 1.0)
+        x1 = 0.5 * (e00 * e01 + e10 * e11)
+        x2 = 0.5 * (e01 * e00 + e11 * e10)
+        x3 = 0.5 * ((e01 * e01 + e11 * e11) - 1.0)
+        tb0 = _dot4(x0, x1, x2, x3, Cm, 0)
+        tb1 = _dot4(x0, x1, x2, x3, Cm, 1)
+        tb2 = _dot4(x0, x1, x2, x3, Cm, 2)
+        tb3 = _dot4(x0, x1, x2, x3, Cm, 3)
         # P = (Fe T̄) Fp⁻ᵀ in the crystal frame, then R0 P R0ᵀ
-        v00 = e00 * tb[0] + e01 * tb[2]
-        v01 = e00 * tb[1] + e01 * tb[3]
-        v10 = e10 * tb[0] + e11 * tb[2]
-        v11 = e10 * tb[1] + e11 * tb[3]
+        v00 = e00 * tb0 + e01 * tb2
+        v01 = e00 * tb1 + e01 * tb3
+        v10 = e10 * tb0 + e11 * tb2
+        v11 = e10 * tb1 + e11 * tb3
         w00 = v00 * i00 + v01 * i01
         w01 = v00 * i10 + v01 * i11
         w10 = v10 * i00 + v11 * i01
@@ -933,28 +973,17 @@ def cp_planar_fill(  # pragma: no cover
         if not full:
             continue
         # trial state variables
-        work = 0.0
-        npl = 0.0
-        npr = 0.0
-        for al in range(N):
-            t = 0.0
-            for be in range(N):
-                t += H[al, be] * dg[be]
-            s[i, al] = s_n[i, al] + t
-            ta = 0.0
-            for k in range(4):
-                ta += tb[k] * S0[al, k]
-            tau[i, al] = ta
-            gamma[i, al] = gamma_n[i, al] + dg[al]
-            dgamma[i, al] = dg[al]
-            sign[i, al] = sg[al]
-            work += abs(ta) * dg[al]
-            if dg[al] > 0.0:
-                npl = 1.0
-            if trial[al] and not act[al]:
-                npr += 1.0
-        plastic[i] = npl
-        pruned[i] = npr
+        s[i, 0] = s_n[i, 0] + _sum2(h00 * dg0, h01 * dg1)
+        s[i, 1] = s_n[i, 1] + _sum2(h10 * dg0, h11 * dg1)
+        ta0 = _dot4(tb0, tb1, tb2, tb3, S0, 0)
+        ta1 = _dot4(tb0, tb1, tb2, tb3, S0, 1)
+        tau[i, 0], tau[i, 1] = ta0, ta1
+        gamma[i, 0], gamma[i, 1] = gamma_n[i, 0] + dg0, gamma_n[i, 1] + dg1
+        dgamma[i, 0], dgamma[i, 1] = dg0, dg1
+        sign[i, 0], sign[i, 1] = sg0, sg1
+        work = _sum2(abs(ta0) * dg0, abs(ta1) * dg1)
+        plastic[i] = 1.0 if (dg0 > 0.0 or dg1 > 0.0) else 0.0
+        pruned[i] = (1.0 if tr0 and not a0 else 0.0) + (1.0 if tr1 and not a1 else 0.0)
         # Cauchy stress σ = P fᵀ / det f (σ33 = 0) for the von Mises measure
         df = f00 * f11 - f01 * f10
         sxx = (p00 * f00 + p01 * f01) / df
