@@ -29,6 +29,13 @@ seconds on a shared machine, one BLAS thread; nothing is asserted):
 6. **Predictors** (``--sections predictors``, only on request): ``method='auto'`` with each
    of ``--predictors``: time, Newton iterations, cut-backs, ADR fallbacks and the largest
    homogenized-stress difference to a fine path (``--fine`` equal increments per step).
+7. **Damping in plastic steps** (``--sections damping``, only on request): from ADR's
+   committed step ``--damping-from`` of the ``--damping-size`` polycrystal (control
+   ``--damping-control``, default ``penalty:0.1`` as the 10⁵ run), ``--damping-steps``
+   further ADR steps with the adaptive damping and with each constant c of
+   ``--damping-values``: iterations and homogenized σ_xy per step, the median c and the
+   share of c = 0; c also relative to ``2 sqrt(λ_min(Λ⁻¹K_e))``, the critical damping of the
+   lowest elastic mode (shift-invert Lanczos on the elastic tangent).
 
 Every run is a forked child process (its peak RSS is the run's). ``--quick`` (the default
 when no size is given) runs 15 x 15 and 25 x 25 only, about 2 minutes.
@@ -56,6 +63,8 @@ from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 import scipy  # noqa: E402
+import scipy.sparse as sp  # noqa: E402
+import scipy.sparse.linalg as spla  # noqa: E402
 
 import pdlin  # noqa: E402
 
@@ -551,6 +560,107 @@ def table_t20(n: int, steps: int) -> None:
 
 
 # ---------------------------------------------------------------------------------------
+# ADR damping in late plastic steps: adaptive against constant c from one committed state
+
+
+def elastic_critical_damping(n: int, load: str, control: str) -> float:
+    """``2 sqrt(λ_min)`` of ``Λ⁻¹ K_e`` on the free DOFs: the damping that makes the lowest
+    elastic mode of ADR's dynamics critical (Gershgorin density ``Λ`` of the elastic
+    tangent, Δt = 1, as ``solve_nonlinear``'s default ADR; shift-invert Lanczos)."""
+    from pdlin.solvers.nonlinear import adr_density
+    from pdlin.system import constrained_system
+
+    prob, _ = problem(n, load, control)
+    system = constrained_system(prob)
+    st = system.initial_state()
+    u0 = np.zeros(system.ndof)
+    lam = adr_density(system, st, u0)
+    K = sp.csr_array(system.respond(u0, st, tangent=True).tangent)
+    free = np.flatnonzero(system.free)
+    scale = sp.diags_array(1.0 / np.sqrt(lam[free]))
+    A = sp.csr_array(scale @ K[free][:, free] @ scale)
+    A = 0.5 * (A + A.T)  # symmetric to round-off (elastic tangent)
+    vals = spla.eigsh(A, k=1, sigma=0.0, which="LM", return_eigenvectors=False)
+    return 2.0 * float(np.sqrt(max(float(vals[0]), 0.0)))
+
+
+def _damping_branch(
+    n: int, load: str, control: str, base: str, k: int, m: int, damping: float | None
+) -> dict[str, Any]:
+    prob, _ = problem(n, load, control)
+    ck = Path(tempfile.mkdtemp(prefix="bench_damp_")) / "branch.npz"
+    shutil.copy(base, ck)
+    t0 = time.perf_counter()
+    res = pdlin.solve_nonlinear(
+        prob,
+        times=np.arange(1.0, k + m + 1.0),
+        t_end=30.0,
+        method="adr",
+        damping=damping,
+        checkpoint=ck,
+        resume=True,
+        keep_states=False,
+    )
+    return {
+        "it": [int(x) for x in res.iterations[k:]],
+        "sxy": [float(np.asarray(s)[0, 1]) for s in res.homogenized_stress[k:]],
+        "zero": [float(np.mean(np.asarray(c) == 0.0)) for c in res.damping[k:]],
+        "cmed": [float(np.median(np.asarray(c))) for c in res.damping[k:]],
+        "time": time.perf_counter() - t0,
+    }
+
+
+def _damping_base(n: int, load: str, control: str, k: int, path: str) -> float:
+    prob, _ = problem(n, load, control)
+    t0 = time.perf_counter()
+    pdlin.solve_nonlinear(
+        prob,
+        times=np.arange(1.0, k + 1.0),
+        t_end=30.0,
+        method="adr",
+        checkpoint=path,
+        keep_states=False,
+    )
+    return time.perf_counter() - t0
+
+
+def table_damping(n: int, load: str, control: str, k: int, m: int, values: list[float]) -> None:
+    """ADR steps ``k+1 .. k+m`` from ADR's committed step ``k``: the adaptive damping of
+    spec 001 Eq. 13 and constant ``c`` (Δt = 1, Gershgorin density), with ``c`` relative to
+    the elastic lowest mode's critical damping."""
+    print(
+        f"\n## ADR damping in plastic steps: {n}x{n} {load}, control {control}, steps "
+        f"{k + 1}-{k + m} from ADR's committed step {k}\n"
+    )
+    base = str(Path(tempfile.mkdtemp(prefix="bench_damp_")) / "base.npz")
+    t_base = forked(_damping_base, n, load, control, k, base)
+    if isinstance(t_base, str):
+        print(f"failed to reach step {k}: {t_base}")
+        return
+    c_crit = forked(elastic_critical_damping, n, load, control)
+    crit = c_crit if isinstance(c_crit, float) else float("nan")
+    print(
+        f"steps 1-{k}: {t_base:.1f} s; elastic critical damping 2 sqrt(λ_min(Λ⁻¹K_e)) = "
+        f"{crit:.4g}\n"
+    )
+    cols = " | ".join(f"step {k + j + 1}: iterations / σ_xy (MPa)" for j in range(m))
+    print(f"| damping | c / c_crit | {cols} | median c | c = 0 share | s |")
+    print("|---" * (m + 5) + "|")
+    for c in [None, *values]:
+        r = forked(_damping_branch, n, load, control, base, k, m, c)
+        name = "adaptive (Eq. 13)" if c is None else f"c = {c:g}"
+        rel = "-" if c is None else f"{c / crit:.2f}"
+        if isinstance(r, str):
+            print(f"| {name} | {rel} | failed: {r[:120]} |" + " |" * (m + 2))
+            continue
+        steps = " | ".join(f"{i:,} / {s:.4f}" for i, s in zip(r["it"], r["sxy"], strict=True))
+        print(
+            f"| {name} | {rel} | {steps} | {np.median(r['cmed']):.3g} | "
+            f"{np.mean(r['zero']):.0%} | {r['time']:.1f} |"
+        )
+
+
+# ---------------------------------------------------------------------------------------
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -599,8 +709,8 @@ def main(argv: list[str] | None = None) -> int:
         "--sections",
         nargs="+",
         default=["b1", "aim", "profile", "big", "b2", "t20"],
-        choices=["b1", "aim", "profile", "big", "b2", "t20", "predictors"],
-        help="tables to print ('predictors' only on request)",
+        choices=["b1", "aim", "profile", "big", "b2", "t20", "predictors", "damping"],
+        help="tables to print ('predictors' and 'damping' only on request)",
     )
     ap.add_argument(
         "--predictors",
@@ -619,6 +729,21 @@ def main(argv: list[str] | None = None) -> int:
         type=int,
         help="pdlin threads (pdlin.set_num_threads; default: pdlin's, i.e. PDLIN_NUM_THREADS "
         "or every core). The issue's aim is on one core: --threads 1",
+    )
+    ap.add_argument("--damping-size", type=int, default=100, help="grid side of 'damping'")
+    ap.add_argument(
+        "--damping-from", type=int, default=20, help="committed ADR step the branches start from"
+    )
+    ap.add_argument("--damping-steps", type=int, default=2, help="steps per branch")
+    ap.add_argument(
+        "--damping-values",
+        type=float,
+        nargs="+",
+        default=[0.005, 0.01, 0.015, 0.02, 0.03, 0.05, 0.1, 0.2],
+        help="constant damping values c (Δt = 1, Gershgorin density)",
+    )
+    ap.add_argument(
+        "--damping-control", default="penalty:0.1", help="control of 'damping' (as --big-control)"
     )
     mode = ap.add_mutually_exclusive_group()
     mode.add_argument(
@@ -671,6 +796,15 @@ def main(argv: list[str] | None = None) -> int:
         table_b2(args.b2_size, args.loads[0], args.b2_steps, args.e_l)
     if "t20" in args.sections:
         table_t20(25, 6 if quick else 12)
+    if "damping" in args.sections:
+        table_damping(
+            args.damping_size,
+            args.loads[0],
+            args.damping_control,
+            args.damping_from,
+            args.damping_steps,
+            args.damping_values,
+        )
     print(f"\nrun time {time.perf_counter() - t_all:.0f} s")
     return 0
 
