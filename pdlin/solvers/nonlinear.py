@@ -434,6 +434,9 @@ def adr_step(
     floor: float = 1e-12,
     progress: Callable[[str], None] | None = None,
     progress_every: float = 60.0,
+    snapshot: Callable[[dict[str, Any]], None] | None = None,
+    snapshot_every: float = 300.0,
+    restart: dict[str, Any] | None = None,
 ) -> StepOutcome:
     """Adaptive dynamic relaxation for one load step (spec 001 §4).
 
@@ -447,6 +450,15 @@ def adr_step(
     relative criteria degenerate when ``u⁰`` is already the solution).
     ``progress`` (if given) is called every ``progress_every`` seconds with the
     iteration, e₁, e₂, the damping and ‖r‖ relative to the force scale.
+
+    ``snapshot`` (if given) is called every ``snapshot_every`` seconds (checked every 64
+    iterations; 0: every 64 iterations) with the loop's state after an iteration (a dict
+    of arrays and numbers: the iterates ``u``, ``u_prev``, the damping, ``ε⁰``, the
+    histories, ...); ``restart=`` such a dict continues the iteration from there, from
+    the same ``u0``, ``committed``, ``factor``, ``density`` and ``dt``: the iterates,
+    criteria and histories are then those of an uninterrupted run, bit for bit (the
+    responses at ``u0`` and at the snapshot are recomputed: two more constitutive sweeps
+    in ``calls``).
 
     Raises
     ------
@@ -481,6 +493,9 @@ def adr_step(
         scale=scale,
         progress=progress,
         progress_every=progress_every,
+        snapshot=snapshot,
+        snapshot_every=snapshot_every,
+        restart=restart,
     )
     out = run.outcome
     if run.converged:
@@ -541,6 +556,33 @@ def _dot(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.einsum("i,i->", a, b))
 
 
+def _adr_restart(
+    snap: dict[str, Any], ndof: int, calls: int
+) -> tuple[
+    np.ndarray, np.ndarray, np.ndarray, int, float, float, float, int, list[float], list[float]
+]:
+    """The loop state of an ADR ``snapshot`` (checked): the iterates ``u``, ``u_prev``,
+    ``u_start``, the first iteration to run, the damping, ``ε⁰``, the constitutive calls
+    so far (those of the interrupted run, plus ``calls`` of the restart's start) and the
+    residual and damping histories."""
+    try:
+        vecs = [np.array(snap[k], dtype=float).reshape(-1) for k in ("u", "u_prev", "u_start")]
+        it = int(snap["iteration"])
+        c, e10, e20 = (float(snap[k]) for k in ("c", "eps1_0", "eps2_0"))
+        hist = [float(x) for x in np.asarray(snap["history"], dtype=float).reshape(-1)]
+        damp = [float(x) for x in np.asarray(snap["damping"], dtype=float).reshape(-1)]
+        n_calls = int(snap["calls"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(f"restart must be a snapshot of an ADR run, got {exc!r}") from exc
+    if any(v.size != ndof for v in vecs) or it < 1 or len(hist) != it or len(damp) != it:
+        raise InputError(
+            f"restart must be a snapshot of an ADR run on {ndof} DOFs, got vectors of "
+            f"{[v.size for v in vecs]} and {len(hist)} / {len(damp)} history entries at "
+            f"iteration {it}"
+        )
+    return vecs[0], vecs[1], vecs[2], it + 1, c, e10, e20, n_calls + calls, hist, damp
+
+
 @dataclass
 class _AdrRun:
     outcome: StepOutcome
@@ -565,10 +607,14 @@ def _adr_run(
     scale: float,
     progress: Callable[[str], None] | None = None,
     progress_every: float = 60.0,
+    snapshot: Callable[[dict[str, Any]], None] | None = None,
+    snapshot_every: float = 300.0,
+    restart: dict[str, Any] | None = None,
 ) -> _AdrRun:
     """The ADR iterations of :func:`adr_step` from ``u`` at rest (``u⁻¹ = u⁰``), its
     response ``resp`` and residual ``r``; stops on the criteria or after ``maxiter``
-    iterations (not converged: the outcome holds the last iterate)."""
+    iterations (not converged: the outcome holds the last iterate).  ``restart``: a
+    ``snapshot`` of an earlier run from the same start, continued after its iteration."""
     lam = density
     free = system.free
     fixed = np.flatnonzero(~free)
@@ -618,10 +664,20 @@ def _adr_run(
     history: list[float] = []
     cs: list[float] = []
     c = float(c0) if damping is None else float(damping)
-    eps1_0 = eps2_0 = None
+    eps1_0: float | None = None
+    eps2_0: float | None = None
     e1 = e2 = float("nan")
-    t_said = time.perf_counter()
-    for it in range(1, maxiter + 1):
+    first = 1
+    if restart is not None:
+        u, u_prev, u_start, first, c, eps1_0, eps2_0, calls, history, cs = _adr_restart(
+            restart, u.size, calls
+        )
+        resp = _respond(system, u, committed, f"ADR: restart after iteration {first - 1}")
+        calls += int(resp.calls)
+        r = _residual(system, resp, factor)
+        e1, e2 = float(restart["e1"]), float(restart["e2"])
+    t_said = t_snap = time.perf_counter()
+    for it in range(first, maxiter + 1):
         cdt = c * dt
         # uⁿ⁺¹ = [2Δt² Λ⁻¹rⁿ + 4uⁿ + (cΔt − 2) uⁿ⁻¹] / (2 + cΔt) on the free DOFs
         u_new = spare
@@ -665,6 +721,24 @@ def _adr_run(
         e1, e2 = eps1 / eps1_0, eps2 / eps2_0
         history.append(n1 / scale if scale > 0 else n1)
         spare, u_prev, u, r, resp = u_prev, u, u_new, r_new, resp_new
+        if snapshot is not None and it % 64 == 0 and time.perf_counter() - t_snap >= snapshot_every:
+            snapshot(
+                {
+                    "iteration": it,
+                    "u": u,
+                    "u_prev": u_prev,
+                    "u_start": u_start,
+                    "c": c,
+                    "eps1_0": eps1_0,
+                    "eps2_0": eps2_0,
+                    "calls": calls,
+                    "history": np.asarray(history),
+                    "damping": np.asarray(cs),
+                    "e1": e1,
+                    "e2": e2,
+                }
+            )
+            t_snap = time.perf_counter()
         if progress is not None and it % 64 == 0 and time.perf_counter() - t_said >= progress_every:
             t_said = time.perf_counter()
             progress(

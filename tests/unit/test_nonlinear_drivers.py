@@ -889,3 +889,68 @@ def test_adr_compiled_update_is_the_numpy_update_bitwise(monkeypatch, damping):
         assert np.array_equal(out.u, ref.u)
         assert np.array_equal(out.damping, ref.damping)
         assert out.history == ref.history
+
+
+def _small_polycrystal(n: int = 20) -> Any:
+    cloud = pdlin.grid((n, n), spacing=1.0 / n)
+    bonds = pdlin.find_bonds(cloud, ratio=1.0)
+    _, theta = pdlin.voronoi_polycrystal(cloud, 3, seed=1)
+    model = pdlin.Correspondence(
+        material=pdlin.CrystalPlasticity(orientation=theta), control="penalty", penalty=0.1
+    )
+    L = 0.002 * np.array([[0.0, 1.0], [1.0, 0.0]])
+    return pdlin.StaticProblem(
+        model, cloud, bonds, dirichlet=[pdlin.Dirichlet.velocity_gradient("boundary", L)]
+    )
+
+
+def test_adr_snapshot_resumes_an_interrupted_increment_bitwise(tmp_path):
+    """A run killed inside an ADR increment resumes from the increment's snapshot (written
+    next to the checkpoint every ``snapshot_every`` seconds; 0: every 64 iterations) and
+    ends exactly where an uninterrupted run ends: displacements, iterations, damping and
+    criteria bitwise, two more constitutive sweeps counted (the responses at the start and
+    at the snapshot).  A snapshot of another increment (here: another density) is not
+    used, and the snapshot is removed when its load step commits."""
+    prob = _small_polycrystal()
+    times = np.arange(1.0, 5.0)  # shear strain 0.002 per step: plastic from step 3
+    kw: dict[str, Any] = {"times": times, "t_end": 30.0, "method": "adr", "snapshot_every": 0}
+    ref = pdlin.solve_nonlinear(prob, checkpoint=tmp_path / "ref.npz", **kw)
+    assert ref.iterations[2] > 128  # step 3 runs past the first snapshots
+
+    class Killed(Exception):
+        pass
+
+    def kill_in_step_3(msg: str) -> None:
+        if msg.startswith("  t = 3: ADR iteration 128:"):
+            raise Killed
+
+    ck = tmp_path / "run.npz"
+    snap = tmp_path / "run.adr.npz"
+    with pytest.raises(Killed):
+        pdlin.solve_nonlinear(prob, checkpoint=ck, progress=kill_in_step_3, progress_every=0, **kw)
+    assert int(np.load(ck)["done"]) == 2 and snap.exists()
+    assert int(np.load(snap)["iteration"]) == 128  # taken before the progress line
+    said: list[str] = []
+    res = pdlin.solve_nonlinear(prob, checkpoint=ck, resume=True, progress=said.append, **kw)
+    assert any("ADR continues from its snapshot after iteration 128" in m for m in said)
+    assert not snap.exists()  # removed when step 3 committed
+    assert res.iterations.tolist() == ref.iterations.tolist()
+    assert np.array_equal(res.u, ref.u)
+    for k in (2, 3):  # the steps this run solved (the checkpoint keeps no damping history)
+        assert np.array_equal(res.damping[k], ref.damping[k])
+    assert res.e1.tolist() == ref.e1.tolist() and res.e2.tolist() == ref.e2.tolist()
+    n_gp = prob.cloud.n  # one gradient point per particle (no stress points)
+    assert res.calls[2] == ref.calls[2] + 2 * n_gp and res.calls[3] == ref.calls[3]
+
+    # another increment's snapshot (another density: another key) is not continued
+    ck2 = tmp_path / "other.npz"
+    with pytest.raises(Killed):
+        pdlin.solve_nonlinear(prob, checkpoint=ck2, progress=kill_in_step_3, progress_every=0, **kw)
+    said.clear()
+    other = pdlin.solve_nonlinear(
+        prob, checkpoint=ck2, resume=True, progress=said.append, density_safety=1.2, **kw
+    )
+    assert not any("continues from its snapshot" in m for m in said)
+    assert other.iterations[2] != ref.iterations[2] or not np.array_equal(other.u, ref.u)
+    with pytest.raises(InputError, match="snapshot_every must be a finite number"):
+        pdlin.solve_nonlinear(prob, steps=1, snapshot_every=-1.0)
