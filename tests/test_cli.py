@@ -487,3 +487,14 @@ def test_ghost_layer_scene_reproduces_the_material_point(tmp_path, capsys):
     mat = pdlin.CrystalPlasticity(orientation=0.2617993877991494)
     ref = pdlin.material_point(mat, "shear", steps=4, eta=0.002).stress[-1, 0]
     np.testing.assert_allclose(summary["final_homogenized_stress"], ref, rtol=0, atol=1e-7)
+
+
+def test_nonlinear_scene_options_pass_snapshot_every(tmp_path):
+    # solver.snapshot_every reaches solve_nonlinear (ADR snapshots next to the checkpoint)
+    from pdlin.io.scene import _nonlinear_options
+
+    problem = load_scene(_write(tmp_path, CP_SCENE)).problem
+    cfg = {"nonlinear": "adr", "snapshot_every": 120, "checkpoint": "cp.ckpt.npz"}
+    opts = _nonlinear_options(cfg, problem, tmp_path)
+    assert opts is not None and opts["snapshot_every"] == 120 and opts["method"] == "adr"
+    assert opts["checkpoint"] == tmp_path / "cp.ckpt.npz"

@@ -155,6 +155,7 @@ _NONLINEAR_KEYS = (
     "newton_backoff",
     "relax",
     "progress_every",
+    "snapshot_every",
     "density",
     "dt",
     "damping",
@@ -1035,10 +1036,11 @@ def _nonlinear_options(
     for k in ("t_end", "e_l", "dt"):
         if k in opts:
             _number(opts[k], f"solver.{k}", positive=True)
-    if "progress_every" in opts:
-        every = _number(opts["progress_every"], "solver.progress_every")
-        if not (np.isfinite(every) and every >= 0):
-            raise SceneError(f"solver.progress_every must be seconds >= 0, got {every}")
+    for k in ("progress_every", "snapshot_every"):
+        if k in opts:
+            every = _number(opts[k], f"solver.{k}")
+            if not (np.isfinite(every) and every >= 0):
+                raise SceneError(f"solver.{k} must be seconds >= 0, got {every}")
     if "damping" in opts:
         dmp = _number(opts["damping"], "solver.damping")
         if not (np.isfinite(dmp) and dmp >= 0):

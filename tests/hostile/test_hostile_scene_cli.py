@@ -220,6 +220,11 @@ SCENE_CASES = [
     ),
     (
         "solver",
+        {"nonlinear": "adr", "snapshot_every": -1},
+        r"solver.snapshot_every must be seconds >= 0, got -1.0",
+    ),
+    (
+        "solver",
         {"nonlinear": "newton", "checkpoint": 3},
         r"solver.checkpoint must be a path string, got 3",
     ),
