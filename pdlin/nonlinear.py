@@ -322,6 +322,32 @@ def _write_atomic_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
     os.replace(tmp, path)
 
 
+def _write_snapshots(path: Path, snaps: dict[str, dict[str, np.ndarray]]) -> None:
+    """The ADR snapshots of the running load step, by increment key, in one NPZ file."""
+    arrays: dict[str, np.ndarray] = {"keys": np.array(list(snaps), dtype=str)}
+    for i, entry in enumerate(snaps.values()):
+        for name, value in entry.items():
+            arrays[f"s{i}__{name}"] = np.asarray(value)
+    _write_atomic_npz(path, arrays)
+
+
+def _read_snapshots(path: Path) -> dict[str, dict[str, np.ndarray]]:
+    """The snapshots of :func:`_write_snapshots` (none from an unreadable file: the
+    increments then start afresh, as without snapshots)."""
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            keys = [str(k) for k in f["keys"]]
+            out: dict[str, dict[str, np.ndarray]] = {key: {} for key in keys}
+            for name in f.files:
+                if name != "keys":
+                    idx, _, field_name = name.partition("__")
+                    out[keys[int(idx[1:])]][field_name] = f[name]
+    except (OSError, ValueError, KeyError, IndexError) as exc:
+        log.warning("ADR snapshots %s not read (%s); the step starts afresh", path, exc)
+        return {}
+    return out
+
+
 #: ``result.methods`` entry of a load step that Newton failed and ADR finished
 _FELL_BACK = "adr (newton failed)"
 #: ``result.methods`` entry of a load step that ``auto`` gave to ADR without trying Newton
@@ -503,13 +529,15 @@ def solve_nonlinear(
     snapshot_every : float
         With ``checkpoint``: seconds between snapshots of a running ADR increment (its
         iterates, damping and histories; default 300, checked every 64 iterations; 0:
-        every 64 iterations), written atomically next to the checkpoint (``run.npz`` ->
-        ``run.adr.npz``, a few MB at 10⁵ points) and removed when the load step commits.
-        A resumed run that reaches the same increment again (same load step, target
-        time, start displacement, committed state and density) continues its ADR
-        iteration from the snapshot, bit for bit as if uninterrupted, instead of from its
-        start: a killed 10⁵-particle run loses at most ``snapshot_every`` seconds of a
-        step that takes 10-40 min.
+        every 64 iterations), one per increment the step tried, written atomically next
+        to the checkpoint (``run.npz`` -> ``run.adr.npz``, ≈ 5 MB per increment at 10⁵
+        points) and removed when the load step commits.  A resumed run that reaches the
+        same increment again (same target time, start displacement, committed state and
+        density) continues its ADR iteration from the snapshot, bit for bit as if
+        uninterrupted (a whole step that failed fails again within a snapshot interval,
+        the half it was cut back to goes on), instead of from its start: a killed
+        10⁵-particle run loses at most ``snapshot_every`` seconds of a step that takes
+        10-40 min.  The step's wall time adds the killed run's up to its last snapshot.
 
     Returns
     -------
@@ -705,12 +733,17 @@ def solve_nonlinear(
         state_steps = [start - 1] if start else []
         say(f"resuming from {ckpt} after step {start} of {K}")
     snap_path = None if ckpt is None else ckpt.with_name(f"{ckpt.stem}.adr{ckpt.suffix}")
-    # an ADR increment's snapshot (snapshot_every), continued when the resumed run
-    # reaches the same increment again (its key: see adr_key below)
-    snap_saved: dict[str, Any] | None = None
+    # the running load step's ADR snapshots (snapshot_every), one per increment tried
+    # (keyed by adr_key below), all in one file: a resumed run continues every increment
+    # it tries again from its snapshot, a failed whole step (which then fails again
+    # within a snapshot interval, bit for bit) as well as the half it was cut back to
+    snaps: dict[str, dict[str, np.ndarray]] = {}
+    saved: dict[str, dict[str, np.ndarray]] = {}  # the killed run's, each used once
     if snap_path is not None and resume and snap_path.exists():
-        with np.load(snap_path, allow_pickle=False) as f:
-            snap_saved = {k: f[k] for k in f.files}
+        saved = _read_snapshots(snap_path)
+    # the interrupted run's time in the running step up to its last snapshot (added to
+    # the step's wall time) and the step's start (read by the snapshots)
+    step_clock = {"t0": 0.0, "before": 0.0}
     timings: dict[str, Any] = {"setup": time.perf_counter() - t_start}
 
     def values(t: float) -> np.ndarray:
@@ -762,7 +795,6 @@ def solve_nonlinear(
         return h.hexdigest()
 
     def adr_to(t_new: float, u_from: np.ndarray, st: dict[str, np.ndarray]) -> StepOutcome:
-        nonlocal snap_saved
         u0 = pred(u_from, st, t_cur, u_prev, t_prev, t_new, t_new / te, values(t_new), "adr")
         if lam is not None:
             dens = lam
@@ -780,17 +812,25 @@ def solve_nonlinear(
         snapshot = restart = None
         if snap_path is not None:
             key = adr_key(t_new, u0, st, dens)
-            if snap_saved is not None and str(snap_saved.get("key")) == key:
-                restart, snap_saved = snap_saved, None
+            restart = saved.pop(key, None)
+            if restart is not None:
+                snaps[key] = restart  # kept in the file until this run snapshots it anew
+                step_clock["before"] = max(
+                    step_clock["before"], float(restart.get("step_elapsed", 0.0))
+                )
                 say(
                     f"  t = {t_new:g}: ADR continues from its snapshot after iteration "
                     f"{int(restart['iteration']):,} ({snap_path})"
                 )
 
             def snapshot(loop: dict[str, Any]) -> None:
-                arrays = {k: np.asarray(v) for k, v in loop.items()}
-                arrays["key"] = np.array(key)
-                _write_atomic_npz(snap_path, arrays)
+                entry = {k: np.array(v) for k, v in loop.items()}  # copies: buffers rotate
+                entry["step_elapsed"] = np.array(
+                    step_clock["before"] + time.perf_counter() - step_clock["t0"]
+                )
+                snaps[key] = entry
+                assert snap_path is not None
+                _write_snapshots(snap_path, snaps)
 
         return adr_step(
             system,
@@ -919,6 +959,7 @@ def solve_nonlinear(
             # active set unsettled); only the committed state matters (checked below)
             warnings.simplefilter("ignore", TrialStateWarning)
             t0 = time.perf_counter()
+            step_clock["t0"], step_clock["before"] = t0, 0.0
             t_target = float(tt[k])
             step_u, step_state = u_c, state_c
             n_it = n_calls = n_cut = n_rel = 0
@@ -1027,7 +1068,8 @@ def solve_nonlinear(
         else:
             states = [state_c]
             state_steps = [k]
-        step_time[k] = time.perf_counter() - t0
+        # with the interrupted run's time in this step up to its last snapshot, if resumed
+        step_time[k] = time.perf_counter() - t0 + step_clock["before"]
         if ckpt is not None:
             arrays: dict[str, np.ndarray] = {
                 "version": np.array(_CHECKPOINT_VERSION),
@@ -1065,8 +1107,10 @@ def solve_nonlinear(
             for key, value in (pred.prev_state or {}).items():
                 arrays[f"prev_state__{key}"] = np.asarray(value)
             _write_atomic_npz(ckpt, arrays)
+            snaps.clear()  # the step's increments are committed
+            saved.clear()  # (a killed run's snapshots belong to this step or none)
             if snap_path is not None and snap_path.exists():
-                snap_path.unlink()  # the step's increments are committed
+                snap_path.unlink()
         say(
             f"step {k + 1}/{K} t = {t_target:.6g}: {used}, {n_it} iteration(s), "
             f"{n_cut} cut-back(s), "

@@ -929,7 +929,8 @@ def test_adr_snapshot_resumes_an_interrupted_increment_bitwise(tmp_path):
     with pytest.raises(Killed):
         pdlin.solve_nonlinear(prob, checkpoint=ck, progress=kill_in_step_3, progress_every=0, **kw)
     assert int(np.load(ck)["done"]) == 2 and snap.exists()
-    assert int(np.load(snap)["iteration"]) == 128  # taken before the progress line
+    with np.load(snap) as f:  # step 3's whole increment, snapshot before the progress line
+        assert f["keys"].size == 1 and int(f["s0__iteration"]) == 128
     said: list[str] = []
     res = pdlin.solve_nonlinear(prob, checkpoint=ck, resume=True, progress=said.append, **kw)
     assert any("ADR continues from its snapshot after iteration 128" in m for m in said)
@@ -954,3 +955,47 @@ def test_adr_snapshot_resumes_an_interrupted_increment_bitwise(tmp_path):
     assert other.iterations[2] != ref.iterations[2] or not np.array_equal(other.u, ref.u)
     with pytest.raises(InputError, match="snapshot_every must be a finite number"):
         pdlin.solve_nonlinear(prob, steps=1, snapshot_every=-1.0)
+
+
+def test_adr_snapshots_resume_a_cut_back_step_bitwise(tmp_path):
+    """Killed in the half increment of a step whose whole increment failed (budget 130
+    iterations: step 3 needs 136 as a whole), the resumed run finds both increments'
+    snapshots: the whole step continues from its iteration 128 and fails again at 130,
+    the half continues from its iteration 64; the run ends where the uninterrupted one
+    does, bit for bit, the step's wall time including the killed run's."""
+    prob = _small_polycrystal()
+    kw: dict[str, Any] = {
+        "times": np.arange(1.0, 4.0),
+        "t_end": 30.0,
+        "method": "adr",
+        "adr_maxiter": 130,
+        "snapshot_every": 0,
+    }
+    ref = pdlin.solve_nonlinear(prob, **kw)
+    assert ref.cutbacks.tolist() == [0, 0, 1]  # step 3: the whole fails, two halves
+
+    class Killed(Exception):
+        pass
+
+    def kill_in_the_half(msg: str) -> None:
+        if msg.startswith("  t = 2.5: ADR iteration 64:"):
+            raise Killed
+
+    ck = tmp_path / "run.npz"
+    with pytest.raises(Killed):
+        pdlin.solve_nonlinear(
+            prob, checkpoint=ck, progress=kill_in_the_half, progress_every=0, **kw
+        )
+    with np.load(tmp_path / "run.adr.npz") as f:
+        assert f["keys"].size == 2  # the failed whole step's and the half's
+        assert sorted(int(f[f"s{i}__iteration"]) for i in range(2)) == [64, 128]
+        killed_time = max(float(f[f"s{i}__step_elapsed"]) for i in range(2))
+    said: list[str] = []
+    res = pdlin.solve_nonlinear(prob, checkpoint=ck, resume=True, progress=said.append, **kw)
+    resumed = [m for m in said if "continues from its snapshot" in m]
+    assert len(resumed) == 2 and "t = 3:" in resumed[0] and "t = 2.5:" in resumed[1]
+    assert np.array_equal(res.u, ref.u) and res.iterations.tolist() == ref.iterations.tolist()
+    assert res.cutbacks.tolist() == ref.cutbacks.tolist()
+    assert np.array_equal(res.damping[2], ref.damping[2])
+    assert res.timings["steps"][2] > killed_time > 0
+    assert not (tmp_path / "run.adr.npz").exists()
