@@ -785,8 +785,10 @@ def solve_nonlinear(
 
     def adr_key(t_new: float, u0: np.ndarray, st: dict[str, np.ndarray], dens: Any) -> str:
         """A fingerprint of an ADR increment: its target time, start displacement,
-        committed state and density (a snapshot continues only the same increment)."""
-        h = hashlib.sha256(np.float64(t_new).tobytes())
+        committed state and density, and the options that change its iterates (Δt, a
+        constant damping, the budget): a snapshot continues only the same increment."""
+        opts = (t_new, adr_dt, -1.0 if damping is None else float(damping), float(budget))
+        h = hashlib.sha256(np.array(opts, dtype=float).tobytes())
         h.update(np.ascontiguousarray(u0, dtype=float).tobytes())
         h.update(np.ascontiguousarray(dens, dtype=float).tobytes())
         for key in sorted(st):
