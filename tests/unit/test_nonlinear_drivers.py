@@ -904,6 +904,22 @@ def _small_polycrystal(n: int = 20) -> Any:
     )
 
 
+class _Killed(Exception):
+    """Raised from a progress callback: a run killed at a given progress line."""
+
+
+def _run_killed_at(prob: Any, checkpoint: Any, line: str, **kw: Any) -> None:
+    """Run ``solve_nonlinear`` with a checkpoint until the progress line starting with
+    ``line`` (in-step lines every 64 iterations), where it is killed."""
+
+    def kill(msg: str) -> None:
+        if msg.startswith(line):
+            raise _Killed
+
+    with pytest.raises(_Killed):
+        pdlin.solve_nonlinear(prob, checkpoint=checkpoint, progress=kill, progress_every=0, **kw)
+
+
 def test_adr_snapshot_resumes_an_interrupted_increment_bitwise(tmp_path):
     """A run killed inside an ADR increment resumes from the increment's snapshot (written
     next to the checkpoint every ``snapshot_every`` seconds; 0: every 64 iterations) and
@@ -917,17 +933,9 @@ def test_adr_snapshot_resumes_an_interrupted_increment_bitwise(tmp_path):
     ref = pdlin.solve_nonlinear(prob, checkpoint=tmp_path / "ref.npz", **kw)
     assert ref.iterations[2] > 128  # step 3 runs past the first snapshots
 
-    class Killed(Exception):
-        pass
-
-    def kill_in_step_3(msg: str) -> None:
-        if msg.startswith("  t = 3: ADR iteration 128:"):
-            raise Killed
-
     ck = tmp_path / "run.npz"
     snap = tmp_path / "run.adr.npz"
-    with pytest.raises(Killed):
-        pdlin.solve_nonlinear(prob, checkpoint=ck, progress=kill_in_step_3, progress_every=0, **kw)
+    _run_killed_at(prob, ck, "  t = 3: ADR iteration 128:", **kw)
     assert int(np.load(ck)["done"]) == 2 and snap.exists()
     with np.load(snap) as f:  # step 3's whole increment, snapshot before the progress line
         assert f["keys"].size == 1 and int(f["s0__iteration"]) == 128
@@ -945,8 +953,7 @@ def test_adr_snapshot_resumes_an_interrupted_increment_bitwise(tmp_path):
 
     # another increment's snapshot (another density: another key) is not continued
     ck2 = tmp_path / "other.npz"
-    with pytest.raises(Killed):
-        pdlin.solve_nonlinear(prob, checkpoint=ck2, progress=kill_in_step_3, progress_every=0, **kw)
+    _run_killed_at(prob, ck2, "  t = 3: ADR iteration 128:", **kw)
     said.clear()
     other = pdlin.solve_nonlinear(
         prob, checkpoint=ck2, resume=True, progress=said.append, density_safety=1.2, **kw
@@ -974,18 +981,8 @@ def test_adr_snapshots_resume_a_cut_back_step_bitwise(tmp_path):
     ref = pdlin.solve_nonlinear(prob, **kw)
     assert ref.cutbacks.tolist() == [0, 0, 1]  # step 3: the whole fails, two halves
 
-    class Killed(Exception):
-        pass
-
-    def kill_in_the_half(msg: str) -> None:
-        if msg.startswith("  t = 2.5: ADR iteration 64:"):
-            raise Killed
-
     ck = tmp_path / "run.npz"
-    with pytest.raises(Killed):
-        pdlin.solve_nonlinear(
-            prob, checkpoint=ck, progress=kill_in_the_half, progress_every=0, **kw
-        )
+    _run_killed_at(prob, ck, "  t = 2.5: ADR iteration 64:", **kw)
     with np.load(tmp_path / "run.adr.npz") as f:
         assert f["keys"].size == 2  # the failed whole step's and the half's
         assert sorted(int(f[f"s{i}__iteration"]) for i in range(2)) == [64, 128]
