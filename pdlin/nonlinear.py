@@ -116,6 +116,9 @@ class NonlinearResult:
     resumed_from: int = 0
     #: ADR iterations Newton ran at stalls per step (``relax`` of :func:`solve_nonlinear`)
     relaxations: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    #: Newton iterations that finished stalled ADR increments per step (``polish`` of
+    #: :func:`solve_nonlinear`; failed tries included)
+    polishes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     #: load-step index (0-based) of each entry of ``states``: all steps, or with
     #: ``keep_states=False`` the last one, and after a resume the checkpoint's last
     #: committed step followed by the steps solved in this call
@@ -154,6 +157,7 @@ class NonlinearResult:
             "constitutive_calls": int(self.calls.sum()),
             "cutbacks": int(self.cutbacks.sum()),
             "relaxation_iterations": int(self.relaxations.sum()),
+            "polish_iterations": int(self.polishes.sum()),
             "fallbacks": int(sum(1 for m in self.methods if "failed" in m)),
             "newton_skipped": int(sum(1 for m in self.methods if m == _SKIPPED)),
             "max_relative_residual": float(np.max(self.residuals)) if self.n_steps else 0.0,
@@ -396,6 +400,8 @@ def solve_nonlinear(
     c0: float = 1.0,
     adr_maxiter: int | None = None,
     floor: float = 1e-12,
+    polish: bool | None = None,
+    adr_stall: int | None = None,
     homogenize: Any = None,
     keep_states: bool = True,
     checkpoint: str | os.PathLike[str] | None = None,
@@ -505,6 +511,20 @@ def solve_nonlinear(
         damping ``c0`` (finite, >= 0); iteration budget per step, an integer >= 1
         (default ``200 ⌈N^(1/dim)⌉ + 2000``); absolute floor on ``‖r‖`` relative to the
         force scale.
+    polish : bool, optional
+        Finish ADR increments that stall with Newton from ADR's iterate
+        (:func:`~pdlin.solvers.adr_step`'s ``polish``, with this call's Newton options):
+        when the best ``‖r‖`` of the last ``adr_stall`` iterations is not below half the
+        best before them, and when the budget runs out.  A converged try ends the
+        increment at Newton's residual criterion ``rtol`` (``result.polishes`` counts
+        its iterations, ``e1``/``e2`` are NaN); a failed one costs its Newton iterations
+        and ADR goes on unchanged.  Default (None): on with ``method='auto'``, off with
+        ``'adr'`` (ADR alone, spec 001's method).  ADR's damped dynamics can stall just
+        above its criteria near an equilibrium Newton reaches in 2 iterations
+        (docs/nonlinear.md: step 30 of the 10⁵-point run).
+    adr_stall : int, optional
+        The stall window of ``polish`` in ADR iterations (default: an eighth of the ADR
+        budget, at least 500).
     homogenize : index array or mask, optional
         Points of the volume average (default all), e.g. the real points of a
         ghost-layer problem.
@@ -597,6 +617,12 @@ def solve_nonlinear(
             math.isfinite(opt) and opt >= 0
         ):
             raise InputError(f"{name} must be a finite number >= 0, got {opt!r}")
+    if polish is not None and not isinstance(polish, bool):
+        raise InputError(f"polish must be True, False or None, got {polish!r}")
+    if adr_stall is not None and (
+        isinstance(adr_stall, bool) or not isinstance(adr_stall, int) or adr_stall < 1
+    ):
+        raise InputError(f"adr_stall must be an integer >= 1 (ADR iterations), got {adr_stall!r}")
     if not isinstance(newton_backoff, bool):
         raise InputTypeError(f"newton_backoff must be True or False, got {newton_backoff!r}")
     if adr_maxiter is not None:
@@ -653,6 +679,8 @@ def solve_nonlinear(
             arr = np.broadcast_to(dens.reshape(-1), (system.ndof,)).copy()
             lam = arr
     budget = int(adr_maxiter) if adr_maxiter is not None else 200 * math.ceil(n ** (1.0 / d)) + 2000
+    polish_on = (method == "auto") if polish is None else polish
+    stall_window = int(adr_stall) if adr_stall is not None else max(500, budget // 8)
 
     # per-step records
     K = tt.size
@@ -664,6 +692,7 @@ def solve_nonlinear(
     calls = np.zeros(K, dtype=np.int64)
     cuts = np.zeros(K, dtype=np.int64)
     relax_hist = np.zeros(K, dtype=np.int64)
+    polish_hist = np.zeros(K, dtype=np.int64)
     e1s = np.full(K, np.nan)
     e2s = np.full(K, np.nan)
     resid = np.zeros(K)
@@ -702,6 +731,8 @@ def solve_nonlinear(
             arr[:start] = data[key][:start]
         if "relaxations" in data:  # absent from checkpoints of earlier versions
             relax_hist[:start] = data["relaxations"][:start]
+        if "polishes" in data:  # idem
+            polish_hist[:start] = data["polishes"][:start]
         # step wall times and Newton's failure messages of the steps the file holds (runs
         # that wrote none: times unknown, NaN)
         step_time[:start] = data["step_time"][:start] if "step_time" in data else np.nan
@@ -767,6 +798,25 @@ def solve_nonlinear(
 
     def newton_to(t_new: float, u_from: np.ndarray, st: dict[str, np.ndarray]) -> StepOutcome:
         u0 = pred(u_from, st, t_cur, u_prev, t_prev, t_new, t_new / te, values(t_new))
+        return newton_step(
+            system,
+            u0,
+            st,
+            factor=t_new / te,
+            rtol=rtol,
+            maxiter=maxiter,
+            line_search=line_search,
+            linear_solver=linear_solver,
+            direct_cache=direct_cache,
+            relax=relax,
+            relax_density=relax_density(),
+            progress=None if progress is None else (lambda m: say(f"  t = {t_new:g}: {m}")),
+            progress_every=progress_every,
+        )
+
+    def newton_from(t_new: float, u0: np.ndarray, st: dict[str, np.ndarray]) -> StepOutcome:
+        """Newton from an ADR iterate ``u0`` (``polish``): its prescribed entries are this
+        increment's already."""
         return newton_step(
             system,
             u0,
@@ -851,6 +901,8 @@ def solve_nonlinear(
             snapshot=snapshot,
             snapshot_every=float(snapshot_every),
             restart=restart,
+            polish=(lambda u: newton_from(t_new, u, st)) if polish_on else None,
+            stall=stall_window,
         )
 
     # automatic incrementation: the last converged increment of each driver, as a
@@ -874,7 +926,10 @@ def solve_nonlinear(
         damp: list[np.ndarray] | None,
         cutbacks: int,
     ) -> tuple[
-        StepOutcome | None, str, tuple[int, int, int, int], tuple[np.ndarray, dict[str, Any]]
+        StepOutcome | None,
+        str,
+        tuple[int, int, int, int, int],
+        tuple[np.ndarray, dict[str, Any]],
     ]:
         """Reach ``t_target`` from ``t_cur`` with ``step_fn`` in automatic increments.
 
@@ -885,7 +940,8 @@ def solve_nonlinear(
         iterations, any ADR increment (ADR's iterations per increment hardly depend on
         its size).  Returns the outcome of the last sub-step (None when an increment
         fails at the smallest size), why it failed, the counts (iterations,
-        constitutive calls, cut-backs, Newton's relaxation iterations) and the last
+        constitutive calls, cut-backs, Newton's relaxation iterations, Newton's polish
+        iterations of ADR increments) and the last
         converged (u, state), from which
         a fallback driver continues."""
         nonlocal t_cur, u_prev, t_prev
@@ -898,7 +954,7 @@ def solve_nonlinear(
             frac = min(frac, 0.5 * backoff["frac"]) if held else max(frac, backoff["frac"])
         inc = max(min(1.0, frac) * span, smallest)
         cur_u, cur_state = u_start, st_start
-        n_it = n_calls = n_cut = n_rel = 0
+        n_it = n_calls = n_cut = n_rel = n_pol = 0
         out: StepOutcome | None = None
         easy = max(2, maxiter // 4)
         while t_target - t_cur > 1e-12 * span:
@@ -911,6 +967,7 @@ def solve_nonlinear(
                     n_it += exc.outcome.iterations
                     n_calls += exc.outcome.calls
                     n_rel += exc.outcome.relaxation
+                    n_pol += exc.outcome.polish
                 n_cut += 1
                 pred.failed()
                 if driver == "adr":
@@ -922,7 +979,7 @@ def solve_nonlinear(
                     held = True
                 if 0.5 * min(inc, t_target - t_cur) < smallest * (1.0 - 1e-9):
                     inc_frac[driver] = inc / span
-                    return None, str(exc), (n_it, n_calls, n_cut, n_rel), (cur_u, cur_state)
+                    return None, str(exc), (n_it, n_calls, n_cut, n_rel, n_pol), (cur_u, cur_state)
                 inc = 0.5 * min(inc, t_target - t_cur)
                 log.info("t = %.6g: %s; cutting back to t = %.6g", target, exc, t_cur + inc)
                 say(f"  t = {target:g}: {exc}; cutting back to t = {t_cur + inc:g}")
@@ -930,6 +987,7 @@ def solve_nonlinear(
             n_it += out.iterations
             n_calls += out.calls
             n_rel += out.relaxation
+            n_pol += out.polish
             if damp is not None and out.damping is not None:
                 damp.append(out.damping)
             u_prev, t_prev = cur_u, t_cur
@@ -953,7 +1011,7 @@ def solve_nonlinear(
             if held:
                 inc = min(inc, max(0.5 * backoff["frac"] * span, smallest))
         inc_frac[driver] = inc / span
-        return out, "", (n_it, n_calls, n_cut, n_rel), (cur_u, cur_state)
+        return out, "", (n_it, n_calls, n_cut, n_rel, n_pol), (cur_u, cur_state)
 
     for k in range(start, K):
         with warnings.catch_warnings():
@@ -964,7 +1022,7 @@ def solve_nonlinear(
             step_clock["t0"], step_clock["before"] = t0, 0.0
             t_target = float(tt[k])
             step_u, step_state = u_c, state_c
-            n_it = n_calls = n_cut = n_rel = 0
+            n_it = n_calls = n_cut = n_rel = n_pol = 0
             pred.calls = 0
             damp: list[np.ndarray] = []
             out: StepOutcome | None = None
@@ -991,7 +1049,7 @@ def solve_nonlinear(
                     and streak & (streak - 1) != 0  # not a power of two
                 )
                 if skip:
-                    counts = (0, 0, 0, 0)
+                    counts = (0, 0, 0, 0, 0)
                     why = (
                         f"Newton skipped: no Newton in the last {streak} load steps "
                         "(newton_backoff: tried again when that count is a power of two)"
@@ -1000,7 +1058,7 @@ def solve_nonlinear(
                     out, why, counts, (step_u, step_state) = substeps(
                         newton_to, "newton", t_target, step_u, step_state, None, cut_n
                     )
-                n_it, n_calls, n_cut, n_rel = counts
+                n_it, n_calls, n_cut, n_rel, n_pol = counts
                 if skip:
                     used = _SKIPPED
                 elif out is None:
@@ -1019,6 +1077,7 @@ def solve_nonlinear(
                 )
                 n_it, n_calls, n_cut = n_it + counts[0], n_calls + counts[1], n_cut + counts[2]
                 n_rel += counts[3]
+                n_pol += counts[4]
                 if out is None:
                     if used == _SKIPPED:
                         prefix = f"{why}; "
@@ -1053,6 +1112,7 @@ def solve_nonlinear(
                 hom_hist[k] = np.einsum("i,iab->ab", hom_w, sig) / hom_w.sum()
             iters[k], calls[k], cuts[k] = n_it, n_calls + pred.calls, n_cut
             relax_hist[k] = n_rel
+            polish_hist[k] = n_pol
             resid[k] = out.residual
             methods[k], messages[k] = used, why
             damping_hist[k] = np.concatenate(damp) if damp else np.zeros(0)
@@ -1084,6 +1144,7 @@ def solve_nonlinear(
                 "calls": calls[: k + 1],
                 "cutbacks": cuts[: k + 1],
                 "relaxations": relax_hist[: k + 1],
+                "polishes": polish_hist[: k + 1],
                 "e1": e1s[: k + 1],
                 "e2": e2s[: k + 1],
                 "residuals": resid[: k + 1],
@@ -1117,6 +1178,7 @@ def solve_nonlinear(
             f"step {k + 1}/{K} t = {t_target:.6g}: {used}, {n_it} iteration(s), "
             f"{n_cut} cut-back(s), "
             + (f"{n_rel} relaxation iteration(s), " if n_rel else "")
+            + (f"{n_pol} Newton polish iteration(s), " if n_pol else "")
             + f"residual {out.residual:.2e}, {step_time[k]:.2f} s"
         )
 
@@ -1137,6 +1199,7 @@ def solve_nonlinear(
         calls=calls,
         cutbacks=cuts,
         relaxations=relax_hist,
+        polishes=polish_hist,
         methods=methods,
         messages=messages,
         damping=damping_hist,

@@ -498,3 +498,13 @@ def test_nonlinear_scene_options_pass_snapshot_every(tmp_path):
     opts = _nonlinear_options(cfg, problem, tmp_path)
     assert opts is not None and opts["snapshot_every"] == 120 and opts["method"] == "adr"
     assert opts["checkpoint"] == tmp_path / "cp.ckpt.npz"
+
+
+def test_nonlinear_scene_options_pass_polish(tmp_path):
+    # solver.polish / solver.adr_stall reach solve_nonlinear (Newton finishing stalled ADR)
+    from pdlin.io.scene import _nonlinear_options
+
+    problem = load_scene(_write(tmp_path, CP_SCENE)).problem
+    cfg = {"nonlinear": "adr", "polish": True, "adr_stall": 400}
+    opts = _nonlinear_options(cfg, problem, tmp_path)
+    assert opts is not None and opts["polish"] is True and opts["adr_stall"] == 400

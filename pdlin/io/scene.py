@@ -154,6 +154,8 @@ _NONLINEAR_KEYS = (
     "fallback_cutbacks",
     "newton_backoff",
     "relax",
+    "polish",
+    "adr_stall",
     "progress_every",
     "snapshot_every",
     "density",
@@ -1029,10 +1031,13 @@ def _nonlinear_options(
             lo = 1 if k == "steps" else 0
             if isinstance(v, bool) or not isinstance(v, int) or v < lo:
                 raise SceneError(f"solver.{k} must be an integer >= {lo}, got {v!r}")
-    if "newton_backoff" in opts and not isinstance(opts["newton_backoff"], bool):
-        raise SceneError(
-            f"solver.newton_backoff must be true or false, got {opts['newton_backoff']!r}"
-        )
+    for k in ("newton_backoff", "polish"):
+        if k in opts and not isinstance(opts[k], bool):
+            raise SceneError(f"solver.{k} must be true or false, got {opts[k]!r}")
+    if "adr_stall" in opts:
+        v = opts["adr_stall"]
+        if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+            raise SceneError(f"solver.adr_stall must be an integer >= 1, got {v!r}")
     for k in ("t_end", "e_l", "dt"):
         if k in opts:
             _number(opts[k], f"solver.{k}", positive=True)

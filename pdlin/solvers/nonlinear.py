@@ -64,6 +64,10 @@ class StepOutcome:
         Newton's backtracking steps.
     relaxation : int
         ADR iterations Newton ran at stalls (``relax`` of :func:`newton_step`).
+    polish : int
+        Newton iterations an ADR increment ran from its iterates (``polish`` of
+        :func:`adr_step`), those of failed tries included; the outcome of a polished
+        increment is Newton's (``e1``, ``e2`` None).
     """
 
     u: np.ndarray
@@ -77,6 +81,7 @@ class StepOutcome:
     e2: float | None = None
     line_search: int = 0
     relaxation: int = 0
+    polish: int = 0
 
 
 class StepFailed(ConvergenceError):
@@ -437,6 +442,8 @@ def adr_step(
     snapshot: Callable[[dict[str, Any]], None] | None = None,
     snapshot_every: float = 300.0,
     restart: dict[str, Any] | None = None,
+    polish: Callable[[np.ndarray], StepOutcome] | None = None,
+    stall: int = 0,
 ) -> StepOutcome:
     """Adaptive dynamic relaxation for one load step (spec 001 §4).
 
@@ -460,11 +467,27 @@ def adr_step(
     responses at ``u0`` and at the snapshot are recomputed: two more constitutive sweeps
     in ``calls``).
 
+    ``polish`` (if given) finishes a stalled iteration: a callable that runs Newton
+    from an iterate (e.g. :func:`newton_step` at this step's ``factor`` and
+    ``committed`` state) and returns its outcome or raises :class:`StepFailed`.  It is
+    tried when ``stall > 0`` and the best ``‖r‖`` of the last ``stall`` iterations is
+    not below half the best before them (checked at iterations ``2 stall``, ``3 stall``,
+    ...), and once more from the last iterate when the budget runs out.  A converged
+    try ends the increment with Newton's outcome (its residual criterion, ``polish``
+    counting its iterations); a failed one leaves the ADR iteration as it was (its
+    iterates do not depend on the tries, so a ``restart`` stays bit for bit).  ADR's
+    damped dynamics can stall near an equilibrium that Newton reaches in a few
+    iterations (10⁵ crystal-plasticity points, docs/nonlinear.md: ``‖r‖`` at 1e-7 of
+    the force scale, then a plateau at 1e-6 for 40,000 iterations; Newton from the
+    plateau converged in 2).
+
     Raises
     ------
     StepFailed
-        After ``maxiter`` iterations or on a non-finite force.
+        After ``maxiter`` iterations (and a failed ``polish``) or on a non-finite force.
     """
+    if isinstance(stall, bool) or not isinstance(stall, int) or stall < 0:
+        raise InputError(f"stall must be an integer >= 0 (iterations), got {stall!r}")
     lam = np.asarray(density, dtype=float).reshape(-1)
     if lam.shape != (system.ndof,) or np.any(lam <= 0) or not np.all(np.isfinite(lam)):
         raise InputError(f"density must be {system.ndof} positive finite numbers")
@@ -496,14 +519,17 @@ def adr_step(
         snapshot=snapshot,
         snapshot_every=snapshot_every,
         restart=restart,
+        polish=polish,
+        stall=stall,
     )
     out = run.outcome
     if run.converged:
         return out
     e1, e2 = out.e1, out.e2
+    tried = f"; Newton from its last iterate failed ({run.why})" if run.why else ""
     raise StepFailed(
         f"ADR: no convergence in {maxiter} iterations (e1 = {e1:.3e}, e2 = {e2:.3e}, "
-        f"target {e_l:.1e})",
+        f"target {e_l:.1e}){tried}",
         out,
     )
 
@@ -587,6 +613,14 @@ def _adr_restart(
 class _AdrRun:
     outcome: StepOutcome
     converged: bool
+    why: str = ""  # why the last polish try failed (empty: none tried or none failed)
+
+
+def _stalled(history: list[float], it: int, stall: int) -> bool:
+    """At iteration ``it`` (a multiple of ``stall``, at least ``2 stall``): the best
+    residual of the last ``stall`` iterations is not below half the best before them
+    (``history[j]`` is iteration ``j + 1``'s)."""
+    return min(history[it - stall : it]) > 0.5 * min(history[: it - stall])
 
 
 def _adr_run(
@@ -610,11 +644,14 @@ def _adr_run(
     snapshot: Callable[[dict[str, Any]], None] | None = None,
     snapshot_every: float = 300.0,
     restart: dict[str, Any] | None = None,
+    polish: Callable[[np.ndarray], StepOutcome] | None = None,
+    stall: int = 0,
 ) -> _AdrRun:
     """The ADR iterations of :func:`adr_step` from ``u`` at rest (``u⁻¹ = u⁰``), its
-    response ``resp`` and residual ``r``; stops on the criteria or after ``maxiter``
-    iterations (not converged: the outcome holds the last iterate).  ``restart``: a
-    ``snapshot`` of an earlier run from the same start, continued after its iteration."""
+    response ``resp`` and residual ``r``; stops on the criteria, on a converged
+    ``polish`` or after ``maxiter`` iterations (not converged: the outcome holds the last
+    iterate).  ``restart``: a ``snapshot`` of an earlier run from the same start,
+    continued after its iteration."""
     lam = density
     free = system.free
     fixed = np.flatnonzero(~free)
@@ -668,10 +705,13 @@ def _adr_run(
     eps2_0: float | None = None
     e1 = e2 = float("nan")
     first = 1
+    polished = 0  # Newton iterations of failed polish tries
+    why = ""
     if restart is not None:
         u, u_prev, u_start, first, c, eps1_0, eps2_0, calls, history, cs = _adr_restart(
             restart, u.size, calls
         )
+        polished = int(restart.get("polish", 0))  # absent from earlier snapshots
         resp = _respond(system, u, committed, f"ADR: restart after iteration {first - 1}")
         calls += int(resp.calls)
         r = _residual(system, resp, factor)
@@ -736,6 +776,7 @@ def _adr_run(
                     "damping": np.asarray(cs),
                     "e1": e1,
                     "e2": e2,
+                    "polish": polished,
                 }
             )
             t_snap = time.perf_counter()
@@ -747,6 +788,47 @@ def _adr_run(
             )
         if (e1 < e_l and e2 < e_l) or n1 <= floor * scale:
             out = StepOutcome(u, resp, it, calls, history[-1], history, np.array(cs), e1, e2)
+            out.polish = polished
             return _AdrRun(out, True)
+        last = it == maxiter
+        check = stall > 0 and it % stall == 0 and it >= 2 * stall
+        if polish is not None and (last or (check and _stalled(history, it, stall))):
+            if progress is not None:
+                why_now = (
+                    "budget spent" if last else f"no twofold drop of |r| in {stall:,} iterations"
+                )
+                progress(
+                    f"ADR iteration {it:,}: {why_now}"
+                    + f" (e1 = {e1:.2e}, e2 = {e2:.2e}, |r|/scale = {history[-1]:.2e}); "
+                    "Newton from this iterate"
+                )
+            try:
+                done = polish(u.copy())
+            except StepFailed as exc:
+                if exc.outcome is not None:
+                    calls += int(exc.outcome.calls)
+                    polished += int(exc.outcome.iterations)
+                why = str(exc)
+                if progress is not None:
+                    progress(f"ADR iteration {it:,}: {why}" + ("" if last else "; ADR goes on"))
+            else:
+                if progress is not None:
+                    progress(
+                        f"ADR iteration {it:,}: Newton from this iterate converged in "
+                        f"{done.iterations} iteration(s), |r|/scale = {done.residual:.2e}"
+                    )
+                out = StepOutcome(
+                    done.u,
+                    done.response,
+                    it,
+                    calls + int(done.calls),
+                    done.residual,
+                    history,
+                    np.array(cs),
+                    relaxation=done.relaxation,
+                    polish=polished + int(done.iterations),
+                )
+                return _AdrRun(out, True)
     out = StepOutcome(u, resp, maxiter, calls, history[-1], history, np.array(cs), e1, e2)
-    return _AdrRun(out, False)
+    out.polish = polished
+    return _AdrRun(out, False, why)

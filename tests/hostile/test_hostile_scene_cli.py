@@ -210,6 +210,16 @@ SCENE_CASES = [
     ),
     (
         "solver",
+        {"nonlinear": "auto", "polish": 1},
+        r"solver.polish must be true or false, got 1",
+    ),
+    (
+        "solver",
+        {"nonlinear": "auto", "adr_stall": 0},
+        r"solver.adr_stall must be an integer >= 1, got 0",
+    ),
+    (
+        "solver",
         {"nonlinear": "adr", "progress_every": -5},
         r"solver.progress_every must be seconds >= 0, got -5.0",
     ),

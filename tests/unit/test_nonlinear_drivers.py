@@ -11,6 +11,7 @@ import scipy.sparse as sp
 import pdlin
 from pdlin.errors import ConvergenceError, InputError
 from pdlin.models.base import Model, Response
+from pdlin.solvers.nonlinear import StepFailed
 
 
 class CubicChain(Model):
@@ -996,3 +997,129 @@ def test_adr_snapshots_resume_a_cut_back_step_bitwise(tmp_path):
     assert np.array_equal(res.damping[2], ref.damping[2])
     assert res.timings["steps"][2] > killed_time > 0
     assert not (tmp_path / "run.adr.npz").exists()
+
+
+# ---------------------------------------------------------------------------------------
+# Newton polish of stalled ADR increments (``polish`` / ``adr_stall``)
+
+
+def _chain_system() -> tuple[Any, dict[str, np.ndarray], np.ndarray, np.ndarray]:
+    """The graded hardening chain's constrained system, initial state, start (the end
+    values, linear in between) and Gershgorin density."""
+    from pdlin.solvers.nonlinear import adr_density
+
+    system = pdlin.constrained_system(_chain(u_end=0.2, graded=True, beta=10.0))
+    st = system.initial_state()
+    u0 = 0.2 * np.linspace(0.0, 1.0, system.ndof)  # the end values, linear in between
+    return system, st, u0, adr_density(system, st, u0, dt=1.0, safety=1.1)
+
+
+def test_stalled_compares_the_last_window_with_the_best_before():
+    from pdlin.solvers.nonlinear import _stalled
+
+    falling = [2.0**-k for k in range(40)]  # halves every iteration: never stalled
+    assert not _stalled(falling, 40, 10)
+    flat = [1.0] * 40
+    assert _stalled(flat, 40, 10)
+    # a twofold drop within the last window is progress; a drop to 0.6 of the best is not
+    assert not _stalled([1.0] * 30 + [0.49] * 10, 40, 10)
+    assert _stalled([1.0] * 30 + [0.6] * 10, 40, 10)
+    # an earlier minimum counts: a plateau above the best reached before is a stall
+    assert _stalled([1.0] * 10 + [1e-3] + [1e-2] * 29, 40, 10)
+
+
+def test_adr_polish_finishes_an_undamped_stall_with_newton():
+    """Undamped ADR (``damping=0``) never settles: its ‖r‖ oscillates without a trend, so
+    the first stall check (iteration 2·stall) calls ``polish``, whose Newton solution ends
+    the increment at Newton's residual criterion; e1/e2 are not ADR's then (None)."""
+    from pdlin.solvers.nonlinear import adr_step, newton_step
+
+    system, st, u0, lam = _chain_system()
+    tries: list[int] = []
+
+    def polish(u):
+        tries.append(1)
+        return newton_step(system, u, st, factor=1.0, maxiter=25)
+
+    kw: dict[str, Any] = {"factor": 1.0, "density": lam, "dt": 1.0, "damping": 0.0}
+    out = adr_step(system, u0, st, maxiter=1000, polish=polish, stall=50, **kw)
+    assert tries == [1] and out.iterations == 100  # the first check: 2 x the window
+    assert 1 <= out.polish <= 25 and out.e1 is None and out.e2 is None
+    assert out.residual <= 1e-8  # newton_step's default rtol
+    ref = newton_step(system, u0, st, factor=1.0, maxiter=25)
+    np.testing.assert_allclose(out.u, ref.u, rtol=0, atol=1e-9 * 0.2)
+    # without polish the same undamped iteration runs out of its budget
+    with pytest.raises(StepFailed, match="no convergence in 1000 iterations"):
+        adr_step(system, u0, st, maxiter=1000, **kw)
+
+
+def test_failed_polish_leaves_the_adr_iterates_bitwise():
+    """A polish that fails costs its Newton iterations (``polish``) and calls; the ADR
+    iteration goes on exactly as without it, and the last try's reason is in the
+    budget failure's message."""
+    from pdlin.solvers.nonlinear import StepOutcome, adr_step
+
+    system, st, u0, lam = _chain_system()
+    tries: list[np.ndarray] = []
+
+    def refuse(u):
+        tries.append(u)
+        raise StepFailed("Newton: refused (test)", StepOutcome(u, None, 3, 7, 1.0))
+
+    kw: dict[str, Any] = {"factor": 1.0, "density": lam, "dt": 1.0, "damping": 0.0}
+    with pytest.raises(StepFailed) as plain:
+        adr_step(system, u0, st, maxiter=400, **kw)
+    with pytest.raises(StepFailed, match="Newton from its last iterate failed") as tried:
+        adr_step(system, u0, st, maxiter=400, polish=refuse, stall=50, **kw)
+    a, b = plain.value.outcome, tried.value.outcome
+    assert a is not None and b is not None
+    assert np.array_equal(a.u, b.u) and np.array_equal(a.damping, b.damping)
+    # tries at the stall checks 100, 150, ..., 400 (the last also the budget's end)
+    assert len(tries) == 7 and b.polish == 3 * 7 and b.calls == a.calls + 7 * 7
+    with pytest.raises(InputError, match="stall must be an integer >= 0"):
+        adr_step(system, u0, st, maxiter=10, stall=-1, **kw)
+
+
+def test_auto_polishes_adr_at_the_end_of_its_budget(tmp_path):
+    """``method='auto'``: Newton fails from the predictor (two iterations are too few),
+    ADR falls back with a budget too small for e_l = 1e-12, and Newton from ADR's last
+    iterate converges in those two iterations: the step converges, ``polishes`` counts
+    them, e1/e2 are NaN (Newton's criterion decided); ADR alone fails the same step, and
+    ``polish=True`` lets it through too.  The checkpoint keeps the counts."""
+    prob = _chain(u_end=0.2, graded=True, beta=1e3)
+    kw: dict[str, Any] = {
+        "steps": 1, "maxiter": 2, "max_cutbacks": 0, "predictor": "tangent",
+        "adr_maxiter": 100, "e_l": 1e-12,
+    }  # fmt: skip
+    ck = tmp_path / "auto.npz"
+    said: list[str] = []
+    res = pdlin.solve_nonlinear(prob, method="auto", checkpoint=ck, progress=said.append, **kw)
+    assert res.methods == ["adr (newton failed)"] and res.polishes.tolist() == [2]
+    assert any("ADR iteration 100: budget spent" in m for m in said)
+    assert any("Newton from this iterate converged in 2 iteration(s)" in m for m in said)
+    assert "2 Newton polish iteration(s)" in said[-1]  # the step line
+    assert np.isnan(res.e1[0]) and np.isnan(res.e2[0]) and res.residuals[0] <= 1e-8
+    assert res.summary()["polish_iterations"] == 2
+    ref = pdlin.solve_nonlinear(prob, steps=1, method="newton", predictor="tangent")
+    np.testing.assert_allclose(res.u[-1], ref.u[-1], rtol=0, atol=1e-9 * 0.2)
+    again = pdlin.solve_nonlinear(prob, method="auto", checkpoint=ck, resume=True, **kw)
+    assert again.resumed_from == 1 and again.polishes.tolist() == [2]
+    with pytest.raises(ConvergenceError, match="ADR failed at load step 1"):
+        pdlin.solve_nonlinear(prob, method="adr", **kw)
+    adr = pdlin.solve_nonlinear(prob, method="adr", polish=True, **kw)
+    assert adr.methods == ["adr"] and adr.polishes.tolist() == [2]
+    with pytest.raises(ConvergenceError, match="ADR failed at load step 1"):
+        pdlin.solve_nonlinear(prob, method="auto", polish=False, **kw)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"polish": "yes"}, "polish must be True, False or None, got 'yes'"),
+        ({"adr_stall": 0}, "adr_stall must be an integer >= 1"),
+        ({"adr_stall": 2.5}, "adr_stall must be an integer >= 1"),
+    ],
+)
+def test_polish_arguments_name_themselves(kwargs, match):
+    with pytest.raises(InputError, match=match):
+        pdlin.solve_nonlinear(_chain(), **kwargs)
