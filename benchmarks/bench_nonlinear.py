@@ -36,6 +36,10 @@ seconds on a shared machine, one BLAS thread; nothing is asserted):
    ``--damping-values``: iterations and homogenized σ_xy per step, the median c and the
    share of c = 0; c also relative to ``2 sqrt(λ_min(Λ⁻¹K_e))``, the critical damping of the
    lowest elastic mode (shift-invert Lanczos on the elastic tangent).
+8. **Newton polish** (``--sections polish``, only on request): each of ``--methods`` on
+   ``--sizes`` x ``--loads`` with ``polish=False`` and ``polish=True`` (default stall
+   window): time, iterations, Newton polish iterations, steps polished, cut-backs and the
+   largest homogenized-stress difference between the two.
 
 Every run is a forked child process (its peak RSS is the run's). ``--quick`` (the default
 when no size is given) runs 15 x 15 and 25 x 25 only, about 2 minutes.
@@ -176,6 +180,7 @@ def run(
         calls=np.asarray(data["calls"]),
         cutbacks=np.asarray(data["cutbacks"]),
         methods=[str(m) for m in data["methods"]],
+        polishes=np.asarray(data["polishes"]) if "polishes" in data else np.zeros(done, int),
         hom=np.asarray(data["homogenized_stress"]),
         plastic=float(plastic.mean()),
         peak_mb=_peak_mb(),
@@ -444,6 +449,49 @@ def table_big(n: int, steps: int, load: str, **opts: Any) -> None:
 
 
 # ---------------------------------------------------------------------------------------
+# Newton polish of stalled ADR increments: the same runs with polish off and on
+
+
+def table_polish(sizes: list[int], loads: list[str], methods: list[str], steps: int) -> None:
+    """``solve_nonlinear(polish=False)`` against ``polish=True`` (default window), the same
+    problem, method and steps in one run: time, ADR iterations, polish iterations,
+    cut-backs, and the largest difference of the homogenized σ_xy / σ_yy over the steps
+    (relative to the polish-off run's largest |σ|)."""
+    print(f"\n## Newton polish of stalled ADR increments ({steps} load steps)\n")
+    head = (
+        "| particles | load | method | polish | total s | iterations | polish its | "
+        "steps polished | cut-backs | max rel. Δσ_hom |"
+    )
+    print(head)
+    print("|" + "---|" * (head.count("|") - 1))
+    for n in sizes:
+        for load in loads:
+            for m in methods:
+                ref: dict[str, Any] | None = None
+                for flag in (False, True):
+                    r = forked(run, n, load, m, steps, float("inf"), extra={"polish": flag})
+                    if isinstance(r, str):
+                        print(f"| {n * n:,} | {load} | {m} | {flag} | failed: {r} |")
+                        continue
+                    if "failed" in r:
+                        print(f"| {n * n:,} | {load} | {m} | {flag} | failed: {r['failed']} |")
+                        continue
+                    diff = "-"
+                    if ref is None:
+                        ref = r
+                    else:
+                        big = float(np.abs(ref["hom"]).max())
+                        diff = f"{float(np.abs(r['hom'] - ref['hom']).max()) / big:.1e}"
+                    pol = r["polishes"]
+                    print(
+                        f"| {n * n:,} | {load} | {m} | {flag} | {float(r['wall']):.1f} | "
+                        f"{int(r['iterations'].sum()):,} | {int(pol.sum())} | "
+                        f"{int(np.count_nonzero(pol))} | {int(r['cutbacks'].sum())} | {diff} |",
+                        flush=True,
+                    )
+
+
+# ---------------------------------------------------------------------------------------
 # B2 accuracy-cost
 
 
@@ -709,7 +757,7 @@ def main(argv: list[str] | None = None) -> int:
         "--sections",
         nargs="+",
         default=["b1", "aim", "profile", "big", "b2", "t20"],
-        choices=["b1", "aim", "profile", "big", "b2", "t20", "predictors", "damping"],
+        choices=["b1", "aim", "profile", "big", "b2", "t20", "predictors", "damping", "polish"],
         help="tables to print ('predictors' and 'damping' only on request)",
     )
     ap.add_argument(
@@ -796,6 +844,8 @@ def main(argv: list[str] | None = None) -> int:
         table_b2(args.b2_size, args.loads[0], args.b2_steps, args.e_l)
     if "t20" in args.sections:
         table_t20(25, 6 if quick else 12)
+    if "polish" in args.sections:
+        table_polish(args.sizes, args.loads, args.methods, args.steps)
     if "damping" in args.sections:
         table_damping(
             args.damping_size,

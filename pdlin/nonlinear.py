@@ -798,25 +798,11 @@ def solve_nonlinear(
 
     def newton_to(t_new: float, u_from: np.ndarray, st: dict[str, np.ndarray]) -> StepOutcome:
         u0 = pred(u_from, st, t_cur, u_prev, t_prev, t_new, t_new / te, values(t_new))
-        return newton_step(
-            system,
-            u0,
-            st,
-            factor=t_new / te,
-            rtol=rtol,
-            maxiter=maxiter,
-            line_search=line_search,
-            linear_solver=linear_solver,
-            direct_cache=direct_cache,
-            relax=relax,
-            relax_density=relax_density(),
-            progress=None if progress is None else (lambda m: say(f"  t = {t_new:g}: {m}")),
-            progress_every=progress_every,
-        )
+        return newton_from(t_new, u0, st)
 
     def newton_from(t_new: float, u0: np.ndarray, st: dict[str, np.ndarray]) -> StepOutcome:
-        """Newton from an ADR iterate ``u0`` (``polish``): its prescribed entries are this
-        increment's already."""
+        """Newton from ``u0`` (a predictor, or an ADR iterate for ``polish``), whose
+        prescribed entries are this increment's."""
         return newton_step(
             system,
             u0,
