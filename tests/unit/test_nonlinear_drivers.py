@@ -1123,3 +1123,33 @@ def test_auto_polishes_adr_at_the_end_of_its_budget(tmp_path):
 def test_polish_arguments_name_themselves(kwargs, match):
     with pytest.raises(InputError, match=match):
         pdlin.solve_nonlinear(_chain(), **kwargs)
+
+
+def test_adr_restart_with_polish_tries_is_bitwise_and_keeps_their_count():
+    """A snapshot taken after failed polish tries restarts to the same end: the iterates
+    bit for bit and the tries' Newton iterations (kept in the snapshot) counted once."""
+    from pdlin.solvers.nonlinear import StepOutcome, adr_step
+
+    system, st, u0, lam = _chain_system()
+
+    def refuse(u):
+        raise StepFailed("Newton: refused (test)", StepOutcome(u, None, 3, 7, 1.0))
+
+    snaps: list[dict[str, Any]] = []
+
+    def keep(loop: dict[str, Any]) -> None:
+        snaps.append({k: np.array(v) for k, v in loop.items()})
+
+    kw: dict[str, Any] = {
+        "factor": 1.0, "density": lam, "dt": 1.0, "damping": 0.0, "maxiter": 400,
+        "polish": refuse, "stall": 50,
+    }  # fmt: skip
+    with pytest.raises(StepFailed) as whole:
+        adr_step(system, u0, st, snapshot=keep, snapshot_every=0.0, **kw)
+    snap = next(s for s in snaps if int(s["iteration"]) == 128)  # after the try at 100
+    assert int(snap["polish"]) == 3
+    with pytest.raises(StepFailed) as resumed:
+        adr_step(system, u0, st, restart=snap, **kw)
+    a, b = whole.value.outcome, resumed.value.outcome
+    assert a is not None and b is not None
+    assert np.array_equal(a.u, b.u) and a.polish == b.polish == 3 * 7
