@@ -269,6 +269,12 @@ def split_times(r: dict[str, Any]) -> tuple[float, bool, float, bool, float]:
     return parts[0][0], parts[0][1], parts[1][0], parts[1][1], parts[0][0] + parts[1][0]
 
 
+def _print_head(head: str) -> None:
+    """A Markdown table's header row and its separator."""
+    print(head)
+    print("|" + "---|" * (head.count("|") - 1))
+
+
 def table_b1(
     sizes: list[int], loads: list[str], methods: list[str], steps: int, budget: float
 ) -> list[dict[str, Any]]:
@@ -277,8 +283,7 @@ def table_b1(
         "| particles | load | method | steps done | t 1-7 s | t 8-30 s | total s | it 1-7 | "
         "it 8-30 | it max | calls | cut-backs | fallbacks | peak RSS MB | plastic |"
     )
-    print(head)
-    print("|" + "---|" * (head.count("|") - 1))
+    _print_head(head)
     rows = []
     for n in sizes:
         for load in loads:
@@ -333,8 +338,7 @@ def table_predictors(
         "| particles | load | predictor | total s | Newton it | it max | cut-backs | "
         "fallbacks | max ‖Δσ̄‖ / max ‖σ̄‖ vs fine path |"
     )
-    print(head)
-    print("|" + "---|" * (head.count("|") - 1))
+    _print_head(head)
     fine_times = np.arange(1, steps * sub + 1) / sub
     for n in sizes:
         for load in loads:
@@ -462,8 +466,7 @@ def table_polish(sizes: list[int], loads: list[str], methods: list[str], steps: 
         "| particles | load | method | polish | total s | iterations | polish its | "
         "steps polished | cut-backs | max rel. Δσ_hom |"
     )
-    print(head)
-    print("|" + "---|" * (head.count("|") - 1))
+    _print_head(head)
     for n in sizes:
         for load in loads:
             for m in methods:

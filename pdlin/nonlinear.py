@@ -53,6 +53,33 @@ _CHECKPOINT_VERSION = 1
 
 
 @dataclass
+class _Counts:
+    """A load step's counts, summed over the increments it tried (failed ones included)."""
+
+    iterations: int = 0
+    calls: int = 0
+    cutbacks: int = 0
+    relaxation: int = 0  # Newton's ADR iterations at stalls
+    polish: int = 0  # Newton iterations from ADR iterates
+
+    def add(self, out: StepOutcome | None) -> None:
+        """Add an increment's outcome (None: a failure that reported none)."""
+        if out is not None:
+            self.iterations += out.iterations
+            self.calls += out.calls
+            self.relaxation += out.relaxation
+            self.polish += out.polish
+
+    def merge(self, other: _Counts) -> None:
+        """Add another driver's counts of the same load step."""
+        self.iterations += other.iterations
+        self.calls += other.calls
+        self.cutbacks += other.cutbacks
+        self.relaxation += other.relaxation
+        self.polish += other.polish
+
+
+@dataclass
 class NonlinearResult:
     """Per-step results of :func:`solve_nonlinear`.
 
@@ -911,12 +938,7 @@ def solve_nonlinear(
         st_start: dict[str, np.ndarray],
         damp: list[np.ndarray] | None,
         cutbacks: int,
-    ) -> tuple[
-        StepOutcome | None,
-        str,
-        tuple[int, int, int, int, int],
-        tuple[np.ndarray, dict[str, Any]],
-    ]:
+    ) -> tuple[StepOutcome | None, str, _Counts, tuple[np.ndarray, dict[str, Any]]]:
         """Reach ``t_target`` from ``t_cur`` with ``step_fn`` in automatic increments.
 
         The first increment is the driver's last converged one (a fraction of the
@@ -925,11 +947,8 @@ def solve_nonlinear(
         the whole step) when it was easy: a Newton increment in at most ``maxiter // 4``
         iterations, any ADR increment (ADR's iterations per increment hardly depend on
         its size).  Returns the outcome of the last sub-step (None when an increment
-        fails at the smallest size), why it failed, the counts (iterations,
-        constitutive calls, cut-backs, Newton's relaxation iterations, Newton's polish
-        iterations of ADR increments) and the last
-        converged (u, state), from which
-        a fallback driver continues."""
+        fails at the smallest size), why it failed, the counts and the last converged
+        (u, state), from which a fallback driver continues."""
         nonlocal t_cur, u_prev, t_prev
         span = t_target - t_cur
         smallest = span / 2.0**cutbacks
@@ -940,7 +959,7 @@ def solve_nonlinear(
             frac = min(frac, 0.5 * backoff["frac"]) if held else max(frac, backoff["frac"])
         inc = max(min(1.0, frac) * span, smallest)
         cur_u, cur_state = u_start, st_start
-        n_it = n_calls = n_cut = n_rel = n_pol = 0
+        cnt = _Counts()
         out: StepOutcome | None = None
         easy = max(2, maxiter // 4)
         while t_target - t_cur > 1e-12 * span:
@@ -949,12 +968,8 @@ def solve_nonlinear(
             try:
                 out = step_fn(target, cur_u, cur_state)
             except StepFailed as exc:
-                if exc.outcome is not None:
-                    n_it += exc.outcome.iterations
-                    n_calls += exc.outcome.calls
-                    n_rel += exc.outcome.relaxation
-                    n_pol += exc.outcome.polish
-                n_cut += 1
+                cnt.add(exc.outcome)
+                cnt.cutbacks += 1
                 pred.failed()
                 if driver == "adr":
                     f = inc / span
@@ -965,15 +980,12 @@ def solve_nonlinear(
                     held = True
                 if 0.5 * min(inc, t_target - t_cur) < smallest * (1.0 - 1e-9):
                     inc_frac[driver] = inc / span
-                    return None, str(exc), (n_it, n_calls, n_cut, n_rel, n_pol), (cur_u, cur_state)
+                    return None, str(exc), cnt, (cur_u, cur_state)
                 inc = 0.5 * min(inc, t_target - t_cur)
                 log.info("t = %.6g: %s; cutting back to t = %.6g", target, exc, t_cur + inc)
                 say(f"  t = {target:g}: {exc}; cutting back to t = {t_cur + inc:g}")
                 continue
-            n_it += out.iterations
-            n_calls += out.calls
-            n_rel += out.relaxation
-            n_pol += out.polish
+            cnt.add(out)
             if damp is not None and out.damping is not None:
                 damp.append(out.damping)
             u_prev, t_prev = cur_u, t_cur
@@ -997,7 +1009,7 @@ def solve_nonlinear(
             if held:
                 inc = min(inc, max(0.5 * backoff["frac"] * span, smallest))
         inc_frac[driver] = inc / span
-        return out, "", (n_it, n_calls, n_cut, n_rel, n_pol), (cur_u, cur_state)
+        return out, "", cnt, (cur_u, cur_state)
 
     for k in range(start, K):
         with warnings.catch_warnings():
@@ -1008,7 +1020,7 @@ def solve_nonlinear(
             step_clock["t0"], step_clock["before"] = t0, 0.0
             t_target = float(tt[k])
             step_u, step_state = u_c, state_c
-            n_it = n_calls = n_cut = n_rel = n_pol = 0
+            cnt = _Counts()
             pred.calls = 0
             damp: list[np.ndarray] = []
             out: StepOutcome | None = None
@@ -1035,35 +1047,31 @@ def solve_nonlinear(
                     and streak & (streak - 1) != 0  # not a power of two
                 )
                 if skip:
-                    counts = (0, 0, 0, 0, 0)
                     why = (
                         f"Newton skipped: no Newton in the last {streak} load steps "
                         "(newton_backoff: tried again when that count is a power of two)"
                     )
                 else:
-                    out, why, counts, (step_u, step_state) = substeps(
+                    out, why, cnt, (step_u, step_state) = substeps(
                         newton_to, "newton", t_target, step_u, step_state, None, cut_n
                     )
-                n_it, n_calls, n_cut, n_rel, n_pol = counts
                 if skip:
                     used = _SKIPPED
                 elif out is None:
                     if method == "newton":
                         raise ConvergenceError(
                             f"Newton failed at load step {k + 1} (t = {t_target:.6g}) after "
-                            f"{n_cut} cut-back(s): {why}"
+                            f"{cnt.cutbacks} cut-back(s): {why}"
                         )
                     # ADR continues from Newton's last converged increment
                     used = _FELL_BACK
                 else:
                     used = "newton"
             if method == "adr" or out is None:
-                out, adr_why, counts, _ = substeps(
+                out, adr_why, adr_cnt, _ = substeps(
                     adr_to, "adr", t_target, step_u, step_state, damp, max_cutbacks
                 )
-                n_it, n_calls, n_cut = n_it + counts[0], n_calls + counts[1], n_cut + counts[2]
-                n_rel += counts[3]
-                n_pol += counts[4]
+                cnt.merge(adr_cnt)
                 if out is None:
                     if used == _SKIPPED:
                         prefix = f"{why}; "
@@ -1071,7 +1079,7 @@ def solve_nonlinear(
                         prefix = f"Newton failed ({why}); " if why else ""
                     raise ConvergenceError(
                         f"{prefix}ADR failed at load step {k + 1} (t = {t_target:.6g}) after "
-                        f"{counts[2]} cut-back(s): {adr_why}"
+                        f"{adr_cnt.cutbacks} cut-back(s): {adr_why}"
                     )
                 e1s[k] = np.nan if out.e1 is None else out.e1
                 e2s[k] = np.nan if out.e2 is None else out.e2
@@ -1096,9 +1104,8 @@ def solve_nonlinear(
                 assert hom_hist is not None
                 stress_hist[k] = sig
                 hom_hist[k] = np.einsum("i,iab->ab", hom_w, sig) / hom_w.sum()
-            iters[k], calls[k], cuts[k] = n_it, n_calls + pred.calls, n_cut
-            relax_hist[k] = n_rel
-            polish_hist[k] = n_pol
+            iters[k], calls[k], cuts[k] = cnt.iterations, cnt.calls + pred.calls, cnt.cutbacks
+            relax_hist[k], polish_hist[k] = cnt.relaxation, cnt.polish
             resid[k] = out.residual
             methods[k], messages[k] = used, why
             damping_hist[k] = np.concatenate(damp) if damp else np.zeros(0)
@@ -1161,10 +1168,10 @@ def solve_nonlinear(
             if snap_path is not None and snap_path.exists():
                 snap_path.unlink()
         say(
-            f"step {k + 1}/{K} t = {t_target:.6g}: {used}, {n_it} iteration(s), "
-            f"{n_cut} cut-back(s), "
-            + (f"{n_rel} relaxation iteration(s), " if n_rel else "")
-            + (f"{n_pol} Newton polish iteration(s), " if n_pol else "")
+            f"step {k + 1}/{K} t = {t_target:.6g}: {used}, {cnt.iterations} iteration(s), "
+            f"{cnt.cutbacks} cut-back(s), "
+            + (f"{cnt.relaxation} relaxation iteration(s), " if cnt.relaxation else "")
+            + (f"{cnt.polish} Newton polish iteration(s), " if cnt.polish else "")
             + f"residual {out.residual:.2e}, {step_time[k]:.2f} s"
         )
 

@@ -1025,19 +1025,15 @@ def _nonlinear_options(
     opts: dict[str, Any] = {"method": method}
     for k in given:
         opts[k] = scfg[k]
-    for k in ("steps", "max_cutbacks", "fallback_cutbacks", "relax"):
+    for k in ("steps", "max_cutbacks", "fallback_cutbacks", "relax", "adr_stall"):
         if k in opts:
             v = opts[k]
-            lo = 1 if k == "steps" else 0
+            lo = 1 if k in ("steps", "adr_stall") else 0
             if isinstance(v, bool) or not isinstance(v, int) or v < lo:
                 raise SceneError(f"solver.{k} must be an integer >= {lo}, got {v!r}")
     for k in ("newton_backoff", "polish"):
         if k in opts and not isinstance(opts[k], bool):
             raise SceneError(f"solver.{k} must be true or false, got {opts[k]!r}")
-    if "adr_stall" in opts:
-        v = opts["adr_stall"]
-        if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-            raise SceneError(f"solver.adr_stall must be an integer >= 1, got {v!r}")
     for k in ("t_end", "e_l", "dt"):
         if k in opts:
             _number(opts[k], f"solver.{k}", positive=True)
