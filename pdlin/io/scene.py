@@ -8,6 +8,7 @@ See ``docs/scene.md`` for the full reference.
 from __future__ import annotations
 
 import sys
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from importlib import resources
@@ -16,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import PdlinError, SceneError
+from ..errors import AccuracyWarning, PdlinError, SceneError
 from ..geometry.bonds import SHAPES, Bonds, find_bonds
 from ..geometry.cloud import PointCloud, from_image, grid
 from ..geometry.influence import INFLUENCE_FUNCTIONS
@@ -742,9 +743,15 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
             **extra,
         )
         # resolve the conditions and loads on the cloud now (cheap, no bonds): shapes,
-        # conflicts and empty selections are reported before any assembly
-        resolve_dirichlet(cloud, dirichlet)
-        load_vector(cloud, loads)
+        # conflicts, empty selections and loads on prescribed points only are reported
+        # before any assembly (the symmetry planes' conditions are checked at solve time)
+        dofs, _ = resolve_dirichlet(cloud, dirichlet)
+        load_names = ["shadow stress load"] * len(shadow_loads) + [
+            f"load[{k}]" for k in range(len(loads) - len(shadow_loads))
+        ]
+        with warnings.catch_warnings():  # partial losses warn once, when the scene is solved
+            warnings.simplefilter("ignore", AccuracyWarning)
+            load_vector(cloud, loads, prescribed=dofs, names=load_names)
         scfg = _check_keys(top.get("solver", {}), _SOLVER, "solver")
         ocfg = _check_keys(top.get("output", {}), _OUTPUT, "output")
     except SceneError:

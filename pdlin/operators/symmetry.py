@@ -566,13 +566,21 @@ class SymmetryReduction:
         f = self.model.internal_force(m.cloud, self.bonds, self.expand(u), linear=linear)
         return np.asarray(f)[: m.n_real] * m.weight[:, None]
 
-    def load_vector(self, loads: Sequence[BodyForce | TotalForce]) -> np.ndarray:
-        """Reduced external force ``(n_real*dim,)``: points on a plane carry their share only."""
+    def load_vector(
+        self,
+        loads: Sequence[BodyForce | TotalForce],
+        *,
+        prescribed: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Reduced external force ``(n_real*dim,)``: points on a plane carry their share only.
+
+        ``prescribed`` DOFs (with the planes' own): see :func:`pdlin.operators.load_vector`.
+        """
         m = self.mirror
         cloud = m.real
         if np.any(m.weight != 1.0):
             cloud = cloud.replace(volumes=cloud.volumes * m.weight)
-        return load_vector(cloud, loads)
+        return load_vector(cloud, loads, prescribed=prescribed)
 
     def dirichlet(self) -> list[Dirichlet]:
         """Zero normal displacement of the points lying on each plane."""

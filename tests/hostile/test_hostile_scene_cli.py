@@ -168,7 +168,7 @@ SCENE_CASES = [
     ("load.0.force", DEL, r"missing scene key load\[0\].force"),
     ("load.0.force", [NAN, 0], r"load\[0\].force: force must be finite, got nan at index 0"),
     ("load.0.force", "big", r"load\[0\].force: force must be numeric, got str"),
-    ("load.0.force", [1, 2, 3], r"loads\[0\].force must have shape \(2,\), got \(3,\)"),
+    ("load.0.force", [1, 2, 3], r"load\[0\].force must have shape \(2,\), got \(3,\)"),
     ("load.0.set", "right", r"load\[0\].set: unknown point set 'right'"),
     (
         "load",
@@ -363,6 +363,14 @@ CLI_CASES = [
         r"pdlin: error: .*file not found: .*nope.toml",
     ),
     ("examples-unknown", ["examples", "--show", "nope"], None, r"unknown built-in scene 'nope'"),
+    (
+        # the load sits on the clamped face: it would vanish into the support (issue 31)
+        "run-load-on-support",
+        ["run", "{scene}", "-q"],
+        GOOD.replace('set = "x+"', 'set = "x-"'),
+        r"pdlin: error: invalid scene: load\[0\] \(TotalForce on set 'x-'\) acts only on "
+        r"prescribed DOFs",
+    ),
 ]
 
 
