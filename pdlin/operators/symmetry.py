@@ -43,7 +43,7 @@ from ..errors import (
     ShapeError,
 )
 from ..fields import deformation_gradient
-from ..geometry.bonds import Bonds, find_bonds, resolve_horizon
+from ..geometry.bonds import Bonds, _MirroredCracks, find_bonds, resolve_horizon
 from ..geometry.cloud import PointCloud
 from .assembly import assemble_stiffness
 from .bc import BodyForce, Dirichlet, TotalForce, check_constraints, load_vector
@@ -764,7 +764,10 @@ def symmetry_reduction(
         bond_reach = max(bond_reach, float(np.max(as_float_array(opts["axes"], "axes"))))
     mirror = mirror_cloud(cloud, planes, int(cr) * bond_reach)
     if opts.get("cracks") is not None:
-        opts["cracks"] = mirror.mirror_cracks(opts["cracks"])
+        # the images count with their crack when find_bonds checks that each cuts a bond
+        opts["cracks"] = _MirroredCracks(
+            mirror.mirror_cracks(opts["cracks"]), 2 ** len(mirror.planes)
+        )
     bonds = find_bonds(mirror.cloud, hor[mirror.source], allow_isolated=True, method="tree", **opts)
     if not allow_isolated:
         fs = np.diff(bonds.indptr[: cloud.n + 1])
