@@ -422,6 +422,13 @@ CLI_CASES = [
         r"pdlin: error: geometry.holes\[0\] \(circle at \(5, 0.5\), radius 0.1\) removes no points",
     ),
     (
+        # the grid spans y in [0, 0.4]: a plane at y = -5 is beyond the coupling reach
+        "run-symmetry-plane-outside",
+        ["run", "{scene}", "-q"],
+        GOOD + '[[symmetry]]\naxis = "y"\nposition = -5.0\n',
+        r"pdlin: error: symmetry plane y = -5 is farther than the reach .* couples nothing",
+    ),
+    (
         "run-crack-cuts-nothing",
         ["run", "{scene}", "-q"],
         GOOD.replace("ratio = 3.015\n", "ratio = 3.015\ncracks = [[[5.0, 5.0], [6.0, 6.0]]]\n"),
