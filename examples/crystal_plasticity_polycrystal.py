@@ -15,7 +15,7 @@ For each load the *reference* history is solved with ``--method`` (default ``'au
 Newton, and ADR from the step's committed state on a step Newton fails), in
 segments that leave a checkpoint at every compared step.  The other driver (ADR for a
 Newton history) then solves the compared steps **from the same committed state**
-(checkpoint copy + ``resume=True``), and the two homogenized (volume-averaged Cauchy)
+(checkpoint copy + ``resume="branch"``), and the two homogenized (volume-averaged Cauchy)
 stresses are compared: plastic equilibria are not unique (spec 001 §6), so only the
 homogenized stress of one step from one shared state is a fair comparison, never pointwise
 fields (expected ≲ 1e-3 relative).
@@ -86,7 +86,7 @@ def _one_step(
             times=times,
             method=method,
             checkpoint=checkpoint,
-            resume=checkpoint is not None,
+            resume="branch" if checkpoint is not None else False,  # another driver
             keep_states=False,
         )
     except ConvergenceError as exc:
