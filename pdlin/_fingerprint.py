@@ -18,9 +18,10 @@ import numpy as np
 
 __all__ = ["digest", "update"]
 
-#: public attributes that record what a model did, not what it is (Correspondence's
-#: ``assembly``: how its last plan applied K, filled in by the first solve)
-_DIAGNOSTIC = frozenset({"assembly"})
+#: public attributes that record what a model did, not what it is: Correspondence's
+#: ``assembly`` (how its last plan applied K) and ``symmetric`` (derived from the other
+#: parameters, and for ``control='ads'`` set by the first plan)
+_DIAGNOSTIC = frozenset({"assembly", "symmetric"})
 
 
 def update(h: Any, obj: Any, _seen: set[int] | None = None) -> None:

@@ -123,9 +123,9 @@ class NonlinearResult:
     reactions : (k, n, dim) ndarray
         Nodal reactions on the prescribed DOFs.
     states : list of dict
-        Committed states (every step; only the last with ``keep_states=False``;
-        after a resume from the checkpoint's last step on): ``state_steps``
-        gives their step indices and :meth:`state_at` looks one up.
+        Committed states (every step, also after a resume; only the last with
+        ``keep_states=False``, or after a resume from a checkpoint written with it):
+        ``state_steps`` gives their step indices and :meth:`state_at` looks one up.
     iterations, calls, cutbacks : (k,) ndarray of int
         Newton iterations or ADR iterations, constitutive evaluations and
         failed increments (cut-backs) per step (summed over sub-steps).
@@ -174,8 +174,8 @@ class NonlinearResult:
     #: :func:`solve_nonlinear`; failed tries included)
     polishes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     #: load-step index (0-based) of each entry of ``states``: all steps, or with
-    #: ``keep_states=False`` the last one, and after a resume the checkpoint's last
-    #: committed step followed by the steps solved in this call
+    #: ``keep_states=False`` the last one (after a resume from a checkpoint written with
+    #: ``keep_states=False``: its last committed step followed by the steps solved here)
     state_steps: list[int] = field(default_factory=list)
 
     def state_at(self, step: int) -> dict[str, np.ndarray] | None:
@@ -589,7 +589,7 @@ def solve_nonlinear(
     homogenize: Any = None,
     keep_states: bool = True,
     checkpoint: str | os.PathLike[str] | None = None,
-    resume: bool = False,
+    resume: bool | str = False,
     progress: Callable[[str], None] | None = None,
     progress_every: float = 60.0,
     snapshot_every: float = 300.0,
@@ -713,14 +713,23 @@ def solve_nonlinear(
         Points of the volume average (default all), e.g. the real points of a
         ghost-layer problem.
     keep_states : bool
-        Keep the committed state of every step (else only the last).
+        Keep the committed state of every step (else only the last); the checkpoint then
+        keeps them too, so that a resumed run returns every step's state.
     checkpoint : path, optional
-        NPZ file written atomically after every converged step; with
-        ``resume=True`` an existing checkpoint of the same problem is
-        continued from its last committed step (its step times must be the
-        first ones of this run: a finished run can be extended with more
-        steps, or several drivers can continue from one committed state).  Its
-        folder must exist; ``resume=True`` needs a checkpoint.
+        NPZ file written atomically after every converged step (a failed write, e.g. on a
+        full disk, raises :class:`~pdlin.errors.CheckpointWriteError` naming the file and
+        keeps the previous checkpoint).  It carries a fingerprint of the problem: SHA-256
+        digests of the points, the bonds (horizon, influence), the model and material
+        parameters (orientations included), the homogenized points, each committed step's
+        prescribed values and loads, and the solver options that change the iterates.
+        Its folder must exist.
+    resume : {False, True, 'branch'}
+        True: continue an existing ``checkpoint`` from its last committed step; it must
+        have been written for this problem with these solver options, and its step times
+        must be the first ones of this run (a finished run can be extended with more
+        steps).  'branch': the same, but the solver options may differ (another driver or
+        tolerance from a committed state, e.g. a copy of the checkpoint).  Without a
+        checkpoint file the run says so (``progress``) and starts from step 1.
     progress : callable, optional
         Called with one line per step, one per failed increment (why, and the time it
         is cut back to) and, during an increment, one line every ``progress_every``
@@ -752,6 +761,12 @@ def solve_nonlinear(
     InputError
         An option is out of range (``method``, ``steps``, ``times``, ``rtol``, ``e_l``,
         ``density``, ``dt``, ``damping``, ``c0``, ``adr_maxiter``, ``checkpoint``, ...).
+    CheckpointError
+        ``resume``: the checkpoint is unreadable (truncated, not an NPZ file), was written
+        by a pdlin without a fingerprint, or for another problem (the message names the
+        parts that differ).
+    CheckpointWriteError
+        Writing the checkpoint or an ADR snapshot failed (an ``OSError``: a full disk, ...).
     ConvergenceError
         A step fails with the chosen method (with 'auto': Newton and ADR).
 
