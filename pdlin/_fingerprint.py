@@ -27,8 +27,9 @@ _DIAGNOSTIC = frozenset({"assembly", "symmetric"})
 def update(h: Any, obj: Any, _seen: set[int] | None = None) -> None:
     """Feed ``obj`` into the hash ``h``: arrays by dtype, shape and bytes; numbers,
     strings, None and enums by type and repr; sequences and mappings item by item;
-    functions by module, name and byte code; other objects by class name and public
-    attributes (names without a leading underscore, caches excluded)."""
+    functions by module, name, byte code, constants and captured values; other objects by
+    class name and public attributes (names without a leading underscore: caches are
+    private; ``_DIAGNOSTIC`` ones excluded).  An object met again is hashed as a marker."""
     seen = set() if _seen is None else _seen
     if obj is None or isinstance(obj, bool | int | float | complex | str | bytes | enum.Enum):
         h.update(f"{type(obj).__name__}:{obj!r};".encode())
@@ -66,6 +67,8 @@ def update(h: Any, obj: Any, _seen: set[int] | None = None) -> None:
         if code is not None:
             h.update(code.co_code)
             update(h, [c for c in code.co_consts if not isinstance(c, types.CodeType)], seen)
+        for cell in getattr(obj, "__closure__", None) or ():  # captured values
+            update(h, cell.cell_contents, seen)
     else:
         cls = type(obj)
         h.update(f"obj:{cls.__module__}.{cls.__qualname__};".encode())
@@ -90,6 +93,10 @@ def digest(*objs: Any) -> str:
     --------
     >>> import numpy as np
     >>> digest(np.arange(3.0)) == digest(np.arange(3.0)), digest(1.0) == digest(1)
+    (True, False)
+    >>> def scaled(c):
+    ...     return lambda r, h: c * (1.0 - r / h)
+    >>> digest(scaled(1.0)) == digest(scaled(1.0)), digest(scaled(1.0)) == digest(scaled(2.0))
     (True, False)
     """
     h = hashlib.sha256()
