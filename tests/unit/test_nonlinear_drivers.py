@@ -167,14 +167,15 @@ def test_cutback_then_success_and_auto_fallback_to_adr(tmp_path):
             prob, steps=1, method="newton", maxiter=1, max_cutbacks=0, predictor="tangent"
         )
     ck = tmp_path / "auto.npz"
-    auto = pdlin.solve_nonlinear(
-        prob, steps=1, method="auto", maxiter=1, max_cutbacks=0, predictor="tangent",
-        e_l=1e-9, checkpoint=ck,
-    )  # fmt: skip
+    kw: dict[str, Any] = {
+        "steps": 1, "method": "auto", "maxiter": 1, "max_cutbacks": 0, "predictor": "tangent",
+        "e_l": 1e-9, "checkpoint": ck,
+    }  # fmt: skip
+    auto = pdlin.solve_nonlinear(prob, **kw)
     assert auto.methods == ["adr (newton failed)"]
     assert "no convergence in 1 iterations" in auto.messages[0]
     # the checkpoint keeps why Newton failed and the step's time: a resumed run reports them
-    again = pdlin.solve_nonlinear(prob, steps=1, method="auto", checkpoint=ck, resume=True)
+    again = pdlin.solve_nonlinear(prob, resume=True, **kw)
     assert again.resumed_from == 1 and again.messages == auto.messages
     assert again.timings["steps"].tolist() == auto.timings["steps"].tolist()
     # the step's iterations: Newton's failed one plus one damping value per ADR iteration
@@ -268,12 +269,14 @@ def test_checkpoint_resume_keeps_committed_steps(tmp_path):
     legacy = pdlin.solve_nonlinear(prob, steps=4, method="newton", checkpoint=old, resume=True)
     assert np.isnan(legacy.timings["steps"][:4]).all() and legacy.messages == [""] * 4
     np.testing.assert_allclose(legacy.u, full.u, rtol=1e-12, atol=1e-15)
-    # the checkpoint's committed state and the two solved steps' states are kept
-    assert res.state_steps == [1, 2, 3] and res.state_at(0) is None
+    # every committed state is kept: the checkpoint's two (issue 31: before, only its
+    # last) and the two solved steps'
+    assert res.state_steps == [0, 1, 2, 3]
+    assert np.array_equal(res.state_at(0)["emax"], full.states[0]["emax"])
     np.testing.assert_allclose(res.state_at(1)["emax"], full.states[1]["emax"], rtol=1e-12)
     np.testing.assert_allclose(res.u, full.u, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(res.states[-1]["emax"], full.states[-1]["emax"], rtol=1e-12)
-    with pytest.raises(InputError, match="another problem or load path"):
+    with pytest.raises(InputError, match="different problem: step times"):
         pdlin.solve_nonlinear(prob, steps=5, method="newton", checkpoint=ck, resume=True)
     # a finished run extended by more steps of the same path continues after step 4
     more = pdlin.solve_nonlinear(
@@ -952,12 +955,13 @@ def test_adr_snapshot_resumes_an_interrupted_increment_bitwise(tmp_path):
     n_gp = prob.cloud.n  # one gradient point per particle (no stress points)
     assert res.calls[2] == ref.calls[2] + 2 * n_gp and res.calls[3] == ref.calls[3]
 
-    # another increment's snapshot (another density: another key) is not continued
+    # another increment's snapshot (another density: another key) is not continued (a
+    # checkpoint continued with other solver options: resume="branch")
     ck2 = tmp_path / "other.npz"
     _run_killed_at(prob, ck2, "  t = 3: ADR iteration 128:", **kw)
     said.clear()
     other = pdlin.solve_nonlinear(
-        prob, checkpoint=ck2, resume=True, progress=said.append, density_safety=1.2, **kw
+        prob, checkpoint=ck2, resume="branch", progress=said.append, density_safety=1.2, **kw
     )
     assert not any("continues from its snapshot" in m for m in said)
     assert other.iterations[2] != ref.iterations[2] or not np.array_equal(other.u, ref.u)
