@@ -628,6 +628,49 @@ def _peridigm_cloud(disc: Mapping[str, Any], base: Path) -> tuple[PointCloud, di
     )
 
 
+# Peridigm_GeometryUtils.cpp, hexCentroidAndVolume: 24 tets (edge a-b, the face's
+# barycenter, the hex barycenter c = (f4 + f5) / 2), face by face in this order
+_HEX_FACES = ((0, 1, 4, 5), (1, 2, 5, 6), (2, 3, 6, 7), (0, 3, 4, 7), (0, 1, 2, 3), (4, 5, 6, 7))
+_HEX_TETS = (
+    ((1, 0), (5, 1), (4, 5), (0, 4)),
+    ((2, 1), (6, 2), (5, 6), (1, 5)),
+    ((3, 2), (7, 3), (6, 7), (2, 6)),
+    ((0, 3), (3, 7), (7, 4), (4, 0)),
+    ((0, 1), (1, 2), (2, 3), (3, 0)),
+    ((5, 4), (4, 7), (7, 6), (6, 5)),
+)
+
+
+def _peridigm_cells(x: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Peridigm's element volumes and centroids (``Peridigm_GeometryUtils.cpp``).
+
+    ``x`` is ``(m, 4 or 8, 3)``.  Tets: the signed volume ``a · (b × c) / 6`` and the
+    vertex mean; hexes: the sum of 24 such tets and their volume-weighted centroid.
+    Returns volumes, centroids and the smallest signed (sub-)tet volume of each element
+    (Peridigm stops on a negative one).
+    """
+
+    def tet(p0: np.ndarray, p1: np.ndarray, p2: np.ndarray, p3: np.ndarray) -> np.ndarray:
+        return np.einsum("ij,ij->i", p1 - p0, np.cross(p2 - p0, p3 - p0)) / 6.0
+
+    if kind == "tetra":
+        v = tet(x[:, 0], x[:, 1], x[:, 2], x[:, 3])
+        return v, x.mean(axis=1), v
+    faces = [x[:, list(f)].mean(axis=1) for f in _HEX_FACES]
+    c = 0.5 * (faces[4] + faces[5])
+    vol = np.zeros(len(x))
+    cen = np.zeros((len(x), 3))
+    vmin = np.full(len(x), np.inf)
+    for f, tets in zip(faces, _HEX_TETS, strict=True):
+        for a, b in tets:
+            v = tet(x[:, a], x[:, b], f, c)
+            vol += v
+            cen += v[:, None] * 0.25 * (x[:, a] + x[:, b] + f + c)
+            vmin = np.minimum(vmin, v)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return vol, cen / vol[:, None], vmin
+
+
 def _exodus_names(ds: Any, var: str, count: int) -> list[str]:
     """Names of an Exodus entity type (``eb_names`` / ``ns_names``), '' where blank."""
     if var not in ds.variables:
@@ -671,8 +714,6 @@ def _exodus_cloud(path: Path) -> tuple[PointCloud, dict[str, Any]]:
     """
     import scipy.sparse as sp
 
-    from ..geometry.mesh import cell_measures
-
     try:
         import netCDF4
     except ImportError as exc:  # pragma: no cover - depends on the environment
@@ -686,16 +727,14 @@ def _exodus_cloud(path: Path) -> tuple[PointCloud, dict[str, Any]]:
         raise SceneError(f"{key}: cannot read {path} as Exodus (netCDF): {exc}") from None
     try:
         ds.set_auto_mask(False)
-        return _exodus_cloud_from(ds, path, key, sp, cell_measures)
+        return _exodus_cloud_from(ds, path, key, sp)
     except (KeyError, IndexError, ValueError) as exc:
         raise SceneError(f"{key}: {path.name} is not a readable Exodus mesh: {exc!r}") from None
     finally:
         ds.close()
 
 
-def _exodus_cloud_from(
-    ds: Any, path: Path, key: str, sp: Any, cell_measures: Any
-) -> tuple[PointCloud, dict[str, Any]]:
+def _exodus_cloud_from(ds: Any, path: Path, key: str, sp: Any) -> tuple[PointCloud, dict[str, Any]]:
     dims = ds.dimensions
     n_nodes = len(dims["num_nodes"]) if "num_nodes" in dims else 0
     if "coordx" in ds.variables:
@@ -750,8 +789,13 @@ def _exodus_cloud_from(
             c, v = coords[nodes[:, 0]], np.asarray(attr[:], dtype=float)[:, 1]
         elif etype in corners:
             nodes = conn[:, : corners[etype]] - 1
-            kind = "tetra" if corners[etype] == 4 else "hexahedron"
-            v, c = cell_measures(coords, nodes, kind)
+            v, c, vmin = _peridigm_cells(coords[nodes], "tetra" if corners[etype] == 4 else "hex")
+            if np.any(vmin < 0):
+                e = int(np.flatnonzero(vmin < 0)[0])
+                raise SceneError(
+                    f"{key}: Exodus block {bid} element {e + 1} is inverted (a tet of Peridigm's "
+                    f"decomposition has volume {vmin[e]:.3g}; check the node numbering)"
+                )
         else:
             raise SceneError(
                 f"{key}: Exodus block {bid} has {etype!r} elements; Peridigm's conversion "
@@ -867,6 +911,11 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         if k not in root:
             raise SceneError(f"missing deck key Peridigm.{k}")
     disc = _table(root["Discretization"], "Discretization")
+    if disc.get("Type") not in ("Text File", "Exodus"):  # before its keys: name the cause
+        raise SceneError(
+            "Discretization.Type must be 'Text File' or 'Exodus' (pdlin's deck reader; "
+            f"PdQuickGrid and mesh generators are not supported), got {disc.get('Type')!r}"
+        )
     _unknown(disc, _PD_DISC, "Discretization", "Peridigm discretization")
     cloud, extra = _peridigm_cloud(disc, base)
     blocks_pts: dict[str, np.ndarray] = extra["blocks"]
