@@ -26,8 +26,13 @@ Sources of the formats (read, not copied):
   peridynamic solid, ω = 1, discrete weighted volume), ``elastic_bond_based.cxx``
   (``c = 18 K / (π δ⁴)``), ``correspondence.cxx`` (hourglass force
   ``18 C_hg K / (π δ⁴)``);
-* Peridigm ``src/io/discretization/Peridigm_ExodusDiscretization.cpp`` (one point per
-  tet / hex element at its centroid with the element volume);
+* Peridigm ``src/io/discretization/Peridigm_ExodusDiscretization.cpp`` and
+  ``Peridigm_GeometryUtils.cpp`` (one point per element: tets and hexes at their
+  centroid with their volume, hexes by a 24-tet decomposition, spheres at their node
+  with their volume attribute; blank block / node-set names are ``block_<id>`` /
+  ``nodelist_<id>`` by the Exodus ids);
+* Peridigm ``src/core/Peridigm.cpp`` (the keys its quasi-static solvers read; ``Time
+  Steps``) and Teuchos ``XMLObject::getRequiredBool`` (``true/yes/1``, ``false/no/0``);
 * PeriLab.jl ``examples/Dogbone/Dogbone.yaml``, ``Dogbone_plastic_corr_static.yaml``,
   ``Dogbone.txt`` (``header: x y block_id volume``) and ``ns_Dogbone_2.txt``.
 """
@@ -736,14 +741,13 @@ def _exodus_cloud(path: Path) -> tuple[PointCloud, dict[str, Any]]:
 
 def _exodus_cloud_from(ds: Any, path: Path, key: str, sp: Any) -> tuple[PointCloud, dict[str, Any]]:
     dims = ds.dimensions
-    n_nodes = len(dims["num_nodes"]) if "num_nodes" in dims else 0
     if "coordx" in ds.variables:
-        cols = [
+        xyz = [
             np.asarray(ds.variables[f"coord{c}"][:], dtype=float)
             for c in "xyz"
             if f"coord{c}" in ds.variables
         ]
-        coords = np.column_stack(cols)
+        coords = np.column_stack(xyz)
     elif "coord" in ds.variables:
         coords = np.asarray(ds.variables["coord"][:], dtype=float).T
     else:
