@@ -146,7 +146,11 @@ def _run_deck(tmp_path: Path, folder: str, deck: str) -> tuple[pdlin.io.scene.Sc
     assert written, "pdlin run wrote no result file"
     scene = pdlin.read_deck(work / deck)
     res = read_result(written[0])
-    u = np.asarray(res.fields()["displacement"])
+    fields = {k.lower(): np.asarray(v) for k, v in res.fields().items()}
+    if "displacement" in fields:
+        u = fields["displacement"]
+    else:  # a writer that stores components (Peridigm's DisplacementX, ... in Exodus)
+        u = np.column_stack([fields[f"displacement{c}"] for c in "xyz"])
     # the result file holds the deck's points in deck order
     assert np.allclose(res.points, scene.cloud.points, rtol=0, atol=1e-12)
     return scene, u
