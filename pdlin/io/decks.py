@@ -522,6 +522,9 @@ _PD_DISC = {
     "Input Mesh File": "",
     "Horizon": "legacy place of the horizon (used by blocks without one)",
     "Store Exodus Mesh": "output option",
+    "Verbose": "cosmetic",
+    "Construct Neighborhood Lists": "true: Peridigm's default (false -> error)",
+    "Omit Bonds Between Blocks": "'None': Peridigm's default (all blocks bonded; 'All' -> error)",
 }
 _PD_MAT_COMMON = {
     "Material Model": "",
@@ -538,6 +541,7 @@ _PD_MAT_COMMON = {
 _PD_MATERIALS: dict[str, dict[str, str]] = {
     "Elastic": {
         **_PD_MAT_COMMON,
+        "Compute Partial Stress": "an output field of Peridigm's",
         "Apply Shear Correction Factor": "Peridigm's elastic.cxx computes it but does not use it "
         "in the force (the scaled alpha line is commented out)",
     },
@@ -921,6 +925,21 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
             f"PdQuickGrid and mesh generators are not supported), got {disc.get('Type')!r}"
         )
     _unknown(disc, _PD_DISC, "Discretization", "Peridigm discretization")
+    if "Construct Neighborhood Lists" in disc and not _flag(
+        disc["Construct Neighborhood Lists"], "Discretization.Construct Neighborhood Lists"
+    ):
+        raise SceneError(
+            "Discretization.Construct Neighborhood Lists: false (no bonds) is not supported"
+        )
+    omit = disc.get("Omit Bonds Between Blocks", "None")
+    if omit != "None":
+        raise SceneError(
+            "Discretization.Omit Bonds Between Blocks: only 'None' (every block bonded to the "
+            f"others, Peridigm's default) is supported, got {omit!r}"
+        )
+    for k, why in _PD_DISC.items():
+        if why and k in disc:
+            _note(f"Discretization.{k}", why)
     cloud, extra = _peridigm_cloud(disc, base)
     blocks_pts: dict[str, np.ndarray] = extra["blocks"]
 

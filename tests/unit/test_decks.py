@@ -264,7 +264,13 @@ def test_boundary_condition_errors_name_the_key(bar_dir, edit, pattern):
             "Discretization",
             "Omit Bonds Between Blocks",
             "All",
-            r"Omit Bonds Between Blocks: not supported",
+            r"Discretization.Omit Bonds Between Blocks: only 'None' .* got 'All'",
+        ),
+        (
+            "Discretization",
+            "Construct Neighborhood Lists",
+            False,
+            r"Discretization.Construct Neighborhood Lists: false \(no bonds\) is not supported",
         ),
         (
             "Material",
@@ -678,6 +684,22 @@ def test_switch_to_verlet_and_bad_time_steps_are_refused(bar_dir):
             del deck["Peridigm"]["Solver"]["Final Time"]
         with pytest.raises(SceneError, match=pattern):
             pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+
+
+def test_peridigm_discretization_and_material_defaults_are_accepted(bar_dir, caplog):
+    # keys Peridigm's discretizations and elastic.cxx read, at their defaults
+    deck = peridigm_deck({**LPS_MAT, "Compute Partial Stress": True})
+    deck["Peridigm"]["Discretization"].update(
+        {
+            "Verbose": False,
+            "Construct Neighborhood Lists": True,
+            "Omit Bonds Between Blocks": "None",
+        }
+    )
+    with caplog.at_level("INFO", logger="pdlin.io.decks"):
+        assert pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck)).cloud.n == 32
+    for k in ("Discretization.Omit Bonds Between Blocks", "Compute Partial Stress"):
+        assert k in caplog.text
 
 
 def test_caret_is_the_power_in_peridigm_values(bar_dir):

@@ -222,7 +222,7 @@ OUTSIDE = [
     (
         "Bar_TwoDisconnectedPieces_QS",
         "Bar.xml",
-        r"^Discretization\.Omit Bonds Between Blocks: not supported",
+        r"^Discretization\.Omit Bonds Between Blocks: only 'None' .* got 'All'",
     ),
     (
         "Compression_QS_3x2x2",
