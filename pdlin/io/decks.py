@@ -955,6 +955,17 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     kinds: set[str] = set()
     hgs: set[float] = set()
     default_h = disc.get("Horizon")
+    default: tuple[float, dict[str, Any]] | None = None
+    named: set[str] = set()
+
+    def assign(idx: np.ndarray, h: float, mat: Mapping[str, Any]) -> None:
+        horizon[idx] = h
+        K[idx] = mat["K"]
+        G[idx] = np.nan if mat["G"] is None else mat["G"]
+        kinds.add(mat["kind"])
+        if mat["hourglass"] is not None:
+            hgs.add(mat["hourglass"])
+
     for bname, b in _table(root["Blocks"], "Blocks").items():
         key = f"Blocks.{bname}"
         b = _table(b, key)
@@ -979,18 +990,21 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         h = _number(h, f"{key}.Horizon", positive=True)
         mat = mats[mname]
         for bn in names.split():
+            if bn in ("Default", "default", "DEFAULT"):
+                # Peridigm's initializeBlocks: the blocks no other entry names
+                default = (h, mat)
+                continue
             if bn not in blocks_pts:
                 raise SceneError(
                     f"{key}.Block Names: {bn!r} is not in the discretization (blocks "
-                    f"{sorted(blocks_pts)})"
+                    f"{sorted(blocks_pts)}; 'default' names the blocks no other entry names)"
                 )
-            idx = blocks_pts[bn]
-            horizon[idx] = h
-            K[idx] = mat["K"]
-            G[idx] = np.nan if mat["G"] is None else mat["G"]
-        kinds.add(mat["kind"])
-        if mat["hourglass"] is not None:
-            hgs.add(mat["hourglass"])
+            named.add(bn)
+            assign(blocks_pts[bn], h, mat)
+    if default is not None:
+        for bn, idx in blocks_pts.items():
+            if bn not in named:
+                assign(idx, *default)
     missing = [bn for bn, idx in blocks_pts.items() if np.isnan(horizon[idx]).any()]
     if missing:
         raise SceneError(f"Blocks: discretization block(s) {missing} are not assigned to any block")

@@ -702,6 +702,28 @@ def test_peridigm_discretization_and_material_defaults_are_accepted(bar_dir, cap
         assert k in caplog.text
 
 
+def test_default_block_takes_the_blocks_no_other_entry_names(bar_dir):
+    # Peridigm's initializeBlocks: Block Names "default" applies to every discretization
+    # block not named elsewhere (the MultipleHorizons / DefaultBlocks decks)
+    pts = bar_points()
+    block = np.where(pts[:, 0] < 4 * H, 1, 2)
+    write_text_mesh(bar_dir / "bar.txt", pts, H**3, block)
+    deck = peridigm_deck(LPS_MAT)
+    root = deck["Peridigm"]
+    root["Materials"]["Soft"] = {**LPS_MAT, "Bulk Modulus": 13.0, "Shear Modulus": 7.0}
+    root["Blocks"] = {
+        "Default Block": {"Block Names": "default", "Material": "Soft", "Horizon": 0.25},
+        "Two": {"Block Names": "block_2", "Material": "My Material", "Horizon": 0.2015},
+    }
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    k_mod, _ = scene.model.moduli(3)
+    np.testing.assert_array_equal(k_mod, np.where(block == 1, 13.0, 130.0))
+    np.testing.assert_array_equal(scene.problem.horizon, np.where(block == 1, 0.25, 0.2015))
+    del root["Blocks"]["Default Block"]
+    with pytest.raises(SceneError, match=r"Blocks: discretization block\(s\) \['block_1'\]"):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+
+
 def test_caret_is_the_power_in_peridigm_values(bar_dir):
     # Peridigm's function parser reads ^ as the power: CentrifugalLoad's "1E-5 * 94.25^2 * x"
     bc = {
