@@ -737,6 +737,8 @@ def _exodus_cloud(path: Path) -> tuple[PointCloud, dict[str, Any]]:
     try:
         ds.set_auto_mask(False)
         return _exodus_cloud_from(ds, path, key, sp)
+    except SceneError:
+        raise
     except (KeyError, IndexError, ValueError) as exc:
         raise SceneError(f"{key}: {path.name} is not a readable Exodus mesh: {exc!r}") from None
     finally:

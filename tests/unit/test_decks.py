@@ -598,6 +598,36 @@ def test_exodus_sphere_and_tet_elements(tmp_path):
         pdlin.read_deck(write_yaml(tmp_path / "d.yaml", exodus_deck({"F": "nodelist_1"})))
 
 
+def test_exodus_file_errors_name_the_key(tmp_path):
+    netCDF4 = pytest.importorskip("netCDF4")
+    nodes, hexes, end = hex_bar()
+    deck = write_yaml(tmp_path / "d.yaml", exodus_deck({"F": "nodelist_1"}))
+    key = r"^Discretization.Input Mesh File: "
+    cases = [
+        ([(1, "", "QUAD4", hexes[:, :4])], [(1, "", end[0])], key + r".*'QUAD4' elements"),
+        ([(1, "", "HEX8", hexes)], [(1, "", [1, 99])], key + r"Exodus node set 1 must hold"),
+        ([(1, "", "HEX8", hexes + 100)], [], key + r"Exodus block 1 connectivity must hold"),
+        (
+            [(1, "", "SPHERE", [[1]])],
+            [],
+            key + r"Exodus block 1 has sphere elements without the volume",
+        ),
+    ]
+    for blocks, sets, pattern in cases:
+        write_exodus(tmp_path / "bar.g", nodes, blocks, sets)
+        with pytest.raises(SceneError, match=pattern):
+            pdlin.read_deck(deck)
+    (tmp_path / "bar.g").write_text("not netCDF")
+    with pytest.raises(SceneError, match=key + r"cannot read .* as Exodus"):
+        pdlin.read_deck(deck)
+    with netCDF4.Dataset(tmp_path / "bar.g", "w") as ds:  # a 2D mesh
+        ds.createDimension("num_nodes", 3)
+        for c in "xy":
+            ds.createVariable(f"coord{c}", "f8", ("num_nodes",))[:] = 0.0
+    with pytest.raises(SceneError, match=key + r"bar.g is a 2D mesh"):
+        pdlin.read_deck(deck)
+
+
 def test_numeric_strings_are_numbers(bar_dir):
     # YAML 1.1 loads 160.0e10 (no exponent sign) as a string; Teuchos reads a double
     text = yaml.safe_dump(peridigm_deck(LPS_MAT), sort_keys=False)
