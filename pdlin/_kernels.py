@@ -47,9 +47,10 @@ same order for the same operands: equal values; the product's block columns come
 sorted where scipy leaves them unsorted).  Without numba, or with ``PDLIN_NUMBA=0`` in
 the environment, every function is the plain scipy operation.  Operations below
 ``_MIN_WORK`` stored entries stay on scipy without importing numba.  The first call
-compiles the kernels (~7 s for all signatures; ``cache=True`` keeps them in
-``pdlin/__pycache__`` for later processes, where loading takes ~0.5 s plus numba's
-import, ~1 s).
+compiles the kernels (~7 s for all signatures); they are cached per user
+(``$XDG_CACHE_HOME/pdlin/numba``, :func:`pdlin._numba_kernels.cache_dir`; never in the
+package folder, which ``pip uninstall`` would leave behind) for later processes, where
+loading takes ~0.5 s plus numba's import, ~1 s.
 
 numba's threading layer is set to ``'forksafe'`` (tbb if installed, else numba's
 workqueue) unless ``NUMBA_THREADING_LAYER`` is set: GNU OpenMP, its default without tbb,

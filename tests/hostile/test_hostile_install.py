@@ -1,0 +1,120 @@
+"""Installation hazards: what pdlin leaves on disk, what ``import pdlin`` costs.
+
+- numba's on-disk cache must not land inside the installed package: files left in
+  ``site-packages/pdlin/__pycache__`` survive ``pip uninstall`` and turn the folder into an
+  empty namespace package that shadows the next (editable) install.
+- ``import pdlin`` must not import the heavy optional parts (sympy, cvxpy, numba, ...).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import sysconfig
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _env(**extra: str) -> dict[str, str]:
+    """This environment without PYTHONPATH (the worktree must not shadow the install)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PIP_REQUIRE_VIRTUALENV")}
+    env.update(extra)
+    return env
+
+
+def _run(args: list[str], cwd: Path, env: dict[str, str]) -> str:
+    out = subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, f"{args}:\n{out.stdout}\n{out.stderr}"
+    return out.stdout
+
+
+@pytest.mark.slow
+def test_numba_cache_survives_uninstall_and_editable_reinstall(tmp_path: Path) -> None:
+    """install -> run a numba kernel -> uninstall -> ``pip install -e .`` -> import works.
+
+    The throwaway venv sees this interpreter's site-packages through a ``.pth`` line
+    (numpy, scipy, numba, pip, setuptools), so the installs need neither the network nor
+    dependencies (``--no-deps --no-build-isolation``).
+    """
+    pytest.importorskip("numba")
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
+    py = venv / "bin" / "python"
+    site = Path(
+        subprocess.run(
+            [str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+    )
+    # after the venv's own site-packages: this interpreter's packages (not its .pth files,
+    # so no editable pdlin of this environment)
+    (site / "_outer.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    src = tmp_path / "src"  # a copy of the source tree (pip writes build/ and egg-info)
+    _copy_source(ROOT, src)
+    cache = tmp_path / "cache"
+    env = _env(XDG_CACHE_HOME=str(cache))
+    pip = [str(py), "-m", "pip", "install", "-q", "--no-deps"]
+    _run([*pip, str(src)], tmp_path, env)
+    installed = site / "pdlin"
+    assert (installed / "__init__.py").is_file()
+    # one numba kernel, compiled with its disk cache (PDLIN_NUMBA unset: numba on)
+    code = (
+        "import numpy as np; from pdlin._kernels import _kernels; "
+        "k = _kernels(); assert k is not None; "
+        "print(k.csr_t_block_offsets(np.ones((2, 3), np.int64))[0].tolist())"
+    )
+    env_run = {k: v for k, v in env.items() if k not in ("PDLIN_NUMBA", "NUMBA_CACHE_DIR")}
+    # pointer of 2 chunks x 3 points with one block each: 0, 2, 4, 6 (cumulative counts)
+    assert _run([str(py), "-c", code], tmp_path, env_run).split() == ["[0,", "2,", "4,", "6]"]
+    left = sorted(p.name for p in installed.rglob("*.nb[ic]"))
+    assert left == [], f"numba cache files inside the installed package: {left}"
+    cached = list(cache.rglob("*.nbi"))
+    assert cached, f"no numba index under {cache}"
+    _run([str(py), "-m", "pip", "uninstall", "-y", "-q", "pdlin"], tmp_path, env)
+    assert not installed.exists(), f"left after uninstall: {sorted(installed.rglob('*'))}"
+    _run([*pip, "-e", str(src)], tmp_path, env)
+    out = _run([str(py), "-c", "import pdlin; print(pdlin.grid.__name__)"], tmp_path, env)
+    assert out.strip() == "grid"
+
+
+def _copy_source(root: Path, dest: Path) -> None:
+    """``pyproject.toml``, ``README.md`` and ``pdlin/`` without caches or build output."""
+    import shutil
+
+    dest.mkdir()
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy2(root / name, dest / name)
+    shutil.copytree(
+        root / "pdlin",
+        dest / "pdlin",
+        ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc"),
+    )
+
+
+def test_import_pdlin_leaves_heavy_optional_parts_unimported() -> None:
+    """``import pdlin`` imports none of sympy, cvxpy, osqp, numba, matplotlib, meshio, pyamg."""
+    heavy = ("sympy", "cvxpy", "osqp", "numba", "matplotlib", "meshio", "pyamg")
+    code = f"import sys, pdlin; print(' '.join(m for m in {heavy!r} if m in sys.modules))"
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert out.stdout.split() == []
+
+
+def test_lazy_public_names_still_import() -> None:
+    """Every name of ``pdlin.__all__`` resolves (lazily imported ones on first access)."""
+    import pdlin
+
+    missing = [name for name in pdlin.__all__ if getattr(pdlin, name, None) is None]
+    assert missing == []
+    from pdlin import higher_order_weights, weights_table  # noqa: F401
