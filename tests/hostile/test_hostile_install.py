@@ -118,3 +118,29 @@ def test_lazy_public_names_still_import() -> None:
     missing = [name for name in pdlin.__all__ if getattr(pdlin, name, None) is None]
     assert missing == []
     from pdlin import higher_order_weights, weights_table  # noqa: F401
+
+
+def _readme_test_command() -> str:
+    """The README's Quick start command that runs the test suite."""
+    lines = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+    cmds = [ln for ln in lines if ln.startswith("pip install") and "pytest" in ln]
+    assert len(cmds) == 1, cmds
+    return cmds[0]
+
+
+def test_readme_test_command_runs_the_suite_in_parallel() -> None:
+    """The README's test command spreads the suite over the CPUs (pytest-xdist, ``-n auto``),
+    the ``test`` extra installs pytest-xdist, and CI runs the README's command verbatim."""
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        import tomli as tomllib
+
+    cmd = _readme_test_command()
+    assert cmd.split()[-2:] == ["-n", "auto"], cmd
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"][
+        "optional-dependencies"
+    ]
+    assert any(req.startswith("pytest-xdist") for req in extras["test"]), extras["test"]
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8").splitlines()
+    assert cmd in ci, f"{cmd!r} is not a line of .ci/run"
