@@ -144,3 +144,34 @@ def test_readme_test_command_runs_the_suite_in_parallel() -> None:
     assert any(req.startswith("pytest-xdist") for req in extras["test"]), extras["test"]
     ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8").splitlines()
     assert cmd in ci, f"{cmd!r} is not a line of .ci/run"
+
+
+def test_gallery_size_problems_do_not_compile_numba() -> None:
+    """Problems of the gallery's size (10³ points, 625 crystal-plasticity points) stay on
+    numpy / scipy: numba is not even imported, so a first run compiles nothing (compiling
+    the kernels took 60-100 s on a loaded machine for ``lps_cube`` and ``cp_compression``,
+    whose warm runs take seconds: benchmarks/bench_first_run.py)."""
+    pytest.importorskip("numba")
+    code = """
+import sys
+import numpy as np
+import pdlin
+from pdlin._kernels import numba_enabled
+assert numba_enabled.__module__ == "pdlin._kernels"
+# the lps_cube scene: 10 x 10 x 10 points, horizon 2.015 h (pdlin/examples/lps_cube.toml)
+cloud = pdlin.grid((10, 10, 10), spacing=0.1)
+bonds = pdlin.find_bonds(cloud, ratio=2.015)
+K = pdlin.LPS(E=200e9, nu=0.25).stiffness(cloud, bonds)
+# the cp scenes' crystal-plasticity update: 625 points of planar double slip
+mat = pdlin.CrystalPlasticity()
+F = np.tile(np.eye(2) + 0.01 * np.array([[0.0, 1.0], [1.0, 0.0]]), (625, 1, 1))
+mat.update(F, mat.initial_state(625), tangent=False)
+print("numba" in sys.modules)
+"""
+    env = {k: v for k, v in os.environ.items() if k != "PDLIN_NUMBA"}
+    env["PYTHONPATH"] = str(ROOT)
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["False"]
