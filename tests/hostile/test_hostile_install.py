@@ -175,3 +175,71 @@ print("numba" in sys.modules)
     )
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["False"]
+
+
+def _requirement(req: str) -> tuple[str, str | None]:
+    """``(name, lower bound)`` of a requirement string such as ``"scipy>=1.15; ..."``."""
+    import re
+
+    spec = req.split(";")[0].strip()
+    m = re.fullmatch(r"([A-Za-z0-9_.\-]+)(?:\[[^\]]*\])?\s*(?:>=\s*([0-9][^,\s]*))?.*", spec)
+    assert m, req
+    return m.group(1).lower(), m.group(2)
+
+
+def test_declared_floors_are_the_tested_floors() -> None:
+    """Every runtime dependency (and the optional packages the tests use) has a lower bound in
+    pyproject.toml, and .ci/floors.txt, the versions CI installs and tests in a venv of
+    their own (.ci/run), pins exactly that bound: a floor that is declared but never
+    tested (``scipy>=1.10`` while pdlin needed 1.15) cannot come back unnoticed."""
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        import tomli as tomllib
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    extras = project["optional-dependencies"]
+    tools = ("pytest", "pytest-xdist", "hypothesis")  # the test runner's own packages
+    reqs = [r for r in project["dependencies"] if "python_version" not in r]
+    reqs += extras["fast"] + [r for r in extras["test"] if _requirement(r)[0] not in tools]
+    declared = dict(_requirement(r) for r in reqs)
+    assert all(declared.values()), declared
+    for name, group in extras.items():  # one floor per package in every extra
+        for r in group:
+            pkg, low = _requirement(r)
+            assert pkg not in declared or low == declared[pkg], (name, r, declared[pkg])
+    pins = {}
+    for line in (ROOT / ".ci" / "floors.txt").read_text(encoding="utf-8").splitlines():
+        line = line.split("#")[0].strip()
+        if line:
+            name, _, version = line.partition("==")
+            pins[name.strip().lower()] = version.strip()
+    from packaging.version import Version  # (a dependency of pytest)
+
+    assert {k: Version(v) for k, v in pins.items()} == {k: Version(v) for k, v in declared.items()}
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+    assert ".ci/floors.txt" in ci
+
+
+def test_unwritable_cache_directory_compiles_without_disk_cache(tmp_path: Path) -> None:
+    """Where the per-user cache directory cannot be made (``XDG_CACHE_HOME`` is a file),
+    the kernels still run, compiled in memory only: nothing is written into pdlin's folder
+    (numba's default would fall back to it)."""
+    pytest.importorskip("numba")
+    blocker = tmp_path / "not_a_dir"
+    blocker.write_text("")
+    code = (
+        "import numpy as np; from pdlin import _numba_kernels as k; "
+        "print(k.cache_dir(), type(k.csr_t_block_offsets._cache).__name__, "
+        "k.csr_t_block_offsets(np.ones((1, 2), np.int64))[0].tolist())"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    env.update(PYTHONPATH=str(ROOT), XDG_CACHE_HOME=str(blocker))
+    before = sorted((ROOT / "pdlin").rglob("*.nb[ic]"))
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300
+    )
+    assert out.returncode == 0, out.stderr
+    # cache_dir() None; numba's no-op cache; pointer of 1 chunk x 2 points: 0, 1, 2
+    assert out.stdout.split() == ["None", "NullCache", "[0,", "1,", "2]"]
+    assert sorted((ROOT / "pdlin").rglob("*.nb[ic]")) == before
