@@ -52,9 +52,14 @@ def test_numba_cache_survives_uninstall_and_editable_reinstall(tmp_path: Path) -
             check=True,
         ).stdout.strip()
     )
-    # after the venv's own site-packages: this interpreter's packages (not its .pth files,
-    # so no editable pdlin of this environment)
-    (site / "_outer.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    # after the venv's own site-packages: this interpreter's packages except pdlin (no
+    # installed or editable pdlin of this environment may answer ``import pdlin``)
+    outer = tmp_path / "outer"
+    outer.mkdir()
+    for entry in Path(sysconfig.get_paths()["purelib"]).iterdir():
+        if not entry.name.lower().startswith(("pdlin", "__editable__")) and entry.suffix != ".pth":
+            (outer / entry.name).symlink_to(entry)
+    (site / "_outer.pth").write_text(f"{outer}\n")
     src = tmp_path / "src"  # a copy of the source tree (pip writes build/ and egg-info)
     _copy_source(ROOT, src)
     cache = tmp_path / "cache"
@@ -79,8 +84,9 @@ def test_numba_cache_survives_uninstall_and_editable_reinstall(tmp_path: Path) -
     _run([str(py), "-m", "pip", "uninstall", "-y", "-q", "pdlin"], tmp_path, env)
     assert not installed.exists(), f"left after uninstall: {sorted(installed.rglob('*'))}"
     _run([*pip, "-e", str(src)], tmp_path, env)
-    out = _run([str(py), "-c", "import pdlin; print(pdlin.grid.__name__)"], tmp_path, env)
-    assert out.strip() == "grid"
+    code = "import pdlin; print(pdlin.grid.__name__, pdlin.__file__)"
+    out = _run([str(py), "-c", code], tmp_path, env).split()
+    assert out == ["grid", str(src / "pdlin" / "__init__.py")]
 
 
 def _copy_source(root: Path, dest: Path) -> None:
