@@ -11,7 +11,6 @@ from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.spatial import cKDTree
 
 from .._validation import as_float_array
 from ..errors import DuplicatePointError, InputError, NoNeighborsError, ShapeError
@@ -457,6 +456,8 @@ def _tree_pairs(
         if keep.all():  # spheres: the candidates' margin rarely holds a bond
             return i, j, xi, length
         return i[keep], j[keep], xi[keep], length[keep]
+    from scipy.spatial import cKDTree  # imported here: scipy.spatial is ~0.1 s of import
+
     tree = cKDTree(pts)
     if shape == "cube":
         pairs = tree.query_pairs(float(hor.max()) * (1 + rtol), p=np.inf, output_type="ndarray")
