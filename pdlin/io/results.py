@@ -119,7 +119,9 @@ def _check_fields(n: int, fields: Mapping[str, Any]) -> dict[str, np.ndarray]:
             raise ShapeError(f"field {name!r} must have {n} rows, got shape {arr.shape}")
         if not np.all(np.isfinite(arr)):
             raise InputError(f"field {name!r} holds NaN or inf; refusing to write it")
-        data[name] = arr
+        # (n, d, d) tensors (and any (n, a, b, ...) array) as row-major (n, a * b) rows,
+        # the layout of result.fields(): every format then stores and reads back the same
+        data[name] = arr.reshape(n, -1) if arr.ndim > 2 else arr
     return data
 
 
@@ -178,6 +180,9 @@ def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any])
     path : str or Path
     cloud : PointCloud
     fields : mapping of name to (n,) or (n, k) arrays
+        An (n, a, b) array (a ``dim x dim`` tensor per point) is written as
+        its row-major (n, a * b) rows, the layout :meth:`pdlin.StaticResult.fields`
+        uses, and :func:`pdlin.io.read_result` returns it so in every format.
 
     Returns
     -------
