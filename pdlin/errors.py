@@ -1,6 +1,6 @@
 """Exception classes of pdlin.
 
-Every class subclasses a builtin (``ValueError``, ``TypeError`` or
+Every class subclasses a builtin (``ValueError``, ``TypeError``, ``OSError``, ``ImportError`` or
 ``RuntimeError``) so callers can catch either the specific pdlin error or the
 builtin one.  Messages name the argument, what was expected and what was
 received.
@@ -19,6 +19,7 @@ __all__ = [
     "FloatingBodyError",
     "ConvergenceError",
     "MissingDependencyError",
+    "WriteError",
     "SceneError",
     "ModelError",
     "TrialStateWarning",
@@ -82,6 +83,14 @@ class ConvergenceError(PdlinError, RuntimeError):
 
 class MissingDependencyError(PdlinError, ImportError):
     """An optional dependency is not installed; the message names the extra to install."""
+
+
+class WriteError(PdlinError, OSError):
+    """An output file could not be written (full disk, file-size limit, no permission).
+
+    The message names the file and the reason; the file's previous version, if any,
+    is left as it was.
+    """
 
 
 class TrialStateWarning(RuntimeWarning):

@@ -103,3 +103,132 @@ def test_export_command_and_bad_suffix(tmp_path, capsys):
     assert "Dirichlet eliminated" in capsys.readouterr().out
     with pytest.raises(pdlin.errors.InputError, match="must end with .mtx or .npz"):
         export_system(tmp_path / "K.txt", _problem())
+
+
+# every writer x every format, each written once, then again under a file-size limit
+LIMITED = textwrap.dedent(
+    """
+    import json, os, resource, signal, sys, numpy as np, pdlin
+    from pathlib import Path
+    from pdlin.io import export_system, write_points, write_series
+    from pdlin.plotting import save_figure
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # what the pdlin command does
+    d = Path(sys.argv[1])
+    cloud = pdlin.grid((60, 60))
+    rng = np.random.default_rng(0)  # incompressible values: every file > the limit
+    f = {"displacement": rng.random((cloud.n, 2)), "stress": rng.random((cloud.n, 2, 2))}
+    prob = pdlin.StaticProblem(pdlin.BondBased(E=1.0), pdlin.grid((40, 40), spacing=0.1),
+                               horizon=0.3, dirichlet=[pdlin.Dirichlet("x-", 0.0)])
+    import matplotlib; matplotlib.use("Agg"); import matplotlib.pyplot as plt
+    fig = plt.figure(); plt.plot(np.random.default_rng(0).random(20000))
+    writers = {
+        **{f"points{s}": (lambda p: write_points(p, cloud, f)) for s in
+           (".vtu", ".vtk", ".xdmf", ".npz", ".e")},
+        **{f"series{s}": (lambda p: write_series(p, cloud, [1.0, 2.0], [f, f])) for s in
+           (".pvd", ".xdmf", ".npz", ".exo")},
+        "export.mtx": lambda p: export_system(p, prob),
+        "figure.png": lambda p: save_figure(fig, p, dpi=200),
+    }
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    out = {}
+    for key, write in writers.items():
+        kind, suffix = key.split(".")
+        target = d / kind / ("res." + suffix)
+        write(target)
+        before = {p.name: p.read_bytes() for p in target.parent.rglob("*") if p.is_file()}
+        resource.setrlimit(resource.RLIMIT_FSIZE, (20000, hard))  # bytes
+        try:
+            write(target)
+            out[key] = "no error"
+        except OSError as exc:
+            out[key] = f"{type(exc).__name__}: {exc}"
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+        after = {p.name: p.read_bytes() for p in target.parent.rglob("*") if p.is_file()}
+        out[key] = [out[key], after == before, sorted(os.listdir(target.parent))]
+    print(json.dumps(out))
+    """
+)
+
+
+def test_file_size_limit_fails_cleanly_with_the_path_named(tmp_path):
+    """Under RLIMIT_FSIZE every writer raises an OSError naming the file and the reason,
+    keeps the old files byte for byte and leaves no staging folder; h5py and netCDF4
+    crashed the process (signal 11) here before."""
+    import json
+
+    pytest.importorskip("netCDF4")
+    pytest.importorskip("h5py")
+    script = tmp_path / "limited.py"
+    script.write_text(LIMITED)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    proc = subprocess.run(
+        [sys.executable, str(script), str(tmp_path)], capture_output=True, text=True, env=env
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    got = json.loads(proc.stdout)
+    assert len(got) == 11  # the writers of the script
+    for key, (message, unchanged, listing) in got.items():
+        target = tmp_path / key.split(".")[0] / f"res.{key.split('.')[1]}"
+        assert message.startswith("WriteError: cannot write"), (key, message)
+        # the reason: EFBIG, or numpy's short write (.vtk) without an errno
+        assert str(target) in message and "file-size limit" in message, (key, message)
+        assert unchanged, f"{key}: the old files changed"
+        assert not [f for f in listing if f.endswith(".partial")], (key, listing)
+
+
+def test_full_disk_error_names_the_file(tmp_path, monkeypatch):
+    """ENOSPC inside a writer: a WriteError naming the target, the old file intact."""
+    import errno
+
+    cloud = pdlin.grid((4, 3))
+    p = write_points(tmp_path / "r.npz", cloud, {"u": np.ones((cloud.n, 2))})
+    before = p.read_bytes()
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(np, "savez_compressed", full)
+    with pytest.raises(pdlin.errors.WriteError, match=r"cannot write '.*r\.npz': No space left"):
+        write_points(p, cloud, {"u": np.zeros((cloud.n, 2))})
+    assert p.read_bytes() == before
+    assert sorted(os.listdir(tmp_path)) == ["r.npz"]
+
+
+def _series(p, value):
+    cloud = pdlin.grid((4, 3))
+    return pdlin.io.write_series(
+        p, cloud, [1.0, 2.0, 3.0], [{"displacement": np.full((cloud.n, 2), value)}] * 3
+    )
+
+
+@pytest.mark.parametrize("suffix", [".pvd", ".xdmf"])
+def test_series_killed_during_its_renames_is_one_run(tmp_path, monkeypatch, suffix):
+    """A series is replaced as one unit: killed after any number of its final renames,
+    the main file reads back every step of the old run or every step of the new one."""
+    if suffix == ".xdmf":
+        pytest.importorskip("h5py")
+    from pdlin.io import read_result
+
+    target = tmp_path / f"run{suffix}"
+    real = os.replace
+    for allowed in range(8):  # 8 > the renames of a 3-step series (4 on main, 2 now)
+        _series(target, 1.0)
+        calls = []
+
+        def replace(src, dst, calls=calls, allowed=allowed):
+            if len(calls) == allowed:
+                raise KeyboardInterrupt("killed")  # no clean-up, like SIGKILL
+            calls.append(dst)
+            real(src, dst)
+
+        monkeypatch.setattr(os, "replace", replace)
+        try:
+            _series(target, 2.0)
+        except KeyboardInterrupt:
+            pass
+        monkeypatch.setattr(os, "replace", real)
+        values = {float(v) for s in read_result(target).steps for v in s["displacement"].ravel()}
+        assert values in ({1.0}, {2.0}), f"killed after {allowed} rename(s): mixed {values}"
+    # a last complete write leaves the main file and one set of companions
+    _series(target, 3.0)
+    assert len(os.listdir(tmp_path)) == 2, os.listdir(tmp_path)
