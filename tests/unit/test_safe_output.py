@@ -225,3 +225,23 @@ def test_series_killed_during_its_renames_is_one_run(tmp_path, monkeypatch, suff
     # a last complete write leaves the main file and one set of companions
     _series(target, 3.0)
     assert len(os.listdir(tmp_path)) == 2, os.listdir(tmp_path)
+
+
+def test_series_replaces_the_pieces_of_the_old_layout_only(tmp_path):
+    """A .pvd of the earlier layout (run_0001.vtu ... beside it): its pieces are removed
+    once the new series is in place; files it does not list are kept."""
+    from pdlin.io import read_result
+
+    old = _series(tmp_path / "run.pvd", 1.0)
+    (piece_dir,) = tmp_path.glob("run.pvd.*")
+    for f in piece_dir.iterdir():  # move the pieces to the earlier, flat layout
+        f.rename(tmp_path / f.name)
+    piece_dir.rmdir()
+    old.write_text(old.read_text().replace(f"{piece_dir.name}/", ""))
+    assert read_result(old).n_steps == 3
+    (tmp_path / "run_0009.vtu").write_text("not listed by run.pvd")
+    (tmp_path / "other_0001.vtu").write_text("another result")
+    _series(tmp_path / "run.pvd", 2.0)
+    left = sorted(f.name for f in tmp_path.iterdir() if not f.name.startswith("run.pvd."))
+    assert left == ["other_0001.vtu", "run.pvd", "run_0009.vtu"]
+    assert {float(v) for s in read_result(old).steps for v in s["displacement"].ravel()} == {2.0}
