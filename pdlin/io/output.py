@@ -6,7 +6,7 @@ complete, so a run that fails, is killed, fills the disk or hits the
 file-size limit never leaves a truncated file, and the previous version of
 the target stays as it was.  Outputs made of several files (a ``.pvd``
 collection and its VTU pieces, an ``.xdmf`` file and its HDF5 data) give the
-companion files a fresh version tag (``run.pvd.<tag>/``,
+companion files a version tag, a hash of their data (``run.pvd.<tag>/``,
 ``run.xdmf.<tag>.h5``) and replace the main file last, by one rename: the
 main file always refers to one complete set of companions; the old set is
 removed after the switch.
@@ -26,7 +26,7 @@ import secrets
 import shutil
 import tempfile
 import xml.etree.ElementTree as ET
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,6 +39,7 @@ log = logging.getLogger(__name__)
 __all__ = [
     "Stage",
     "staging",
+    "data_tag",
     "write_error",
     "need_module",
     "check_output",
@@ -223,6 +224,14 @@ def _legacy_companions(target: Path) -> list[Path]:
     return []
 
 
+def _listed(target: Path, companion: Path) -> bool:
+    """Whether the current ``target`` refers to ``companion`` (kept on a failed write)."""
+    try:
+        return target.is_file() and companion.name in target.read_text(errors="replace")
+    except OSError:
+        return True
+
+
 def _remove(p: Path) -> None:
     if p.is_dir() and not p.is_symlink():
         shutil.rmtree(p, ignore_errors=True)
@@ -230,12 +239,53 @@ def _remove(p: Path) -> None:
         p.unlink(missing_ok=True)
 
 
+def data_tag(*parts: Any) -> str:
+    """Version tag of the data written: a hash of ``parts`` (arrays, numbers, strings,
+    and mappings / sequences of them), so the same result gets the same companion names.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = data_tag({"u": np.ones(3)}, [1.0, 2.0])
+    >>> len(a), a == data_tag({"u": np.ones(3)}, [1.0, 2.0]), a == data_tag({"u": np.zeros(3)})
+    (8, True, False)
+    """
+    import hashlib
+
+    import numpy as np
+
+    h = hashlib.blake2b(digest_size=_TAG_LEN // 2)
+
+    def feed(x: Any) -> None:
+        if isinstance(x, Mapping):
+            for k, v in x.items():
+                feed(str(k))
+                feed(v)
+        elif isinstance(x, list | tuple):
+            h.update(b"[%d" % len(x))
+            for v in x:
+                feed(v)
+        elif isinstance(x, str):
+            h.update(b"s" + x.encode() + b"\0")
+        else:
+            a = np.ascontiguousarray(x)
+            h.update(f"a{a.dtype.str}{a.shape}".encode())
+            h.update(a.tobytes())
+
+    for part in parts:
+        feed(part)
+    return h.hexdigest()
+
+
 @contextmanager
-def staging(target: str | Path) -> Iterator[Stage]:
+def staging(target: str | Path, tag: str | None = None) -> Iterator[Stage]:
     """A private folder next to ``target``; its files replace theirs only on success.
 
     Companions are moved first, the main file (``target.name``) last; then the
-    companions of earlier versions are removed.  Any ``OSError`` (full disk,
+    companions of earlier versions are removed.  ``tag`` names the companions
+    (:func:`data_tag` of the data: the same result gets the same names, a
+    companion already there with that name holds the same data and is kept);
+    default a random one.  Any ``OSError`` (full disk,
     file-size limit, permissions) becomes a :class:`~pdlin.errors.WriteError`
     naming ``target``; the staging folder is removed and ``target`` is left as
     it was.
@@ -259,7 +309,7 @@ def staging(target: str | Path) -> Iterator[Stage]:
         tmp = Path(tempfile.mkdtemp(prefix=f".{t.name}.", suffix=".partial", dir=t.parent))
     except OSError as exc:
         raise write_error(t, exc) from exc
-    stage = Stage(tmp, t, secrets.token_hex(_TAG_LEN // 2))
+    stage = Stage(tmp, t, tag if tag is not None else secrets.token_hex(_TAG_LEN // 2))
     moved: list[Path] = []
     try:
         yield stage
@@ -267,11 +317,16 @@ def staging(target: str | Path) -> Iterator[Stage]:
         # companions first, the file that refers to them (or the only file) last
         for f in sorted(tmp.iterdir(), key=lambda f: f.name == t.name):
             dest = t.parent / f.name
+            if f.is_dir() and dest.is_dir() and f.name != t.name:
+                # a companion folder of the same data tag: the same data, complete
+                # (companions are moved in only when complete); keep it
+                moved.append(dest)
+                continue
             os.replace(f, dest)
             moved.append(dest)
     except OSError as exc:
         for m in moved:
-            if m != t:
+            if m != t and not _listed(t, m):
                 _remove(m)
         raise write_error(t, exc) from exc
     finally:

@@ -30,7 +30,7 @@ from ..errors import InputError, InputTypeError, ShapeError
 from ..geometry.cloud import PointCloud
 from .exodus import EXODUS_SUFFIXES, write_exodus_file
 from .names import file_name, to_file_value
-from .output import check_output, staging
+from .output import check_output, data_tag, staging
 from .xdmf import write_xdmf
 
 log = logging.getLogger(__name__)
@@ -192,7 +192,11 @@ def _write_points(
     suffix = p.suffix.lower()
     _check_cloud(cloud)
     data = _check_fields(cloud.n, fields)
-    with staging(p) as st:
+    # companions (the .h5 of an .xdmf) named by the data: the same result, the same names
+    tag = None
+    if suffix == ".xdmf":
+        tag = data_tag(np.asarray(cloud.points), np.asarray(cloud.volumes), data)
+    with staging(p, tag) as st:
         out = st.main
         if suffix == ".npz":
             arrays = {
@@ -243,7 +247,8 @@ def write_series(
     with a leading step axis plus ``times``; ``.e``/``.exo``: one Exodus II
     file with every step (``time_whole``) and the point sets as node sets
     (every step must hold the same fields).  Written atomically and as one
-    unit: ``<tag>`` is new for every write, the main file is replaced last
+    unit: ``<tag>`` is a hash of the data (other data, other names; the same
+    result, the same names), the main file is replaced last
     (one rename), then the previous companions are removed
     (:mod:`pdlin.io.output`).
 
@@ -289,7 +294,14 @@ def write_series(
     cells = [("vertex", np.arange(cloud.n).reshape(-1, 1))]
     if suffix == ".vtu":
         p = p.with_suffix(".pvd")
-    with staging(p) as st:
+    # companions (.pvd pieces, the .h5 of an .xdmf) named by the data: a run that writes
+    # the same result (e.g. a resumed one) writes the same file names
+    tag = (
+        data_tag(suffix, pts, np.asarray(cloud.volumes), tt, data)
+        if suffix in (".pvd", ".vtu", ".xdmf")
+        else None
+    )
+    with staging(p, tag) as st:
         if suffix == ".npz":
             arrays: dict[str, np.ndarray] = {
                 "points": np.asarray(cloud.points),

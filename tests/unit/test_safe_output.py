@@ -245,3 +245,19 @@ def test_series_replaces_the_pieces_of_the_old_layout_only(tmp_path):
     left = sorted(f.name for f in tmp_path.iterdir() if not f.name.startswith("run.pvd."))
     assert left == ["other_0001.vtu", "run.pvd", "run_0009.vtu"]
     assert {float(v) for s in read_result(old).steps for v in s["displacement"].ravel()} == {2.0}
+
+
+@pytest.mark.parametrize("suffix", [".pvd", ".xdmf"])
+def test_the_same_series_gets_the_same_file_names(tmp_path, suffix):
+    """Companions are named by a hash of the data: a run writing the same result (a resumed
+    one) writes the same files; other data, other names."""
+    if suffix == ".xdmf":
+        pytest.importorskip("h5py")
+    a, b = tmp_path / "a", tmp_path / "b"
+    _series(a / f"run{suffix}", 1.0)
+    _series(b / f"run{suffix}", 1.0)
+    _series(b / f"run{suffix}", 1.0)  # rewritten with the same data: unchanged
+    assert sorted(os.listdir(a)) == sorted(os.listdir(b)) and len(os.listdir(a)) == 2
+    assert (a / f"run{suffix}").read_bytes() == (b / f"run{suffix}").read_bytes()
+    _series(b / f"run{suffix}", 2.0)
+    assert sorted(os.listdir(a)) != sorted(os.listdir(b)) and len(os.listdir(b)) == 2
