@@ -28,10 +28,10 @@ Run::
 
 It prints one table per load (strain, homogenized σ, iterations and time of both drivers,
 relative difference) and writes into ``--out`` (default ``cp_polycrystal_out``):
-``<load>.pvd`` (+ one ``.vtu`` per step: Displacement, Reaction_Force, Cauchy_Stress and the
-committed state, e.g. ``State_reorientation``), ``<load>_homogenized.csv`` and, unless
-``--no-plots``,
-the figures ``cp_shear_sxy.png``, ``cp_compression_reorientation.png``, ``cp_grains.png``,
+``<load>.pvd`` (+ one ``.vtu`` per step in ``<load>.pvd.<tag>/``: Displacement,
+Reaction_Force, Cauchy_Stress and the committed state, e.g. ``State_reorientation``),
+``<load>_homogenized.csv`` and, unless ``--no-plots``, the figures ``cp_shear_sxy.png``,
+``cp_compression_reorientation.png``, ``cp_grains.png``,
 ``cp_stress_strain.png``, ``cp_adr.png`` (matplotlib, imported only then).
 """
 

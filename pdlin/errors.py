@@ -1,6 +1,6 @@
 """Exception classes of pdlin.
 
-Every class subclasses a builtin (``ValueError``, ``TypeError`` or
+Every class subclasses a builtin (``ValueError``, ``TypeError``, ``OSError``, ``ImportError`` or
 ``RuntimeError``) so callers can catch either the specific pdlin error or the
 builtin one.  Messages name the argument, what was expected and what was
 received.
@@ -21,6 +21,7 @@ __all__ = [
     "CheckpointError",
     "CheckpointWriteError",
     "MissingDependencyError",
+    "WriteError",
     "SceneError",
     "ModelError",
     "TrialStateWarning",
@@ -100,6 +101,14 @@ class CheckpointWriteError(PdlinError, OSError):
 
 class MissingDependencyError(PdlinError, ImportError):
     """An optional dependency is not installed; the message names the extra to install."""
+
+
+class WriteError(PdlinError, OSError):
+    """An output file could not be written (full disk, file-size limit, no permission).
+
+    The message names the file and the reason; the file's previous version, if any,
+    is left as it was.
+    """
 
 
 class TrialStateWarning(RuntimeWarning):

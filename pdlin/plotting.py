@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, MissingDependencyError
 from .io.names import TENSOR_FIELDS
 from .io.read import ResultFile, read_result
 
@@ -58,7 +58,9 @@ def _plt() -> Any:
     try:
         import matplotlib
     except ImportError as exc:
-        raise ImportError("plots need matplotlib: pip install 'pdlin[plotting]'") from exc
+        raise MissingDependencyError(
+            "plots need matplotlib: pip install 'pdlin[plotting]'"
+        ) from exc
     if matplotlib.get_backend().lower() != "agg":
         matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -442,8 +444,10 @@ def render_result(
     try:
         import pyvista as pv
     except ImportError as exc:
-        raise ImportError("3D rendering needs pyvista: pip install 'pdlin[render]'") from exc
-    from .io.results import _staging
+        raise MissingDependencyError(
+            "3D rendering needs pyvista: pip install 'pdlin[render]'"
+        ) from exc
+    from .io.output import staging
 
     r = result if isinstance(result, ResultFile) else read_result(result)
     k, _, values, label, deformed = _step_field(r, step, field, component, scale)
@@ -459,17 +463,17 @@ def render_result(
     pl.add_text(title, font_size=10)
     pl.camera_position = "iso"
     p = Path(output)
-    with _staging(p) as tmp:
-        image = pl.screenshot(str(tmp / p.name), return_img=True)
+    with staging(p) as st:
+        image = pl.screenshot(str(st.main), return_img=True)
     pl.close()
     return Plot(np.asarray(image), values, pts, label)
 
 
 def save_figure(fig: Any, path: str | Path, *, dpi: int = 120) -> Path:
     """Save a figure atomically (written beside the target, then renamed)."""
-    from .io.results import _staging
+    from .io.output import staging
 
     p = Path(path)
-    with _staging(p) as tmp:
-        fig.savefig(tmp / p.name, dpi=dpi)
+    with staging(p) as st:
+        fig.savefig(st.main, dpi=dpi)
     return p

@@ -1,9 +1,32 @@
-"""Shared fixtures: small clouds in 1D/2D/3D."""
+"""Shared fixtures: small clouds in 1D/2D/3D; a file-size limit."""
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import numpy as np
 import pytest
+
+
+@pytest.fixture
+def file_size_limit():
+    """``with file_size_limit(nbytes):`` lowers this process's RLIMIT_FSIZE (``ulimit -f``)
+    to ``nbytes`` with SIGXFSZ ignored (as Python does at start-up), restored after."""
+    import resource
+    import signal
+
+    @contextmanager
+    def limit(nbytes: int):
+        soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+        old = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (nbytes, hard))
+        try:
+            yield
+        finally:
+            resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+            signal.signal(signal.SIGXFSZ, old)
+
+    return limit
 
 
 @pytest.fixture

@@ -428,7 +428,8 @@ def test_run_nonlinear_scene_writes_series_csv_and_resumes(tmp_path, capsys):
     assert summary["steps"] == 4 and summary["methods"] == ["newton"]
     pvd = tmp_path / "out" / "cp.pvd"
     assert pvd.exists() and pvd.read_text().count("<DataSet") == 4
-    step4 = meshio.read(tmp_path / "out" / "cp_0004.vtu")
+    (piece,) = (tmp_path / "out").glob("cp.pvd.*/cp_0004.vtu")  # the pieces' versioned folder
+    step4 = meshio.read(piece)
     assert {"Displacement", "Cauchy_Stress", "State_gamma"} <= set(step4.point_data)
     rows = (tmp_path / "out" / "cp_homogenized.csv").read_text().splitlines()
     assert len(rows) == 5 and rows[0].startswith("step,time,factor,sigma_11")
@@ -508,3 +509,113 @@ def test_nonlinear_scene_options_pass_polish(tmp_path):
     cfg = {"nonlinear": "adr", "polish": True, "adr_stall": 400}
     opts = _nonlinear_options(cfg, problem, tmp_path)
     assert opts is not None and opts["polish"] is True and opts["adr_stall"] == 400
+
+
+# -- outputs are checked before the work (issue 31) ---------------------------------------
+def _no_work(monkeypatch):
+    """Make every expensive step of every command fail loudly if it is reached."""
+
+    def work(*args, **kwargs):
+        raise AssertionError("the work started before the output was checked")
+
+    import pdlin.calibration
+    import pdlin.fracture
+    import pdlin.io.read
+    import pdlin.io.results
+    import pdlin.nonlinear
+    import pdlin.problem
+    import pdlin.sweeps.scene
+    from pdlin.io.targets import CalibrationJob
+
+    monkeypatch.setattr(pdlin.problem, "solve", work)
+    monkeypatch.setattr(pdlin.nonlinear, "solve_nonlinear", work)
+    monkeypatch.setattr(pdlin.fracture, "solve_damage", work)
+    monkeypatch.setattr(pdlin.io.results, "export_system", work)
+    monkeypatch.setattr(pdlin.io.read, "read_result", work)
+    monkeypatch.setattr(pdlin.sweeps.scene.SceneSweep, "run", work)
+    monkeypatch.setattr(CalibrationJob, "run", work)
+
+
+def _cases(d):
+    """(argv, missing module or None, expected message) of each up-front check."""
+    (d / "afile").write_text("a file, not a folder")
+    (d / "folder.vtu").mkdir()
+    cal = d / "target.toml"
+    cal.write_text(CALIBRATION)
+    return [
+        (["run", "--example", "bar", "-o", str(d / "r.txt")], None, r"must end with one of"),
+        (["run", "--example", "damage_plate", "-o", str(d / "r.pvd")], None, r"one of \('.vtu'"),
+        (["run", "--example", "cp_shear", "-o", str(d / "r.vtk")], None, r"one of \('.xdmf'"),
+        (["run", "--example", "bar", "-o", str(d / "r.xdmf")], "h5py", r"needs h5py"),
+        (["run", "--example", "cp_shear", "-o", str(d / "r.xdmf")], "h5py", r"needs h5py"),
+        (["run", "--example", "bar", "-o", str(d / "r.e")], "netCDF4", r"needs netCDF4"),
+        (["run", "--example", "cp_shear", "-o", str(d / "r.exo")], "netCDF4", r"needs netCDF4"),
+        (["run", "--example", "bar", "-o", str(d / "afile" / "r.vtu")], None, r"is a file, not"),
+        (["run", "--example", "bar", "-o", str(d / "folder.vtu")], None, r"is a folder; expected"),
+        (["export", "--example", "bar", "-o", str(d / "K.txt")], None, r"one of \('.mtx'"),
+        (["tradeoff", "--example", "bar", "-o", str(d / "t.txt")], None, r"one of \('.csv'"),
+        (["tradeoff", "--example", "bar", "--plot", str(d / "t.xyz")], None, r"one of \(.*'\.png'"),
+        (["tradeoff", "--example", "bar", "--plot", str(d / "t.png")], "matplotlib", r"matplotl"),
+        (["calibrate", str(cal), "-o", str(d / "c.txt")], None, r"one of \('.csv', '.npz'\)"),
+        (["plot", str(d / "r.vtu"), "-o", str(d / "p.xyz")], None, r"one of \(.*'\.png'"),
+        (["plot", str(d / "r.vtu")], "matplotlib", r"needs matplotlib"),
+        (["plot", str(d / "afile" / "r.vtu"), "--convergence"], None, r"is a file, not"),
+    ]
+
+
+@pytest.mark.parametrize("case", range(17))  # the cases of _cases
+def test_outputs_are_checked_before_the_work(tmp_path, monkeypatch, capsys, case):
+    import sys
+
+    argv, missing, pattern = _cases(tmp_path)[case]
+    _no_work(monkeypatch)
+    if missing:
+        monkeypatch.setitem(sys.modules, missing, None)  # as if not installed
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    # one error line, the last (after at most the progress line of reading the scene)
+    errors = [ln for ln in err.splitlines() if ln.startswith("pdlin: error: ")]
+    assert len(errors) == 1 and err.splitlines()[-1] == errors[0], err
+    assert "Traceback" not in err
+    import re
+
+    assert re.search(pattern, errors[0]), err
+
+
+def test_closed_pipe_exits_quietly(tmp_path):
+    """pdlin examples --show X | head: the reader leaves; no 'Broken pipe' error."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    code = "import sys; from pdlin.cli.main import main; sys.exit(main(sys.argv[1:]))"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code, "examples", "--show", "cp_shear"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+    )
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()  # the reader is gone before pdlin writes
+    err = proc.stderr.read().decode()
+    assert proc.wait() == 141, err  # 128 + SIGPIPE, as a shell tool killed by SIGPIPE
+    assert err == ""
+
+
+def test_file_size_limit_in_the_command_is_one_error_line(tmp_path, capsys, file_size_limit):
+    """pdlin run under ulimit -f: one 'pdlin: error:' line naming the file, exit 2, the
+    old result intact (main: signal 11 in h5py)."""
+    pytest.importorskip("h5py")
+    scene = _write(tmp_path, SCENE)
+    out = tmp_path / "r.xdmf"
+    assert main(["run", str(scene), "-q", "-o", str(out)]) == 0
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    capsys.readouterr()
+    with file_size_limit(2000):  # bytes, less than the result
+        code = main(["run", str(scene), "-q", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.startswith(f"pdlin: error: cannot write {str(out)!r}: File too large"), err
+    assert err.count("\n") == 1, err
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before

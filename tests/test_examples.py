@@ -89,7 +89,8 @@ def test_crystal_plasticity_polycrystal_tutorial(tmp_path):
         # time series (.pvd + one .vtu per step, with the committed state) and the CSV
         pvd = (tmp_path / f"{load}.pvd").read_text()
         assert pvd.count("<DataSet") == steps
-        last = meshio.read(tmp_path / f"{load}_{steps:04d}.vtu")
+        (piece,) = tmp_path.glob(f"{load}.pvd.*/{load}_{steps:04d}.vtu")  # versioned folder
+        last = meshio.read(piece)
         assert {"Displacement", "Cauchy_Stress", "State_reorientation"} <= set(last.point_data)
         csv = np.genfromtxt(tmp_path / f"{load}_homogenized.csv", delimiter=",", names=True)
         np.testing.assert_allclose(csv["sigma_12"], res.homogenized_stress[:, 0, 1], rtol=1e-9)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import sys
 import time
 from collections.abc import Sequence
@@ -52,8 +53,36 @@ def _load(args: argparse.Namespace) -> Any:
     return load_scene(args.scene)
 
 
+def _check_out(path: str | Path, suffixes: Sequence[str], what: str) -> Path:
+    """Suffix, optional library and writable folder of an output, before the work."""
+    from ..io.output import check_output
+
+    return check_output(path, suffixes, what)
+
+
+def _check_figure(path: str | Path, what: str) -> Path:
+    from ..io.output import check_figure
+
+    return check_figure(path, what)
+
+
+def _check_run_outputs(args: argparse.Namespace, scene: Any) -> None:
+    """Every file ``pdlin run`` writes for ``scene``, checked before the solve."""
+    from ..io.results import SERIES_SUFFIXES, SUPPORTED_SUFFIXES
+
+    what = "-o/--output" if args.output else "output.path"
+    if scene.nonlinear is not None:
+        out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.pvd"))
+        _check_out(out, SERIES_SUFFIXES, f"{what} (a nonlinear run's time series)")
+        csv_path = scene.homogenized or out.with_name(f"{out.stem}_homogenized.csv")
+        _check_out(csv_path, (".csv",), "output.homogenized")
+    else:
+        out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.vtu"))
+        _check_out(out, SUPPORTED_SUFFIXES, what)
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
-    from ..io.results import write_result
+    from ..io.results import SERIES_SUFFIXES, SUPPORTED_SUFFIXES, write_result
     from ..problem import solve
 
     prog = _Progress(args.quiet)
@@ -64,11 +93,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
             raise PdlinError("--select needs a scene file with a [tradeoff] table")
         from ..sweeps.scene import select_scene
 
+        if args.output:  # before the sweep; the kind of run is known after it
+            _check_out(args.output, tuple({*SUPPORTED_SUFFIXES, *SERIES_SUFFIXES}), "-o/--output")
+
         prog("measuring the scene's [tradeoff] sweep (finished points are reused)")
         scene, chosen, _ = select_scene(args.scene, target_error=args.target_error)
         prog(f"fastest configuration meeting the target: {chosen}")
     else:
         scene = _load(args)
+    _check_run_outputs(args, scene)
     if scene.nonlinear is not None:
         return _run_nonlinear(args, scene, prog)
     if scene.damage is not None:
@@ -285,6 +318,7 @@ def _run_nonlinear(args: argparse.Namespace, scene: Any, prog: Any) -> int:
 def _cmd_export(args: argparse.Namespace) -> int:
     from ..io.results import export_system
 
+    _check_out(args.output, (".mtx", ".npz"), "-o/--output")
     scene = _load(args)
     out = export_system(args.output, scene.problem, eliminated=not args.unconstrained)
     kind = "K, f (unconstrained)" if args.unconstrained else "A, b (Dirichlet eliminated)"
@@ -371,43 +405,49 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     from ..io.targets import load_calibration
 
     job = load_calibration(args.target)
-    res = job.run()
     out = Path(args.output) if args.output else job.output
+    if out is not None:
+        _check_out(out, (".csv", ".npz"), "-o/--output" if args.output else "output.path")
+    if job.plot is not None and not args.no_plot:
+        _check_figure(job.plot, "output.plot")
+    res = job.run()
     summary = _calibration_summary(res)
     summary["name"] = job.name
     if out is not None:
+        from ..io.output import staging
+
         fam = job.family
-        out.parent.mkdir(parents=True, exist_ok=True)
-        if out.suffix == ".csv":
-            cols = [
-                np.asarray(fam.xi),
-                np.asarray(fam.omega)[:, None],
-                np.asarray(fam.volume)[:, None],
-                np.asarray(res.micromoduli)[:, None],
-            ]
-            head = ",".join([f"xi{k}" for k in range(fam.dim)] + ["omega", "volume", "c"])
-            np.savetxt(out, np.hstack(cols), delimiter=",", header=head, comments="")
-        elif out.suffix == ".npz":
-            np.savez(
-                out,
-                xi=np.asarray(fam.xi),
-                omega=np.asarray(fam.omega),
-                volume=np.asarray(fam.volume),
-                micromoduli=np.asarray(res.micromoduli),
-                tensor=np.asarray(res.tensor),
-                target=np.asarray(res.target),
-            )
-        else:
-            raise PdlinError(f"output path must end with .npz or .csv, got {str(out)!r}")
+        with staging(out) as st:  # atomic; a failed write names the file
+            if out.suffix.lower() == ".csv":
+                cols = [
+                    np.asarray(fam.xi),
+                    np.asarray(fam.omega)[:, None],
+                    np.asarray(fam.volume)[:, None],
+                    np.asarray(res.micromoduli)[:, None],
+                ]
+                head = ",".join([f"xi{k}" for k in range(fam.dim)] + ["omega", "volume", "c"])
+                np.savetxt(st.main, np.hstack(cols), delimiter=",", header=head, comments="")
+            else:
+                with open(st.main, "wb") as fh:
+                    np.savez(
+                        fh,
+                        xi=np.asarray(fam.xi),
+                        omega=np.asarray(fam.omega),
+                        volume=np.asarray(fam.volume),
+                        micromoduli=np.asarray(res.micromoduli),
+                        tensor=np.asarray(res.tensor),
+                        target=np.asarray(res.target),
+                    )
         summary["output"] = str(out)
     if job.plot is not None and not args.no_plot:
         import matplotlib
 
         matplotlib.use("Agg")
         from ..calibration import plot_micromoduli
+        from ..plotting import save_figure
 
         ax = plot_micromoduli(res, job.family)
-        ax.figure.savefig(job.plot, dpi=120)
+        save_figure(ax.figure, job.plot, dpi=120)
         summary["plot"] = str(job.plot)
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -468,6 +508,13 @@ def _cmd_tradeoff(args: argparse.Namespace) -> int:
     opts: dict[str, Any] = {"resume": args.resume}
     if args.output:
         opts["output"] = Path(args.output)
+    table = opts.get("output", sweep.options.get("output"))
+    if table is not None:
+        what = "-o/--output" if args.output else "tradeoff.output"
+        _check_out(table, (".csv", ".json", ".jsonl", ".ndjson"), what)
+    fig_path = Path(args.plot) if args.plot else sweep.plot
+    if fig_path is not None:
+        _check_figure(fig_path, "--plot" if args.plot else "tradeoff.plot")
     if args.target_error is not None:
         opts["target_error"] = args.target_error
     if not args.quiet:
@@ -501,9 +548,28 @@ def _cmd_tradeoff(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_plot_outputs(args: argparse.Namespace) -> None:
+    """The library ``pdlin plot`` needs, its figure's suffix and folder, before the work."""
+    from ..io.output import check_folder, need_module
+
+    if args.render:
+        need_module("pyvista", "render", "pdlin plot --render")
+        kinds = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+        if args.output:
+            _check_out(args.output, kinds, "-o/--output")
+    else:
+        need_module("matplotlib", "plotting", "pdlin plot")
+        if args.output:
+            _check_figure(args.output, "-o/--output")
+    # the figures written beside the input (or in the working folder)
+    base = Path(args.path).parent if args.path else Path.cwd()
+    check_folder(base / "figure.png", "the figure beside the input")
+
+
 def _cmd_plot(args: argparse.Namespace) -> int:
     from .. import plotting
 
+    _check_plot_outputs(args)
     written: list[Path] = []
     if args.spy or args.sparsity_vs_horizon:
         args.scene = args.path
@@ -726,8 +792,10 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit code.
 
-    0 ok, 2 bad input, 3 solver failure, 4 infeasible calibration target, 5 a scene
-    check failed under ``pdlin run --strict`` (without it failed checks only print FAIL).
+    0 ok, 2 bad input (or an output that cannot be written: the message names the
+    file), 3 solver failure, 4 infeasible calibration target, 5 a scene check failed
+    under ``pdlin run --strict`` (without it failed checks only print FAIL), 141 stdout
+    closed by its reader (``| head``).
     """
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -738,7 +806,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ..errors import ConvergenceError
 
     try:
-        return int(args.func(args))
+        code = int(args.func(args))
+        sys.stdout.flush()  # a closed pipe shows here, not at exit
+        return code
+    except BrokenPipeError:
+        # the reader of stdout went away (pdlin examples --show X | head): stop quietly,
+        # as a shell tool killed by SIGPIPE does
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # no second error when Python flushes at exit
+        return 141
     except ConvergenceError as exc:
         print(f"pdlin: solver failed: {exc}", file=sys.stderr)
         return 3

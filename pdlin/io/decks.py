@@ -1028,8 +1028,24 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
             if why and k in out:
                 _note(f"Output.{k}", why)
         if "Output Filename" in out:
-            output = base / f"{out['Output Filename']}.vtu"
+            output = _output_inside(base, out["Output Filename"], "Output.Output Filename")
     return _scene(name, model, cloud, horizon, dirichlet, loads, base, output)
+
+
+def _output_inside(base: Path, value: Any, key: str) -> Path:
+    """``<base>/<value>.vtu``, refused when it resolves outside ``base`` (the deck's folder).
+
+    A deck is often someone else's file: it writes only beside itself.  ``pdlin run -o``
+    (the user's own choice) may point anywhere.
+    """
+    root = base.resolve()
+    out = (root / f"{value}.vtu").resolve()
+    if not out.is_relative_to(root):
+        raise SceneError(
+            f"{key} {str(value)!r} leaves the deck's folder {str(root)!r} (resolves to "
+            f"{str(out)!r}); give a name inside it"
+        )
+    return base / out.relative_to(root)
 
 
 def _build_model(kind: str, K: np.ndarray, G: np.ndarray, hgs: set[float], key: str) -> Any:

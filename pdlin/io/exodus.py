@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from .output import need_module
+
 __all__ = ["EXODUS_SUFFIXES", "write_exodus_file", "read_exodus_file", "split_components"]
 
 EXODUS_SUFFIXES = (".e", ".exo")
@@ -35,14 +37,8 @@ _SYM_IDX = (0, 4, 8, 1, 2, 5)  # their positions in the row-major 3 x 3
 
 
 def need_netcdf4() -> Any:
-    """Import netCDF4 or raise an ImportError naming the extra to install."""
-    try:
-        import netCDF4
-    except ImportError as exc:
-        raise ImportError(
-            "Exodus II (.e / .exo) files need netCDF4: pip install 'pdlin[exodus]'"
-        ) from exc
-    return netCDF4
+    """Import netCDF4 or raise MissingDependencyError naming the extra to install."""
+    return need_module("netCDF4", "exodus", "Exodus II (.e / .exo) files")
 
 
 def is_symmetric(arr: np.ndarray) -> bool:
@@ -134,6 +130,10 @@ def write_exodus_file(
 ) -> None:
     """Write one Exodus II file (NetCDF 64-bit offset) holding every step.
 
+    The file is built in memory (netCDF4's ``memory=``) and written with
+    Python's file I/O: a write that fails (full disk, file-size limit) raises
+    ``OSError`` instead of crashing the process in the netCDF library.
+
     Parameters
     ----------
     out : Path
@@ -169,7 +169,8 @@ def write_exodus_file(
     set_names = list(sets)
     longest = max([len(s) for s in var_names + set_names + ["block_1"]] + [32])
     len_name = longest + 1
-    with netCDF4.Dataset(out, "w", format="NETCDF3_64BIT_OFFSET") as nc:
+    nc = netCDF4.Dataset(str(out), "w", format="NETCDF3_64BIT_OFFSET", memory=1 << 16)
+    try:
         nc.setncatts(
             {
                 "api_version": np.float32(8.03),
@@ -248,6 +249,10 @@ def write_exodus_file(
                     j += 1
                     v = nc.createVariable(f"vals_nod_var{j}", "f8", ("time_step", "num_nodes"))
                     v[:] = np.stack([comps[col][1] for comps in per_step])
+    finally:
+        image = nc.close()
+    with open(out, "wb") as fh:
+        fh.write(image)
 
 
 def _names(var: Any) -> list[str]:

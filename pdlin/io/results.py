@@ -2,8 +2,11 @@
 
 Every writer builds its files in a private temporary directory next to the
 target and moves them into place only when they are complete, so a run that
-fails or is killed never leaves a truncated file, and an existing file is
-replaced only by a complete new one.
+fails, is killed or runs out of disk never leaves a truncated file, and an
+existing file is replaced only by a complete new one; a result of several files
+(``.pvd`` + VTU pieces, ``.xdmf`` + HDF5) is replaced as one unit, and a failed
+write raises :class:`pdlin.errors.WriteError` naming the file (see
+:mod:`pdlin.io.output`).
 
 The ParaView formats (VTU, PVD, XDMF, Exodus) name the fields as Peridigm does
 where it has the quantity (``Displacement``, ``Volume``, ``Cauchy_Stress``, ...;
@@ -15,9 +18,6 @@ from __future__ import annotations
 
 import csv
 import logging
-import os
-import shutil
-import tempfile
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -30,6 +30,8 @@ from ..errors import InputError, InputTypeError, ShapeError
 from ..geometry.cloud import PointCloud
 from .exodus import EXODUS_SUFFIXES, write_exodus_file
 from .names import file_name, to_file_value
+from .output import check_output, data_tag, staging
+from .xdmf import write_xdmf
 
 log = logging.getLogger(__name__)
 
@@ -67,32 +69,11 @@ def _xdmf_fields(pd: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     return out
 
 
-def _need_h5py() -> None:
-    try:
-        import h5py  # noqa: F401
-    except ImportError as exc:
-        raise ImportError(
-            "XDMF output needs h5py (pip install 'pdlin[io]'); or write .pvd / .vtu / .npz"
-        ) from exc
-
-
 @contextmanager
 def _staging(target: Path) -> Iterator[Path]:
-    """A private directory next to ``target``; its files replace theirs only on success."""
-    target.parent.mkdir(parents=True, exist_ok=True)
-    # staging directories of this target left by a killed writer (a finished or failed
-    # write removes its own): clear them, they never hold a complete result
-    for stale in target.parent.glob(f".{target.name}.*.partial"):
-        shutil.rmtree(stale, ignore_errors=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".partial", dir=target.parent))
-    try:
-        yield tmp
-        # data files first, the file that references them (xdmf, pvd) last
-        files = sorted(tmp.iterdir(), key=lambda f: f.suffix in (".xdmf", ".pvd"))
-        for f in files:
-            os.replace(f, target.parent / f.name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+    """The private folder of :func:`pdlin.io.output.staging` (files named as the target)."""
+    with staging(target) as stage:
+        yield stage.dir
 
 
 def _check_cloud(cloud: Any) -> None:
@@ -119,7 +100,9 @@ def _check_fields(n: int, fields: Mapping[str, Any]) -> dict[str, np.ndarray]:
             raise ShapeError(f"field {name!r} must have {n} rows, got shape {arr.shape}")
         if not np.all(np.isfinite(arr)):
             raise InputError(f"field {name!r} holds NaN or inf; refusing to write it")
-        data[name] = arr
+        # (n, d, d) tensors (and any (n, a, b, ...) array) as row-major (n, a * b) rows,
+        # the layout of result.fields(): every format then stores and reads back the same
+        data[name] = arr.reshape(n, -1) if arr.ndim > 2 else arr
     return data
 
 
@@ -178,6 +161,9 @@ def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any])
     path : str or Path
     cloud : PointCloud
     fields : mapping of name to (n,) or (n, k) arrays
+        An (n, a, b) array (a ``dim x dim`` tensor per point) is written as
+        its row-major (n, a * b) rows, the layout :meth:`pdlin.StaticResult.fields`
+        uses, and :func:`pdlin.io.read_result` returns it so in every format.
 
     Returns
     -------
@@ -202,14 +188,16 @@ def _write_points(
     fields: Mapping[str, Any],
     npz_extra: Mapping[str, np.ndarray] | None = None,
 ) -> Path:
-    p = Path(path)
+    p = check_output(path, SUPPORTED_SUFFIXES)
     suffix = p.suffix.lower()
-    if suffix not in SUPPORTED_SUFFIXES:
-        raise InputError(f"output path must end with one of {SUPPORTED_SUFFIXES}, got {str(p)!r}")
     _check_cloud(cloud)
     data = _check_fields(cloud.n, fields)
-    with _staging(p) as tmp:
-        out = tmp / p.name
+    # companions (the .h5 of an .xdmf) named by the data: the same result, the same names
+    tag = None
+    if suffix == ".xdmf":
+        tag = data_tag(np.asarray(cloud.points), np.asarray(cloud.volumes), data)
+    with staging(p, tag) as st:
+        out = st.main
         if suffix == ".npz":
             arrays = {
                 "points": np.asarray(cloud.points),
@@ -224,12 +212,12 @@ def _write_points(
             import meshio
 
             pdat = _point_data(cloud, data)
-            if suffix == ".xdmf":
-                _need_h5py()
-                pdat = _xdmf_fields(pdat)
             cells = [("vertex", np.arange(cloud.n).reshape(-1, 1))]
-            mesh = meshio.Mesh(_pad3(np.asarray(cloud.points)), cells, point_data=pdat)
-            mesh.write(out)
+            pts = _pad3(np.asarray(cloud.points))
+            if suffix == ".xdmf":
+                write_xdmf(out, st.companion(".h5"), pts, cells, _xdmf_fields(pdat))
+            else:
+                meshio.Mesh(pts, cells, point_data=pdat).write(out)
     return p
 
 
@@ -252,13 +240,17 @@ def write_series(
 ) -> Path:
     """Write point fields of several steps as one time series.
 
-    ``.xdmf``: one XDMF file with its HDF5 companion (meshio's time-series
-    writer); ``.pvd`` (or ``.vtu``): one VTU file per step
-    (``<stem>_0001.vtu``, ...) and a ParaView ``<stem>.pvd`` collection;
-    ``.npz``: every field with a leading step axis plus ``times``;
-    ``.e``/``.exo``: one Exodus II file with every step (``time_whole``) and
-    the point sets as node sets (every step must hold the same fields).
-    Written atomically (all files appear together, or none).
+    ``.xdmf``: one XDMF file with its HDF5 companion ``<name>.<tag>.h5``
+    (meshio's time-series layout); ``.pvd`` (or ``.vtu``): a ParaView
+    ``<stem>.pvd`` collection of one VTU file per step, in the folder
+    ``<stem>.pvd.<tag>/`` (``<stem>_0001.vtu``, ...); ``.npz``: every field
+    with a leading step axis plus ``times``; ``.e``/``.exo``: one Exodus II
+    file with every step (``time_whole``) and the point sets as node sets
+    (every step must hold the same fields).  Written atomically and as one
+    unit: ``<tag>`` is a hash of the data (other data, other names; the same
+    result, the same names), the main file is replaced last
+    (one rename), then the previous companions are removed
+    (:mod:`pdlin.io.output`).
 
     Parameters
     ----------
@@ -278,13 +270,14 @@ def write_series(
     >>> d = tempfile.mkdtemp()
     >>> p = write_series(os.path.join(d, "run.pvd"), cloud, [0.5, 1.0],
     ...                  [{"u": 0.5 * np.ones((6, 2))}, {"u": np.ones((6, 2))}])
-    >>> sorted(os.listdir(d)), p.name
-    (['run.pvd', 'run_0001.vtu', 'run_0002.vtu'], 'run.pvd')
+    >>> pieces = [f for f in os.listdir(d) if f != "run.pvd"]
+    >>> len(pieces), pieces[0].startswith("run.pvd."), p.name
+    (1, True, 'run.pvd')
+    >>> sorted(os.listdir(os.path.join(d, pieces[0])))
+    ['run_0001.vtu', 'run_0002.vtu']
     """
-    p = Path(path)
+    p = check_output(path, SERIES_SUFFIXES, "series path")
     suffix = p.suffix.lower()
-    if suffix not in SERIES_SUFFIXES:
-        raise InputError(f"series path must end with one of {SERIES_SUFFIXES}, got {str(p)!r}")
     _check_cloud(cloud)
     tt = as_float_array(times, "times").reshape(-1)
     if tt.size != len(steps) or tt.size == 0:
@@ -301,7 +294,14 @@ def write_series(
     cells = [("vertex", np.arange(cloud.n).reshape(-1, 1))]
     if suffix == ".vtu":
         p = p.with_suffix(".pvd")
-    with _staging(p) as tmp:
+    # companions (.pvd pieces, the .h5 of an .xdmf) named by the data: a run that writes
+    # the same result (e.g. a resumed one) writes the same file names
+    tag = (
+        data_tag(suffix, pts, np.asarray(cloud.volumes), tt, data)
+        if suffix in (".pvd", ".vtu", ".xdmf")
+        else None
+    )
+    with staging(p, tag) as st:
         if suffix == ".npz":
             arrays: dict[str, np.ndarray] = {
                 "points": np.asarray(cloud.points),
@@ -310,32 +310,25 @@ def write_series(
             }
             for name in data[0]:
                 arrays[name] = np.stack([d[name] for d in data])
-            np.savez_compressed(tmp / p.name, **arrays)  # type: ignore[arg-type]
+            np.savez_compressed(st.main, **arrays)  # type: ignore[arg-type]
         elif suffix in EXODUS_SUFFIXES:
-            _write_exodus(tmp / p.name, cloud, tt, data)
+            _write_exodus(st.main, cloud, tt, data)
         elif suffix == ".xdmf":
-            import meshio
-
-            _need_h5py()
-            cwd = os.getcwd()
-            os.chdir(tmp)  # meshio writes the .h5 beside the .xdmf, by relative name
-            try:
-                with meshio.xdmf.TimeSeriesWriter(p.name) as writer:
-                    writer.write_points_cells(pts, cells)
-                    for t, d in zip(tt, data, strict=True):
-                        pdat = _xdmf_fields(_point_data(cloud, d))
-                        writer.write_data(float(t), point_data=pdat)
-            finally:
-                os.chdir(cwd)
+            pdats = [_xdmf_fields(_point_data(cloud, d)) for d in data]
+            write_xdmf(st.main, st.companion(".h5"), pts, cells, list(zip(tt, pdats, strict=True)))
         else:
             import meshio
 
+            # the pieces in a folder of their own, new for every write: the .pvd (replaced
+            # last) always lists one complete set, never a mix of two runs
+            folder = st.companion()
+            (st.dir / folder).mkdir()
             entries = []
             for k, (t, d) in enumerate(zip(tt, data, strict=True)):
-                name = f"{p.stem}_{k + 1:04d}.vtu"
-                meshio.Mesh(pts, cells, point_data=_point_data(cloud, d)).write(tmp / name)
+                name = f"{folder}/{p.stem}_{k + 1:04d}.vtu"
+                meshio.Mesh(pts, cells, point_data=_point_data(cloud, d)).write(st.dir / name)
                 entries.append(f'    <DataSet timestep="{t:.17g}" part="0" file="{name}"/>')
-            (tmp / p.name).write_text(
+            st.main.write_text(
                 '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
                 "  <Collection>\n" + "\n".join(entries) + "\n  </Collection>\n</VTKFile>\n"
             )
@@ -374,8 +367,8 @@ def write_homogenized_csv(path: str | Path, result: Any) -> Path:
             + [f"{v:.12g}" for v in Fm.ravel()]
             + [result.methods[k], int(result.iterations[k]), int(result.cutbacks[k])]
         )
-    with _staging(p) as tmp:
-        with open(tmp / p.name, "w", newline="") as fh:
+    with staging(p) as st:
+        with open(st.main, "w", newline="") as fh:
             wr = csv.writer(fh)
             wr.writerow(header)
             wr.writerows(rows)
@@ -470,13 +463,17 @@ def export_system(path: str | Path, problem: Any, *, eliminated: bool = True) ->
     rhs = np.asarray(rhs, dtype=float)
     if not (np.all(np.isfinite(A.data)) and np.all(np.isfinite(rhs))):
         raise InputError("the assembled system holds NaN or inf; refusing to export it")
-    with _staging(p) as tmp:
+    with staging(p) as st:
         if suffix == ".mtx":
-            scipy.io.mmwrite(tmp / p.name, A, symmetry="general")
-            scipy.io.mmwrite(tmp / f"{p.stem}_rhs.mtx", rhs.reshape(-1, 1))
+            # through Python file objects: scipy's writer to a path truncates silently
+            # when a write fails (full disk, file-size limit)
+            with open(st.main, "wb") as fh:
+                scipy.io.mmwrite(fh, A, symmetry="general")
+            with open(st.dir / f"{p.stem}_rhs.mtx", "wb") as fh:
+                scipy.io.mmwrite(fh, rhs.reshape(-1, 1))
         else:
             np.savez_compressed(
-                tmp / p.name,
+                st.main,
                 data=A.data,
                 indices=A.indices,
                 indptr=A.indptr,

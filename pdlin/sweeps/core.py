@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError, InputTypeError
+from ..io.output import write_error
 from ..problem import StaticProblem, solve
 
 __all__ = [
@@ -491,17 +492,21 @@ class _Writer:
         self.rows: list[dict[str, Any]] = []
         if resume and path.exists():
             self.rows = self._read()
-        path.parent.mkdir(parents=True, exist_ok=True)
         # rewrite the good rows (drops a torn last line left by a killed writer)
         tmp = path.with_name(path.name + ".tmp")
-        with open(tmp, "w", newline="") as f:
-            if not self.json:
-                csv.writer(f).writerow(columns)
-            for row in self.rows:
-                self._write(f, row)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with open(tmp, "w", newline="") as f:
+                if not self.json:
+                    csv.writer(f).writerow(columns)
+                for row in self.rows:
+                    self._write(f, row)
+                f.flush()
+                os.fsync(f.fileno())
+            os.replace(tmp, path)
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            raise write_error(path, exc) from exc
 
     def _read(self) -> list[dict[str, Any]]:
         rows: list[dict[str, Any]] = []
@@ -538,10 +543,13 @@ class _Writer:
             csv.writer(f).writerow([_cell(row.get(c)) for c in self.columns])
 
     def append(self, row: Mapping[str, Any]) -> None:
-        with open(self.path, "a", newline="") as f:
-            self._write(f, row)
-            f.flush()
-            os.fsync(f.fileno())
+        try:
+            with open(self.path, "a", newline="") as f:
+                self._write(f, row)
+                f.flush()
+                os.fsync(f.fileno())
+        except OSError as exc:  # a torn last row is dropped when the sweep resumes
+            raise write_error(self.path, exc) from exc
 
 
 def _cell(v: Any) -> str:
@@ -810,7 +818,9 @@ class TradeoffResult:
         fig.suptitle(f"reference: {self.reference}", fontsize=9)
         fig.tight_layout()
         if path is not None:
-            fig.savefig(path, dpi=120)
+            from ..plotting import save_figure
+
+            save_figure(fig, Path(path), dpi=120)
         return fig
 
 

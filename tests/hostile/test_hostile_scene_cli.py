@@ -404,7 +404,7 @@ CLI_CASES = [
         "export-bad-ext",
         ["export", "{scene}", "-o", "{dir}/K.txt"],
         GOOD,
-        r"export path must end with .mtx or .npz",
+        r"-o/--output must end with one of \('.mtx', '.npz'\)",  # checked before assembly
     ),
     (
         "calibrate-missing",

@@ -1024,3 +1024,19 @@ def test_legacy_discretization_horizon_and_aliases(bar_dir):
     del root["Discretization"]["Horizon"]
     with pytest.raises(SceneError, match=r"missing deck key Blocks.My Block.Horizon"):
         pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+
+
+@pytest.mark.parametrize("name", ["../../../x", "sub/../../x", "/tmp/pdlin_elsewhere/x"])
+def test_deck_output_filename_cannot_leave_the_decks_folder(bar_dir, name):
+    """A deck (often someone else's file) writes only inside its own folder."""
+    deck = peridigm_deck(dict(LPS_MAT))
+    deck["Peridigm"]["Output"]["Output Filename"] = name
+    with pytest.raises(SceneError, match=r"Output.Output Filename .* leaves the deck's folder"):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+
+
+def test_deck_output_filename_in_a_subfolder(bar_dir):
+    deck = peridigm_deck(dict(LPS_MAT))
+    deck["Peridigm"]["Output"]["Output Filename"] = "results/./bar"
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    assert scene.output == bar_dir / "results" / "bar.vtu"

@@ -32,7 +32,8 @@ def test_series_round_trip(tmp_path, suffix):
     elif suffix == ".pvd":
         text = p.read_text()
         assert text.count("<DataSet") == 3 and 'timestep="1.5"' in text
-        np.testing.assert_allclose(meshio.read(tmp_path / "run_0002.vtu").point_data["u"][:, 0], 2)
+        (piece,) = tmp_path.glob("run.pvd.*/run_0002.vtu")  # the pieces' versioned folder
+        np.testing.assert_allclose(meshio.read(piece).point_data["u"][:, 0], 2)
     else:
         data = np.load(p)
         assert data["u"].shape == (3, cloud.n, 2) and data["times"].tolist() == times
@@ -77,3 +78,49 @@ def test_nonlinear_result_series_and_csv(tmp_path):
     # proportional loading of a linear model: the mean stress grows linearly
     s11 = [float(r.split(",")[3]) for r in rows[1:]]
     np.testing.assert_allclose(s11, np.array([1, 2, 3]) * s11[0], rtol=1e-9)
+
+
+POINT_SUFFIXES = [".vtu", ".vtk", ".xdmf", ".npz", ".e", ".exo"]
+SERIES_ONLY = [".pvd", ".xdmf", ".npz", ".e"]
+
+
+@pytest.mark.parametrize("tensor", ["nested", "flat"])
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize(
+    ("kind", "suffix"),
+    [("points", s) for s in POINT_SUFFIXES] + [("series", s) for s in SERIES_ONLY],
+)
+def test_every_writer_round_trips_every_field_shape(tmp_path, kind, suffix, dim, tensor):
+    """Scalars, vectors and dim x dim tensors ((n, d, d) or (n, d*d)) of 2D and 3D clouds
+    read back through read_result with the values written (tensors as (n, d*d) rows)."""
+    from pdlin.io import read_result
+
+    if suffix in (".e", ".exo"):
+        pytest.importorskip("netCDF4")
+    if suffix == ".xdmf":
+        pytest.importorskip("h5py")
+    cloud = pdlin.grid((5, 5) if dim == 2 else (3, 3, 3))
+    rng = np.random.default_rng(dim)
+    shape = (cloud.n, dim, dim) if tensor == "nested" else (cloud.n, dim * dim)
+
+    def fields(k):
+        return {
+            "damage": rng.random(cloud.n) + k,
+            "displacement": rng.random((cloud.n, dim)) + k,
+            "stress": rng.random(shape) + k,
+            "deformation_gradient": rng.random(shape) + k,
+        }
+
+    steps = [fields(k) for k in range(2 if kind == "series" else 1)]
+    target = tmp_path / f"res{suffix}"
+    if kind == "series":
+        p = write_series(target, cloud, [0.5, 1.0], steps)
+    else:
+        p = write_points(target, cloud, steps[0])
+    got = read_result(p)
+    assert got.n_steps == len(steps)
+    np.testing.assert_array_equal(got.points, cloud.points)
+    for want, have in zip(steps, got.steps, strict=True):
+        for name, arr in want.items():
+            # tensors come back as the (n, d*d) rows of result.fields(), values unchanged
+            np.testing.assert_allclose(have[name], arr.reshape(cloud.n, -1).squeeze(), rtol=0)
