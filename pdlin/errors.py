@@ -91,14 +91,6 @@ class CheckpointError(InputError):
     """
 
 
-class CheckpointWriteError(PdlinError, OSError):
-    """Writing a checkpoint or an ADR snapshot failed (e.g. a full disk).
-
-    The message names the file; the previous checkpoint is left as it was and no
-    temporary file is left behind.
-    """
-
-
 class MissingDependencyError(PdlinError, ImportError):
     """An optional dependency is not installed; the message names the extra to install."""
 
@@ -108,6 +100,14 @@ class WriteError(PdlinError, OSError):
 
     The message names the file and the reason; the file's previous version, if any,
     is left as it was.
+    """
+
+
+class CheckpointWriteError(WriteError):
+    """Writing a checkpoint or an ADR snapshot failed (e.g. a full disk).
+
+    The message names the file; the previous checkpoint is left as it was and no
+    temporary file is left behind.
     """
 
 
