@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ._validation import as_float_array, integer, tolerance
-from .errors import AccuracyWarning, InputError, InputTypeError, ShapeError
+from .errors import AccuracyWarning, InputError, InputTypeError, ShapeError, SlowRunWarning
 from .fields import small_strain
 from .geometry.bonds import Bonds, find_bonds
 from .geometry.cloud import PointCloud
@@ -27,6 +27,14 @@ from .operators.bc import (
     TotalForce,
 )
 from .operators.symmetry import SymmetryPlane, SymmetryReduction
+from .resources import (
+    ASSEMBLY_TRANSIENT,
+    RunEstimate,
+    check_memory,
+    estimate_pair_count,
+    estimate_static_run,
+    format_bytes,
+)
 from .solvers.linear import SOLVERS, LinearSolveInfo, _safe_norm, solve_linear
 from .system import ConstrainedSystem, PlainDiscretization, constrained_system
 
@@ -375,6 +383,16 @@ def solve(
     t_start = time.perf_counter()
     model = problem.model
 
+    plan = plan_memory(
+        problem, solver, operator=operator, keep_stiffness=keep_stiffness,
+        direct_backend=direct_backend,
+    )  # fmt: skip
+    say(plan.summary())
+    check_memory("this run", plan.need, lambda: memory_hints(plan))
+    slow = plan.slow_warning()
+    if slow is not None:
+        say(f"warning: {slow}")
+        warnings.warn(slow, SlowRunWarning, stacklevel=2)
     say("bonds")
     t0 = time.perf_counter()
     system = constrained_system(problem)
@@ -391,6 +409,8 @@ def solve(
     K_rows = None
     precond = None
     if path == "assembled":
+        ta = ASSEMBLY_TRANSIENT[2 if getattr(model, "coupling_range", 1) >= 2 else 1]
+        check_memory("assembly of K", est * (1 + ta), lambda: memory_hints(plan))
         say(f"assembly (~{est / 1e9:.2f} GB for {nblocks * d * d:,} nonzeros)")
         log.info("assembling K: %d blocks, ~%.3g GB", nblocks, est / 1e9)
         t0 = time.perf_counter()
@@ -489,6 +509,113 @@ def _check_force_balance(
 
 
 _OPERATORS = ("assembled", "matrix-free", "auto")
+
+
+def plan_memory(
+    problem: StaticProblem,
+    solver: str = "auto",
+    *,
+    operator: str = "auto",
+    keep_stiffness: bool = False,
+    direct_backend: str = "auto",
+) -> RunEstimate:
+    """Peak-memory estimate of ``solve(problem, ...)`` before any bond is searched.
+
+    Counts the bonds (exactly on :func:`pdlin.grid` clouds with a constant horizon, from
+    the neighbours of a lattice ball otherwise), the blocks of K (pairs within
+    ``coupling_range`` horizons), picks the operator path ``solve`` would take and adds up
+    the stages with the coefficients of :mod:`pdlin.resources`.
+
+    Examples
+    --------
+    >>> import pdlin
+    >>> from pdlin.problem import plan_memory
+    >>> prob = pdlin.StaticProblem(pdlin.BondBased(E=1.0), pdlin.grid((50, 50)), horizon=3.015)
+    >>> plan = plan_memory(prob, "amg-cg")
+    >>> plan.n_bonds == pdlin.find_bonds(prob.cloud, 3.015).n_bonds, plan.path
+    (True, 'assembled')
+    """
+    cloud = problem.cloud
+    n, d = cloud.n, cloud.dim
+    model = problem.model
+    rng = int(getattr(model, "coupling_range", 1))
+    opts = dict(problem.bond_options)
+    if problem.bonds is not None:
+        nb = problem.bonds.n_bonds
+        hop = rng * float(np.max(problem.bonds.horizon)) if rng >= 2 else None
+        pairs = estimate_pair_count(cloud, hop) if hop is not None else nb
+    else:
+        shape_factor = 1.0
+        if opts.get("shape") in ("cube", "box"):  # the cube around the ball
+            shape_factor = 2.0**d / (np.pi ** (d / 2) / float(_gamma(d / 2 + 1)))
+        hor, ratio = problem.horizon, opts.get("ratio")
+        nb = int(shape_factor * estimate_pair_count(cloud, hor, ratio))
+        pairs = nb if rng < 2 else int(estimate_pair_count(cloud, hor, ratio, reach=rng))
+    nblocks = n + pairs
+    est = estimate_bond_operator_bytes(n, nblocks, d)
+    path, _ = _choose_operator(
+        operator, model, cloud, solver, est, bool(problem.symmetry), keep_stiffness,
+        nblocks=nblocks,
+    )  # fmt: skip
+    ndof = n * d
+    direct = solver == "direct" or (solver == "auto" and ndof <= 5000)
+    if path == "assembled" and direct:
+        path = "direct"
+    backend = "superlu"
+    if direct and direct_backend not in ("auto", "superlu"):
+        backend = direct_backend
+    elif direct and direct_backend == "auto":
+        from .solvers.direct import AUTO_MIN, _auto_chain
+
+        backend = "superlu" if ndof < AUTO_MIN else _auto_chain(True, ndof)[0]
+    return estimate_static_run(n, nb, nblocks, d, path=path, coupling_range=rng, backend=backend)
+
+
+def _gamma(x: float) -> float:
+    import math
+
+    return math.gamma(x)
+
+
+def memory_hints(plan: RunEstimate) -> list[str]:
+    """What would fit instead of ``plan``: iterative or matrix-free solves, a coarser grid,
+    PETSc on more ranks (each with its estimated peak)."""
+    from .resources import available_memory
+
+    avail = max(available_memory().bytes, 1)
+    need = max(plan.need, 1)
+    hints: list[str] = []
+    alt = {
+        "direct": ("solver='amg-cg' (assembled K, AMG)", "assembled"),
+        "assembled": ("operator='matrix-free'", "matrix-free"),
+    }
+    if plan.path in alt:
+        text, path = alt[plan.path]
+        other = estimate_static_run(
+            plan.n_points, plan.n_bonds, plan.nnz_blocks, plan.dim, path=path,
+            coupling_range=2 if plan.nnz_blocks > plan.n_points + plan.n_bonds else 1,
+            base=plan.base,
+        )  # fmt: skip
+        hints.append(f"{text}: ~{format_bytes(other.peak)}")
+        if plan.path == "direct" and other.need > avail:
+            mf = estimate_static_run(
+                plan.n_points, plan.n_bonds, plan.nnz_blocks, plan.dim, path="matrix-free",
+                base=plan.base,
+            )  # fmt: skip
+            hints.append(f"solver='amg-cg' with operator='matrix-free': ~{format_bytes(mf.peak)}")
+    frac = min(avail / need, 1.0)
+    coarse = max(int(plan.n_points * frac * 0.9), 1)
+    scale = (plan.n_points / coarse) ** (1 / plan.dim)
+    hints.append(
+        f"a coarser discretization of at most ~{coarse:,} points (spacing x {scale:.3g}, the "
+        "same horizon ratio)"
+    )
+    ranks = max(int(np.ceil(need / avail)), 2)
+    hints.append(
+        f"backend='petsc' on >= {ranks} ranks with their own memory "
+        f"(mpiexec -n {ranks} pdlin run ..., docs/petsc.md)"
+    )
+    return hints
 
 
 def _choose_operator(

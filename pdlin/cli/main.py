@@ -741,6 +741,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ConvergenceError as exc:
         print(f"pdlin: solver failed: {exc}", file=sys.stderr)
         return 3
+    except MemoryError as exc:  # pdlin's refusal, or an allocation that still failed
+        from ..resources import out_of_memory_message
+
+        print(f"pdlin: error: {out_of_memory_message(exc)}", file=sys.stderr)
+        return 2
     except (PdlinError, OSError) as exc:
         print(f"pdlin: error: {exc}", file=sys.stderr)
         return 2
