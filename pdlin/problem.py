@@ -542,15 +542,15 @@ def plan_memory(
     opts = dict(problem.bond_options)
     if problem.bonds is not None:
         nb = problem.bonds.n_bonds
-        hop = rng * float(np.max(problem.bonds.horizon)) if rng >= 2 else None
-        pairs = estimate_pair_count(cloud, hop) if hop is not None else nb
+        hor_b = float(np.max(problem.bonds.horizon))
+        pairs = nb if rng < 2 else estimate_pair_count(cloud, hor_b, hops=rng)
     else:
         shape_factor = 1.0
         if opts.get("shape") in ("cube", "box"):  # the cube around the ball
             shape_factor = 2.0**d / (np.pi ** (d / 2) / float(_gamma(d / 2 + 1)))
         hor, ratio = problem.horizon, opts.get("ratio")
         nb = int(shape_factor * estimate_pair_count(cloud, hor, ratio))
-        pairs = nb if rng < 2 else int(estimate_pair_count(cloud, hor, ratio, reach=rng))
+        pairs = nb if rng < 2 else int(estimate_pair_count(cloud, hor, ratio, hops=rng))
     nblocks = n + pairs
     est = estimate_bond_operator_bytes(n, nblocks, d)
     path, _ = _choose_operator(

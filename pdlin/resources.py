@@ -349,11 +349,16 @@ def neighbours_per_point(dim: int, ratio: float) -> float:
     return float(total - 1)
 
 
-def lattice_pair_count(shape: Sequence[int], spacing: Sequence[float], radius: float) -> int:
-    """Directed pairs of a regular grid closer than ``radius`` (exact, boundary included).
+def lattice_pair_count(
+    shape: Sequence[int], spacing: Sequence[float], radius: float, hops: int = 1
+) -> int:
+    """Directed pairs of a regular grid within ``hops`` bonds of length <= ``radius``.
 
-    The sum over the stencil offsets ``o`` of ``prod_k max(shape_k - |o_k|, 0)``; above
-    2·10⁶ stencil points the interior count ``n x neighbours`` (an upper bound).
+    The sum over the stencil offsets ``o`` of ``prod_k max(shape_k - |o_k|, 0)``, the
+    stencil being the ball of ``radius`` (``hops = 1``, exact) or its ``hops``-fold
+    Minkowski sum (the pattern of a K coupling points two bonds apart; exact in the
+    interior, a slight overcount at the boundary).  Above 2·10⁶ stencil pairs the interior
+    count ``n x neighbours(hops x radius)`` (an upper bound).
 
     Examples
     --------
@@ -369,21 +374,24 @@ def lattice_pair_count(shape: Sequence[int], spacing: Sequence[float], radius: f
     r = float(radius) * (1 + 1e-9)
     m = np.floor(r / h).astype(np.int64)
     n = int(np.prod(shp.astype(float)))
-    if float(np.prod(2.0 * m + 1)) > 2e6:
+    size = float(np.prod(2.0 * m + 1))
+    if size * (size if hops > 1 else 1.0) > 2e6 * (1e3 if hops > 1 else 1.0) or hops > 2:
         h_max = float(np.max(h))
-        return int(n * neighbours_per_point(dim, r / h_max))
+        return int(n * neighbours_per_point(dim, hops * r / h_max))
     rng = [np.arange(-mk, mk + 1) for mk in m]
     offs = np.stack([g.ravel() for g in np.meshgrid(*rng, indexing="ij")], axis=1)
-    keep = np.sum((offs * h) ** 2, axis=1) <= r * r
-    offs = offs[keep]
+    offs = offs[np.sum((offs * h) ** 2, axis=1) <= r * r]  # the ball, centre included
+    if hops == 2:
+        two = (offs[:, None, :] + offs[None, :, :]).reshape(-1, dim)
+        offs = np.unique(two, axis=0)
     offs = offs[np.any(offs != 0, axis=1)]
     counts = np.prod(np.clip(shp[None, :] - np.abs(offs), 0, None).astype(float), axis=1)
     return int(np.sum(counts))
 
 
 def estimate_pair_count(cloud: Any, horizon: Any = None, ratio: float | None = None, *,
-                        reach: float = 1.0) -> int:  # fmt: skip
-    """Directed pairs within ``reach`` horizons, before any search.
+                        hops: int = 1) -> int:  # fmt: skip
+    """Directed pairs at most ``hops`` bonds apart, before any search.
 
     Exact for :func:`pdlin.grid` clouds with a constant horizon; otherwise
     ``sum_i neighbours(δ_i / h_i)`` with the point's spacing ``h_i = V_i^(1/d)`` (interior
@@ -394,8 +402,8 @@ def estimate_pair_count(cloud: Any, horizon: Any = None, ratio: float | None = N
     hor = resolve_horizon(cloud, horizon, ratio)
     lat = getattr(cloud, "lattice", None)
     if lat is not None and lat.index is None and bool(np.all(hor == hor[0])):
-        return lattice_pair_count(lat.shape, lat.spacing, reach * float(hor[0]))
-    rel = reach * np.asarray(hor, dtype=float) / np.asarray(cloud.spacing, dtype=float)
+        return lattice_pair_count(lat.shape, lat.spacing, float(hor[0]), hops=hops)
+    rel = hops * np.asarray(hor, dtype=float) / np.asarray(cloud.spacing, dtype=float)
     # a handful of distinct ratios in practice: count each once
     vals, counts = np.unique(np.round(rel, 6), return_counts=True)
     if vals.size > 64:

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import PdlinError, SceneError
+from ..errors import InsufficientMemoryError, PdlinError, SceneError
 from ..geometry.bonds import SHAPES, Bonds, find_bonds
 from ..geometry.cloud import PointCloud, from_image, grid
 from ..geometry.influence import INFLUENCE_FUNCTIONS
@@ -747,7 +747,7 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         load_vector(cloud, loads)
         scfg = _check_keys(top.get("solver", {}), _SOLVER, "solver")
         ocfg = _check_keys(top.get("output", {}), _OUTPUT, "output")
-    except SceneError:
+    except (SceneError, InsufficientMemoryError):  # a valid scene too large for memory
         raise
     except PdlinError as exc:
         raise SceneError(f"invalid scene: {exc}") from exc
