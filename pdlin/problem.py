@@ -441,6 +441,7 @@ def solve(
         amg_options=dict(amg_options or {}),
         preconditioner_matrix=precond,
         direct_backend=direct_backend,
+        progress=progress,
     )
     timings["setup"] = lin.setup_time
     timings["solve"] = lin.solve_time

@@ -37,6 +37,16 @@ class _Progress:
         print(f"[{t:8.2f} s] {msg} ...", file=sys.stderr, flush=True)
 
 
+def _size(path: Path) -> str:
+    """Bytes written to ``path`` (a file), human readable."""
+    from ..resources import format_bytes
+
+    try:
+        return format_bytes(path.stat().st_size)
+    except OSError:
+        return "?"
+
+
 def _load(args: argparse.Namespace) -> Any:
     from ..io.scene import builtin_scene, load_scene, scene_from_dict
 
@@ -101,6 +111,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if not writer:
         return 0
     prog(f"writing {out}")
+    t_write = time.perf_counter()
     fields = result.fields()
     if scene.fields:
         missing = [f for f in scene.fields if f not in fields]
@@ -112,7 +123,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from ..io.results import write_points
 
     write_points(out, scene.cloud, fields) if scene.fields else write_result(out, result)
+    t_write = time.perf_counter() - t_write
+    prog(f"wrote {_size(out)} in {t_write:.1f} s")
     summary = result.summary()
+    # the printed total covers the fields and the write as well
+    tim = {k: v for k, v in summary["timings"].items() if k != "total"}
+    tim["write"] = t_write
+    tim["total"] = summary["timings"].get("total", 0.0) + t_write
+    summary["timings"] = tim
     summary["scene"] = scene.name
     if chosen is not None:
         summary["selected"] = {
