@@ -35,7 +35,7 @@ class Throttle:
             self.say(message())
 
 
-class ResidualHistory(list):  # type: ignore[type-arg]
+class ResidualHistory(list[float]):
     """A list of relative residuals that reports the iteration count and the latest
     residual through a :class:`Throttle` as the Krylov solvers append to it."""
 
