@@ -519,8 +519,13 @@ def plan_memory(
     operator: str = "auto",
     keep_stiffness: bool = False,
     direct_backend: str = "auto",
+    history_steps: int = 0,
 ) -> RunEstimate:
     """Peak-memory estimate of ``solve(problem, ...)`` before any bond is searched.
+
+    ``history_steps`` adds the per-step fields a load-stepping driver keeps
+    (:func:`pdlin.solve_damage`, :func:`pdlin.solve_nonlinear`: u, stress and two scalars
+    per point and step) to every stage.
 
     Counts the bonds (exactly on :func:`pdlin.grid` clouds with a constant horizon, from
     the neighbours of a lattice ball otherwise), the blocks of K (pairs within
@@ -569,7 +574,11 @@ def plan_memory(
         from .solvers.direct import AUTO_MIN, _auto_chain
 
         backend = "superlu" if ndof < AUTO_MIN else _auto_chain(True, ndof)[0]
-    return estimate_static_run(n, nb, nblocks, d, path=path, coupling_range=rng, backend=backend)
+    plan = estimate_static_run(n, nb, nblocks, d, path=path, coupling_range=rng, backend=backend)
+    if history_steps:
+        hist = int(history_steps) * n * (d + d * d + 2) * 8
+        plan.stages = {k: v + hist for k, v in plan.stages.items()}
+    return plan
 
 
 def _gamma(x: float) -> float:

@@ -54,16 +54,22 @@ _BOND_BYTES_FIXED = 40
 BOND_SEARCH_TRANSIENT = 0.6
 
 #: assembly transient on top of K, as a multiple of K (measured: one-hop bond-based 2D
-#: 300k points 0.75; two-hop correspondence 401² with stress points 2.0)
-ASSEMBLY_TRANSIENT = {1: 0.75, 2: 2.0}
+#: 300k points 0.75; two-hop correspondence 401² with stress points 1.0 besides the
+#: compiled kernels, TWO_HOP_KERNELS)
+ASSEMBLY_TRANSIENT = {1: 0.75, 2: 1.0}
+
+#: two-hop models (LPS, XOSB, correspondence) compile their numba kernels on first use:
+#: measured RSS +130 MB over the assembly of a 12³ LPS K of 24 MB
+TWO_HOP_KERNELS = 130 * 2**20
 
 #: smoothed-aggregation AMG hierarchy plus Krylov work vectors, as a multiple of K
 #: (measured: bond-based 2D 300k points 0.9 x K)
 AMG_FACTOR = 0.9
 
 #: matrix-free operator (per-bond coefficients, the AMG surrogate), bytes per directed bond
-#: (measured: 3D LPS 24³, δ = 3.015 h: 0.53 GB over 1.46 M bonds = 364 B)
-MATRIX_FREE_BYTES_PER_BOND = {2: 200, 3: 400}
+#: (measured: 3D LPS 24³, δ = 3.015 h: 0.51 GB over 1.46 M bonds, 0.38 GB without the
+#: compiled kernels = 260 B)
+MATRIX_FREE_BYTES_PER_BOND = {2: 160, 3: 260}
 
 #: result fields and the output writer's staging, bytes per directed bond and per point
 #: (measured: bond-based 2D 300k points, 0.53 GB while writing the VTU)
@@ -84,6 +90,10 @@ LONG_RUN_SECONDS = 600.0
 #: modules imported and kernels compiled after the estimate (pyamg, numba's JIT)
 LATE_IMPORTS = 40 * 2**20
 
+#: the nonlinear drivers' first load step compiles the material kernels (numba / LLVM):
+#: measured on cp_shear, RSS 0.127 -> 0.245 GB over the first step of 625 points
+NONLINEAR_LATE_IMPORTS = 110 * 2**20
+
 #: fill constants of the nested-dissection estimate of nnz(L) (see direct_factor_nnz),
 #: measured on the 401² correspondence anchor (CHOLMOD / PARDISO, docs/large_problems.md)
 #: and SuperLU runs; SuperLU stores L and U with its own (minimum-degree) ordering
@@ -94,6 +104,10 @@ FILL_CONSTANT = {2: 3.5, 3: 2.5}
 #: minimum-degree order (measured 1.8, 2.2, 2.7 at N = 8, 10, 12, δ = 2 h: ~0.225 N)
 SUPERLU_FILL_2D = 2.0
 SUPERLU_FILL_3D_PER_SIDE = 0.225
+
+#: SuperLU's peak during the factorization against its final L + U (its memory expansions:
+#: measured 0.31 GB of peak for a 0.15 GB factor, 12³ LPS)
+SUPERLU_WORKSPACE = 2.0
 
 
 def format_bytes(n: float) -> str:
@@ -573,13 +587,15 @@ def estimate_static_run(
             nnz_l = direct_factor_nnz(n_points, nnz_blocks, dim, dim)
             # K (eliminated in place), its CSC / triangle copy and the factor
             fb = direct_factor_bytes(nnz_l, backend, n_points, dim)
+            fb = int(fb * (SUPERLU_WORKSPACE if backend == "superlu" else 1.0))
             stages["solve"] = int(B + 1.6 * K + fb + vectors)
         else:
             stages["solve"] = int(B + K * (1 + AMG_FACTOR) + vectors)
     stages["output"] = int(
         B + OUTPUT_BYTES_PER_BOND * n_bonds * dim * dim / 4 + OUTPUT_BYTES_PER_POINT * n_points
     )
-    b = current_rss() + LATE_IMPORTS if base is None else int(base)
+    late = LATE_IMPORTS + (TWO_HOP_KERNELS if coupling_range >= 2 else 0)
+    b = current_rss() + late if base is None else int(base)
     nnz = nnz_blocks * dim * dim
     if path == "matrix-free":
         secs = SECONDS_PER_NONZERO["matrix-free"] * nnz

@@ -37,6 +37,18 @@ class _Progress:
         print(f"[{t:8.2f} s] {msg} ...", file=sys.stderr, flush=True)
 
 
+def _plan(problem: Any, prog: Any, solver: str, steps: int, nonlinear: bool = False) -> None:
+    """Print the memory estimate of a load-stepping run and refuse it when it does not fit."""
+    from ..problem import memory_hints, plan_memory
+    from ..resources import NONLINEAR_LATE_IMPORTS, check_memory
+
+    plan = plan_memory(problem, solver, history_steps=steps)
+    if nonlinear:
+        plan.base += NONLINEAR_LATE_IMPORTS
+    prog(plan.summary())
+    check_memory("this run", plan.need, lambda: memory_hints(plan))
+
+
 def _size(path: Path) -> str:
     """Bytes written to ``path`` (a file), human readable."""
     from ..resources import format_bytes
@@ -223,6 +235,7 @@ def _run_damage(args: argparse.Namespace, scene: Any, prog: Any) -> int:
     opts = dict(scene.damage)
     if args.solver:
         opts["solver"] = args.solver
+    _plan(scene.problem, prog, opts.get("solver", "auto"), int(opts.get("steps", 10)))
     result = solve_damage(scene.problem, progress=prog, **opts)
     out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.vtu"))
     prog(f"writing {out}")
@@ -269,6 +282,7 @@ def _run_nonlinear(args: argparse.Namespace, scene: Any, prog: Any) -> int:
         if "checkpoint" not in opts:
             raise PdlinError("--resume needs solver.checkpoint in the scene")
         opts["resume"] = True
+    _plan(scene.problem, prog, "auto", int(opts.get("steps", 1)), nonlinear=True)
     result = solve_nonlinear(scene.problem, progress=prog, **opts)
     out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.pvd"))
     prog(f"writing {out}")

@@ -48,6 +48,7 @@ from ..errors import (
     MissingDependencyError,
 )
 from ..resources import (
+    SUPERLU_WORKSPACE,
     available_memory,
     check_memory,
     direct_factor_bytes,
@@ -400,6 +401,8 @@ def check_factor_memory(A: Any, backend: str) -> int:
     dim = b if b in (2, 3) else 2
     nnz_l = direct_factor_nnz(n_pts, int(A.nnz) // (b * b), dim, b)
     need = direct_factor_bytes(nnz_l, backend, n_pts, dim)
+    if backend == "superlu":  # its memory expansions during the factorization
+        need = int(need * SUPERLU_WORKSPACE)
     check_memory(
         f"direct factorization ({backend}, ~{nnz_l:,} nonzeros in L)",
         need,
