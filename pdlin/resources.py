@@ -371,8 +371,9 @@ def lattice_pair_count(
     The sum over the stencil offsets ``o`` of ``prod_k max(shape_k - |o_k|, 0)``, the
     stencil being the ball of ``radius`` (``hops = 1``, exact) or its ``hops``-fold
     Minkowski sum (the pattern of a K coupling points two bonds apart; exact in the
-    interior, a slight overcount at the boundary).  Above 2·10⁶ stencil pairs the interior
-    count ``n x neighbours(hops x radius)`` (an upper bound).
+    interior, a slight overcount at the boundary; the ball of ``2 radius`` for wide
+    stencils).  The stencil is clipped to the grid; above 2·10⁷ stencil points the interior
+    count ``n x min(neighbours(hops x radius), n - 1)`` (an upper bound).
 
     Examples
     --------
@@ -385,22 +386,25 @@ def lattice_pair_count(
     shp = np.asarray(shape, dtype=np.int64)
     h = np.asarray(spacing, dtype=float)
     dim = shp.size
-    r = float(radius) * (1 + 1e-9)
-    m = np.floor(r / h).astype(np.int64)
     n = int(np.prod(shp.astype(float)))
-    size = float(np.prod(2.0 * m + 1))
-    if size * (size if hops > 1 else 1.0) > 2e6 * (1e3 if hops > 1 else 1.0) or hops > 2:
-        h_max = float(np.max(h))
-        return int(n * neighbours_per_point(dim, hops * r / h_max))
-    rng = [np.arange(-mk, mk + 1) for mk in m]
+    r = float(radius) * (1 + 1e-9)
+    # offsets reaching past the grid pair no points: clip the stencil to the grid
+    m1 = np.minimum(np.floor(r / h).astype(np.int64), shp - 1)
+    mh = np.minimum(np.floor(hops * r / h).astype(np.int64), shp - 1)
+    ball1 = float(np.prod(2.0 * m1 + 1))
+    if hops > 2 or float(np.prod(2.0 * mh + 1)) > 2e7:
+        per = neighbours_per_point(dim, hops * r / float(np.max(h)))
+        return int(n * min(per, n - 1))
+    rng = [np.arange(-mk, mk + 1) for mk in (m1 if hops == 2 and ball1 <= 2000 else mh)]
     offs = np.stack([g.ravel() for g in np.meshgrid(*rng, indexing="ij")], axis=1)
-    offs = offs[np.sum((offs * h) ** 2, axis=1) <= r * r]  # the ball, centre included
-    if hops == 2:
-        two = (offs[:, None, :] + offs[None, :, :]).reshape(-1, dim)
-        offs = np.unique(two, axis=0)
+    if hops == 2 and ball1 <= 2000:  # the Minkowski sum of the one-bond ball with itself
+        offs = offs[np.sum((offs * h) ** 2, axis=1) <= r * r]
+        offs = np.unique((offs[:, None, :] + offs[None, :, :]).reshape(-1, dim), axis=0)
+    else:  # one bond, or two bonds of a wide ball: the ball of hops x radius
+        offs = offs[np.sum((offs * h) ** 2, axis=1) <= (hops * r) ** 2]
     offs = offs[np.any(offs != 0, axis=1)]
     counts = np.prod(np.clip(shp[None, :] - np.abs(offs), 0, None).astype(float), axis=1)
-    return int(np.sum(counts))
+    return int(min(np.sum(counts), float(n) * (n - 1)))
 
 
 def estimate_pair_count(cloud: Any, horizon: Any = None, ratio: float | None = None, *,
@@ -423,7 +427,11 @@ def estimate_pair_count(cloud: Any, horizon: Any = None, ratio: float | None = N
     if vals.size > 64:
         vals = np.array([float(np.median(rel))])
         counts = np.array([rel.size])
-    per = [c * neighbours_per_point(cloud.dim, v) for v, c in zip(vals, counts, strict=True)]
+    n = cloud.n  # no point has more than n - 1 neighbours
+    per = [
+        c * min(neighbours_per_point(cloud.dim, v), n - 1)
+        for v, c in zip(vals, counts, strict=True)
+    ]
     return int(sum(per))
 
 

@@ -44,12 +44,21 @@ def test_neighbours_per_point_is_the_lattice_count(dim: int, expected: int) -> N
 
 
 @pytest.mark.parametrize(
-    ("shape", "ratio"), [((13, 7), 3.015), ((6, 7, 5), 2.015), ((30,), 4.5), ((11, 9), 1.0)]
+    ("shape", "ratio"),
+    [((13, 7), 3.015), ((6, 7, 5), 2.015), ((30,), 4.5), ((11, 9), 1.0), ((10, 7), 100.0)],
 )
 def test_lattice_pair_count_matches_find_bonds(shape: tuple[int, ...], ratio: float) -> None:
     cloud = pdlin.grid(shape, spacing=0.5)
     expected = pdlin.find_bonds(cloud, ratio=ratio).n_bonds
     assert res.lattice_pair_count(shape, (0.5,) * len(shape), ratio * 0.5) == expected
+
+
+def test_pair_counts_never_exceed_all_pairs() -> None:
+    # a horizon wider than the body: every point bonds to every other, n (n - 1) pairs
+    cloud = pdlin.grid((12, 12, 12))
+    assert res.lattice_pair_count((12,) * 3, (1.0,) * 3, 100.0, hops=2) == 1728 * 1727
+    pts = pdlin.PointCloud(cloud.points + 0.01 * np.sin(cloud.points), cloud.volumes)
+    assert res.estimate_pair_count(pts, 100.0) == 1728 * 1727
 
 
 def test_pair_count_of_a_scattered_cloud_is_an_upper_estimate() -> None:
