@@ -40,11 +40,11 @@ class _Progress:
 def _plan(problem: Any, prog: Any, solver: str, steps: int, nonlinear: bool = False) -> None:
     """Print the memory estimate of a load-stepping run and refuse it when it does not fit."""
     from ..problem import memory_hints, plan_memory
-    from ..resources import NONLINEAR_LATE_IMPORTS, check_memory
+    from ..resources import LATE_IMPORTS, NONLINEAR_LATE_IMPORTS, check_memory, current_rss
 
     plan = plan_memory(problem, solver, history_steps=steps)
-    if nonlinear:
-        plan.base += NONLINEAR_LATE_IMPORTS
+    if nonlinear:  # the material kernels' compile replaces the linear models' one
+        plan.base = current_rss() + LATE_IMPORTS + NONLINEAR_LATE_IMPORTS
     prog(plan.summary())
     check_memory("this run", plan.need, lambda: memory_hints(plan))
 
