@@ -766,6 +766,8 @@ def _solve_scaled(
     M: Any = None
     MA: Any = None
     if solver in ("amg-cg", "amg-gmres"):
+        if progress is not None:
+            progress(f"  AMG set-up on {P.shape[0]:,} unknowns, {P.nnz:,} nonzeros")
         ml = amg_hierarchy(
             P, near_null, blocksize=blocksize, symmetric=symmetric, **(amg_options or {})
         )
