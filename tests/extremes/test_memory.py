@@ -237,3 +237,23 @@ def test_a_long_static_run_warns_once_naming_the_estimate(monkeypatch) -> None:
     slow = [x for x in w if issubclass(x.category, SlowRunWarning)]
     assert len(slow) == 1 and "estimated to take" in str(slow[0].message)
     assert msgs[0].startswith("memory estimate: peak ~") and msgs[1].startswith("warning:")
+
+
+def test_scene_with_horizon_ratio_100_stops_before_the_bond_search(tmp_path, capsys) -> None:
+    scene = tmp_path / "wide.toml"
+    scene.write_text(
+        'name = "wide"\n[geometry]\ntype = "grid"\nshape = [300, 300]\nspacing = 0.01\n'
+        '[material]\nE = 1.0\nnu = 0.25\n[model]\ntype = "lps"\n[horizon]\nratio = 100\n'
+        '[[dirichlet]]\nset = "x-"\nvalue = 0.0\n'
+    )
+    t0 = time.perf_counter()
+    assert main(["run", str(scene)]) == 2
+    assert time.perf_counter() - t0 < 5.0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "memory estimate: peak ~" in err[1]
+    bonds = int(err[1].split(" bonds")[0].split("~")[-1].replace(",", ""))
+    # at most 90,000 points x π 100² interior neighbours = 2.83e9; the body (300 h wide)
+    # truncates the families of most points, but not below half that
+    assert 1.4e9 < bonds <= 90_000 * np.pi * 100**2
+    assert err[-1].startswith("pdlin: error: this run needs ~") and "what would fit" in err[-1]
+    assert not any("] bonds ..." in ln for ln in err)
