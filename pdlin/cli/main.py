@@ -7,11 +7,13 @@ code and can be called from tests.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import logging
 import sys
+import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -47,6 +49,41 @@ def _plan(problem: Any, prog: Any, solver: str, steps: int, nonlinear: bool = Fa
         plan.base = current_rss() + LATE_IMPORTS + NONLINEAR_LATE_IMPORTS
     prog(plan.summary())
     check_memory("this run", plan.need, lambda: memory_hints(plan))
+
+
+def _bytes_so_far(out: Path) -> int:
+    """Bytes written so far for ``out``: the file, or the writers' staging directory
+    (``.NAME.*.partial`` beside it, pdlin.io.results)."""
+    staged = [f for d in out.parent.glob(f".{out.name}.*.partial") for f in d.iterdir()]
+    total = 0
+    for f in staged or [out]:  # the old file, if any, stays until the new one replaces it
+        try:
+            total += f.stat().st_size if f.is_file() else 0
+        except OSError:
+            pass
+    return total
+
+
+@contextlib.contextmanager
+def _write_progress(out: Path, prog: Any) -> Iterator[None]:
+    """Report the bytes written every few seconds while the body writes ``out``."""
+    from .._progress import Throttle
+    from ..resources import format_bytes
+
+    done = threading.Event()
+    tick = Throttle(prog)
+
+    def watch() -> None:
+        while not done.wait(0.5):
+            tick(lambda: f"  writing: {format_bytes(_bytes_so_far(out))} so far")
+
+    th = threading.Thread(target=watch, daemon=True)
+    th.start()
+    try:
+        yield
+    finally:
+        done.set()
+        th.join()
 
 
 def _size(path: Path) -> str:
@@ -134,7 +171,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         fields = {k: fields[k] for k in scene.fields}
     from ..io.results import write_points
 
-    write_points(out, scene.cloud, fields) if scene.fields else write_result(out, result)
+    with _write_progress(out, prog):
+        write_points(out, scene.cloud, fields) if scene.fields else write_result(out, result)
     t_write = time.perf_counter() - t_write
     prog(f"wrote {_size(out)} in {t_write:.1f} s")
     summary = result.summary()

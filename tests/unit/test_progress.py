@@ -4,12 +4,26 @@
 from __future__ import annotations
 
 import json
+import time
 
 import pytest
 
 import pdlin
 import pdlin._progress as progress_mod
 from pdlin.cli.main import main
+
+_SCENE = (
+    'name = "small"\n[geometry]\ntype = "grid"\nshape = [30, 10]\nspacing = 0.1\n'
+    '[material]\nE = 1.0\n[model]\ntype = "bond_based"\n[horizon]\n'
+    'ratio = 3.015\n[[dirichlet]]\nset = "x-"\nvalue = 0.0\n[[dirichlet]]\nset = "x+"\n'
+    'value = 1e-3\ncomponents = "x"\n'
+)
+
+
+def _scene(tmp_path) -> str:
+    path = tmp_path / "small.toml"
+    path.write_text(_SCENE)
+    return str(path)
 
 
 def _problem() -> pdlin.StaticProblem:
@@ -41,7 +55,7 @@ def test_progress_is_throttled(monkeypatch) -> None:
 
 def test_cli_reports_the_write_and_counts_it_in_the_total(tmp_path, capsys) -> None:
     out = tmp_path / "bar.vtu"
-    assert main(["run", "--example", "bar", "-o", str(out), "--json"]) == 0
+    assert main(["run", _scene(tmp_path), "-o", str(out), "--json"]) == 0
     cap = capsys.readouterr()
     t = json.loads(cap.out)["timings"]
     assert t["write"] > 0.0
@@ -49,3 +63,26 @@ def test_cli_reports_the_write_and_counts_it_in_the_total(tmp_path, capsys) -> N
     from pdlin.resources import format_bytes
 
     assert f"wrote {format_bytes(out.stat().st_size)} in " in cap.err
+
+
+def test_cli_reports_bytes_while_writing(tmp_path, monkeypatch, capsys) -> None:
+    monkeypatch.setattr(progress_mod, "PROGRESS_EVERY", 0.0)
+    import pdlin.cli.main as cli
+
+    real = cli._bytes_so_far
+    seen: list[int] = []
+
+    def slow_write(*args, **kwargs):  # a writer that takes a second, 1 kB staged
+        staging = tmp_path / ".bar.vtu.x.partial"
+        staging.mkdir()
+        (staging / "bar.vtu").write_bytes(b"0" * 1000)
+        time.sleep(1.0)
+        seen.append(real(tmp_path / "bar.vtu"))
+        (staging / "bar.vtu").replace(tmp_path / "bar.vtu")
+        staging.rmdir()
+
+    monkeypatch.setattr("pdlin.io.results.write_result", slow_write)
+    assert main(["run", _scene(tmp_path), "-o", str(tmp_path / "bar.vtu")]) == 0
+    err = capsys.readouterr().err
+    assert seen == [1000]
+    assert "  writing: 1.00 kB so far" in err
