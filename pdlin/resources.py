@@ -189,6 +189,60 @@ def _vm_size() -> int:
         return 0
 
 
+#: mount point of the cgroup file systems (v2 unified, or v1 with a ``memory`` hierarchy)
+CGROUP_ROOT = "/sys/fs/cgroup"
+
+
+def _cgroup_dirs() -> list[tuple[str, str]]:
+    """(version, directory) of this process's memory cgroup, innermost first, then the
+    mount point (a container's own root)."""
+    v2: list[str] = []
+    v1: list[str] = []
+    try:
+        with open("/proc/self/cgroup") as f:
+            for line in f:
+                _, ctrl, path = line.rstrip("\n").split(":", 2)
+                if ctrl == "" and path:
+                    v2.append(os.path.join(CGROUP_ROOT, path.lstrip("/")))
+                elif "memory" in ctrl.split(","):
+                    v1.append(os.path.join(CGROUP_ROOT, "memory", path.lstrip("/")))
+    except (OSError, ValueError):
+        pass
+    dirs = [("v2", d) for d in [*v2, CGROUP_ROOT]]
+    dirs += [("v1", d) for d in [*v1, os.path.join(CGROUP_ROOT, "memory")]]
+    return dirs
+
+
+def _stat_value(path: str, key: str) -> int:
+    try:
+        with open(path) as f:
+            for line in f:
+                k, _, v = line.partition(" ")
+                if k == key:
+                    return int(v)
+    except (OSError, ValueError):
+        pass
+    return 0
+
+
+def _cgroup_headroom() -> int | None:
+    """Limit minus usage of the innermost memory cgroup with a limit (reclaimable page
+    cache, ``inactive_file``, not counted as used); None without a limit."""
+    names = {
+        "v2": ("memory.max", "memory.current", "inactive_file"),
+        "v1": ("memory.limit_in_bytes", "memory.usage_in_bytes", "total_inactive_file"),
+    }
+    for version, d in _cgroup_dirs():
+        lim_f, use_f, cache_key = names[version]
+        lim = _read_int(os.path.join(d, lim_f))
+        if lim is None:
+            continue
+        used = _read_int(os.path.join(d, use_f)) or 0
+        used -= _stat_value(os.path.join(d, "memory.stat"), cache_key)
+        return max(lim - max(used, 0), 0)
+    return None
+
+
 @dataclass(frozen=True)
 class MemoryBudget:
     """Memory a run may still allocate.
@@ -236,16 +290,9 @@ def available_memory() -> MemoryBudget:
     True
     """
     limits: dict[str, int] = {}
-    # cgroup v2, then v1
-    lim = _read_int("/sys/fs/cgroup/memory.max")
-    if lim is not None:
-        used = _read_int("/sys/fs/cgroup/memory.current") or 0
-        limits["cgroup"] = max(lim - used, 0)
-    else:
-        lim = _read_int("/sys/fs/cgroup/memory/memory.limit_in_bytes")
-        if lim is not None:
-            used = _read_int("/sys/fs/cgroup/memory/memory.usage_in_bytes") or 0
-            limits["cgroup"] = max(lim - used, 0)
+    cg = _cgroup_headroom()
+    if cg is not None:
+        limits["cgroup"] = cg
     try:
         soft, _ = resource.getrlimit(resource.RLIMIT_AS)
     except (ValueError, OSError):  # pragma: no cover - exotic platforms

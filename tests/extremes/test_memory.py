@@ -105,6 +105,20 @@ def test_available_memory_honours_the_user_cap(monkeypatch: pytest.MonkeyPatch) 
         res.available_memory()
 
 
+def test_available_memory_reads_a_cgroup_limit(tmp_path, monkeypatch) -> None:
+    # a cgroup v2 limit of 2 GB with 0.5 GB used, 0.1 GB of it reclaimable page cache
+    (tmp_path / "memory.max").write_text("2000000000\n")
+    (tmp_path / "memory.current").write_text("500000000\n")
+    (tmp_path / "memory.stat").write_text("anon 400000000\ninactive_file 100000000\n")
+    monkeypatch.setattr(res, "CGROUP_ROOT", str(tmp_path))
+    monkeypatch.delenv(res.ENV_LIMIT, raising=False)
+    b = res.available_memory()
+    assert b.limits["cgroup"] == 2_000_000_000 - 400_000_000
+    assert b.bytes <= b.limits["cgroup"]
+    (tmp_path / "memory.max").write_text("max\n")  # no limit
+    assert "cgroup" not in res.available_memory().limits
+
+
 # --------------------------------------------------------------------------- refusals
 
 
