@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import inspect
 import logging
+import math
 import os
 import time
 import warnings
@@ -553,7 +554,7 @@ def plan_memory(
     else:
         shape_factor = 1.0
         if opts.get("shape") in ("cube", "box"):  # the cube around the ball
-            shape_factor = 2.0**d / (np.pi ** (d / 2) / float(_gamma(d / 2 + 1)))
+            shape_factor = 2.0**d / (np.pi ** (d / 2) / math.gamma(d / 2 + 1))
         hor, ratio = problem.horizon, opts.get("ratio")
         nb = int(shape_factor * estimate_pair_count(cloud, hor, ratio))
         pairs = nb if rng < 2 else int(estimate_pair_count(cloud, hor, ratio, hops=rng))
@@ -581,12 +582,6 @@ def plan_memory(
     return plan
 
 
-def _gamma(x: float) -> float:
-    import math
-
-    return math.gamma(x)
-
-
 def memory_hints(plan: RunEstimate) -> list[str]:
     """What would fit instead of ``plan``: iterative or matrix-free solves, a coarser grid,
     PETSc on more ranks (each with its estimated peak)."""
@@ -603,7 +598,7 @@ def memory_hints(plan: RunEstimate) -> list[str]:
         text, path = alt[plan.path]
         other = estimate_static_run(
             plan.n_points, plan.n_bonds, plan.nnz_blocks, plan.dim, path=path,
-            coupling_range=2 if plan.nnz_blocks > plan.n_points + plan.n_bonds else 1,
+            coupling_range=plan.coupling_range,
             base=plan.base,
         )  # fmt: skip
         hints.append(f"{text}: ~{format_bytes(other.peak)}")

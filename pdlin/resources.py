@@ -552,6 +552,10 @@ class RunEstimate:
         Peak of each stage: ``'bonds'``, ``'assembly'``, ``'solve'``, ``'output'``.
     base : int
         Resident memory when the estimate was made, plus late imports.
+    seconds : float
+        Order-of-magnitude run time (:data:`SECONDS_PER_NONZERO`).
+    coupling_range : int
+        1 for one-hop K, 2 for models coupling points two bonds apart.
     """
 
     n_points: int
@@ -562,6 +566,7 @@ class RunEstimate:
     stages: dict[str, int]
     base: int
     seconds: float = 0.0
+    coupling_range: int = 1
 
     @property
     def peak(self) -> int:
@@ -660,7 +665,9 @@ def estimate_static_run(
             fill = direct_factor_bytes(direct_factor_nnz(n_points, nnz_blocks, dim, dim),
                                        backend, n_points, dim) / 12  # fmt: skip
             secs += SECONDS_PER_FACTOR_NONZERO * fill
-    return RunEstimate(n_points, n_bonds, nnz_blocks, dim, path, stages, b, float(secs))
+    return RunEstimate(
+        n_points, n_bonds, nnz_blocks, dim, path, stages, b, float(secs), int(coupling_range)
+    )
 
 
 #: what fits when a MemoryError escapes without an estimate of its own
