@@ -271,3 +271,11 @@ def test_scene_with_horizon_ratio_100_stops_before_the_bond_search(tmp_path, cap
     assert 1.4e9 < bonds <= 90_000 * np.pi * 100**2
     assert err[-1].startswith("pdlin: error: this run needs ~") and "what would fit" in err[-1]
     assert not any("] bonds ..." in ln for ln in err)
+
+
+def test_generated_mesh_refuses_fast() -> None:
+    t0 = time.perf_counter()
+    # 4 x 10⁶ angles x (10⁶ + 1) layers = 4·10¹² nodes, ~288 B each (_check_mesh_memory)
+    with pytest.raises(InsufficientMemoryError, match=r"4,000,004,000,000 nodes.*PB"):
+        pdlin.plate_with_hole_mesh(10**6, 10**6)
+    assert time.perf_counter() - t0 < 1.0
