@@ -513,7 +513,13 @@ def _b2(n: int, load: str, k: int, e_ls: list[float]) -> list[tuple[Any, ...]]:
         if base.exists():
             shutil.copy(base, path)
         return pdlin.solve_nonlinear(
-            prob, steps=k, t_end=float(k), checkpoint=path, resume=True, keep_states=False, **kw
+            prob,
+            steps=k,
+            t_end=float(k),
+            checkpoint=path,
+            resume="branch",
+            keep_states=False,
+            **kw,
         )
 
     ref = from_base("ref.npz", **tight)
@@ -649,7 +655,7 @@ def _damping_branch(
         method="adr",
         damping=damping,
         checkpoint=ck,
-        resume=True,
+        resume="branch",
         keep_states=False,
     )
     return {

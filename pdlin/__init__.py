@@ -4,11 +4,14 @@ The pipeline: points -> bonds -> model -> sparse operators -> boundary
 conditions -> solver -> fields -> files.
 """
 
+from typing import TYPE_CHECKING, Any
+
 from . import (
     constitutive,
     errors,
     sweeps,  # noqa: E402  (after problem: the harness calls pdlin.solve)
 )
+from ._lazy import lazy_attribute
 from ._threads import get_num_threads, set_num_threads
 from .calibration import CalibrationResult, calibrate_micromoduli
 from .constitutive.crystal_plasticity import (
@@ -34,16 +37,6 @@ from .models.damage import (
     drop_isolated,
     isolated_points,
 )
-from .models.weights import (
-    HigherOrderWeights,
-    WeightStatus,
-    as_influence,
-    gradient_exactness_order,
-    gradient_symbol,
-    higher_order_weights,
-    moment_weights,
-    weights_table,
-)
 from .nonlinear import NonlinearResult, solve_nonlinear
 from .operators import (
     BodyForce,
@@ -62,6 +55,43 @@ from .problem import StaticProblem, StaticResult, solve
 from .submodeling import SubregionProblem, subregion
 from .sweeps import TradeoffCase, TradeoffResult, tradeoff
 from .system import ConstrainedSystem, constrained_system
+
+if TYPE_CHECKING:
+    from .models.weights import (
+        HigherOrderWeights,
+        WeightStatus,
+        as_influence,
+        gradient_exactness_order,
+        gradient_symbol,
+        higher_order_weights,
+        moment_weights,
+        weights_table,
+    )
+
+#: public names imported on first access (``pdlin.X``, ``from pdlin import X``): the
+#: exact weights import sympy (~0.2 s), which most runs never need
+_LAZY = dict.fromkeys(
+    (
+        "HigherOrderWeights",
+        "WeightStatus",
+        "as_influence",
+        "gradient_exactness_order",
+        "gradient_symbol",
+        "higher_order_weights",
+        "moment_weights",
+        "weights_table",
+    ),
+    ".models.weights",
+)
+
+
+def __getattr__(name: str) -> Any:
+    return lazy_attribute(__name__, _LAZY, globals(), name)
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_LAZY})
+
 
 __version__ = "0.1.0"
 

@@ -46,10 +46,12 @@ identical for any thread count, and the arithmetic is scipy's (same operations i
 same order for the same operands: equal values; the product's block columns come out
 sorted where scipy leaves them unsorted).  Without numba, or with ``PDLIN_NUMBA=0`` in
 the environment, every function is the plain scipy operation.  Operations below
-``_MIN_WORK`` stored entries stay on scipy without importing numba.  The first call
-compiles the kernels (~7 s for all signatures; ``cache=True`` keeps them in
-``pdlin/__pycache__`` for later processes, where loading takes ~0.5 s plus numba's
-import, ~1 s).
+``_MIN_WORK`` stored entries (2²⁰: about 10⁴ points in 3D) stay on scipy without importing
+numba, so small problems neither import numba nor compile anything.  The first call
+compiles the kernels (~7 s for all signatures); they are cached per user
+(``$XDG_CACHE_HOME/pdlin/numba``, :func:`pdlin._numba_kernels.cache_dir`; never in the
+package folder, which ``pip uninstall`` would leave behind) for later processes, where
+loading takes ~0.5 s plus numba's import, ~1 s.
 
 numba's threading layer is set to ``'forksafe'`` (tbb if installed, else numba's
 workqueue) unless ``NUMBA_THREADING_LAYER`` is set: GNU OpenMP, its default without tbb,
@@ -95,9 +97,12 @@ def _new_lock_in_child() -> None:
 if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_new_lock_in_child)
 
-#: smallest operation (stored entries, times S for a product) sent to numba: below it
-#: scipy's call overhead is smaller than the threads' start-up
-_MIN_WORK = 1 << 14
+#: smallest operation (stored entries, times S for a product) sent to numba (about 10⁴
+#: points in 3D): below it numba's import (~1 s) and, on a machine's first run, the
+#: compilation of the kernels (60-100 s on a loaded machine for the gallery's lps_cube and
+#: cp_compression, benchmarks/bench_first_run.py) cost more than the threads save; the
+#: gallery's scenes stay on scipy (the largest of lps_cube's products: 704,304)
+_MIN_WORK = 1 << 20
 
 
 def _kernels() -> ModuleType | None:

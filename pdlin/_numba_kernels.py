@@ -18,11 +18,101 @@ arrays equal the numpy path's bitwise for any chunking and thread count.
 
 from __future__ import annotations
 
+import os
+import tempfile
+from collections.abc import Callable
+from typing import Any
+
 import numba
 import numpy as np
+from numba.core import caching as _caching
+
+# --- where the compiled kernels are cached on disk --------------------------------------
+# numba's default (``cache=True``) writes ``.nbi`` / ``.nbc`` files next to the source, into
+# ``site-packages/pdlin/__pycache__``: ``pip uninstall`` does not remove them, and the
+# folder left behind is then imported as an empty namespace package that shadows the next
+# (editable) install.  pdlin's kernels are cached per user instead, in
+# ``$XDG_CACHE_HOME/pdlin/numba`` (default ``~/.cache/pdlin/numba``), or in numba's
+# ``NUMBA_CACHE_DIR`` where the user set one; without a writable directory, not on disk.
+# Only pdlin's functions use this locator: numba's behaviour for other code is unchanged.
+
+#: numba's locator of ``NUMBA_CACHE_DIR`` (``_UserProvidedCacheLocator`` in older numba)
+_UserProvided: Any = getattr(_caching, "UserProvidedCacheLocator", None)
+if _UserProvided is None:  # pragma: no cover - older numba
+    _UserProvided = vars(_caching)["_UserProvidedCacheLocator"]
 
 
-@numba.njit(parallel=True, cache=True)
+def cache_dir() -> str | None:
+    """pdlin's per-user numba cache directory (created), or None where it is not writable.
+
+    ``$XDG_CACHE_HOME/pdlin/numba``, by default ``~/.cache/pdlin/numba``.
+
+    Examples
+    --------
+    >>> from pdlin._numba_kernels import cache_dir
+    >>> path = cache_dir()
+    >>> path is None or path.endswith("numba")
+    True
+    """
+    base = os.environ.get("XDG_CACHE_HOME", "").strip() or os.path.join(
+        os.path.expanduser("~"), ".cache"
+    )
+    path = os.path.join(base, "pdlin", "numba")
+    try:
+        os.makedirs(path, exist_ok=True)
+        tempfile.TemporaryFile(dir=path).close()
+    except OSError:
+        return None
+    return path
+
+
+_CACHE_DIR = cache_dir()
+
+
+class _PdlinCacheLocator(_UserProvided):
+    """numba's ``NUMBA_CACHE_DIR`` locator pointed at :func:`cache_dir`."""
+
+    def __init__(self, py_func: Any, py_file: str) -> None:
+        super().__init__(py_func, py_file)
+        assert _CACHE_DIR is not None
+        self._cache_path = os.path.join(_CACHE_DIR, self.get_suitable_cache_subpath(py_file))
+
+    @classmethod
+    def from_function(cls, py_func: Any, py_file: str) -> Any:
+        if _CACHE_DIR is None:
+            return None
+        # the source-file mixin's checks (file exists, directory writable), not config's
+        return super(_UserProvided, cls).from_function(py_func, py_file)
+
+
+class _PdlinCacheImpl(_caching.CompileResultCacheImpl):
+    _locator_classes = [_UserProvided, _PdlinCacheLocator]
+
+
+class _PdlinFunctionCache(_caching.FunctionCache):
+    _impl_class = _PdlinCacheImpl
+
+
+def _njit(**options: Any) -> Callable[[Any], Any]:
+    """``numba.njit(**options)`` cached in :func:`cache_dir` (not in the package folder).
+
+    Functions inlined into their callers (``inline="always"``) are not cached on their own.
+    """
+
+    def wrap(func: Any) -> Any:
+        disp = numba.njit(**options)(func)
+        if options.get("inline") != "always":
+            try:
+                # what numba's ``enable_caching`` does, with pdlin's locator
+                disp._cache = _PdlinFunctionCache(disp.py_func)
+            except RuntimeError:  # no locator: neither NUMBA_CACHE_DIR nor cache_dir()
+                pass
+        return disp
+
+    return wrap
+
+
+@_njit(parallel=True)
 def bsr_row_counts(a_ptr, a_ind, b_ptr, b_ind, n_bcol, edges):
     """Blocks per output row of ``A @ B`` and block products per row (the work)."""
     n_row = a_ptr.size - 1
@@ -46,7 +136,7 @@ def bsr_row_counts(a_ptr, a_ind, b_ptr, b_ind, n_bcol, edges):
     return nnz, work
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, R, N, S):
     """Blocks of output row ``i``: ``C_ij += A_ik B_kj`` over the stored ``k`` in order."""
     for jj in range(a_ptr[i], a_ptr[i + 1]):
@@ -61,7 +151,7 @@ def _row_product(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_dat, pos, i, R, N, 
                     c_dat[q, r, s] = acc
 
 
-@numba.njit(parallel=True, cache=True)
+@_njit(parallel=True)
 def bsr_fill(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bcol, edges):
     """Sorted block columns and blocks of ``C = A @ B`` (``c_ptr`` from the counts)."""
     size = np.empty(0)
@@ -72,7 +162,7 @@ def bsr_fill(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bc
         )  # fmt: skip
 
 
-@numba.njit(parallel=True, cache=True)
+@_njit(parallel=True)
 def bsr_fill_sizes(
     a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bcol, edges, size, dsize
 ):
@@ -85,7 +175,7 @@ def bsr_fill_sizes(
         )  # fmt: skip
 
 
-@numba.njit(cache=True)
+@_njit()
 def _fill_chunk(
     a_ptr,
     a_ind,
@@ -146,7 +236,7 @@ def _fill_chunk(
             _row_block_sizes(i, p0, p, c_ind, c_dat, size, dsize)
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _row_block_sizes(r, k0, k1, ind, data, size, dsize):  # pragma: no cover
     """``size[k] = max |block k|`` for the blocks ``k0:k1`` of block row ``r`` and ``dsize[r]``
     that of its diagonal block (0 when it has none)."""
@@ -163,7 +253,7 @@ def _row_block_sizes(r, k0, k1, ind, data, size, dsize):  # pragma: no cover
             dsize[r] = m
 
 
-@numba.njit(parallel=True, cache=True)
+@_njit(parallel=True)
 def csr_t_block_counts(indptr, indices, d, n_pts, edges):
     """Blocks per (row chunk, point) of ``Xᵀ`` in ``d x 1`` blocks: ``(n_chunks, n_pts)``.
 
@@ -183,7 +273,7 @@ def csr_t_block_counts(indptr, indices, d, n_pts, edges):
     return cnt
 
 
-@numba.njit(cache=True)
+@_njit()
 def csr_t_block_offsets(cnt):
     """Row pointer of ``Xᵀ`` (per point) and each chunk's first slot per point."""
     n_chunks, n_pts = cnt.shape
@@ -198,7 +288,7 @@ def csr_t_block_offsets(cnt):
     return ptr, off
 
 
-@numba.njit(parallel=True, cache=True)
+@_njit(parallel=True)
 def csr_t_block_fill(indptr, indices, data, d, off, edges, row0, out_ind, out_dat):
     """Blocks of ``Xᵀ`` (``d x 1``): each chunk fills its own slots, rows in order.
 
@@ -231,7 +321,7 @@ def csr_t_block_fill(indptr, indices, data, d, off, edges, row0, out_ind, out_da
                 out_dat[slot[p], col - p * d, 0] += data[jj]
 
 
-@numba.njit(parallel=True, cache=True)
+@_njit(parallel=True)
 def csr_row_block_counts(indptr, indices, d, n_pts, edges):
     """Blocks per row of ``Y`` in ``1 x d`` blocks (distinct points per row)."""
     n_row = indptr.size - 1
@@ -249,7 +339,7 @@ def csr_row_block_counts(indptr, indices, d, n_pts, edges):
     return nnz
 
 
-@numba.njit(parallel=True, cache=True)
+@_njit(parallel=True)
 def csr_row_block_fill(indptr, indices, data, d, n_pts, out_ptr, edges, out_ind, out_dat):
     """Blocks of ``Y`` (``1 x d``) in order of first appearance, as scipy's ``tobsr``."""
     for c in numba.prange(edges.size - 1):
@@ -273,7 +363,7 @@ def csr_row_block_fill(indptr, indices, data, d, n_pts, out_ptr, edges, out_ind,
                 out_dat[slot[p], 0, col - p * d] += data[jj]
 
 
-@numba.njit(parallel=True, cache=True)
+@_njit(parallel=True)
 def bsr_t_fill(indptr, indices, data, off, edges, out_ind, out_dat):
     """Blocks of ``Aᵀ`` (BSR, each block transposed): each chunk fills its own slots.
 
@@ -295,7 +385,7 @@ def bsr_t_fill(indptr, indices, data, off, edges, out_ind, out_dat):
                         out_dat[q, b, a] = data[jj, a, b]
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def pair_blocks_fill(
     r0, r1, bptr, bj, vec, length, unit_given, kb, kb0, indices, data
 ):  # pragma: no cover
@@ -351,7 +441,7 @@ def pair_blocks_fill(
                     data[diag, c, a] = v
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def outer_sums_fill(p0, p1, b0, b1, owner, w, a, b, out):  # pragma: no cover
     """``out[p] = Σ w a ⊗ b`` over the bonds ``b0:b1`` of the owners ``p0:p1``.
 
@@ -371,7 +461,7 @@ def outer_sums_fill(p0, p1, b0, b1, owner, w, a, b, out):  # pragma: no cover
                 out[p, r, c] += wa * b[e, c]
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def bond_coefficients_fill(b0, b1, owner, w, xi, kinv, out):  # pragma: no cover
     """``out[e] = w_e K⁻¹_g ξ_e`` (``g = owner[e]``) for the bonds ``b0:b1``.
 
@@ -387,7 +477,7 @@ def bond_coefficients_fill(b0, b1, owner, w, xi, kinv, out):  # pragma: no cover
             out[e, r] = w[e] * s
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def gradient_blocks_fill(
     p0,
     p1,
@@ -462,7 +552,7 @@ def gradient_blocks_fill(
                 val[dpos, q] = v
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def half_space_fill(b0, b1, xi, basis, vnorm, out):  # pragma: no cover
     """Stress-point sides of the bonds ``b0:b1`` for every case (``out[s, e]``).
 
@@ -490,14 +580,14 @@ def half_space_fill(b0, b1, xi, basis, vnorm, out):  # pragma: no cover
             out[s, e] = key > 0.0
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _ratio_ok_2d(a, b, c, min_ratio):  # pragma: no cover
     mid = 0.5 * (a + c)
     rad = np.hypot(0.5 * (a - c), b)
     return mid - rad >= min_ratio * max(mid + rad, 1e-300)
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def sp_halves_2d(p0, p1, bptr, xi, wv, geo, sides, min_ratio, bal_tol, ok):  # pragma: no cover
     """Per point ``p0:p1`` (2D): in every case both half families' shape tensors are well
     conditioned (``λ_min/λ_max >= min_ratio``) and balanced (``‖2 K_1 - K‖_F <= bal_tol
@@ -546,7 +636,7 @@ def sp_halves_2d(p0, p1, bptr, xi, wv, geo, sides, min_ratio, bal_tol, ok):  # p
         ok[p] = good
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def block_sizes_fill(r0, r1, ptr, ind, data, size, dsize):  # pragma: no cover
     """``size[k] = max |block k|`` for the blocks of the rows ``r0:r1`` and ``dsize[r]`` that
     of row ``r``'s diagonal block (0 when it has none)."""
@@ -554,7 +644,7 @@ def block_sizes_fill(r0, r1, ptr, ind, data, size, dsize):  # pragma: no cover
         _row_block_sizes(r, ptr[r], ptr[r + 1], ind, data, size, dsize)
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def block_keep_fill(r0, r1, ptr, ind, size, dsize, eps2, keep, counts):  # pragma: no cover
     """Keep a block when ``size² > eps2 dsize[r] dsize[c]`` or it is diagonal; kept per row."""
     for r in range(r0, r1):
@@ -568,7 +658,7 @@ def block_keep_fill(r0, r1, ptr, ind, size, dsize, eps2, keep, counts):  # pragm
         counts[r] = cnt
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def block_compress_fill(
     r0, r1, ptr, ind, data, keep, out_ptr, out_ind, out_dat
 ):  # pragma: no cover
@@ -586,7 +676,7 @@ def block_compress_fill(
                 q += 1
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def rows_with_diagonal(r0, r1, ptr, ind, has):  # pragma: no cover
     """``has[r]``: block row ``r`` of a BSR array stores its diagonal block."""
     for r in range(r0, r1):
@@ -598,7 +688,7 @@ def rows_with_diagonal(r0, r1, ptr, ind, has):  # pragma: no cover
         has[r] = h
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def sp_gp_of_bond(p0, p1, bptr, base, full, chosen, first, out):  # pragma: no cover
     """Gradient point of each bond of the points ``p0:p1``: ``base[p]``, plus 1 (stress
     point 2) when ``p`` has two and the bond is not on side 1 of ``p``'s case."""
@@ -607,7 +697,7 @@ def sp_gp_of_bond(p0, p1, bptr, base, full, chosen, first, out):  # pragma: no c
             out[e] = base[p] + (1 if full[p] and not first[chosen[p], e] else 0)
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def coefficients_2d_fill(p0, p1, bptr, gptr, owner, w, xi, K, bad, out):  # pragma: no cover
     """2D bond coefficients ``w_e K_g⁻¹ ξ_e`` of the points ``p0:p1`` in one pass: shape
     tensors ``K_g`` (sums in bond order), their inverses (adjugate / det) and the
@@ -656,7 +746,7 @@ def coefficients_2d_fill(p0, p1, bptr, gptr, owner, w, xi, K, bad, out):  # prag
                 out[e, r] = w[e] * s
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _cell_slot(ukeys, key):  # pragma: no cover
     """Index of ``key`` in the sorted ``ukeys`` or -1."""
     lo = 0
@@ -672,7 +762,7 @@ def _cell_slot(ukeys, key):  # pragma: no cover
     return -1
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def cell_pairs(
     p0, p1, pts, cell, dims, strides, offsets, ukeys, cell_ptr, order, r2, ptr, out, out_xi
 ):  # pragma: no cover
@@ -722,7 +812,7 @@ def cell_pairs(
                     out_xi[q, k] = pts[j, k] - pts[i, k]
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _mm2(a00, a01, a10, a11, b00, b01, b10, b11):  # pragma: no cover
     """2 x 2 product in the order of ``crystal_plasticity._mm``."""
     return (
@@ -733,14 +823,14 @@ def _mm2(a00, a01, a10, a11, b00, b01, b10, b11):  # pragma: no cover
     )
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _inv2(a00, a01, a10, a11):  # pragma: no cover
     """2 x 2 inverse in the order of ``crystal_plasticity._inv``."""
     det = a00 * a11 - a01 * a10
     return a11 / det, -a01 / det, -a10 / det, a00 / det
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _cp_crystal_frame(R0, f, i):  # pragma: no cover
     """``Fc = (R0ᵀ f) R0`` of point ``i``."""
     r00, r01, r10, r11 = R0[i, 0, 0], R0[i, 0, 1], R0[i, 1, 0], R0[i, 1, 1]
@@ -748,7 +838,7 @@ def _cp_crystal_frame(R0, f, i):  # pragma: no cover
     return _mm2(a00, a01, a10, a11, r00, r01, r10, r11)
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _cp_hardening_factor(s_n, i, be, h0, ss, expo):  # pragma: no cover
     """``h0 sgn(r)|r|^a``, ``r = 1 - s/ss``, of system ``be``.
 
@@ -761,7 +851,7 @@ def _cp_hardening_factor(s_n, i, be, h0, ss, expo):  # pragma: no cover
     return h0[be] * sgr * ar
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _cp_hardening(s_n, i, Q, h0, ss, expo, fac, H):  # pragma: no cover
     """``H^{αβ} = Q^{αβ} h0 sgn(r)|r|^a``, ``r = 1 - s/ss`` of β, into ``H``."""
     N = H.shape[0]
@@ -772,7 +862,7 @@ def _cp_hardening(s_n, i, Q, h0, ss, expo, fac, H):  # pragma: no cover
             H[al, be] = Q[al, be] * fac[be]
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _cp_cauchy_green(e00, e01, e10, e11, Ce):  # pragma: no cover
     """``Ce = Feᵀ Fe`` (flat) into ``Ce``."""
     Ce[0] = e00 * e00 + e10 * e10
@@ -781,7 +871,7 @@ def _cp_cauchy_green(e00, e01, e10, e11, Ce):  # pragma: no cover
     Ce[3] = e01 * e01 + e11 * e11
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _cp_slip_matrix(Ce, AelM, H, sg, A):  # pragma: no cover
     """``A^{αβ} = H^{αβ} + sgn_α sgn_β (Cᵉ S₀^β) : 𝓛[S₀^α]`` into ``A``."""
     N = A.shape[0]
@@ -793,7 +883,7 @@ def _cp_slip_matrix(Ce, AelM, H, sg, A):  # pragma: no cover
             A[al, be] = H[al, be] + sg[al] * sg[be] * t
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _cp_masked(A, act):  # pragma: no cover
     """The 2 x 2 active-set matrix: ``A`` on active rows / columns, identity elsewhere."""
     m00 = A[0, 0] if act[0] else 1.0
@@ -803,7 +893,7 @@ def _cp_masked(A, act):  # pragma: no cover
     return m00, m01, m10, m11
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _cp_second_pk(e00, e01, e10, e11, Cm, Et, tb):  # pragma: no cover
     """``T̄ = 𝓛[½(FeᵀFe − I)]`` (flat) into ``tb`` (``Et`` scratch)."""
     Et[0] = 0.5 * ((e00 * e00 + e10 * e10) - 1.0)
@@ -817,7 +907,7 @@ def _cp_second_pk(e00, e01, e10, e11, Cm, Et, tb):  # pragma: no cover
         tb[k] = t
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _dot4(a0, a1, a2, a3, M, row):  # pragma: no cover
     """``Σ_k a_k M[row, k]`` summed left to right from 0 (the loops' order and bits)."""
     t = 0.0
@@ -828,7 +918,7 @@ def _dot4(a0, a1, a2, a3, M, row):  # pragma: no cover
     return t
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _sum2(a, b):  # pragma: no cover
     """``a + b`` summed from 0 (a two-term loop's order and bits)."""
     t = 0.0
@@ -837,13 +927,13 @@ def _sum2(a, b):  # pragma: no cover
     return t
 
 
-@numba.njit(inline="always", cache=True)
+@_njit(inline="always")
 def _dot2(w0, w1, M, col):  # pragma: no cover
     """``Σ_α w_α M[α, col]`` over two systems, summed from 0 (the loops' order)."""
     return _sum2(w0 * M[0, col], w1 * M[1, col])
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def cp_planar_fill(  # pragma: no cover
     p0, p1, f, R0, Fp_n, s_n, gamma_n, ep_n, theta0, theta_n, rate_n,
     CS0, AelM, S0, Cm, Q, h0, ss, expo, renorm,
@@ -1009,7 +1099,7 @@ def cp_planar_fill(  # pragma: no cover
         rate[i] = rate_n[i] + 0.5 * (wa - wb)
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def cp_planar_tangent_fill(  # pragma: no cover
     p0, p1, f, R0, Fp_n, s_n, Fp, dgamma, sign,
     CS0, AelM, S0, Cm, Q, h0, ss, expo, renorm, D,
@@ -1156,7 +1246,7 @@ def cp_planar_tangent_fill(  # pragma: no cover
                 D[i, 1, 1, kk, ll] = a11
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def adr_update_fill(i0, i1, r, inv_lam, u, u_prev, fixed, h2, cdt, out):  # pragma: no cover
     """One central-difference ADR update of DOFs ``i0:i1`` (``_adr_run``'s numpy steps in
     their order: ``((r Λ⁻¹) 2Δt² + 4u + (cΔt − 2) u⁻) / (2 + cΔt)``; prescribed DOFs keep
@@ -1174,7 +1264,7 @@ def adr_update_fill(i0, i1, r, inv_lam, u, u_prev, fixed, h2, cdt, out):  # prag
             out[i] = v / b
 
 
-@numba.njit(nogil=True, cache=True)
+@_njit(nogil=True)
 def adr_local_fill(i0, i1, r, r_new, lam, u_new, u, du, k, local):  # pragma: no cover
     """``δu = uⁿ⁺¹ − uⁿ`` and (``local``) the diagonal local stiffness ``k = (rⁿ − rⁿ⁺¹) /
     (Λ δu)`` of DOFs ``i0:i1``, ``Λ δu`` taken as ``∞`` where ``δu = 0`` (``_adr_run``'s

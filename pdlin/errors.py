@@ -18,6 +18,8 @@ __all__ = [
     "NoNeighborsError",
     "FloatingBodyError",
     "ConvergenceError",
+    "CheckpointError",
+    "CheckpointWriteError",
     "MissingDependencyError",
     "InsufficientMemoryError",
     "SceneError",
@@ -80,6 +82,22 @@ class ConvergenceError(PdlinError, RuntimeError):
     def __init__(self, message: str, result: object | None = None) -> None:
         super().__init__(message)
         self.result = result
+
+
+class CheckpointError(InputError):
+    """A checkpoint cannot be resumed: unreadable, or written for another problem.
+
+    Raised by :func:`pdlin.solve_nonlinear` with ``resume=True``; the message names the
+    file and, for another problem, which parts of it differ.
+    """
+
+
+class CheckpointWriteError(PdlinError, OSError):
+    """Writing a checkpoint or an ADR snapshot failed (e.g. a full disk).
+
+    The message names the file; the previous checkpoint is left as it was and no
+    temporary file is left behind.
+    """
 
 
 class InsufficientMemoryError(PdlinError, MemoryError):

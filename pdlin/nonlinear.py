@@ -14,6 +14,7 @@ import math
 import os
 import time
 import warnings
+import zipfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,8 +24,17 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
+from ._fingerprint import digest
 from ._validation import as_float_array, integer
-from .errors import ConvergenceError, InputError, InputTypeError, ShapeError, TrialStateWarning
+from .errors import (
+    CheckpointError,
+    CheckpointWriteError,
+    ConvergenceError,
+    InputError,
+    InputTypeError,
+    ShapeError,
+    TrialStateWarning,
+)
 from .operators.bc import TimePath, eliminate_dirichlet
 from .problem import StaticProblem
 from .solvers.linear import solve_linear
@@ -49,7 +59,24 @@ METHODS = ("newton", "adr", "auto")
 _RESTART_ELASTIC = 2
 
 PREDICTORS = ("auto", "affine", "tangent", "committed-tangent", "extrapolate", "previous")
-_CHECKPOINT_VERSION = 1
+#: 2: with the problem's fingerprint (``fp__*``) and, with ``keep_states``, every committed
+#: state (``states__*``); 1 (before 2026-11-28): neither
+_CHECKPOINT_VERSION = 2
+#: the parts of a checkpoint's fingerprint (one SHA-256 digest each, ``fp__<part>``) and
+#: how a refused resume names them; ``loads`` holds one digest per committed step
+_PARTS = {
+    "points": "points (coordinates, volumes)",
+    "bonds": "bonds (horizon, influence)",
+    "model": "model and material parameters",
+    "homogenize": "homogenized points",
+    "solver": "solver options",
+    "loads": "boundary conditions and loads",
+}
+#: errors of reading a damaged NPZ file (truncated: BadZipFile or EOFError; garbage:
+#: numpy's "pickled data" ValueError; a missing array: KeyError)
+_UNREADABLE = (OSError, ValueError, KeyError, IndexError, EOFError, zipfile.BadZipFile)
+#: what ``resume`` accepts
+_RESUME = (False, True, "branch")
 
 
 @dataclass
@@ -96,9 +123,9 @@ class NonlinearResult:
     reactions : (k, n, dim) ndarray
         Nodal reactions on the prescribed DOFs.
     states : list of dict
-        Committed states (every step; only the last with ``keep_states=False``;
-        after a resume from the checkpoint's last step on): ``state_steps``
-        gives their step indices and :meth:`state_at` looks one up.
+        Committed states (every step, also after a resume; only the last with
+        ``keep_states=False``, or after a resume from a checkpoint written with it):
+        ``state_steps`` gives their step indices and :meth:`state_at` looks one up.
     iterations, calls, cutbacks : (k,) ndarray of int
         Newton iterations or ADR iterations, constitutive evaluations and
         failed increments (cut-backs) per step (summed over sub-steps).
@@ -147,8 +174,8 @@ class NonlinearResult:
     #: :func:`solve_nonlinear`; failed tries included)
     polishes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     #: load-step index (0-based) of each entry of ``states``: all steps, or with
-    #: ``keep_states=False`` the last one, and after a resume the checkpoint's last
-    #: committed step followed by the steps solved in this call
+    #: ``keep_states=False`` the last one (after a resume from a checkpoint written with
+    #: ``keep_states=False``: its last committed step followed by the steps solved here)
     state_steps: list[int] = field(default_factory=list)
 
     def state_at(self, step: int) -> dict[str, np.ndarray] | None:
@@ -344,13 +371,43 @@ class _Predictor:
         return u_c + lin.x
 
 
-def _write_atomic_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+def _why_unreadable(exc: BaseException) -> str:
+    """Why ``np.load`` could not read a file (numpy takes a file that is no ZIP archive for
+    a pickle and suggests ``allow_pickle=``: here it is just not an NPZ file)."""
+    if isinstance(exc, ValueError) and "pickled" in str(exc):
+        return "not an NPZ file"
+    return f"{type(exc).__name__}: {exc}"
+
+
+def _write_atomic_npz(path: Path, arrays: dict[str, np.ndarray], what: str = "checkpoint") -> None:
+    """Write ``arrays`` to ``path`` through ``<path>.tmp`` and a rename: ``path`` holds the
+    old or the new file, never a part of one, and no ``.tmp`` file is left behind.
+
+    Raises
+    ------
+    CheckpointWriteError
+        The write failed (e.g. a full disk); the message names ``path`` (``what``: the
+        kind of file) and the previous file is kept.
+    """
     tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as fh:
-        np.savez(fh, **arrays)  # type: ignore[arg-type]
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)  # type: ignore[arg-type]
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException as exc:
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:  # pragma: no cover - the folder itself is gone
+            pass
+        if isinstance(exc, OSError):
+            reason = exc.strerror or str(exc) or type(exc).__name__
+            raise CheckpointWriteError(
+                f"could not write the {what} {str(path)!r}: {reason}; the previous {what} "
+                "(if any) is kept"
+            ) from exc
+        raise
 
 
 def _write_snapshots(path: Path, snaps: dict[str, dict[str, np.ndarray]]) -> None:
@@ -359,12 +416,15 @@ def _write_snapshots(path: Path, snaps: dict[str, dict[str, np.ndarray]]) -> Non
     for i, entry in enumerate(snaps.values()):
         for name, value in entry.items():
             arrays[f"s{i}__{name}"] = np.asarray(value)
-    _write_atomic_npz(path, arrays)
+    _write_atomic_npz(path, arrays, "ADR snapshot file")
 
 
-def _read_snapshots(path: Path) -> dict[str, dict[str, np.ndarray]]:
-    """The snapshots of :func:`_write_snapshots` (none from an unreadable file: the
-    increments then start afresh, as without snapshots)."""
+def _read_snapshots(
+    path: Path, say: Callable[[str], None] = lambda msg: None
+) -> dict[str, dict[str, np.ndarray]]:
+    """The snapshots of :func:`_write_snapshots` (none from an unreadable file, which is
+    named in a warning and through ``say``: the increments then start afresh, as without
+    snapshots, and end where the snapshots would have led)."""
     try:
         with np.load(path, allow_pickle=False) as f:
             keys = [str(k) for k in f["keys"]]
@@ -373,10 +433,107 @@ def _read_snapshots(path: Path) -> dict[str, dict[str, np.ndarray]]:
                 if name != "keys":
                     idx, _, field_name = name.partition("__")
                     out[keys[int(idx[1:])]][field_name] = f[name]
-    except (OSError, ValueError, KeyError, IndexError) as exc:
-        log.warning("ADR snapshots %s not read (%s); the step starts afresh", path, exc)
+    except _UNREADABLE as exc:
+        why = _why_unreadable(exc)
+        log.warning("ADR snapshot file %s is unreadable (%s); the step starts afresh", path, why)
+        say(f"ADR snapshot file {path} is unreadable ({why}); the step starts afresh")
         return {}
     return out
+
+
+def _fingerprint(
+    system: ConstrainedSystem, hom_w: np.ndarray, solver_options: dict[str, Any]
+) -> dict[str, str]:
+    """The digests of a checkpoint's fingerprint but the per-step loads (``_PARTS``)."""
+    cloud = system.cloud
+    bonds = getattr(system.disc, "bonds", None) or system.disc.real_bonds
+    return {
+        "points": digest(cloud.points, cloud.volumes),
+        "bonds": digest(
+            *(bonds.i, bonds.j, bonds.omega, bonds.volume_j, bonds.horizon),
+            *(bonds.shape, bonds.influence),
+        ),
+        "model": digest(system.model),
+        "homogenize": digest(hom_w),
+        "solver": digest(solver_options),
+    }
+
+
+def _load_digest(system: ConstrainedSystem, t: float, t_end: float) -> str:
+    """The digest of a load step's prescribed DOFs, their values and the external force at
+    time ``t`` (plain values and loads scaled by ``t / t_end``, load paths evaluated)."""
+    factor = t / t_end
+    return digest(system.dofs, system.values_at(t, factor), factor * system.f_ext)
+
+
+def _read_checkpoint(path: Path) -> dict[str, np.ndarray]:
+    """Every array of a checkpoint file.
+
+    Raises
+    ------
+    CheckpointError
+        The file is unreadable (truncated, not an NPZ file, an array missing).
+    """
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            data = {name: f[name] for name in f.files}
+        int(data["version"]), int(data["done"])  # noqa: B018 - present and readable
+    except _UNREADABLE as exc:
+        raise CheckpointError(
+            f"checkpoint {str(path)!r} is unreadable ({_why_unreadable(exc)}); remove it, "
+            "or start afresh without resume (pdlin run without --resume), which overwrites it"
+        ) from exc
+    return data
+
+
+def _check_checkpoint(
+    path: Path,
+    data: dict[str, np.ndarray],
+    system: ConstrainedSystem,
+    tt: np.ndarray,
+    te: float,
+    fingerprint: dict[str, str],
+    branch: bool,
+) -> None:
+    """Refuse a checkpoint of another problem (``_PARTS``, the step times; the solver
+    options only when not ``branch``), naming the parts that differ.
+
+    Raises
+    ------
+    CheckpointError
+        Written by a pdlin without a fingerprint, or for another problem.
+    """
+    where = f"checkpoint {str(path)!r}"
+    fix = "remove it, or start afresh without resume (pdlin run without --resume)"
+    version = int(data["version"])
+    if version != _CHECKPOINT_VERSION or any(f"fp__{p}" not in data for p in _PARTS):
+        raise CheckpointError(
+            f"{where} has no problem fingerprint (version {version}, written by an earlier "
+            f"pdlin; this one writes version {_CHECKPOINT_VERSION}), so it cannot be checked "
+            f"against this problem; {fix}"
+        )
+    done = int(data["done"])
+    ck_times = np.asarray(data["times"], dtype=float)
+    differ = [
+        _PARTS[part]
+        for part, value in fingerprint.items()
+        if str(data[f"fp__{part}"]) != value and not (branch and part == "solver")
+    ]
+    if done > tt.size or not np.allclose(ck_times[:done], tt[:done], rtol=1e-12, atol=0.0):
+        differ.append(f"step times (the checkpoint's first {done}: {ck_times[:done].tolist()})")
+    else:
+        stored = [str(v) for v in data["fp__loads"][:done]]
+        if stored != [_load_digest(system, float(t), te) for t in ck_times[:done]]:
+            differ.append(_PARTS["loads"])
+    if differ:
+        hint = (
+            "; resume='branch' continues a checkpoint with other solver options"
+            if differ == [_PARTS["solver"]]
+            else ""
+        )
+        raise CheckpointError(
+            f"{where} was written for a different problem: {', '.join(differ)} differ; {fix}{hint}"
+        )
 
 
 #: ``result.methods`` entry of a load step that Newton failed and ADR finished
@@ -432,7 +589,7 @@ def solve_nonlinear(
     homogenize: Any = None,
     keep_states: bool = True,
     checkpoint: str | os.PathLike[str] | None = None,
-    resume: bool = False,
+    resume: bool | str = False,
     progress: Callable[[str], None] | None = None,
     progress_every: float = 60.0,
     snapshot_every: float = 300.0,
@@ -556,14 +713,23 @@ def solve_nonlinear(
         Points of the volume average (default all), e.g. the real points of a
         ghost-layer problem.
     keep_states : bool
-        Keep the committed state of every step (else only the last).
+        Keep the committed state of every step (else only the last); the checkpoint then
+        keeps them too, so that a resumed run returns every step's state.
     checkpoint : path, optional
-        NPZ file written atomically after every converged step; with
-        ``resume=True`` an existing checkpoint of the same problem is
-        continued from its last committed step (its step times must be the
-        first ones of this run: a finished run can be extended with more
-        steps, or several drivers can continue from one committed state).  Its
-        folder must exist; ``resume=True`` needs a checkpoint.
+        NPZ file written atomically after every converged step (a failed write, e.g. on a
+        full disk, raises :class:`~pdlin.errors.CheckpointWriteError` naming the file and
+        keeps the previous checkpoint).  It carries a fingerprint of the problem: SHA-256
+        digests of the points, the bonds (horizon, influence), the model and material
+        parameters (orientations included), the homogenized points, each committed step's
+        prescribed values and loads, and the solver options that change the iterates.
+        Its folder must exist.
+    resume : {False, True, 'branch'}
+        True: continue an existing ``checkpoint`` from its last committed step; it must
+        have been written for this problem with these solver options, and its step times
+        must be the first ones of this run (a finished run can be extended with more
+        steps).  'branch': the same, but the solver options may differ (another driver or
+        tolerance from a committed state, e.g. a copy of the checkpoint).  Without a
+        checkpoint file the run says so (``progress``) and starts from step 1.
     progress : callable, optional
         Called with one line per step, one per failed increment (why, and the time it
         is cut back to) and, during an increment, one line every ``progress_every``
@@ -595,6 +761,12 @@ def solve_nonlinear(
     InputError
         An option is out of range (``method``, ``steps``, ``times``, ``rtol``, ``e_l``,
         ``density``, ``dt``, ``damping``, ``c0``, ``adr_maxiter``, ``checkpoint``, ...).
+    CheckpointError
+        ``resume``: the checkpoint is unreadable (truncated, not an NPZ file), was written
+        by a pdlin without a fingerprint, or for another problem (the message names the
+        parts that differ).
+    CheckpointWriteError
+        Writing the checkpoint or an ADR snapshot failed (an ``OSError``: a full disk, ...).
     ConvergenceError
         A step fails with the chosen method (with 'auto': Newton and ADR).
 
@@ -654,6 +826,8 @@ def solve_nonlinear(
         raise InputTypeError(f"newton_backoff must be True or False, got {newton_backoff!r}")
     if adr_maxiter is not None:
         adr_maxiter = integer(adr_maxiter, "adr_maxiter", minimum=1)
+    if not any(resume is r or (isinstance(r, str) and resume == r) for r in _RESUME):
+        raise InputError(f"resume must be True, False or 'branch', got {resume!r}")
     if resume and checkpoint is None:
         raise InputError("resume=True needs checkpoint= (the file to resume from), got None")
     if checkpoint is not None:
@@ -708,6 +882,35 @@ def solve_nonlinear(
     budget = int(adr_maxiter) if adr_maxiter is not None else 200 * math.ceil(n ** (1.0 / d)) + 2000
     polish_on = (method == "auto") if polish is None else polish
     stall_window = int(adr_stall) if adr_stall is not None else max(500, budget // 8)
+    # the options that change a run's iterates (checked on resume): Newton's where Newton
+    # runs (also as ADR's polish), ADR's where ADR runs; not progress, output, keep_states
+    # or the number of threads (docs/nonlinear.md, "Checkpoints")
+    solver_options: dict[str, Any] = {"method": method, "predictor": predictor}
+    if method != "adr" or polish_on:
+        solver_options.update(
+            rtol=rtol,
+            maxiter=maxiter,
+            line_search=line_search,
+            max_cutbacks=max_cutbacks,
+            linear_solver=linear_solver,
+            relax=relax,
+        )
+    if method == "auto":
+        solver_options.update(fallback_cutbacks=fallback_cutbacks, newton_backoff=newton_backoff)
+    if method != "newton":
+        solver_options.update(
+            max_cutbacks=max_cutbacks,
+            e_l=e_l,
+            density="gershgorin" if lam is None else lam,
+            density_safety=density_safety if lam is None else None,
+            dt=adr_dt,
+            damping=damping,
+            c0=c0,
+            adr_maxiter=budget,
+            floor=floor,
+            polish=polish_on,
+            adr_stall=stall_window if polish_on else None,
+        )
 
     # per-step records
     K = tt.size
@@ -725,6 +928,7 @@ def solve_nonlinear(
     resid = np.zeros(K)
     step_time = np.zeros(K)
     methods: list[str] = [""] * K
+    load_digests: list[str] = [""] * K  # the checkpoint's fingerprint of each step's loads
     messages: list[str] = [""] * K
     damping_hist: list[np.ndarray] = [np.zeros(0)] * K
     states: list[dict[str, np.ndarray]] = []
@@ -738,20 +942,17 @@ def solve_nonlinear(
     inc_frac0 = {"newton": 1.0, "adr": 1.0}
     backoff0 = {"frac": 1.0, "until": -1, "hold": 0}
     ckpt = None if checkpoint is None else Path(checkpoint)
+    fingerprint: dict[str, str] = {}
+    if ckpt is not None:
+        fingerprint = _fingerprint(system, hom_w, solver_options)
+    if ckpt is not None and resume and not ckpt.exists():
+        say(f"no checkpoint {ckpt} to resume: starting from step 1")
+        log.info("no checkpoint %s to resume: starting from step 1", ckpt)
     if ckpt is not None and resume and ckpt.exists():
-        data = np.load(ckpt, allow_pickle=False)
-        done = int(data["done"])
-        if int(data["version"]) != _CHECKPOINT_VERSION or not (
-            done <= tt.size
-            and np.allclose(data["times"][:done], tt[:done])
-            and tuple(data["shape"]) == (n, d)
-        ):
-            raise InputError(
-                f"checkpoint {ckpt} was written for another problem or load path "
-                f"(shape {tuple(data['shape'])}, {data['times'].size} steps); remove it or "
-                "pass resume=False"
-            )
+        data = _read_checkpoint(ckpt)
+        _check_checkpoint(ckpt, data, system, tt, te, fingerprint, branch=resume == "branch")
         start = int(data["done"])
+        load_digests[:start] = [str(v) for v in data["fp__loads"][:start]]
         u_hist[:start] = data["u"][:start]
         reac_hist[:start] = data["reactions"][:start]
         for arr, key in ((iters, "iterations"), (calls, "calls"), (cuts, "cutbacks")):
@@ -774,21 +975,26 @@ def solve_nonlinear(
             hom_hist[:start] = data["homogenized_stress"][:start]
         meth = [str(m) for m in data["methods"]]
         methods[:start] = meth[:start]
-        state_c = {k[len("state__") :]: data[k] for k in data.files if k.startswith("state__")}
+        state_c = {k[len("state__") :]: data[k] for k in data if k.startswith("state__")}
         u_c = u_hist[start - 1].reshape(-1).copy() if start else u_c
         t_c = float(tt[start - 1]) if start else 0.0
         if start >= 2:
             u_p, t_p = u_hist[start - 2].reshape(-1).copy(), float(tt[start - 2])
-        prev = {
-            k[len("prev_state__") :]: data[k] for k in data.files if k.startswith("prev_state__")
-        }
+        prev = {k[len("prev_state__") :]: data[k] for k in data if k.startswith("prev_state__")}
         pred.prev_state = prev or None  # absent from checkpoints of earlier versions
         if "increments" in data:  # idem: a resumed run continues the same increments
             inc_n, inc_a, b_frac, b_until, b_hold = (float(v) for v in data["increments"])
             inc_frac0 = {"newton": inc_n, "adr": inc_a}
             backoff0 = {"frac": b_frac, "until": int(b_until), "hold": int(b_hold)}
-        states = [dict(state_c)] if start else []
-        state_steps = [start - 1] if start else []
+        history = {k[len("states__") :]: data[k] for k in data if k.startswith("states__")}
+        if keep_states and history and all(v.shape[:1] == (start,) for v in history.values()):
+            # the committed states of every step, as an uninterrupted run keeps them
+            states = [{key: v[i] for key, v in history.items()} for i in range(start - 1)]
+            states.append(dict(state_c))
+            state_steps = list(range(start))
+        else:
+            states = [dict(state_c)] if start else []
+            state_steps = [start - 1] if start else []
         say(f"resuming from {ckpt} after step {start} of {K}")
     snap_path = None if ckpt is None else ckpt.with_name(f"{ckpt.stem}.adr{ckpt.suffix}")
     # the running load step's ADR snapshots (snapshot_every), one per increment tried
@@ -798,7 +1004,7 @@ def solve_nonlinear(
     snaps: dict[str, dict[str, np.ndarray]] = {}
     saved: dict[str, dict[str, np.ndarray]] = {}  # the killed run's, each used once
     if snap_path is not None and resume and snap_path.exists():
-        saved = _read_snapshots(snap_path)
+        saved = _read_snapshots(snap_path, say)
     # the interrupted run's time in the running step up to its last snapshot (added to
     # the step's wall time) and the step's start (read by the snapshots)
     step_clock = {"t0": 0.0, "before": 0.0}
@@ -1110,6 +1316,8 @@ def solve_nonlinear(
             methods[k], messages[k] = used, why
             damping_hist[k] = np.concatenate(damp) if damp else np.zeros(0)
         _check_committed(u_new, resp.state, k, t_target)
+        if ckpt is not None:
+            load_digests[k] = _load_digest(system, t_target, te)
         # commit
         u_p, t_p = u_c, t_c
         u_c, state_c, t_c = u_new, dict(resp.state), t_target
@@ -1144,6 +1352,8 @@ def solve_nonlinear(
                 "methods": np.array(methods[: k + 1]),
                 "messages": np.array(messages[: k + 1]),
                 "step_time": step_time[: k + 1],
+                **{f"fp__{part}": np.array(value) for part, value in fingerprint.items()},
+                "fp__loads": np.array(load_digests[: k + 1]),
                 "increments": np.array(
                     [
                         inc_frac["newton"],
@@ -1160,6 +1370,10 @@ def solve_nonlinear(
                 arrays["homogenized_stress"] = hom_hist[: k + 1]
             for key, value in state_c.items():
                 arrays[f"state__{key}"] = np.asarray(value)
+            if keep_states and state_steps == list(range(k + 1)):
+                # every committed state: a resumed run returns and writes them all
+                for key in state_c:
+                    arrays[f"states__{key}"] = np.stack([np.asarray(st[key]) for st in states])
             for key, value in (pred.prev_state or {}).items():
                 arrays[f"prev_state__{key}"] = np.asarray(value)
             _write_atomic_npz(ckpt, arrays)

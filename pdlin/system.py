@@ -71,7 +71,9 @@ class Discretization(Protocol):
 
     def internal_force(self, u: Any, *, linear: bool = True) -> np.ndarray: ...
 
-    def load_vector(self, loads: Sequence[Any]) -> np.ndarray: ...
+    def load_vector(
+        self, loads: Sequence[Any], *, prescribed: np.ndarray | None = None
+    ) -> np.ndarray: ...
 
     def dirichlet(self) -> list[Dirichlet]: ...
 
@@ -123,8 +125,11 @@ class PlainDiscretization:
     def internal_force(self, u: Any, *, linear: bool = True) -> np.ndarray:
         return np.asarray(self.model.internal_force(self.points, self.bonds, u, linear=linear))
 
-    def load_vector(self, loads: Sequence[Any]) -> np.ndarray:
-        return load_vector(self.points, loads)
+    def load_vector(
+        self, loads: Sequence[Any], *, prescribed: np.ndarray | None = None
+    ) -> np.ndarray:
+        """External force ``(ndof,)``; loads acting on ``prescribed`` DOFs only raise."""
+        return load_vector(self.points, loads, prescribed=prescribed)
 
     def dirichlet(self) -> list[Dirichlet]:
         """No extra conditions (a reduction adds its plane conditions here)."""
@@ -423,6 +428,9 @@ def constrained_system(problem: Any) -> ConstrainedSystem:
     ------
     FloatingBodyError
         When the conditions leave rigid-body motions free.
+    InputError
+        When a load acts on prescribed DOFs only (a :class:`~pdlin.TotalForce` acting
+        there in part warns, :class:`~pdlin.errors.AccuracyWarning`).
     """
     from .problem import StaticProblem
 
@@ -439,7 +447,9 @@ def constrained_system(problem: Any) -> ConstrainedSystem:
     if not isinstance(disc, Discretization):  # pragma: no cover - interface guard
         raise ModelError(f"{type(disc).__name__} does not implement Discretization")
     dofs, vals = resolve_dirichlet(cloud, (*problem.dirichlet, *disc.dirichlet()))
-    f_ext = disc.load_vector(problem.loads)
+    # a load on prescribed DOFs only would vanish into the support: refused here, where
+    # every driver (solve, solve_nonlinear, solve_damage, the CLI) passes
+    f_ext = disc.load_vector(problem.loads, prescribed=dofs)
     disc.check_constraints(dofs)
     paths = tuple(bc for bc in problem.dirichlet if isinstance(bc.value, TimePath))
     return ConstrainedSystem(disc, dofs, vals, np.asarray(f_ext, dtype=float), problem, paths)

@@ -566,7 +566,7 @@ def solve_petsc(
     t0 = time.perf_counter()
     layout = _layout(cloud, rank, size, partition)
     dofs, vals = resolve_dirichlet(cloud, problem.dirichlet)
-    f_ext = np.asarray(load_vector(cloud, problem.loads), dtype=float)
+    f_ext = np.asarray(load_vector(cloud, problem.loads, prescribed=dofs), dtype=float)
     check_constraints(cloud, problem.bonds, dofs)
     owned = layout.owned
     m = owned.size

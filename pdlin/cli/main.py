@@ -681,7 +681,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument(
         "--resume",
         action="store_true",
-        help="continue a nonlinear run from its checkpoint (solver.checkpoint)",
+        help="continue a nonlinear run from its checkpoint (solver.checkpoint); refused, "
+        "naming what differs, if the scene changed since it was written",
     )
     r.add_argument(
         "--select",

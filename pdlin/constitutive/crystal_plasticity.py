@@ -240,8 +240,10 @@ def euler_to_rotation(angles: ArrayLike) -> FloatArray:
 #: not depend on the thread count; smaller chunks cost more Python overhead per point)
 _UPDATE_CHUNK = 8192
 #: smallest batch of points that :meth:`CrystalPlasticity.update` sends to the numba
-#: kernel of planar double slip (below it numpy's call overhead is small)
-_NUMBA_MIN_POINTS = 256
+#: kernel of planar double slip: one full chunk; below it numba's import (~1 s) and, on a
+#: first run, the kernels' compilation (~100 s on a loaded machine for the gallery's
+#: 625-point cp_compression) cost more than the kernel saves (~0.4 µs a point per update)
+_NUMBA_MIN_POINTS = _UPDATE_CHUNK
 
 
 def _rows_of(state: Mapping[str, Any], idx: NDArray[np.intp], n: int) -> dict[str, Any]:

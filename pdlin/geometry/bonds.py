@@ -7,11 +7,10 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.spatial import cKDTree
 
 from .._validation import as_float_array
 from ..errors import DuplicatePointError, InputError, NoNeighborsError, ShapeError
@@ -253,9 +252,28 @@ def _segments_cross_triangle(p: np.ndarray, q: np.ndarray, tri: np.ndarray) -> n
     return ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < 1)
 
 
+class _MirroredCracks(NamedTuple):
+    """Crack pieces plus their mirror images (internal: :func:`pdlin.symmetry_reduction`).
+
+    ``pieces`` holds ``copies`` blocks of the ``m`` original pieces (the originals first);
+    piece ``k`` and its images ``k + m``, ``k + 2m``, ... count as one crack when
+    :func:`find_bonds` checks that every crack cuts a bond.
+    """
+
+    pieces: np.ndarray
+    copies: int
+
+
 def _crack_mask(points: np.ndarray, i: np.ndarray, j: np.ndarray, cracks: Any) -> np.ndarray:
-    """True for bonds that cross any crack (2D segments or 3D triangles)."""
+    """True for bonds that cross any crack (2D segments or 3D triangles).
+
+    A crack (with its mirror images, :class:`_MirroredCracks`) that cuts no bond raises:
+    it would leave the body intact, which can only be a misplaced crack.
+    """
     dim = points.shape[1]
+    copies = 1
+    if isinstance(cracks, _MirroredCracks):
+        cracks, copies = cracks.pieces, int(cracks.copies)
     cr = as_float_array(cracks, "cracks")
     if dim == 2:
         if cr.ndim != 3 or cr.shape[1:] != (2, 2):
@@ -266,13 +284,27 @@ def _crack_mask(points: np.ndarray, i: np.ndarray, j: np.ndarray, cracks: Any) -
     else:
         raise InputError("cracks are supported in 2D and 3D only, got a 1D cloud")
     cut = np.zeros(i.size, dtype=bool)
+    cuts_any = np.zeros(cr.shape[0], dtype=bool)
     p = points[i]
     q = points[j]
-    for c in cr:  # loop over a handful of crack pieces, vectorized over bonds
-        if dim == 2:
-            cut |= _segments_cross_2d(p, q, c[0], c[1])
-        else:
-            cut |= _segments_cross_triangle(p, q, c)
+    for k, c in enumerate(cr):  # loop over a handful of crack pieces, vectorized over bonds
+        mine = (
+            _segments_cross_2d(p, q, c[0], c[1]) if dim == 2 else _segments_cross_triangle(p, q, c)
+        )
+        cuts_any[k] = bool(mine.any())
+        cut |= mine
+    m = cr.shape[0] // max(copies, 1)
+    idle = np.flatnonzero(~cuts_any.reshape(copies, m).any(axis=0)) if m else np.zeros(0, int)
+    if idle.size:
+        k = int(idle[0])
+        what = "segment" if dim == 2 else "triangle"
+        corners = " - ".join("(" + ", ".join(f"{v:g}" for v in x) + ")" for x in cr[k])
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        raise InputError(
+            f"cracks[{k}] ({what} {corners}) cuts no bond ({idle.size} of {m} crack piece(s) "
+            f"cut none; points span {lo.tolist()} to {hi.tolist()}): a crack must cross the "
+            "bonds it separates; move it into the body or drop it"
+        )
     return cut
 
 
@@ -424,6 +456,8 @@ def _tree_pairs(
         if keep.all():  # spheres: the candidates' margin rarely holds a bond
             return i, j, xi, length
         return i[keep], j[keep], xi[keep], length[keep]
+    from scipy.spatial import cKDTree  # imported here: scipy.spatial is ~0.1 s of import
+
     tree = cKDTree(pts)
     if shape == "cube":
         pairs = tree.query_pairs(float(hor.max()) * (1 + rtol), p=np.inf, output_type="ndarray")

@@ -11,7 +11,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .._validation import as_float_array, check_finite, integer, positive_scalar
-from ..errors import InputError, ShapeError
+from ..errors import InputError, NonFiniteError, ShapeError
 
 __all__ = ["PointCloud", "Lattice", "grid", "from_image", "ghost_layer", "GhostLayer"]
 
@@ -230,13 +230,49 @@ class PointCloud:
         Returns
         -------
         (m,) ndarray of int
+            Possibly empty: callers that need points say so (a condition or
+            load selecting none raises there).
+
+        Raises
+        ------
+        NonFiniteError
+            A box corner holding NaN.
+        InputError
+            A box whose lower corner exceeds its upper one (it can hold no point).
+
+        Examples
+        --------
+        >>> import numpy as np, pdlin
+        >>> cloud = pdlin.grid((4, 2))
+        >>> cloud.select(box=([2.0, -np.inf], [np.inf, 1.0])).tolist()
+        [4, 6]
+        >>> cloud.select(box=([np.nan, 0.0], [1.0, 1.0]))  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        pdlin.errors.NonFiniteError: box lower corner must hold numbers ... got nan at index 0
         """
         if box is not None:
-            lo = np.asarray(box[0], dtype=float)
-            hi = np.asarray(box[1], dtype=float)
+            try:
+                lo = np.asarray(box[0], dtype=float)
+                hi = np.asarray(box[1], dtype=float)
+            except (TypeError, ValueError, IndexError) as exc:
+                raise InputError(f"box must be (lower, upper) corners of numbers: {exc}") from exc
             if lo.shape != (self.dim,) or hi.shape != (self.dim,):
                 raise ShapeError(
                     f"box corners must have shape ({self.dim},), got {lo.shape} and {hi.shape}"
+                )
+            for corner, name in ((lo, "lower"), (hi, "upper")):
+                if np.isnan(corner).any():
+                    k = int(np.flatnonzero(np.isnan(corner))[0])
+                    raise NonFiniteError(
+                        f"box {name} corner must hold numbers (-inf / inf for open sides), "
+                        f"got nan at index {k}"
+                    )
+            if np.any(lo > hi):
+                k = int(np.flatnonzero(lo > hi)[0])
+                raise InputError(
+                    f"box lower corner must not exceed the upper one, got lower {lo.tolist()} "
+                    f"and upper {hi.tolist()} (axis {k})"
                 )
             mask = np.all((self.points >= lo) & (self.points <= hi), axis=1)
             idx = np.flatnonzero(mask)

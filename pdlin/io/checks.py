@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import SceneError
+from ..errors import PdlinError, SceneError
 from ._keys import check_keys
 
 __all__ = [
@@ -298,8 +298,10 @@ def _region(check: Check, cloud: Any) -> np.ndarray:
                 f"{check.where}.box must be [[lower...], [upper...]] with {cloud.dim} "
                 f"coordinates each, got {o['box']!r}"
             )
-        p = cloud.points
-        idx = np.flatnonzero(np.all((p >= box[0]) & (p <= box[1]), axis=1))
+        try:  # NaN corners and inverted boxes raise (-inf / inf are open sides)
+            idx = cloud.select(box=(box[0], box[1]))
+        except PdlinError as exc:
+            raise SceneError(f"{check.where}.box: {exc}") from exc
     else:
         try:
             idx = np.asarray(cloud.select(o[key]), dtype=np.int64)

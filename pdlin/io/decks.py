@@ -26,8 +26,13 @@ Sources of the formats (read, not copied):
   peridynamic solid, ω = 1, discrete weighted volume), ``elastic_bond_based.cxx``
   (``c = 18 K / (π δ⁴)``), ``correspondence.cxx`` (hourglass force
   ``18 C_hg K / (π δ⁴)``);
-* Peridigm ``src/io/discretization/Peridigm_ExodusDiscretization.cpp`` (one point per
-  tet / hex element at its centroid with the element volume);
+* Peridigm ``src/io/discretization/Peridigm_ExodusDiscretization.cpp`` and
+  ``Peridigm_GeometryUtils.cpp`` (one point per element: tets and hexes at their
+  centroid with their volume, hexes by a 24-tet decomposition, spheres at their node
+  with their volume attribute; blank block / node-set names are ``block_<id>`` /
+  ``nodelist_<id>`` by the Exodus ids);
+* Peridigm ``src/core/Peridigm.cpp`` (the keys its quasi-static solvers read; ``Time
+  Steps``) and Teuchos ``XMLObject::getRequiredBool`` (``true/yes/1``, ``false/no/0``);
 * PeriLab.jl ``examples/Dogbone/Dogbone.yaml``, ``Dogbone_plastic_corr_static.yaml``,
   ``Dogbone.txt`` (``header: x y block_id volume``) and ``ns_Dogbone_2.txt``.
 """
@@ -250,12 +255,15 @@ def _load_yaml(path: Path) -> Any:
         raise SceneError(f"{path}: invalid YAML: {exc}") from None
 
 
+# Teuchos' XMLObject::getRequiredBool: TRUE / YES / 1 and FALSE / NO / 0, any case
+_BOOL_SPELLINGS = {"TRUE": True, "YES": True, "1": True, "FALSE": False, "NO": False, "0": False}
+
 _XML_TYPES: dict[str, Callable[[str], Any]] = {
     "string": str,
     "double": float,
     "float": float,
     "int": int,
-    "bool": lambda s: {"true": True, "false": False}[s.strip().lower()],
+    "bool": lambda s: _BOOL_SPELLINGS[s.strip().upper()],
 }
 
 
@@ -413,7 +421,14 @@ def _note(key: str, why: str) -> None:
     log.info("deck key %s accepted without effect: %s", key, why)
 
 
+# a decimal floating-point literal (what Teuchos reads as a double; YAML 1.1 loads
+# exponents without a sign, "160.0e10", as strings)
+_NUMBER_TEXT = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+
+
 def _number(value: Any, key: str, *, positive: bool = False) -> float:
+    if isinstance(value, str) and _NUMBER_TEXT.fullmatch(value.strip()):
+        value = float(value.strip())
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise SceneError(f"{key} must be a number, got {value!r}")
     v = float(value)
@@ -425,9 +440,11 @@ def _number(value: Any, key: str, *, positive: bool = False) -> float:
 def _flag(value: Any, key: str) -> bool:
     if isinstance(value, bool):
         return value
-    if isinstance(value, str) and value.strip().lower() in ("true", "false"):
-        return value.strip().lower() == "true"
-    raise SceneError(f"{key} must be true or false, got {value!r}")
+    if isinstance(value, str) and value.strip().upper() in _BOOL_SPELLINGS:
+        return _BOOL_SPELLINGS[value.strip().upper()]
+    raise SceneError(
+        f"{key} must be true or false (or yes / no / 1 / 0, as Teuchos reads them), got {value!r}"
+    )
 
 
 # --------------------------------------------------------------------------------------
@@ -505,6 +522,9 @@ _PD_DISC = {
     "Input Mesh File": "",
     "Horizon": "legacy place of the horizon (used by blocks without one)",
     "Store Exodus Mesh": "output option",
+    "Verbose": "cosmetic",
+    "Construct Neighborhood Lists": "true: Peridigm's default (false -> error)",
+    "Omit Bonds Between Blocks": "'None': Peridigm's default (all blocks bonded; 'All' -> error)",
 }
 _PD_MAT_COMMON = {
     "Material Model": "",
@@ -521,6 +541,7 @@ _PD_MAT_COMMON = {
 _PD_MATERIALS: dict[str, dict[str, str]] = {
     "Elastic": {
         **_PD_MAT_COMMON,
+        "Compute Partial Stress": "an output field of Peridigm's",
         "Apply Shear Correction Factor": "Peridigm's elastic.cxx computes it but does not use it "
         "in the force (the scaled alpha line is commented out)",
     },
@@ -531,27 +552,58 @@ _PD_MATERIALS: dict[str, dict[str, str]] = {
 }
 _PD_BLOCK = {"Block Names": "", "Material": "", "Horizon": ""}
 _PD_BC = {"Type": "", "Node Set": "", "Coordinate": "", "Value": ""}
+# The keys Peridigm's src/core/Peridigm.cpp reads for its quasi-static solvers
+# (execute, executeQuasiStatic, executeNOXQuasiStatic; the NOXQuasiStatic list is also
+# handed to NOX::Solver::buildSolver, which reads Nonlinear Solver, Direction, Line
+# Search, Printing, Solver Options, Status Tests and Trust Region).
 _PD_SOLVER = {
     "Verbose": "cosmetic",
     "Initial Time": "",
     "Final Time": "",
     "QuasiStatic": "",
     "NOXQuasiStatic": "",
+    "Peridigm Preconditioner": "preconditioner of NOX's linear solves (pdlin solves directly)",
+    "Jacobian Diagnostics": "Jacobian check of Peridigm's NOX solver",
+    "Disable Heuristics": "load-step heuristics of Peridigm's Newton solver",
+    "Initialize Predictor From Previous Solver": "initial guess from an earlier solver",
 }
+_STEPS = "a linear model's final state is one solve at the final time"
 _PD_QS = {
-    "Number of Load Steps": "a linear model's final state is one solve at Final Time",
+    "Number of Load Steps": _STEPS,
+    "Time Steps": _STEPS + " (the last of the listed times)",
     "Absolute Tolerance": "Newton tolerance (pdlin checks its own residual)",
     "Relative Tolerance": "Newton tolerance (pdlin checks its own residual)",
     "Maximum Solver Iterations": "Newton iterations (one linear solve here)",
+    "Damped Newton Diagonal Scale Factor": "Newton damping (one linear solve here)",
+    "Damped Newton Diagonal Shift Factor": "Newton damping (one linear solve here)",
+    "Belos Linear Solver": "Peridigm's iterative linear solver (pdlin solves directly)",
+    "Belos Maximum Iterations": "Peridigm's iterative linear solver",
+    "Belos Relative Tolerance": "Peridigm's iterative linear solver",
+    "Belos Print Status": "cosmetic",
+    "Adaptive Load-Stepping": "load-step reduction on Newton failures (one linear solve here)",
     "Verbose": "cosmetic",
     "Number of Steps": "as Number of Load Steps",
+}
+_PD_NOX = {
+    "Number of Load Steps": _STEPS,
+    "Time Steps": _STEPS + " (the last of the listed times)",
+    "Absolute Tolerance": "Newton tolerance (pdlin checks its own residual)",
+    "Relative Tolerance": "Newton tolerance (pdlin checks its own residual)",
+    "Max Solver Iterations": "Newton iterations (one linear solve here)",
+    "Maximum Solver Iterations": "Newton iterations (one linear solve here)",
+    "Verbose": "cosmetic",
+    "Printing": "cosmetic",
     "Nonlinear Solver": "NOX algorithm choice (one linear solve here)",
     "Direction": "NOX algorithm choice",
     "Line Search": "NOX algorithm choice",
+    "Solver Options": "NOX algorithm choice",
+    "Status Tests": "NOX algorithm choice",
+    "Trust Region": "NOX algorithm choice",
     "Jacobian Operator": "NOX algorithm choice",
     "Preconditioner": "NOX algorithm choice",
     "Max Age Of Prec": "NOX algorithm choice",
     "Maximum Age of Preconditioner": "NOX algorithm choice",
+    "Preconditioner Reuse Policy": "NOX algorithm choice",
 }
 _PD_OUTPUT = {
     "Output File Type": "pdlin writes .vtu (see pdlin run -o)",
@@ -585,57 +637,194 @@ def _peridigm_cloud(disc: Mapping[str, Any], base: Path) -> tuple[PointCloud, di
     )
 
 
-def _exodus_cloud(path: Path) -> tuple[PointCloud, dict[str, Any]]:
-    """Peridigm's Exodus conversion: one point per tet / hex at its centroid, its volume.
+# Peridigm_GeometryUtils.cpp, hexCentroidAndVolume: 24 tets (edge a-b, the face's
+# barycenter, the hex barycenter c = (f4 + f5) / 2), face by face in this order
+_HEX_FACES = ((0, 1, 4, 5), (1, 2, 5, 6), (2, 3, 6, 7), (0, 3, 4, 7), (0, 1, 2, 3), (4, 5, 6, 7))
+_HEX_TETS = (
+    ((1, 0), (5, 1), (4, 5), (0, 4)),
+    ((2, 1), (6, 2), (5, 6), (1, 5)),
+    ((3, 2), (7, 3), (6, 7), (2, 6)),
+    ((0, 3), (3, 7), (7, 4), (4, 0)),
+    ((0, 1), (1, 2), (2, 3), (3, 0)),
+    ((5, 4), (4, 7), (7, 6), (6, 5)),
+)
 
-    Node sets become the elements holding at least one node of the set (Peridigm
-    records the elements each node belongs to).
+
+def _peridigm_cells(x: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Peridigm's element volumes and centroids (``Peridigm_GeometryUtils.cpp``).
+
+    ``x`` is ``(m, 4 or 8, 3)``.  Tets: the signed volume ``a · (b × c) / 6`` and the
+    vertex mean; hexes: the sum of 24 such tets and their volume-weighted centroid.
+    Returns volumes, centroids and the smallest signed (sub-)tet volume of each element
+    (Peridigm stops on a negative one).
     """
-    import meshio
+
+    def tet(p0: np.ndarray, p1: np.ndarray, p2: np.ndarray, p3: np.ndarray) -> np.ndarray:
+        return np.einsum("ij,ij->i", p1 - p0, np.cross(p2 - p0, p3 - p0)) / 6.0
+
+    if kind == "tetra":
+        v = tet(x[:, 0], x[:, 1], x[:, 2], x[:, 3])
+        return v, x.mean(axis=1), v
+    faces = [x[:, list(f)].mean(axis=1) for f in _HEX_FACES]
+    c = 0.5 * (faces[4] + faces[5])
+    vol = np.zeros(len(x))
+    cen = np.zeros((len(x), 3))
+    vmin = np.full(len(x), np.inf)
+    for f, tets in zip(faces, _HEX_TETS, strict=True):
+        for a, b in tets:
+            v = tet(x[:, a], x[:, b], f, c)
+            vol += v
+            cen += v[:, None] * 0.25 * (x[:, a] + x[:, b] + f + c)
+            vmin = np.minimum(vmin, v)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return vol, cen / vol[:, None], vmin
+
+
+def _exodus_names(ds: Any, var: str, count: int) -> list[str]:
+    """Names of an Exodus entity type (``eb_names`` / ``ns_names``), '' where blank."""
+    if var not in ds.variables:
+        return [""] * count
+    raw = np.asarray(ds.variables[var][:])
+    if raw.ndim != 2 or raw.shape[0] != count:
+        return [""] * count
+    out = []
+    for row in raw:
+        chars = [
+            c.decode("latin-1") if isinstance(c, bytes) else str(c) for c in np.ma.filled(row, b"")
+        ]
+        out.append("".join(chars).split("\x00")[0].strip())
+    return out
+
+
+def _exodus_ids(ds: Any, var: str, count: int, what: str) -> np.ndarray:
+    """Entity ids (``eb_prop1`` / ``ns_prop1``); 1..count when the file has none."""
+    if var not in ds.variables:
+        return np.arange(1, count + 1)
+    ids = np.asarray(np.ma.filled(ds.variables[var][:], -1), dtype=np.int64).ravel()
+    if ids.size != count:
+        raise SceneError(
+            f"Discretization.Input Mesh File: Exodus {var} must hold {count} {what} ids, "
+            f"got {ids.size}"
+        )
+    return ids
+
+
+def _exodus_cloud(path: Path) -> tuple[PointCloud, dict[str, Any]]:
+    """Peridigm's Exodus conversion (``Peridigm_ExodusDiscretization.cpp``).
+
+    One point per element: tet / hex elements at their centroid with their volume
+    (10-node tets and 20-node hexes by their corner nodes), sphere elements at their
+    node with the volume of their second attribute.  Element blocks and node sets are
+    read from the netCDF variables by id (``eb_prop1`` / ``connect<k>``, ``ns_prop1``
+    / ``node_ns<k>``): a block without a name in ``eb_names`` is ``block_<id>``, a node
+    set without a name in ``ns_names`` is ``nodelist_<id>``, as in Peridigm.  A node
+    set becomes the elements holding at least one of its nodes.  Side sets are not
+    read (Peridigm does not read them either).
+    """
     import scipy.sparse as sp
 
-    from ..geometry.mesh import cell_measures
-
     try:
-        mesh = meshio.read(path, file_format="exodus")
+        import netCDF4
     except ImportError as exc:  # pragma: no cover - depends on the environment
         raise PdlinError(
             f"reading the Exodus mesh {path} needs netCDF4: pip install netCDF4"
         ) from exc
-    except Exception as exc:  # meshio raises many kinds
+    key = "Discretization.Input Mesh File"
+    try:
+        ds = netCDF4.Dataset(path, "r")
+    except OSError as exc:
+        raise SceneError(f"{key}: cannot read {path} as Exodus (netCDF): {exc}") from None
+    try:
+        ds.set_auto_mask(False)
+        return _exodus_cloud_from(ds, path, key, sp)
+    except SceneError:
+        raise
+    except (KeyError, IndexError, ValueError) as exc:
+        raise SceneError(f"{key}: {path.name} is not a readable Exodus mesh: {exc!r}") from None
+    finally:
+        ds.close()
+
+
+def _exodus_cloud_from(ds: Any, path: Path, key: str, sp: Any) -> tuple[PointCloud, dict[str, Any]]:
+    dims = ds.dimensions
+    if "coordx" in ds.variables:
+        xyz = [
+            np.asarray(ds.variables[f"coord{c}"][:], dtype=float)
+            for c in "xyz"
+            if f"coord{c}" in ds.variables
+        ]
+        coords = np.column_stack(xyz)
+    elif "coord" in ds.variables:
+        coords = np.asarray(ds.variables["coord"][:], dtype=float).T
+    else:
+        raise SceneError(f"{key}: {path.name} holds no node coordinates (coordx / coord)")
+    if coords.shape[1] != 3:
         raise SceneError(
-            f"Discretization.Input Mesh File: cannot read {path} as Exodus: {exc}"
-        ) from None
-    kinds = {
-        "tetra": "tetra",
-        "tetra10": "tetra",
-        "hexahedron": "hexahedron",
-        "hexahedron20": "hexahedron",
-    }
+            f"{key}: {path.name} is a {coords.shape[1]}D mesh; Peridigm's Exodus "
+            "discretization (and pdlin's deck reader) needs a 3D mesh"
+        )
+    n_nodes = coords.shape[0]
+    n_blk = len(dims["num_el_blk"]) if "num_el_blk" in dims else 0
+    if n_blk == 0:
+        raise SceneError(f"{key}: {path.name} has no element blocks")
+    blk_ids = _exodus_ids(ds, "eb_prop1", n_blk, "element block")
+    blk_names = _exodus_names(ds, "eb_names", n_blk)
+    corners = {"TET": 4, "TETRA": 4, "TET4": 4, "TET10": 4, "HEX": 8, "HEX8": 8, "HEX20": 8}
     cents, vols, conn_rows, blocks = [], [], [], {}
     offset = 0
-    for k, block in enumerate(mesh.cells):
-        if block.type not in kinds:
+    for k in range(n_blk):
+        bid = int(blk_ids[k])
+        bname = blk_names[k] or f"block_{bid}"
+        if bname in blocks:
+            raise SceneError(f"{key}: {path.name} has two element blocks named {bname!r}")
+        var = ds.variables.get(f"connect{k + 1}")
+        if var is None:  # a null block (no elements)
+            blocks[bname] = np.zeros(0, dtype=np.int64)
+            continue
+        conn = np.asarray(var[:], dtype=np.int64)
+        etype = str(getattr(var, "elem_type", "")).strip().upper()
+        if conn.size and (conn.min() < 1 or conn.max() > n_nodes):
             raise SceneError(
-                f"Discretization: Exodus block {k + 1} has {block.type!r} elements; Peridigm's and "
-                "pdlin's conversion supports tet and hex elements (sphere elements with a volume "
-                "attribute are not read by meshio)"
+                f"{key}: Exodus block {bid} connectivity must hold node numbers in "
+                f"[1, {n_nodes}], got [{int(conn.min())}, {int(conn.max())}]"
             )
-        nodes = np.asarray(block.data)[:, : 4 if kinds[block.type] == "tetra" else 8]
-        v, c = cell_measures(mesh.points, nodes, kinds[block.type])
-        if np.any(v <= 0):
-            e = int(np.flatnonzero(v <= 0)[0])
+        if etype == "SPHERE":
+            attr = ds.variables.get(f"attrib{k + 1}")
+            if attr is None or np.asarray(attr[:]).ndim != 2 or attr.shape[1] < 2:
+                raise SceneError(
+                    f"{key}: Exodus block {bid} has sphere elements without the volume "
+                    "attribute (Peridigm reads the second attribute as the volume)"
+                )
+            nodes = conn[:, :1] - 1
+            c, v = coords[nodes[:, 0]], np.asarray(attr[:], dtype=float)[:, 1]
+        elif etype in corners:
+            nodes = conn[:, : corners[etype]] - 1
+            v, c, vmin = _peridigm_cells(coords[nodes], "tetra" if corners[etype] == 4 else "hex")
+            if np.any(vmin < 0):
+                e = int(np.flatnonzero(vmin < 0)[0])
+                raise SceneError(
+                    f"{key}: Exodus block {bid} element {e + 1} is inverted (a tet of Peridigm's "
+                    f"decomposition has volume {vmin[e]:.3g}; check the node numbering)"
+                )
+        else:
             raise SceneError(
-                f"Discretization: Exodus block {k + 1} element {e + 1} has volume {v[e]:.3g} "
+                f"{key}: Exodus block {bid} has {etype!r} elements; Peridigm's conversion "
+                "supports TET / TETRA / TET4 / TET10, HEX / HEX8 / HEX20 and SPHERE elements"
+            )
+        if np.any(~np.isfinite(v) | (v <= 0)):
+            e = int(np.flatnonzero(~np.isfinite(v) | (v <= 0))[0])
+            raise SceneError(
+                f"{key}: Exodus block {bid} element {e + 1} has volume {v[e]:.3g} "
                 "(inverted or degenerate element)"
             )
         cents.append(c)
         vols.append(v)
         conn_rows.append(nodes)
-        blocks[f"block_{k + 1}"] = offset + np.arange(len(nodes))
+        blocks[bname] = offset + np.arange(len(nodes))
         offset += len(nodes)
-    points = np.vstack(cents)
-    cloud = _cloud(points, np.concatenate(vols), "Discretization.Input Mesh File")
+    if offset == 0:
+        raise SceneError(f"{key}: {path.name} has no elements")
+    cloud = _cloud(np.vstack(cents), np.concatenate(vols), key)
     offsets = np.cumsum([0] + [len(r) for r in conn_rows[:-1]])
     # element-node incidence -> node sets as element sets (any node in the set)
     rows = np.concatenate(
@@ -645,12 +834,25 @@ def _exodus_cloud(path: Path) -> tuple[PointCloud, dict[str, Any]]:
         ]
     )
     cols = np.concatenate([r.ravel() for r in conn_rows])
-    inc = sp.csr_array((np.ones(rows.size), (rows, cols)), shape=(offset, len(mesh.points)))
-    node_sets = {}
-    for name, ids in mesh.point_sets.items():
-        mask = np.zeros(len(mesh.points))
-        mask[np.asarray(ids, dtype=np.int64)] = 1.0
-        node_sets[_tidy(name)] = np.flatnonzero(inc @ mask > 0)
+    inc = sp.csr_array((np.ones(rows.size), (rows, cols)), shape=(offset, n_nodes))
+    n_ns = len(dims["num_node_sets"]) if "num_node_sets" in dims else 0
+    ns_ids = _exodus_ids(ds, "ns_prop1", n_ns, "node set")
+    ns_names = _exodus_names(ds, "ns_names", n_ns)
+    node_sets: dict[str, np.ndarray] = {}
+    for k in range(n_ns):
+        sname = _tidy(ns_names[k] or f"nodelist_{int(ns_ids[k])}")
+        if sname in node_sets:
+            raise SceneError(f"{key}: {path.name} has two node sets named {sname!r}")
+        var = ds.variables.get(f"node_ns{k + 1}")
+        ids = np.zeros(0, dtype=np.int64) if var is None else np.asarray(var[:], np.int64)
+        if ids.size and (ids.min() < 1 or ids.max() > n_nodes):
+            raise SceneError(
+                f"{key}: Exodus node set {int(ns_ids[k])} must hold node numbers in "
+                f"[1, {n_nodes}], got [{int(ids.min())}, {int(ids.max())}]"
+            )
+        mask = np.zeros(n_nodes)
+        mask[ids - 1] = 1.0
+        node_sets[sname] = np.flatnonzero(inc @ mask > 0)
     return cloud, {"blocks": blocks, "node_sets": node_sets}
 
 
@@ -719,7 +921,27 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         if k not in root:
             raise SceneError(f"missing deck key Peridigm.{k}")
     disc = _table(root["Discretization"], "Discretization")
+    if disc.get("Type") not in ("Text File", "Exodus"):  # before its keys: name the cause
+        raise SceneError(
+            "Discretization.Type must be 'Text File' or 'Exodus' (pdlin's deck reader; "
+            f"PdQuickGrid and mesh generators are not supported), got {disc.get('Type')!r}"
+        )
     _unknown(disc, _PD_DISC, "Discretization", "Peridigm discretization")
+    if "Construct Neighborhood Lists" in disc and not _flag(
+        disc["Construct Neighborhood Lists"], "Discretization.Construct Neighborhood Lists"
+    ):
+        raise SceneError(
+            "Discretization.Construct Neighborhood Lists: false (no bonds) is not supported"
+        )
+    omit = disc.get("Omit Bonds Between Blocks", "None")
+    if omit != "None":
+        raise SceneError(
+            "Discretization.Omit Bonds Between Blocks: only 'None' (every block bonded to the "
+            f"others, Peridigm's default) is supported, got {omit!r}"
+        )
+    for k, why in _PD_DISC.items():
+        if why and k in disc:
+            _note(f"Discretization.{k}", why)
     cloud, extra = _peridigm_cloud(disc, base)
     blocks_pts: dict[str, np.ndarray] = extra["blocks"]
 
@@ -735,6 +957,17 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     kinds: set[str] = set()
     hgs: set[float] = set()
     default_h = disc.get("Horizon")
+    default: tuple[float, dict[str, Any]] | None = None
+    named: set[str] = set()
+
+    def assign(idx: np.ndarray, h: float, mat: Mapping[str, Any]) -> None:
+        horizon[idx] = h
+        K[idx] = mat["K"]
+        G[idx] = np.nan if mat["G"] is None else mat["G"]
+        kinds.add(mat["kind"])
+        if mat["hourglass"] is not None:
+            hgs.add(mat["hourglass"])
+
     for bname, b in _table(root["Blocks"], "Blocks").items():
         key = f"Blocks.{bname}"
         b = _table(b, key)
@@ -752,25 +985,28 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         h = b.get("Horizon", default_h)
         if h is None:
             raise SceneError(f"missing deck key {key}.Horizon")
-        if isinstance(h, str):
+        if isinstance(h, str) and not _NUMBER_TEXT.fullmatch(h.strip()):
             raise SceneError(
                 f"{key}.Horizon: expressions for the horizon are not supported; give a number"
             )
         h = _number(h, f"{key}.Horizon", positive=True)
         mat = mats[mname]
         for bn in names.split():
+            if bn in ("Default", "default", "DEFAULT"):
+                # Peridigm's initializeBlocks: the blocks no other entry names
+                default = (h, mat)
+                continue
             if bn not in blocks_pts:
                 raise SceneError(
                     f"{key}.Block Names: {bn!r} is not in the discretization (blocks "
-                    f"{sorted(blocks_pts)})"
+                    f"{sorted(blocks_pts)}; 'default' names the blocks no other entry names)"
                 )
-            idx = blocks_pts[bn]
-            horizon[idx] = h
-            K[idx] = mat["K"]
-            G[idx] = np.nan if mat["G"] is None else mat["G"]
-        kinds.add(mat["kind"])
-        if mat["hourglass"] is not None:
-            hgs.add(mat["hourglass"])
+            named.add(bn)
+            assign(blocks_pts[bn], h, mat)
+    if default is not None:
+        for bn, idx in blocks_pts.items():
+            if bn not in named:
+                assign(idx, *default)
     missing = [bn for bn, idx in blocks_pts.items() if np.isnan(horizon[idx]).any()]
     if missing:
         raise SceneError(f"Blocks: discretization block(s) {missing} are not assigned to any block")
@@ -845,22 +1081,46 @@ def _peridigm_solver(solver: Any) -> float:
             f"Solver needs exactly one of 'QuasiStatic' or 'NOXQuasiStatic' (pdlin solves statics; "
             f"Verlet / Implicit dynamics are not supported), got {kinds or 'none'}"
         )
-    sub = _table(s[kinds[0]], f"Solver.{kinds[0]}")
-    _unknown(sub, _PD_QS, f"Solver.{kinds[0]}", "Peridigm quasi-static solver")
+    skey = f"Solver.{kinds[0]}"
+    sub = _table(s[kinds[0]], skey)
+    allowed = _PD_QS if kinds[0] == "QuasiStatic" else _PD_NOX
+    _unknown(sub, allowed, skey, f"Peridigm {kinds[0]} solver")
+    for k in s:
+        if _PD_SOLVER[k] and k != "Verbose":
+            _note(f"Solver.{k}", _PD_SOLVER[k])
     for k in sub:
-        _note(f"Solver.{kinds[0]}.{k}", _PD_QS[k])
+        _note(f"{skey}.{k}", allowed[k])
+    adaptive = sub.get("Adaptive Load-Stepping")
+    if isinstance(adaptive, Mapping) and "Switch to Verlet" in adaptive:
+        raise SceneError(
+            f"{skey}.Adaptive Load-Stepping.Switch to Verlet: explicit dynamics is not supported"
+        )
+    if "Number of Load Steps" in sub:
+        steps = sub["Number of Load Steps"]
+        if isinstance(steps, str) and re.fullmatch(r"\s*\d+\s*", steps):
+            steps = int(steps)
+        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
+            raise SceneError(f"{skey}.Number of Load Steps must be an integer >= 1, got {steps!r}")
+    t0 = _number(s.get("Initial Time", 0.0), "Solver.Initial Time")
+    # Peridigm's order: Final Time with Number of Load Steps, else the Time Steps list
+    if "Time Steps" in sub and not ("Final Time" in s and "Number of Load Steps" in sub):
+        text = sub["Time Steps"]
+        times = str(text).split()
+        if not times or not all(_NUMBER_TEXT.fullmatch(v) for v in times):
+            raise SceneError(
+                f"{skey}.Time Steps must be a list of times separated by spaces, got {text!r}"
+            )
+        t0, t1 = float(times[0]), float(times[-1])
+        if not (np.isfinite(t0) and np.isfinite(t1)) or t1 <= t0:
+            raise SceneError(
+                f"{skey}.Time Steps: the last time must exceed the first ({t0}), got {t1}"
+            )
+        return t1
     if "Final Time" not in s:
         raise SceneError("missing deck key Solver.Final Time")
-    t0 = _number(s.get("Initial Time", 0.0), "Solver.Initial Time")
     t1 = _number(s["Final Time"], "Solver.Final Time")
     if t1 <= t0:
         raise SceneError(f"Solver.Final Time must exceed Initial Time ({t0}), got {t1}")
-    if "Number of Load Steps" in sub:
-        steps = sub["Number of Load Steps"]
-        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
-            raise SceneError(
-                f"Solver.{kinds[0]}.Number of Load Steps must be an integer >= 1, got {steps!r}"
-            )
     return t1
 
 
@@ -912,7 +1172,8 @@ def _peridigm_bcs(
         c = _COORD[_tidy(coord)]
         if "Value" not in bc:
             raise SceneError(f"missing deck key {key}.Value")
-        val = deck_expression(bc["Value"], cloud.points[idx], t, f"{key}.Value")
+        # Peridigm's function parser (RTCompiler) reads ^ as the power
+        val = deck_expression(bc["Value"], cloud.points[idx], t, f"{key}.Value", caret_power=True)
         if typ == "PRESCRIBED_DISPLACEMENT":
             dirichlet.append(Dirichlet(idx, val[:, None], components=[c]))
         else:

@@ -8,6 +8,7 @@ See ``docs/scene.md`` for the full reference.
 from __future__ import annotations
 
 import sys
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from importlib import resources
@@ -16,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InsufficientMemoryError, PdlinError, SceneError
+from .._validation import as_float_array
+from ..errors import AccuracyWarning, InsufficientMemoryError, PdlinError, SceneError
 from ..geometry.bonds import SHAPES, Bonds, find_bonds
 from ..geometry.cloud import PointCloud, from_image, grid
 from ..geometry.influence import INFLUENCE_FUNCTIONS
@@ -423,7 +425,17 @@ def _number(value: Any, key: str, *, positive: bool = False) -> float:
     v = float(value)
     if positive and not (np.isfinite(v) and v > 0):
         raise SceneError(f"{key} must be > 0, got {v}")
+    if not np.isfinite(v):  # TOML has inf and nan
+        raise SceneError(f"{key} must be finite, got {v}")
     return v
+
+
+def _span(cloud: PointCloud) -> str:
+    """``'points span [0, 0] to [1, 0.5]'``: the cloud's bounding box for messages."""
+    lo, hi = cloud.bounds
+    return "points span [{}] to [{}]".format(
+        ", ".join(f"{v:g}" for v in lo), ", ".join(f"{v:g}" for v in hi)
+    )
 
 
 def _holes(cloud: PointCloud, holes: Any) -> PointCloud:
@@ -434,16 +446,23 @@ def _holes(cloud: PointCloud, holes: Any) -> PointCloud:
             f"got {holes!r}"
         )
     inside = np.zeros(cloud.n, dtype=bool)
-    for k, hole in enumerate(holes):
+    shape = {1: "interval", 2: "circle", 3: "sphere"}[cloud.dim]
+    for k, hole in enumerate(holes):  # a handful of holes, vectorized over points
         key = f"geometry.holes[{k}]"
         hole = _check_keys(hole, {"center", "radius"}, key)
         r = _number(_require(hole, "radius", key), f"{key}.radius", positive=True)
         c = _require(hole, "center", key)
         if not isinstance(c, list) or len(c) != cloud.dim:
             raise SceneError(f"{key}.center must list {cloud.dim} coordinates, got {c!r}")
-        for j, v in enumerate(c):
-            _number(v, f"{key}.center[{j}]")
-        inside |= np.linalg.norm(cloud.points - np.asarray(c, dtype=float), axis=1) < r
+        centre = [_number(v, f"{key}.center[{j}]") for j, v in enumerate(c)]
+        mine = np.linalg.norm(cloud.points - np.asarray(centre), axis=1) < r
+        if not mine.any():
+            raise SceneError(
+                f"{key} ({shape} at ({', '.join(f'{v:g}' for v in centre)}), radius {r:g}) "
+                f"removes no points of the grid ({_span(cloud)}); move it into the body or "
+                "drop it"
+            )
+        inside |= mine
     if inside.all():
         raise SceneError("geometry.holes remove every point of the grid")
     return cloud.subset(np.flatnonzero(~inside))
@@ -508,10 +527,10 @@ def _where(cfg: Mapping[str, Any], cloud: PointCloud, key: str) -> Any:
         box = cfg["box"]
         try:
             idx = cloud.select(box=(box[0], box[1]))
-        except (PdlinError, TypeError, IndexError) as exc:
+        except (PdlinError, TypeError, IndexError, KeyError) as exc:
             raise SceneError(f"{key}.box must be [[lower...], [upper...]]: {exc}") from exc
         if idx.size == 0:
-            raise SceneError(f"{key}.box selects no points")
+            raise SceneError(f"{key}.box selects no points: {box!r}, {_span(cloud)}")
         return idx
     pts = cfg["points"]
     if (
@@ -614,6 +633,11 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         }
         if "ratio" in hcfg:
             bond_options["ratio"] = float(hcfg["ratio"])
+        if "cracks" in hcfg:  # finite numbers now; a crack cutting no bond raises in find_bonds
+            try:
+                as_float_array(hcfg["cracks"], "horizon.cracks")
+            except PdlinError as exc:
+                raise SceneError(str(exc)) from exc
         horizon = hcfg.get("value")
         bonds = None
         calibration = None
@@ -742,9 +766,15 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
             **extra,
         )
         # resolve the conditions and loads on the cloud now (cheap, no bonds): shapes,
-        # conflicts and empty selections are reported before any assembly
-        resolve_dirichlet(cloud, dirichlet)
-        load_vector(cloud, loads)
+        # conflicts, empty selections and loads on prescribed points only are reported
+        # before any assembly (the symmetry planes' conditions are checked at solve time)
+        dofs, _ = resolve_dirichlet(cloud, dirichlet)
+        load_names = ["shadow stress load"] * len(shadow_loads) + [
+            f"load[{k}]" for k in range(len(loads) - len(shadow_loads))
+        ]
+        with warnings.catch_warnings():  # partial losses warn once, when the scene is solved
+            warnings.simplefilter("ignore", AccuracyWarning)
+            load_vector(cloud, loads, prescribed=dofs, names=load_names)
         scfg = _check_keys(top.get("solver", {}), _SOLVER, "solver")
         ocfg = _check_keys(top.get("output", {}), _OUTPUT, "output")
     except (SceneError, InsufficientMemoryError):  # a valid scene too large for memory

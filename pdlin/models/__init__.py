@@ -1,5 +1,8 @@
 """Material models: each linearizes into sparse operators and provides f(u)."""
 
+from typing import TYPE_CHECKING, Any
+
+from .._lazy import lazy_attribute
 from .base import Model
 from .bond_based import BondBased, implied_poisson_ratio, standard_micromodulus
 from .correspondence import Correspondence, gradient_operator, shadow_problem
@@ -13,22 +16,53 @@ from .damage import (
 )
 from .lps import LPS
 from .surface import SURFACE_CORRECTIONS, SurfaceFactors
-from .weights import (
-    HigherOrderWeights,
-    MomentWeights,
-    WeightStatus,
-    as_influence,
-    gradient_exactness_order,
-    gradient_symbol,
-    higher_order_weights,
-    lattice_moment,
-    lattice_shells,
-    moment_weights,
-    nocontrol_weights,
-    symbol_extremes,
-    weights_table,
-)
 from .xosb import XOSB
+
+if TYPE_CHECKING:
+    from .weights import (
+        HigherOrderWeights,
+        MomentWeights,
+        WeightStatus,
+        as_influence,
+        gradient_exactness_order,
+        gradient_symbol,
+        higher_order_weights,
+        lattice_moment,
+        lattice_shells,
+        moment_weights,
+        nocontrol_weights,
+        symbol_extremes,
+        weights_table,
+    )
+
+#: names of :mod:`pdlin.models.weights`, imported on first access (it imports sympy, ~0.2 s)
+_LAZY = dict.fromkeys(
+    (
+        "HigherOrderWeights",
+        "MomentWeights",
+        "WeightStatus",
+        "as_influence",
+        "gradient_exactness_order",
+        "gradient_symbol",
+        "higher_order_weights",
+        "lattice_moment",
+        "lattice_shells",
+        "moment_weights",
+        "nocontrol_weights",
+        "symbol_extremes",
+        "weights_table",
+    ),
+    ".weights",
+)
+
+
+def __getattr__(name: str) -> Any:
+    return lazy_attribute(__name__, _LAZY, globals(), name)
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_LAZY})
+
 
 __all__ = [
     "Model",

@@ -30,9 +30,9 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from scipy import integrate
 
 from .._kernels import bsr_matmul, csr_to_bsr_rows, csr_to_bsr_t, use_numba
+from .._lazy import quad
 from .._threads import even_chunks, ptr_chunks, thread_map
 from .._validation import as_displacement, as_float_array
 from ..constitutive.symmetry import isotropic_constants
@@ -510,12 +510,12 @@ def _force_angular(rho: float, d: int) -> float:
             c = np.cos(a)
             return abs(rho + 4.0 * (c * c - 0.5)) * abs(c)
 
-        return float(4.0 * integrate.quad(f2, 0.0, 0.5 * np.pi, limit=200)[0])
+        return float(4.0 * quad(f2, 0.0, 0.5 * np.pi, limit=200)[0])
 
     def f3(c: float) -> float:  # c = cos φ, dΩ = 2π dc
         return abs(rho + 5.0 * (c * c - 1.0 / 3.0)) * c
 
-    return float(4.0 * np.pi * integrate.quad(f3, 0.0, 1.0, limit=200)[0])
+    return float(4.0 * np.pi * quad(f3, 0.0, 1.0, limit=200)[0])
 
 
 def _segment_max(x: np.ndarray, indptr: np.ndarray) -> np.ndarray:

@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
-from scipy import integrate
 
+from .._lazy import quad
 from .._validation import as_displacement, as_float_array
 from ..constitutive.symmetry import isotropic_constants
 from ..errors import InputError, ModelError, ShapeError
@@ -81,7 +81,7 @@ def _moment(influence: Any, horizon: float, dim: int) -> float:
 
     if influence == "constant":
         return horizon ** (p + 1) / (p + 1)
-    val, _ = integrate.quad(integrand, 0.0, horizon, limit=200)
+    val, _ = quad(integrand, 0.0, horizon, limit=200)
     return float(val)
 
 

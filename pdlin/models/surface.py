@@ -32,8 +32,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import integrate
 
+from .._lazy import quad
 from ..errors import InputError, ModelError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
@@ -134,7 +134,7 @@ def radial_moment(influence: Any, horizon: Any, p: float) -> np.ndarray:
         def integrand(r: float) -> float:
             return float(fn(np.array([r]), np.array([h]))[0]) * r**p
 
-        return float(integrate.quad(integrand, 0.0, h, limit=200)[0])
+        return float(quad(integrand, 0.0, h, limit=200)[0])
 
     vals = np.array([one(float(h)) for h in uniq])
     return vals[inv].reshape(hor.shape)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -12,7 +13,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .._validation import as_float_array, integer
-from ..errors import FloatingBodyError, InputError, ShapeError
+from ..errors import AccuracyWarning, FloatingBodyError, InputError, ShapeError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
 from .rigid import rigid_body_modes, rigid_mode_names
@@ -443,22 +444,82 @@ def resolve_dirichlet(
     return dofs, vals
 
 
-def load_vector(cloud: PointCloud, loads: Sequence[Any]) -> np.ndarray:
-    """Nodal external force vector ``(n*dim,)`` from body forces and total forces."""
+def _describe_where(where: Any, idx: np.ndarray) -> str:
+    """Short text of a point selection for messages: ``set 'x+'`` or ``12 point(s)``."""
+    if isinstance(where, str):
+        return f"set {where!r}"
+    if where is None:
+        return "all points"
+    return f"{idx.size} point(s)"
+
+
+def load_vector(
+    cloud: PointCloud,
+    loads: Sequence[Any],
+    *,
+    prescribed: np.ndarray | None = None,
+    names: Sequence[str] | None = None,
+) -> np.ndarray:
+    """Nodal external force vector ``(n*dim,)`` from body forces and total forces.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+    loads : sequence of BodyForce / TotalForce
+    prescribed : (m,) array_like of int, optional
+        Prescribed DOFs (Dirichlet conditions, symmetry planes; :func:`resolve_dirichlet`).
+        A load acting there goes straight into the reactions, so with them given a load
+        whose every nonzero nodal component sits on a prescribed DOF raises, and a
+        :class:`TotalForce` of which only part does warns (:class:`~pdlin.errors.AccuracyWarning`)
+        with the fraction lost.  A :class:`BodyForce` may overlap the supports: the
+        weight of the prescribed points is carried by the support, as it physically is.
+    names : sequence of str, optional
+        Labels of the loads in messages (default ``loads[k]``).
+
+    Raises
+    ------
+    InputError
+        A load selects no points, has a bad value or weights, or (with ``prescribed``)
+        acts on prescribed DOFs only.
+
+    Examples
+    --------
+    >>> import pdlin
+    >>> cloud = pdlin.grid((3,))
+    >>> load_vector(cloud, [TotalForce("x+", [2.0])]).tolist()
+    [0.0, 0.0, 2.0]
+    >>> load_vector(cloud, [TotalForce("x+", [2.0])], prescribed=[2])  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    pdlin.errors.InputError: loads[0] (TotalForce on set 'x+') acts only on prescribed DOFs: ...
+    """
     d = cloud.dim
     f = np.zeros((cloud.n, d))
     measure = 1.0 if d == 3 else cloud.thickness
+    fixed: np.ndarray | None = None
+    if prescribed is not None:
+        flat = np.zeros(cloud.n * d, dtype=bool)
+        flat[np.asarray(prescribed, dtype=np.intp)] = True
+        fixed = flat.reshape(cloud.n, d)
+    labels = [f"loads[{k}]" for k in range(len(loads))] if names is None else list(names)
+    if len(labels) != len(loads):
+        raise ShapeError(f"names must hold one label per load ({len(loads)}), got {len(labels)}")
     for k, ld in enumerate(loads):
+        name = labels[k]
         if isinstance(ld, BodyForce):
-            idx = _resolve_where(cloud, ld.where, f"loads[{k}]")
-            b = _evaluate(ld.density, cloud.points[idx], d, f"loads[{k}].density")
-            np.add.at(f, idx, b * (cloud.volumes[idx] * measure)[:, None])
+            idx = _resolve_where(cloud, ld.where, name)
+            b = _evaluate(ld.density, cloud.points[idx], d, f"{name}.density")
+            part = b * (cloud.volumes[idx] * measure)[:, None]
         elif isinstance(ld, TotalForce):
-            idx = _resolve_where(cloud, ld.where, f"loads[{k}]")
-            total = as_float_array(ld.force, f"loads[{k}].force")
+            idx = _resolve_where(cloud, ld.where, name)
+            total = as_float_array(ld.force, f"{name}.force")
             if total.shape != (d,):
-                raise ShapeError(f"loads[{k}].force must have shape ({d},), got {total.shape}")
-            w = cloud.volumes[idx] if ld.weights is None else as_float_array(ld.weights, "weights")
+                raise ShapeError(f"{name}.force must have shape ({d},), got {total.shape}")
+            w = (
+                cloud.volumes[idx]
+                if ld.weights is None
+                else as_float_array(ld.weights, f"{name}.weights")
+            )
             if w.shape != idx.shape or np.any(w < 0) or w.sum() <= 0:
                 got = (
                     f"shape {w.shape}"
@@ -466,13 +527,49 @@ def load_vector(cloud: PointCloud, loads: Sequence[Any]) -> np.ndarray:
                     else f"min {float(w.min())}, sum {float(w.sum())}"
                 )
                 raise InputError(
-                    f"loads[{k}].weights must be {idx.size} non-negative numbers with a "
+                    f"{name}.weights must be {idx.size} non-negative numbers with a "
                     f"positive sum, got {got}"
                 )
-            np.add.at(f, idx, np.outer(w / w.sum(), total))
+            part = np.outer(w / w.sum(), total)
         else:
-            raise InputError(f"loads[{k}] must be BodyForce or TotalForce, got {type(ld).__name__}")
+            raise InputError(f"{name} must be BodyForce or TotalForce, got {type(ld).__name__}")
+        if fixed is not None:
+            _check_load_support(ld, part, fixed[idx], f"{name} ({type(ld).__name__} on "
+                                f"{_describe_where(ld.where, idx)})")  # fmt: skip
+        np.add.at(f, idx, part)
     return f.ravel()
+
+
+def _check_load_support(ld: Any, part: np.ndarray, fixed: np.ndarray, label: str) -> None:
+    """Refuse a load that acts on prescribed DOFs only; warn when a total force partly does.
+
+    ``part`` is the load's ``(m, dim)`` nodal force on its points and ``fixed`` their
+    prescribed components.
+    """
+    nonzero = part != 0.0
+    n_nz = int(nonzero.sum())
+    if n_nz == 0:  # a zero load loads nothing anywhere; not a support question
+        return
+    lost = nonzero & fixed
+    n_lost = int(lost.sum())
+    if n_lost == n_nz:
+        raise InputError(
+            f"{label} acts only on prescribed DOFs: all {n_nz} of its nonzero nodal "
+            "components sit on displacement components fixed by Dirichlet conditions or "
+            "symmetry planes, so it would go straight into the reactions and never load the "
+            "body; apply it to free points or components, or drop the conflicting condition"
+        )
+    if n_lost and isinstance(ld, TotalForce):
+        mag = np.abs(part)
+        frac = float(mag[lost].sum() / mag.sum())
+        warnings.warn(
+            f"{label}: {100.0 * frac:.3g} % of it ({n_lost} of {n_nz} nonzero nodal "
+            "components, by magnitude) acts on prescribed DOFs and goes straight into the "
+            f"reactions; the body carries only {100.0 * (1.0 - frac):.3g} % of the force. "
+            "Apply the force to free points, or keep the prescribed points out of its set.",
+            AccuracyWarning,
+            stacklevel=4,
+        )
 
 
 def check_constraints(

@@ -43,7 +43,7 @@ from ..errors import (
     ShapeError,
 )
 from ..fields import deformation_gradient
-from ..geometry.bonds import Bonds, find_bonds, resolve_horizon
+from ..geometry.bonds import Bonds, _MirroredCracks, find_bonds, resolve_horizon
 from ..geometry.cloud import PointCloud
 from .assembly import assemble_stiffness
 from .bc import BodyForce, Dirichlet, TotalForce, check_constraints, load_vector
@@ -566,13 +566,21 @@ class SymmetryReduction:
         f = self.model.internal_force(m.cloud, self.bonds, self.expand(u), linear=linear)
         return np.asarray(f)[: m.n_real] * m.weight[:, None]
 
-    def load_vector(self, loads: Sequence[BodyForce | TotalForce]) -> np.ndarray:
-        """Reduced external force ``(n_real*dim,)``: points on a plane carry their share only."""
+    def load_vector(
+        self,
+        loads: Sequence[BodyForce | TotalForce],
+        *,
+        prescribed: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Reduced external force ``(n_real*dim,)``: points on a plane carry their share only.
+
+        ``prescribed`` DOFs (with the planes' own): see :func:`pdlin.operators.load_vector`.
+        """
         m = self.mirror
         cloud = m.real
         if np.any(m.weight != 1.0):
             cloud = cloud.replace(volumes=cloud.volumes * m.weight)
-        return load_vector(cloud, loads)
+        return load_vector(cloud, loads, prescribed=prescribed)
 
     def dirichlet(self) -> list[Dirichlet]:
         """Zero normal displacement of the points lying on each plane."""
@@ -756,7 +764,10 @@ def symmetry_reduction(
         bond_reach = max(bond_reach, float(np.max(as_float_array(opts["axes"], "axes"))))
     mirror = mirror_cloud(cloud, planes, int(cr) * bond_reach)
     if opts.get("cracks") is not None:
-        opts["cracks"] = mirror.mirror_cracks(opts["cracks"])
+        # the images count with their crack when find_bonds checks that each cuts a bond
+        opts["cracks"] = _MirroredCracks(
+            mirror.mirror_cracks(opts["cracks"]), 2 ** len(mirror.planes)
+        )
     bonds = find_bonds(mirror.cloud, hor[mirror.source], allow_isolated=True, method="tree", **opts)
     if not allow_isolated:
         fs = np.diff(bonds.indptr[: cloud.n + 1])

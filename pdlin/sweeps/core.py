@@ -155,6 +155,10 @@ def point_key(params: Mapping[str, Any]) -> str:
 def _expand(grid: Mapping[str, Sequence[Any]]) -> list[dict[str, Any]]:
     if not isinstance(grid, Mapping):
         raise InputTypeError(f"grid must be a mapping name -> list, got {type(grid).__name__}")
+    if not grid:
+        raise InputError(
+            "grid must name at least one parameter to sweep ({name: [values, ...]}), got {}"
+        )
     lists = {}
     for k, v in grid.items():
         vals = [v] if isinstance(v, (str, bytes)) or not isinstance(v, Iterable) else list(v)
@@ -832,6 +836,29 @@ def _finest_index(points: list[dict[str, Any]], finest: Mapping[str, Any] | None
     return min(range(len(points)), key=lambda k: score(points[k]))
 
 
+def _check_some_succeeded(
+    table: list[dict[str, Any]], first: tuple[str, BaseException] | None
+) -> None:
+    """Raise when no point of the sweep gave a measured result (all failed or timed out).
+
+    Failed points are rows of the table only while others succeed; a sweep of failures
+    raises :class:`~pdlin.errors.InputError` with the first failure's message, chained to
+    its exception (points resumed from ``output`` give their recorded message).
+    """
+    if any(r.get("status") in ("ok", "reference") for r in table):
+        return
+    if first is not None:
+        key, exc = first
+        msg = str(exc) if isinstance(exc, _PointFailed) else f"{type(exc).__name__}: {exc}"
+    else:
+        row = table[0]
+        key, msg = str(row["key"]), f"{row.get('status')}: {row.get('message')}"
+    raise InputError(
+        f"every point of the sweep failed ({len(table)} of {len(table)}, none measured); "
+        f"first failure, point {key}: {msg}"
+    ) from (first[1] if first is not None else None)
+
+
 def tradeoff(
     factory: Callable[..., Any],
     grid: Mapping[str, Sequence[Any]],
@@ -895,6 +922,16 @@ def tradeoff(
     Returns
     -------
     TradeoffResult
+        A failed or timed-out point is a row (``status`` 'failed' / 'timeout' /
+        'no-reference' with its ``message``) while other points succeed.
+
+    Raises
+    ------
+    InputTypeError
+        When ``factory`` is not callable or ``grid`` is not a mapping.
+    InputError
+        When ``grid`` is empty or lists no value for a key, or every point of the sweep
+        failed (the first failure's message, chained to its exception).
 
     Examples
     --------
@@ -906,6 +943,11 @@ def tradeoff(
     >>> round(res.rates("h")[0]["rate"], 1)   # spec 000 §10.A: error ∝ h^(1/2)
     0.5
     """
+    if not callable(factory):
+        raise InputTypeError(
+            "factory must be callable, factory(**params) -> TradeoffCase / StaticProblem, "
+            f"got {type(factory).__name__} {factory!r}"
+        )
     points = _expand(grid)
     params = list(grid)
     bad = [p for p in params if (p in METRIC_COLUMNS and p not in ("h", "delta")) or p == "key"]
@@ -955,6 +997,7 @@ def tradeoff(
         return None
 
     rows: list[dict[str, Any]] = [r for r in done.values()]
+    first_failure: tuple[str, BaseException] | None = None
     total = len(points)
     n_done = sum(1 for p in points if point_key(p) in done)
     for k in order:
@@ -971,10 +1014,12 @@ def tradeoff(
         except TimeoutError as exc:
             row.update(status="timeout", message=str(exc))
             meas = None
+            first_failure = first_failure or (key, exc)
         except Exception as exc:  # noqa: BLE001 - a failing point is a row, not a crash
             log.warning("point %s failed: %s", key, exc)
             row.update(status="failed", message=str(exc)[:300])
             meas = None
+            first_failure = first_failure or (key, exc)
         if meas is not None:
             row.update({c: v for c, v in meas["row"].items() if c not in p})
             row["status"] = "ok"
@@ -1034,6 +1079,7 @@ def tradeoff(
                     row["error"] = float(err_fn(u[sel], uref))
             except Exception as exc:  # noqa: BLE001 - recorded on the row
                 row.update(status="no-reference", message=str(exc)[:300])
+                first_failure = first_failure or (key, exc)
         if writer is not None:
             writer.append(row)
         rows.append(row)
@@ -1042,6 +1088,7 @@ def tradeoff(
             progress(n_done, total, row)
     by_key = {str(r["key"]): r for r in rows}
     table = [by_key[point_key(p)] for p in points if point_key(p) in by_key]
+    _check_some_succeeded(table, first_failure)
     refs = sorted({str(r.get("reference")) for r in table if r.get("reference")})
     result = TradeoffResult(table, params, reference=", ".join(refs) or ref_mode)
     if target_error is not None:

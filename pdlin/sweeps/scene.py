@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import SceneError
+from ..errors import PdlinError, SceneError
 from ..io._keys import check_keys, read_toml
 from .core import SOLVE_KEYS, TradeoffCase, TradeoffResult, tradeoff
 
@@ -122,10 +122,12 @@ class SceneSweep:
         measure = None
         if self.measure_box is not None:
             lo, hi = self.measure_box
-            p = cloud.points
-            measure = np.flatnonzero(np.all((p >= lo) & (p <= hi), axis=1))
+            try:  # NaN corners and inverted boxes raise (-inf / inf are open sides)
+                measure = cloud.select(box=(lo, hi))
+            except PdlinError as exc:
+                raise SceneError(f"tradeoff.measure: {exc}") from exc
             if measure.size == 0:
-                raise SceneError("tradeoff.measure selects no points")
+                raise SceneError(f"tradeoff.measure selects no points: {self.measure_box.tolist()}")
         h = None
         if cloud.lattice is not None:
             h = float(np.max(cloud.lattice.spacing))
@@ -288,7 +290,15 @@ def tradeoff_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = No
         pl = Path(t["plot"])
         sw.plot = pl if pl.is_absolute() else base / pl
     if "measure" in t:
-        box = np.asarray(t["measure"], dtype=float)
+        try:
+            box = np.asarray(t["measure"], dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise SceneError(f"tradeoff.measure must be [[lower...], [upper...]]: {exc}") from exc
+        if np.isnan(box).any():
+            raise SceneError(
+                "tradeoff.measure must hold numbers (-inf / inf for open sides), got "
+                f"{t['measure']}"
+            )
         if box.ndim != 2 or box.shape[0] != 2:
             raise SceneError(
                 f"tradeoff.measure must be [[lower...], [upper...]], got {t['measure']}"

@@ -71,9 +71,10 @@ CASES = [
     ),
     (
         "modulus-string",
-        _deck(Materials__M={**BB, "Bulk Modulus": "1e9"}),
+        # a string that is not a number ("1e9" itself is one, as Teuchos reads it)
+        _deck(Materials__M={**BB, "Bulk Modulus": "1e9 Pa"}),
         POINTS,
-        r"Materials.M.Bulk Modulus must be a number, got '1e9'",
+        r"Materials.M.Bulk Modulus must be a number, got '1e9 Pa'",
     ),
     ("node-ids-float", _nodes("1.5 2"), POINTS, r"Node Set A: file not found"),
     ("node-ids-negative", _nodes("-1 2"), POINTS, r"node ids are 1-based"),
@@ -116,12 +117,13 @@ def test_xml_external_entity_is_not_resolved(tmp_path):
 
 def test_xml_bool_and_root(tmp_path):
     (tmp_path / "d.xml").write_text(
-        '<ParameterList><Parameter name="Verbose" type="bool" value="yes"/></ParameterList>'
+        # Teuchos reads true / yes / 1 and false / no / 0 (any case); nothing else
+        '<ParameterList><Parameter name="Verbose" type="bool" value="maybe"/></ParameterList>'
     )
     expect(
         lambda: pdlin.read_deck(tmp_path / "d.xml"),
         SceneError,
-        r"Peridigm.Verbose: 'yes' is not a valid bool",
+        r"Peridigm.Verbose: 'maybe' is not a valid bool",
     )
     (tmp_path / "d.xml").write_text("<Deck/>")
     expect(lambda: pdlin.read_deck(tmp_path / "d.xml"), SceneError, r"root element must be")

@@ -431,3 +431,126 @@ CASES = [
 )
 def test_geometry_rejects(call, exc, pattern):
     expect(call, exc, pattern)
+
+
+# --- geometric selectors: non-finite numbers and empty selections (issue 31, item 3) -------
+
+C3 = pdlin.grid((4, 4, 4), 0.1)
+
+SELECTOR_CASES = [
+    (
+        "select-box-nan",
+        lambda: C2.select(box=([NAN, 0.0], [1.0, 1.0])),
+        NonFiniteError,
+        r"box lower corner must hold numbers \(-inf / inf for open sides\), got nan at index 0",
+    ),
+    (
+        "select-box-upper-nan",
+        lambda: C2.select(box=([0.0, 0.0], [1.0, NAN])),
+        NonFiniteError,
+        r"box upper corner must hold numbers .* got nan at index 1",
+    ),
+    (
+        "select-box-inverted",
+        lambda: C2.select(box=([0.3, 0.0], [0.1, 1.0])),
+        InputError,
+        r"box lower corner must not exceed the upper one, got lower \[0.3, 0.0\] and upper "
+        r"\[0.1, 1.0\] \(axis 0\)",
+    ),
+    (
+        "crack-nan",
+        lambda: pdlin.find_bonds(C2, 0.15, cracks=[[[NAN, 0.0], [0.2, 0.5]]]),
+        NonFiniteError,
+        r"cracks must be finite, got nan at index \(0, 0, 0\)",
+    ),
+    (
+        "crack-inf",
+        lambda: pdlin.find_bonds(C2, 0.15, cracks=[[[0.2, 0.0], [0.2, INF]]]),
+        NonFiniteError,
+        r"cracks must be finite, got inf at index \(0, 1, 1\)",
+    ),
+    (
+        # C2 spans [0.05, 0.45]^2: a crack at x = 5 cuts nothing
+        "crack-outside",
+        lambda: pdlin.find_bonds(C2, 0.15, cracks=[[[5.0, 5.0], [6.0, 6.0]]]),
+        InputError,
+        r"cracks\[0\] \(segment \(5, 5\) - \(6, 6\)\) cuts no bond \(1 of 1 crack piece\(s\) "
+        r"cut none; points span",
+    ),
+    (
+        # the first crack (x = 0.2, between the columns at 0.15 and 0.25) cuts; the second not
+        "crack-second-idle",
+        lambda: pdlin.find_bonds(
+            C2, 0.15, cracks=[[[0.2, 0.0], [0.2, 0.5]], [[0.2, 2.0], [0.3, 3.0]]]
+        ),
+        InputError,
+        r"cracks\[1\] \(segment \(0.2, 2\) - \(0.3, 3\)\) cuts no bond",
+    ),
+    (
+        "crack-triangle-outside",
+        lambda: pdlin.find_bonds(C3, 0.15, cracks=[[[2, 2, 2], [3, 2, 2], [2, 3, 2]]]),
+        InputError,
+        r"cracks\[0\] \(triangle \(2, 2, 2\) - \(3, 2, 2\) - \(2, 3, 2\)\) cuts no bond",
+    ),
+    (
+        "crack-outside-with-symmetry",
+        lambda: pdlin.solve(
+            pdlin.StaticProblem(
+                pdlin.BondBased(E=1.0),
+                pdlin.grid((6, 6), 0.1),
+                horizon=0.301,
+                dirichlet=[pdlin.Dirichlet("x+", 0.0)],
+                loads=[pdlin.TotalForce("y+", [0.0, 1e-3])],
+                symmetry=[pdlin.SymmetryPlane("x", 0.0)],
+                bond_options={"cracks": [[[5.0, 5.0], [6.0, 6.0]]]},
+            )
+        ),
+        InputError,
+        r"cracks\[0\] \(segment \(5, 5\) - \(6, 6\)\) cuts no bond",
+    ),
+    (
+        "symmetry-position-nan",
+        lambda: pdlin.SymmetryPlane("x", NAN),
+        NonFiniteError,
+        r"position must be finite, got nan",
+    ),
+    (
+        "subregion-box-nan",
+        lambda: pdlin.subregion(
+            pdlin.StaticProblem(
+                pdlin.BondBased(E=1.0), C2, horizon=0.15, dirichlet=[pdlin.Dirichlet("x-")]
+            ),
+            [[0.1, NAN], [0.3, 0.3]],
+            lambda X: 0.0 * X,
+        ),
+        NonFiniteError,
+        r"box must be finite, got nan at index \(0, 1\)",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    ("call", "exc", "pattern"),
+    [c[1:] for c in SELECTOR_CASES],
+    ids=[c[0] for c in SELECTOR_CASES],
+)
+def test_selectors_reject(call, exc, pattern):
+    expect(call, exc, pattern)
+
+
+def test_select_box_open_sides_still_work():
+    # -inf / inf are open sides: the right column of the 5 x 5 grid (x = 0.45)
+    idx = C2.select(box=([0.4, -INF], [INF, INF]))
+    assert idx.tolist() == [20, 21, 22, 23, 24]  # C order: point (4, j) is 5 * 4 + j
+
+
+def test_crack_with_symmetry_counts_its_images():
+    # plane x = 0, ghosts reach x = -0.301: the crack at x = 0.45 cuts real bonds, its
+    # image at x = -0.45 lies beyond the ghosts and cuts nothing; the crack is accepted
+    from pdlin.operators.symmetry import symmetry_reduction
+
+    cloud, plane = pdlin.grid((6, 6), 0.1), [pdlin.SymmetryPlane("x", 0.0)]
+    model = pdlin.BondBased(E=1.0)
+    cut = symmetry_reduction(model, cloud, plane, 0.301, {"cracks": [[[0.45, 0.0], [0.45, 0.3]]]})
+    whole = symmetry_reduction(model, cloud, plane, 0.301)
+    assert cut.bonds.n_bonds < whole.bonds.n_bonds

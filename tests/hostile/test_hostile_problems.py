@@ -413,3 +413,126 @@ def test_solve_result_is_finite():
     """No NaN escapes: a valid solve returns finite displacements and reactions."""
     res = pdlin.solve(problem())
     assert np.all(np.isfinite(res.u)) and np.all(np.isfinite(res.reactions))
+
+
+# --- loads that vanish into the supports (issue 31, item 2) -------------------------------
+
+#: the clamped corner of the 6 x 6 hostile problem: the point on both 'x-' and 'y-'
+_CORNER = [0]
+
+
+def _strict_solve(prob, **kw):
+    """Solve with every AccuracyWarning an error (none may be issued)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", pdlin.errors.AccuracyWarning)
+        return pdlin.solve(prob, **kw)
+
+
+SUPPORT_CASES = [
+    (
+        "total-on-clamped-set",
+        lambda: _solve(loads=[TF("x-", [1e-3, 0.0])]),
+        r"loads\[0\] \(TotalForce on set 'x-'\) acts only on prescribed DOFs: all 6 of its",
+    ),
+    (
+        "total-on-clamped-corner",
+        lambda: _solve(loads=[TF("x+", [1e-3, 0.0]), TF(_CORNER, [0.0, 1e-3])]),
+        r"loads\[1\] \(TotalForce on 1 point\(s\)\) acts only on prescribed DOFs",
+    ),
+    (
+        "body-on-clamped-set",
+        lambda: _solve(loads=[BF("x-", [0.0, -9.8])]),
+        r"loads\[0\] \(BodyForce on set 'x-'\) acts only on prescribed DOFs",
+    ),
+    (
+        # only x is prescribed on x-: the x-force sits on prescribed components alone
+        "total-on-roller-component",
+        lambda: _solve(
+            dirichlet=[D("x-", 0.0, components="x"), D(_CORNER, 0.0)],
+            loads=[TF("x+", [1e-3, 0.0]), TF("x-", [1e-3, 0.0])],
+        ),
+        r"loads\[1\] \(TotalForce on set 'x-'\) acts only on prescribed DOFs",
+    ),
+    (
+        # points at y = 0.05 lie on the plane y = 0.05: their y displacement is prescribed
+        "total-on-symmetry-plane",
+        lambda: _solve(symmetry=[pdlin.SymmetryPlane("y", 0.05)], loads=[TF("y-", [0.0, 1e-3])]),
+        r"loads\[0\] \(TotalForce on set 'y-'\) acts only on prescribed DOFs",
+    ),
+    (
+        "solve-nonlinear-velocity-gradient",
+        lambda: pdlin.solve_nonlinear(
+            problem(
+                dirichlet=[
+                    D("x-", 0.0),
+                    D.velocity_gradient("x+", [[1e-3, 0.0], [0.0, 0.0]]),
+                ],
+                loads=[TF("x+", [0.0, 1e-3])],
+            ),
+            steps=1,
+        ),
+        r"loads\[0\] \(TotalForce on set 'x\+'\) acts only on prescribed DOFs",
+    ),
+    (
+        "solve-damage",
+        lambda: pdlin.solve_damage(problem(loads=[TF("x-", [1e-3, 0.0])]), 0.01, steps=1),
+        r"loads\[0\] \(TotalForce on set 'x-'\) acts only on prescribed DOFs",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    ("call", "pattern"), [c[1:] for c in SUPPORT_CASES], ids=[c[0] for c in SUPPORT_CASES]
+)
+def test_load_on_prescribed_dofs_only_is_refused(call, pattern):
+    expect(call, InputError, pattern)
+
+
+def test_load_on_prescribed_dofs_refused_by_petsc_backend():
+    pytest.importorskip("petsc4py")
+    prob = problem(loads=[TF("x-", [1e-3, 0.0])])
+    expect(
+        lambda: pdlin.solve(prob, backend="petsc"),
+        InputError,
+        r"loads\[0\] \(TotalForce on set 'x-'\) acts only on prescribed DOFs",
+    )
+
+
+def test_total_force_partly_on_support_warns_with_fraction():
+    # y+ of the 6 x 6 grid holds 6 equal-volume points; the one at x- is clamped, so 1/6 of
+    # the force (16.7 %) goes into the support and 5/6 (83.3 %) loads the body
+    prob = problem(loads=[TF("y+", [0.0, 1e-3])])
+    with pytest.warns(pdlin.errors.AccuracyWarning, match=r"loads\[0\] \(TotalForce on set "
+                      r"'y\+'\): 16.7 % of it .* the body carries only 83.3 %"):  # fmt: skip
+        res = pdlin.solve(prob)
+    # the lost part is in the reactions: they still balance the whole force
+    np.testing.assert_allclose(res.reactions.sum(axis=0), [0.0, -1e-3], atol=1e-15)
+
+
+def test_load_off_the_prescribed_components_is_silent():
+    # x prescribed on x- and y at point 32 (on x+), the y force on x- and the x force on x+
+    # act on free components: nothing is lost
+    res = _strict_solve(
+        problem(
+            dirichlet=[D("x-", 0.0, components="x"), D([32], 0.0, components="y")],
+            loads=[TF("x-", [0.0, 1e-3]), TF("x+", [1e-3, 0.0])],
+        )
+    )
+    assert np.abs(res.u).max() > 0
+
+
+def test_body_force_over_a_clamped_body_is_accepted_silently():
+    # gravity on the whole body: the clamped layer's weight is carried by the support, as
+    # it physically is; the reactions balance the whole weight
+    prob = problem(loads=[BF("all", [0.0, -9.8])])
+    res = _strict_solve(prob)
+    weight = 9.8 * prob.cloud.volumes.sum()  # density 9.8 over the 0.6 x 0.6 plate
+    np.testing.assert_allclose(res.reactions.sum(axis=0), [0.0, weight], rtol=1e-12, atol=1e-14)
+
+
+def test_zero_load_on_support_is_not_refused():
+    # a zero force loads nothing anywhere: it is not a load lost into the support
+    res = _strict_solve(problem(loads=[TF("x+", [1e-3, 0.0]), TF("x-", [0.0, 0.0])]))
+    assert np.all(np.isfinite(res.u))

@@ -168,7 +168,7 @@ SCENE_CASES = [
     ("load.0.force", DEL, r"missing scene key load\[0\].force"),
     ("load.0.force", [NAN, 0], r"load\[0\].force: force must be finite, got nan at index 0"),
     ("load.0.force", "big", r"load\[0\].force: force must be numeric, got str"),
-    ("load.0.force", [1, 2, 3], r"loads\[0\].force must have shape \(2,\), got \(3,\)"),
+    ("load.0.force", [1, 2, 3], r"load\[0\].force must have shape \(2,\), got \(3,\)"),
     ("load.0.set", "right", r"load\[0\].set: unknown point set 'right'"),
     (
         "load",
@@ -256,6 +256,56 @@ SCENE_CASES = [
     ),
     ("shadow", {"F": [[1, 0], [0, 1]], "depth": -1.0}, r"depth must be > 0, got -1.0"),
     ("shadow", {"depth": 0.2}, r"missing scene key shadow.F"),
+    # geometric selectors (issue 31): non-finite numbers named, empty selections refused;
+    # the 8 x 4 grid of spacing 0.1 spans [0.05, 0.75] x [0.05, 0.35]
+    (
+        "geometry.holes",
+        [{"center": [5.0, 0.5], "radius": 0.1}],
+        r"geometry.holes\[0\] \(circle at \(5, 0.5\), radius 0.1\) removes no points of the "
+        r"grid \(points span \[0.05, 0.05\] to \[0.75, 0.35\]\)",
+    ),
+    (
+        "geometry.holes",
+        [{"center": [0.4, 0.2], "radius": 0.1}, {"center": [0.4, 2.0], "radius": 0.1}],
+        r"geometry.holes\[1\] \(circle at \(0.4, 2\), radius 0.1\) removes no points",
+    ),
+    (
+        "geometry.holes",
+        [{"center": [NAN, 0.2], "radius": 0.1}],
+        r"geometry.holes\[0\].center\[0\] must be finite, got nan",
+    ),
+    (
+        "geometry.holes",
+        [{"center": [0.4, float("inf")], "radius": 0.1}],
+        r"geometry.holes\[0\].center\[1\] must be finite, got inf",
+    ),
+    (
+        "symmetry",
+        [{"axis": "y", "position": NAN}],
+        r"symmetry\[0\].position must be finite, got nan",
+    ),
+    (
+        "load",
+        [{"type": "total", "box": [[NAN, 0.0], [1.0, 1.0]], "force": [1.0, 0.0]}],
+        r"load\[0\].box must be \[\[lower...\], \[upper...\]\]: box lower corner must hold "
+        r"numbers \(-inf / inf for open sides\), got nan at index 0",
+    ),
+    (
+        "dirichlet",
+        [{"box": [[0.5, 0.0], [0.1, 1.0]]}],
+        r"dirichlet\[0\].box .*: box lower corner must not exceed the upper one",
+    ),
+    (
+        "dirichlet",
+        [{"box": [[-1, -1], [-0.5, -0.5]]}],
+        r"dirichlet\[0\].box selects no points: \[\[-1, -1\], \[-0.5, -0.5\]\], points span "
+        r"\[0.05, 0.05\] to \[0.75, 0.35\]",
+    ),
+    (
+        "horizon",
+        {"ratio": 3.015, "cracks": [[[NAN, 0.0], [0.2, 0.5]]]},
+        r"horizon.cracks must be finite, got nan at index \(0, 0, 0\)",
+    ),
     ("name", 3, r"name must be a string, got 3"),
     ("nmae", "x", r"unknown scene key 'nmae'; did you mean 'name'\?"),
 ]
@@ -363,6 +413,35 @@ CLI_CASES = [
         r"pdlin: error: .*file not found: .*nope.toml",
     ),
     ("examples-unknown", ["examples", "--show", "nope"], None, r"unknown built-in scene 'nope'"),
+    (
+        "run-hole-removes-nothing",
+        ["run", "{scene}", "-q"],
+        GOOD.replace(
+            "spacing = 0.1\n", "spacing = 0.1\nholes = [{center = [5.0, 0.5], radius = 0.1}]\n"
+        ),
+        r"pdlin: error: geometry.holes\[0\] \(circle at \(5, 0.5\), radius 0.1\) removes no points",
+    ),
+    (
+        # the grid spans y in [0, 0.4]: a plane at y = -5 is beyond the coupling reach
+        "run-symmetry-plane-outside",
+        ["run", "{scene}", "-q"],
+        GOOD + '[[symmetry]]\naxis = "y"\nposition = -5.0\n',
+        r"pdlin: error: symmetry plane y = -5 is farther than the reach .* couples nothing",
+    ),
+    (
+        "run-crack-cuts-nothing",
+        ["run", "{scene}", "-q"],
+        GOOD.replace("ratio = 3.015\n", "ratio = 3.015\ncracks = [[[5.0, 5.0], [6.0, 6.0]]]\n"),
+        r"pdlin: error: cracks\[0\] \(segment \(5, 5\) - \(6, 6\)\) cuts no bond",
+    ),
+    (
+        # the load sits on the clamped face: it would vanish into the support (issue 31)
+        "run-load-on-support",
+        ["run", "{scene}", "-q"],
+        GOOD.replace('set = "x+"', 'set = "x-"'),
+        r"pdlin: error: invalid scene: load\[0\] \(TotalForce on set 'x-'\) acts only on "
+        r"prescribed DOFs",
+    ),
 ]
 
 
@@ -381,3 +460,33 @@ def test_cli_reports_one_line(tmp_path, capsys, argv, text, pattern):
     assert __import__("re").search(pattern, lines[0]), lines[0]
     # no partial output is left next to the scene
     assert not list(tmp_path.glob("*.vtu")) and not list(tmp_path.glob("*.mtx"))
+
+
+def test_check_box_refuses_nan_and_inverted_corners():
+    import pdlin
+    from pdlin.io.checks import Check, _region
+
+    cloud = pdlin.grid((8, 4), 0.1)
+
+    def check(box):
+        return Check("value", "displacement", "test", 0.1, {"box": box}, "check[0]")
+
+    with pytest.raises(SceneError, match=r"check\[0\].box: box lower corner must hold numbers"):
+        _region(check([[NAN, 0.0], [1.0, 1.0]]), cloud)
+    with pytest.raises(SceneError, match=r"check\[0\].box: box lower corner must not exceed"):
+        _region(check([[0.5, 0.0], [0.1, 1.0]]), cloud)
+    with pytest.raises(SceneError, match=r"check\[0\].box selects no points"):
+        _region(check([[5.0, 5.0], [6.0, 6.0]]), cloud)
+
+
+def test_tradeoff_measure_box_refuses_nan():
+    from pdlin.sweeps.scene import tradeoff_from_dict
+
+    data = copy.deepcopy(BASE)
+    data["tradeoff"] = {"sweep": {"m": [2.0]}, "measure": [[NAN, 0.0], [1.0, 1.0]]}
+    with pytest.raises(SceneError, match=r"tradeoff.measure must hold numbers \(-inf / inf"):
+        tradeoff_from_dict(data)
+    data["tradeoff"]["measure"] = [[0.5, 0.0], [0.1, 1.0]]
+    sweep = tradeoff_from_dict(data)
+    with pytest.raises(SceneError, match=r"tradeoff.measure: box lower corner must not exceed"):
+        sweep.factory(m=2.0)

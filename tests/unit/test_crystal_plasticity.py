@@ -597,13 +597,17 @@ def test_analytic_tangent_equals_complex_step(slip, renormalize, rng):
         _assert_tangent(a, F[:8], {k: v[:8] for k, v in r.states[-1].items()})
 
 
-def _numba_kernels():
+def _numba_kernels(monkeypatch):
+    """pdlin's numba kernels, sent batches from 256 points on (by default one chunk,
+    8,192 points: the tests' few hundred points would stay on numpy)."""
     pytest.importorskip("numba")
     from pdlin._kernels import _kernels
+    from pdlin.constitutive import crystal_plasticity as cpm
 
     mod = _kernels()
     if mod is None:
         pytest.skip("numba disabled (PDLIN_NUMBA=0)")
+    monkeypatch.setattr(cpm, "_NUMBA_MIN_POINTS", 256)
     return mod
 
 
@@ -617,7 +621,7 @@ def test_planar_update_numba_kernel_matches_numpy(monkeypatch, renormalize):
     1-3 threads."""
     from pdlin.constitutive import crystal_plasticity as cpm
 
-    mod = _numba_kernels()
+    mod = _numba_kernels(monkeypatch)
     calls = []
     real, real_t = mod.cp_planar_fill, mod.cp_planar_tangent_fill
 
@@ -678,10 +682,10 @@ def test_planar_update_numba_kernel_matches_numpy(monkeypatch, renormalize):
     assert plastic > 100 and pruned > 5, (plastic, pruned)
 
 
-def test_planar_numba_tangent_matches_finite_differences():
+def test_planar_numba_tangent_matches_finite_differences(monkeypatch):
     """The compiled tangent is the derivative of the compiled update (central differences
     of P through the kernel, 1e-6 relative; points away from active-set switches)."""
-    _numba_kernels()
+    _numba_kernels(monkeypatch)
     mat = CrystalPlasticity()
     rng = np.random.default_rng(5)
     *_, (state, F, _) = _t8_path(mat, rng, n=300, steps=10)
@@ -693,7 +697,7 @@ def test_planar_update_numba_kernel_singular_points_and_scope(monkeypatch):
     """Points the kernel marks singular are redone by the numpy path (their kernel
     outputs discarded, the tangent's too); the complex-step tangent, re-activation or 3D
     slip keep the numpy path."""
-    mod = _numba_kernels()
+    mod = _numba_kernels(monkeypatch)
     real = mod.cp_planar_fill
 
     def every_fifth_bad(p0, p1, *args):
@@ -788,7 +792,7 @@ def test_piola_is_the_updates_stress_bitwise_and_keeps_the_numpy_scope(monkeypat
     """``piola`` (the kernel without the trial state) gives ``update``'s P bitwise on a
     plastic path, for points elastic, on one system and pruned; outside the kernel's scope
     (re-activation, fcc, fewer than _NUMBA_MIN_POINTS points) it is ``update(...)[0]``."""
-    _numba_kernels()
+    _numba_kernels(monkeypatch)
     mat = CrystalPlasticity()
     rng = np.random.default_rng(5)
     *_, (state, F, _) = _t8_path(mat, rng, n=300, steps=10)

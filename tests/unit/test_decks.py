@@ -264,7 +264,13 @@ def test_boundary_condition_errors_name_the_key(bar_dir, edit, pattern):
             "Discretization",
             "Omit Bonds Between Blocks",
             "All",
-            r"Omit Bonds Between Blocks: not supported",
+            r"Discretization.Omit Bonds Between Blocks: only 'None' .* got 'All'",
+        ),
+        (
+            "Discretization",
+            "Construct Neighborhood Lists",
+            False,
+            r"Discretization.Construct Neighborhood Lists: false \(no bonds\) is not supported",
         ),
         (
             "Material",
@@ -451,41 +457,85 @@ def test_multiple_blocks_per_point_horizons_and_constants(bar_dir):
 
 
 # ---------------------------------------------------------------- Exodus
-def test_exodus_discretization_elements_become_points(tmp_path):
-    pytest.importorskip("netCDF4")
-    import meshio
+def write_exodus(path: Path, coords, blocks, node_sets=()) -> None:
+    """A minimal Exodus II file written with netCDF4 (the variables Peridigm reads).
 
-    # 3 x 1 x 1 hexes of size 0.5 x 1 x 2 (volume 1), nodes 0..15
-    xs = np.array([0.0, 0.5, 1.0, 1.5])
+    ``blocks``: (id, name, elem_type, 1-based connectivity[, attributes]) in file order;
+    ``node_sets``: (id, name, 1-based node numbers) in file order.  Blank names are
+    written as empty strings, as Cubit does.
+    """
+    netCDF4 = pytest.importorskip("netCDF4")
+    coords = np.asarray(coords, float)
+    with netCDF4.Dataset(path, "w") as ds:
+        ds.createDimension("len_name", 33)
+        ds.createDimension("num_dim", 3)
+        ds.createDimension("num_nodes", len(coords))
+        ds.createDimension("num_el_blk", len(blocks))
+        for c, k in zip("xyz", range(3), strict=True):
+            ds.createVariable(f"coord{c}", "f8", ("num_nodes",))[:] = coords[:, k]
+
+        def names(var: str, dim: str, values) -> None:
+            v = ds.createVariable(var, "S1", (dim, "len_name"))
+            v[:] = netCDF4.stringtochar(np.array([n.ljust(33, "\0") for n in values], "S33"))
+
+        ds.createVariable("eb_prop1", "i4", ("num_el_blk",))[:] = [b[0] for b in blocks]
+        names("eb_names", "num_el_blk", [b[1] for b in blocks])
+        for k, blk in enumerate(blocks, 1):
+            conn = np.asarray(blk[3])
+            ds.createDimension(f"num_el_in_blk{k}", conn.shape[0])
+            ds.createDimension(f"num_nod_per_el{k}", conn.shape[1])
+            v = ds.createVariable(f"connect{k}", "i4", (f"num_el_in_blk{k}", f"num_nod_per_el{k}"))
+            v.elem_type = blk[2]
+            v[:] = conn
+            if len(blk) > 4:
+                att = np.asarray(blk[4], float)
+                ds.createDimension(f"num_att_in_blk{k}", att.shape[1])
+                ds.createVariable(f"attrib{k}", "f8", (f"num_el_in_blk{k}", f"num_att_in_blk{k}"))[
+                    :
+                ] = att
+        if node_sets:
+            ds.createDimension("num_node_sets", len(node_sets))
+            ds.createVariable("ns_prop1", "i4", ("num_node_sets",))[:] = [ns[0] for ns in node_sets]
+            names("ns_names", "num_node_sets", [ns[1] for ns in node_sets])
+            for k, ns in enumerate(node_sets, 1):
+                ds.createDimension(f"num_nod_ns{k}", len(ns[2]))
+                ds.createVariable(f"node_ns{k}", "i4", (f"num_nod_ns{k}",))[:] = ns[2]
+
+
+def hex_bar(nx: int = 3):
+    """Nodes and 1-based hex connectivity of nx hexes of size 0.5 x 1 x 2 along x."""
+    xs = 0.5 * np.arange(nx + 1)
     nodes = np.array([[x, y, z] for z in (0.0, 2.0) for y in (0.0, 1.0) for x in xs])
     n4 = len(xs)
 
     def nid(i, j, k):
-        return i + n4 * (j + 2 * k)
+        return i + n4 * (j + 2 * k) + 1
 
     hexes = [
         [nid(i, 0, 0), nid(i + 1, 0, 0), nid(i + 1, 1, 0), nid(i, 1, 0),
          nid(i, 0, 1), nid(i + 1, 0, 1), nid(i + 1, 1, 1), nid(i, 1, 1)]
-        for i in range(3)
+        for i in range(nx)
     ]  # fmt: skip
-    left_nodes = [nid(0, j, k) for j in (0, 1) for k in (0, 1)]
-    mesh = meshio.Mesh(
-        nodes, [("hexahedron", np.array(hexes))], point_sets={"nodelist_1": np.array(left_nodes)}
-    )
-    meshio.write(tmp_path / "bar.g", mesh, file_format="exodus")
+    end = {i: [nid(i, j, k) for j in (0, 1) for k in (0, 1)] for i in (0, nx)}
+    return nodes, np.array(hexes), end
+
+
+def exodus_deck(bcs: dict, block_names: str = "block_1", horizon: float = 1.1) -> dict:
     deck = peridigm_deck(LPS_MAT)
     root = deck["Peridigm"]
     root["Discretization"] = {"Type": "Exodus", "Input Mesh File": "bar.g"}
-    root["Blocks"]["My Block"]["Horizon"] = 1.1
+    root["Blocks"]["My Block"].update({"Block Names": block_names, "Horizon": horizon})
     root["Boundary Conditions"] = {
-        "Fix": {
-            "Type": "Prescribed Displacement",
-            "Node Set": "nodelist_1",
-            "Coordinate": "x",
-            "Value": "0",
-        },
+        name: {"Type": "Prescribed Displacement", "Coordinate": "x", "Value": "0", "Node Set": ns}
+        for name, ns in bcs.items()
     }
-    scene = pdlin.read_deck(write_yaml(tmp_path / "d.yaml", deck))
+    return deck
+
+
+def test_exodus_discretization_elements_become_points(tmp_path):
+    nodes, hexes, end = hex_bar()
+    write_exodus(tmp_path / "bar.g", nodes, [(1, "", "HEX8", hexes)], [(1, "", end[0])])
+    scene = pdlin.read_deck(write_yaml(tmp_path / "d.yaml", exodus_deck({"Fix": "nodelist_1"})))
     # centroids (0.25 + 0.5 i, 0.5, 1), volumes 0.5 * 1 * 2 = 1 (Peridigm: one point per hex)
     np.testing.assert_allclose(
         scene.cloud.points, [[0.25, 0.5, 1.0], [0.75, 0.5, 1.0], [1.25, 0.5, 1.0]]
@@ -493,6 +543,252 @@ def test_exodus_discretization_elements_become_points(tmp_path):
     np.testing.assert_allclose(scene.cloud.volumes, 1.0, rtol=1e-14)
     # nodelist_1 (the x = 0 nodes) -> the element holding them
     np.testing.assert_array_equal(scene.problem.dirichlet[0].where, [0])
+
+
+def test_exodus_sets_and_blocks_are_named_by_id(tmp_path):
+    # Peridigm_ExodusDiscretization.cpp: a blank node-set name is nodelist_<ns_prop1 id>, a
+    # blank block name block_<eb_prop1 id>; ids need not follow the file order. Three blank
+    # sets used to collapse into one set '' (meshio keys point_sets by ns_names).
+    nodes, hexes, end = hex_bar()
+    write_exodus(
+        tmp_path / "bar.g",
+        nodes,
+        [(20, "", "HEX8", hexes[:2]), (10, "", "HEX8", hexes[2:])],
+        [(7, "", end[3]), (3, "", end[0]), (5, "named_set", end[0])],
+    )
+    deck = exodus_deck(
+        {"Right": "nodelist_7", "Left": "nodelist_3", "Also Left": "named_set"},
+        block_names="block_10 block_20",
+    )
+    scene = pdlin.read_deck(write_yaml(tmp_path / "d.yaml", deck))
+    where = [d.where.tolist() for d in scene.problem.dirichlet]
+    # node set 7 holds the x = 1.5 nodes: element 3 (index 2); sets 3 and 5 the x = 0 ones
+    assert where == [[2], [0], [0]]
+    # the ids are the block names: block 20 -> the first two elements
+    deck["Peridigm"]["Blocks"]["My Block"]["Block Names"] = "block_20"
+    with pytest.raises(SceneError, match=r"block\(s\) \['block_10'\] are not assigned"):
+        pdlin.read_deck(write_yaml(tmp_path / "d.yaml", deck))
+    # duplicate names stop the run, as in Peridigm ("Duplicate node set found")
+    write_exodus(tmp_path / "bar.g", nodes, [(1, "", "HEX8", hexes)], [(3, "", end[0])] * 2)
+    with pytest.raises(SceneError, match=r"two node sets named 'NODELIST_3'"):
+        pdlin.read_deck(write_yaml(tmp_path / "d.yaml", exodus_deck({"F": "nodelist_3"})))
+
+
+def test_exodus_sphere_and_tet_elements(tmp_path):
+    # sphere elements: the point is the element's node, the volume its 2nd attribute
+    # (Peridigm_ExodusDiscretization.cpp); tets: vertex mean and a . (b x c) / 6
+    nodes = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [3, 0, 0], [4, 0, 0]], float)
+    write_exodus(
+        tmp_path / "bar.g",
+        nodes,
+        [
+            (1, "", "TETRA", [[1, 2, 3, 4]]),
+            (2, "", "SPHERE", [[5], [6]], [[0.5, 0.25], [0.5, 0.125]]),
+        ],
+        [(1, "", [6])],
+    )
+    deck = exodus_deck({"Fix": "nodelist_1"}, block_names="block_1 block_2", horizon=3.5)
+    scene = pdlin.read_deck(write_yaml(tmp_path / "d.yaml", deck))
+    np.testing.assert_allclose(scene.cloud.points, [[0.25] * 3, [3, 0, 0], [4, 0, 0]])
+    np.testing.assert_allclose(scene.cloud.volumes, [1 / 6, 0.25, 0.125], rtol=1e-14)
+    np.testing.assert_array_equal(scene.problem.dirichlet[0].where, [2])
+    # an inverted tet (negative a . (b x c)) stops the run, as Peridigm's tetVolume does
+    write_exodus(tmp_path / "bar.g", nodes, [(1, "", "TETRA", [[1, 3, 2, 4]])], [(1, "", [1])])
+    with pytest.raises(SceneError, match=r"block 1 element 1 is inverted"):
+        pdlin.read_deck(write_yaml(tmp_path / "d.yaml", exodus_deck({"F": "nodelist_1"})))
+
+
+def test_exodus_file_errors_name_the_key(tmp_path):
+    netCDF4 = pytest.importorskip("netCDF4")
+    nodes, hexes, end = hex_bar()
+    deck = write_yaml(tmp_path / "d.yaml", exodus_deck({"F": "nodelist_1"}))
+    key = r"^Discretization.Input Mesh File: "
+    cases = [
+        ([(1, "", "QUAD4", hexes[:, :4])], [(1, "", end[0])], key + r".*'QUAD4' elements"),
+        ([(1, "", "HEX8", hexes)], [(1, "", [1, 99])], key + r"Exodus node set 1 must hold"),
+        ([(1, "", "HEX8", hexes + 100)], [], key + r"Exodus block 1 connectivity must hold"),
+        (
+            [(1, "", "SPHERE", [[1]])],
+            [],
+            key + r"Exodus block 1 has sphere elements without the volume",
+        ),
+    ]
+    for blocks, sets, pattern in cases:
+        write_exodus(tmp_path / "bar.g", nodes, blocks, sets)
+        with pytest.raises(SceneError, match=pattern):
+            pdlin.read_deck(deck)
+    (tmp_path / "bar.g").write_text("not netCDF")
+    with pytest.raises(SceneError, match=key + r"cannot read .* as Exodus"):
+        pdlin.read_deck(deck)
+    with netCDF4.Dataset(tmp_path / "bar.g", "w") as ds:  # a 2D mesh
+        ds.createDimension("num_nodes", 3)
+        for c in "xy":
+            ds.createVariable(f"coord{c}", "f8", ("num_nodes",))[:] = 0.0
+    with pytest.raises(SceneError, match=key + r"bar.g is a 2D mesh"):
+        pdlin.read_deck(deck)
+
+
+def test_numeric_strings_are_numbers(bar_dir):
+    # YAML 1.1 loads 160.0e10 (no exponent sign) as a string; Teuchos reads a double
+    text = yaml.safe_dump(peridigm_deck(LPS_MAT), sort_keys=False)
+    text = text.replace("Bulk Modulus: 130.0", "Bulk Modulus: 13.0e1")
+    text = text.replace("Horizon: 0.2015", "Horizon: '2.015e-1'")
+    assert "13.0e1" in text and "'2.015e-1'" in text
+    assert yaml.safe_load(text)["Peridigm"]["Materials"]["My Material"]["Bulk Modulus"] == "13.0e1"
+    (bar_dir / "d.yaml").write_text(text)
+    ref = pdlin.read_deck(write_yaml(bar_dir / "ref.yaml", peridigm_deck(LPS_MAT)))
+    scene = pdlin.read_deck(bar_dir / "d.yaml")
+    assert scene.model.moduli(3) == ref.model.moduli(3)
+    assert scene.problem.horizon == ref.problem.horizon == 0.2015
+    for bad in ("'1e9 Pa'", "'nan'", "'0x10'", "'1_000'"):
+        (bar_dir / "d.yaml").write_text(text.replace("13.0e1", bad))
+        with pytest.raises(SceneError, match=r"Materials.My Material.Bulk Modulus must be a"):
+            pdlin.read_deck(bar_dir / "d.yaml")
+
+
+NOX = {
+    "Nonlinear Solver": "Line Search Based",
+    "Number of Load Steps": 1,
+    "Max Solver Iterations": 100,
+    "Relative Tolerance": 1.0e-9,
+    "Max Age Of Prec": 50,
+    "Direction": {"Method": "Newton", "Newton": {"Linear Solver": {"Preconditioner": "None"}}},
+    "Line Search": {"Method": "Polynomial"},
+    "Printing": {"Output Information": 0},
+}
+
+
+@pytest.mark.parametrize(
+    "solver",
+    [
+        # keys Peridigm.cpp reads (executeNOXQuasiStatic, executeQuasiStatic)
+        {"Final Time": 2.0, "Peridigm Preconditioner": "None", "NOXQuasiStatic": NOX},
+        {
+            "Final Time": 2.0,
+            "Jacobian Diagnostics": False,
+            "Disable Heuristics": True,
+            "QuasiStatic": {
+                "Number of Load Steps": 2,
+                "Damped Newton Diagonal Scale Factor": 1.0001,
+                "Damped Newton Diagonal Shift Factor": 1e-5,
+                "Belos Linear Solver": "BlockCG",
+                "Belos Maximum Iterations": 100,
+                "Belos Relative Tolerance": 1e-8,
+                "Belos Print Status": False,
+                "Adaptive Load-Stepping": {
+                    "Maximum load step reductions in one step": 4,
+                    "Maximum total load step reductions": 10,
+                },
+            },
+        },
+        # without Number of Load Steps Peridigm takes the Time Steps list (the last is final)
+        {"QuasiStatic": {"Time Steps": "0.0 0.5 1.0 2.0"}},
+    ],
+    ids=["nox", "quasistatic", "time-steps"],
+)
+def test_peridigm_solver_keys_are_accepted(bar_dir, solver, caplog):
+    ref = pdlin.solve(
+        pdlin.read_deck(write_yaml(bar_dir / "r.yaml", peridigm_deck(LPS_MAT))).problem
+    )
+    deck = peridigm_deck(LPS_MAT, solver=solver)
+    with caplog.at_level("INFO", logger="pdlin.io.decks"):
+        res = pdlin.solve(pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck)).problem)
+    # the same final time (2.0) gives the same solution
+    np.testing.assert_allclose(res.u, ref.u, rtol=0, atol=1e-12 * np.abs(ref.u).max())
+    sub = next(k for k in solver if k.endswith("QuasiStatic"))
+    for k in solver[sub]:
+        assert f"Solver.{sub}.{k} accepted" in caplog.text
+
+
+def test_switch_to_verlet_and_bad_time_steps_are_refused(bar_dir):
+    for qs, pattern in [
+        (
+            {"Number of Load Steps": 2, "Adaptive Load-Stepping": {"Switch to Verlet": {}}},
+            r"Solver.QuasiStatic.Adaptive Load-Stepping.Switch to Verlet: explicit dynamics",
+        ),
+        ({"Time Steps": "0 a 1"}, r"Solver.QuasiStatic.Time Steps must be a list of times"),
+        ({"Time Steps": "1.0 0.5"}, r"Solver.QuasiStatic.Time Steps: the last time must exceed"),
+    ]:
+        deck = peridigm_deck(LPS_MAT, solver={"Final Time": 2.0, "QuasiStatic": qs})
+        if "Time Steps" in qs:
+            del deck["Peridigm"]["Solver"]["Final Time"]
+        with pytest.raises(SceneError, match=pattern):
+            pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+
+
+def test_peridigm_discretization_and_material_defaults_are_accepted(bar_dir, caplog):
+    # keys Peridigm's discretizations and elastic.cxx read, at their defaults
+    deck = peridigm_deck({**LPS_MAT, "Compute Partial Stress": True})
+    deck["Peridigm"]["Discretization"].update(
+        {
+            "Verbose": False,
+            "Construct Neighborhood Lists": True,
+            "Omit Bonds Between Blocks": "None",
+        }
+    )
+    with caplog.at_level("INFO", logger="pdlin.io.decks"):
+        assert pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck)).cloud.n == 32
+    for k in ("Discretization.Omit Bonds Between Blocks", "Compute Partial Stress"):
+        assert k in caplog.text
+
+
+def test_default_block_takes_the_blocks_no_other_entry_names(bar_dir):
+    # Peridigm's initializeBlocks: Block Names "default" applies to every discretization
+    # block not named elsewhere (the MultipleHorizons / DefaultBlocks decks)
+    pts = bar_points()
+    block = np.where(pts[:, 0] < 4 * H, 1, 2)
+    write_text_mesh(bar_dir / "bar.txt", pts, H**3, block)
+    deck = peridigm_deck(LPS_MAT)
+    root = deck["Peridigm"]
+    root["Materials"]["Soft"] = {**LPS_MAT, "Bulk Modulus": 13.0, "Shear Modulus": 7.0}
+    root["Blocks"] = {
+        "Default Block": {"Block Names": "default", "Material": "Soft", "Horizon": 0.25},
+        "Two": {"Block Names": "block_2", "Material": "My Material", "Horizon": 0.2015},
+    }
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    k_mod, _ = scene.model.moduli(3)
+    np.testing.assert_array_equal(k_mod, np.where(block == 1, 13.0, 130.0))
+    np.testing.assert_array_equal(scene.problem.horizon, np.where(block == 1, 0.25, 0.2015))
+    del root["Blocks"]["Default Block"]
+    with pytest.raises(SceneError, match=r"Blocks: discretization block\(s\) \['block_1'\]"):
+        pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+
+
+def test_caret_is_the_power_in_peridigm_values(bar_dir):
+    # Peridigm's function parser reads ^ as the power: CentrifugalLoad's "1E-5 * 94.25^2 * x"
+    bc = {
+        "Spin": {
+            "Type": "Body Force",
+            "Node Set": "Full Domain",
+            "Coordinate": "x",
+            "Value": "1E-5 * 94.25^2 * x",
+        }
+    }
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", peridigm_deck(LPS_MAT, extra_bc=bc)))
+    body = scene.problem.loads[0]
+    np.testing.assert_allclose(
+        np.asarray(body.density)[:, 0], 1e-5 * 94.25**2 * scene.cloud.points[:, 0], rtol=1e-14
+    )
+
+
+@pytest.mark.parametrize(
+    ("spelling", "value"),
+    [("1", True), ("0", False), ("YES", True), ("no", False), ("True", True), ("FALSE", False)],
+)
+def test_xml_bool_spellings_of_teuchos(bar_dir, spelling, value):
+    # Teuchos XMLObject::getRequiredBool: TRUE / YES / 1, FALSE / NO / 0, any case
+    deck = peridigm_deck({**LPS_MAT, "Plane Strain": False})
+    xml = to_xml("Peridigm", deck["Peridigm"]).replace(
+        'name="Plane Strain" type="bool" value="false"',
+        f'name="Plane Strain" type="bool" value="{spelling}"',
+    )
+    assert f'value="{spelling}"' in xml
+    (bar_dir / "d.xml").write_text(xml)
+    if value:
+        with pytest.raises(SceneError, match=r"Materials.My Material.Plane Strain: true is not"):
+            pdlin.read_deck(bar_dir / "d.xml")
+    else:
+        assert pdlin.read_deck(bar_dir / "d.xml").cloud.n == 32
 
 
 # ---------------------------------------------------------------- PeriLab

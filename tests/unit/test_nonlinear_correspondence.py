@@ -185,8 +185,17 @@ def test_response_stress_is_computed_on_first_read_only(monkeypatch):
 def test_response_state_without_tangent_is_computed_on_first_read_only(monkeypatch):
     """Without the tangent respond takes the force from ``material.piola`` and runs the
     full update for the trial state only when ``state`` is read (once per converged step),
-    then keeps it; force and state equal those of the eager path (with the tangent)."""
-    cloud = _cloud(16)  # 256 gradient points: the compiled kernels when numba is there
+    then keeps it; force and state equal those of the eager path (with the tangent).
+    ``piola`` computes P without the trial state in the compiled kernel only (numba,
+    batches from 256 points on here; by default from 8,192)."""
+    pytest.importorskip("numba")
+    from pdlin._kernels import numba_enabled
+    from pdlin.constitutive import crystal_plasticity as cpm
+
+    if not numba_enabled():
+        pytest.skip("numba disabled (PDLIN_NUMBA=0)")
+    monkeypatch.setattr(cpm, "_NUMBA_MIN_POINTS", 256)
+    cloud = _cloud(16)  # 256 gradient points: the compiled kernel
     bonds = pdlin.find_bonds(cloud, ratio=1.0)
     mat = _cp(cloud, seed=3)
     model = pdlin.Correspondence(material=mat)

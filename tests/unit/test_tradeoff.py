@@ -363,14 +363,14 @@ def test_nonlinear_tradeoff_rejects_linear_only_options_and_keys():
     data["tradeoff"]["exact"] = {"F": [[1.0, 0.0], [0.0, 1.0]]}
     data["tradeoff"]["sweep"] = {"h": [0.125]}
     data["tradeoff"].pop("finest")
-    res = tradeoff_from_dict(data).run(memory="none")
-    assert res.table[0]["status"] == "failed"
-    assert "tradeoff.exact and tradeoff.measure apply to linear scenes" in res.table[0]["message"]
+    # the sweep's only point fails: the sweep raises with the point's message (issue 31)
+    with pytest.raises(InputError, match="tradeoff.exact and tradeoff.measure apply to linear "
+                       "scenes") as info:  # fmt: skip
+        tradeoff_from_dict(data).run(memory="none")
+    assert isinstance(info.value.__cause__, SceneError)
     # a nonlinear-only sweep key on a linear case is named in the point's message
-    res = pdlin.tradeoff(tension_bar, {"method": ["newton"]}, memory="none")
-    assert res.table[0]["status"] == "failed"
-    assert "sweep key 'method' needs a nonlinear case" in res.table[0]["message"]
-    assert SceneError  # the scene error above is recorded on the row, not raised
+    with pytest.raises(InputError, match="sweep key 'method' needs a nonlinear case"):
+        pdlin.tradeoff(tension_bar, {"method": ["newton"]}, memory="none")
 
 
 def test_scene_fem_reference_q4_at_the_particles():
@@ -417,3 +417,79 @@ def test_scene_reference_errors(table, match):
     }
     with pytest.raises(SceneError, match=match):
         tradeoff_from_dict(data)
+
+
+# --- sweeps that measure nothing raise (issue 31, item 4) ---------------------------------
+
+
+def _always_raises(**params):
+    return 1 / 0
+
+
+def test_tradeoff_refuses_a_non_callable_factory():
+    with pytest.raises(pdlin.errors.InputTypeError, match=r"factory must be callable.* got int 42"):
+        tradeoff(42, {"a": [1]}, memory="none")
+
+
+def test_tradeoff_refuses_an_empty_grid():
+    with pytest.raises(InputError, match=r"grid must name at least one parameter .* got \{\}"):
+        tradeoff(graded_bar, {}, memory="none")
+
+
+@pytest.mark.parametrize("memory", ["none", "rss"])
+def test_tradeoff_raises_when_every_point_fails(memory, tmp_path):
+    if memory == "rss" and not hasattr(__import__("os"), "fork"):
+        pytest.skip("rss mode needs fork")
+    out = tmp_path / "t.csv"
+    with pytest.raises(
+        InputError,
+        match=r"every point of the sweep failed \(2 of 2, none measured\); first failure, "
+        r"point a=1: ZeroDivisionError: division by zero",
+    ) as info:
+        tradeoff(_always_raises, {"a": [1, 2]}, memory=memory, output=out)
+    assert info.value.__cause__ is not None  # the first failure, chained
+    # the failures are still recorded point by point
+    with out.open() as f:
+        assert [r["status"] for r in csv.DictReader(f)] == ["failed", "failed"]
+
+
+def test_tradeoff_keeps_failed_points_while_others_succeed():
+    def factory(N, fail):
+        if fail:
+            raise RuntimeError("this point breaks")
+        return graded_bar(N=N)
+
+    res = tradeoff(factory, {"N": [100], "fail": [False, True]}, memory="none")
+    assert [r["status"] for r in res.table] == ["ok", "failed"]
+    assert res.table[1]["message"] == "this point breaks"
+
+
+def test_cli_tradeoff_every_point_failing_is_one_error_line(tmp_path, capsys):
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        """
+[geometry]
+shape = [20]
+spacing = 0.05
+[material]
+E = 1.0
+[horizon]
+ratio = 3.015
+[[dirichlet]]
+set = "x-"
+[[load]]
+set = "x+"
+force = [1e-3]
+[tradeoff.sweep]
+solver = ["nope", "lu"]
+"""
+    )
+    from pdlin.cli.main import main
+
+    code = main(["tradeoff", str(scene), "-q"])
+    err = capsys.readouterr().err
+    assert code == 2
+    lines = [ln for ln in err.splitlines() if ln.startswith("pdlin:")]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith("pdlin: error: every point of the sweep failed (2 of 2")
+    assert "solver must be one of" in lines[0]
