@@ -27,6 +27,7 @@ MODULES = [
     "pdlin.io",
     "pdlin.sweeps",
     "pdlin.errors",
+    "pdlin.resources",
     "pdlin.plotting",
 ]
 

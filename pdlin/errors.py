@@ -22,11 +22,13 @@ __all__ = [
     "CheckpointWriteError",
     "MissingDependencyError",
     "WriteError",
+    "InsufficientMemoryError",
     "SceneError",
     "ModelError",
     "TrialStateWarning",
     "ActiveSetWarning",
     "AccuracyWarning",
+    "SlowRunWarning",
 ]
 
 
@@ -111,6 +113,24 @@ class CheckpointWriteError(WriteError):
     """
 
 
+class InsufficientMemoryError(PdlinError, MemoryError):
+    """A stage would need more memory than is available (estimated before allocating).
+
+    Attributes
+    ----------
+    need, available : int
+        Estimated bytes of the stage and the bytes available when it was checked.
+    hints : tuple of str
+        What would fit instead (a coarser grid, an iterative solver, ...).
+    """
+
+    def __init__(self, message: str, need: int = 0, available: int = 0, hints: object = ()) -> None:
+        super().__init__(message)
+        self.need = int(need)
+        self.available = int(available)
+        self.hints = tuple(hints) if isinstance(hints, list | tuple) else ()
+
+
 class TrialStateWarning(RuntimeWarning):
     """A material's state update is questionable at some points.
 
@@ -137,3 +157,9 @@ class AccuracyWarning(UserWarning):
     the bulk modulus amplifies the dilatation error of truncated families
     (``docs/solvers.md``, "Numerical extremes").
     """
+
+
+class SlowRunWarning(UserWarning):
+    """A run is estimated, before it starts, to take longer than
+    :data:`pdlin.resources.LONG_RUN_SECONDS` (the message gives the estimate and its
+    sizes: points, bonds, nonzeros)."""

@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -20,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from ._validation import integer
-from .errors import InputError, InputTypeError
+from .errors import InputError, InputTypeError, SlowRunWarning
 from .geometry.bonds import Bonds
 from .models.damage import bond_stretch, break_bonds, damage_index, isolated_points
 from .problem import StaticProblem, StaticResult, solve
@@ -90,6 +91,35 @@ class DamageResult:
         }
 
 
+def _check_damage_history(n: int, dim: int, steps: int) -> None:
+    """Refuse a step count whose stored history (u and damage per step, kept twice while
+    the result arrays are built) does not fit in memory."""
+    from .resources import LONG_RUN_SECONDS, available_memory, check_memory
+
+    per_step = 2 * 8 * n * (dim + 1) + 64
+
+    def hints() -> list[str]:
+        fit = max(int(available_memory().bytes / per_step * 0.5), 1)
+        return [f"at most ~{fit:,} steps (each stores u and the damage of {n:,} points)"]
+
+    check_memory(f"damage history of {steps:,} load steps", float(per_step) * steps, hints)
+    # each step is at least one pass over the bonds and a few array operations
+    secs = steps * (DAMAGE_STEP_SECONDS + DAMAGE_STEP_SECONDS_PER_POINT * n)
+    if secs > LONG_RUN_SECONDS:
+        warnings.warn(
+            f"damage.steps = {steps:,}: the load steps alone are estimated to take "
+            f"~{secs / 60:,.0f} min ({n:,} points); fewer steps are faster",
+            SlowRunWarning,
+            stacklevel=3,
+        )
+
+
+#: seconds of one damage load step without re-solves: fixed cost and per point (measured
+#: order of magnitude: the 2,000-point damage_plate example, ~1 ms per step)
+DAMAGE_STEP_SECONDS = 2e-4
+DAMAGE_STEP_SECONDS_PER_POINT = 4e-7
+
+
 def solve_damage(
     problem: StaticProblem,
     s0: Any,
@@ -154,6 +184,7 @@ def solve_damage(
     steps = integer(steps, "steps", minimum=1)
     max_resolves = integer(max_resolves, "max_resolves", minimum=1)
     say = progress or (lambda msg: None)
+    _check_damage_history(problem.cloud.n, problem.cloud.dim, steps)
     t_start = time.perf_counter()
     intact: Bonds = problem.get_bonds()
     crit = np.asarray(s0, dtype=float)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import inspect
 import logging
+import math
 import os
 import time
 import warnings
@@ -15,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ._validation import as_float_array, integer, tolerance
-from .errors import AccuracyWarning, InputError, InputTypeError, ShapeError
+from .errors import AccuracyWarning, InputError, InputTypeError, ShapeError, SlowRunWarning
 from .fields import small_strain
 from .geometry.bonds import Bonds, find_bonds
 from .geometry.cloud import PointCloud
@@ -27,6 +28,14 @@ from .operators.bc import (
     TotalForce,
 )
 from .operators.symmetry import SymmetryPlane, SymmetryReduction
+from .resources import (
+    ASSEMBLY_TRANSIENT,
+    RunEstimate,
+    check_memory,
+    estimate_pair_count,
+    estimate_static_run,
+    format_bytes,
+)
 from .solvers.linear import SOLVERS, LinearSolveInfo, _safe_norm, solve_linear
 from .system import ConstrainedSystem, PlainDiscretization, constrained_system
 
@@ -375,6 +384,16 @@ def solve(
     t_start = time.perf_counter()
     model = problem.model
 
+    plan = plan_memory(
+        problem, solver, operator=operator, keep_stiffness=keep_stiffness,
+        direct_backend=direct_backend,
+    )  # fmt: skip
+    say(plan.summary())
+    check_memory("this run", plan.need, lambda: memory_hints(plan))
+    slow = plan.slow_warning()
+    if slow is not None:
+        say(f"warning: {slow}")
+        warnings.warn(slow, SlowRunWarning, stacklevel=2)
     say("bonds")
     t0 = time.perf_counter()
     system = constrained_system(problem)
@@ -391,6 +410,8 @@ def solve(
     K_rows = None
     precond = None
     if path == "assembled":
+        ta = ASSEMBLY_TRANSIENT[2 if getattr(model, "coupling_range", 1) >= 2 else 1]
+        check_memory("assembly of K", est * (1 + ta), lambda: memory_hints(plan))
         say(f"assembly (~{est / 1e9:.2f} GB for {nblocks * d * d:,} nonzeros)")
         log.info("assembling K: %d blocks, ~%.3g GB", nblocks, est / 1e9)
         t0 = time.perf_counter()
@@ -421,6 +442,7 @@ def solve(
         amg_options=dict(amg_options or {}),
         preconditioner_matrix=precond,
         direct_backend=direct_backend,
+        progress=progress,
     )
     timings["setup"] = lin.setup_time
     timings["solve"] = lin.solve_time
@@ -489,6 +511,116 @@ def _check_force_balance(
 
 
 _OPERATORS = ("assembled", "matrix-free", "auto")
+
+
+def plan_memory(
+    problem: StaticProblem,
+    solver: str = "auto",
+    *,
+    operator: str = "auto",
+    keep_stiffness: bool = False,
+    direct_backend: str = "auto",
+    history_steps: int = 0,
+) -> RunEstimate:
+    """Peak-memory estimate of ``solve(problem, ...)`` before any bond is searched.
+
+    ``history_steps`` adds the per-step fields a load-stepping driver keeps
+    (:func:`pdlin.solve_damage`, :func:`pdlin.solve_nonlinear`: u, stress and two scalars
+    per point and step) to every stage.
+
+    Counts the bonds (exactly on :func:`pdlin.grid` clouds with a constant horizon, from
+    the neighbours of a lattice ball otherwise), the blocks of K (pairs within
+    ``coupling_range`` horizons), picks the operator path ``solve`` would take and adds up
+    the stages with the coefficients of :mod:`pdlin.resources`.
+
+    Examples
+    --------
+    >>> import pdlin
+    >>> from pdlin.problem import plan_memory
+    >>> prob = pdlin.StaticProblem(pdlin.BondBased(E=1.0), pdlin.grid((50, 50)), horizon=3.015)
+    >>> plan = plan_memory(prob, "amg-cg")
+    >>> plan.n_bonds == pdlin.find_bonds(prob.cloud, 3.015).n_bonds, plan.path
+    (True, 'assembled')
+    """
+    cloud = problem.cloud
+    n, d = cloud.n, cloud.dim
+    model = problem.model
+    rng = int(getattr(model, "coupling_range", 1))
+    opts = dict(problem.bond_options)
+    if problem.bonds is not None:
+        nb = problem.bonds.n_bonds
+        hor_b = float(np.max(problem.bonds.horizon))
+        pairs = nb if rng < 2 else estimate_pair_count(cloud, hor_b, hops=rng)
+    else:
+        shape_factor = 1.0
+        if opts.get("shape") in ("cube", "box"):  # the cube around the ball
+            shape_factor = 2.0**d / (np.pi ** (d / 2) / math.gamma(d / 2 + 1))
+        hor, ratio = problem.horizon, opts.get("ratio")
+        nb = int(shape_factor * estimate_pair_count(cloud, hor, ratio))
+        pairs = nb if rng < 2 else int(estimate_pair_count(cloud, hor, ratio, hops=rng))
+    nblocks = n + pairs
+    est = estimate_bond_operator_bytes(n, nblocks, d)
+    path, _ = _choose_operator(
+        operator, model, cloud, solver, est, bool(problem.symmetry), keep_stiffness,
+        nblocks=nblocks,
+    )  # fmt: skip
+    ndof = n * d
+    direct = solver == "direct" or (solver == "auto" and ndof <= 5000)
+    if path == "assembled" and direct:
+        path = "direct"
+    backend = "superlu"
+    if direct and direct_backend not in ("auto", "superlu"):
+        backend = direct_backend
+    elif direct and direct_backend == "auto":
+        from .solvers.direct import AUTO_MIN, _auto_chain
+
+        backend = "superlu" if ndof < AUTO_MIN else _auto_chain(True, ndof)[0]
+    plan = estimate_static_run(n, nb, nblocks, d, path=path, coupling_range=rng, backend=backend)
+    if history_steps:
+        hist = int(history_steps) * n * (d + d * d + 2) * 8
+        plan.stages = {k: v + hist for k, v in plan.stages.items()}
+    return plan
+
+
+def memory_hints(plan: RunEstimate) -> list[str]:
+    """What would fit instead of ``plan``: iterative or matrix-free solves, a coarser grid,
+    PETSc on more ranks (each with its estimated peak)."""
+    from .resources import available_memory
+
+    avail = max(available_memory().bytes, 1)
+    need = max(plan.need, 1)
+    hints: list[str] = []
+    alt = {
+        "direct": ("solver='amg-cg' (assembled K, AMG)", "assembled"),
+        "assembled": ("operator='matrix-free'", "matrix-free"),
+    }
+    if plan.path in alt:
+        text, path = alt[plan.path]
+        other = estimate_static_run(
+            plan.n_points, plan.n_bonds, plan.nnz_blocks, plan.dim, path=path,
+            coupling_range=plan.coupling_range,
+            base=plan.base,
+        )  # fmt: skip
+        hints.append(f"{text}: ~{format_bytes(other.peak)}")
+        if plan.path == "direct" and other.need > avail:
+            mf = estimate_static_run(
+                plan.n_points, plan.n_bonds, plan.nnz_blocks, plan.dim, path="matrix-free",
+                base=plan.base,
+            )  # fmt: skip
+            hints.append(f"solver='amg-cg' with operator='matrix-free': ~{format_bytes(mf.peak)}")
+    frac = min(avail / need, 1.0)
+    coarse = max(int(plan.n_points * frac * 0.9), 1)
+    scale = (plan.n_points / coarse) ** (1 / plan.dim)
+    hints.append(
+        f"a coarser discretization of at most ~{coarse:,} points (spacing x {scale:.3g}, the "
+        "same horizon ratio)"
+    )
+    ranks = max(int(np.ceil(need / avail)), 2)
+    hints.append(
+        f"backend='petsc' on >= {ranks} ranks with their own memory "
+        f"(mpiexec -n {ranks} pdlin run ..., docs/petsc.md)"
+    )
+    return hints
 
 
 def _choose_operator(

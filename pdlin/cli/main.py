@@ -7,12 +7,14 @@ code and can be called from tests.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import logging
 import os
 import sys
+import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +38,63 @@ class _Progress:
             return
         t = time.perf_counter() - self.t0
         print(f"[{t:8.2f} s] {msg} ...", file=sys.stderr, flush=True)
+
+
+def _plan(problem: Any, prog: Any, solver: str, steps: int, nonlinear: bool = False) -> None:
+    """Print the memory estimate of a load-stepping run and refuse it when it does not fit."""
+    from ..problem import memory_hints, plan_memory
+    from ..resources import LATE_IMPORTS, NONLINEAR_LATE_IMPORTS, check_memory, current_rss
+
+    plan = plan_memory(problem, solver, history_steps=steps)
+    if nonlinear:  # the material kernels' compile replaces the linear models' one
+        plan.base = current_rss() + LATE_IMPORTS + NONLINEAR_LATE_IMPORTS
+    prog(plan.summary())
+    check_memory("this run", plan.need, lambda: memory_hints(plan))
+
+
+def _bytes_so_far(out: Path) -> int:
+    """Bytes written so far for ``out``: the file, or the writers' staging directory
+    (``.NAME.*.partial`` beside it, pdlin.io.results)."""
+    staged = [f for d in out.parent.glob(f".{out.name}.*.partial") for f in d.iterdir()]
+    total = 0
+    for f in staged or [out]:  # the old file, if any, stays until the new one replaces it
+        try:
+            total += f.stat().st_size if f.is_file() else 0
+        except OSError:
+            pass
+    return total
+
+
+@contextlib.contextmanager
+def _write_progress(out: Path, prog: Any) -> Iterator[None]:
+    """Report the bytes written every few seconds while the body writes ``out``."""
+    from .._progress import Throttle
+    from ..resources import format_bytes
+
+    done = threading.Event()
+    tick = Throttle(prog)
+
+    def watch() -> None:
+        while not done.wait(0.5):
+            tick(lambda: f"  writing: {format_bytes(_bytes_so_far(out))} so far")
+
+    th = threading.Thread(target=watch, daemon=True)
+    th.start()
+    try:
+        yield
+    finally:
+        done.set()
+        th.join()
+
+
+def _size(path: Path) -> str:
+    """Bytes written to ``path`` (a file), human readable."""
+    from ..resources import format_bytes
+
+    try:
+        return format_bytes(path.stat().st_size)
+    except OSError:
+        return "?"
 
 
 def _load(args: argparse.Namespace) -> Any:
@@ -134,6 +193,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if not writer:
         return 0
     prog(f"writing {out}")
+    t_write = time.perf_counter()
     fields = result.fields()
     if scene.fields:
         missing = [f for f in scene.fields if f not in fields]
@@ -144,8 +204,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
         fields = {k: fields[k] for k in scene.fields}
     from ..io.results import write_points
 
-    write_points(out, scene.cloud, fields) if scene.fields else write_result(out, result)
+    with _write_progress(out, prog):
+        write_points(out, scene.cloud, fields) if scene.fields else write_result(out, result)
+    t_write = time.perf_counter() - t_write
+    prog(f"wrote {_size(out)} in {t_write:.1f} s")
     summary = result.summary()
+    # the printed total covers the fields and the write as well
+    tim = {k: v for k, v in summary["timings"].items() if k != "total"}
+    tim["write"] = t_write
+    tim["total"] = summary["timings"].get("total", 0.0) + t_write
+    summary["timings"] = tim
     summary["scene"] = scene.name
     if chosen is not None:
         summary["selected"] = {
@@ -238,6 +306,7 @@ def _run_damage(args: argparse.Namespace, scene: Any, prog: Any) -> int:
     opts = dict(scene.damage)
     if args.solver:
         opts["solver"] = args.solver
+    _plan(scene.problem, prog, opts.get("solver", "auto"), int(opts.get("steps", 10)))
     result = solve_damage(scene.problem, progress=prog, **opts)
     out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.vtu"))
     prog(f"writing {out}")
@@ -284,6 +353,7 @@ def _run_nonlinear(args: argparse.Namespace, scene: Any, prog: Any) -> int:
         if "checkpoint" not in opts:
             raise PdlinError("--resume needs solver.checkpoint in the scene")
         opts["resume"] = True
+    _plan(scene.problem, prog, "auto", int(opts.get("steps", 1)), nonlinear=True)
     result = solve_nonlinear(scene.problem, progress=prog, **opts)
     out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.pvd"))
     prog(f"writing {out}")
@@ -818,6 +888,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ConvergenceError as exc:
         print(f"pdlin: solver failed: {exc}", file=sys.stderr)
         return 3
+    except MemoryError as exc:  # pdlin's refusal, or an allocation that still failed
+        from ..resources import out_of_memory_message
+
+        print(f"pdlin: error: {out_of_memory_message(exc)}", file=sys.stderr)
+        return 2
     except (PdlinError, OSError) as exc:
         print(f"pdlin: error: {exc}", file=sys.stderr)
         return 2

@@ -487,6 +487,37 @@ def _tree_pairs(
     return ii[order], jj[order], xi_all, np.concatenate([length, length])[order]
 
 
+def _check_bond_memory(cloud: PointCloud, hor: np.ndarray, shape: str) -> None:
+    """Refuse a bond search whose bonds do not fit, from the neighbour count of a lattice
+    ball of the horizon ratio (exact pair count on grid clouds)."""
+    from ..resources import (
+        BOND_SEARCH_TRANSIENT,
+        bonds_bytes,
+        check_memory,
+        estimate_pair_count,
+        format_bytes,
+    )
+
+    nb = float(estimate_pair_count(cloud, hor))
+    if shape in ("cube", "box"):
+        nb *= 2.0**cloud.dim / (math.pi ** (cloud.dim / 2) / math.gamma(cloud.dim / 2 + 1))
+    need = bonds_bytes(nb, cloud.n, cloud.dim) * (1 + BOND_SEARCH_TRANSIENT)
+    ratio = float(np.median(hor / cloud.spacing))
+
+    def hints() -> list[str]:
+        return [
+            f"a smaller horizon ratio (now {ratio:.3g} spacings, ~{nb / cloud.n:,.0f} "
+            "neighbours per point; bytes grow as ratio^dim)",
+            "a coarser discretization",
+        ]
+
+    check_memory(
+        f"bond search (~{nb:,.0f} bonds, {format_bytes(bonds_bytes(nb, cloud.n, cloud.dim))})",
+        need,
+        hints,
+    )
+
+
 def find_bonds(
     cloud: PointCloud,
     horizon: float | Sequence[float] | np.ndarray | None = None,
@@ -578,6 +609,7 @@ def find_bonds(
     use_lattice = cloud.lattice is not None and uniform and method != "tree"
     if method == "lattice" and not use_lattice:
         raise InputError("method='lattice' needs a grid cloud and a constant horizon")
+    _check_bond_memory(cloud, hor, shape)
     if use_lattice:
         i, j, xi, length = _lattice_pairs(cloud, float(hor[0]), shape, ax, rtol)
     else:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -344,6 +345,24 @@ def _face_sets(points: np.ndarray, lo: np.ndarray, hi: np.ndarray, h: np.ndarray
     return sets
 
 
+def _check_grid_memory(shp: tuple[int, ...]) -> None:
+    """Refuse a grid whose points do not fit, before allocating them."""
+    from ..resources import available_memory, check_memory, grid_bytes
+
+    n = math.prod(shp)  # exact Python int: no overflow for (10**6, 10**6)
+    need = grid_bytes(float(n), len(shp))
+
+    def hints() -> list[str]:
+        fit = max(int(available_memory().bytes / max(need / n, 1.0) * 0.9), 1)
+        per_axis = max(int(fit ** (1 / len(shp))), 1)
+        return [
+            f"at most ~{fit:,} points, e.g. shape {[per_axis] * len(shp)} (the bonds and K "
+            "need 10-100 x more than the points: see pdlin.problem.plan_memory)"
+        ]
+
+    check_memory(f"grid of shape {list(shp)} ({n:,} points)", need, hints)
+
+
 def grid(
     shape: int | Sequence[int],
     spacing: float | Sequence[float] = 1.0,
@@ -404,6 +423,7 @@ def grid(
     o = np.zeros(dim) if origin is None else as_float_array(origin, "origin")
     if o.shape != (dim,):
         raise ShapeError(f"origin must have shape ({dim},), got {o.shape}")
+    _check_grid_memory(shp)
     axes = [o[k] + (np.arange(shp[k]) + 0.5) * h[k] for k in range(dim)]
     mesh = np.meshgrid(*axes, indexing="ij")
     points = np.stack([m.ravel() for m in mesh], axis=1)

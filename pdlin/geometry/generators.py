@@ -44,6 +44,17 @@ def _positive_float(value: Any, name: str) -> float:
     return v
 
 
+def _check_mesh_memory(n_nodes: float, bytes_per_node: float, what: str) -> None:
+    """Refuse a generated mesh whose arrays do not fit (before building them)."""
+    from ..resources import check_memory
+
+    check_memory(
+        f"plate_with_hole_mesh ({n_nodes:,.0f} nodes)",
+        n_nodes * bytes_per_node,
+        [f"a smaller {what} resolution: the point count grows with its square"],
+    )
+
+
 def plate_with_hole_mesh(
     n_ang: int = 32,
     n_rad: int = 60,
@@ -156,9 +167,14 @@ def plate_with_hole_mesh(
             raise InputError(f"layers needs backend='ogrid', got {backend!r}")
     if backend == "gmsh":
         size = L / 50 if mesh_size is None else _positive_float(mesh_size, "mesh_size")
+        # ~2 triangles per size² of the plate; gmsh holds ~1 kB per element while meshing
+        _check_mesh_memory(2.0 * (L / size) ** 2, 1000.0, "mesh_size")
         return _plate_with_hole_gmsh(L, r, size)
     if backend != "ogrid":
         raise InputError(f"backend must be 'ogrid' or 'gmsh', got {backend!r}")
+    n_layers = 1 if layers is None else nl + 1
+    # nodes: coordinates and the (nr+1, 4 na, 2) intermediates; cells: corners + tags
+    _check_mesh_memory(float(nr + 1) * 4 * na * n_layers, 160.0 + 8 * 8 * 2, "n_ang x n_rad")
 
     n_ring = 4 * na
     a = np.arange(n_ring)

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._validation import as_float_array
-from ..errors import AccuracyWarning, PdlinError, SceneError
+from ..errors import AccuracyWarning, InsufficientMemoryError, PdlinError, SceneError
 from ..geometry.bonds import SHAPES, Bonds, find_bonds
 from ..geometry.cloud import PointCloud, from_image, grid
 from ..geometry.influence import INFLUENCE_FUNCTIONS
@@ -777,7 +777,7 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
             load_vector(cloud, loads, prescribed=dofs, names=load_names)
         scfg = _check_keys(top.get("solver", {}), _SOLVER, "solver")
         ocfg = _check_keys(top.get("output", {}), _OUTPUT, "output")
-    except SceneError:
+    except (SceneError, InsufficientMemoryError):  # a valid scene too large for memory
         raise
     except PdlinError as exc:
         raise SceneError(f"invalid scene: {exc}") from exc

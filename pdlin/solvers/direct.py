@@ -41,7 +41,20 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .._threads import get_num_threads
-from ..errors import ConvergenceError, InputError, MissingDependencyError
+from ..errors import (
+    ConvergenceError,
+    InputError,
+    InsufficientMemoryError,
+    MissingDependencyError,
+)
+from ..resources import (
+    SUPERLU_WORKSPACE,
+    available_memory,
+    check_memory,
+    direct_factor_bytes,
+    direct_factor_nnz,
+    format_bytes,
+)
 
 __all__ = ["DIRECT_BACKENDS", "AUTO_MIN", "available_direct_backends", "DirectSolver"]
 
@@ -364,6 +377,40 @@ def _pattern_symmetric(A: sp.csc_matrix) -> bool:
     return bool(np.array_equal(P.indptr, Q.indptr) and np.array_equal(P.indices, Q.indices))
 
 
+def _factor_hints(backend: str) -> list[str]:
+    hints = ["solver='amg-cg' (no factor: AMG needs about K's size again)"]
+    if backend == "superlu":
+        hints.append(
+            "direct_backend='cholmod' or 'pardiso' (nested-dissection orderings fill in "
+            "2-5 x less than SuperLU's L + U; docs/large_problems.md)"
+        )
+    hints.append("a coarser discretization or a smaller horizon ratio")
+    return hints
+
+
+def check_factor_memory(A: Any, backend: str) -> int:
+    """Estimated bytes of the factor of ``A`` under ``backend``; raises
+    :class:`~pdlin.errors.InsufficientMemoryError` when they exceed the available memory.
+
+    The fill comes from :func:`pdlin.resources.direct_factor_nnz` (nested dissection on a
+    lattice of ``A``'s size and blocks per row; a BSR ``A`` gives its block size as the
+    dimension).
+    """
+    b = int(A.blocksize[0]) if getattr(A, "format", None) == "bsr" else 1
+    n_pts = max(A.shape[0] // b, 1)
+    dim = b if b in (2, 3) else 2
+    nnz_l = direct_factor_nnz(n_pts, int(A.nnz) // (b * b), dim, b)
+    need = direct_factor_bytes(nnz_l, backend, n_pts, dim)
+    if backend == "superlu":  # its memory expansions during the factorization
+        need = int(need * SUPERLU_WORKSPACE)
+    check_memory(
+        f"direct factorization ({backend}, ~{nnz_l:,} nonzeros in L)",
+        need,
+        lambda: _factor_hints(backend),
+    )
+    return need
+
+
 def _as_csc(A: Any, symmetric: bool) -> sp.csc_matrix:
     """``A`` in CSC form; a symmetric ``A`` reuses its CSR arrays (CSR of ``A`` is CSC of
     ``Aᵀ = A``): BSR -> CSR is a block expansion, 20x cheaper than BSR -> CSC (measured
@@ -458,6 +505,7 @@ class DirectSolver:
                 "nonsymmetric: use 'pardiso', 'superlu' or 'auto'"
             )
         chain = [backend] if backend != "auto" else _auto_chain(self.symmetric, A.shape[0])
+        factor_bytes = check_factor_memory(A, chain[0])
         self.info: dict[str, Any] = {}
         notes: list[str] = []
         impl: Any = None
@@ -465,6 +513,17 @@ class DirectSolver:
             try:
                 impl = _CLASSES[name](csc, self.symmetric)
                 break
+            except MemoryError as exc:  # the estimate fitted, the backend still ran out
+                if isinstance(exc, InsufficientMemoryError):
+                    raise
+                raise InsufficientMemoryError(
+                    f"direct factorization ({name}) ran out of memory ({exc or 'MemoryError'}; "
+                    f"estimated factor ~{format_bytes(factor_bytes)}, "
+                    f"{available_memory().describe()} available); what would fit: "
+                    + "; ".join(_factor_hints(name)),
+                    need=factor_bytes,
+                    hints=_factor_hints(name),
+                ) from exc
             except _NotPositiveDefinite as exc:
                 if backend != "auto":
                     raise ConvergenceError(

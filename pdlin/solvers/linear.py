@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -17,6 +18,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .._progress import ResidualHistory, Throttle
 from ..errors import ConvergenceError, InputError, NonFiniteError
 from .conditioning import CONDITION_AUTO_MAX, condition_estimate, warn_if_ill_conditioned
 from .direct import DIRECT_BACKENDS, DirectSolver
@@ -554,6 +556,7 @@ def solve_linear(
     direct_backend: str = "auto",
     direct_cache: dict[str, Any] | None = None,
     condition: bool | str = "auto",
+    progress: Callable[[str], None] | None = None,
 ) -> LinearSolveInfo:
     """Solve ``A x = b`` and verify the true residual.
 
@@ -593,6 +596,10 @@ def solve_linear(
         shape refactorizes it with :meth:`DirectSolver.refactor`, reusing the
         ordering and symbolic analysis when the pattern is unchanged (Newton
         tangents).  ``info['direct_reused']`` says whether it did.
+    progress : callable, optional
+        Called with a line (iteration count and relative residual) at most every
+        :data:`pdlin._progress.PROGRESS_EVERY` seconds of an iterative solve, and once
+        after the AMG set-up.
     condition : bool or 'auto'
         Estimate the 1-norm condition number of a ``'direct'`` solve from its
         factorization (:func:`pdlin.solvers.condition_estimate`,
@@ -640,6 +647,7 @@ def solve_linear(
             A, b * bscale, solver, rtol, maxiter, near_null, blocksize, symmetric,
             None if x0 is None else np.asarray(x0, dtype=float) * bscale, amg_options,
             check_rtol, preconditioner_matrix, direct_backend, direct_cache, condition,
+            progress,
         )  # fmt: skip
     except ConvergenceError as exc:
         if isinstance(exc.result, LinearSolveInfo):  # the partial result, in the caller's units
@@ -670,12 +678,15 @@ def _solve_scaled(
     direct_backend: str = "auto",
     direct_cache: dict[str, Any] | None = None,
     condition: bool | str = "auto",
+    progress: Callable[[str], None] | None = None,
 ) -> LinearSolveInfo:
     """The body of :func:`solve_linear` for a right-hand side of unit magnitude."""
     n = A.shape[0]
     if maxiter is None:
         maxiter = max(200, min(n, 5000))
     residuals: list[float] = []
+    if progress is not None:
+        residuals = ResidualHistory(Throttle(progress), solver)
     info: dict[str, Any] = {}
     P = A if preconditioner_matrix is None else preconditioner_matrix
     if P.shape != A.shape:
@@ -755,6 +766,8 @@ def _solve_scaled(
     M: Any = None
     MA: Any = None
     if solver in ("amg-cg", "amg-gmres"):
+        if progress is not None:
+            progress(f"  AMG set-up on {P.shape[0]:,} unknowns, {P.nnz:,} nonzeros")
         ml = amg_hierarchy(
             P, near_null, blocksize=blocksize, symmetric=symmetric, **(amg_options or {})
         )
@@ -765,6 +778,11 @@ def _solve_scaled(
         info["operator_complexity"] = ml.operator_complexity()
         info["grid_complexity"] = ml.grid_complexity()
         info["level_sizes"] = [int(lev.A.shape[0]) for lev in ml.levels]
+        if progress is not None:
+            progress(
+                f"  AMG hierarchy: {len(ml.levels)} levels, operator complexity "
+                f"{info['operator_complexity']:.2f}, set up in {time.perf_counter() - t0:.1f} s"
+            )
     elif solver == "jacobi-cg":
         d = P.diagonal()
         if np.any(d <= 0):

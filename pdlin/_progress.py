@@ -1,0 +1,49 @@
+"""Throttled progress lines for long stages (iterations, bytes written)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+#: seconds between two progress lines of one stage
+PROGRESS_EVERY = 5.0
+
+
+class Throttle:
+    """Call ``say(message())`` at most every ``every`` seconds (the first call after
+    ``every`` seconds of the stage, then every ``every`` seconds).
+
+    Examples
+    --------
+    >>> lines = []
+    >>> tick = Throttle(lines.append, every=0.0)
+    >>> tick(lambda: "iteration 1")
+    >>> lines
+    ['iteration 1']
+    """
+
+    def __init__(self, say: Callable[[str], None], every: float | None = None) -> None:
+        self.say = say
+        self.every = float(PROGRESS_EVERY if every is None else every)
+        self.last = time.perf_counter()
+
+    def __call__(self, message: Callable[[], str]) -> None:
+        now = time.perf_counter()
+        if now - self.last >= self.every:
+            self.last = now
+            self.say(message())
+
+
+class ResidualHistory(list[float]):
+    """A list of relative residuals that reports the iteration count and the latest
+    residual through a :class:`Throttle` as the Krylov solvers append to it."""
+
+    def __init__(self, tick: Throttle, label: str) -> None:
+        super().__init__()
+        self.tick = tick
+        self.label = label
+
+    def append(self, value: Any) -> None:
+        super().append(value)
+        self.tick(lambda: f"  {self.label}: iteration {len(self) - 1}, residual {value:.2e}")
