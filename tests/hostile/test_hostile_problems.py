@@ -514,11 +514,13 @@ def test_total_force_partly_on_a_determinate_support_is_applied_silently():
     pin, roll = int(order[0]), int(order[1])  # (0.05, 0.05) and (0.15, 0.05): on y-
     inner = np.flatnonzero(np.all((p > 0.1) & (p < 0.5), axis=1))
     a, b = int(inner[0]), int(inner[inner.size // 2])  # two interior points, off every edge
+
     def run(i: int, j: int, comp: str) -> pdlin.StaticResult:
         prob = pdlin.StaticProblem(pdlin.BondBased(E=1.0), cloud, horizon=0.3015,
                                    dirichlet=[D([i], 0.0), D([j], 0.0, components=comp)],
                                    loads=shear)  # fmt: skip
         return _strict_solve(prob)
+
     edge, off = run(pin, roll, "y"), run(a, b, "x" if p[a, 1] != p[b, 1] else "y")
     np.testing.assert_allclose(edge.reactions, 0.0, atol=1e-15)
     # the two displacements differ by a rigid motion: compare the strains
