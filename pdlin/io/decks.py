@@ -31,6 +31,9 @@ Sources of the formats (read, not copied):
   centroid with their volume, hexes by a 24-tet decomposition, spheres at their node
   with their volume attribute; blank block / node-set names are ``block_<id>`` /
   ``nodelist_<id>`` by the Exodus ids);
+* Peridigm ``src/io/discretization/Peridigm_PdQuickGridDiscretization.cpp`` and
+  ``src/io/mesh_input/quick_grid/QuickGrid.cxx`` (``TensorProduct3DMeshGenerator``: cell
+  centres, cell volumes, ``SphericalNormFunction``);
 * Peridigm ``src/core/Peridigm.cpp`` (the keys its quasi-static solvers read; ``Time
   Steps``) and Teuchos ``XMLObject::getRequiredBool`` (``true/yes/1``, ``false/no/0``);
 * PeriLab.jl ``examples/Dogbone/Dogbone.yaml``, ``Dogbone_plastic_corr_static.yaml``,
@@ -632,9 +635,110 @@ def _peridigm_cloud(disc: Mapping[str, Any], base: Path) -> tuple[PointCloud, di
     if kind == "Exodus":
         path = _resolve_file(disc.get("Input Mesh File"), base, "Discretization.Input Mesh File")
         return _exodus_cloud(path)
+    if kind == "PdQuickGrid":
+        return _quickgrid_cloud(disc)
     raise SceneError(
-        f"Discretization.Type must be 'Text File' or 'Exodus' (pdlin's deck reader), got {kind!r}"
+        "Discretization.Type must be 'Text File', 'Exodus' or 'PdQuickGrid' (pdlin's deck "
+        f"reader), got {kind!r}"
     )
+
+
+_PD_QUICKGRID = {
+    "Type": "",
+    "NeighborhoodType": "",
+    "TensorProduct3DMeshGenerator": "",
+    "Verbose": "cosmetic",
+    "Store Exodus Mesh": "output option",
+    "Construct Neighborhood Lists": "true: Peridigm's default (false -> error)",
+    "Omit Bonds Between Blocks": "'None': Peridigm's default (one block here)",
+}
+_PD_TENSOR3D = ("X Origin", "Y Origin", "Z Origin", "X Length", "Y Length", "Z Length")
+_PD_TENSOR3D_N = ("Number Points X", "Number Points Y", "Number Points Z")
+
+
+def _quickgrid_axis(n: int, x0: float, length: float) -> np.ndarray:
+    """QuickGrid's cell centres along one axis (``QuickGrid.cxx``, ``getDiscretization``).
+
+    ``p = x0 + h / 2`` then ``p += h`` cell by cell (``h = length / n``): the running sum
+    is kept (``np.cumsum`` adds in order) so the points are Peridigm's to the last bit.
+    """
+    h = length / n
+    steps = np.full(n, h)
+    steps[0] = x0 + h / 2.0
+    return np.cumsum(steps)
+
+
+def _quickgrid_cloud(disc: Mapping[str, Any]) -> tuple[PointCloud, dict[str, Any]]:
+    """Peridigm's ``PdQuickGrid`` discretization (``Peridigm_PdQuickGridDiscretization.cpp``).
+
+    ``TensorProduct3DMeshGenerator``: ``nx * ny * nz`` cell centres, point ``i + j nx +
+    k nx ny`` at ``(x_i, y_j, z_k)``, every volume ``hx hy hz``, one block ``block_1``.
+    ``NeighborhoodType: Spherical`` bonds the pairs with ``|x_j - x_i|² - δ² < 0``
+    (``SphericalNormFunction``, strict; the cell box QuickGrid searches first holds the
+    whole ball).  Without it QuickGrid bonds the whole cell box (``NoOpNormFunction``),
+    which pdlin refuses.
+    """
+    key = "Discretization"
+    if "Bond Filters" in disc:
+        # Peridigm_PdQuickGridDiscretization.cpp stops on this too
+        raise SceneError(
+            f"{key}.Bond Filters: Peridigm does not support bond filters with PdQuickGrid"
+        )
+    if "TensorProduct3DMeshGenerator" not in disc:
+        other = sorted(k for k in disc if k.startswith("TensorProduct"))
+        raise SceneError(
+            f"{key}: PdQuickGrid needs a TensorProduct3DMeshGenerator list (the cylinder "
+            f"generator is not supported), got {other or 'none'}"
+        )
+    _unknown(disc, _PD_QUICKGRID, key, "Peridigm PdQuickGrid discretization")
+    for k, why in _PD_QUICKGRID.items():
+        if why and k in disc:
+            _note(f"{key}.{k}", why)
+    norm = disc.get("NeighborhoodType")
+    if norm != "Spherical":
+        raise SceneError(
+            f"{key}.NeighborhoodType must be 'Spherical' (without it QuickGrid bonds a cube of "
+            f"cells, which pdlin does not read), got {norm!r}"
+        )
+    gkey = f"{key}.TensorProduct3DMeshGenerator"
+    gen = _table(disc["TensorProduct3DMeshGenerator"], gkey)
+    allowed = {k: "" for k in (*_PD_TENSOR3D, *_PD_TENSOR3D_N)}
+    allowed["Type"] = "cosmetic (Peridigm does not read it)"
+    _unknown(gen, allowed, gkey, "TensorProduct3DMeshGenerator")
+    for k in (*_PD_TENSOR3D, *_PD_TENSOR3D_N):
+        if k not in gen:
+            raise SceneError(f"missing deck key {gkey}.{k}")
+    origin = [_number(gen[f"{c} Origin"], f"{gkey}.{c} Origin") for c in "XYZ"]
+    length = [_number(gen[f"{c} Length"], f"{gkey}.{c} Length", positive=True) for c in "XYZ"]
+    counts = []
+    for c in "XYZ":
+        v = gen[f"Number Points {c}"]
+        if isinstance(v, str) and re.fullmatch(r"\s*\d+\s*", v):
+            v = int(v)
+        if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+            raise SceneError(f"{gkey}.Number Points {c} must be an integer >= 1, got {v!r}")
+        counts.append(v)
+    axes = [_quickgrid_axis(n, x0, L) for n, x0, L in zip(counts, origin, length, strict=True)]
+    z, y, x = np.meshgrid(axes[2], axes[1], axes[0], indexing="ij")
+    points = np.column_stack([x.ravel(), y.ravel(), z.ravel()])
+    # QuickGrid: xSpec.getCellSize() * ySpec.getCellSize() * zSpec.getCellSize()
+    vol = (length[0] / counts[0]) * (length[1] / counts[1]) * (length[2] / counts[2])
+    cloud = _cloud(points, np.full(points.shape[0], vol), gkey)
+    return cloud, {
+        "blocks": {"block_1": np.arange(cloud.n)},
+        "node_sets": {},
+        "strict_sphere": True,
+    }
+
+
+def _strict_sphere(horizon: float) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """``find_bonds`` exclude: QuickGrid's strict ``dx² + dy² + dz² - δ² < 0`` test."""
+
+    def exclude(xi: np.ndarray, xj: np.ndarray) -> np.ndarray:
+        d = xj - xi
+        return d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2] - horizon * horizon >= 0.0
+
+    return exclude
 
 
 # Peridigm_GeometryUtils.cpp, hexCentroidAndVolume: 24 tets (edge a-b, the face's
@@ -921,12 +1025,13 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         if k not in root:
             raise SceneError(f"missing deck key Peridigm.{k}")
     disc = _table(root["Discretization"], "Discretization")
-    if disc.get("Type") not in ("Text File", "Exodus"):  # before its keys: name the cause
+    if disc.get("Type") not in ("Text File", "Exodus", "PdQuickGrid"):  # name the cause first
         raise SceneError(
-            "Discretization.Type must be 'Text File' or 'Exodus' (pdlin's deck reader; "
-            f"PdQuickGrid and mesh generators are not supported), got {disc.get('Type')!r}"
+            "Discretization.Type must be 'Text File', 'Exodus' or 'PdQuickGrid' (pdlin's deck "
+            f"reader), got {disc.get('Type')!r}"
         )
-    _unknown(disc, _PD_DISC, "Discretization", "Peridigm discretization")
+    if disc["Type"] != "PdQuickGrid":
+        _unknown(disc, _PD_DISC, "Discretization", "Peridigm discretization")
     if "Construct Neighborhood Lists" in disc and not _flag(
         disc["Construct Neighborhood Lists"], "Discretization.Construct Neighborhood Lists"
     ):
@@ -940,7 +1045,7 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
             f"others, Peridigm's default) is supported, got {omit!r}"
         )
     for k, why in _PD_DISC.items():
-        if why and k in disc:
+        if why and k in disc and disc["Type"] != "PdQuickGrid":
             _note(f"Discretization.{k}", why)
     cloud, extra = _peridigm_cloud(disc, base)
     blocks_pts: dict[str, np.ndarray] = extra["blocks"]
@@ -1029,7 +1134,10 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
                 _note(f"Output.{k}", why)
         if "Output Filename" in out:
             output = base / f"{out['Output Filename']}.vtu"
-    return _scene(name, model, cloud, horizon, dirichlet, loads, base, output)
+    opts: dict[str, Any] = {}
+    if extra.get("strict_sphere"):
+        opts["exclude"] = _strict_sphere(float(horizon[0]))
+    return _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
 
 
 def _build_model(kind: str, K: np.ndarray, G: np.ndarray, hgs: set[float], key: str) -> Any:
@@ -1192,12 +1300,21 @@ def _scene(
     loads: list[Any],
     base: Path,
     output: Path | None,
+    bond_options: Mapping[str, Any] | None = None,
 ) -> Scene:
     h: Any = float(horizon[0]) if np.all(horizon == horizon[0]) else horizon
     try:
         resolve_dirichlet(cloud, dirichlet)
         load_vector(cloud, loads)
-        problem = StaticProblem(model, cloud, None, horizon=h, dirichlet=dirichlet, loads=loads)
+        problem = StaticProblem(
+            model,
+            cloud,
+            None,
+            horizon=h,
+            dirichlet=dirichlet,
+            loads=loads,
+            bond_options=dict(bond_options or {}),
+        )
     except SceneError:
         raise
     except PdlinError as exc:

@@ -256,8 +256,8 @@ def test_boundary_condition_errors_name_the_key(bar_dir, edit, pattern):
         (
             "Discretization",
             "Type",
-            "PdQuickGrid",
-            r"Discretization.Type must be 'Text File' or 'Exodus'",
+            "Sphere Mesh",
+            r"Discretization.Type must be 'Text File', 'Exodus' or 'PdQuickGrid'.*'Sphere Mesh'",
         ),
         ("Discretization", "Bond Filters", {}, r"Discretization.Bond Filters: not supported"),
         (

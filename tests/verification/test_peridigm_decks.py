@@ -54,6 +54,7 @@ DECKS = [
     ("Body_Force", "Body_Force_QS.xml", "Body_Force_QS_gold.e"),
     ("Body_Force", "Body_Force_QS_NOX.xml", "Body_Force_QS_NOX_gold.e"),
     ("CentrifugalLoad", "CentrifugalLoad.xml", "CentrifugalLoad_gold.e"),
+    ("Compression_QS_3x2x2", "Compression_QS_3x2x2.xml", "Compression_QS_3x2x2_gold.e"),
     ("Compression_QS_3x2x2_Exodus", "Compression_QS_3x2x2_Exodus.xml",
      "Compression_QS_3x2x2_Exodus_gold.e"),
     ("Compression_QS_3x2x2_TextFile", "Compression_QS_3x2x2_TextFile.xml",
@@ -69,6 +70,7 @@ DECKS = [
 ]  # fmt: skip
 # the small decks run in the default test run, the rest with -m slow
 FAST = {
+    "Compression_QS_3x2x2.xml",
     "Compression_QS_3x2x2_Exodus.xml",
     "Compression_QS_3x2x2_TextFile.xml",
     "CentrifugalLoad.xml",
@@ -225,9 +227,14 @@ OUTSIDE = [
         r"^Discretization\.Omit Bonds Between Blocks: only 'None' .* got 'All'",
     ),
     (
-        "Compression_QS_3x2x2",
-        "Compression_QS_3x2x2.xml",
-        r"^Discretization\.Type must be 'Text File' or 'Exodus'.*got 'PdQuickGrid'",
+        "ThermalExpansionCube",
+        "ThermalExpansionCube.xml",
+        r"^Materials\.My Elastic Material\.Thermal Expansion Coefficient: not supported",
+    ),
+    (
+        "ThermalExpansionCubeElasticCorrespondence",
+        "ThermalExpansionCubeElasticCorrespondence.xml",
+        r"^Materials\.My Elastic Material\.Thermal Expansion Coefficient: not supported",
     ),
     ("Contact_2x1x1", "Contact_2x1x1.xml", r"^Peridigm\.Contact: not supported"),
     (
@@ -249,3 +256,43 @@ def test_outside_deck_through_pdlin_run_is_one_error_line(tmp_path, capsys):
     assert main(["run", str(tmp_path / "c" / "Contact_2x1x1.xml"), "-q"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "Peridigm.Contact" in err[0]
+
+
+# PdQuickGrid decks (Peridigm_PdQuickGridDiscretization.cpp): the cloud and the bonds
+# against the gold file's coordinates and Weighted_Volume m_i = sum_j |xi|^2 V_j (elastic.cxx),
+# which Peridigm writes from its own bonds and volumes.  The thermal decks are refused
+# (thermal expansion) so their discretization is checked alone.
+QUICKGRID = [
+    ("Compression_QS_3x2x2", "Compression_QS_3x2x2.xml", "Compression_QS_3x2x2_gold.e"),
+    ("ThermalExpansionCube", "ThermalExpansionCube.xml", "ThermalExpansionCube_gold.e"),
+    # same Discretization and Blocks lists as ThermalExpansionCube; its own gold file (937 kB)
+    # holds no Weighted_Volume and is not copied
+    ("ThermalExpansionCubeElasticCorrespondence", "ThermalExpansionCubeElasticCorrespondence.xml",
+     "../ThermalExpansionCube/ThermalExpansionCube_gold.e"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("folder", "deck", "gold"), QUICKGRID, ids=[q[0] for q in QUICKGRID])
+def test_quickgrid_discretization_is_peridigms(folder, deck, gold):
+    from pdlin.io import decks
+
+    raw = decks._load_xml(DATA / folder / deck)["Peridigm"]
+    cloud, extra = decks._quickgrid_cloud(raw["Discretization"])
+    (block,) = raw["Blocks"].values()
+    horizon = float(block["Horizon"])
+    bonds = pdlin.find_bonds(cloud, horizon, exclude=decks._strict_sphere(horizon))
+    with netCDF4.Dataset(DATA / folder / gold) as ds:
+        x = np.column_stack([np.asarray(ds.variables[f"coord{c}"][:]) for c in "xyz"])
+        order = np.asarray(ds.variables["elem_num_map"][:]) - 1
+        names = list(netCDF4.chartostring(ds.variables["name_elem_var"][:]))
+        m_gold = np.asarray(
+            ds.variables[f"vals_elem_var{names.index('Weighted_Volume') + 1}eb1"][0]
+        )
+    # Peridigm's points in Peridigm's order (global id i + j nx + k nx ny), to the last bit
+    assert np.array_equal(order, np.arange(cloud.n))
+    assert np.array_equal(cloud.points, x)
+    assert list(extra["blocks"]) == ["block_1"]
+    # weighted volume from pdlin's bonds and volumes: the same bonds and volumes
+    # (measured: equal to round-off, 1e-15 relative)
+    m = np.bincount(bonds.i, bonds.length**2 * bonds.volume_j, cloud.n)
+    assert np.allclose(m, m_gold, rtol=1e-12, atol=0)
