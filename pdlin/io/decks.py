@@ -59,7 +59,7 @@ from ..operators.bc import BodyForce, Dirichlet, load_vector, resolve_dirichlet
 from ..problem import StaticProblem
 from .scene import Scene
 
-__all__ = ["read_deck", "deck_expression", "peridigm_hourglass_penalty"]
+__all__ = ["read_deck", "deck_expression", "peridigm_hourglass_penalty", "peridigm_bond_filters"]
 
 log = logging.getLogger(__name__)
 
@@ -527,7 +527,8 @@ _PD_DISC = {
     "Store Exodus Mesh": "output option",
     "Verbose": "cosmetic",
     "Construct Neighborhood Lists": "true: Peridigm's default (false -> error)",
-    "Omit Bonds Between Blocks": "'None': Peridigm's default (all blocks bonded; 'All' -> error)",
+    "Omit Bonds Between Blocks": "",
+    "Bond Filters": "",
 }
 _PD_MAT_COMMON = {
     "Material Model": "",
@@ -729,6 +730,175 @@ def _quickgrid_cloud(disc: Mapping[str, Any]) -> tuple[PointCloud, dict[str, Any
         "node_sets": {},
         "strict_sphere": True,
     }
+
+
+def _any_of(
+    filters: list[Callable[[np.ndarray, np.ndarray], np.ndarray]],
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    if len(filters) == 1:
+        return filters[0]
+
+    def exclude(xi: np.ndarray, xj: np.ndarray) -> np.ndarray:
+        out = np.zeros(xi.shape[0], dtype=bool)
+        for f in filters:  # a handful of filters, each vectorized over the bonds
+            out |= f(xi, xj)
+        return out
+
+    return exclude
+
+
+def _omit_between_blocks(
+    points: np.ndarray, blocks: Mapping[str, np.ndarray]
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """``Omit Bonds Between Blocks: All`` (``ExodusDiscretization::filterBonds``).
+
+    ``find_bonds`` hands its ``exclude`` the bond end positions; they are mapped back to
+    point numbers (the points are distinct) and bonds joining two blocks are dropped.
+    """
+    from scipy.spatial import cKDTree
+
+    block_of = np.empty(points.shape[0], dtype=np.int64)
+    for b, idx in enumerate(blocks.values()):
+        block_of[idx] = b
+    tree = cKDTree(points)
+
+    def exclude(xi: np.ndarray, xj: np.ndarray) -> np.ndarray:
+        return block_of[tree.query(xi)[1]] != block_of[tree.query(xj)[1]]
+
+    return exclude
+
+
+_PD_PLANE = {
+    "Type": "",
+    **{
+        f"{k}_{c}": "" for k in ("Normal", "Lower_Left_Corner", "Bottom_Unit_Vector") for c in "XYZ"
+    },
+    "Bottom_Length": "",
+    "Side_Length": "",
+}
+_PD_DISK = {
+    "Type": "",
+    **{f"{k}_{c}": "" for k in ("Center", "Normal") for c in "XYZ"},
+    "Radius": "",
+}
+
+
+def _dot3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a[0] b[0] + a[1] b[1] + a[2] b[2]`` in Peridigm's order of summation."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+def _plane_crossing(
+    p0: np.ndarray, p1: np.ndarray, point: np.ndarray, normal: np.ndarray, tol: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bonds ``p0 -> p1`` meeting the plane at ``0 <= t <= 1`` and the meeting points.
+
+    Peridigm's ``t = ((r0 - p0)·n) / ((p1 - p0)·n)``; ``|(p1 - p0)·n| < tol`` (parallel)
+    meets nowhere.
+    """
+    num = _dot3(point - p0, normal)
+    den = _dot3(p1 - p0, normal)
+    parallel = np.abs(den) < tol
+    t = num / np.where(parallel, 1.0, den)
+    hit = ~parallel & (t >= 0.0) & (t <= 1.0)
+    x = p0 + np.where(hit, t, 0.0)[:, None] * (p1 - p0)
+    return hit, x
+
+
+def peridigm_bond_filters(
+    filters: Any, key: str
+) -> list[Callable[[np.ndarray, np.ndarray], np.ndarray]]:
+    """Peridigm's ``Bond Filters`` as ``find_bonds(exclude=...)`` callables.
+
+    Each returns, for bonds from ``xi`` to ``xj``, whether Peridigm's filter cuts them,
+    with Peridigm's arithmetic (``src/io/pdneigh/BondFilter.cxx``):
+
+    * ``Rectangular_Plane`` (``FinitePlaneFilter``): the bond meets the plane through the
+      lower-left corner ``r0`` with normal ``n`` at ``0 <= t <= 1`` (parallel when
+      ``|(x_j - x_i)·n| < 1e-14``), and the meeting point ``x`` has
+      ``-1e-15 < (x - r0)·u_a``, ``(x - r0)·u_a / Side_Length < 1 + 1e-15``,
+      ``-1e-15 < (x - r0)·u_b`` and ``(x - r0)·u_b / Bottom_Length < 1 + 1e-15`` with
+      ``u_b`` the ``Bottom_Unit_Vector`` as given (not normalized) and ``u_a = u_b × n``;
+    * ``Disk`` (``DiskFilter``): the bond meets the plane through ``Center`` with normal
+      ``Normal`` at ``0 <= t <= 1`` (parallel when ``|(x_j - x_i)·n| < 1e-15``) and
+      ``|x - c|² < Radius²``.
+
+    Peridigm filters each point's neighbour list from that point; ``find_bonds`` drops a
+    bond when either direction is cut.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> (cut,) = peridigm_bond_filters({"F": {"Type": "Disk", "Center_X": 0, "Center_Y": 0,
+    ...     "Center_Z": 0, "Normal_X": 0, "Normal_Y": 1, "Normal_Z": 0, "Radius": 1.0}}, "BF")
+    >>> cut(np.array([[0.0, -0.5, 0.0], [2.0, -0.5, 0.0]]), np.array([[0.0, 0.5, 0.0]] * 2))
+    array([ True, False])
+    """
+    out: list[Callable[[np.ndarray, np.ndarray], np.ndarray]] = []
+    for fname, f in _table(filters, key).items():
+        fkey = f"{key}.{fname}"
+        f = _table(f, fkey)
+        kind = f.get("Type")
+        spec = {"Rectangular_Plane": _PD_PLANE, "Disk": _PD_DISK}.get(str(kind))
+        if spec is None:
+            raise SceneError(
+                f"{fkey}.Type must be 'Rectangular_Plane' or 'Disk' (pdlin's deck reader; "
+                f"'Exodus Mesh' filters are not supported), got {kind!r}"
+            )
+        _unknown(f, spec, fkey, f"Peridigm {kind} bond filter")
+        for k in spec:
+            if k not in f:
+                raise SceneError(f"missing deck key {fkey}.{k}")
+
+        def vec(name: str, f: Mapping[str, Any] = f, fkey: str = fkey) -> np.ndarray:
+            return np.array([_number(f[f"{name}_{c}"], f"{fkey}.{name}_{c}") for c in "XYZ"])
+
+        if kind == "Disk":
+            out.append(
+                _disk_filter(vec("Center"), vec("Normal"), _number(f["Radius"], f"{fkey}.Radius"))
+            )
+        else:
+            out.append(
+                _plane_filter(
+                    vec("Normal"),
+                    vec("Lower_Left_Corner"),
+                    vec("Bottom_Unit_Vector"),
+                    _number(f["Bottom_Length"], f"{fkey}.Bottom_Length"),
+                    _number(f["Side_Length"], f"{fkey}.Side_Length"),
+                )
+            )
+    return out
+
+
+def _plane_filter(
+    n: np.ndarray, r0: np.ndarray, ub: np.ndarray, b: float, a: float
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    # UTILITIES::Cross, term by term
+    ua = np.array(
+        [-ub[2] * n[1] + ub[1] * n[2], ub[2] * n[0] - ub[0] * n[2], -ub[1] * n[0] + ub[0] * n[1]]
+    )
+
+    def exclude(xi: np.ndarray, xj: np.ndarray) -> np.ndarray:
+        hit, x = _plane_crossing(xi, xj, r0, n, 1.0e-14)
+        dr = x - r0
+        aa, bb = _dot3(dr, ua), _dot3(dr, ub)
+        zero, one = 1.0e-15, 1.0 + 1.0e-15
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inside = (-zero < aa) & (aa / a < one) & (-zero < bb) & (bb / b < one)
+        return hit & inside
+
+    return exclude
+
+
+def _disk_filter(
+    c: np.ndarray, n: np.ndarray, radius: float
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    def exclude(xi: np.ndarray, xj: np.ndarray) -> np.ndarray:
+        hit, x = _plane_crossing(xi, xj, c, n, 1.0e-15)
+        d = x - c
+        return hit & (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2] < radius * radius)
+
+    return exclude
 
 
 def _strict_sphere(horizon: float) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
@@ -1039,10 +1209,10 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
             "Discretization.Construct Neighborhood Lists: false (no bonds) is not supported"
         )
     omit = disc.get("Omit Bonds Between Blocks", "None")
-    if omit != "None":
+    if omit not in ("None", "All"):
         raise SceneError(
-            "Discretization.Omit Bonds Between Blocks: only 'None' (every block bonded to the "
-            f"others, Peridigm's default) is supported, got {omit!r}"
+            "Discretization.Omit Bonds Between Blocks must be 'None' (every block bonded to the "
+            f"others, Peridigm's default) or 'All' (no bonds between blocks), got {omit!r}"
         )
     for k, why in _PD_DISC.items():
         if why and k in disc and disc["Type"] != "PdQuickGrid":
@@ -1134,9 +1304,16 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
                 _note(f"Output.{k}", why)
         if "Output Filename" in out:
             output = base / f"{out['Output Filename']}.vtu"
-    opts: dict[str, Any] = {}
+    filters: list[Callable[[np.ndarray, np.ndarray], np.ndarray]] = []
     if extra.get("strict_sphere"):
-        opts["exclude"] = _strict_sphere(float(horizon[0]))
+        filters.append(_strict_sphere(float(horizon[0])))
+    if "Bond Filters" in disc:
+        filters += peridigm_bond_filters(disc["Bond Filters"], "Discretization.Bond Filters")
+    if omit == "All" and len(blocks_pts) > 1:
+        filters.append(_omit_between_blocks(cloud.points, blocks_pts))
+    opts: dict[str, Any] = {}
+    if filters:
+        opts["exclude"] = _any_of(filters)
     return _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
 
 

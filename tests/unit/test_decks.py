@@ -259,12 +259,29 @@ def test_boundary_condition_errors_name_the_key(bar_dir, edit, pattern):
             "Sphere Mesh",
             r"Discretization.Type must be 'Text File', 'Exodus' or 'PdQuickGrid'.*'Sphere Mesh'",
         ),
-        ("Discretization", "Bond Filters", {}, r"Discretization.Bond Filters: not supported"),
+        (
+            "Discretization",
+            "Bond Filters",
+            {"F": {"Type": "Exodus Mesh", "File Name": "cracks.g"}},
+            r"Discretization.Bond Filters.F.Type must be 'Rectangular_Plane' or 'Disk'",
+        ),
+        (
+            "Discretization",
+            "Bond Filters",
+            {"F": {"Type": "Disk", "Center_X": 0.0}},
+            r"missing deck key Discretization.Bond Filters.F.Center_Y",
+        ),
+        (
+            "Discretization",
+            "Bond Filters",
+            {"F": {"Type": "Disk", "Centre_X": 0.0}},
+            r"Discretization.Bond Filters.F.Centre_X: not supported",
+        ),
         (
             "Discretization",
             "Omit Bonds Between Blocks",
-            "All",
-            r"Discretization.Omit Bonds Between Blocks: only 'None' .* got 'All'",
+            "Some",
+            r"Discretization.Omit Bonds Between Blocks must be 'None' .* or 'All' .*got 'Some'",
         ),
         (
             "Discretization",
@@ -728,8 +745,57 @@ def test_peridigm_discretization_and_material_defaults_are_accepted(bar_dir, cap
     )
     with caplog.at_level("INFO", logger="pdlin.io.decks"):
         assert pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck)).cloud.n == 32
-    for k in ("Discretization.Omit Bonds Between Blocks", "Compute Partial Stress"):
+    for k in ("Discretization.Verbose", "Compute Partial Stress"):
         assert k in caplog.text
+
+
+def test_omit_bonds_between_blocks_all_drops_the_bonds_joining_blocks(bar_dir):
+    # Peridigm's ExodusDiscretization::filterBonds: 'All' keeps bonds within a block only
+    pts = bar_points()
+    block = np.where(pts[:, 0] < 4 * H, 1, 2)
+    write_text_mesh(bar_dir / "bar.txt", pts, H**3, block)
+    deck = peridigm_deck(LPS_MAT)
+    deck["Peridigm"]["Blocks"]["My Block"]["Block Names"] = "block_1 block_2"
+    scenes = {}
+    for omit in ("None", "All"):
+        deck["Peridigm"]["Discretization"]["Omit Bonds Between Blocks"] = omit
+        scenes[omit] = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    p = scenes["All"].problem
+    kept = pdlin.find_bonds(p.cloud, p.horizon, **p.bond_options)
+    everything = pdlin.find_bonds(p.cloud, p.horizon)
+    assert scenes["None"].problem.bond_options == {}
+    assert not np.any(block[kept.i] != block[kept.j])
+    same = block[everything.i] == block[everything.j]
+    assert kept.n_bonds == int(same.sum()) < everything.n_bonds
+
+
+def test_rectangular_plane_filter_is_peridigms_arithmetic():
+    from pdlin.io.decks import peridigm_bond_filters
+
+    # PrecrackedPlateTwoCracks' right filter: Bottom_Unit_Vector (1, 4, 0) is neither unit
+    # nor in the plane y = 4; Peridigm uses it as given: u_a = u_b x n = (0, 0, 1) and
+    # (x - r0).u_b = dx on the plane, so the cut is 0 <= x <= 10, -10 <= z <= 10 at y = 4
+    f = {"Type": "Rectangular_Plane", "Normal_X": 0, "Normal_Y": 1, "Normal_Z": 0}
+    f |= {"Lower_Left_Corner_X": 0, "Lower_Left_Corner_Y": 4, "Lower_Left_Corner_Z": -10}
+    f |= {"Bottom_Unit_Vector_X": 1, "Bottom_Unit_Vector_Y": 4, "Bottom_Unit_Vector_Z": 0}
+    f |= {"Bottom_Length": 10, "Side_Length": 20}
+    (cut,) = peridigm_bond_filters({"R": f}, "BF")
+    p = np.array(
+        [
+            [5.0, 3.5, 0.0],  # crosses at (5, 4, 0): inside
+            [-0.5, 3.5, 0.0],  # crosses at x = -0.5: outside
+            [10.5, 3.5, 0.0],  # crosses at x = 10.5: outside
+            [5.0, 3.5, 10.5],  # crosses at z = 10.5: outside
+            [5.0, 4.0, 0.0],  # starts on the plane (t = 0): cut, as Peridigm's t >= 0
+            [5.0, 3.5, 0.0],  # parallel to the plane: never cut
+            [5.0, 3.0, 0.0],  # ends short of the plane (t > 1): not cut
+        ]
+    )
+    q = p + np.array([[0, 1, 0]] * 5 + [[1, 0, 0], [0, 0.5, 0]], float)
+    assert cut(p, q).tolist() == [True, False, False, False, True, False, False]
+    # the corners themselves are in (Peridigm's 1e-15 tolerance on both sides)
+    corner = np.array([[0.0, 3.5, -10.0], [10.0, 3.5, 10.0]])
+    assert cut(corner, corner + [0, 1, 0]).all()
 
 
 def test_default_block_takes_the_blocks_no_other_entry_names(bar_dir):
