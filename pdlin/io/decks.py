@@ -553,6 +553,14 @@ _PD_MATERIALS: dict[str, dict[str, str]] = {
     "Linear Elastic": dict(_PD_MAT_COMMON),
     "Elastic Correspondence": {**_PD_MAT_COMMON, "Hourglass Coefficient": ""},
     "Elastic Bond Based": dict(_PD_MAT_COMMON),
+    # only with Disable Plasticity: true (Peridigm_ElasticPlasticMaterial.cpp then sets the
+    # yield stress to DBL_MAX: elastic_plastic.cxx never yields and its force is Elastic's)
+    "Elastic Plastic": {
+        **_PD_MAT_COMMON,
+        "Disable Plasticity": "",
+        "Yield Stress": "unused: plasticity disabled",
+        "Apply Shear Correction Factor": "not read by Peridigm's Elastic Plastic material",
+    },
 }
 _PD_BLOCK = {"Block Names": "", "Material": "", "Horizon": ""}
 _PD_BC = {"Type": "", "Node Set": "", "Coordinate": "", "Value": ""}
@@ -1144,6 +1152,13 @@ def _peridigm_material(name: str, mat: Mapping[str, Any], key: str) -> dict[str,
             f"{sorted(_PD_MATERIALS)}"
         )
     allowed = _PD_MATERIALS[model]
+    if model == "Elastic Plastic" and not _flag(
+        mat.get("Disable Plasticity", False), f"{key}.Disable Plasticity"
+    ):
+        raise SceneError(
+            f"{key}.Material Model: 'Elastic Plastic' is not supported (plasticity); only with "
+            "Disable Plasticity: true, where Peridigm's force is the Elastic one"
+        )
     _unknown(mat, allowed, key, f"Peridigm {model!r} material")
     for k in ("Plane Strain", "Plane Stress"):
         if k in mat and _flag(mat[k], f"{key}.{k}"):

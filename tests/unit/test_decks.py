@@ -293,8 +293,8 @@ def test_boundary_condition_errors_name_the_key(bar_dir, edit, pattern):
             "Material",
             "Material Model",
             "Elastic Plastic",
-            r"Material Model: 'Elastic Plastic' is not supported; supported: "
-            r"\['Elastic', 'Elastic Bond Based', 'Elastic Correspondence'",
+            r"Material Model: 'Elastic Plastic' is not supported \(plasticity\); only with "
+            r"Disable Plasticity: true",
         ),
         (
             "Material",
