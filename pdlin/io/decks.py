@@ -529,6 +529,8 @@ _PD_DISC = {
     "Construct Neighborhood Lists": "true: Peridigm's default (false -> error)",
     "Omit Bonds Between Blocks": "",
     "Bond Filters": "",
+    "Construct Interfaces": "the interface-aperture output of Peridigm's Exodus "
+    "discretization (no effect on the bonds or the solution)",
 }
 _PD_MAT_COMMON = {
     "Material Model": "",
@@ -548,6 +550,7 @@ _PD_MATERIALS: dict[str, dict[str, str]] = {
         "Compute Partial Stress": "an output field of Peridigm's",
         "Apply Shear Correction Factor": "Peridigm's elastic.cxx computes it but does not use it "
         "in the force (the scaled alpha line is commented out)",
+        "Hourglass Coefficient": "not read by Peridigm's Elastic material (Interfaces deck)",
     },
     "Linear LPS": dict(_PD_MAT_COMMON),
     "Linear Elastic": dict(_PD_MAT_COMMON),
@@ -1206,7 +1209,7 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     for k in ("Verbose", "Compute Class Parameters"):
         if k in root:
             _note(f"Peridigm.{k}", _PD_TOP[k])
-    for k in ("Discretization", "Materials", "Blocks", "Boundary Conditions", "Solver"):
+    for k in ("Discretization", "Materials", "Blocks", "Solver"):
         if k not in root:
             raise SceneError(f"missing deck key Peridigm.{k}")
     disc = _table(root["Discretization"], "Discretization")
@@ -1307,9 +1310,18 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     kind = kinds.pop()
     model = _build_model(kind, K, G, hgs, "Materials")
 
-    sets = _peridigm_node_sets(root["Boundary Conditions"], base, n, extra["node_sets"])
+    # Peridigm runs a deck without Boundary Conditions (no constraint, no load: u = 0)
+    bcs = root.get("Boundary Conditions", {})
+    sets = _peridigm_node_sets(bcs, base, n, extra["node_sets"])
     t_final = _peridigm_solver(root["Solver"])
-    dirichlet, loads = _peridigm_bcs(root["Boundary Conditions"], sets, cloud, t_final)
+    dirichlet, loads = _peridigm_bcs(bcs, sets, cloud, t_final)
+    unloaded = not dirichlet and not loads
+    if unloaded:
+        # nothing prescribed, nothing applied: Peridigm's quasi-static solve stops at its
+        # zero residual, u = 0 (Peridigm's Interfaces deck); pdlin prescribes that u = 0
+        # on every point rather than solving a singular system
+        _note("Boundary Conditions", "none (no constraint, no load): u = 0 on every point")
+        dirichlet = [Dirichlet(np.arange(n), np.zeros((n, cloud.dim)))]
     output = None
     if "Output" in root:
         out = _table(root["Output"], "Output")

@@ -1090,3 +1090,20 @@ def test_legacy_discretization_horizon_and_aliases(bar_dir):
     del root["Discretization"]["Horizon"]
     with pytest.raises(SceneError, match=r"missing deck key Blocks.My Block.Horizon"):
         pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+
+
+def test_peridigm_deck_without_boundary_conditions(bar_dir):
+    # no Boundary Conditions: no constraint and no load; Peridigm's answer is u = 0
+    deck = peridigm_deck(LPS_MAT)
+    del deck["Peridigm"]["Boundary Conditions"]
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    res = pdlin.solve(scene.problem)
+    assert np.array_equal(np.asarray(res.u), np.zeros((32, 3)))
+    # a body force alone on an unconstrained body has no static solution: a clean error
+    deck["Peridigm"]["Boundary Conditions"] = {
+        "Gravity": {"Type": "Body Force", "Node Set": "Full Domain", "Coordinate": "z",
+                    "Value": "-1.0"},
+    }  # fmt: skip
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    with pytest.raises(pdlin.errors.FloatingBodyError, match="the body is floating"):
+        pdlin.solve(scene.problem)

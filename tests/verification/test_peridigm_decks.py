@@ -387,3 +387,28 @@ def test_precrack_j_integral_deck_runs(tmp_path):
     # Peridigm ships no gold file for it (a J-integral verification): it runs unchanged
     scene, u = _run_deck(tmp_path, "PrecrackJIntegral", "PrecrackJIntegral.xml")
     assert np.isfinite(u).all() and np.abs(u).max() > 0
+
+
+def test_deck_without_boundary_conditions_is_at_rest(tmp_path):
+    # Peridigm's Interfaces deck has no Boundary Conditions list: nothing prescribed and no
+    # load, so Peridigm's quasi-static solve stops at u = 0 (its gold file holds only the
+    # interface apertures); pdlin prescribes that u = 0
+    scene, u = _run_deck(tmp_path, "Interfaces", "Interfaces.xml")
+    assert scene.cloud.n > 0
+    assert np.array_equal(u, np.zeros_like(u))
+
+
+def test_multiple_horizons_deck_stops_on_points_without_neighbours(tmp_path, capsys):
+    # Peridigm's MultipleHorizons deck leaves points without neighbours (gold
+    # Number_Of_Neighbors 0; block_4's horizon 0.765 is below the spacing 1): pdlin's models
+    # need a bond at every point, and pdlin run says which point has none
+    shutil.copytree(DATA / "MultipleHorizons", tmp_path / "m")
+    assert main(["run", str(tmp_path / "m" / "MultipleHorizons.xml"), "-q"]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "isolated point" in err[0] and "[15.0, 0.0, 0.0]" in err[0]
+    with netCDF4.Dataset(DATA / "MultipleHorizons" / "MultipleHorizons_gold.e") as ds:
+        names = list(netCDF4.chartostring(ds.variables["name_elem_var"][:]))
+        k = names.index("Number_Of_Neighbors") + 1
+        blocks = list(netCDF4.chartostring(ds.variables["eb_names"][:]))
+        count = np.asarray(ds.variables[f"vals_elem_var{k}eb{blocks.index('block_4') + 1}"][-1])
+    assert (count == 0).any()  # Peridigm's own run keeps block_4 points without neighbours
