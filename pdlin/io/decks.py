@@ -582,10 +582,10 @@ _PD_SOLVER = {
     "Disable Heuristics": "load-step heuristics of Peridigm's Newton solver",
     "Initialize Predictor From Previous Solver": "initial guess from an earlier solver",
 }
-_STEPS = "a linear model's final state is one solve at the final time"
+_STEPS = "each load step is one linear solve at its time (pdlin run writes a time series)"
 _PD_QS = {
     "Number of Load Steps": _STEPS,
-    "Time Steps": _STEPS + " (the last of the listed times)",
+    "Time Steps": _STEPS + " (the listed times)",
     "Absolute Tolerance": "Newton tolerance (pdlin checks its own residual)",
     "Relative Tolerance": "Newton tolerance (pdlin checks its own residual)",
     "Maximum Solver Iterations": "Newton iterations (one linear solve here)",
@@ -601,7 +601,7 @@ _PD_QS = {
 }
 _PD_NOX = {
     "Number of Load Steps": _STEPS,
-    "Time Steps": _STEPS + " (the last of the listed times)",
+    "Time Steps": _STEPS + " (the listed times)",
     "Absolute Tolerance": "Newton tolerance (pdlin checks its own residual)",
     "Relative Tolerance": "Newton tolerance (pdlin checks its own residual)",
     "Max Solver Iterations": "Newton iterations (one linear solve here)",
@@ -1313,15 +1313,19 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     # Peridigm runs a deck without Boundary Conditions (no constraint, no load: u = 0)
     bcs = root.get("Boundary Conditions", {})
     sets = _peridigm_node_sets(bcs, base, n, extra["node_sets"])
-    t_final = _peridigm_solver(root["Solver"])
-    dirichlet, loads = _peridigm_bcs(bcs, sets, cloud, t_final)
-    unloaded = not dirichlet and not loads
-    if unloaded:
+    times = _peridigm_solver(root["Solver"])
+    at_rest = [Dirichlet(np.arange(n), np.zeros((n, cloud.dim)))]
+
+    def conditions(t: float) -> tuple[list[Dirichlet], list[BodyForce]]:
+        dirichlet, loads = _peridigm_bcs(bcs, sets, cloud, t)
         # nothing prescribed, nothing applied: Peridigm's quasi-static solve stops at its
         # zero residual, u = 0 (Peridigm's Interfaces deck); pdlin prescribes that u = 0
         # on every point rather than solving a singular system
+        return (at_rest, loads) if not dirichlet and not loads else (dirichlet, loads)
+
+    dirichlet, loads = conditions(times[-1])
+    if dirichlet is at_rest:
         _note("Boundary Conditions", "none (no constraint, no load): u = 0 on every point")
-        dirichlet = [Dirichlet(np.arange(n), np.zeros((n, cloud.dim)))]
     output = None
     if "Output" in root:
         out = _table(root["Output"], "Output")
@@ -1341,7 +1345,13 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     opts: dict[str, Any] = {}
     if filters:
         opts["exclude"] = _any_of(filters)
-    return _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
+    scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
+    if len(times) > 2:
+        # several load steps: each is a linear solve at that step's values (Peridigm's
+        # own times, its initial state included); the last is the scene's problem
+        steps = [(t, _problem(model, cloud, horizon, *conditions(t), opts)) for t in times[:-1]]
+        scene.steps = [*steps, (times[-1], scene.problem)]
+    return scene
 
 
 def _build_model(kind: str, K: np.ndarray, G: np.ndarray, hgs: set[float], key: str) -> Any:
@@ -1384,7 +1394,12 @@ def _peridigm_node_sets(
     return sets
 
 
-def _peridigm_solver(solver: Any) -> float:
+def _peridigm_solver(solver: Any) -> list[float]:
+    """The solver keys; Peridigm's step times (``Peridigm.cpp``, ``executeQuasiStatic``).
+
+    ``Final Time`` with ``Number of Load Steps N``: ``t0`` and ``t0 + (i + 1) (t1 - t0) / N``;
+    else the ``Time Steps`` list; ``Final Time`` alone: ``[t0, t1]`` (one solve at ``t1``).
+    """
     s = _table(solver, "Solver")
     _unknown(s, _PD_SOLVER, "Solver", "Peridigm solver (static subset)")
     kinds = [k for k in ("QuasiStatic", "NOXQuasiStatic") if k in s]
@@ -1422,18 +1437,21 @@ def _peridigm_solver(solver: Any) -> float:
             raise SceneError(
                 f"{skey}.Time Steps must be a list of times separated by spaces, got {text!r}"
             )
-        t0, t1 = float(times[0]), float(times[-1])
-        if not (np.isfinite(t0) and np.isfinite(t1)) or t1 <= t0:
+        tt = [float(v) for v in times]
+        if not np.all(np.isfinite(tt)) or np.any(np.diff(tt) <= 0) or len(tt) < 2:
             raise SceneError(
-                f"{skey}.Time Steps: the last time must exceed the first ({t0}), got {t1}"
+                f"{skey}.Time Steps must be two or more finite, increasing times, got {text!r}"
             )
-        return t1
+        return tt
     if "Final Time" not in s:
         raise SceneError("missing deck key Solver.Final Time")
     t1 = _number(s["Final Time"], "Solver.Final Time")
     if t1 <= t0:
         raise SceneError(f"Solver.Final Time must exceed Initial Time ({t0}), got {t1}")
-    return t1
+    if "Number of Load Steps" not in sub:
+        return [t0, t1]
+    n = int(steps)
+    return [t0, *(t0 + np.arange(1, n + 1) * (t1 - t0) / n).tolist()]
 
 
 _COORD = {"X": 0, "Y": 1, "Z": 2}
@@ -1506,11 +1524,23 @@ def _scene(
     output: Path | None,
     bond_options: Mapping[str, Any] | None = None,
 ) -> Scene:
+    problem = _problem(model, cloud, horizon, dirichlet, loads, bond_options)
+    return Scene(name=name, problem=problem, output=output, base_dir=base)
+
+
+def _problem(
+    model: Any,
+    cloud: PointCloud,
+    horizon: np.ndarray,
+    dirichlet: list[Dirichlet],
+    loads: list[Any],
+    bond_options: Mapping[str, Any] | None = None,
+) -> StaticProblem:
     h: Any = float(horizon[0]) if np.all(horizon == horizon[0]) else horizon
     try:
         resolve_dirichlet(cloud, dirichlet)
         load_vector(cloud, loads)
-        problem = StaticProblem(
+        return StaticProblem(
             model,
             cloud,
             None,
@@ -1523,7 +1553,6 @@ def _scene(
         raise
     except PdlinError as exc:
         raise SceneError(f"invalid deck: {exc}") from exc
-    return Scene(name=name, problem=problem, output=output, base_dir=base)
 
 
 # --------------------------------------------------------------------------------------

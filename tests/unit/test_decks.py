@@ -7,6 +7,7 @@ The decks are written here from the documented formats (Peridigm ``examples/`` a
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -724,7 +725,11 @@ def test_switch_to_verlet_and_bad_time_steps_are_refused(bar_dir):
             r"Solver.QuasiStatic.Adaptive Load-Stepping.Switch to Verlet: explicit dynamics",
         ),
         ({"Time Steps": "0 a 1"}, r"Solver.QuasiStatic.Time Steps must be a list of times"),
-        ({"Time Steps": "1.0 0.5"}, r"Solver.QuasiStatic.Time Steps: the last time must exceed"),
+        (
+            {"Time Steps": "1.0 0.5"},
+            r"Solver.QuasiStatic.Time Steps must be two or more finite, increasing times",
+        ),
+        ({"Time Steps": "0 0.5 0.5 1"}, r"Time Steps must be two or more .* got '0 0.5 0.5 1'"),
     ]:
         deck = peridigm_deck(LPS_MAT, solver={"Final Time": 2.0, "QuasiStatic": qs})
         if "Time Steps" in qs:
@@ -1029,7 +1034,9 @@ def test_cli_runs_yaml_and_xml_decks(bar_dir):
     write_yaml(bar_dir / "deck.yaml", peridigm_deck(LPS_MAT))
     res = _cli("run", "deck.yaml", "-q", "--json", cwd=bar_dir)
     assert res.returncode == 0, res.stderr
-    assert (bar_dir / "out.vtu").exists()
+    # four load steps: one .vtu per step (the initial state included) and a .pvd collection
+    assert (bar_dir / "out.pvd").exists() and (bar_dir / "out_0005.vtu").exists()
+    assert json.loads(res.stdout)["steps"] == 5
     deck = peridigm_deck({**LPS_MAT, "Material Model": "Elastic Plastic"})
     (bar_dir / "bad.xml").write_text(to_xml("Peridigm", deck["Peridigm"]))
     res = _cli("info", "deck.yaml", "--json", cwd=bar_dir)
@@ -1107,3 +1114,19 @@ def test_peridigm_deck_without_boundary_conditions(bar_dir):
     scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
     with pytest.raises(pdlin.errors.FloatingBodyError, match="the body is floating"):
         pdlin.solve(scene.problem)
+
+
+def test_load_steps_are_peridigms_times(bar_dir):
+    # Peridigm.cpp executeQuasiStatic: t0 and t0 + (i + 1) (t1 - t0) / N; each step's
+    # problem holds that step's prescribed values (Fix X: "0.01 * t" on the right end)
+    deck = peridigm_deck(LPS_MAT, solver={"Initial Time": 0.5, "Final Time": 2.0,
+                                          "QuasiStatic": {"Number of Load Steps": 3}})  # fmt: skip
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    times = [t for t, _ in scene.steps]
+    assert times == [0.5, 1.0, 1.5, 2.0]  # (2.0 - 0.5) / 3 = 0.5 exactly in binary
+    assert scene.steps[-1][1] is scene.problem
+    pulled = [np.asarray(p.dirichlet[1].value).ravel() for _, p in scene.steps]  # Pull X
+    assert np.allclose([v.max() for v in pulled], [0.001 * t for t in times], rtol=1e-15)
+    # one step: no series
+    deck["Peridigm"]["Solver"]["QuasiStatic"] = {"Number of Load Steps": 1}
+    assert pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck)).steps is None
