@@ -165,6 +165,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return _run_nonlinear(args, scene, prog)
     if scene.damage is not None:
         return _run_damage(args, scene, prog)
+    if scene.steps:  # a deck with several load steps: one solve each, one time series
+        from .steps import run_load_steps
+
+        return run_load_steps(args, scene, prog)
     if args.resume:
         raise PdlinError("--resume needs a nonlinear scene with solver.checkpoint")
     solver = args.solver or scene.solver

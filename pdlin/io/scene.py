@@ -394,6 +394,10 @@ class Scene:
     backend: str = "scipy"
     #: PETSc options of the 'petsc' backend (``[solver.petsc_options]``)
     petsc_options: dict[str, Any] | None = None
+    #: load steps of a deck with several (Peridigm's ``Number of Load Steps`` / ``Time
+    #: Steps``): ``(time, problem)`` per step, the last being ``problem``; ``pdlin run``
+    #: solves each and writes a time series.  None: one solve.
+    steps: list[tuple[float, StaticProblem]] | None = None
 
     @property
     def cloud(self) -> PointCloud:
