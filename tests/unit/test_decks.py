@@ -1034,8 +1034,9 @@ def test_cli_runs_yaml_and_xml_decks(bar_dir):
     write_yaml(bar_dir / "deck.yaml", peridigm_deck(LPS_MAT))
     res = _cli("run", "deck.yaml", "-q", "--json", cwd=bar_dir)
     assert res.returncode == 0, res.stderr
-    # four load steps: one .vtu per step (the initial state included) and a .pvd collection
-    assert (bar_dir / "out.pvd").exists() and (bar_dir / "out_0005.vtu").exists()
+    # four load steps: one .vtu per step (the initial state included, in the series' own
+    # folder out.pvd.<tag>/) and a .pvd collection
+    assert (bar_dir / "out.pvd").exists() and len(list(bar_dir.glob("out.pvd.*/out_0005.vtu"))) == 1
     assert json.loads(res.stdout)["steps"] == 5
     deck = peridigm_deck({**LPS_MAT, "Material Model": "Elastic Plastic"})
     (bar_dir / "bad.xml").write_text(to_xml("Peridigm", deck["Peridigm"]))
