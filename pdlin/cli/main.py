@@ -205,7 +205,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from ..io.results import write_points
 
     with _write_progress(out, prog):
-        write_points(out, scene.cloud, fields) if scene.fields else write_result(out, result)
+        if scene.fields:
+            write_points(out, scene.cloud, fields, time=scene.time)
+        else:
+            write_result(out, result, time=scene.time)
     t_write = time.perf_counter() - t_write
     prog(f"wrote {_size(out)} in {t_write:.1f} s")
     summary = result.summary()

@@ -1029,7 +1029,9 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
                 _note(f"Output.{k}", why)
         if "Output Filename" in out:
             output = _output_inside(base, out["Output Filename"], "Output.Output Filename")
-    return _scene(name, model, cloud, horizon, dirichlet, loads, base, output)
+    scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output)
+    scene.time = t_final  # Peridigm writes the final state at Final Time
+    return scene
 
 
 def _output_inside(base: Path, value: Any, key: str) -> Path:
@@ -1437,7 +1439,9 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
             bc.get("Value", 0.0), cloud.points[idx], t, f"{key}.Value", caret_power=True
         )
         dirichlet.append(Dirichlet(idx, val[:, None], components=[_COORD[coord]]))
-    return _scene(name, model, cloud, horizon, dirichlet, [], base, None)
+    scene = _scene(name, model, cloud, horizon, dirichlet, [], base, None)
+    scene.time = t  # the state at Final Time
+    return scene
 
 
 def _perilab_model(mat: Mapping[str, Any], dim: int) -> Any:

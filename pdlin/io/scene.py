@@ -371,6 +371,9 @@ class Scene:
     direct_backend: str = "auto"
     output: Path | None = None
     fields: list[str] | None = None
+    #: time of the static state (a deck's ``Solver.Final Time``), written as the Exodus
+    #: ``time_whole`` of the result as Peridigm writes its final state; 0 for scenes
+    time: float = 0.0
     base_dir: Path = field(default_factory=Path.cwd)
     #: result of ``[material.calibration]`` (anisotropic micromoduli), if any
     calibration: Any = None

@@ -1,0 +1,51 @@
+"""Peridigm decks' Exodus output: Final Time in ``time_whole``, ``Output File Type``,
+blank node set names read by id (issue 34)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pdlin
+from tests.unit.test_decks import LPS_MAT, _cli, bar_dir, peridigm_deck, write_yaml  # noqa: F401
+
+netCDF4 = pytest.importorskip("netCDF4")
+
+
+def _chars(var):
+    var.set_auto_mask(False)
+    return [b"".join(r).decode().strip("\x00 ") for r in var[:]]
+
+
+def test_static_deck_writes_final_time_to_exodus(bar_dir):
+    """Peridigm writes the final state at Solver.Final Time (D6), not at t = 0."""
+    deck = peridigm_deck(dict(LPS_MAT))  # Final Time 2.0 (peridigm_deck's solver)
+    scene = pdlin.read_deck(write_yaml(bar_dir / "deck.yaml", deck))
+    assert scene.time == 2.0  # the deck's Solver.Final Time
+    res = _cli("run", "deck.yaml", "-q", "-o", "final.e", cwd=bar_dir)
+    assert res.returncode == 0, res.stderr
+    with netCDF4.Dataset(bar_dir / "final.e") as nc:
+        np.testing.assert_array_equal(nc["time_whole"][:], [2.0])  # Final Time above
+    # the Time Steps list: its last entry is the final time
+    deck["Peridigm"]["Solver"] = {
+        "Initial Time": 0.0,
+        "QuasiStatic": {"Time Steps": "0.0 0.5 1.5"},
+    }
+    scene = pdlin.read_deck(write_yaml(bar_dir / "deck.yaml", deck))
+    assert scene.time == 1.5  # the last entry of Time Steps above
+
+
+def test_write_result_time_argument(tmp_path):
+    cloud = pdlin.grid((4, 3), spacing=0.1)
+    prob = pdlin.StaticProblem(
+        pdlin.LPS(E=1.0, nu=0.3), cloud, horizon=0.3015, dirichlet=[pdlin.Dirichlet("x-", 0.0)]
+    )
+    res = pdlin.solve(prob, solver="direct")
+    p = pdlin.io.write_result(tmp_path / "r.e", res, time=3.5)
+    with netCDF4.Dataset(p) as nc:
+        np.testing.assert_array_equal(nc["time_whole"][:], [3.5])  # the time given above
+    assert pdlin.io.read_result(p).times.tolist() == [3.5]
+    with pytest.raises(pdlin.errors.InputError, match=r"time must be finite, got nan"):
+        pdlin.io.write_result(tmp_path / "r.e", res, time=float("nan"))
