@@ -606,7 +606,7 @@ _PD_NOX = {
     "Preconditioner Reuse Policy": "NOX algorithm choice",
 }
 _PD_OUTPUT = {
-    "Output File Type": "pdlin writes .vtu (see pdlin run -o)",
+    "Output File Type": "",
     "Output Format": "cosmetic",
     "Output Filename": "",
     "Output Frequency": "one state is written (the final one)",
@@ -1027,21 +1027,33 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         for k, why in _PD_OUTPUT.items():
             if why and k in out:
                 _note(f"Output.{k}", why)
+        suffix = ".vtu"
+        if "Output File Type" in out:
+            # Peridigm's OutputManagerContainer knows one type
+            if out["Output File Type"] != "ExodusII":
+                raise SceneError(
+                    "Output.Output File Type must be 'ExodusII', got "
+                    f"{out['Output File Type']!r} (Peridigm's only output type; pdlin then "
+                    "writes <Output Filename>.e)"
+                )
+            suffix = ".e"
+            if "Output Filename" not in out:
+                output = _output_inside(base, name, "the deck's name", suffix)
         if "Output Filename" in out:
-            output = _output_inside(base, out["Output Filename"], "Output.Output Filename")
+            output = _output_inside(base, out["Output Filename"], "Output.Output Filename", suffix)
     scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output)
     scene.time = t_final  # Peridigm writes the final state at Final Time
     return scene
 
 
-def _output_inside(base: Path, value: Any, key: str) -> Path:
-    """``<base>/<value>.vtu``, refused when it resolves outside ``base`` (the deck's folder).
+def _output_inside(base: Path, value: Any, key: str, suffix: str = ".vtu") -> Path:
+    """``<base>/<value><suffix>``, refused when it resolves outside ``base`` (the deck's folder).
 
     A deck is often someone else's file: it writes only beside itself.  ``pdlin run -o``
     (the user's own choice) may point anywhere.
     """
     root = base.resolve()
-    out = (root / f"{value}.vtu").resolve()
+    out = (root / f"{value}{suffix}").resolve()
     if not out.is_relative_to(root):
         raise SceneError(
             f"{key} {str(value)!r} leaves the deck's folder {str(root)!r} (resolves to "

@@ -3,15 +3,33 @@ blank node set names read by id (issue 34)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 import pdlin
-from tests.unit.test_decks import LPS_MAT, _cli, bar_dir, peridigm_deck, write_yaml  # noqa: F401
+from tests.unit.test_decks import (
+    LPS_MAT,
+    H,
+    _cli,
+    bar_points,
+    peridigm_deck,
+    write_text_mesh,
+    write_yaml,
+)
 
 netCDF4 = pytest.importorskip("netCDF4")
+
+
+@pytest.fixture
+def bar_dir(tmp_path):
+    """The 8 x 2 x 2 bar of tests/unit/test_decks.py (its ``bar_dir``), node sets inline."""
+    write_text_mesh(tmp_path / "bar.txt", bar_points(), H**3)
+    pts = bar_points()
+    left = np.flatnonzero(pts[:, 0] < 2 * H) + 1  # 1-based ids (Peridigm node sets)
+    right = np.flatnonzero(pts[:, 0] > 6 * H) + 1
+    (tmp_path / "left.txt").write_text("\n".join(map(str, left)) + "\n")
+    (tmp_path / "right.txt").write_text("\n".join(map(str, right)) + "\n")
+    return tmp_path
 
 
 def _chars(var):
@@ -49,3 +67,37 @@ def test_write_result_time_argument(tmp_path):
     assert pdlin.io.read_result(p).times.tolist() == [3.5]
     with pytest.raises(pdlin.errors.InputError, match=r"time must be finite, got nan"):
         pdlin.io.write_result(tmp_path / "r.e", res, time=float("nan"))
+
+
+def test_output_file_type_exodusii_writes_exodus(bar_dir):
+    """``Output File Type: ExodusII`` (the only type Peridigm writes) -> ``<Output Filename>.e``."""
+    deck = peridigm_deck(dict(LPS_MAT))
+    deck["Peridigm"]["Output"]["Output File Type"] = "ExodusII"
+    scene = pdlin.read_deck(write_yaml(bar_dir / "deck.yaml", deck))
+    assert scene.output == bar_dir / "out.e"  # Output Filename "out" of peridigm_deck
+    res = _cli("run", "deck.yaml", "-q", cwd=bar_dir)
+    assert res.returncode == 0, res.stderr
+    assert (bar_dir / "out.e").is_file() and not (bar_dir / "out.vtu").exists()
+    with netCDF4.Dataset(bar_dir / "out.e") as nc:
+        names = _chars(nc["name_nod_var"])
+        np.testing.assert_array_equal(nc["time_whole"][:], [2.0])  # Final Time of the deck
+    # Peridigm's field names (docs/output.md)
+    assert {"DisplacementX", "Reaction_ForceX", "Volume"} <= set(names)
+    # -o (the user's choice) still overrides the deck
+    res = _cli("run", "deck.yaml", "-q", "-o", "mine.vtu", cwd=bar_dir)
+    assert res.returncode == 0, res.stderr
+    assert (bar_dir / "mine.vtu").is_file()
+    # without Output Filename: the deck's name beside it
+    del deck["Peridigm"]["Output"]["Output Filename"]
+    scene = pdlin.read_deck(write_yaml(bar_dir / "deck.yaml", deck))
+    assert scene.output == bar_dir / "deck.e"
+
+
+@pytest.mark.parametrize("kind", ["VTK", "Exodus", 3])
+def test_unknown_output_file_type_is_refused(bar_dir, kind):
+    deck = peridigm_deck(dict(LPS_MAT))
+    deck["Peridigm"]["Output"]["Output File Type"] = kind
+    with pytest.raises(
+        pdlin.errors.SceneError, match=r"Output.Output File Type must be 'ExodusII', got"
+    ):
+        pdlin.read_deck(write_yaml(bar_dir / "deck.yaml", deck))
