@@ -50,10 +50,12 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import PdlinError, SceneError
+from ..errors import InputError, PdlinError, SceneError
 from ..geometry.cloud import PointCloud
 from ..operators.bc import BodyForce, Dirichlet, load_vector, resolve_dirichlet
 from ..problem import StaticProblem
+from .exodus import entity_ids
+from .exodus import entity_names as _exodus_names
 from .scene import Scene
 
 __all__ = ["read_deck", "deck_expression", "peridigm_hourglass_penalty"]
@@ -680,33 +682,12 @@ def _peridigm_cells(x: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray, n
         return vol, cen / vol[:, None], vmin
 
 
-def _exodus_names(ds: Any, var: str, count: int) -> list[str]:
-    """Names of an Exodus entity type (``eb_names`` / ``ns_names``), '' where blank."""
-    if var not in ds.variables:
-        return [""] * count
-    raw = np.asarray(ds.variables[var][:])
-    if raw.ndim != 2 or raw.shape[0] != count:
-        return [""] * count
-    out = []
-    for row in raw:
-        chars = [
-            c.decode("latin-1") if isinstance(c, bytes) else str(c) for c in np.ma.filled(row, b"")
-        ]
-        out.append("".join(chars).split("\x00")[0].strip())
-    return out
-
-
 def _exodus_ids(ds: Any, var: str, count: int, what: str) -> np.ndarray:
-    """Entity ids (``eb_prop1`` / ``ns_prop1``); 1..count when the file has none."""
-    if var not in ds.variables:
-        return np.arange(1, count + 1)
-    ids = np.asarray(np.ma.filled(ds.variables[var][:], -1), dtype=np.int64).ravel()
-    if ids.size != count:
-        raise SceneError(
-            f"Discretization.Input Mesh File: Exodus {var} must hold {count} {what} ids, "
-            f"got {ids.size}"
-        )
-    return ids
+    """Entity ids (:func:`pdlin.io.exodus.entity_ids`), errors as deck errors."""
+    try:
+        return entity_ids(ds, var, count, what)
+    except InputError as exc:
+        raise SceneError(f"Discretization.Input Mesh File: {exc}") from None
 
 
 def _exodus_cloud(path: Path) -> tuple[PointCloud, dict[str, Any]]:

@@ -101,3 +101,33 @@ def test_unknown_output_file_type_is_refused(bar_dir, kind):
         pdlin.errors.SceneError, match=r"Output.Output File Type must be 'ExodusII', got"
     ):
         pdlin.read_deck(write_yaml(bar_dir / "deck.yaml", deck))
+
+
+def test_read_exodus_file_names_blank_node_sets_by_id(tmp_path):
+    """Blank ``ns_names`` -> ``nodelist_<ns_prop1 id>`` (Peridigm_ExodusDiscretization.cpp);
+    they used to collapse into one set ''."""
+    from pdlin.io.exodus import read_exodus_file
+
+    cloud = pdlin.grid((4, 3), spacing=0.1)
+    p = pdlin.io.write_points(tmp_path / "r.e", cloud, {"u": np.zeros((cloud.n, 2))})
+    with netCDF4.Dataset(p, "a") as nc:
+        names = _chars(nc["ns_names"])
+        n_sets = len(names)
+        ids = 10 * np.arange(n_sets, 0, -1)  # ids in reverse of the file order
+        nc["ns_prop1"][:] = ids
+        blank = nc["ns_names"][:]
+        blank[:] = b""
+        blank[0, :5] = np.frombuffer(b"named", dtype="S1")  # the first set keeps a name
+        nc["ns_names"][:] = blank
+    sets = read_exodus_file(p)["sets"]
+    expected = ["named"] + [f"nodelist_{i}" for i in ids[1:]]
+    assert sorted(sets) == sorted(expected)
+    for k, name in enumerate(expected):  # each set keeps its own nodes (file order k)
+        np.testing.assert_array_equal(sets[name], cloud.sets[names[k]])
+    assert set(pdlin.io.read_result(p).sets) == set(expected)
+    # two sets of one name cannot both be kept
+    with netCDF4.Dataset(p, "a") as nc:
+        nc["ns_prop1"][:] = 7
+        nc["ns_names"][:] = b""
+    with pytest.raises(pdlin.errors.InputError, match=r"two node sets named 'nodelist_7'"):
+        read_exodus_file(p)
