@@ -125,6 +125,15 @@ def _check_figure(path: str | Path, what: str) -> Path:
     return check_figure(path, what)
 
 
+def _homogenized_path(args: argparse.Namespace, scene: Any, out: Path) -> Path:
+    """The homogenized CSV of a nonlinear run: ``<out stem>_homogenized.csv`` beside the
+    ``-o`` result (where ``pdlin plot`` looks for it), else ``output.homogenized`` or that
+    default beside ``output.path``."""
+    if args.output or scene.homogenized is None:
+        return out.with_name(f"{out.stem}_homogenized.csv")
+    return Path(scene.homogenized)
+
+
 def _check_run_outputs(args: argparse.Namespace, scene: Any) -> None:
     """Every file ``pdlin run`` writes for ``scene``, checked before the solve."""
     from ..io.results import SERIES_SUFFIXES, SUPPORTED_SUFFIXES
@@ -133,7 +142,7 @@ def _check_run_outputs(args: argparse.Namespace, scene: Any) -> None:
     if scene.nonlinear is not None:
         out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.pvd"))
         _check_out(out, SERIES_SUFFIXES, f"{what} (a nonlinear run's time series)")
-        csv_path = scene.homogenized or out.with_name(f"{out.stem}_homogenized.csv")
+        csv_path = _homogenized_path(args, scene, out)
         _check_out(csv_path, (".csv",), "output.homogenized")
     else:
         out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.vtu"))
@@ -361,7 +370,7 @@ def _run_nonlinear(args: argparse.Namespace, scene: Any, prog: Any) -> int:
     out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.pvd"))
     prog(f"writing {out}")
     series = write_nonlinear(out, result)
-    csv_path = scene.homogenized or out.with_name(f"{out.stem}_homogenized.csv")
+    csv_path = _homogenized_path(args, scene, out)
     write_homogenized_csv(csv_path, result)
     summary = result.summary()
     summary["scene"] = scene.name

@@ -1,0 +1,37 @@
+"""``pdlin run`` outputs and options (issue 34): the homogenized CSV beside ``-o``,
+global options after the subcommand, ``pdlin sparsity`` of the constrained system."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from pdlin.cli.main import main
+from tests.test_cli import CP_SCENE
+
+
+def _write(tmp_path: Path, text: str, name: str = "scene.toml") -> Path:
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("scene_csv", [False, True])
+def test_homogenized_csv_goes_beside_the_o_result(tmp_path, monkeypatch, scene_csv):
+    """docs/scene.md: ``-o RES.pvd`` writes ``RES_homogenized.csv`` beside it, also when the
+    scene names its own CSV (as the bundled cp_* examples do); ``pdlin plot RES.pvd`` reads it."""
+    text = CP_SCENE.replace("steps = 4\nt_end = 4.0", "steps = 2\nt_end = 2.0")
+    if scene_csv:
+        text = text.replace('path = "out/cp.pvd"', 'path = "out/cp.pvd"\nhomogenized = "cp.csv"')
+    scene = _write(tmp_path, text)
+    work = tmp_path / "cwd"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    assert main(["run", str(scene), "-q", "-o", str(tmp_path / "res" / "run.pvd")]) == 0
+    assert (tmp_path / "res" / "run_homogenized.csv").is_file()
+    assert not list(work.iterdir()) and not (tmp_path / "cp.csv").exists()
+    # without -o: the scene's own CSV (or the default beside output.path)
+    assert main(["run", str(scene), "-q"]) == 0
+    expected = tmp_path / ("cp.csv" if scene_csv else "out/cp_homogenized.csv")
+    assert expected.is_file()
