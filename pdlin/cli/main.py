@@ -868,6 +868,16 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--show", metavar="NAME", help="print the scene file of an example")
     e.add_argument("--json", action="store_true", help="print the list as JSON")
     e.set_defaults(func=_cmd_examples)
+    # global options also after the subcommand (pdlin run -v); SUPPRESS keeps a subcommand
+    # without them from overwriting what was given before it
+    for sp in sub.choices.values():
+        sp.add_argument(
+            "-v",
+            "--verbose",
+            action="store_true",
+            default=argparse.SUPPRESS,
+            help="log library messages",
+        )
     return p
 
 

@@ -35,3 +35,28 @@ def test_homogenized_csv_goes_beside_the_o_result(tmp_path, monkeypatch, scene_c
     assert main(["run", str(scene), "-q"]) == 0
     expected = tmp_path / ("cp.csv" if scene_csv else "out/cp_homogenized.csv")
     assert expected.is_file()
+
+
+@pytest.mark.parametrize("command", ["run", "info", "sparsity", "export", "tradeoff", "plot"])
+def test_global_options_after_the_subcommand(command):
+    """``pdlin run -v`` as ``pdlin -v run``: -v/--verbose is accepted on either side."""
+    from pdlin.cli.main import build_parser
+
+    p = build_parser()
+    extra = ["-o", "x.npz"] if command == "export" else []
+    for argv, want in (
+        ([command, "s.toml", *extra], False),
+        (["-v", command, "s.toml", *extra], True),
+        ([command, "s.toml", "-v", *extra], True),
+        ([command, "--verbose", "s.toml", *extra], True),
+    ):
+        assert p.parse_args(argv).verbose is want, argv
+
+
+def test_run_verbose_after_subcommand_logs(tmp_path, capsys):
+    from tests.test_cli import SCENE
+
+    scene = _write(tmp_path, SCENE)
+    assert main(["run", str(scene), "-q", "-v"]) == 0
+    assert (tmp_path / "out" / "plate.vtu").is_file()
+    assert main(["examples", "--verbose"]) == 0
