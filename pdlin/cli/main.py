@@ -422,7 +422,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
     else:
         from ..geometry.mesh import read_mesh
 
-        cloud = read_mesh(path)
+        cloud = read_mesh(path, volume=args.volume)
         if args.horizon is not None:
             bonds = find_bonds(cloud, args.horizon)
         else:
@@ -782,6 +782,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     i.add_argument("--ratio", type=float, default=3.015, help="horizon / spacing (default 3.015)")
     i.add_argument("--horizon", type=float, help="absolute horizon (overrides --ratio)")
+    i.add_argument(
+        "--volume",
+        type=float,
+        help="volume of every point of a point cloud (a mesh of vertex cells) without a "
+        "Volume point field",
+    )
     i.add_argument("--json", action="store_true")
     i.set_defaults(func=_cmd_info)
 
