@@ -450,14 +450,18 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_sparsity(args: argparse.Namespace) -> int:
+    from ..operators.bc import resolve_dirichlet
     from ..operators.sparsity import sparsity_report
 
     scene = _load(args)
     bonds = scene.bonds()
+    # the constrained system: the scene's Dirichlet DOFs are eliminated (K_ff beside K)
+    fixed = resolve_dirichlet(scene.cloud, scene.problem.dirichlet)[0]
     rep = sparsity_report(
         model=scene.model,
         cloud=scene.cloud,
         bonds=bonds,
+        fixed_dofs=fixed,
         numeric=args.numeric,
         fill_limit=args.fill_limit,
     )

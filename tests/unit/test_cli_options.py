@@ -60,3 +60,46 @@ def test_run_verbose_after_subcommand_logs(tmp_path, capsys):
     assert main(["run", str(scene), "-q", "-v"]) == 0
     assert (tmp_path / "out" / "plate.vtu").is_file()
     assert main(["examples", "--verbose"]) == 0
+
+
+def test_sparsity_reports_the_constrained_system(tmp_path, capsys):
+    """``pdlin sparsity SCENE`` eliminates the scene's Dirichlet DOFs: fixed DOFs, the
+    sparsity of K_ff as well as K's, and the zero-energy modes of K_ff (none here)."""
+    import json
+
+    import numpy as np
+
+    import pdlin
+    from pdlin.io.scene import load_scene
+    from tests.test_cli import SCENE
+
+    scene_path = _write(tmp_path, SCENE)
+    assert main(["sparsity", str(scene_path), "--json", "--numeric"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    scene = load_scene(scene_path)
+    cloud = scene.cloud
+    fixed = 2 * cloud.sets["x-"].size  # x- fixed in both components (SCENE's [[dirichlet]])
+    assert rep["n_fixed"] == fixed == 20  # 10 points of the 30 x 10 grid's x- edge, 2 DOFs
+    # K_ff counted independently: assemble K, drop the fixed rows and columns
+    K = sp_csr(pdlin.assemble_stiffness(scene.model, cloud, scene.bonds()))
+    free = np.ones(K.shape[0], bool)
+    free[(2 * cloud.sets["x-"][:, None] + np.arange(2)).ravel()] = False
+    Kff = K[np.flatnonzero(free)][:, np.flatnonzero(free)]
+    assert rep["nnz"] == K.nnz and rep["nnz_free"] == Kff.nnz
+    rows = np.diff(Kff.indptr)
+    assert rep["nnz_per_row_free_min"] == rows.min()
+    assert rep["nnz_per_row_free_max"] == rows.max()
+    assert rep["nnz_per_row_free_mean"] == pytest.approx(rows.mean())
+    assert rep["zero_modes"] == 0  # the clamped edge removes the 3 rigid modes of K
+    assert main(["sparsity", str(scene_path), "--numeric"]) == 0
+    text = capsys.readouterr().out
+    assert "free DOFs (K_ff) nnz / per row" in text and "zero-energy modes (K_ff)" in text
+
+
+def sp_csr(K):
+    import scipy.sparse as sp
+
+    Kc = sp.csr_array(K)
+    Kc.sum_duplicates()
+    Kc.sort_indices()
+    return Kc
