@@ -631,9 +631,11 @@ def _point_cloud(
             f"dim must be 1, 2 or 3 and at most the {allpts.shape[1]} coordinates of the "
             f"points, got {dim!r}"
         )
-    elif np.any(np.ptp(pts[:, dim:], axis=0) > 0) if pts.shape[1] > dim else False:
+    elif pts.shape[1] > dim and np.any(np.ptp(pts[:, dim:], axis=0) > 0):
+        spread = float(np.max(np.ptp(pts[:, dim:], axis=0)))
         raise InputError(
-            f"dim={dim}: the point cloud's coordinates beyond {'xyz'[:dim]} must be constant"
+            f"dim={dim}: the point cloud's coordinates beyond {'xyz'[:dim]} must be constant, "
+            f"got a spread of {spread:.6g}"
         )
 
     def field(name: str) -> np.ndarray | None:

@@ -51,6 +51,10 @@ def test_volume_option_field_name_and_sets():
     assert c.sets["first_two"].tolist() == [0, 1] and c.sets["top"].tolist() == [3]
     c = read_mesh(mesh, volume=0.25)
     np.testing.assert_array_equal(c.volumes, 0.25)  # the constant given
+    with pytest.raises(
+        InputError, match=r"dim=2: .* beyond xy must be constant, got a spread of 1"
+    ):
+        read_mesh(mesh, volume=0.25, dim=2)  # z spans 0..1 above
     # a cloud without any cells: every mesh point
     c = read_mesh(meshio.Mesh(pts, []), volume=0.5)
     assert c.n == 4 and c.dim == 3
