@@ -53,10 +53,12 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import PdlinError, SceneError
+from ..errors import InputError, PdlinError, SceneError
 from ..geometry.cloud import PointCloud
 from ..operators.bc import BodyForce, Dirichlet, load_vector, resolve_dirichlet
 from ..problem import StaticProblem
+from .exodus import entity_ids
+from .exodus import entity_names as _exodus_names
 from .scene import Scene
 
 __all__ = ["read_deck", "deck_expression", "peridigm_hourglass_penalty", "peridigm_bond_filters"]
@@ -621,7 +623,7 @@ _PD_NOX = {
     "Preconditioner Reuse Policy": "NOX algorithm choice",
 }
 _PD_OUTPUT = {
-    "Output File Type": "pdlin writes .vtu (see pdlin run -o)",
+    "Output File Type": "",
     "Output Format": "cosmetic",
     "Output Filename": "",
     "Output Frequency": "one state is written (the final one)",
@@ -965,33 +967,12 @@ def _peridigm_cells(x: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray, n
         return vol, cen / vol[:, None], vmin
 
 
-def _exodus_names(ds: Any, var: str, count: int) -> list[str]:
-    """Names of an Exodus entity type (``eb_names`` / ``ns_names``), '' where blank."""
-    if var not in ds.variables:
-        return [""] * count
-    raw = np.asarray(ds.variables[var][:])
-    if raw.ndim != 2 or raw.shape[0] != count:
-        return [""] * count
-    out = []
-    for row in raw:
-        chars = [
-            c.decode("latin-1") if isinstance(c, bytes) else str(c) for c in np.ma.filled(row, b"")
-        ]
-        out.append("".join(chars).split("\x00")[0].strip())
-    return out
-
-
 def _exodus_ids(ds: Any, var: str, count: int, what: str) -> np.ndarray:
-    """Entity ids (``eb_prop1`` / ``ns_prop1``); 1..count when the file has none."""
-    if var not in ds.variables:
-        return np.arange(1, count + 1)
-    ids = np.asarray(np.ma.filled(ds.variables[var][:], -1), dtype=np.int64).ravel()
-    if ids.size != count:
-        raise SceneError(
-            f"Discretization.Input Mesh File: Exodus {var} must hold {count} {what} ids, "
-            f"got {ids.size}"
-        )
-    return ids
+    """Entity ids (:func:`pdlin.io.exodus.entity_ids`), errors as deck errors."""
+    try:
+        return entity_ids(ds, var, count, what)
+    except InputError as exc:
+        raise SceneError(f"Discretization.Input Mesh File: {exc}") from None
 
 
 def _exodus_cloud(path: Path) -> tuple[PointCloud, dict[str, Any]]:
@@ -1333,8 +1314,20 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         for k, why in _PD_OUTPUT.items():
             if why and k in out:
                 _note(f"Output.{k}", why)
+        suffix = ".vtu"
+        if "Output File Type" in out:
+            # Peridigm's OutputManagerContainer knows one type
+            if out["Output File Type"] != "ExodusII":
+                raise SceneError(
+                    "Output.Output File Type must be 'ExodusII', got "
+                    f"{out['Output File Type']!r} (Peridigm's only output type; pdlin then "
+                    "writes <Output Filename>.e)"
+                )
+            suffix = ".e"
+            if "Output Filename" not in out:
+                output = _output_inside(base, name, "the deck's name", suffix)
         if "Output Filename" in out:
-            output = _output_inside(base, out["Output Filename"], "Output.Output Filename")
+            output = _output_inside(base, out["Output Filename"], "Output.Output Filename", suffix)
     filters: list[Callable[[np.ndarray, np.ndarray], np.ndarray]] = []
     if extra.get("strict_sphere"):
         filters.append(_strict_sphere(float(horizon[0])))
@@ -1346,6 +1339,7 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     if filters:
         opts["exclude"] = _any_of(filters)
     scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
+    scene.time = times[-1]  # Peridigm writes the final state at Final Time
     if len(times) > 2:
         # several load steps: each is a linear solve at that step's values (Peridigm's
         # own times, its initial state included); the last is the scene's problem
@@ -1354,14 +1348,14 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     return scene
 
 
-def _output_inside(base: Path, value: Any, key: str) -> Path:
-    """``<base>/<value>.vtu``, refused when it resolves outside ``base`` (the deck's folder).
+def _output_inside(base: Path, value: Any, key: str, suffix: str = ".vtu") -> Path:
+    """``<base>/<value><suffix>``, refused when it resolves outside ``base`` (the deck's folder).
 
     A deck is often someone else's file: it writes only beside itself.  ``pdlin run -o``
     (the user's own choice) may point anywhere.
     """
     root = base.resolve()
-    out = (root / f"{value}.vtu").resolve()
+    out = (root / f"{value}{suffix}").resolve()
     if not out.is_relative_to(root):
         raise SceneError(
             f"{key} {str(value)!r} leaves the deck's folder {str(root)!r} (resolves to "
@@ -1787,7 +1781,9 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
             bc.get("Value", 0.0), cloud.points[idx], t, f"{key}.Value", caret_power=True
         )
         dirichlet.append(Dirichlet(idx, val[:, None], components=[_COORD[coord]]))
-    return _scene(name, model, cloud, horizon, dirichlet, [], base, None)
+    scene = _scene(name, model, cloud, horizon, dirichlet, [], base, None)
+    scene.time = t  # the state at Final Time
+    return scene
 
 
 def _perilab_model(mat: Mapping[str, Any], dim: int) -> Any:
