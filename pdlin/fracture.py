@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from ._repr import compact_repr, html_table
 from ._validation import integer
 from .errors import InputError, InputTypeError, SlowRunWarning
 from .geometry.bonds import Bonds
@@ -74,6 +75,16 @@ class DamageResult:
     @property
     def n_steps(self) -> int:
         return int(self.factors.size)
+
+    def __repr__(self) -> str:
+        """Steps, broken bonds and damage (no arrays, no memory address)."""
+        items = {k: v for k, v in self.summary().items() if k != "timings"}
+        return compact_repr("DamageResult", {**items, "stopped": items["stopped"] or None})
+
+    def _repr_html_(self) -> str:
+        """The summary as an HTML table (Jupyter)."""
+        rows = [(k.replace("_", " "), v) for k, v in self.summary().items() if k != "timings"]
+        return html_table("DamageResult", rows)
 
     def summary(self) -> dict[str, Any]:
         """Plain-data summary (for the CLI)."""

@@ -25,6 +25,7 @@ import scipy.linalg
 import scipy.sparse as sp
 
 from ._fingerprint import digest
+from ._repr import compact_repr, html_table, time_span
 from ._validation import as_float_array, integer
 from .errors import (
     CheckpointError,
@@ -199,6 +200,34 @@ class NonlinearResult:
     @property
     def n_steps(self) -> int:
         return int(self.times.size)
+
+    def _table(self) -> list[tuple[str, Any]]:
+        k, n, d = (int(s) for s in self.u.shape)
+        return [
+            ("model", repr(self.problem.model)),
+            ("points", n),
+            ("dim", d),
+            ("DOFs", n * d),
+            ("steps", k),
+            ("times", time_span(self.times)),
+            ("methods", ", ".join(sorted(set(self.methods))) or None),
+            ("iterations", int(self.iterations.sum())),
+            ("cutbacks", int(self.cutbacks.sum())),
+            ("max residual", float(np.max(self.residuals)) if k else None),
+            ("resumed from step", self.resumed_from or None),
+            ("time (s)", float(self.timings.get("total", np.nan))),
+        ]
+
+    def __repr__(self) -> str:
+        """Sizes, steps, drivers, iterations and residual (no arrays, no memory address)."""
+        names = {"max residual": "max_residual", "time (s)": "seconds"}
+        names["resumed from step"] = "resumed_from"
+        items = {names.get(key, key): v for key, v in self._table() if key != "model"}
+        return compact_repr("NonlinearResult", items)
+
+    def _repr_html_(self) -> str:
+        """The summary as an HTML table (Jupyter)."""
+        return html_table("NonlinearResult", self._table())
 
     def summary(self) -> dict[str, Any]:
         """Plain-data summary (for the CLI and logs)."""

@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from ._repr import Raw as _Raw
+from ._repr import compact_repr, html_table
 from ._validation import as_float_array, integer, tolerance
 from .errors import AccuracyWarning, InputError, InputTypeError, ShapeError, SlowRunWarning
 from .fields import small_strain
@@ -181,6 +183,34 @@ class StaticProblem:
             )
         object.__setattr__(self, "bond_options", {**self.bond_options, "ratio": r})
 
+    def _repr_items(self) -> dict[str, Any]:
+        h = None if self.horizon is None else np.asarray(self.horizon, dtype=float)
+        return {
+            "model": _Raw(repr(self.model)),
+            "points": self.cloud.n,
+            "dim": self.cloud.dim,
+            "DOFs": self.cloud.n * self.cloud.dim,
+            "bonds": None if self.bonds is None else self.bonds.n_bonds,
+            "horizon": h if h is None or h.ndim == 0 or h.size > 1 else h.reshape(()),
+            **{k: v for k, v in self.bond_options.items()},
+            "dirichlet": len(self.dirichlet),
+            "loads": len(self.loads),
+            "symmetry": len(self.symmetry) or None,
+        }
+
+    def __repr__(self) -> str:
+        """Model, sizes and conditions counts (no arrays, no memory address).
+
+        Examples
+        --------
+        >>> import pdlin
+        >>> pdlin.StaticProblem(pdlin.BondBased(E=1.0), pdlin.grid((20,), spacing=0.05),
+        ...     horizon=0.1, dirichlet=[pdlin.Dirichlet("x-", 0.0)])
+        StaticProblem(model=BondBased(E=1, plane='stress'), points=20, dim=1, DOFs=20,
+            horizon=0.1, dirichlet=1, loads=0)
+        """
+        return compact_repr("StaticProblem", self._repr_items())
+
     def get_bonds(self) -> Bonds:
         """The problem's bonds (built on demand when not given)."""
         if self.bonds is not None:
@@ -276,6 +306,46 @@ class StaticResult:
             s = self.stress()
             out["stress"] = s.reshape(s.shape[0], -1)
         return out
+
+    def _table(self) -> list[tuple[str, Any]]:
+        u = self.u
+        return [
+            ("model", repr(self.problem.model)),
+            ("points", int(u.shape[0])),
+            ("dim", int(u.shape[1])),
+            ("bonds", int(self.bonds.n_bonds)),
+            ("DOFs", int(u.size)),
+            ("prescribed DOFs", int(np.asarray(self.prescribed_dofs).size)),
+            ("solver", self.info.get("solver")),
+            ("converged", bool(self.converged)),
+            ("iterations", int(self.n_iter)),
+            ("relative residual", float(self.relative_residual)),
+            ("max |u|", float(np.abs(u).max()) if u.size else 0.0),
+            ("time (s)", float(self.timings.get("total", np.nan))),
+        ]
+
+    def __repr__(self) -> str:
+        """Sizes, solver, iterations and residual (no arrays, no memory address).
+
+        Examples
+        --------
+        >>> import pdlin
+        >>> prob = pdlin.StaticProblem(pdlin.BondBased(E=1.0), pdlin.grid((20,), spacing=0.05),
+        ...     horizon=0.1, dirichlet=[pdlin.Dirichlet("x-", 0.0)],
+        ...     loads=[pdlin.TotalForce("x+", [1e-3])])
+        >>> pdlin.solve(prob, solver="direct")  # doctest: +ELLIPSIS
+        StaticResult(points=20, dim=1, bonds=74, DOFs=20, solver='direct', converged=True,
+            iterations=1, ...)
+        """
+        names = {"relative residual": "residual", "max |u|": "max_abs_u", "time (s)": "seconds"}
+        items = {
+            names.get(k, k): v for k, v in self._table() if k not in ("model", "prescribed DOFs")
+        }
+        return compact_repr("StaticResult", items)
+
+    def _repr_html_(self) -> str:
+        """The summary as an HTML table (Jupyter)."""
+        return html_table("StaticResult", self._table())
 
     def summary(self) -> dict[str, Any]:
         """Short plain-data summary (used by the CLI)."""

@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._repr import compact_repr
 from .._validation import check_finite, integer, positive_scalar
 from ..errors import ActiveSetWarning, InputError, InputTypeError, ShapeError
 from .tensors import (
@@ -474,6 +475,10 @@ class SaintVenantKirchhoff:
         )
         self.dim = int(self.C.shape[0])
 
+    def __repr__(self) -> str:
+        """Class, dimension and stiffness size (no arrays, no memory address)."""
+        return compact_repr("SaintVenantKirchhoff", {"dim": self.dim, "C": self.C})
+
     def initial_state(self, n: int) -> dict[str, FloatArray]:
         """Empty state (the material has no internal variables)."""
         return {}
@@ -700,6 +705,28 @@ class CrystalPlasticity:
         )
         self.orientation = orientation
         _orientation_arrays(orientation, _n_orientations(orientation, self.dim) or 1, self.dim)
+
+    def __repr__(self) -> str:
+        """Lattice, slip systems and options (no arrays, no memory address).
+
+        Examples
+        --------
+        >>> CrystalPlasticity("fcc")
+        CrystalPlasticity(slip='fcc', dim=3, nslip=12, orientation=0, active_set='reactivate')
+        """
+        orientation = np.asarray(self.orientation)
+        return compact_repr(
+            "CrystalPlasticity",
+            {
+                "slip": self.slip,
+                "dim": self.dim,
+                "nslip": self.nslip,
+                "orientation": orientation if orientation.ndim else orientation.item(),
+                "active_set": self.active_set,
+                "shear": None if self.shear == "engineering" else self.shear,
+                "renormalize": self.renormalize or None,
+            },
+        )
 
     # -- construction helpers ----------------------------------------------------------
     def _stiffness(self, elastic: Any) -> FloatArray:

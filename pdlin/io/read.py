@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from .._repr import Raw, compact_repr, html_table, time_span
 from ..errors import InputError
 from .exodus import EXODUS_SUFFIXES, read_exodus_file
 from .names import from_file_value
@@ -57,6 +58,31 @@ class ResultFile:
     @property
     def n_steps(self) -> int:
         return len(self.steps)
+
+    def _table(self) -> list[tuple[str, Any]]:
+        k = self.n_steps
+        last = self.steps[-1] if k else {}
+        shapes = {key: "" if np.ndim(v) < 2 else f"[{np.shape(v)[1]}]" for key, v in last.items()}
+        return [
+            ("file", self.path.name),
+            ("points", int(self.points.shape[0])),
+            ("dim", self.dim),
+            ("steps", k),
+            ("times", time_span(self.times)),
+            ("fields", ", ".join(f"{key}{s}" for key, s in shapes.items()) or None),
+            ("sets", ", ".join(sorted(self.sets)) or None),
+        ]
+
+    def __repr__(self) -> str:
+        """File, sizes, steps and field names (no arrays, no memory address)."""
+        items = dict(self._table())
+        items["fields"] = Raw("[" + ", ".join(self.steps[-1] if self.steps else ()) + "]")
+        items["sets"] = len(self.sets) or None
+        return compact_repr("ResultFile", items)
+
+    def _repr_html_(self) -> str:
+        """The summary as an HTML table (Jupyter)."""
+        return html_table("ResultFile", self._table())
 
     def step_index(self, step: int) -> int:
         """Validated 0-based index of ``step`` (negative counts from the end)."""

@@ -10,6 +10,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .._repr import compact_repr
 from ..errors import ModelError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
@@ -171,3 +172,18 @@ class Model(ABC):
     def describe(self) -> dict[str, Any]:
         """Plain-data description of the model (for results and logs)."""
         return {"model": type(self).__name__}
+
+    def _repr_items(self) -> dict[str, Any]:
+        """Parameters shown by ``repr`` (default: :meth:`describe` without the name)."""
+        return {k: v for k, v in self.describe().items() if k != "model"}
+
+    def __repr__(self) -> str:
+        """Class and parameters, without arrays or memory addresses.
+
+        Examples
+        --------
+        >>> import pdlin
+        >>> pdlin.LPS(E=1e9, nu=0.25)  # doctest: +ELLIPSIS
+        LPS(E=1e+09, nu=0.25, plane='stress', ...)
+        """
+        return compact_repr(type(self).__name__, self._repr_items())

@@ -589,6 +589,12 @@ class BondBased(Model):
             "surface_correction": self.surface_correction,
         }
 
+    def _repr_items(self) -> dict[str, Any]:
+        items = super()._repr_items()
+        if self.E is not None and self.E.ndim:
+            items["E"] = self.E
+        return items
+
 
 def _scalar_or_tag(value: np.ndarray) -> float | str:
     return "per-point" if value.ndim else float(value)

@@ -2334,6 +2334,15 @@ class Correspondence(Model):
             out["assembly"] = self.assembly.get("path")
         return out
 
+    def _repr_items(self) -> dict[str, Any]:
+        items: dict[str, Any] = {}
+        if self.E is not None:
+            items["E"] = self.E
+            items["nu"] = self.nu
+        elif self.C is not None:
+            items["C"] = np.asarray(self.C)
+        return {**items, **super()._repr_items()}
+
 
 def shadow_problem(
     model: Correspondence,
