@@ -122,3 +122,69 @@ def test_example_runner_saves_unsaved_figures(tmp_path):
     assert out.stdout.strip() == "args ['-x']"
     # the script's own figure is not saved twice; the shown one is saved once
     assert sorted(p.name for p in tmp_path.glob("*.png")) == ["demo_fig1.png", "own.png"]
+
+
+def _python_block_after(text: str, heading: str) -> str:
+    """The first ```python block under ``heading``."""
+    start = text.index(heading)
+    m = re.search(r"```python\n(.*?)```", text[start:], flags=re.S)
+    assert m is not None, heading
+    return m.group(1)
+
+
+def test_front_page_has_the_readme_ten_line_example_and_it_runs():
+    import contextlib
+    import io
+
+    readme = (DOCS.parent / "README.md").read_text(encoding="utf-8")
+    front = (DOCS / "index.md").read_text(encoding="utf-8")
+    code = _python_block_after(front, "## Python in ten lines")
+    assert code == _python_block_after(readme, "## Python in ten lines")
+    namespace: dict = {}
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        exec(compile(code, "docs/index.md", "exec"), namespace)  # noqa: S102
+    assert out.getvalue().strip()
+    result = namespace["result"]
+    assert result.converged and result.relative_residual < 1e-8  # solve's default rtol
+    # uniaxial tension: eps_xx = sigma / E = (F / (height * thickness)) / E, height 20 * 0.01
+    # and thickness 1 (the example's own numbers); PD with surface effects within 5 %
+    closed = 1e4 / (20 * 0.01 * 1.0) / 70e9
+    assert abs(result.strain()[500][0, 0] / closed - 1) < 0.05
+
+
+def _install_page() -> str:
+    return (DOCS / "install.md").read_text(encoding="utf-8")
+
+
+def test_install_page_lists_every_extra_with_its_requirements():
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        import tomli as tomllib
+    from packaging.requirements import Requirement
+
+    extras = tomllib.loads((DOCS.parent / "pyproject.toml").read_text(encoding="utf-8"))["project"][
+        "optional-dependencies"
+    ]
+    rows = dict(re.findall(r"^\| `([\w-]+)` \| ([^|]+) \|", _install_page(), flags=re.M))
+    assert set(rows) == set(extras)
+    test_names = {Requirement(r).name for r in extras["test"]}
+    for extra, reqs in extras.items():
+        for req in map(Requirement, reqs):
+            if extra == "dev" and req.name in test_names:
+                continue  # the dev row says "the test packages and ..."
+            floor = next(s.version for s in req.specifier if s.operator == ">=")
+            assert f"{req.name} ≥ {floor}" in rows[extra], (extra, req.name, rows[extra])
+
+
+def test_install_page_floors_are_the_ci_floors():
+    floors = dict(
+        line.split("==")
+        for line in (DOCS.parent / ".ci" / "floors.txt").read_text().splitlines()
+        if line and not line.startswith("#")
+    )
+    table = _install_page().split("## Dependency floors")[1].split("\n## ")[0]
+    rows = dict(re.findall(r"^\| ([\w-]+) \| ([\w.]+) \|", table, flags=re.M))
+    rows.pop("package", None)
+    assert rows == floors
