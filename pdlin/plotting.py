@@ -26,11 +26,80 @@ __all__ = [
     "plot_scene_spy",
     "plot_sparsity_vs_horizon",
     "field_components",
+    "field_unit",
+    "UNIT_SYSTEMS",
     "save_figure",
     "render_result",
 ]
 
 _AXES = "xyz"
+
+#: named unit systems of ``units=`` / ``pdlin plot --units``: the length, force and stress
+#: units of a consistent set (pdlin computes in whatever consistent units its input has)
+UNIT_SYSTEMS: dict[str, dict[str, str]] = {
+    "SI": {"length": "m", "force": "N", "stress": "Pa"},
+    "mm-N-MPa": {"length": "mm", "force": "N", "stress": "MPa"},
+    "m-N-Pa": {"length": "m", "force": "N", "stress": "Pa"},
+    "mm-kN-GPa": {"length": "mm", "force": "kN", "stress": "GPa"},
+}
+#: the quantity of each API field: its unit comes from the unit system ("-": dimensionless)
+_FIELD_QUANTITY = {
+    "displacement": "length",
+    "reaction": "force",
+    "stress": "stress",
+    "strain": "-",
+    "deformation_gradient": "-",
+    "damage": "-",
+    "volume": "volume",
+}
+
+
+def _unit_system(units: str | dict[str, str] | None) -> dict[str, str]:
+    """``units`` as {'length', 'force', 'stress'} names; None: the names of the quantities."""
+    if units is None:
+        return {"length": "length", "force": "force", "stress": "stress"}
+    if isinstance(units, str):
+        if units not in UNIT_SYSTEMS:
+            raise InputError(
+                f"units (--units) must be one of {sorted(UNIT_SYSTEMS)}, got {units!r}"
+            )
+        return dict(UNIT_SYSTEMS[units])
+    if (
+        not isinstance(units, dict)
+        or set(units) != {"length", "force", "stress"}
+        or not all(isinstance(v, str) and v for v in units.values())
+    ):
+        raise InputError(
+            "units must be a unit system name or a dict of the 'length', 'force' and "
+            f"'stress' unit names, got {units!r}"
+        )
+    return dict(units)
+
+
+def field_unit(key: str, dim: int, units: str | dict[str, str] | None = None) -> str:
+    """Unit of a field in a unit system (``""`` for counts and unknown fields).
+
+    Without ``units`` the unit is named by its quantity (``length``, ``force``,
+    ``stress``): pdlin's results are in the consistent units of the input.
+
+    Examples
+    --------
+    >>> field_unit("displacement", 2, "SI"), field_unit("stress", 3, "mm-N-MPa")
+    ('m', 'MPa')
+    >>> field_unit("volume", 2, "SI"), field_unit("strain", 2), field_unit("stress", 2)
+    ('m²', '-', 'stress')
+    >>> field_unit("family_size", 3, "SI")
+    ''
+    """
+    system = _unit_system(units)
+    quantity = _FIELD_QUANTITY.get(key, "")
+    if quantity == "volume":  # a cell's area in 2D (per unit thickness), length in 1D
+        return system["length"] + {1: "", 2: "²", 3: "³"}[dim]
+    return system.get(quantity, quantity)
+
+
+def _with_unit(label: str, unit: str) -> str:
+    return f"{label} [{unit}]" if unit else label
 
 
 @dataclass
@@ -45,13 +114,16 @@ class Plot:
     points : ndarray
         Where they are drawn (marker positions (m, 2), or the curve's x values).
     label : str
-        What ``values`` are (colour-bar or y-axis label).
+        What ``values`` are (the colour-bar or y-axis label without its unit).
+    unit : str
+        Unit of ``values`` on the figure (``""`` for counts, ``"-"`` dimensionless).
     """
 
     figure: Any
     values: np.ndarray
     points: np.ndarray
     label: str
+    unit: str = ""
 
 
 def _plt() -> Any:
@@ -179,6 +251,7 @@ def plot_result(
     scale: float = 0.0,
     slice: str | tuple[str, float] | None = None,  # noqa: A002 - the CLI's --slice
     ax: Any = None,
+    units: str | dict[str, str] | None = None,
 ) -> Plot:
     """Colour map of one field of a result file (or of a :class:`ResultFile`).
 
@@ -200,8 +273,14 @@ def plot_result(
     scale : float
         Draw at ``points + scale * displacement`` (0: the reference shape).
     slice : str or (axis, value), optional
-        Plane of a 3D result, e.g. ``"z=0.5"``.
+        Plane of a 3D result, e.g. ``"z=0.5"``; the title names it.
     ax : matplotlib Axes, optional
+    units : str or dict, optional
+        Unit system of the result for the axis and colour-bar labels: a name of
+        :data:`UNIT_SYSTEMS` (``"SI"``, ``"mm-N-MPa"``, ...) or a dict of ``length``,
+        ``force`` and ``stress`` unit names.  Default: the labels name the quantity
+        (``[length]``, ``[stress]``; strains ``[-]``), as pdlin computes in the
+        consistent units of its input.
 
     Returns
     -------
@@ -218,10 +297,16 @@ def plot_result(
     >>> plot = plot_result(p, component="x")
     >>> bool(np.array_equal(plot.values, u[:, 0])), plot.label
     (True, 'displacement x')
+    >>> plot_result(p, component="x", units="SI").figure.axes[1].get_ylabel()
+    'displacement x [m]'
     """
     plt = _plt()
+    system = _unit_system(units)
     r = result if isinstance(result, ResultFile) else read_result(result)
     k, fields, values, label, pts = _step_field(r, step, field, component, scale)
+    unit = field_unit(field, r.dim, system)
+    length = system["length"]
+    where = ""
     scale = float(scale)
     if r.dim == 3:
         if slice is None:
@@ -242,6 +327,9 @@ def plot_result(
         others = [i for i in range(3) if i != axis]
         xy, values = pts[keep][:, others], values[keep]
         names = [_AXES[i] for i in others]
+        where = (
+            f", slice {_AXES[axis]} = {value:g} (±{half:.3g} {length}, {int(keep.sum()):,} points)"
+        )
     elif slice is not None:
         raise InputError(f"slice (--slice) applies to 3D results; this one is {r.dim}D")
     else:
@@ -253,39 +341,47 @@ def plot_result(
         fig, ax = plt.subplots(figsize=(6.4, height), layout="constrained")
     else:
         fig = ax.figure
-    title = f"{r.path.name}: {label}"
+    title = f"{r.path.name}: {label}{where}"
     if r.n_steps > 1:
         title += f" (step {k}, t = {r.times[k]:g})"
     if r.dim == 1:
         order = np.argsort(xy[:, 0])
         ax.plot(xy[order, 0], values[order], ".-")
-        ax.set_xlabel("x")
-        ax.set_ylabel(label)
+        ax.set_xlabel(f"x [{length}]")
+        ax.set_ylabel(_with_unit(label, unit))
         ax.set_title(title)
-        return Plot(fig, values, xy[:, 0], label)
+        return Plot(fig, values, xy[:, 0], label, unit)
     span = np.ptp(xy, axis=0).max() or 1.0
     width_pt = 72 * 5.0 * float(np.ptp(xy[:, 0]) or span) / span
     size = float(np.clip((0.9 * width_pt * _spacing(r, fields) / span) ** 2, 0.5, 200.0))
     sc = ax.scatter(xy[:, 0], xy[:, 1], c=values, s=size, marker="s", cmap="viridis")
     ext = np.ptp(xy, axis=0)
     shrink = float(np.clip(1.2 * ext[1] / ext[0], 0.4, 1.0)) if ext[0] > 0 else 1.0
-    fig.colorbar(sc, ax=ax, label=label, shrink=shrink)
+    fig.colorbar(sc, ax=ax, label=_with_unit(label, unit), shrink=shrink)
     ax.set_aspect("equal")
-    ax.set_xlabel(names[0])
-    ax.set_ylabel(names[1])
+    ax.set_xlabel(f"{names[0]} [{length}]")
+    ax.set_ylabel(f"{names[1]} [{length}]")
     if scale != 0.0:
         title += f", deformed x{scale:g}"
     ax.set_title(title)
-    return Plot(fig, values, xy, label)
+    return Plot(fig, values, xy, label, unit)
 
 
-def plot_homogenized(path: str | Path, *, component: str | None = None, ax: Any = None) -> Plot:
+def plot_homogenized(
+    path: str | Path,
+    *,
+    component: str | None = None,
+    ax: Any = None,
+    units: str | dict[str, str] | None = None,
+) -> Plot:
     """Homogenized stress-strain curve from the CSV of a nonlinear run.
 
     ``sigma_<component>`` against the strain ``F_<component> - delta`` (the
     volume-averaged nonlocal deformation gradient minus the identity).  The
     default component (``None``) is the one of largest magnitude at the last
-    step (``12`` in shear, ``22`` in compression along y).
+    step (``12`` in shear, ``22`` in compression along y).  ``units`` labels the
+    stress axis as in :func:`plot_result` (default ``[stress]``); the strain is
+    dimensionless.
 
     Returns
     -------
@@ -293,6 +389,7 @@ def plot_homogenized(path: str | Path, *, component: str | None = None, ax: Any 
         ``values`` = the stress column, ``points`` = the strain.
     """
     plt = _plt()
+    stress_unit = _unit_system(units)["stress"]
     p = Path(path)
     if not p.is_file():
         raise InputError(f"homogenized CSV {str(p)!r} does not exist")
@@ -321,12 +418,12 @@ def plot_homogenized(path: str | Path, *, component: str | None = None, ax: Any 
     else:
         fig = ax.figure
     ax.plot(eps, sig, "o-")
-    ax.set_xlabel(f"mean strain F_{component} - δ")
-    ax.set_ylabel(f"mean stress sigma_{component}")
+    ax.set_xlabel(f"mean strain F_{component} - δ [-]")
+    ax.set_ylabel(f"mean stress sigma_{component} [{stress_unit}]")
     ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 3))
     ax.set_title(p.name)
     ax.grid(True, alpha=0.3)
-    return Plot(fig, sig, eps, f"sigma_{component}")
+    return Plot(fig, sig, eps, f"sigma_{component}", stress_unit)
 
 
 def plot_convergence(result: str | Path | ResultFile, *, ax: Any = None) -> Plot:

@@ -771,6 +771,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
                 step=args.step,
                 scale=args.scale,
                 slice=args.slice,
+                units=args.units,
             )
             tag = args.field + (f"_{args.component}" if args.component else "")
             out = Path(args.output) if args.output else src.with_name(f"{src.stem}_{tag}.png")
@@ -781,7 +782,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
             else src.with_name(f"{src.stem}_homogenized.csv")
         )
         if args.homogenized or (result.n_steps > 1 and csv_path.is_file() and not args.convergence):
-            curve = plotting.plot_homogenized(csv_path)
+            curve = plotting.plot_homogenized(csv_path, units=args.units)
             written.append(
                 plotting.save_figure(
                     curve.figure, out.with_name(f"{out.stem}_homogenized.png"), dpi=args.dpi
@@ -912,6 +913,11 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--step", type=int, default=-1, help="step of a series (0-based; -1 last)")
     pl.add_argument("--scale", type=float, default=0.0, help="draw at x + scale * u")
     pl.add_argument("--slice", help="plane of a 3D result, e.g. z=0.5 (points within h/2)")
+    pl.add_argument(
+        "--units",
+        help="unit system of the result for the labels: SI, mm-N-MPa, m-N-Pa, mm-kN-GPa "
+        "(default: the labels name the quantity, [length], [stress])",
+    )
     pl.add_argument(
         "--homogenized",
         metavar="CSV",
