@@ -161,5 +161,5 @@ class AccuracyWarning(UserWarning):
 
 class SlowRunWarning(UserWarning):
     """A run is estimated, before it starts, to take longer than
-    :data:`pdlin.resources.LONG_RUN_SECONDS` (the message gives the estimate and its
+    ``pdlin.resources.LONG_RUN_SECONDS`` (the message gives the estimate and its
     sizes: points, bonds, nonzeros)."""

@@ -258,7 +258,7 @@ def write_series(
     unit: ``<tag>`` is a hash of the data (other data, other names; the same
     result, the same names), the main file is replaced last
     (one rename), then the previous companions are removed
-    (:mod:`pdlin.io.output`).
+    (``pdlin.io.output``).
 
     Parameters
     ----------

@@ -598,7 +598,7 @@ def solve_linear(
         tangents).  ``info['direct_reused']`` says whether it did.
     progress : callable, optional
         Called with a line (iteration count and relative residual) at most every
-        :data:`pdlin._progress.PROGRESS_EVERY` seconds of an iterative solve, and once
+        ``pdlin._progress.PROGRESS_EVERY`` seconds of an iterative solve, and once
         after the AMG set-up.
     condition : bool or 'auto'
         Estimate the 1-norm condition number of a ``'direct'`` solve from its
