@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from .._repr import compact_repr
 from .._validation import as_float_array
 from ..errors import InputError, InputTypeError, ShapeError
 from ..geometry.bonds import Bonds
@@ -251,6 +252,24 @@ class CalibrationResult:
     family_of_point: np.ndarray | None = None
     pair_change: float = 0.0
     extra: dict[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        """Status, error, bonds and micromodulus range (no arrays)."""
+        err = np.asarray(self.relative_error, dtype=float)
+        return compact_repr(
+            "CalibrationResult",
+            {
+                "status": self.status,
+                "relative_error": float(np.nanmax(err)) if err.size else None,
+                "rank": self.rank if np.ndim(self.rank) == 0 else None,
+                "n_bonds": self.n_bonds,
+                "c_min": self.c_min,
+                "c_max": self.c_max,
+                "n_zero": self.n_zero,
+                "families": len(self.families) or None,
+                "method": self.method,
+            },
+        )
 
     @property
     def feasible(self) -> bool:

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._repr import compact_repr
+from .._repr import Raw, compact_repr, format_value
 from .._validation import check_finite, integer, positive_scalar
 from ..errors import ActiveSetWarning, InputError, InputTypeError, ShapeError
 from .tensors import (
@@ -1726,6 +1726,24 @@ class MaterialPointResult:
     plastic: NDArray[np.bool_]
     yield_step: NDArray[np.int64]
     states: list[dict[str, FloatArray]]
+
+    def __repr__(self) -> str:
+        """Steps, points, slip systems and the first yield (no arrays)."""
+        steps, n, nslip = (int(v) for v in self.gamma.shape)
+        plastic = self.yield_step[self.yield_step > 0]
+        return compact_repr(
+            "MaterialPointResult",
+            {
+                "steps": steps,
+                "points": n,
+                "dim": int(self.F.shape[-1]),
+                "nslip": nslip,
+                "t": Raw(f"{format_value(self.t[0])} .. {format_value(self.t[-1])}")
+                if steps
+                else None,
+                "first_yield_step": int(plastic.min()) if plastic.size else None,
+            },
+        )
 
 
 _LOADINGS = {

@@ -239,3 +239,25 @@ def test_damage_result_repr_and_html():
     _looks_clean(text)
     assert "DamageResult(" in text and f"steps={res.n_steps}" in text
     assert res._repr_html_().startswith("<table>")
+
+
+def test_material_point_result_repr():
+    # 10^4 orientations in one run: (steps, n, ...) histories
+    theta = np.linspace(0.0, np.pi, N)
+    res = pdlin.material_point(pdlin.CrystalPlasticity(), "shear", steps=4, orientation=theta)
+    text = repr(res)
+    _looks_clean(text)
+    for fact in ("MaterialPointResult(", "steps=4", f"points={N}", "dim=2", "nslip=2"):
+        assert fact in text, (fact, text)
+
+
+def test_calibration_result_repr():
+    cloud = pdlin.grid((40, 20), spacing=0.05)
+    bonds = pdlin.find_bonds(cloud, ratio=3.015)
+    target = np.array([[4.0, 0.3, 0.0], [0.3, 1.0, 0.0], [0.0, 0.0, 0.3]])  # anisotropic_block
+    res = pdlin.calibrate_micromoduli(target, bonds, plane="stress", boundary="bulk")
+    text = repr(res)
+    _looks_clean(text)
+    for fact in (f"status='{res.status}'", f"n_bonds={bonds.n_bonds}", "families=1"):
+        assert fact in text, (fact, text)
+    assert f"relative_error={np.max(res.relative_error):.4g}" in text
