@@ -279,3 +279,31 @@ def test_generated_mesh_refuses_fast() -> None:
     with pytest.raises(InsufficientMemoryError, match=r"4,000,004,000,000 nodes.*PB"):
         pdlin.plate_with_hole_mesh(10**6, 10**6)
     assert time.perf_counter() - t0 < 1.0
+
+
+@pytest.mark.parametrize("ranks", [1, 4])
+def test_petsc_backend_refuses_a_rank_share_too_big_before_assembly(monkeypatch, ranks) -> None:
+    """backend='petsc' estimates each rank's share (the run's estimate over the ranks) and
+    refuses it before the bond search and assembly, naming the ranks (main: no check on
+    the PETSc path; PETSc is faked here, petsc4py need not be installed)."""
+    import types
+
+    import pdlin.backends.petsc as bp
+
+    comm = types.SimpleNamespace(getRank=lambda: 0, getSize=lambda: ranks)
+    monkeypatch.setattr(bp, "_petsc", lambda: types.SimpleNamespace(COMM_WORLD=comm))
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("the bond search started before the memory check")
+
+    monkeypatch.setattr(bp, "local_rows", no_work)
+    monkeypatch.setattr(bp, "_layout", no_work)
+    prob = _bar_problem((200, 200))
+    share = plan_memory(prob, "amg-cg").stages["solve"] // ranks
+    _small_budget(monkeypatch, share // 2)  # half of one rank's share
+    with pytest.raises(InsufficientMemoryError, match=rf"{ranks} rank\(s\)"):
+        pdlin.solve(prob, "amg-cg", backend="petsc")
+    if ranks > 1:  # room for two shares but not the whole: this rank goes on to the work
+        _small_budget(monkeypatch, res.LATE_IMPORTS + 2 * share)
+        with pytest.raises(AssertionError, match="bond search started"):
+            pdlin.solve(prob, "amg-cg", backend="petsc")
