@@ -15,7 +15,7 @@ import pdlin
 import pdlin.resources as res
 from pdlin.cli.main import main
 from pdlin.errors import InsufficientMemoryError, PdlinError, SlowRunWarning
-from pdlin.problem import plan_memory
+from pdlin.problem import memory_hints, plan_memory
 from pdlin.resources import MemoryBudget
 
 
@@ -307,3 +307,23 @@ def test_petsc_backend_refuses_a_rank_share_too_big_before_assembly(monkeypatch,
         _small_budget(monkeypatch, res.LATE_IMPORTS + 2 * share)
         with pytest.raises(AssertionError, match="bond search started"):
             pdlin.solve(prob, "amg-cg", backend="petsc")
+
+
+def test_hints_of_a_long_history_count_it_and_offer_fewer_steps(monkeypatch) -> None:
+    """damage.steps = 10⁹: the per-step history is what does not fit; the alternatives'
+    estimates include it (main offered "solver='amg-cg': ~117 MB" for a 13 TB run) and a
+    number of steps that fits is offered."""
+    _small_budget(monkeypatch, 2**30)  # 1 GiB
+    prob = _bar_problem()
+    plan = plan_memory(prob, "direct", history_steps=10**9)
+    hist = 10**9 * prob.cloud.n * (2 + 4 + 2) * 8  # u, stress and two scalars per point and step
+    assert plan.peak >= hist
+    hints = memory_hints(plan)
+    amg = next(h for h in hints if h.startswith("solver='amg-cg'"))
+    units = {"kB": 1e3, "MB": 1e6, "GB": 1e9, "TB": 1e12, "PB": 1e15}  # format_bytes's
+    value, unit = amg.split(": ~")[1].split()[:2]
+    assert float(value) * units[unit] >= hist, amg  # not ~117 MB
+    steps = next(h for h in hints if "load steps" in h)
+    fit = int(steps.split("at most ~")[1].split()[0].replace(",", ""))
+    per_step = prob.cloud.n * (2 + 4 + 2) * 8
+    assert 1 <= fit and fit * per_step < 2**30, steps
