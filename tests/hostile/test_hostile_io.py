@@ -268,3 +268,30 @@ def test_pdlin_run_on_a_full_disk_is_one_error_line(tmp_path, tiny_disk, scene, 
     assert str(tiny_disk) in err and "No space left on device" in err, err
     assert files() == before
     assert not [p for p in tiny_disk.rglob("*") if p.name.endswith((".partial", ".tmp"))]
+
+
+def test_checkpoint_on_a_full_disk_is_one_error_line(tmp_path, tiny_disk):
+    """A nonlinear run whose checkpoint lives on a full file system: one ``pdlin: error:``
+    line naming the checkpoint, exit 2, the previous checkpoint byte for byte, no
+    ``.tmp`` left (item 8 on a real full disk)."""
+    import os
+    import subprocess
+    import sys
+
+    ck = tiny_disk / "cp.ckpt.npz"
+    path = tmp_path / "scene.toml"
+    path.write_text(_TMPFS_SERIES + f"checkpoint = {str(ck)!r}\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    cmd = [sys.executable, "-m", "pdlin", "run", str(path), "-q", "-o", str(tmp_path / "s.pvd")]
+    first = subprocess.run(cmd, capture_output=True, env=env, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr.decode()
+    old = ck.read_bytes()
+    st = os.statvfs(tiny_disk)
+    (tiny_disk / "filler").write_bytes(b"\0" * (st.f_bavail * st.f_frsize - 1024))
+    again = subprocess.run(cmd, capture_output=True, env=env, cwd=tmp_path)
+    err = again.stderr.decode()
+    assert again.returncode == 2, err
+    assert err.count("\n") == 1 and err.startswith("pdlin: error: "), err
+    assert str(ck) in err and "No space left on device" in err, err
+    assert ck.read_bytes() == old
+    assert sorted(p.name for p in tiny_disk.iterdir()) == ["cp.ckpt.npz", "filler"]
