@@ -490,3 +490,60 @@ def test_tradeoff_measure_box_refuses_nan():
     sweep = tradeoff_from_dict(data)
     with pytest.raises(SceneError, match=r"tradeoff.measure: box lower corner must not exceed"):
         sweep.factory(m=2.0)
+
+
+#: BASE as a scene file
+_BASE_TOML = """
+[geometry]
+type = "grid"
+shape = [8, 4]
+spacing = 0.1
+[material]
+E = 1.0
+[horizon]
+ratio = 3.015
+[[dirichlet]]
+set = "x-"
+value = 0.0
+[[load]]
+type = "total"
+set = "x+"
+force = [1e-3, 0.0]
+"""
+
+
+@pytest.mark.parametrize(
+    "edit, text, pattern",
+    [
+        # main: the solve ran, then 'output.fields: unknown field(s)' at the write
+        (
+            {"output": {"fields": ["displacement", "bogus"]}},
+            '[output]\nfields = ["displacement", "bogus"]\n',
+            r"output.fields: unknown .*'bogus'",
+        ),
+        # main: ignored silently (a damage run writes displacement and damage)
+        (
+            {"output": {"fields": ["stress"]}, "damage": {"critical_stretch": 0.1}},
+            '[output]\nfields = ["stress"]\n[damage]\ncritical_stretch = 0.1\n',
+            r"output.fields .*static",
+        ),
+    ],
+)
+def test_output_fields_are_checked_before_the_work(tmp_path, capsys, edit, text, pattern):
+    with pytest.raises(SceneError, match=pattern):
+        scene_from_dict({**copy.deepcopy(BASE), **edit}, tmp_path)
+    path = _write(tmp_path, _BASE_TOML + text)
+    assert main(["run", str(path), "-o", str(tmp_path / "r.vtu")]) == 2
+    err = capsys.readouterr().err
+    assert "solve" not in err and "load step" not in err, err  # refused before the work
+    assert not (tmp_path / "r.vtu").exists()
+
+
+def test_known_output_fields_are_written(tmp_path):
+    text = '[output]\nfields = ["displacement", "stress"]\n'
+    path = _write(tmp_path, _BASE_TOML + text)
+    assert main(["run", str(path), "-q", "-o", str(tmp_path / "r.npz")]) == 0
+    import numpy as np
+
+    with np.load(tmp_path / "r.npz") as f:
+        assert {"displacement", "stress"} <= set(f.files), f.files
