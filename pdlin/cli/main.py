@@ -175,6 +175,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     else:
         scene = _load(args)
     _check_run_outputs(args, scene)
+    if scene.checks:
+        from ..io.checks import check_before_run
+
+        check_before_run(scene.checks, scene)
     if scene.nonlinear is not None:
         return _run_nonlinear(args, scene, prog)
     if scene.damage is not None:

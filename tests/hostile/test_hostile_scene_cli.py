@@ -547,3 +547,30 @@ def test_known_output_fields_are_written(tmp_path):
 
     with np.load(tmp_path / "r.npz") as f:
         assert {"displacement", "stress"} <= set(f.files), f.files
+
+
+_CHECK = '[[check]]\nkind = "value"\nexpected = 1.0\ntolerance = 0.1\nsource = "test"\n'
+
+
+@pytest.mark.parametrize(
+    "text, pattern",
+    [
+        # main: both found by 'checking 1 reference(s)' after the solve and the write
+        (
+            _CHECK + 'quantity = "displacement_x"\nbox = [[5.0, 5.0], [6.0, 6.0]]\n',
+            r"box selects no",
+        ),
+        (_CHECK + 'quantity = "damage"\n', r"'damage' needs a damage run"),
+        (_CHECK + 'quantity = "homogenized_stress_xy"\n', r"needs a nonlinear run"),
+        (_CHECK + 'quantity = "displacement_x"\nstep = 2\n', r"step needs a load-stepped"),
+    ],
+)
+def test_checks_that_cannot_apply_are_refused_before_the_work(tmp_path, capsys, text, pattern):
+    path = _write(tmp_path, _BASE_TOML + text)
+    assert main(["run", str(path), "-o", str(tmp_path / "r.vtu")]) == 2
+    err = capsys.readouterr().err
+    import re
+
+    assert re.search(pattern, err.splitlines()[-1]), err
+    assert "solve" not in err and "writing" not in err, err  # refused before the work
+    assert not (tmp_path / "r.vtu").exists()
