@@ -174,6 +174,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         prog(f"fastest configuration meeting the target: {chosen}")
     else:
         scene = _load(args)
+    if args.resume and scene.nonlinear is None:
+        raise PdlinError("--resume needs a nonlinear scene with solver.checkpoint")
     _check_run_outputs(args, scene)
     if scene.checks:
         from ..io.checks import check_before_run
@@ -183,8 +185,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return _run_nonlinear(args, scene, prog)
     if scene.damage is not None:
         return _run_damage(args, scene, prog)
-    if args.resume:
-        raise PdlinError("--resume needs a nonlinear scene with solver.checkpoint")
     solver = args.solver or scene.solver
     extra: dict[str, Any] = (
         {"operator": chosen["operator"]} if chosen and "operator" in chosen else {}

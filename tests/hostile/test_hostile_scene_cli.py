@@ -574,3 +574,15 @@ def test_checks_that_cannot_apply_are_refused_before_the_work(tmp_path, capsys, 
     assert re.search(pattern, err.splitlines()[-1]), err
     assert "solve" not in err and "writing" not in err, err  # refused before the work
     assert not (tmp_path / "r.vtu").exists()
+
+
+@pytest.mark.parametrize("example", ["damage_plate", "bar"])
+def test_resume_of_a_run_without_checkpoints_is_refused_before_the_work(tmp_path, capsys, example):
+    """--resume on a damage or static scene (no checkpoints): one error line, no run (main:
+    a damage run ignored --resume silently and ran from the start)."""
+    out = tmp_path / "r.vtu"
+    assert main(["run", "--example", example, "--resume", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.splitlines()[-1].startswith("pdlin: error: --resume needs a nonlinear scene"), err
+    assert "load step" not in err and "memory estimate" not in err, err
+    assert not out.exists()
