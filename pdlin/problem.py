@@ -9,7 +9,7 @@ import os
 import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -71,6 +71,11 @@ class StaticProblem:
         symmetric body, and points near a plane bond to mirror images of
         their neighbors (see :class:`~pdlin.operators.SymmetryReduction`).  Needs
         ``horizon`` / ``bond_options`` rather than precomputed ``bonds``.
+    ratio : float, optional
+        Horizon as a multiple of the spacing, as :func:`pdlin.find_bonds` takes it
+        (``delta_i = ratio * h_i``): the bonds are ``find_bonds(cloud, ratio=ratio,
+        **bond_options)``.  Stored as ``bond_options["ratio"]``; refused together with
+        ``horizon``, ``bonds`` or ``bond_options["ratio"]``.
 
     Examples
     --------
@@ -81,6 +86,9 @@ class StaticProblem:
     >>> res = pdlin.solve(prob, solver="direct")
     >>> res.u.shape, res.relative_residual < 1e-10
     ((20, 1), True)
+    >>> prob = pdlin.StaticProblem(pdlin.BondBased(E=1.0), cloud, ratio=2.015)
+    >>> prob.bond_options, int(prob.get_bonds().family_size.max())
+    ({'ratio': 2.015}, 4)
     """
 
     model: Model
@@ -91,8 +99,10 @@ class StaticProblem:
     loads: Sequence[BodyForce | TotalForce] = ()
     bond_options: Mapping[str, Any] = field(default_factory=dict)
     symmetry: Sequence[SymmetryPlane] = ()
+    #: init-only: merged into ``bond_options`` (so ``dataclasses.replace`` keeps it)
+    ratio: InitVar[float | None] = None
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, ratio: float | None = None) -> None:
         if not hasattr(self.model, "stiffness") or not hasattr(self.model, "internal_force"):
             raise InputTypeError(f"model must be a pdlin model, got {type(self.model).__name__}")
         if not isinstance(self.cloud, PointCloud):
@@ -124,6 +134,8 @@ class StaticProblem:
             raise InputTypeError(
                 f"bond_options must be a mapping, got {type(self.bond_options).__name__}"
             )
+        if ratio is not None:
+            self._merge_ratio(ratio)
         unknown = sorted(set(self.bond_options) - _BOND_OPTIONS)
         if unknown:
             raise InputError(
@@ -145,6 +157,29 @@ class StaticProblem:
                 "pass horizon and bond_options instead, got precomputed Bonds"
             )
         object.__setattr__(self, "symmetry", sym)
+
+    def _merge_ratio(self, ratio: Any) -> None:
+        """``ratio=`` as ``bond_options["ratio"]``; conflicting arguments refused by name."""
+        if isinstance(ratio, bool) or not isinstance(ratio, int | float | np.number):
+            raise InputError(f"ratio must be a positive number, got {ratio!r}")
+        r = float(ratio)
+        if not np.isfinite(r) or r <= 0.0:
+            raise InputError(f"ratio must be a positive finite number, got {r}")
+        if self.horizon is not None:
+            raise InputError(
+                f"ratio and horizon: give one of them, got ratio={r} and horizon={self.horizon}"
+            )
+        if self.bonds is not None:
+            raise InputError(
+                f"ratio and bonds: give one of them (ratio builds the bonds), got ratio={r} "
+                "and precomputed Bonds"
+            )
+        if "ratio" in self.bond_options:
+            raise InputError(
+                f"ratio and bond_options['ratio']: give one of them, got ratio={r} and "
+                f"bond_options['ratio']={self.bond_options['ratio']}"
+            )
+        object.__setattr__(self, "bond_options", {**self.bond_options, "ratio": r})
 
     def get_bonds(self) -> Bonds:
         """The problem's bonds (built on demand when not given)."""

@@ -523,6 +523,7 @@ def _no_work(monkeypatch):
     import pdlin.io.read
     import pdlin.io.results
     import pdlin.nonlinear
+    import pdlin.plotting
     import pdlin.problem
     import pdlin.sweeps.scene
     from pdlin.io.targets import CalibrationJob
@@ -532,6 +533,9 @@ def _no_work(monkeypatch):
     monkeypatch.setattr(pdlin.fracture, "solve_damage", work)
     monkeypatch.setattr(pdlin.io.results, "export_system", work)
     monkeypatch.setattr(pdlin.io.read, "read_result", work)
+    # pdlin.plotting binds read_result at its import: patched there too (and restored), so
+    # no module imported during the test keeps the stand-in (docs/output.md's doctest did)
+    monkeypatch.setattr(pdlin.plotting, "read_result", work)
     monkeypatch.setattr(pdlin.sweeps.scene.SceneSweep, "run", work)
     monkeypatch.setattr(CalibrationJob, "run", work)
 

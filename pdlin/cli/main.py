@@ -139,6 +139,15 @@ def _check_figure(path: str | Path, what: str) -> Path:
     return check_figure(path, what)
 
 
+def _homogenized_path(args: argparse.Namespace, scene: Any, out: Path) -> Path:
+    """The homogenized CSV of a nonlinear run: ``<out stem>_homogenized.csv`` beside the
+    ``-o`` result (where ``pdlin plot`` looks for it), else ``output.homogenized`` or that
+    default beside ``output.path``."""
+    if args.output or scene.homogenized is None:
+        return out.with_name(f"{out.stem}_homogenized.csv")
+    return Path(scene.homogenized)
+
+
 def _check_run_outputs(args: argparse.Namespace, scene: Any) -> None:
     """Every file ``pdlin run`` writes for ``scene``, checked before the solve."""
     from ..io.results import SERIES_SUFFIXES, SUPPORTED_SUFFIXES
@@ -147,7 +156,7 @@ def _check_run_outputs(args: argparse.Namespace, scene: Any) -> None:
     if scene.nonlinear is not None:
         out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.pvd"))
         _check_out(out, SERIES_SUFFIXES, f"{what} (a nonlinear run's time series)")
-        csv_path = scene.homogenized or out.with_name(f"{out.stem}_homogenized.csv")
+        csv_path = _homogenized_path(args, scene, out)
         _check_out(csv_path, (".csv",), "output.homogenized")
     else:
         out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.vtu"))
@@ -185,6 +194,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return _run_nonlinear(args, scene, prog)
     if scene.damage is not None:
         return _run_damage(args, scene, prog)
+    if scene.steps:  # a deck with several load steps: one solve each, one time series
+        from .steps import run_load_steps
+
+        return run_load_steps(args, scene, prog)
     solver = args.solver or scene.solver
     extra: dict[str, Any] = (
         {"operator": chosen["operator"]} if chosen and "operator" in chosen else {}
@@ -223,7 +236,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from ..io.results import write_points
 
     with _write_progress(out, prog):
-        write_points(out, scene.cloud, fields) if scene.fields else write_result(out, result)
+        if scene.fields:
+            write_points(out, scene.cloud, fields, time=scene.time)
+        else:
+            write_result(out, result, time=scene.time)
     t_write = time.perf_counter() - t_write
     prog(f"wrote {_size(out)} in {t_write:.1f} s")
     summary = _with_write(result.summary(), t_write)
@@ -376,7 +392,7 @@ def _run_nonlinear(args: argparse.Namespace, scene: Any, prog: Any) -> int:
     t_write = time.perf_counter()
     with _write_progress(out, prog):
         series = write_nonlinear(out, result)
-    csv_path = scene.homogenized or out.with_name(f"{out.stem}_homogenized.csv")
+    csv_path = _homogenized_path(args, scene, out)
     write_homogenized_csv(csv_path, result)
     t_write = time.perf_counter() - t_write
     prog(f"wrote {series} and {csv_path} in {t_write:.1f} s")
@@ -430,7 +446,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
     else:
         from ..geometry.mesh import read_mesh
 
-        cloud = read_mesh(path)
+        cloud = read_mesh(path, volume=args.volume)
         if args.horizon is not None:
             bonds = find_bonds(cloud, args.horizon)
         else:
@@ -458,14 +474,18 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_sparsity(args: argparse.Namespace) -> int:
+    from ..operators.bc import resolve_dirichlet
     from ..operators.sparsity import sparsity_report
 
     scene = _load(args)
     bonds = scene.bonds()
+    # the constrained system: the scene's Dirichlet DOFs are eliminated (K_ff beside K)
+    fixed = resolve_dirichlet(scene.cloud, scene.problem.dirichlet)[0]
     rep = sparsity_report(
         model=scene.model,
         cloud=scene.cloud,
         bonds=bonds,
+        fixed_dofs=fixed,
         numeric=args.numeric,
         fill_limit=args.fill_limit,
     )
@@ -790,6 +810,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     i.add_argument("--ratio", type=float, default=3.015, help="horizon / spacing (default 3.015)")
     i.add_argument("--horizon", type=float, help="absolute horizon (overrides --ratio)")
+    i.add_argument(
+        "--volume",
+        type=float,
+        help="volume of every point of a point cloud (a mesh of vertex cells) without a "
+        "Volume point field",
+    )
     i.add_argument("--json", action="store_true")
     i.set_defaults(func=_cmd_info)
 
@@ -876,6 +902,16 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--show", metavar="NAME", help="print the scene file of an example")
     e.add_argument("--json", action="store_true", help="print the list as JSON")
     e.set_defaults(func=_cmd_examples)
+    # global options also after the subcommand (pdlin run -v); SUPPRESS keeps a subcommand
+    # without them from overwriting what was given before it
+    for sp in sub.choices.values():
+        sp.add_argument(
+            "-v",
+            "--verbose",
+            action="store_true",
+            default=argparse.SUPPRESS,
+            help="log library messages",
+        )
     return p
 
 

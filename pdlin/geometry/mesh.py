@@ -5,7 +5,9 @@ highest topological dimension (or of ``dim``), with the cell's exact length,
 area or volume.  Cell sets and gmsh physical groups become named point sets;
 groups defined on lower-dimensional cells (boundary lines of a 2D mesh,
 boundary faces of a 3D mesh, tagged nodes) are mapped onto the adjacent
-cells, see :func:`read_mesh`.
+cells, see :func:`read_mesh`.  A mesh of ``vertex`` cells only is a point cloud:
+its vertices become the points, with volumes from a ``Volume`` point field or the
+``volume`` option.
 """
 
 from __future__ import annotations
@@ -377,8 +379,14 @@ def read_mesh(
     thickness: float = 1.0,
     sets_from_data: bool = True,
     file_format: str | None = None,
+    volume: float | str | None = None,
 ) -> PointCloud:
     """Point cloud with one point per mesh cell (centroid, exact measure).
+
+    A mesh of ``vertex`` cells only (or of points without cells) is a point cloud
+    already, as Peridigm's and pdlin's own ``.vtu`` files are: its points are the
+    vertices (in cell order; every mesh point when there are no cells) and their
+    volumes come from ``volume`` or from a ``Volume`` / ``volume`` point field.
 
     Parameters
     ----------
@@ -413,6 +421,12 @@ def read_mesh(
         ``c``.  Such sets are disjoint (meshio keeps one set per cell).
     file_format : str, optional
         meshio format name when the file extension is ambiguous.
+    volume : float or str, optional
+        Point clouds only: the volume of every point, or the name of the point
+        field (or ``vertex`` cell field) holding each point's volume.  Default: the
+        field ``Volume`` or ``volume``; without one the cloud is refused.  A point
+        cloud's ``dim`` defaults to its number of coordinates less the trailing
+        constant ones (a 2D cloud stored with z = 0 is 2D); ``dim`` keeps them.
 
     Returns
     -------
@@ -464,10 +478,18 @@ def read_mesh(
         if not np.isfinite(ratio) or ratio <= 0:
             raise InputError(f"horizon_ratio must be > 0, got {horizon_ratio!r}")
     blocks = list(mesh.cells)
-    if not blocks:
-        raise InputError("mesh must hold cells, got none (a point cloud without cells)")
     tdims = [_topological_dimension(b.type) for b in blocks]
     present = sorted({d for d in tdims if d is not None and d > 0})
+    if all(d == 0 for d in tdims):  # vertices only (or no cells): a point cloud
+        return _point_cloud(
+            mesh, blocks, tdims, dim, volume, ratio, material, thickness, sets_from_data
+        )
+    if volume is not None:
+        kinds = sorted({b.type for b, d in zip(blocks, tdims, strict=True) if d != 0})
+        raise InputError(
+            "volume is for point clouds (meshes of vertex cells only), got a mesh of "
+            f"{', '.join(map(str, kinds))} cells (their measures are the volumes)"
+        )
     if dim is None:
         unknown = [b.type for b, d in zip(blocks, tdims, strict=True) if d is None]
         if unknown:
@@ -568,6 +590,119 @@ def read_mesh(
     horizon = None if ratio is None else ratio * volumes ** (1.0 / dim)
     return PointCloud(
         points, volumes, horizon=horizon, material=mat, sets=sets, thickness=thickness
+    )
+
+
+def _point_cloud(
+    mesh: Any,
+    blocks: list[Any],
+    tdims: list[int | None],
+    dim: int | None,
+    volume: float | str | None,
+    ratio: float | None,
+    material: str | None,
+    thickness: float,
+    sets_from_data: bool,
+) -> PointCloud:
+    """A mesh of ``vertex`` cells only (or without cells) as the cloud of its points."""
+    allpts = np.asarray(mesh.points, dtype=np.float64)
+    if allpts.ndim != 2 or allpts.shape[0] == 0 or not 1 <= allpts.shape[1] <= 3:
+        raise InputError(f"mesh points must be an (n, 1..3) array, got shape {allpts.shape}")
+    top = list(range(len(blocks)))
+    if blocks:
+        nodes = np.concatenate([np.asarray(b.data, dtype=np.int64).reshape(-1) for b in blocks])
+        if nodes.size and (nodes.min() < 0 or nodes.max() >= allpts.shape[0]):
+            raise InputError(
+                f"vertex cells must hold node indices in [0, {allpts.shape[0] - 1}], got range "
+                f"[{nodes.min()}, {nodes.max()}]"
+            )
+    else:
+        nodes = np.arange(allpts.shape[0])
+    if nodes.size == 0:
+        raise InputError("mesh must hold points, got vertex cells without any")
+    pts = allpts[nodes]
+    if dim is None:
+        const = np.ptp(pts, axis=0) == 0
+        dim = allpts.shape[1]
+        while dim > 1 and const[dim - 1]:
+            dim -= 1
+    elif dim not in (1, 2, 3) or dim > allpts.shape[1]:
+        raise InputError(
+            f"dim must be 1, 2 or 3 and at most the {allpts.shape[1]} coordinates of the "
+            f"points, got {dim!r}"
+        )
+    elif pts.shape[1] > dim and np.any(np.ptp(pts[:, dim:], axis=0) > 0):
+        spread = float(np.max(np.ptp(pts[:, dim:], axis=0)))
+        raise InputError(
+            f"dim={dim}: the point cloud's coordinates beyond {'xyz'[:dim]} must be constant, "
+            f"got a spread of {spread:.6g}"
+        )
+
+    def field(name: str) -> np.ndarray | None:
+        if name in mesh.point_data:
+            return np.asarray(mesh.point_data[name])[nodes]
+        if blocks and name in mesh.cell_data:
+            return np.concatenate([np.asarray(a).reshape(len(b.data), -1) for a, b in
+                                   zip(mesh.cell_data[name], blocks, strict=True)])  # fmt: skip
+        return None
+
+    if volume is None or isinstance(volume, str):
+        names = [volume] if isinstance(volume, str) else ["Volume", "volume"]
+        found = [(nm, f) for nm in names if (f := field(nm)) is not None]
+        if not found:
+            known = ", ".join(sorted(mesh.point_data)) or "none"
+            if isinstance(volume, str):
+                raise InputError(f"volume: point field {volume!r} not found; point fields: {known}")
+            raise InputError(
+                f"a point cloud (a mesh of {nodes.size} vertices, no cells of dimension >= 1) "
+                "needs a volume per point: a 'Volume' / 'volume' point field, or the volume "
+                f"option (read_mesh(volume=...), geometry.volume, --volume); point fields: {known}"
+            )
+        name, vol = found[0]
+        vol = np.asarray(vol, dtype=np.float64)
+        if vol.ndim == 2 and vol.shape[1] == 1:
+            vol = vol[:, 0]
+        if vol.shape != (nodes.size,):
+            raise InputError(
+                f"point field {name!r} must hold one value per point ({nodes.size}), got "
+                f"shape {vol.shape}"
+            )
+        bad = np.flatnonzero(~(np.isfinite(vol) & (vol > 0)))
+        if bad.size:
+            raise InputError(
+                f"point field {name!r} must be > 0 and finite, got {vol[bad[0]]} at point "
+                f"{int(bad[0])}"
+            )
+    else:
+        if isinstance(volume, bool) or not isinstance(volume, int | float | np.number):
+            raise InputError(f"volume must be a number or a point field name, got {volume!r}")
+        v = float(volume)
+        if not (np.isfinite(v) and v > 0):
+            raise InputError(f"volume must be > 0 and finite, got {v}")
+        vol = np.full(nodes.size, v)
+
+    offsets = np.cumsum([0] + [len(b.data) for b in blocks])
+    point_offset = {k: int(offsets[k]) for k in top}
+    sets = _collect_sets(
+        mesh, blocks, tdims, 0, top, point_offset, nodes.size, "node", sets_from_data
+    )
+    node_point = np.full(allpts.shape[0], -1, dtype=np.int64)
+    node_point[nodes] = np.arange(nodes.size)
+    for name, idx in (getattr(mesh, "point_sets", None) or {}).items():
+        pidx = node_point[np.asarray(idx, dtype=np.int64).ravel()]
+        prev = sets.get(str(name), np.zeros(0, dtype=np.int64))
+        sets[str(name)] = np.union1d(prev, pidx[pidx >= 0])
+
+    mat = None
+    if material is not None:
+        m = field(material)
+        if m is None:
+            known = ", ".join(sorted({*mesh.point_data, *mesh.cell_data})) or "none"
+            raise InputError(f"material field {material!r} not found; fields: {known}")
+        mat = np.asarray(m).reshape(nodes.size)
+    horizon = None if ratio is None else ratio * vol ** (1.0 / dim)
+    return PointCloud(
+        pts[:, :dim], vol, horizon=horizon, material=mat, sets=sets, thickness=thickness
     )
 
 

@@ -31,6 +31,9 @@ Sources of the formats (read, not copied):
   centroid with their volume, hexes by a 24-tet decomposition, spheres at their node
   with their volume attribute; blank block / node-set names are ``block_<id>`` /
   ``nodelist_<id>`` by the Exodus ids);
+* Peridigm ``src/io/discretization/Peridigm_PdQuickGridDiscretization.cpp`` and
+  ``src/io/mesh_input/quick_grid/QuickGrid.cxx`` (``TensorProduct3DMeshGenerator``: cell
+  centres, cell volumes, ``SphericalNormFunction``);
 * Peridigm ``src/core/Peridigm.cpp`` (the keys its quasi-static solvers read; ``Time
   Steps``) and Teuchos ``XMLObject::getRequiredBool`` (``true/yes/1``, ``false/no/0``);
 * PeriLab.jl ``examples/Dogbone/Dogbone.yaml``, ``Dogbone_plastic_corr_static.yaml``,
@@ -50,13 +53,15 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import PdlinError, SceneError
+from ..errors import InputError, PdlinError, SceneError
 from ..geometry.cloud import PointCloud
 from ..operators.bc import BodyForce, Dirichlet, load_vector, resolve_dirichlet
 from ..problem import StaticProblem
+from .exodus import entity_ids
+from .exodus import entity_names as _exodus_names
 from .scene import Scene
 
-__all__ = ["read_deck", "deck_expression", "peridigm_hourglass_penalty"]
+__all__ = ["read_deck", "deck_expression", "peridigm_hourglass_penalty", "peridigm_bond_filters"]
 
 log = logging.getLogger(__name__)
 
@@ -524,7 +529,10 @@ _PD_DISC = {
     "Store Exodus Mesh": "output option",
     "Verbose": "cosmetic",
     "Construct Neighborhood Lists": "true: Peridigm's default (false -> error)",
-    "Omit Bonds Between Blocks": "'None': Peridigm's default (all blocks bonded; 'All' -> error)",
+    "Omit Bonds Between Blocks": "",
+    "Bond Filters": "",
+    "Construct Interfaces": "the interface-aperture output of Peridigm's Exodus "
+    "discretization (no effect on the bonds or the solution)",
 }
 _PD_MAT_COMMON = {
     "Material Model": "",
@@ -544,11 +552,20 @@ _PD_MATERIALS: dict[str, dict[str, str]] = {
         "Compute Partial Stress": "an output field of Peridigm's",
         "Apply Shear Correction Factor": "Peridigm's elastic.cxx computes it but does not use it "
         "in the force (the scaled alpha line is commented out)",
+        "Hourglass Coefficient": "not read by Peridigm's Elastic material (Interfaces deck)",
     },
     "Linear LPS": dict(_PD_MAT_COMMON),
     "Linear Elastic": dict(_PD_MAT_COMMON),
     "Elastic Correspondence": {**_PD_MAT_COMMON, "Hourglass Coefficient": ""},
     "Elastic Bond Based": dict(_PD_MAT_COMMON),
+    # only with Disable Plasticity: true (Peridigm_ElasticPlasticMaterial.cpp then sets the
+    # yield stress to DBL_MAX: elastic_plastic.cxx never yields and its force is Elastic's)
+    "Elastic Plastic": {
+        **_PD_MAT_COMMON,
+        "Disable Plasticity": "",
+        "Yield Stress": "unused: plasticity disabled",
+        "Apply Shear Correction Factor": "not read by Peridigm's Elastic Plastic material",
+    },
 }
 _PD_BLOCK = {"Block Names": "", "Material": "", "Horizon": ""}
 _PD_BC = {"Type": "", "Node Set": "", "Coordinate": "", "Value": ""}
@@ -567,10 +584,10 @@ _PD_SOLVER = {
     "Disable Heuristics": "load-step heuristics of Peridigm's Newton solver",
     "Initialize Predictor From Previous Solver": "initial guess from an earlier solver",
 }
-_STEPS = "a linear model's final state is one solve at the final time"
+_STEPS = "each load step is one linear solve at its time (pdlin run writes a time series)"
 _PD_QS = {
     "Number of Load Steps": _STEPS,
-    "Time Steps": _STEPS + " (the last of the listed times)",
+    "Time Steps": _STEPS + " (the listed times)",
     "Absolute Tolerance": "Newton tolerance (pdlin checks its own residual)",
     "Relative Tolerance": "Newton tolerance (pdlin checks its own residual)",
     "Maximum Solver Iterations": "Newton iterations (one linear solve here)",
@@ -586,7 +603,7 @@ _PD_QS = {
 }
 _PD_NOX = {
     "Number of Load Steps": _STEPS,
-    "Time Steps": _STEPS + " (the last of the listed times)",
+    "Time Steps": _STEPS + " (the listed times)",
     "Absolute Tolerance": "Newton tolerance (pdlin checks its own residual)",
     "Relative Tolerance": "Newton tolerance (pdlin checks its own residual)",
     "Max Solver Iterations": "Newton iterations (one linear solve here)",
@@ -606,7 +623,7 @@ _PD_NOX = {
     "Preconditioner Reuse Policy": "NOX algorithm choice",
 }
 _PD_OUTPUT = {
-    "Output File Type": "pdlin writes .vtu (see pdlin run -o)",
+    "Output File Type": "",
     "Output Format": "cosmetic",
     "Output Filename": "",
     "Output Frequency": "one state is written (the final one)",
@@ -632,9 +649,279 @@ def _peridigm_cloud(disc: Mapping[str, Any], base: Path) -> tuple[PointCloud, di
     if kind == "Exodus":
         path = _resolve_file(disc.get("Input Mesh File"), base, "Discretization.Input Mesh File")
         return _exodus_cloud(path)
+    if kind == "PdQuickGrid":
+        return _quickgrid_cloud(disc)
     raise SceneError(
-        f"Discretization.Type must be 'Text File' or 'Exodus' (pdlin's deck reader), got {kind!r}"
+        "Discretization.Type must be 'Text File', 'Exodus' or 'PdQuickGrid' (pdlin's deck "
+        f"reader), got {kind!r}"
     )
+
+
+_PD_QUICKGRID = {
+    "Type": "",
+    "NeighborhoodType": "",
+    "TensorProduct3DMeshGenerator": "",
+    "Verbose": "cosmetic",
+    "Store Exodus Mesh": "output option",
+    "Construct Neighborhood Lists": "true: Peridigm's default (false -> error)",
+    "Omit Bonds Between Blocks": "'None': Peridigm's default (one block here)",
+}
+_PD_TENSOR3D = ("X Origin", "Y Origin", "Z Origin", "X Length", "Y Length", "Z Length")
+_PD_TENSOR3D_N = ("Number Points X", "Number Points Y", "Number Points Z")
+
+
+def _quickgrid_axis(n: int, x0: float, length: float) -> np.ndarray:
+    """QuickGrid's cell centres along one axis (``QuickGrid.cxx``, ``getDiscretization``).
+
+    ``p = x0 + h / 2`` then ``p += h`` cell by cell (``h = length / n``): the running sum
+    is kept (``np.cumsum`` adds in order) so the points are Peridigm's to the last bit.
+    """
+    h = length / n
+    steps = np.full(n, h)
+    steps[0] = x0 + h / 2.0
+    return np.cumsum(steps)
+
+
+def _quickgrid_cloud(disc: Mapping[str, Any]) -> tuple[PointCloud, dict[str, Any]]:
+    """Peridigm's ``PdQuickGrid`` discretization (``Peridigm_PdQuickGridDiscretization.cpp``).
+
+    ``TensorProduct3DMeshGenerator``: ``nx * ny * nz`` cell centres, point ``i + j nx +
+    k nx ny`` at ``(x_i, y_j, z_k)``, every volume ``hx hy hz``, one block ``block_1``.
+    ``NeighborhoodType: Spherical`` bonds the pairs with ``|x_j - x_i|² - δ² < 0``
+    (``SphericalNormFunction``, strict; the cell box QuickGrid searches first holds the
+    whole ball).  Without it QuickGrid bonds the whole cell box (``NoOpNormFunction``),
+    which pdlin refuses.
+    """
+    key = "Discretization"
+    if "Bond Filters" in disc:
+        # Peridigm_PdQuickGridDiscretization.cpp stops on this too
+        raise SceneError(
+            f"{key}.Bond Filters: Peridigm does not support bond filters with PdQuickGrid"
+        )
+    if "TensorProduct3DMeshGenerator" not in disc:
+        other = sorted(k for k in disc if k.startswith("TensorProduct"))
+        raise SceneError(
+            f"{key}: PdQuickGrid needs a TensorProduct3DMeshGenerator list (the cylinder "
+            f"generator is not supported), got {other or 'none'}"
+        )
+    _unknown(disc, _PD_QUICKGRID, key, "Peridigm PdQuickGrid discretization")
+    for k, why in _PD_QUICKGRID.items():
+        if why and k in disc:
+            _note(f"{key}.{k}", why)
+    norm = disc.get("NeighborhoodType")
+    if norm != "Spherical":
+        raise SceneError(
+            f"{key}.NeighborhoodType must be 'Spherical' (without it QuickGrid bonds a cube of "
+            f"cells, which pdlin does not read), got {norm!r}"
+        )
+    gkey = f"{key}.TensorProduct3DMeshGenerator"
+    gen = _table(disc["TensorProduct3DMeshGenerator"], gkey)
+    allowed = {k: "" for k in (*_PD_TENSOR3D, *_PD_TENSOR3D_N)}
+    allowed["Type"] = "cosmetic (Peridigm does not read it)"
+    _unknown(gen, allowed, gkey, "TensorProduct3DMeshGenerator")
+    for k in (*_PD_TENSOR3D, *_PD_TENSOR3D_N):
+        if k not in gen:
+            raise SceneError(f"missing deck key {gkey}.{k}")
+    origin = [_number(gen[f"{c} Origin"], f"{gkey}.{c} Origin") for c in "XYZ"]
+    length = [_number(gen[f"{c} Length"], f"{gkey}.{c} Length", positive=True) for c in "XYZ"]
+    counts = []
+    for c in "XYZ":
+        v = gen[f"Number Points {c}"]
+        if isinstance(v, str) and re.fullmatch(r"\s*\d+\s*", v):
+            v = int(v)
+        if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+            raise SceneError(f"{gkey}.Number Points {c} must be an integer >= 1, got {v!r}")
+        counts.append(v)
+    axes = [_quickgrid_axis(n, x0, L) for n, x0, L in zip(counts, origin, length, strict=True)]
+    z, y, x = np.meshgrid(axes[2], axes[1], axes[0], indexing="ij")
+    points = np.column_stack([x.ravel(), y.ravel(), z.ravel()])
+    # QuickGrid: xSpec.getCellSize() * ySpec.getCellSize() * zSpec.getCellSize()
+    vol = (length[0] / counts[0]) * (length[1] / counts[1]) * (length[2] / counts[2])
+    cloud = _cloud(points, np.full(points.shape[0], vol), gkey)
+    return cloud, {
+        "blocks": {"block_1": np.arange(cloud.n)},
+        "node_sets": {},
+        "strict_sphere": True,
+    }
+
+
+def _any_of(
+    filters: list[Callable[[np.ndarray, np.ndarray], np.ndarray]],
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    if len(filters) == 1:
+        return filters[0]
+
+    def exclude(xi: np.ndarray, xj: np.ndarray) -> np.ndarray:
+        out = np.zeros(xi.shape[0], dtype=bool)
+        for f in filters:  # a handful of filters, each vectorized over the bonds
+            out |= f(xi, xj)
+        return out
+
+    return exclude
+
+
+def _omit_between_blocks(
+    points: np.ndarray, blocks: Mapping[str, np.ndarray]
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """``Omit Bonds Between Blocks: All`` (``ExodusDiscretization::filterBonds``).
+
+    ``find_bonds`` hands its ``exclude`` the bond end positions; they are mapped back to
+    point numbers (the points are distinct) and bonds joining two blocks are dropped.
+    """
+    from scipy.spatial import cKDTree
+
+    block_of = np.empty(points.shape[0], dtype=np.int64)
+    for b, idx in enumerate(blocks.values()):
+        block_of[idx] = b
+    tree = cKDTree(points)
+
+    def exclude(xi: np.ndarray, xj: np.ndarray) -> np.ndarray:
+        return block_of[tree.query(xi)[1]] != block_of[tree.query(xj)[1]]
+
+    return exclude
+
+
+_PD_PLANE = {
+    "Type": "",
+    **{
+        f"{k}_{c}": "" for k in ("Normal", "Lower_Left_Corner", "Bottom_Unit_Vector") for c in "XYZ"
+    },
+    "Bottom_Length": "",
+    "Side_Length": "",
+}
+_PD_DISK = {
+    "Type": "",
+    **{f"{k}_{c}": "" for k in ("Center", "Normal") for c in "XYZ"},
+    "Radius": "",
+}
+
+
+def _dot3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a[0] b[0] + a[1] b[1] + a[2] b[2]`` in Peridigm's order of summation."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+def _plane_crossing(
+    p0: np.ndarray, p1: np.ndarray, point: np.ndarray, normal: np.ndarray, tol: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bonds ``p0 -> p1`` meeting the plane at ``0 <= t <= 1`` and the meeting points.
+
+    Peridigm's ``t = ((r0 - p0)·n) / ((p1 - p0)·n)``; ``|(p1 - p0)·n| < tol`` (parallel)
+    meets nowhere.
+    """
+    num = _dot3(point - p0, normal)
+    den = _dot3(p1 - p0, normal)
+    parallel = np.abs(den) < tol
+    t = num / np.where(parallel, 1.0, den)
+    hit = ~parallel & (t >= 0.0) & (t <= 1.0)
+    x = p0 + np.where(hit, t, 0.0)[:, None] * (p1 - p0)
+    return hit, x
+
+
+def peridigm_bond_filters(
+    filters: Any, key: str
+) -> list[Callable[[np.ndarray, np.ndarray], np.ndarray]]:
+    """Peridigm's ``Bond Filters`` as ``find_bonds(exclude=...)`` callables.
+
+    Each returns, for bonds from ``xi`` to ``xj``, whether Peridigm's filter cuts them,
+    with Peridigm's arithmetic (``src/io/pdneigh/BondFilter.cxx``):
+
+    * ``Rectangular_Plane`` (``FinitePlaneFilter``): the bond meets the plane through the
+      lower-left corner ``r0`` with normal ``n`` at ``0 <= t <= 1`` (parallel when
+      ``|(x_j - x_i)·n| < 1e-14``), and the meeting point ``x`` has
+      ``-1e-15 < (x - r0)·u_a``, ``(x - r0)·u_a / Side_Length < 1 + 1e-15``,
+      ``-1e-15 < (x - r0)·u_b`` and ``(x - r0)·u_b / Bottom_Length < 1 + 1e-15`` with
+      ``u_b`` the ``Bottom_Unit_Vector`` as given (not normalized) and ``u_a = u_b × n``;
+    * ``Disk`` (``DiskFilter``): the bond meets the plane through ``Center`` with normal
+      ``Normal`` at ``0 <= t <= 1`` (parallel when ``|(x_j - x_i)·n| < 1e-15``) and
+      ``|x - c|² < Radius²``.
+
+    Peridigm filters each point's neighbour list from that point; ``find_bonds`` drops a
+    bond when either direction is cut.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> (cut,) = peridigm_bond_filters({"F": {"Type": "Disk", "Center_X": 0, "Center_Y": 0,
+    ...     "Center_Z": 0, "Normal_X": 0, "Normal_Y": 1, "Normal_Z": 0, "Radius": 1.0}}, "BF")
+    >>> cut(np.array([[0.0, -0.5, 0.0], [2.0, -0.5, 0.0]]), np.array([[0.0, 0.5, 0.0]] * 2))
+    array([ True, False])
+    """
+    out: list[Callable[[np.ndarray, np.ndarray], np.ndarray]] = []
+    for fname, f in _table(filters, key).items():
+        fkey = f"{key}.{fname}"
+        f = _table(f, fkey)
+        kind = f.get("Type")
+        spec = {"Rectangular_Plane": _PD_PLANE, "Disk": _PD_DISK}.get(str(kind))
+        if spec is None:
+            raise SceneError(
+                f"{fkey}.Type must be 'Rectangular_Plane' or 'Disk' (pdlin's deck reader; "
+                f"'Exodus Mesh' filters are not supported), got {kind!r}"
+            )
+        _unknown(f, spec, fkey, f"Peridigm {kind} bond filter")
+        for k in spec:
+            if k not in f:
+                raise SceneError(f"missing deck key {fkey}.{k}")
+
+        def vec(name: str, f: Mapping[str, Any] = f, fkey: str = fkey) -> np.ndarray:
+            return np.array([_number(f[f"{name}_{c}"], f"{fkey}.{name}_{c}") for c in "XYZ"])
+
+        if kind == "Disk":
+            out.append(
+                _disk_filter(vec("Center"), vec("Normal"), _number(f["Radius"], f"{fkey}.Radius"))
+            )
+        else:
+            out.append(
+                _plane_filter(
+                    vec("Normal"),
+                    vec("Lower_Left_Corner"),
+                    vec("Bottom_Unit_Vector"),
+                    _number(f["Bottom_Length"], f"{fkey}.Bottom_Length"),
+                    _number(f["Side_Length"], f"{fkey}.Side_Length"),
+                )
+            )
+    return out
+
+
+def _plane_filter(
+    n: np.ndarray, r0: np.ndarray, ub: np.ndarray, b: float, a: float
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    # UTILITIES::Cross, term by term
+    ua = np.array(
+        [-ub[2] * n[1] + ub[1] * n[2], ub[2] * n[0] - ub[0] * n[2], -ub[1] * n[0] + ub[0] * n[1]]
+    )
+
+    def exclude(xi: np.ndarray, xj: np.ndarray) -> np.ndarray:
+        hit, x = _plane_crossing(xi, xj, r0, n, 1.0e-14)
+        dr = x - r0
+        aa, bb = _dot3(dr, ua), _dot3(dr, ub)
+        zero, one = 1.0e-15, 1.0 + 1.0e-15
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inside = (-zero < aa) & (aa / a < one) & (-zero < bb) & (bb / b < one)
+        return hit & inside
+
+    return exclude
+
+
+def _disk_filter(
+    c: np.ndarray, n: np.ndarray, radius: float
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    def exclude(xi: np.ndarray, xj: np.ndarray) -> np.ndarray:
+        hit, x = _plane_crossing(xi, xj, c, n, 1.0e-15)
+        d = x - c
+        return hit & (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2] < radius * radius)
+
+    return exclude
+
+
+def _strict_sphere(horizon: float) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """``find_bonds`` exclude: QuickGrid's strict ``dx² + dy² + dz² - δ² < 0`` test."""
+
+    def exclude(xi: np.ndarray, xj: np.ndarray) -> np.ndarray:
+        d = xj - xi
+        return d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2] - horizon * horizon >= 0.0
+
+    return exclude
 
 
 # Peridigm_GeometryUtils.cpp, hexCentroidAndVolume: 24 tets (edge a-b, the face's
@@ -680,33 +967,12 @@ def _peridigm_cells(x: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray, n
         return vol, cen / vol[:, None], vmin
 
 
-def _exodus_names(ds: Any, var: str, count: int) -> list[str]:
-    """Names of an Exodus entity type (``eb_names`` / ``ns_names``), '' where blank."""
-    if var not in ds.variables:
-        return [""] * count
-    raw = np.asarray(ds.variables[var][:])
-    if raw.ndim != 2 or raw.shape[0] != count:
-        return [""] * count
-    out = []
-    for row in raw:
-        chars = [
-            c.decode("latin-1") if isinstance(c, bytes) else str(c) for c in np.ma.filled(row, b"")
-        ]
-        out.append("".join(chars).split("\x00")[0].strip())
-    return out
-
-
 def _exodus_ids(ds: Any, var: str, count: int, what: str) -> np.ndarray:
-    """Entity ids (``eb_prop1`` / ``ns_prop1``); 1..count when the file has none."""
-    if var not in ds.variables:
-        return np.arange(1, count + 1)
-    ids = np.asarray(np.ma.filled(ds.variables[var][:], -1), dtype=np.int64).ravel()
-    if ids.size != count:
-        raise SceneError(
-            f"Discretization.Input Mesh File: Exodus {var} must hold {count} {what} ids, "
-            f"got {ids.size}"
-        )
-    return ids
+    """Entity ids (:func:`pdlin.io.exodus.entity_ids`), errors as deck errors."""
+    try:
+        return entity_ids(ds, var, count, what)
+    except InputError as exc:
+        raise SceneError(f"Discretization.Input Mesh File: {exc}") from None
 
 
 def _exodus_cloud(path: Path) -> tuple[PointCloud, dict[str, Any]]:
@@ -870,6 +1136,13 @@ def _peridigm_material(name: str, mat: Mapping[str, Any], key: str) -> dict[str,
             f"{sorted(_PD_MATERIALS)}"
         )
     allowed = _PD_MATERIALS[model]
+    if model == "Elastic Plastic" and not _flag(
+        mat.get("Disable Plasticity", False), f"{key}.Disable Plasticity"
+    ):
+        raise SceneError(
+            f"{key}.Material Model: 'Elastic Plastic' is not supported (plasticity); only with "
+            "Disable Plasticity: true, where Peridigm's force is the Elastic one"
+        )
     _unknown(mat, allowed, key, f"Peridigm {model!r} material")
     for k in ("Plane Strain", "Plane Stress"):
         if k in mat and _flag(mat[k], f"{key}.{k}"):
@@ -917,16 +1190,17 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     for k in ("Verbose", "Compute Class Parameters"):
         if k in root:
             _note(f"Peridigm.{k}", _PD_TOP[k])
-    for k in ("Discretization", "Materials", "Blocks", "Boundary Conditions", "Solver"):
+    for k in ("Discretization", "Materials", "Blocks", "Solver"):
         if k not in root:
             raise SceneError(f"missing deck key Peridigm.{k}")
     disc = _table(root["Discretization"], "Discretization")
-    if disc.get("Type") not in ("Text File", "Exodus"):  # before its keys: name the cause
+    if disc.get("Type") not in ("Text File", "Exodus", "PdQuickGrid"):  # name the cause first
         raise SceneError(
-            "Discretization.Type must be 'Text File' or 'Exodus' (pdlin's deck reader; "
-            f"PdQuickGrid and mesh generators are not supported), got {disc.get('Type')!r}"
+            "Discretization.Type must be 'Text File', 'Exodus' or 'PdQuickGrid' (pdlin's deck "
+            f"reader), got {disc.get('Type')!r}"
         )
-    _unknown(disc, _PD_DISC, "Discretization", "Peridigm discretization")
+    if disc["Type"] != "PdQuickGrid":
+        _unknown(disc, _PD_DISC, "Discretization", "Peridigm discretization")
     if "Construct Neighborhood Lists" in disc and not _flag(
         disc["Construct Neighborhood Lists"], "Discretization.Construct Neighborhood Lists"
     ):
@@ -934,13 +1208,13 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
             "Discretization.Construct Neighborhood Lists: false (no bonds) is not supported"
         )
     omit = disc.get("Omit Bonds Between Blocks", "None")
-    if omit != "None":
+    if omit not in ("None", "All"):
         raise SceneError(
-            "Discretization.Omit Bonds Between Blocks: only 'None' (every block bonded to the "
-            f"others, Peridigm's default) is supported, got {omit!r}"
+            "Discretization.Omit Bonds Between Blocks must be 'None' (every block bonded to the "
+            f"others, Peridigm's default) or 'All' (no bonds between blocks), got {omit!r}"
         )
     for k, why in _PD_DISC.items():
-        if why and k in disc:
+        if why and k in disc and disc["Type"] != "PdQuickGrid":
             _note(f"Discretization.{k}", why)
     cloud, extra = _peridigm_cloud(disc, base)
     blocks_pts: dict[str, np.ndarray] = extra["blocks"]
@@ -1017,9 +1291,22 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     kind = kinds.pop()
     model = _build_model(kind, K, G, hgs, "Materials")
 
-    sets = _peridigm_node_sets(root["Boundary Conditions"], base, n, extra["node_sets"])
-    t_final = _peridigm_solver(root["Solver"])
-    dirichlet, loads = _peridigm_bcs(root["Boundary Conditions"], sets, cloud, t_final)
+    # Peridigm runs a deck without Boundary Conditions (no constraint, no load: u = 0)
+    bcs = root.get("Boundary Conditions", {})
+    sets = _peridigm_node_sets(bcs, base, n, extra["node_sets"])
+    times = _peridigm_solver(root["Solver"])
+    at_rest = [Dirichlet(np.arange(n), np.zeros((n, cloud.dim)))]
+
+    def conditions(t: float) -> tuple[list[Dirichlet], list[BodyForce]]:
+        dirichlet, loads = _peridigm_bcs(bcs, sets, cloud, t)
+        # nothing prescribed, nothing applied: Peridigm's quasi-static solve stops at its
+        # zero residual, u = 0 (Peridigm's Interfaces deck); pdlin prescribes that u = 0
+        # on every point rather than solving a singular system
+        return (at_rest, loads) if not dirichlet and not loads else (dirichlet, loads)
+
+    dirichlet, loads = conditions(times[-1])
+    if dirichlet is at_rest:
+        _note("Boundary Conditions", "none (no constraint, no load): u = 0 on every point")
     output = None
     if "Output" in root:
         out = _table(root["Output"], "Output")
@@ -1027,19 +1314,48 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         for k, why in _PD_OUTPUT.items():
             if why and k in out:
                 _note(f"Output.{k}", why)
+        suffix = ".vtu"
+        if "Output File Type" in out:
+            # Peridigm's OutputManagerContainer knows one type
+            if out["Output File Type"] != "ExodusII":
+                raise SceneError(
+                    "Output.Output File Type must be 'ExodusII', got "
+                    f"{out['Output File Type']!r} (Peridigm's only output type; pdlin then "
+                    "writes <Output Filename>.e)"
+                )
+            suffix = ".e"
+            if "Output Filename" not in out:
+                output = _output_inside(base, name, "the deck's name", suffix)
         if "Output Filename" in out:
-            output = _output_inside(base, out["Output Filename"], "Output.Output Filename")
-    return _scene(name, model, cloud, horizon, dirichlet, loads, base, output)
+            output = _output_inside(base, out["Output Filename"], "Output.Output Filename", suffix)
+    filters: list[Callable[[np.ndarray, np.ndarray], np.ndarray]] = []
+    if extra.get("strict_sphere"):
+        filters.append(_strict_sphere(float(horizon[0])))
+    if "Bond Filters" in disc:
+        filters += peridigm_bond_filters(disc["Bond Filters"], "Discretization.Bond Filters")
+    if omit == "All" and len(blocks_pts) > 1:
+        filters.append(_omit_between_blocks(cloud.points, blocks_pts))
+    opts: dict[str, Any] = {}
+    if filters:
+        opts["exclude"] = _any_of(filters)
+    scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
+    scene.time = times[-1]  # Peridigm writes the final state at Final Time
+    if len(times) > 2:
+        # several load steps: each is a linear solve at that step's values (Peridigm's
+        # own times, its initial state included); the last is the scene's problem
+        steps = [(t, _problem(model, cloud, horizon, *conditions(t), opts)) for t in times[:-1]]
+        scene.steps = [*steps, (times[-1], scene.problem)]
+    return scene
 
 
-def _output_inside(base: Path, value: Any, key: str) -> Path:
-    """``<base>/<value>.vtu``, refused when it resolves outside ``base`` (the deck's folder).
+def _output_inside(base: Path, value: Any, key: str, suffix: str = ".vtu") -> Path:
+    """``<base>/<value><suffix>``, refused when it resolves outside ``base`` (the deck's folder).
 
     A deck is often someone else's file: it writes only beside itself.  ``pdlin run -o``
     (the user's own choice) may point anywhere.
     """
     root = base.resolve()
-    out = (root / f"{value}.vtu").resolve()
+    out = (root / f"{value}{suffix}").resolve()
     if not out.is_relative_to(root):
         raise SceneError(
             f"{key} {str(value)!r} leaves the deck's folder {str(root)!r} (resolves to "
@@ -1088,7 +1404,12 @@ def _peridigm_node_sets(
     return sets
 
 
-def _peridigm_solver(solver: Any) -> float:
+def _peridigm_solver(solver: Any) -> list[float]:
+    """The solver keys; Peridigm's step times (``Peridigm.cpp``, ``executeQuasiStatic``).
+
+    ``Final Time`` with ``Number of Load Steps N``: ``t0`` and ``t0 + (i + 1) (t1 - t0) / N``;
+    else the ``Time Steps`` list; ``Final Time`` alone: ``[t0, t1]`` (one solve at ``t1``).
+    """
     s = _table(solver, "Solver")
     _unknown(s, _PD_SOLVER, "Solver", "Peridigm solver (static subset)")
     kinds = [k for k in ("QuasiStatic", "NOXQuasiStatic") if k in s]
@@ -1126,18 +1447,21 @@ def _peridigm_solver(solver: Any) -> float:
             raise SceneError(
                 f"{skey}.Time Steps must be a list of times separated by spaces, got {text!r}"
             )
-        t0, t1 = float(times[0]), float(times[-1])
-        if not (np.isfinite(t0) and np.isfinite(t1)) or t1 <= t0:
+        tt = [float(v) for v in times]
+        if not np.all(np.isfinite(tt)) or np.any(np.diff(tt) <= 0) or len(tt) < 2:
             raise SceneError(
-                f"{skey}.Time Steps: the last time must exceed the first ({t0}), got {t1}"
+                f"{skey}.Time Steps must be two or more finite, increasing times, got {text!r}"
             )
-        return t1
+        return tt
     if "Final Time" not in s:
         raise SceneError("missing deck key Solver.Final Time")
     t1 = _number(s["Final Time"], "Solver.Final Time")
     if t1 <= t0:
         raise SceneError(f"Solver.Final Time must exceed Initial Time ({t0}), got {t1}")
-    return t1
+    if "Number of Load Steps" not in sub:
+        return [t0, t1]
+    n = int(steps)
+    return [t0, *(t0 + np.arange(1, n + 1) * (t1 - t0) / n).tolist()]
 
 
 _COORD = {"X": 0, "Y": 1, "Z": 2}
@@ -1208,17 +1532,37 @@ def _scene(
     loads: list[Any],
     base: Path,
     output: Path | None,
+    bond_options: Mapping[str, Any] | None = None,
 ) -> Scene:
+    problem = _problem(model, cloud, horizon, dirichlet, loads, bond_options)
+    return Scene(name=name, problem=problem, output=output, base_dir=base)
+
+
+def _problem(
+    model: Any,
+    cloud: PointCloud,
+    horizon: np.ndarray,
+    dirichlet: list[Dirichlet],
+    loads: list[Any],
+    bond_options: Mapping[str, Any] | None = None,
+) -> StaticProblem:
     h: Any = float(horizon[0]) if np.all(horizon == horizon[0]) else horizon
     try:
         resolve_dirichlet(cloud, dirichlet)
         load_vector(cloud, loads)
-        problem = StaticProblem(model, cloud, None, horizon=h, dirichlet=dirichlet, loads=loads)
+        return StaticProblem(
+            model,
+            cloud,
+            None,
+            horizon=h,
+            dirichlet=dirichlet,
+            loads=loads,
+            bond_options=dict(bond_options or {}),
+        )
     except SceneError:
         raise
     except PdlinError as exc:
         raise SceneError(f"invalid deck: {exc}") from exc
-    return Scene(name=name, problem=problem, output=output, base_dir=base)
 
 
 # --------------------------------------------------------------------------------------
@@ -1437,7 +1781,9 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
             bc.get("Value", 0.0), cloud.points[idx], t, f"{key}.Value", caret_power=True
         )
         dirichlet.append(Dirichlet(idx, val[:, None], components=[_COORD[coord]]))
-    return _scene(name, model, cloud, horizon, dirichlet, [], base, None)
+    scene = _scene(name, model, cloud, horizon, dirichlet, [], base, None)
+    scene.time = t  # the state at Final Time
+    return scene
 
 
 def _perilab_model(mat: Mapping[str, Any], dim: int) -> Any:

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InputError
 from .output import need_module
 
 __all__ = ["EXODUS_SUFFIXES", "write_exodus_file", "read_exodus_file", "split_components"]
@@ -255,6 +256,59 @@ def write_exodus_file(
         fh.write(image)
 
 
+def entity_names(ds: Any, var: str, count: int) -> list[str]:
+    """Names of an Exodus entity type (``eb_names`` / ``ns_names``), '' where blank."""
+    if var not in ds.variables:
+        return [""] * count
+    raw = np.asarray(ds.variables[var][:])
+    if raw.ndim != 2 or raw.shape[0] != count:
+        return [""] * count
+    out = []
+    for row in raw:
+        chars = [
+            c.decode("latin-1") if isinstance(c, bytes) else str(c) for c in np.ma.filled(row, b"")
+        ]
+        out.append("".join(chars).split("\x00")[0].strip())
+    return out
+
+
+def entity_ids(ds: Any, var: str, count: int, what: str) -> np.ndarray:
+    """Entity ids (``eb_prop1`` / ``ns_prop1``); 1..count when the file has none."""
+    if var not in ds.variables:
+        return np.arange(1, count + 1)
+    ids = np.asarray(np.ma.filled(ds.variables[var][:], -1), dtype=np.int64).ravel()
+    if ids.size != count:
+        raise InputError(f"Exodus {var} must hold {count} {what} ids, got {ids.size}")
+    return ids
+
+
+def node_sets(ds: Any, path: Any) -> tuple[list[str], list[np.ndarray | None]]:
+    """Node set names and 0-based node lists of an Exodus file, by position ``k``.
+
+    ``node_ns<k>`` is the k-th set of ``ns_prop1`` / ``ns_names`` (file order); a set
+    without a name is ``nodelist_<id>``, as in Peridigm
+    (``Peridigm_ExodusDiscretization.cpp``), so blank names never collapse into one; a
+    null set (no ``node_ns<k>``) is None.  Two sets of one name raise
+    :class:`pdlin.errors.InputError`.
+    """
+    n_ns = len(ds.dimensions["num_node_sets"]) if "num_node_sets" in ds.dimensions else 0
+    ids = entity_ids(ds, "ns_prop1", n_ns, "node set")
+    names = [
+        nm or f"nodelist_{int(i)}"
+        for nm, i in zip(entity_names(ds, "ns_names", n_ns), ids, strict=True)
+    ]
+    seen: set[str] = set()
+    for nm in names:
+        if nm in seen:
+            raise InputError(f"{path}: Exodus file has two node sets named {nm!r}")
+        seen.add(nm)
+    lists: list[np.ndarray | None] = []
+    for k in range(1, n_ns + 1):
+        var = ds.variables.get(f"node_ns{k}")
+        lists.append(None if var is None else np.asarray(var[:], dtype=np.int64) - 1)
+    return names, lists
+
+
 def _names(var: Any) -> list[str]:
     var.set_auto_mask(False)
     return [b"".join(row).decode().rstrip("\x00").strip() for row in var[:]]
@@ -299,16 +353,11 @@ def read_exodus_file(path: str | Path) -> dict[str, Any]:
                     steps[k][base] = full
                 else:
                     steps[k][base] = np.column_stack([raw[c][k] for c in cols]).astype(float)
-        sets: dict[str, np.ndarray] = {}
-        if "ns_names" in nc.variables:
-            ns_names = _names(nc.variables["ns_names"])
-            for k, name in enumerate(ns_names, start=1):
-                var = nc.variables.get(f"node_ns{k}")
-                sets[name] = (
-                    np.asarray(var[:], dtype=np.int64) - 1
-                    if var is not None
-                    else np.zeros(0, dtype=np.int64)
-                )
+        ns_names, ns_lists = node_sets(nc, path)
+        sets = {
+            name: np.zeros(0, dtype=np.int64) if idx is None else idx
+            for name, idx in zip(ns_names, ns_lists, strict=True)
+        }
         block = np.zeros(n, dtype=np.int64)
         ids = np.asarray(nc.variables["eb_prop1"][:], dtype=np.int64)
         conns: dict[int, np.ndarray] = {}

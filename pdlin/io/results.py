@@ -144,13 +144,15 @@ def _pad3(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any]) -> Path:
+def write_points(
+    path: str | Path, cloud: PointCloud, fields: Mapping[str, Any], *, time: float = 0.0
+) -> Path:
     """Write a point cloud with point fields.
 
     ``.vtu``/``.xdmf``/``.vtk`` go through meshio with the points as
     ``vertex`` cells (coordinates and vector fields padded to 3 components
     for 1D/2D so ParaView can warp by displacement); ``.e``/``.exo`` write
-    an Exodus II file (one time step at ``t = 0``, point sets as node sets,
+    an Exodus II file (one time step at ``time``, point sets as node sets,
     see ``pdlin.io.exodus``; needs ``pdlin[exodus]``); ``.npz`` stores the
     raw arrays (``points``, ``volumes`` and every field).  The ParaView
     formats name pdlin's fields as ``pdlin.io.names.FILE_NAMES`` says
@@ -164,6 +166,9 @@ def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any])
         An (n, a, b) array (a ``dim x dim`` tensor per point) is written as
         its row-major (n, a * b) rows, the layout :meth:`pdlin.StaticResult.fields`
         uses, and :func:`pdlin.io.read_result` returns it so in every format.
+    time : float, default 0.0
+        Time of the state, written as the Exodus ``time_whole`` of its one step (a
+        Peridigm deck's ``Solver.Final Time``, as Peridigm writes its final state).
 
     Returns
     -------
@@ -179,7 +184,7 @@ def write_points(path: str | Path, cloud: PointCloud, fields: Mapping[str, Any])
     >>> m.point_data["u"].shape, m.point_data["Displacement"].shape
     ((6, 3), (6, 3))
     """
-    return _write_points(path, cloud, fields)
+    return _write_points(path, cloud, fields, time=time)
 
 
 def _write_points(
@@ -187,7 +192,9 @@ def _write_points(
     cloud: PointCloud,
     fields: Mapping[str, Any],
     npz_extra: Mapping[str, np.ndarray] | None = None,
+    time: float = 0.0,
 ) -> Path:
+    t = float(as_float_array(time, "time", ndim=0))
     p = check_output(path, SUPPORTED_SUFFIXES)
     suffix = p.suffix.lower()
     _check_cloud(cloud)
@@ -207,7 +214,7 @@ def _write_points(
             }
             np.savez_compressed(out, **arrays)  # type: ignore[arg-type]
         elif suffix in EXODUS_SUFFIXES:
-            _write_exodus(out, cloud, np.zeros(1), [data])
+            _write_exodus(out, cloud, np.array([t]), [data])
         else:
             import meshio
 
@@ -221,15 +228,16 @@ def _write_points(
     return p
 
 
-def write_result(path: str | Path, result: Any) -> Path:
+def write_result(path: str | Path, result: Any, *, time: float = 0.0) -> Path:
     """Write every field of a :class:`pdlin.StaticResult` (see :func:`write_points`).
 
     ``.npz`` files also store the linear solver's relative residual history
-    (``residual_history``, drawn by ``pdlin plot --convergence``).
+    (``residual_history``, drawn by ``pdlin plot --convergence``); ``time`` is the
+    Exodus ``time_whole`` of the state (:func:`write_points`).
     """
     hist = np.asarray(result.residuals, dtype=float).reshape(-1)
     extra = {"residual_history": hist} if np.all(np.isfinite(hist)) else None
-    return _write_points(path, result.problem.cloud, result.fields(), npz_extra=extra)
+    return _write_points(path, result.problem.cloud, result.fields(), npz_extra=extra, time=time)
 
 
 def write_series(

@@ -75,7 +75,7 @@ _ABOUT = {"description", "runtime"}
 _SUBREGION = {"box", "coarse", "layer"}
 _GEOM = {
     "grid": {"type", "shape", "spacing", "origin", "thickness", "ghost_layers", "holes"},
-    "mesh": {"type", "path", "thickness", "dim"},
+    "mesh": {"type", "path", "thickness", "dim", "volume"},
     "image": {"type", "path", "data", "spacing", "origin", "void", "thickness", "ghost_layers"},
 }
 _MATERIAL = {
@@ -371,6 +371,9 @@ class Scene:
     direct_backend: str = "auto"
     output: Path | None = None
     fields: list[str] | None = None
+    #: time of the static state (a deck's ``Solver.Final Time``), written as the Exodus
+    #: ``time_whole`` of the result as Peridigm writes its final state; 0 for scenes
+    time: float = 0.0
     base_dir: Path = field(default_factory=Path.cwd)
     #: result of ``[material.calibration]`` (anisotropic micromoduli), if any
     calibration: Any = None
@@ -394,6 +397,10 @@ class Scene:
     backend: str = "scipy"
     #: PETSc options of the 'petsc' backend (``[solver.petsc_options]``)
     petsc_options: dict[str, Any] | None = None
+    #: load steps of a deck with several (Peridigm's ``Number of Load Steps`` / ``Time
+    #: Steps``): ``(time, problem)`` per step, the last being ``problem``; ``pdlin run``
+    #: solves each and writes a time series.  None: one solve.
+    steps: list[tuple[float, StaticProblem]] | None = None
 
     @property
     def cloud(self) -> PointCloud:
@@ -496,6 +503,11 @@ def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
             if isinstance(cfg["dim"], bool) or not isinstance(cfg["dim"], int):
                 raise SceneError(f"geometry.dim must be 1, 2 or 3, got {cfg['dim']!r}")
             kwargs["dim"] = cfg["dim"]
+        if "volume" in cfg:  # point clouds (vertex cells): a number or a point field name
+            vol = cfg["volume"]
+            kwargs["volume"] = (
+                vol if isinstance(vol, str) else _number(vol, "geometry.volume", positive=True)
+            )
         cloud = mesh_mod.read_mesh(path, **kwargs)
         return cloud.replace(thickness=thickness) if thickness != 1.0 else cloud
     # image

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -13,7 +12,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .._validation import as_float_array, integer
-from ..errors import AccuracyWarning, FloatingBodyError, InputError, ShapeError
+from ..errors import FloatingBodyError, InputError, ShapeError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
 from .rigid import rigid_body_modes, rigid_mode_names
@@ -468,11 +467,10 @@ def load_vector(
     loads : sequence of BodyForce / TotalForce
     prescribed : (m,) array_like of int, optional
         Prescribed DOFs (Dirichlet conditions, symmetry planes; :func:`resolve_dirichlet`).
-        A load acting there goes straight into the reactions, so with them given a load
-        whose every nonzero nodal component sits on a prescribed DOF raises, and a
-        :class:`TotalForce` of which only part does warns (:class:`~pdlin.errors.AccuracyWarning`)
-        with the fraction lost.  A :class:`BodyForce` may overlap the supports: the
-        weight of the prescribed points is carried by the support, as it physically is.
+        A force on a prescribed DOF never enters the equations of the free DOFs: it is
+        balanced by the reaction there.  With them given, a load whose every nonzero nodal
+        component sits on a prescribed DOF raises (it would never load the body).  A load of
+        which only part does is applied as it is (see docs/boundary_conditions.md).
     names : sequence of str, optional
         Labels of the loads in messages (default ``loads[k]``).
 
@@ -541,7 +539,7 @@ def load_vector(
 
 
 def _check_load_support(ld: Any, part: np.ndarray, fixed: np.ndarray, label: str) -> None:
-    """Refuse a load that acts on prescribed DOFs only; warn when a total force partly does.
+    """Refuse a load that acts on prescribed DOFs only.
 
     ``part`` is the load's ``(m, dim)`` nodal force on its points and ``fixed`` their
     prescribed components.
@@ -558,17 +556,6 @@ def _check_load_support(ld: Any, part: np.ndarray, fixed: np.ndarray, label: str
             "components sit on displacement components fixed by Dirichlet conditions or "
             "symmetry planes, so it would go straight into the reactions and never load the "
             "body; apply it to free points or components, or drop the conflicting condition"
-        )
-    if n_lost and isinstance(ld, TotalForce):
-        mag = np.abs(part)
-        frac = float(mag[lost].sum() / mag.sum())
-        warnings.warn(
-            f"{label}: {100.0 * frac:.3g} % of it ({n_lost} of {n_nz} nonzero nodal "
-            "components, by magnitude) acts on prescribed DOFs and goes straight into the "
-            f"reactions; the body carries only {100.0 * (1.0 - frac):.3g} % of the force. "
-            "Apply the force to free points, or keep the prescribed points out of its set.",
-            AccuracyWarning,
-            stacklevel=4,
         )
 
 

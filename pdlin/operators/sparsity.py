@@ -125,7 +125,12 @@ class SparsityReport:
         sparse LU), only with fixed DOFs.
     zero_modes : int or None
         Singular values ``<= zero_tol * s_max`` (zero-energy modes, rigid
-        ones included) from the dense spectrum.
+        ones included) from the dense spectrum (of ``K_ff`` when DOFs are fixed).
+    nnz_free : int or None
+        Stored entries of ``K_ff``, the constrained system's matrix (rows and
+        columns of the free DOFs); None without ``fixed_dofs``.
+    nnz_per_row_free_min, nnz_per_row_free_mean, nnz_per_row_free_max : int, float, int or None
+        Stored entries per row of ``K_ff``.
     notes : tuple of str
         What was skipped and why.
     timings : dict of str to float
@@ -171,6 +176,10 @@ class SparsityReport:
     condition_2: float | None
     condition_1_est: float | None
     zero_modes: int | None
+    nnz_free: int | None = None
+    nnz_per_row_free_min: int | None = None
+    nnz_per_row_free_mean: float | None = None
+    nnz_per_row_free_max: int | None = None
     notes: tuple[str, ...] = ()
     timings: Mapping[str, float] = field(default_factory=dict, compare=False)
 
@@ -199,6 +208,10 @@ class SparsityReport:
         "fill_rcm",
         "memory_csr_bytes",
         "memory_bsr_bytes",
+        "nnz_free",
+        "nnz_per_row_free_min",
+        "nnz_per_row_free_mean",
+        "nnz_per_row_free_max",
     )
 
     def pattern_dict(self) -> dict[str, Any]:
@@ -299,9 +312,21 @@ class SparsityReport:
                 f"{num(self.diag_dominant_fraction)}, {num(self.diag_dominance_min_ratio)}",
             ),
             ("fixed DOFs", num(self.n_fixed)),
-            ("condition (2-norm, dense)", num(self.condition_2)),
-            ("condition (1-norm estimate)", num(self.condition_1_est)),
-            ("zero-energy modes", num(self.zero_modes)),
+        ]
+        ff = " (K_ff)" if self.n_fixed else ""
+        if self.nnz_free is not None:
+            rows.append(
+                (
+                    "free DOFs (K_ff) nnz / per row min / mean / max",
+                    f"{self.n - self.n_fixed:,}: {self.nnz_free:,} / "
+                    f"{num(self.nnz_per_row_free_min)} / {num(self.nnz_per_row_free_mean)} / "
+                    f"{num(self.nnz_per_row_free_max)}",
+                )
+            )
+        rows += [
+            (f"condition (2-norm, dense){ff}", num(self.condition_2)),
+            (f"condition (1-norm estimate){ff}", num(self.condition_1_est)),
+            (f"zero-energy modes{ff}", num(self.zero_modes)),
         ]
         if self.fill_skipped:
             rows.append(("fill skipped", self.fill_skipped))
@@ -576,7 +601,8 @@ def sparsity_report(
         dimension, else 1.
     fixed_dofs : array_like of int or (n,) bool mask, optional
         Dirichlet DOFs eliminated before fill-in and conditioning (the
-        figures then describe ``K_ff``).
+        figures then describe ``K_ff``); ``nnz_free`` and
+        ``nnz_per_row_free_*`` give ``K_ff``'s pattern beside ``K``'s.
     numeric : bool
         With ``model``: assemble ``K`` and report the numerical quantities
         (symmetry, diagonal dominance, conditioning, ``nnz_numeric``).
@@ -778,6 +804,15 @@ def sparsity_report(
 
     free = _free_mask(fixed_dofs, n)
     n_free = n if free is None else int(free.sum())
+    free_rows = None  # stored entries per row of K_ff
+    if free is not None:
+        if dof_pattern is None:  # full blocks: a free DOF's row holds its block row's free DOFs
+            per_point = free.reshape(n_pts, d).sum(axis=1)
+            counts = sp.csr_array(P, dtype=np.int64) @ per_point
+            free_rows = np.repeat(counts, d)[free]
+        else:
+            fidx = np.flatnonzero(free)
+            free_rows = np.diff(sp.csr_array(dof_pattern[fidx][:, fidx]).indptr)
 
     # coupling distance in horizons
     t = time.perf_counter()
@@ -920,6 +955,12 @@ def sparsity_report(
         condition_2=cond2,
         condition_1_est=cond1,
         zero_modes=zero_modes,
+        nnz_free=None if free_rows is None else int(free_rows.sum()),
+        nnz_per_row_free_min=None if not n_free or free_rows is None else int(free_rows.min()),
+        nnz_per_row_free_mean=(
+            None if not n_free or free_rows is None else float(free_rows.sum()) / n_free
+        ),
+        nnz_per_row_free_max=None if not n_free or free_rows is None else int(free_rows.max()),
         notes=tuple(notes),
         timings=timings,
     )

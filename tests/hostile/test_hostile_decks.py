@@ -100,6 +100,31 @@ CASES = [
 ]
 
 
+QG = {"X Origin": 0.0, "Y Origin": 0.0, "Z Origin": 0.0, "X Length": 0.6, "Y Length": 0.1}
+QG |= {"Z Length": 0.1, "Number Points X": 6, "Number Points Y": 1, "Number Points Z": 1}
+
+
+def _qg(edits: dict | None = None, **disc: object) -> dict:
+    """A PdQuickGrid deck (6 x 1 x 1 cells) with generator keys / discretization keys changed."""
+    gen = {k: v for k, v in {**QG, **(edits or {})}.items() if v is not None}
+    d = {"Type": "PdQuickGrid", "NeighborhoodType": "Spherical"}
+    d |= {"TensorProduct3DMeshGenerator": gen, **disc}
+    return _deck(Discretization={k: v for k, v in d.items() if v is not None})
+
+
+CASES += [
+    ("qg-no-norm", _qg(NeighborhoodType=None), POINTS, r"NeighborhoodType must be 'Spherical'"),
+    ("qg-cylinder", _qg(TensorProduct3DMeshGenerator=None, TensorProductCylinderMeshGenerator={}),
+     POINTS, r"needs a TensorProduct3DMeshGenerator .*\['TensorProductCylinderMeshGenerator'\]"),
+    ("qg-zero-points", _qg({"Number Points X": 0}), POINTS, r"Number Points X must be an integer"),
+    ("qg-float-points", _qg({"Number Points Y": 2.5}), POINTS, r"Number Points Y must be an int"),
+    ("qg-negative-length", _qg({"Z Length": -1.0}), POINTS, r"Z Length must be > 0, got -1.0"),
+    ("qg-missing-origin", _qg({"X Origin": None}), POINTS, r"missing deck key .*\.X Origin"),
+    ("qg-typo", _qg({"X Lenght": 1.0}), POINTS, r"Generator\.X Lenght: not supported"),
+    ("qg-bond-filters", _qg(**{"Bond Filters": {}}), POINTS, r"Bond Filters: Peridigm does not"),
+]  # fmt: skip
+
+
 @pytest.mark.parametrize("name, deck, points, pattern", CASES, ids=[c[0] for c in CASES])
 def test_hostile_decks(tmp_path, name, deck, points, pattern):
     expect(lambda: _run(tmp_path, deck, points), SceneError, pattern)

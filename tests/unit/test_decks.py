@@ -7,6 +7,7 @@ The decks are written here from the documented formats (Peridigm ``examples/`` a
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -256,15 +257,32 @@ def test_boundary_condition_errors_name_the_key(bar_dir, edit, pattern):
         (
             "Discretization",
             "Type",
-            "PdQuickGrid",
-            r"Discretization.Type must be 'Text File' or 'Exodus'",
+            "Sphere Mesh",
+            r"Discretization.Type must be 'Text File', 'Exodus' or 'PdQuickGrid'.*'Sphere Mesh'",
         ),
-        ("Discretization", "Bond Filters", {}, r"Discretization.Bond Filters: not supported"),
+        (
+            "Discretization",
+            "Bond Filters",
+            {"F": {"Type": "Exodus Mesh", "File Name": "cracks.g"}},
+            r"Discretization.Bond Filters.F.Type must be 'Rectangular_Plane' or 'Disk'",
+        ),
+        (
+            "Discretization",
+            "Bond Filters",
+            {"F": {"Type": "Disk", "Center_X": 0.0}},
+            r"missing deck key Discretization.Bond Filters.F.Center_Y",
+        ),
+        (
+            "Discretization",
+            "Bond Filters",
+            {"F": {"Type": "Disk", "Centre_X": 0.0}},
+            r"Discretization.Bond Filters.F.Centre_X: not supported",
+        ),
         (
             "Discretization",
             "Omit Bonds Between Blocks",
-            "All",
-            r"Discretization.Omit Bonds Between Blocks: only 'None' .* got 'All'",
+            "Some",
+            r"Discretization.Omit Bonds Between Blocks must be 'None' .* or 'All' .*got 'Some'",
         ),
         (
             "Discretization",
@@ -276,8 +294,8 @@ def test_boundary_condition_errors_name_the_key(bar_dir, edit, pattern):
             "Material",
             "Material Model",
             "Elastic Plastic",
-            r"Material Model: 'Elastic Plastic' is not supported; supported: "
-            r"\['Elastic', 'Elastic Bond Based', 'Elastic Correspondence'",
+            r"Material Model: 'Elastic Plastic' is not supported \(plasticity\); only with "
+            r"Disable Plasticity: true",
         ),
         (
             "Material",
@@ -707,7 +725,11 @@ def test_switch_to_verlet_and_bad_time_steps_are_refused(bar_dir):
             r"Solver.QuasiStatic.Adaptive Load-Stepping.Switch to Verlet: explicit dynamics",
         ),
         ({"Time Steps": "0 a 1"}, r"Solver.QuasiStatic.Time Steps must be a list of times"),
-        ({"Time Steps": "1.0 0.5"}, r"Solver.QuasiStatic.Time Steps: the last time must exceed"),
+        (
+            {"Time Steps": "1.0 0.5"},
+            r"Solver.QuasiStatic.Time Steps must be two or more finite, increasing times",
+        ),
+        ({"Time Steps": "0 0.5 0.5 1"}, r"Time Steps must be two or more .* got '0 0.5 0.5 1'"),
     ]:
         deck = peridigm_deck(LPS_MAT, solver={"Final Time": 2.0, "QuasiStatic": qs})
         if "Time Steps" in qs:
@@ -728,8 +750,57 @@ def test_peridigm_discretization_and_material_defaults_are_accepted(bar_dir, cap
     )
     with caplog.at_level("INFO", logger="pdlin.io.decks"):
         assert pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck)).cloud.n == 32
-    for k in ("Discretization.Omit Bonds Between Blocks", "Compute Partial Stress"):
+    for k in ("Discretization.Verbose", "Compute Partial Stress"):
         assert k in caplog.text
+
+
+def test_omit_bonds_between_blocks_all_drops_the_bonds_joining_blocks(bar_dir):
+    # Peridigm's ExodusDiscretization::filterBonds: 'All' keeps bonds within a block only
+    pts = bar_points()
+    block = np.where(pts[:, 0] < 4 * H, 1, 2)
+    write_text_mesh(bar_dir / "bar.txt", pts, H**3, block)
+    deck = peridigm_deck(LPS_MAT)
+    deck["Peridigm"]["Blocks"]["My Block"]["Block Names"] = "block_1 block_2"
+    scenes = {}
+    for omit in ("None", "All"):
+        deck["Peridigm"]["Discretization"]["Omit Bonds Between Blocks"] = omit
+        scenes[omit] = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    p = scenes["All"].problem
+    kept = pdlin.find_bonds(p.cloud, p.horizon, **p.bond_options)
+    everything = pdlin.find_bonds(p.cloud, p.horizon)
+    assert scenes["None"].problem.bond_options == {}
+    assert not np.any(block[kept.i] != block[kept.j])
+    same = block[everything.i] == block[everything.j]
+    assert kept.n_bonds == int(same.sum()) < everything.n_bonds
+
+
+def test_rectangular_plane_filter_is_peridigms_arithmetic():
+    from pdlin.io.decks import peridigm_bond_filters
+
+    # PrecrackedPlateTwoCracks' right filter: Bottom_Unit_Vector (1, 4, 0) is neither unit
+    # nor in the plane y = 4; Peridigm uses it as given: u_a = u_b x n = (0, 0, 1) and
+    # (x - r0).u_b = dx on the plane, so the cut is 0 <= x <= 10, -10 <= z <= 10 at y = 4
+    f = {"Type": "Rectangular_Plane", "Normal_X": 0, "Normal_Y": 1, "Normal_Z": 0}
+    f |= {"Lower_Left_Corner_X": 0, "Lower_Left_Corner_Y": 4, "Lower_Left_Corner_Z": -10}
+    f |= {"Bottom_Unit_Vector_X": 1, "Bottom_Unit_Vector_Y": 4, "Bottom_Unit_Vector_Z": 0}
+    f |= {"Bottom_Length": 10, "Side_Length": 20}
+    (cut,) = peridigm_bond_filters({"R": f}, "BF")
+    p = np.array(
+        [
+            [5.0, 3.5, 0.0],  # crosses at (5, 4, 0): inside
+            [-0.5, 3.5, 0.0],  # crosses at x = -0.5: outside
+            [10.5, 3.5, 0.0],  # crosses at x = 10.5: outside
+            [5.0, 3.5, 10.5],  # crosses at z = 10.5: outside
+            [5.0, 4.0, 0.0],  # starts on the plane (t = 0): cut, as Peridigm's t >= 0
+            [5.0, 3.5, 0.0],  # parallel to the plane: never cut
+            [5.0, 3.0, 0.0],  # ends short of the plane (t > 1): not cut
+        ]
+    )
+    q = p + np.array([[0, 1, 0]] * 5 + [[1, 0, 0], [0, 0.5, 0]], float)
+    assert cut(p, q).tolist() == [True, False, False, False, True, False, False]
+    # the corners themselves are in (Peridigm's 1e-15 tolerance on both sides)
+    corner = np.array([[0.0, 3.5, -10.0], [10.0, 3.5, 10.0]])
+    assert cut(corner, corner + [0, 1, 0]).all()
 
 
 def test_default_block_takes_the_blocks_no_other_entry_names(bar_dir):
@@ -963,7 +1034,10 @@ def test_cli_runs_yaml_and_xml_decks(bar_dir):
     write_yaml(bar_dir / "deck.yaml", peridigm_deck(LPS_MAT))
     res = _cli("run", "deck.yaml", "-q", "--json", cwd=bar_dir)
     assert res.returncode == 0, res.stderr
-    assert (bar_dir / "out.vtu").exists()
+    # four load steps: one .vtu per step (the initial state included, in the series' own
+    # folder out.pvd.<tag>/) and a .pvd collection
+    assert (bar_dir / "out.pvd").exists() and len(list(bar_dir.glob("out.pvd.*/out_0005.vtu"))) == 1
+    assert json.loads(res.stdout)["steps"] == 5
     deck = peridigm_deck({**LPS_MAT, "Material Model": "Elastic Plastic"})
     (bar_dir / "bad.xml").write_text(to_xml("Peridigm", deck["Peridigm"]))
     res = _cli("info", "deck.yaml", "--json", cwd=bar_dir)
@@ -1040,3 +1114,36 @@ def test_deck_output_filename_in_a_subfolder(bar_dir):
     deck["Peridigm"]["Output"]["Output Filename"] = "results/./bar"
     scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
     assert scene.output == bar_dir / "results" / "bar.vtu"
+
+
+def test_peridigm_deck_without_boundary_conditions(bar_dir):
+    # no Boundary Conditions: no constraint and no load; Peridigm's answer is u = 0
+    deck = peridigm_deck(LPS_MAT)
+    del deck["Peridigm"]["Boundary Conditions"]
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    res = pdlin.solve(scene.problem)
+    assert np.array_equal(np.asarray(res.u), np.zeros((32, 3)))
+    # a body force alone on an unconstrained body has no static solution: a clean error
+    deck["Peridigm"]["Boundary Conditions"] = {
+        "Gravity": {"Type": "Body Force", "Node Set": "Full Domain", "Coordinate": "z",
+                    "Value": "-1.0"},
+    }  # fmt: skip
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    with pytest.raises(pdlin.errors.FloatingBodyError, match="the body is floating"):
+        pdlin.solve(scene.problem)
+
+
+def test_load_steps_are_peridigms_times(bar_dir):
+    # Peridigm.cpp executeQuasiStatic: t0 and t0 + (i + 1) (t1 - t0) / N; each step's
+    # problem holds that step's prescribed values (Fix X: "0.01 * t" on the right end)
+    deck = peridigm_deck(LPS_MAT, solver={"Initial Time": 0.5, "Final Time": 2.0,
+                                          "QuasiStatic": {"Number of Load Steps": 3}})  # fmt: skip
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    times = [t for t, _ in scene.steps]
+    assert times == [0.5, 1.0, 1.5, 2.0]  # (2.0 - 0.5) / 3 = 0.5 exactly in binary
+    assert scene.steps[-1][1] is scene.problem
+    pulled = [np.asarray(p.dirichlet[1].value).ravel() for _, p in scene.steps]  # Pull X
+    assert np.allclose([v.max() for v in pulled], [0.001 * t for t in times], rtol=1e-15)
+    # one step: no series
+    deck["Peridigm"]["Solver"]["QuasiStatic"] = {"Number of Load Steps": 1}
+    assert pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck)).steps is None

@@ -418,3 +418,20 @@ def test_fixed_dofs_mask_equals_indices_and_empty_matrix() -> None:
     assert r.nnz == 0 and r.bytes_per_nnz_csr is None and r.zero_modes == 4
     json.dumps(r.to_dict(), allow_nan=False)
     assert "nnz stored / numeric" in str(r)
+
+
+def test_constrained_pattern_agrees_between_model_and_matrix_forms():
+    """nnz_free (K_ff's stored pattern) from the bonds equals that of the assembled K."""
+    cloud = pdlin.grid((7, 5))
+    bonds = pdlin.find_bonds(cloud, 2.015)
+    model = pdlin.LPS(E=1.0, nu=0.25)
+    fixed = (2 * cloud.sets["x-"][:, None] + np.arange(2)).ravel()
+    rm = pdlin.sparsity_report(model=model, cloud=cloud, bonds=bonds, fixed_dofs=fixed)
+    K = pdlin.assemble_stiffness(model, cloud, bonds)
+    rk = pdlin.sparsity_report(K, points=cloud.points, horizon=2.015, fixed_dofs=fixed)
+    assert rm.pattern_dict() == rk.pattern_dict()
+    free = np.setdiff1d(np.arange(K.shape[0]), fixed)
+    Kff = sp.csr_array(K)[free][:, free]
+    assert rm.nnz_free == Kff.nnz < rm.nnz  # K_ff keeps fewer entries than K
+    free_report = pdlin.sparsity_report(model=model, cloud=cloud, bonds=bonds)
+    assert free_report.nnz_free is None and free_report.n_fixed == 0
