@@ -556,6 +556,9 @@ class RunEstimate:
         Order-of-magnitude run time (:data:`SECONDS_PER_NONZERO`).
     coupling_range : int
         1 for one-hop K, 2 for models coupling points two bonds apart.
+    history_steps, history_bytes : int
+        Load steps whose fields a load-stepping driver keeps, and their bytes (included
+        in every stage; :func:`pdlin.problem.plan_memory`).
     """
 
     n_points: int
@@ -567,6 +570,8 @@ class RunEstimate:
     base: int
     seconds: float = 0.0
     coupling_range: int = 1
+    history_steps: int = 0
+    history_bytes: int = 0
 
     @property
     def peak(self) -> int:
