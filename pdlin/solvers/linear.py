@@ -506,20 +506,29 @@ def _safe_norm(v: np.ndarray) -> float:
     return m * float(np.linalg.norm(v / m))
 
 
+#: entries per chunk of :func:`_check_matrix_scale`'s finite test (8 MB of booleans)
+_CHECK_CHUNK = 1 << 23
+
+
 def _check_matrix_scale(M: Any, name: str) -> None:
     """Raise when a sparse matrix holds NaN / inf or entries outside :data:`MATRIX_SCALE_LIMITS`."""
     if not sp.issparse(M):
         return
-    data = np.asarray(M.data)
+    data = np.asarray(M.data).reshape(-1)  # a view: BSR data is (nblocks, r, c)
     if data.size == 0:
         return
-    if not np.all(np.isfinite(data)):
+    # no temporary of K's size: the finite test runs on chunks, and max |a| is
+    # max(max a, -min a) (a NaN propagates through max / min)
+    finite = all(
+        np.isfinite(data[k : k + _CHECK_CHUNK]).all() for k in range(0, data.size, _CHECK_CHUNK)
+    )
+    if not finite:
         raise NonFiniteError(
             f"{name} must be finite, got NaN or inf entries: a float overflow while building the "
             "stiffness (elastic constants, horizon or coordinates too large or too small for "
             "float64); rescale the units"
         )
-    amax = float(np.max(np.abs(data)))
+    amax = max(float(data.max()), -float(data.min()))
     lo, hi = MATRIX_SCALE_LIMITS
     if amax > 0.0 and not lo <= amax <= hi:
         raise InputError(
