@@ -514,14 +514,13 @@ def _check_matrix_scale(M: Any, name: str) -> None:
     """Raise when a sparse matrix holds NaN / inf or entries outside :data:`MATRIX_SCALE_LIMITS`."""
     if not sp.issparse(M):
         return
-    data = np.asarray(M.data).reshape(-1)  # a view: BSR data is (nblocks, r, c)
+    data = np.asarray(M.data)  # CSR (nnz,) or BSR (nblocks, r, c): no copy
     if data.size == 0:
         return
-    # no temporary of K's size: the finite test runs on chunks, and max |a| is
-    # max(max a, -min a) (a NaN propagates through max / min)
-    finite = all(
-        np.isfinite(data[k : k + _CHECK_CHUNK]).all() for k in range(0, data.size, _CHECK_CHUNK)
-    )
+    # no temporary of K's size: the finite test runs on chunks of leading rows, and
+    # max |a| is max(max a, -min a) (a NaN propagates through max / min)
+    step = max(1, _CHECK_CHUNK // max(1, data[0].size))
+    finite = all(np.isfinite(data[k : k + step]).all() for k in range(0, len(data), step))
     if not finite:
         raise NonFiniteError(
             f"{name} must be finite, got NaN or inf entries: a float overflow while building the "

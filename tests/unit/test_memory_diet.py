@@ -138,6 +138,11 @@ def test_check_matrix_scale_refuses_non_finite_in_any_chunk(
     M.data[where] = bad
     with pytest.raises(NonFiniteError, match="A must be finite"):
         linear._check_matrix_scale(M, "A")
+    B = sp.bsr_array(_matrix(1.0).toarray(), blocksize=(3, 3))
+    B.data[where, 2, 1] = bad
+    with pytest.raises(NonFiniteError, match="A must be finite"):
+        linear._check_matrix_scale(B, "A")
+    linear._check_matrix_scale(_matrix(1.0), "A")  # all finite: no error
 
 
 @pytest.mark.parametrize("scale", [1e-120, 1e120])
