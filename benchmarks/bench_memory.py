@@ -22,6 +22,11 @@ assembled K, AMG-CG) on a 3D bond-based cube (δ = 3.015 h, x- clamped, x+ pulle
 fresh interpreter.  A stage's peak is the kernel's ``VmHWM`` since the previous stage
 boundary (reset by writing ``5`` to ``/proc/self/clear_refs``); the boundaries are the
 progress messages of :func:`pdlin.solve` and the entry of ``ConstrainedSystem.eliminate``.
+Stages: ``grid`` (``pdlin.grid``), ``plan`` (the ``StaticProblem`` and the printed estimate),
+``bonds`` (bond search, Dirichlet and load resolution), ``assembly`` (K and its prescribed
+rows), ``elimination``, ``checks`` (``solve_linear``'s input checks: K finite and in range),
+``AMG setup``, ``solve`` (CG, expansion, reactions), ``fields`` (``result.fields()``).
+Each cell is GB (bytes per directed bond).
 ``--save-u DIR`` / ``--check-u DIR`` store / compare (bit for bit) the displacement of each
 size, to show that a memory change keeps the results identical.
 """
@@ -188,7 +193,7 @@ def _stages_one(m: int, save: str | None, check: str | None) -> None:
     nb = res.bonds.n_bonds
     est = _parse(rec.estimate_line + " ")[0] if rec.estimate_line else None
     u = np.ascontiguousarray(res.u)
-    same = ""
+    same = "-"
     if save:
         np.save(Path(save) / f"u_{m}.npy", u)
     if check:
@@ -196,7 +201,7 @@ def _stages_one(m: int, save: str | None, check: str | None) -> None:
         if ref.shape != u.shape or ref.tobytes() != u.tobytes():
             raise SystemExit(f"{m}^3: u differs from {check}/u_{m}.npy (max |du| "
                              f"{float(np.max(np.abs(ref - u))):.3e})")  # fmt: skip
-        same = ", u bitwise equal to the reference"
+        same = "bitwise equal"
     order = ("grid", "plan", "bonds", "assembly", "elimination", "checks", "AMG setup",
              "solve", "fields")  # fmt: skip
     cells = " | ".join(
@@ -205,7 +210,7 @@ def _stages_one(m: int, save: str | None, check: str | None) -> None:
     peak = max(rec.peaks.values())
     print(f"| {m}³ = {m**3:,} | {nb:,} | {cells} | {peak / 1e9:.2f} ({peak / nb:.0f}) | "
           f"{(est or 0) / 1e9:.2f} | {(est or 0) / peak:.2f} | {res.n_iter} | "
-          f"{sum(rec.seconds.values()):.1f} |{same}")  # fmt: skip
+          f"{sum(rec.seconds.values()):.1f} | {same} |")  # fmt: skip
 
 
 def stages(sizes: tuple[int, ...], save: str | None, check: str | None) -> None:
