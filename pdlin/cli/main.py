@@ -47,7 +47,11 @@ def _plan(problem: Any, prog: Any, solver: str, steps: int, nonlinear: bool = Fa
 
     plan = plan_memory(problem, solver, history_steps=steps)
     if nonlinear:  # the material kernels' compile replaces the linear models' one
-        plan.base = current_rss() + LATE_IMPORTS + NONLINEAR_LATE_IMPORTS
+        from .._kernels import numba_enabled
+        from ..constitutive.crystal_plasticity import _NUMBA_MIN_POINTS
+
+        compiles = numba_enabled() and problem.cloud.n >= _NUMBA_MIN_POINTS
+        plan.base = current_rss() + LATE_IMPORTS + (NONLINEAR_LATE_IMPORTS if compiles else 0)
     prog(plan.summary())
     check_memory("this run", plan.need, lambda: memory_hints(plan))
 
