@@ -90,7 +90,7 @@ def _blas_from_maps() -> list[str]:
                     break
         except OSError:
             pass
-        out.append(f"{os.path.basename(path)}: {threads} threads")
+        out.append(f"{os.path.basename(path)}: {threads} thread{'' if threads == 1 else 's'}")
     return out
 
 
