@@ -101,6 +101,9 @@ def run_case(name: str, workdir: Path) -> dict[str, object]:
 
 
 def main() -> None:
+    from _context import header  # benchmarks/_context.py: load, cores, BLAS, direct backends
+
+    header()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", default=",".join(CASES), help="comma-separated case names")
     args = ap.parse_args()
