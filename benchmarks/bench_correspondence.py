@@ -109,7 +109,8 @@ def assembly_table(cases: list[tuple[tuple[int, ...], int]]) -> None:
             grid = "x".join(map(str, shape))
             print(
                 f"| {grid} | {m} | {control} | {bonds.n_bonds:,} | {tb:.2f} | {tg:.2f} | "
-                f"{G.nnz:,} | {tk.wall:.2f} ({tk.cpu:.2f}) | {K.nnz:,} | {K.nnz / cloud.ndof:.0f} |",
+                f"{G.nnz:,} | {tk.wall:.2f} ({tk.cpu:.2f}) | {K.nnz:,} | "
+                f"{K.nnz / cloud.ndof:.0f} |",
                 flush=True,
             )
             del G, K, model
