@@ -60,6 +60,7 @@ import multiprocessing as mp  # noqa: E402
 import pstats  # noqa: E402
 import resource  # noqa: E402
 import shutil  # noqa: E402
+import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -68,6 +69,8 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
 import scipy.sparse.linalg as spla  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _context import header  # noqa: E402
 
 import pdlin  # noqa: E402
