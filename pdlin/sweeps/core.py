@@ -764,6 +764,11 @@ class TradeoffResult:
                 cells.append(f"{s[:width]:>{width}}")
             mark = "*" if id(r) in front else " "
             lines.append(f"{mark} " + " ".join(cells) + f"  {r.get('status', '')}")
+        used = sorted(
+            {str(r["solver_used"]) for r in self.table if "(" in str(r.get("solver_used") or "")}
+        )
+        if used:  # the factorization a direct row timed: 'auto' depends on what is installed
+            lines.append(f"direct solves ran: {', '.join(used)}")
         for x in ("h", "delta"):
             try:
                 rates = self.rates(x)

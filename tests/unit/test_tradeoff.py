@@ -507,3 +507,4 @@ def test_solver_used_names_the_direct_backend_that_ran():
     backend = used["direct"].removeprefix("direct (").removesuffix(")")
     assert used["direct"] == f"direct ({backend})" and backend in DIRECT_BACKENDS[1:], used
     assert used["amg-cg"] == "amg-cg"  # iterative rows unchanged
+    assert f"direct solves ran: direct ({backend})" in res.summary()  # pdlin tradeoff's table
