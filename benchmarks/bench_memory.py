@@ -229,6 +229,9 @@ def stages(sizes: tuple[int, ...], save: str | None, check: str | None) -> None:
 
 
 def main() -> None:
+    from _context import header  # benchmarks/_context.py: load, cores, BLAS, direct backends
+
+    header()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", default=",".join(CASES), help="comma-separated case names")
     ap.add_argument("--stages", action="store_true",
