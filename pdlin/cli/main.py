@@ -50,7 +50,7 @@ def _plan(problem: Any, prog: Any, solver: str, steps: int, nonlinear: bool = Fa
         from .._kernels import numba_enabled
         from ..constitutive.crystal_plasticity import _NUMBA_MIN_POINTS
 
-        compiles = numba_enabled() and problem.cloud.n >= _NUMBA_MIN_POINTS
+        compiles = problem.cloud.n >= _NUMBA_MIN_POINTS and numba_enabled()  # no import below
         plan.base = current_rss() + LATE_IMPORTS + (NONLINEAR_LATE_IMPORTS if compiles else 0)
     prog(plan.summary())
     check_memory("this run", plan.need, lambda: memory_hints(plan))
