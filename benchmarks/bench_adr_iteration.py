@@ -35,7 +35,8 @@ BLAS keeps its default thread count here (all cores), unlike the other benchmark
 OpenBLAS a ``ddot`` of a long vector runs on BLAS's threads, which then spin for a while
 and take the cores of the constitutive update that follows.  Every case is a forked child
 (fresh BLAS and pdlin thread pools).  Nothing is asserted; wall-clock times on a shared
-machine.
+machine, with the CPU milliseconds per iteration beside them; rows of 2 pdlin threads are
+marked unreliable when the load average at the start (header) exceeded the free cores.
 
 Examples
 --------
@@ -54,6 +55,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _context import header, speedup_flag  # noqa: E402
 from bench_nonlinear import forked, problem  # noqa: E402
 
 
@@ -174,10 +176,11 @@ def _case(
         if hasattr(cls, name):
             setattr(cls, name, timed(getattr(cls, name)))
     density = nl.adr_density(system, state, u)
-    best: tuple[float, float, int] | None = None
+    best: tuple[float, float, int, float] | None = None
     for _ in range(repeats):  # the fastest of `repeats` runs (a shared machine's noise)
         spent[0] = 0.0
         t0 = time.perf_counter()
+        c0 = time.process_time()
         try:
             its = nl.adr_step(
                 system, u, state, factor=1.0, density=density, dt=1.0, maxiter=iterations
@@ -185,7 +188,8 @@ def _case(
         except nl.StepFailed as exc:  # the budget (or the baseline loop, which never stops)
             its = exc.outcome.iterations if exc.outcome is not None else iterations
         wall = time.perf_counter() - t0
-        run = (wall / its * 1e3, spent[0] / its * 1e3, its)
+        cpu = time.process_time() - c0
+        run = (wall / its * 1e3, spent[0] / its * 1e3, its, cpu / its * 1e3)
         best = run if best is None or run[0] < best[0] else best
     assert best is not None
     return best
@@ -199,6 +203,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--gamma", type=float, default=0.01, help="affine shear of the start")
     p.add_argument("--control", default="penalty:0.1", help="'none', 'penalty:C', ...")
     args = p.parse_args(argv)
+    ctx = header()
     print(
         f"ADR iterations from an affine shear γ = {args.gamma} (control {args.control}), "
         f"{args.iterations} per run, the fastest of {args.repeats} run(s) per case; BLAS at "
@@ -207,9 +212,10 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print(
         "| particles | pdlin threads | loop | dot products | stress | mat-vecs | operators "
-        "| ms per iteration | of it material | vs first row |"
+        "| ms per iteration | CPU ms per iteration | of it material | vs first row | 2 threads "
+        "reliable? |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     cases = (
         ("masked", "blas", "update", "plain", "zeros"),
         ("masked", "pdlin", "update", "plain", "zeros"),
@@ -242,11 +248,18 @@ def main(argv: list[str] | None = None) -> int:
                     f"| {operators} |"
                 )
                 if isinstance(out, str):  # the child's error
-                    print(f"{row} {out} | | |", flush=True)
+                    print(f"{row} {out} | | | | |", flush=True)
                     continue
-                it_ms, mat_ms, _ = out
+                it_ms, mat_ms, _, cpu_ms = out
                 base = it_ms if base is None else base
-                print(f"{row} {it_ms:.2f} | {mat_ms:.2f} | {base / it_ms:.2f} x |", flush=True)
+                flag = (
+                    (speedup_flag(threads, ctx.load1, ctx.cores) or "yes") if threads > 1 else "—"
+                )
+                print(
+                    f"{row} {it_ms:.2f} | {cpu_ms:.2f} | {mat_ms:.2f} | {base / it_ms:.2f} x | "
+                    f"{flag} |",
+                    flush=True,
+                )
     return 0
 
 

@@ -7,7 +7,8 @@ of 3, a fresh model per call).  "parallel" is the time in the numba kernels
 ``total / (serial + parallel / 2)`` is the 2-thread speed-up if the parallel part halves.
 CPU time is insensitive to other jobs on the machine, unlike the 2-thread wall clock of
 ``benchmarks/bench_threads.py``.  To measure another version, put its checkout first on
-``PYTHONPATH``.
+``PYTHONPATH``.  The wall column is the same (profiled) call's wall time: far above its CPU
+time, it says the call waited for a core (see the header's load average).
 
 Usage: ``python benchmarks/bench_assembly_serial.py`` (~1.5 min).
 """
@@ -17,17 +18,22 @@ from __future__ import annotations
 import cProfile
 import os
 import pstats
+import sys
 import time
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import pdlin  # noqa: E402
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _context import header, timed  # noqa: E402
+
 PARALLEL = {"chunk", "sizes", "marks", "copy"}
 
 
 def main() -> None:
     pdlin.set_num_threads(1)
+    header()
     cl = pdlin.grid((30,) * 3, spacing=1 / 30)
     bl = pdlin.find_bonds(cl, ratio=3.015)
     c2 = pdlin.grid((401, 401), spacing=1 / 401)
@@ -47,17 +53,18 @@ def main() -> None:
         f()  # numba compile / cache load
     print(f"# {pdlin.__file__}, load {os.getloadavg()[0]:.2f}\n")
     print(
-        "| call | one-thread CPU (s) | serial (s) | parallel (s) | Amdahl 2-thread bound "
-        "| top serial own times (approx.) |"
+        "| call | one-thread CPU (s) | wall (s) | serial (s) | parallel (s) | Amdahl 2-thread "
+        "bound | top serial own times (approx.) |"
     )
-    print("|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|")
     for name, f in rows:
         best = None
         for _ in range(3):
             pr = cProfile.Profile(timer=time.process_time)
-            pr.enable()
-            f()
-            pr.disable()
+            with timed() as t:
+                pr.enable()
+                f()
+                pr.disable()
             st = pstats.Stats(pr).stats  # type: ignore[attr-defined]
 
             def par(k: tuple[str, int, str]) -> bool:
@@ -73,12 +80,15 @@ def main() -> None:
             ]
             top = sorted(ser, reverse=True)[:4]
             if best is None or total < best[0]:
-                best = (total, p, top)
+                best = (total, p, top, t.wall)
         assert best is not None
-        total, p, top = best
+        total, p, top, wall = best
         s = total - p
         names = ", ".join(f"{n} {t:.3f}" for t, n in top)
-        print(f"| {name} | {total:.3f} | {s:.3f} | {p:.3f} | {total / (s + p / 2):.2f} | {names} |")
+        print(
+            f"| {name} | {total:.3f} | {wall:.3f} | {s:.3f} | {p:.3f} | "
+            f"{total / (s + p / 2):.2f} | {names} |"
+        )
 
 
 if __name__ == "__main__":

@@ -18,9 +18,15 @@ For each size the script prints one table row:
 * AMG-PCG (pdlin's defaults, relative residual 1e-8, best of two runs):
   setup and solve in mat-vec equivalents, iterations, levels and operator
   complexity; ``amg wall``: setup + solve from wall times;
-* Jacobi-CG iterations and mat-vec equivalents; SuperLU (symmetric mode)
-  in mat-vec equivalents for small sizes, and the relative difference of
+* ``amg s`` / ``amg cpu``: setup + solve of the faster AMG run in wall and CPU seconds;
+* Jacobi-CG iterations and mat-vec equivalents; the direct solve
+  (``direct_backend='auto'``: SuperLU in symmetric mode unless CHOLMOD or PARDISO is
+  installed and the system is large; ``backend`` names the one that ran) in mat-vec
+  equivalents, wall and CPU seconds for small sizes, and the relative difference of
   the AMG solution to the direct one.
+
+The header (``_context.header``) gives the load average, usable cores, BLAS threads and
+the installed direct backends.
 
 Run ``python benchmarks/bench_bond_based.py --quick`` for a small table
 (about a minute) or without arguments for the full one (several minutes;
@@ -40,13 +46,17 @@ os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 import gc  # noqa: E402
-import platform  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 import tracemalloc  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _context import header as context_header  # noqa: E402
+from _context import timed  # noqa: E402
 
 import pdlin  # noqa: E402
 from pdlin.operators.assembly import estimate_bond_operator_bytes  # noqa: E402
@@ -161,6 +171,8 @@ def run_case(dim: int, m: int, args: argparse.Namespace) -> Row:
     v["amg it"] = amg.n_iter
     v["amg solve"] = min(r.info["solve_cpu"] for r in runs) / ts
     v["amg wall"] = min(r.setup_time + r.solve_time for r in runs) / tw
+    v["amg s"] = min(r.setup_time + r.solve_time for r in runs)
+    v["amg cpu"] = min(r.info["setup_cpu"] + r.info["solve_cpu"] for r in runs)
     v["levels"] = amg.info["levels"]
     v["op cx"] = amg.info["operator_complexity"]
     # -- Jacobi-CG -------------------------------------------------------------
@@ -170,9 +182,12 @@ def run_case(dim: int, m: int, args: argparse.Namespace) -> Row:
         v["jac spmv"] = (jac.info["setup_cpu"] + jac.info["solve_cpu"]) / ts
     # -- direct ----------------------------------------------------------------
     if n <= args.direct_max[dim]:
-        c0 = time.process_time()
-        d = solve_linear(A, b, "direct")
-        v["direct spmv"] = (time.process_time() - c0) / ts
+        with timed() as t:
+            d = solve_linear(A, b, "direct")
+        v["direct spmv"] = t.cpu / ts
+        v["direct s"] = t.wall
+        v["direct cpu"] = t.cpu
+        v["backend"] = d.info.get("direct_backend", "?")
         v["err"] = float(np.linalg.norm(amg.x - d.x) / np.linalg.norm(d.x))
     return row
 
@@ -194,11 +209,16 @@ COLUMNS = [  # name, width, format
     ("amg it", 6, "{}"),
     ("amg solve", 9, "{:.1f}"),
     ("amg wall", 8, "{:.1f}"),
+    ("amg s", 6, "{:.3g}"),
+    ("amg cpu", 7, "{:.3g}"),
     ("levels", 6, "{}"),
     ("op cx", 5, "{:.2f}"),
     ("jac it", 6, "{}"),
     ("jac spmv", 8, "{:.1f}"),
     ("direct spmv", 11, "{:.1f}"),
+    ("direct s", 8, "{:.3g}"),
+    ("direct cpu", 10, "{:.3g}"),
+    ("backend", 8, "{}"),
     ("err", 8, "{:.1e}"),
 ]
 
@@ -240,11 +260,8 @@ def main(argv: list[str] | None = None) -> int:
         sizes[2] = args.m2
     if args.m3:
         sizes[3] = args.m3
-    print(
-        f"# pdlin bond-based benchmark, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
-        f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-        f"numpy {np.__version__}"
-    )
+    print("# pdlin bond-based benchmark")
+    context_header()
     print(
         "# horizon 3.015 h; solver columns in K @ x equivalents: CPU time of the step / CPU time"
         " of one K @ x ('amg wall': AMG setup + solve in wall time / wall spmv)"

@@ -20,8 +20,11 @@ Tables (times are wall-clock seconds on a shared machine; nothing is asserted):
    (ω = 1), AMG-CG, assembled and matrix-free.
 
 Every solve runs in a forked child process with a time limit, so a slow path prints
-``> limit`` instead of stalling the run.  ``--quick`` runs small grids only (about a minute);
-``--anchor`` and ``--stabilized`` run table 3 or table 4 alone.
+``> limit`` instead of stalling the run.  Totals show CPU seconds beside wall seconds, and a
+``direct`` solver names the backend that ran (``direct_backend='auto'``; the header lists the
+installed ones, with the load average, usable cores and BLAS threads).  ``--quick`` runs
+small grids only (about a minute); ``--anchor`` and ``--stabilized`` run table 3 or table 4
+alone.
 """
 
 from __future__ import annotations
@@ -32,14 +35,15 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
-import datetime  # noqa: E402
 import multiprocessing as mp  # noqa: E402
-import platform  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
-import scipy  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _context import header, timed  # noqa: E402
 
 import pdlin  # noqa: E402
 
@@ -90,7 +94,10 @@ def _run_limited(fn: Any, args: tuple, limit: float) -> dict[str, Any]:
 
 def assembly_table(cases: list[tuple[tuple[int, ...], int]]) -> None:
     print("\n## 1. Assembly of G and K (ω = 1/|ξ| bonds; higher_order re-weights them)\n")
-    print("| grid | δ/h | control | bonds | bonds s | G s | nnz(G) | K s | nnz(K) | nnz(K)/row |")
+    print(
+        "| grid | δ/h | control | bonds | bonds s | G s | nnz(G) | K s (CPU s) | nnz(K) | "
+        "nnz(K)/row |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for shape, m in cases:
         cloud, bonds, tb = _cloud_bonds(shape, float(m))
@@ -100,13 +107,13 @@ def assembly_table(cases: list[tuple[tuple[int, ...], int]]) -> None:
             G = model.gradient_matrix(cloud, bonds)
             tg = time.perf_counter() - t
             model = _model(cloud.dim, control)  # fresh cache: K time includes G
-            t = time.perf_counter()
-            K = model.stiffness(cloud, bonds)
-            tk = time.perf_counter() - t
+            with timed() as tk:
+                K = model.stiffness(cloud, bonds)
             grid = "x".join(map(str, shape))
             print(
                 f"| {grid} | {m} | {control} | {bonds.n_bonds:,} | {tb:.2f} | {tg:.2f} | "
-                f"{G.nnz:,} | {tk:.2f} | {K.nnz:,} | {K.nnz / cloud.ndof:.0f} |",
+                f"{G.nnz:,} | {tk.wall:.2f} ({tk.cpu:.2f}) | {K.nnz:,} | "
+                f"{K.nnz / cloud.ndof:.0f} |",
                 flush=True,
             )
             del G, K, model
@@ -121,12 +128,13 @@ def _shadow_solve(shape: tuple[int, ...], m: int, control: str, solver: str, op:
     d = cloud.dim
     F = np.eye(d) + 1e-3 * np.arange(1, d * d + 1).reshape(d, d) / (d * d)
     prob = pdlin.shadow_problem(_model(d, control), cloud, bonds, F)
-    t = time.perf_counter()
-    res = pdlin.solve(prob, solver=solver, operator=op, rtol=1e-10)
-    wall = time.perf_counter() - t
+    with timed() as t:
+        res = pdlin.solve(prob, solver=solver, operator=op, rtol=1e-10)
     err = float(np.abs(res.u - cloud.points @ (F - np.eye(d)).T).max())
     return {
-        "wall": wall,
+        "wall": t.wall,
+        "cpu": t.cpu,
+        "backend": res.info.get("direct_backend"),
         "iters": res.n_iter,
         "res": float(res.relative_residual),
         "err": err,
@@ -141,12 +149,14 @@ def _fmt_solve(r: dict) -> str:
     if "error" in r:
         return r["error"]
     it = "" if r["iters"] in (None, 0) else f" [{r['iters']}]"
-    return f"{r['wall']:.2f}{it} ({r['res']:.0e}, err {r['err']:.0e})"
+    used = f" {r['backend']}" if r.get("backend") else ""
+    return f"{r['wall']:.2f} (CPU {r['cpu']:.2f}){it}{used} ({r['res']:.0e}, err {r['err']:.0e})"
 
 
 def solve_table(cases: list[tuple[tuple[int, ...], int]], limit: float) -> None:
-    print("\n## 2. Shadow-layer patch problem, rtol 1e-10: wall s [iterations] (solver residual,")
-    print("max |u - u_affine|); assembly is included in the assembled columns\n")
+    print("\n## 2. Shadow-layer patch problem, rtol 1e-10: wall s (CPU s) [iterations] direct")
+    print("backend (solver residual, max |u - u_affine|); assembly is included in the assembled")
+    print("columns\n")
     print("| grid | δ/h | control | direct | jacobi-cg assembled | jacobi-cg matrix-free |")
     print("|---|---|---|---|---|---|")
     for shape, m in cases:
@@ -172,6 +182,7 @@ def solve_table(cases: list[tuple[tuple[int, ...], int]], limit: float) -> None:
 
 def _anchor_solve(n: int, m: int, solver: str, op: str, control: str = "none") -> dict:
     t0 = time.perf_counter()
+    c0 = time.process_time()
     if control == "none":
         cloud, bonds, tb = _cloud_bonds((n, n), float(m))
     else:  # stabilized controls: ω = 1
@@ -186,6 +197,7 @@ def _anchor_solve(n: int, m: int, solver: str, op: str, control: str = "none") -
     res = pdlin.solve(prob, solver=solver, operator=op, rtol=1e-8)
     ts = time.perf_counter() - t
     total = time.perf_counter() - t0
+    total_cpu = time.process_time() - c0
     # true relative residual from the model's own internal force
     free = np.ones(cloud.ndof, dtype=bool)
     free[res.prescribed_dofs] = False
@@ -200,6 +212,8 @@ def _anchor_solve(n: int, m: int, solver: str, op: str, control: str = "none") -
         "solve": res.timings.get("solve", 0.0),
         "pdsolve": ts,
         "total": total,
+        "total_cpu": total_cpu,
+        "backend": res.info.get("direct_backend"),
         "iters": res.n_iter,
         "true_res": float(np.linalg.norm(r) / np.linalg.norm(b)),
         "operator": res.info.get("operator"),
@@ -210,7 +224,7 @@ def _anchor_solve(n: int, m: int, solver: str, op: str, control: str = "none") -
 def anchor_table(cases: list[tuple[int, int, str, str, float]]) -> float | None:
     print("\n## 3. Anchor: 2D grid, ω = 1/|ξ|, clamped x-, pulled x+, rtol 1e-8 (wall s)\n")
     print("| grid | points | δ/h | solver | operator | bonds | assembly | setup (LU or AMG) | "
-          "solve | iterations | true rel. residual | total | total / 22.7 s |")  # fmt: skip
+          "solve | iterations | true rel. residual | total (CPU s) | total / 22.7 s |")  # fmt: skip
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     best: float | None = None
     for n, m, solver, op, limit in cases:
@@ -221,13 +235,15 @@ def anchor_table(cases: list[tuple[int, int, str, str, float]]) -> float | None:
             msg = f"> {limit:.0f} s (stopped)" if "timeout" in r else r["error"]
             print(head + f" | | | | | | {msg} | > {limit / JULIA_TOTAL:.2f} |", flush=True)
             continue
+        if r.get("backend"):
+            head = f"| {n}x{n} | {n * n:,} | {m} | {solver} ({r['backend']}) | {op} |"
         ratio = r["total"] / JULIA_TOTAL
         if n == 401 and m == 2:
             best = ratio if best is None else min(best, ratio)
         it = "-" if not r["iters"] else f"{r['iters']}"
         print(
             head + f" {r['bonds']:.2f} | {r['asm']:.2f} | {r['setup']:.2f} | {r['solve']:.2f} | "
-            f"{it} | {r['true_res']:.1e} | {r['total']:.2f} | {ratio:.3f} |",
+            f"{it} | {r['true_res']:.1e} | {r['total']:.2f} ({r['total_cpu']:.2f}) | {ratio:.3f} |",
             flush=True,
         )
         del t
@@ -237,7 +253,7 @@ def anchor_table(cases: list[tuple[int, int, str, str, float]]) -> float | None:
 def stabilized_table(cases: list[tuple[int, int, str, str, str, float]]) -> None:
     print("\n## 4. The anchor loading with stabilized controls (ω = 1), rtol 1e-8 (wall s)\n")
     print("| grid | points | δ/h | control | solver | operator | assembly | setup | solve | "
-          "iterations | true rel. residual | total | total / 22.7 s |")  # fmt: skip
+          "iterations | true rel. residual | total (CPU s) | total / 22.7 s |")  # fmt: skip
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for n, m, control, solver, op, limit in cases:
         r = _run_limited(_anchor_solve, (n, m, solver, op, control), limit)
@@ -246,9 +262,12 @@ def stabilized_table(cases: list[tuple[int, int, str, str, str, float]]) -> None
             msg = f"> {limit:.0f} s (stopped)" if "timeout" in r else r["error"]
             print(head + f" | | | | | {msg} | |", flush=True)
             continue
+        if r.get("backend"):
+            head = f"| {n}x{n} | {n * n:,} | {m} | {control} | {solver} ({r['backend']}) | {op} |"
         print(
             head + f" {r['asm']:.2f} | {r['setup']:.2f} | {r['solve']:.2f} | {r['iters']} | "
-            f"{r['true_res']:.1e} | {r['total']:.2f} | {r['total'] / JULIA_TOTAL:.3f} |",
+            f"{r['true_res']:.1e} | {r['total']:.2f} ({r['total_cpu']:.2f}) | "
+            f"{r['total'] / JULIA_TOTAL:.3f} |",
             flush=True,
         )
 
@@ -260,11 +279,8 @@ def main() -> None:
     ap.add_argument("--anchor", action="store_true", help="table 3 only")
     args = ap.parse_args()
     t_all = time.perf_counter()
-    print(f"# bench_correspondence.py {'--quick ' if args.quick else ''}"
-          f"({datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, python "
-          f"{platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "
-          f"{os.cpu_count()} cores, "
-          f"OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']})")  # fmt: skip
+    print(f"# bench_correspondence.py {'--quick ' if args.quick else ''}")
+    header()
     if args.quick:
         asm = [((60, 60), m) for m in (1, 2, 3)] + [((10, 10, 10), m) for m in (1, 2)]
         sol = [((24, 24), m) for m in (1, 2, 3)] + [((10, 10, 10), 1)]

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +29,7 @@ import pdlin
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_nonlinear as bn  # noqa: E402
+from _context import header, timed  # noqa: E402
 
 
 def high_frequency(u: np.ndarray, points: np.ndarray, n: int, h: float) -> np.ndarray:
@@ -59,31 +59,31 @@ def main() -> None:
     base, h = bn.problem(args.n, args.load)
     material = base.model.material
     comp = (0, 1) if args.load == "shear" else (1, 1)
+    header()
     print(
         f"# {args.n}² = {args.n**2} particles, {args.load}, {args.method}, {args.steps} steps, "
         f"{args.threads} pdlin thread(s)"
     )
     print(
-        "| control | s | iterations | max it/step | cut-backs | fallbacks "
+        "| control | wall s / CPU s | iterations | max it/step | cut-backs | fallbacks "
         "| hf step 1 median/99%/max | hf last step median/99%/max | σ step 1 / last (MPa) |"
     )
     print("|---|---|---|---|---|---|---|---|---|")
     for control in args.controls:
         model = bn.correspondence(material, control)  # "penalty:0.1": coefficient 0.1
         prob = pdlin.StaticProblem(model, base.cloud, base.bonds, dirichlet=list(base.dirichlet))
-        t0 = time.perf_counter()
         try:
-            res = pdlin.solve_nonlinear(
-                prob,
-                times=np.arange(1.0, args.steps + 1.0),
-                t_end=30.0,
-                method=args.method,
-                keep_states=False,
-            )
+            with timed() as t:
+                res = pdlin.solve_nonlinear(
+                    prob,
+                    times=np.arange(1.0, args.steps + 1.0),
+                    t_end=30.0,
+                    method=args.method,
+                    keep_states=False,
+                )
         except pdlin.errors.ConvergenceError as exc:
             print(f"| {control} | failed: {str(exc)[:120]} | | | | | | | |", flush=True)
             continue
-        wall = time.perf_counter() - t0
         hf = [high_frequency(res.u[k], prob.cloud.points, args.n, h) for k in (0, -1)]
         q = [
             "/".join(f"{v:.1e}" for v in (np.median(a), np.quantile(a, 0.99), a.max())) for a in hf
@@ -92,7 +92,7 @@ def main() -> None:
         assert hom is not None
         fallbacks = sum("failed" in m for m in res.methods)
         print(
-            f"| {control} | {wall:.1f} | {int(res.iterations.sum())} | "
+            f"| {control} | {t.wall:.1f} / {t.cpu:.1f} | {int(res.iterations.sum())} | "
             f"{int(res.iterations.max())} | {int(res.cutbacks.sum())} | {fallbacks} | {q[0]} | "
             f"{q[1]} | {hom[0][comp]:.3f} / {hom[-1][comp]:.3f} |",
             flush=True,

@@ -16,6 +16,10 @@ bound ``flops / dense rate``: the time the factorization would take at this mach
 measured dense ``dgemm`` rate (numpy matmul of 3000 x 3000, same thread count), a lower
 bound for any method doing these flops.
 
+Factorization and total are wall seconds with CPU seconds beside them (CPU / wall > 1: the
+backend's threads worked); rows of 2 threads are marked unreliable when the load average at
+the start exceeded the cores they left free.  The header: load, cores, BLAS, backends.
+
 Usage: ``python benchmarks/bench_direct.py`` (all rows, ~10 min), ``--quick`` (201 x 201),
 ``--backends cholmod,pardiso``.
 """
@@ -23,14 +27,15 @@ Usage: ``python benchmarks/bench_direct.py`` (all rows, ~10 min), ``--quick`` (2
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import os
-import platform
 import subprocess
 import sys
 import time
 from typing import Any
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _context import header, speedup_flag, timed  # noqa: E402
 
 JULIA_TOTAL = 3.1 + 19.6  # s, published Julia implementation, 160,801 points, δ = 2h
 
@@ -57,6 +62,7 @@ def one(n: int, m: int, control: str, backend: str) -> dict[str, Any]:
     from pdlin.system import constrained_system
 
     t0 = time.perf_counter()
+    c0 = time.process_time()
     cloud = pdlin.grid((n, n), spacing=1.0 / n)
     t = time.perf_counter()
     if control == "none":
@@ -73,13 +79,14 @@ def one(n: int, m: int, control: str, backend: str) -> dict[str, Any]:
     A, b = system.eliminate(K, inplace=True)
     ta = time.perf_counter() - t
     del K
-    t = time.perf_counter()
-    s = DirectSolver(A, symmetric=True, backend=backend)
-    tf = time.perf_counter() - t
+    with timed() as tfac:
+        s = DirectSolver(A, symmetric=True, backend=backend)
+    tf = tfac.wall
     t = time.perf_counter()
     x = s.solve(b)
     ts = time.perf_counter() - t
     total = time.perf_counter() - t0
+    total_cpu = time.process_time() - c0
     res = float(np.linalg.norm(b - A @ x) / np.linalg.norm(b))
     try:
         flops = s.flops()
@@ -89,6 +96,8 @@ def one(n: int, m: int, control: str, backend: str) -> dict[str, Any]:
         "bonds": tb,
         "asm": ta,
         "fact": tf,
+        "fact_cpu": tfac.cpu,
+        "total_cpu": total_cpu,
         "solve": ts,
         "total": total,
         "res": res,
@@ -138,18 +147,14 @@ def main() -> None:
 
     avail = available_direct_backends()
     n = 201 if args.quick else 401
+    print(f"# bench_direct.py {'--quick ' if args.quick else ''}")
+    ctx = header()
     print(
-        f"# bench_direct.py {'--quick ' if args.quick else ''}"
-        f"({datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, python "
-        f"{platform.python_version()}, {os.cpu_count()} cores; installed: "
-        f"{', '.join(k for k, v in avail.items() if v)})\n"
+        "\n| grid | control | δ/h | backend (ordering) | threads | bonds | assembly | "
+        "ordering + factorization (CPU s) | solve | total (CPU s) | total / 22.7 s | "
+        "rel. residual | nnz(A) | nnz(factor) | flops | flop bound (s) | threads reliable? |"
     )
-    print(
-        "| grid | control | δ/h | backend (ordering) | threads | bonds | assembly | "
-        "ordering + factorization | solve | total | total / 22.7 s | rel. residual | "
-        "nnz(A) | nnz(factor) | flops | flop bound (s) |"
-    )
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     cases = [(n, int(c.split(":")[1]), c.split(":")[0]) for c in args.cases.split(",")]
     for nn, m, control in cases:
         for backend in args.backends.split(","):
@@ -169,11 +174,13 @@ def main() -> None:
                 bound = "" if fl is None else f"{fl / r['rate']:.1f}"
                 print(
                     f"| {nn}² | {control} | {m} | {r['backend']} ({r['ordering']}) | {th} | "
-                    f"{r['bonds']:.2f} | {r['asm']:.2f} | {r['fact']:.2f} | {r['solve']:.2f} | "
-                    f"{r['total']:.2f} | {r['total'] / JULIA_TOTAL:.2f} | {r['res']:.1e} | "
+                    f"{r['bonds']:.2f} | {r['asm']:.2f} | {r['fact']:.2f} ({r['fact_cpu']:.2f}) | "
+                    f"{r['solve']:.2f} | {r['total']:.2f} ({r['total_cpu']:.2f}) | "
+                    f"{r['total'] / JULIA_TOTAL:.2f} | {r['res']:.1e} | "
                     f"{r['nnzA']:,} | {r['fill']:,} | "
                     f"{'' if fl is None else f'{fl:.2e}'} | {bound} "
-                    f"({r['rate'] / 1e9:.0f} GFLOP/s) |",
+                    f"({r['rate'] / 1e9:.0f} GFLOP/s) | "
+                    f"{(speedup_flag(th, ctx.load1, ctx.cores) or 'yes') if th > 1 else '—'} |",
                     flush=True,
                 )
 

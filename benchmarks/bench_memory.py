@@ -15,6 +15,20 @@ Cases (each under ~8 GB):
 * ``cp_shear``: the built-in crystal-plasticity example (625 points, 30 Newton steps).
 
 Usage: ``python benchmarks/bench_memory.py [--cases bb2d,cor2d]``.
+
+``--stages`` prints instead the peak RSS per stage of ``pdlin.solve(problem)`` (defaults:
+assembled K, AMG-CG) on a 3D bond-based cube (δ = 3.015 h, x- clamped, x+ pulled with a
+``TotalForce``) at 40³ and 60³ (80³ and 100³ with ``--big``, ~13 and ~20 GB), each size in a
+fresh interpreter.  A stage's peak is the kernel's ``VmHWM`` since the previous stage
+boundary (reset by writing ``5`` to ``/proc/self/clear_refs``); the boundaries are the
+progress messages of :func:`pdlin.solve` and the entry of ``ConstrainedSystem.eliminate``.
+Stages: ``grid`` (``pdlin.grid``), ``plan`` (the ``StaticProblem`` and the printed estimate),
+``bonds`` (bond search, Dirichlet and load resolution), ``assembly`` (K and its prescribed
+rows), ``elimination``, ``checks`` (``solve_linear``'s input checks: K finite and in range),
+``AMG setup``, ``solve`` (CG, expansion, reactions), ``fields`` (``result.fields()``).
+Each cell is GB (bytes per directed bond).
+``--save-u DIR`` / ``--check-u DIR`` store / compare (bit for bit) the displacement of each
+size, to show that a memory change keeps the results identical.
 """
 
 from __future__ import annotations
@@ -100,10 +114,138 @@ def run_case(name: str, workdir: Path) -> dict[str, object]:
     }  # fmt: skip
 
 
+#: cube edges (points per side) of the ``--stages`` table; ``--big`` adds the large ones
+STAGE_SIZES = (40, 60)
+STAGE_SIZES_BIG = (80, 100)
+
+
+def _status_kib(key: str) -> int:
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith(key + ":"):
+                return int(line.split()[1])
+    return 0
+
+
+class _StagePeaks:
+    """Peak RSS per stage: ``VmHWM`` read and reset at each stage boundary."""
+
+    def __init__(self) -> None:
+        self.stage = "start"
+        self.peaks: dict[str, int] = {}
+        self.seconds: dict[str, float] = {}
+        self.t = time.perf_counter()
+        self._reset()
+
+    @staticmethod
+    def _reset() -> None:
+        with open("/proc/self/clear_refs", "w") as fh:
+            fh.write("5")
+
+    def mark(self, stage: str) -> None:
+        peak = _status_kib("VmHWM") * 1024
+        self.peaks[self.stage] = max(self.peaks.get(self.stage, 0), peak)
+        now = time.perf_counter()
+        self.seconds[self.stage] = self.seconds.get(self.stage, 0.0) + now - self.t
+        self.t = now
+        self.stage = stage
+        self._reset()
+
+    def progress(self, msg: str) -> None:
+        for prefix, stage in (("bonds", "bonds"), ("assembly", "assembly"),
+                              ("solve (", "checks"), ("  AMG set-up", "AMG setup"),
+                              ("  AMG hierarchy", "solve")):  # fmt: skip
+            if msg.startswith(prefix):
+                self.mark(stage)
+        if msg.startswith("memory estimate"):
+            self.estimate_line = msg
+
+
+def _stages_one(m: int, save: str | None, check: str | None) -> None:
+    """One size of the ``--stages`` table, in this interpreter (prints one row)."""
+    import numpy as np
+
+    import pdlin
+    from pdlin.system import ConstrainedSystem
+
+    rec = _StagePeaks()
+    rec.estimate_line = ""
+    original = ConstrainedSystem.eliminate
+
+    def eliminate(self: ConstrainedSystem, *a: object, **k: object) -> object:
+        rec.mark("elimination")
+        return original(self, *a, **k)
+
+    ConstrainedSystem.eliminate = eliminate  # type: ignore[method-assign]
+    rec.mark("grid")
+    h = 1.0 / m
+    cloud = pdlin.grid((m, m, m), spacing=h)
+    prob = pdlin.StaticProblem(
+        pdlin.BondBased(E=1.0e9, nu=0.25), cloud, ratio=3.015,
+        dirichlet=[pdlin.Dirichlet("x-", 0.0)], loads=[pdlin.TotalForce("x+", [1.0e3, 0.0, 0.0])],
+    )  # fmt: skip
+    rec.mark("plan")
+    res = pdlin.solve(prob, progress=rec.progress)
+    rec.mark("fields")
+    res.fields()
+    rec.mark("end")
+    ConstrainedSystem.eliminate = original  # type: ignore[method-assign]
+    nb = res.bonds.n_bonds
+    est = _parse(rec.estimate_line + " ")[0] if rec.estimate_line else None
+    u = np.ascontiguousarray(res.u)
+    same = "-"
+    if save:
+        np.save(Path(save) / f"u_{m}.npy", u)
+    if check:
+        ref = np.load(Path(check) / f"u_{m}.npy")
+        if ref.shape != u.shape or ref.tobytes() != u.tobytes():
+            raise SystemExit(f"{m}^3: u differs from {check}/u_{m}.npy (max |du| "
+                             f"{float(np.max(np.abs(ref - u))):.3e})")  # fmt: skip
+        same = "bitwise equal"
+    order = ("grid", "plan", "bonds", "assembly", "elimination", "checks", "AMG setup",
+             "solve", "fields")  # fmt: skip
+    cells = " | ".join(
+        f"{rec.peaks.get(s, 0) / 1e9:.2f} ({rec.peaks.get(s, 0) / nb:.0f})" for s in order
+    )
+    peak = max(rec.peaks.values())
+    print(f"| {m}³ = {m**3:,} | {nb:,} | {cells} | {peak / 1e9:.2f} ({peak / nb:.0f}) | "
+          f"{(est or 0) / 1e9:.2f} | {(est or 0) / peak:.2f} | {res.n_iter} | "
+          f"{sum(rec.seconds.values()):.1f} | {same} |")  # fmt: skip
+
+
+def stages(sizes: tuple[int, ...], save: str | None, check: str | None) -> None:
+    """Print the per-stage peak RSS table (each size in a fresh interpreter)."""
+    print("peak RSS per stage, GB (bytes per directed bond); estimate = pdlin's printed "
+          "'memory estimate' (GB)")  # fmt: skip
+    print(
+        "| points | directed bonds | grid | plan | bonds | assembly | elimination | checks | "
+        "AMG setup | solve | fields | peak | estimate | estimate / peak | CG its | wall (s) |"
+    )
+    print("|---" * 16 + "|")
+    for m in sizes:
+        argv = [sys.executable, __file__, "--stage-one", str(m), save or "", check or ""]
+        r = subprocess.run(argv, capture_output=True, text=True)
+        print(r.stdout.strip() or f"| {m}³ | failed: {r.stderr.strip()[-300:]} |", flush=True)
+
+
 def main() -> None:
+    from _context import header  # benchmarks/_context.py: load, cores, BLAS, direct backends
+
+    header()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", default=",".join(CASES), help="comma-separated case names")
+    ap.add_argument("--stages", action="store_true",
+                    help="per-stage peak RSS of a 3D bond-based cube (40³, 60³)")  # fmt: skip
+    ap.add_argument("--big", action="store_true", help="with --stages: also 80³ and 100³")
+    ap.add_argument("--save-u", default=None, help="with --stages: store u of each size here")
+    ap.add_argument("--check-u", default=None,
+                    help="with --stages: compare u bit for bit with the stored one")  # fmt: skip
     args = ap.parse_args()
+    if args.stages:
+        print(f"load average {os.getloadavg()}, {os.cpu_count()} cores, "
+              f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")  # fmt: skip
+        stages(STAGE_SIZES + (STAGE_SIZES_BIG if args.big else ()), args.save_u, args.check_u)
+        return
     print(f"load average {os.getloadavg()}, {os.cpu_count()} cores, "
           f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")  # fmt: skip
     print("| case | points | bonds | estimate (GB) | peak RSS (GB) | estimate / peak | "
@@ -136,5 +278,7 @@ def _one(name: str, tmp: str) -> None:
 if __name__ == "__main__":
     if len(sys.argv) == 4 and sys.argv[1] == "--one":
         _one(sys.argv[2], sys.argv[3])
+    elif len(sys.argv) == 5 and sys.argv[1] == "--stage-one":
+        _stages_one(int(sys.argv[2]), sys.argv[3] or None, sys.argv[4] or None)
     else:
         main()

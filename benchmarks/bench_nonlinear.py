@@ -41,8 +41,10 @@ seconds on a shared machine, one BLAS thread; nothing is asserted):
    window): time, iterations, Newton polish iterations, steps polished, cut-backs and the
    largest homogenized-stress difference between the two.
 
-Every run is a forked child process (its peak RSS is the run's). ``--quick`` (the default
-when no size is given) runs 15 x 15 and 25 x 25 only, about 2 minutes.
+Every run is a forked child process (its peak RSS is the run's); B1 gives its CPU seconds
+beside the wall seconds, and the header the load average, usable cores and BLAS threads.
+``--quick`` (the default when no size is given) runs 15 x 15 and 25 x 25 only, about 2
+minutes.
 """
 
 from __future__ import annotations
@@ -54,21 +56,22 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import cProfile  # noqa: E402
-import datetime  # noqa: E402
 import multiprocessing as mp  # noqa: E402
-import platform  # noqa: E402
 import pstats  # noqa: E402
 import resource  # noqa: E402
 import shutil  # noqa: E402
+import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
-import scipy  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
 import scipy.sparse.linalg as spla  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _context import header  # noqa: E402
 
 import pdlin  # noqa: E402
 
@@ -131,6 +134,7 @@ def run(
     ckpt = tmp / "run.npz"
     stamps: list[float] = []
     t0 = time.perf_counter()
+    c0 = time.process_time()
 
     def progress(msg: str) -> None:
         if msg.startswith("step "):
@@ -161,6 +165,7 @@ def run(
         if prof is not None:
             prof.disable()
     wall = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     if not ckpt.exists():
         raise pdlin.errors.ConvergenceError(out.get("failed", "no step converged"))
     data = np.load(ckpt, allow_pickle=False)
@@ -175,6 +180,7 @@ def run(
         done=done,
         steps=steps,
         wall=wall,
+        cpu=cpu,
         step_times=st,
         iterations=np.asarray(data["iterations"]),
         calls=np.asarray(data["calls"]),
@@ -280,7 +286,8 @@ def table_b1(
 ) -> list[dict[str, Any]]:
     print(f"\n## B1: cost per size, load and method ({steps} load steps; * = extrapolated)\n")
     head = (
-        "| particles | load | method | steps done | t 1-7 s | t 8-30 s | total s | it 1-7 | "
+        "| particles | load | method | steps done | t 1-7 s | t 8-30 s | total s | wall / CPU s "
+        "run | it 1-7 | "
         "it 8-30 | it max | calls | cut-backs | fallbacks | peak RSS MB | plastic |"
     )
     _print_head(head)
@@ -298,7 +305,8 @@ def table_b1(
                 fb = sum("failed" in s for s in r["methods"])
                 print(
                     f"| {n * n:,} | {load} | {m} | {done} | {_fmt_t(a, ae)} | "
-                    f"{_fmt_t(b, be)} | {_fmt_t(tot, ae or be)} | {int(it[:SPLIT].sum())} | "
+                    f"{_fmt_t(b, be)} | {_fmt_t(tot, ae or be)} | "
+                    f"{r['wall']:.2f} / {r['cpu']:.2f} | {int(it[:SPLIT].sum())} | "
                     f"{int(it[SPLIT:].sum())} | {int(it.max())} | {int(r['calls'].sum()):,} | "
                     f"{int(r['cutbacks'].sum())} | {fb} | {r['peak_mb']:.0f} | "
                     f"{r['plastic']:.2f} |",
@@ -821,12 +829,8 @@ def main(argv: list[str] | None = None) -> int:
         args.aim_size = max(args.sizes)
         args.budget = min(args.budget, 8.0)
         args.profile_budget = min(args.profile_budget, 8.0)
-    print(
-        f"# bench_nonlinear {datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC, python "
-        f"{platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "
-        f"{os.cpu_count()} cores, BLAS threads {os.environ.get('OPENBLAS_NUM_THREADS')}, "
-        f"pdlin threads {pdlin.get_num_threads()}, load average {os.getloadavg()[0]:.1f}"
-    )
+    print("# bench_nonlinear")
+    header()
     t_all = time.perf_counter()
     rows: list[dict[str, Any]] = []
     if "b1" in args.sections:

@@ -11,6 +11,9 @@ its peak resident memory (``resource.getrusage``), and the table shows the slowe
 times and the largest rank's memory.  Cases: ``lps3d:N`` (LPS, N^3 grid, delta = 2.015 h,
 CG + GAMG), ``bb2d:N`` (bond-based, N^2 grid, delta = 3.015 h, CG + GAMG), ``cor2d:N``
 (correspondence with spring control, N^2, delta = 3.015 h).
+
+The header gives the load average and usable cores; the last column marks a speed-up of P
+ranks unreliable when the load average at the start exceeded the cores the P ranks left free.
 """
 
 from __future__ import annotations
@@ -26,6 +29,9 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _context import header as context_header  # noqa: E402
+from _context import speedup_flag  # noqa: E402
 
 
 def _problem(case: str):
@@ -95,6 +101,7 @@ def main() -> None:
     if args.worker:
         worker(args.worker, Path(args.out), args.solver)
         return
+    ctx = context_header()
     mpiexec = shutil.which("mpiexec")
     if mpiexec is None:
         raise SystemExit("mpiexec not found: install PETSc with scripts/install_petsc.sh")
@@ -110,7 +117,7 @@ def main() -> None:
     header = (
         "| case | points | bonds | ranks | KSP | its | bonds s | assembly s | setup s | "
         "solve s | total s | speed-up | CPU s max / sum | local points (owned + halo) | "
-        "peak RSS / rank MB |"
+        "peak RSS / rank MB | speed-up reliable? |"
     )
     print(header)
     print("|" + "---|" * (header.count("|") - 1))
@@ -139,7 +146,7 @@ def main() -> None:
                 f"{r0['iterations']} | {t['bonds']:.2f} | {t['assembly']:.2f} | {t['setup']:.2f} | "
                 f"{t['solve']:.2f} | {t['total']:.2f} | {base / t['total']:.2f} | "
                 f"{max(r['cpu'] for r in recs):.1f} / {sum(r['cpu'] for r in recs):.1f} | "
-                f"{halo} | {rss} |",
+                f"{halo} | {rss} | {speedup_flag(p, ctx.load1, ctx.cores) or 'yes'} |",
                 flush=True,
             )
 

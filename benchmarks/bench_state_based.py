@@ -20,8 +20,11 @@ through both the assembled path (``pdlin.solve``, AMG-CG) and the matrix-free pa
 target is N = 30 assembled and solved in ≤ 15 s with ≤ 4.5 GB peak.
 
 Run ``python benchmarks/bench_state_based.py --quick`` (about a minute) or without
-arguments (several minutes); times are wall-clock seconds on a shared machine, CPU time
-in brackets where it differs.
+arguments (several minutes); times are wall-clock seconds on a shared machine with the CPU
+seconds beside them (``wall / cpu``), solver iterations in brackets, and the ``direct``
+columns name the backend that ran (``direct_backend='auto'``: SuperLU unless CHOLMOD or
+PARDISO is installed and the system is large).  The header gives the load average, usable
+cores, BLAS threads and installed direct backends.
 """
 
 from __future__ import annotations
@@ -33,13 +36,16 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 import multiprocessing as mp  # noqa: E402
-import platform  # noqa: E402
 import resource  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 import scipy.sparse.linalg as spla  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _context import header  # noqa: E402
 
 import pdlin  # noqa: E402
 from pdlin.operators.bc import eliminate_dirichlet, resolve_dirichlet  # noqa: E402
@@ -137,7 +143,7 @@ def _row(shape: tuple[int, ...], solvers: tuple[str, ...], mf: bool) -> dict[str
                 continue
             t = _clock()
             res = pdlin.solve(prob, solver=s, rtol=1e-8)
-            out[f"{s}_{lin}"] = (*_since(t), res.n_iter)
+            out[f"{s}_{lin}"] = (*_since(t), res.n_iter, res.info.get("direct_backend"))
         if mf and lin == "energy":
             t = _clock()
             _, info = matrix_free_solve(model, cloud, bonds, prob.dirichlet)
@@ -252,11 +258,15 @@ def _in_child(fn: Any, *args: Any) -> Any:
 
 
 def _fmt(t: Any) -> str:
+    """``wall / cpu`` seconds, then ``(iterations)`` and the direct backend when given."""
     if t is None:
         return "-"
-    if len(t) == 3:
-        return f"{t[0]:.2f} ({t[2]})"
-    return f"{t[0]:.2f}"
+    text = f"{t[0]:.2f} / {t[1]:.2f}"
+    if len(t) > 2 and t[2]:
+        text += f" ({t[2]})"
+    if len(t) > 3 and t[3]:
+        text += f" {t[3]}"
+    return text
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -277,10 +287,7 @@ def main(argv: list[str] | None = None) -> None:
         help="the seed's 3D block with a hole: 4 x 32 x 60 O-grid x LAYERS (23: 176,640 cells)",
     )
     args = p.parse_args(argv)
-    print(
-        f"# pdlin {pdlin.__version__}, Python {platform.python_version()}, "
-        f"{os.cpu_count()} cores, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}"
-    )
+    header()
     if args.anchor:
         if not args.no_assembled:
             print("assembled:", _in_child(_anchor, args.anchor, True))
@@ -293,7 +300,8 @@ def main(argv: list[str] | None = None) -> None:
     if args.large:
         print(
             "| shape | points | bonds | paper K_p? | bonds s | λ weights s | operator + "
-            "AMG(surrogate) setup s | solve s | iterations | rel. residual | total s | peak GB |"
+            "AMG(surrogate) setup s | solve s | iterations | rel. residual | total s (wall / "
+            "cpu) | peak GB |"
         )
         print("|---|---|---|---|---|---|---|---|---|---|---|---|")
         for shape, paper in [
@@ -309,7 +317,7 @@ def main(argv: list[str] | None = None) -> None:
                 f"| {'x'.join(map(str, shape))} | {r['n']:,} | {r['nb']:,} | {paper} | "
                 f"{r['bonds'][0]:.2f} | {r['weights'][0]:.2f} | "
                 f"{tm.get('assembly', 0) + tm.get('setup', 0):.2f} | {tm.get('solve', 0):.2f} | "
-                f"{r['iters']} | {r['res']:.1e} | {r['total'][0]:.2f} | {r['peak']:.2f} |",
+                f"{r['iters']} | {r['res']:.1e} | {_fmt(r['total'])} | {r['peak']:.2f} |",
                 flush=True,
             )
         return
@@ -328,7 +336,8 @@ def main(argv: list[str] | None = None) -> None:
             ((20, 20, 20), ("amg-cg", "amg-gmres")),
         ]
     hdr = (
-        "| shape | points | bonds | fallback | weights s (Mb/s) | asm K_E s | asm K_p s | "
+        "| shape | points | bonds | fallback | weights s (Mb/s) | asm K_E s (wall / cpu) | "
+        "asm K_p s (wall / cpu) | "
         "nnz/row (centre) | direct K_E | direct K_p | AMG-CG K_E | AMG-GMRES K_p | "
         "mf-CG K_E | peak GB |"
     )
@@ -339,8 +348,8 @@ def main(argv: list[str] | None = None) -> None:
         wt = r["weights"][0]
         print(
             f"| {'x'.join(map(str, shape))} | {r['n']:,} | {r['nb']:,} | {r['fallback']} | "
-            f"{wt:.2f} ({r['nb'] / wt / 1e6:.1f}) | {r['asm_energy'][0]:.2f} | "
-            f"{r['asm_paper'][0]:.2f} | {r['nnz_row']:.0f} ({r['nnz_row_centre']}) | "
+            f"{wt:.2f} ({r['nb'] / wt / 1e6:.1f}) | {_fmt(r['asm_energy'])} | "
+            f"{_fmt(r['asm_paper'])} | {r['nnz_row']:.0f} ({r['nnz_row_centre']}) | "
             f"{_fmt(r.get('direct_energy'))} | {_fmt(r.get('direct_paper'))} | "
             f"{_fmt(r.get('amg-cg_energy'))} | {_fmt(r.get('amg-gmres_paper'))} | "
             f"{_fmt(r.get('mf'))} | {r['peak']:.2f} |",

@@ -18,15 +18,18 @@ parts of each call (zero-block dropping, transposes, coefficients) are included,
 ratios are those of the whole call.  numba's compile (or cache load) happens in a warm-up
 before the timings and is printed.
 
+Times are wall seconds with the CPU seconds of the same run beside them (CPU / wall near 2
+means both threads worked).  The last column marks a speed-up unreliable when the load
+average at the start exceeded the cores the 2-thread run left free (``_context.speedup_flag``).
+
 Usage: ``python benchmarks/bench_threads.py`` (~4 min), ``--quick`` (small sizes).
 """
 
 from __future__ import annotations
 
 import argparse
-import datetime
 import os
-import platform
+import sys
 import time
 from collections.abc import Callable
 from typing import Any
@@ -39,6 +42,9 @@ import scipy.sparse as sp  # noqa: E402
 
 import pdlin  # noqa: E402
 from pdlin import _kernels  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _context import header, speedup_flag, timed  # noqa: E402
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -63,17 +69,20 @@ def _set_numba(on: bool) -> None:
     _kernels._loaded = None if on else False
 
 
-def measure(fn: Callable[[], Any], repeat: int) -> tuple[float, float, bool, Any]:
+def measure(fn: Callable[[], Any], repeat: int) -> tuple[float, float, bool, Any, dict[int, float]]:
+    """Best wall time of 1 and 2 threads, bitwise equality, the result, CPU s of the bests."""
     best = {1: float("inf"), 2: float("inf")}
+    cpu = {1: 0.0, 2: 0.0}
     out: dict[int, Any] = {}
     for _ in range(repeat):
         for nt in (1, 2):
             pdlin.set_num_threads(nt)
-            t = time.perf_counter()
-            out[nt] = fn()
-            best[nt] = min(best[nt], time.perf_counter() - t)
+            with timed() as t:
+                out[nt] = fn()
+            if t.wall < best[nt]:
+                best[nt], cpu[nt] = t.wall, t.cpu
     pdlin.set_num_threads(None)
-    return best[1], best[2], _same(out[1], out[2]), out[1]
+    return best[1], best[2], _same(out[1], out[2]), out[1], cpu
 
 
 def measure_scipy(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
@@ -118,19 +127,15 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
     q = args.quick
-    load = os.getloadavg()[0]
+    print(f"# bench_threads.py {'--quick ' if q else ''}(best of {args.repeat} alternating runs)")
+    ctx = header()
+    print(f"\n{warm_up()}\n")
     print(
-        f"# bench_threads.py {'--quick ' if q else ''}"
-        f"({datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, python "
-        f"{platform.python_version()}, numpy {np.__version__}, {os.cpu_count()} cores, "
-        f"load {load:.2f}, best of {args.repeat} alternating runs)\n"
+        "| kernel | size | scipy path, 1 thread (s) | 1 thread (s, CPU s) | 2 threads (s, CPU s) "
+        "| speed-up 2 vs 1 | vs scipy path | bitwise equal 1/2 threads | rel. diff. to scipy "
+        "path | speed-up reliable? |"
     )
-    print(f"{warm_up()}\n")
-    print(
-        "| kernel | size | scipy path, 1 thread (s) | 1 thread (s) | 2 threads (s) | speed-up "
-        "2 vs 1 | vs scipy path | bitwise equal 1/2 threads | rel. diff. to scipy path |"
-    )
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     rows: list[tuple[str, str, Callable[[], Any], bool]] = []
 
     n3 = 20 if q else 40
@@ -183,15 +188,17 @@ def main() -> None:
     mf_name = "correspondence K x, matrix-free (δ = 2h; scipy mat-vecs)"
     rows.append((mf_name, size2, lambda: op_c @ x2, False))
     for name, size, fn, uses_numba in rows:
-        t1, t2, same, out = measure(fn, args.repeat)
+        t1, t2, same, out, cpu = measure(fn, args.repeat)
+        times = f"{t1:.3f} ({cpu[1]:.3f}) | {t2:.3f} ({cpu[2]:.3f}) | {t1 / t2:.2f}"
         if uses_numba and _kernels.numba_enabled():
             ts, ref = measure_scipy(fn, args.repeat)
-            scipy_cols = f"{ts:.3f} | {t1:.3f} | {t2:.3f} | {t1 / t2:.2f} | {ts / t2:.2f}"
+            scipy_cols = f"{ts:.3f} | {times} | {ts / t2:.2f}"
             diff = f"{_rel_diff(ref, out):.1e}"
         else:
-            scipy_cols = f"— | {t1:.3f} | {t2:.3f} | {t1 / t2:.2f} | {t1 / t2:.2f}"
+            scipy_cols = f"— | {times} | {t1 / t2:.2f}"
             diff = "—"
-        print(f"| {name} | {size} | {scipy_cols} | {same} | {diff} |", flush=True)
+        flag = speedup_flag(2, ctx.load1, ctx.cores) or "yes"
+        print(f"| {name} | {size} | {scipy_cols} | {same} | {diff} | {flag} |", flush=True)
     print(f"\nload average after the run: {os.getloadavg()[0]:.2f}")
 
 

@@ -21,26 +21,26 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import datetime
-import platform
+import os
 import sys
-import time
 
 import numpy as np
-import scipy
 
 import pdlin
 from pdlin.operators.sparsity import coupling_pattern
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _context import Timing, header, timed  # noqa: E402
+
 MB = 1024.0**2
 
 
-def _report(dim: int, n: int, m: float, **kw: object) -> tuple[pdlin.SparsityReport, float]:
-    t0 = time.perf_counter()
-    cloud = pdlin.grid((n,) * dim)
-    bonds = pdlin.find_bonds(cloud, float(m))
-    r = pdlin.sparsity_report(model=pdlin.BondBased(E=1.0), cloud=cloud, bonds=bonds, **kw)
-    return r, time.perf_counter() - t0
+def _report(dim: int, n: int, m: float, **kw: object) -> tuple[pdlin.SparsityReport, Timing]:
+    with timed() as t:
+        cloud = pdlin.grid((n,) * dim)
+        bonds = pdlin.find_bonds(cloud, float(m))
+        r = pdlin.sparsity_report(model=pdlin.BondBased(E=1.0), cloud=cloud, bonds=bonds, **kw)
+    return r, t
 
 
 def pattern_table(dims: list[int], grids: dict[int, int], ms: list[int]) -> None:
@@ -48,7 +48,8 @@ def pattern_table(dims: list[int], grids: dict[int, int], ms: list[int]) -> None
     head = (
         f"{'dim':>3} {'m':>2} {'grid':>8} {'DOFs':>8} {'family':>6} {'nnz':>12} "
         f"{'nnz/row':>8} {'max':>5} {'CSR MB':>8} {'BSR MB':>8} {'CSR B/bond':>10} "
-        f"{'BSR B/bond':>10} {'bw nat':>7} {'bw RCM':>7} {'reach/delta':>11} {'s':>6}"
+        f"{'BSR B/bond':>10} {'bw nat':>7} {'bw RCM':>7} {'reach/delta':>11} {'s':>6} "
+        f"{'CPU s':>6}"
     )
     print(head)
     print("-" * len(head))
@@ -62,7 +63,7 @@ def pattern_table(dims: list[int], grids: dict[int, int], ms: list[int]) -> None
                 f"{r.memory_csr_bytes / MB:>8.1f} {r.memory_bsr_bytes / MB:>8.1f} "
                 f"{r.bytes_per_bond_csr:>10.1f} {r.bytes_per_bond_bsr:>10.1f} "
                 f"{r.bandwidth:>7,} {r.bandwidth_rcm:>7,} {r.coupling_range_horizons:>11.3f} "
-                f"{sec:>6.2f}",
+                f"{sec.wall:>6.2f} {sec.cpu:>6.2f}",
                 flush=True,
             )
 
@@ -73,7 +74,7 @@ def fill_table(
     print("\n## 2. Structural fill-in nnz(L)+nnz(U) of SuperLU (free-floating pattern)\n")
     head = (
         f"{'dim':>3} {'m':>2} {'grid':>6} {'DOFs':>6} {'nnz':>10} {'natural':>11} {'COLAMD':>11} "
-        f"{'MMD(A+At)':>11} {'RCM+nat':>11} {'best/nnz':>8} {'n^2/nnz':>9} {'s':>6}"
+        f"{'MMD(A+At)':>11} {'RCM+nat':>11} {'best/nnz':>8} {'n^2/nnz':>9} {'s':>6} {'CPU s':>6}"
     )
     print(head)
     print("-" * len(head))
@@ -91,7 +92,8 @@ def fill_table(
             print(
                 f"{dim:>3} {m:>2} {label:>6} {r.n:>6,} {r.nnz:>10,} "
                 + " ".join(f"{f:>11,}" for f in fills)
-                + f" {best / r.nnz:>8.2f} {r.n * r.n / r.nnz:>9.1f} {sec:>6.2f}",
+                + f" {best / r.nnz:>8.2f} {r.n * r.n / r.nnz:>9.1f}"
+                + f" {sec.wall:>6.2f} {sec.cpu:>6.2f}",
                 flush=True,
             )
 
@@ -142,21 +144,17 @@ def main(argv: list[str] | None = None) -> int:
         fill_grids = {2: 60, 3: 12}
         fill_max_m = {2: 6, 3: 4}
     print("# sparsity of the bond-based stiffness K vs horizon ratio m = delta / h")
-    print(
-        f"date {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, "
-        f"python {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "
-        f"pdlin {pdlin.__version__}, {'quick' if args.quick else 'full'} run"
-    )
+    header(run="quick" if args.quick else "full")
     print(
         "sphere neighbourhood |xi| <= m h (inclusive), cell-centred grid, interleaved DOFs; "
         "family = max bonds per point (interior); 'max' = max nnz per DOF row; "
         "bw = half-bandwidth in DOFs; B/bond = bytes per directed bond"
     )
-    t0 = time.perf_counter()
-    pattern_table(dims, grids, ms)
-    fill_table(dims, fill_grids, ms, fill_max_m)
-    ok = cross_checks()
-    print(f"\ntotal {time.perf_counter() - t0:.1f} s")
+    with timed() as total:
+        pattern_table(dims, grids, ms)
+        fill_table(dims, fill_grids, ms, fill_max_m)
+        ok = cross_checks()
+    print(f"\ntotal {total.wall:.1f} s (CPU {total.cpu:.1f} s)")
     return 0 if ok else 1
 
 

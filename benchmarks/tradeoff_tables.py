@@ -5,22 +5,26 @@
 
 Each sweep prints a Markdown table (Pareto rows marked *), its convergence rates and the
 fastest configuration meeting an error target.  Every point runs in a forked child, so
-``peak MB`` is that child's peak resident-set growth during the solve.
+``peak MB`` is that child's peak resident-set growth during the solve.  ``solver used`` names
+the solver that ran, a direct one with its backend (``direct (superlu)``); each sweep's time
+is given in wall and CPU seconds (the forked children's included) after the context header.
 """
 
 from __future__ import annotations
 
 import argparse
-import platform
-import time
+import os
+import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy
 
 import pdlin
 from pdlin.sweeps import affine_patch, graded_bar, plate_with_hole, tension_bar
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _context import header, timed  # noqa: E402
 
 SWEEPS: list[tuple[str, Any, dict[str, list[Any]], float, str]] = [
     (
@@ -88,7 +92,7 @@ def markdown(res: pdlin.TradeoffResult) -> str:
     front = {id(r) for r in res.pareto()}
     cols = [p for p in res.params if len({str(r[p]) for r in res.table}) > 1]
     head = [*cols, "error", "bonds s", "assembly s", "setup s", "solve s", "total s",
-            "peak MB", "nnz", "it", "status"]  # fmt: skip
+            "peak MB", "nnz", "it", "solver used", "status"]  # fmt: skip
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in res.table:
         mark = "**" if id(r) in front else ""
@@ -96,7 +100,8 @@ def markdown(res: pdlin.TradeoffResult) -> str:
         cells += [f"{mark}{_fmt(r['error'])}{mark}"]
         cells += [_fmt(r[c]) for c in ("t_bonds", "t_assembly", "t_setup", "t_solve")]
         cells += [f"{mark}{_fmt(r['t_total'])}{mark}"]
-        cells += [_fmt(r["peak_mb"]), _fmt(r["nnz"]), _fmt(r["iterations"]), str(r["status"])]
+        cells += [_fmt(r["peak_mb"]), _fmt(r["nnz"]), _fmt(r["iterations"])]
+        cells += [str(r.get("solver_used") or "-"), str(r["status"])]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -123,37 +128,39 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--out", type=Path, help="folder for CSV tables and PNG figures")
     ap.add_argument("--only", help="run one sweep by name")
     args = ap.parse_args(argv)
-    print(
-        f"python {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "
-        f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}"
-    )
-    t_all = time.perf_counter()
-    for name, factory, grid, target, title in SWEEPS:
-        if args.only and name != args.only:
-            continue
-        t0 = time.perf_counter()
+    header()
+    with timed() as t_all:
+        for name, factory, grid, target, title in SWEEPS:
+            if args.only and name != args.only:
+                continue
+            sweep(name, factory, grid, target, title, args.out)
+    print(f"\ntotal {t_all.wall:.1f} s (CPU {t_all.cpu:.1f} s)")
+
+
+def sweep(name: str, factory: Any, grid: dict, target: float, title: str, out_dir: Any) -> None:
+    """Run one sweep and print its table, rates, choice and time."""
+    with timed() as t0:
         out = None
-        if args.out is not None:
-            args.out.mkdir(parents=True, exist_ok=True)
-            out = args.out / f"{name}.csv"
+        if out_dir is not None:
+            out_dir.mkdir(parents=True, exist_ok=True)
+            out = out_dir / f"{name}.csv"
         res = pdlin.tradeoff(factory, grid, output=out, resume=False, timeout=300.0)
-        print(f"\n### {name}: {title}\n")
-        print(f"reference: {res.reference}\n")
-        print(markdown(res))
-        print()
-        print(rates_text(res))
-        best = res.best(target)
-        if best is None:
-            print(f"- no configuration meets error <= {target:g}")
-        else:
-            print(
-                f"- fastest with error <= {target:g}: {best['key']} (error "
-                f"{best['error']:.3g}, {best['t_total']:.3g} s)"
-            )
-        print(f"- sweep time {time.perf_counter() - t0:.1f} s")
-        if args.out is not None:
-            res.plot(args.out / f"{name}.png")
-    print(f"\ntotal {time.perf_counter() - t_all:.1f} s")
+    print(f"\n### {name}: {title}\n")
+    print(f"reference: {res.reference}\n")
+    print(markdown(res))
+    print()
+    print(rates_text(res))
+    best = res.best(target)
+    if best is None:
+        print(f"- no configuration meets error <= {target:g}")
+    else:
+        print(
+            f"- fastest with error <= {target:g}: {best['key']} (error "
+            f"{best['error']:.3g}, {best['t_total']:.3g} s)"
+        )
+    print(f"- sweep time {t0.wall:.1f} s (CPU {t0.cpu:.1f} s, forked points included)")
+    if out_dir is not None:
+        res.plot(out_dir / f"{name}.png")
 
 
 if __name__ == "__main__":

@@ -47,3 +47,33 @@ class ResidualHistory(list[float]):
     def append(self, value: Any) -> None:
         super().append(value)
         self.tick(lambda: f"  {self.label}: iteration {len(self) - 1}, residual {value:.2e}")
+
+
+def linear_progress(progress: Callable[[str], None], prefix: str) -> Callable[[str], None]:
+    """The progress of a linear solve run many times over (Newton iterations, damage
+    steps): its iteration lines (throttled by :func:`pdlin.solvers.solve_linear`)
+    and an AMG set-up that took longer than :data:`PROGRESS_EVERY` seconds, each
+    prefixed with ``prefix``; not the set-up line of every quick solve, nor the stage
+    lines of :func:`pdlin.solve` (those not indented).
+
+    Examples
+    --------
+    >>> lines = []
+    >>> say = linear_progress(lines.append, "Newton iteration 2")
+    >>> say("bonds")
+    >>> say("  AMG set-up on 1,000 unknowns, 9,000 nonzeros")
+    >>> say("  amg-cg: iteration 7, residual 1.00e-03")
+    >>> lines
+    ['Newton iteration 2: amg-cg: iteration 7, residual 1.00e-03']
+    """
+    t0 = time.perf_counter()
+
+    def say(msg: str) -> None:
+        if not msg.startswith("  "):
+            return
+        msg = msg.strip()
+        if msg.startswith("AMG") and time.perf_counter() - t0 < PROGRESS_EVERY:
+            return
+        progress(f"{prefix}: {msg}")
+
+    return say

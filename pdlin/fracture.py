@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from ._progress import linear_progress
 from ._repr import compact_repr, html_table
 from ._validation import integer
 from .errors import InputError, InputTypeError, SlowRunWarning
@@ -158,7 +159,9 @@ def solve_damage(
     solver, rtol
         As in :func:`pdlin.solve`.
     progress : callable, optional
-        Called with a message per step.
+        Called with a message per step, and with the iterations and residual of a
+        linear solve that takes longer than :data:`pdlin._progress.PROGRESS_EVERY`
+        seconds (:func:`pdlin._progress.linear_progress`).
 
     Returns
     -------
@@ -217,7 +220,12 @@ def solve_damage(
         return crit[order0[np.searchsorted(key0, k, sorter=order0)]]
 
     bonds = intact
-    unit = solve(dataclasses.replace(problem, bonds=bonds), solver=solver, rtol=rtol)
+    unit = solve(
+        dataclasses.replace(problem, bonds=bonds),
+        solver=solver,
+        rtol=rtol,
+        progress=None if progress is None else linear_progress(say, "  unit-load solve"),
+    )
     factors, us, dmg, broken, smax, nsol = [], [], [], [], [], []
     first_break = np.nan
     t_prev_crit = np.nan
@@ -259,7 +267,14 @@ def solve_damage(
                     f"bond breaking did not settle within max_resolves = {max_resolves} "
                     f"solves at load step {k} (t = {t:g})"
                 )
-            unit = solve(dataclasses.replace(problem, bonds=bonds), solver=solver, rtol=rtol)
+            unit = solve(
+                dataclasses.replace(problem, bonds=bonds),
+                solver=solver,
+                rtol=rtol,
+                progress=None
+                if progress is None
+                else linear_progress(say, f"  step {k}, re-solve {solves}"),
+            )
         t_prev_crit = t_crit
         factors.append(t)
         us.append(t * unit.u)

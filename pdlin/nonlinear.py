@@ -763,7 +763,8 @@ def solve_nonlinear(
         Called with one line per step, one per failed increment (why, and the time it
         is cut back to) and, during an increment, one line every ``progress_every``
         seconds (ADR: iteration, e₁, e₂, damping, residual; Newton: iteration, residual,
-        step length).
+        step length); a Newton iteration's linear solve also reports its iterations and
+        residual every :data:`pdlin._progress.PROGRESS_EVERY` seconds.
     progress_every : float
         Seconds between the in-step progress lines (default 60; a 10⁵-particle plastic
         step runs ≈ 30,000 ADR iterations in ≈ 6 min, a failing Newton try there ≈ 1.5

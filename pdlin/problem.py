@@ -684,17 +684,30 @@ def plan_memory(
     if history_steps:
         hist = int(history_steps) * n * (d + d * d + 2) * 8
         plan.stages = {k: v + hist for k, v in plan.stages.items()}
+        plan.history_steps, plan.history_bytes = int(history_steps), hist
     return plan
 
 
 def memory_hints(plan: RunEstimate) -> list[str]:
     """What would fit instead of ``plan``: iterative or matrix-free solves, a coarser grid,
-    PETSc on more ranks (each with its estimated peak)."""
+    PETSc on more ranks (each with its estimated peak), fewer load steps (a kept history)."""
     from .resources import available_memory
 
     avail = max(available_memory().bytes, 1)
     need = max(plan.need, 1)
     hints: list[str] = []
+    hist = plan.history_bytes
+    if hist:
+        per_step = hist / plan.history_steps
+        room = avail - (need - hist)  # what the run needs besides its history
+        fit = int(room // per_step) if room > 0 else 0
+        hints.append(
+            f"fewer load steps: at most ~{fit:,} load steps fit (each keeps "
+            f"{format_bytes(per_step)} of fields; {plan.history_steps:,} need "
+            f"{format_bytes(hist)})"
+            if fit >= 1
+            else f"fewer load steps ({plan.history_steps:,} keep {format_bytes(hist)} of fields)"
+        )
     alt = {
         "direct": ("solver='amg-cg' (assembled K, AMG)", "assembled"),
         "assembled": ("operator='matrix-free'", "matrix-free"),
@@ -704,13 +717,13 @@ def memory_hints(plan: RunEstimate) -> list[str]:
         other = estimate_static_run(
             plan.n_points, plan.n_bonds, plan.nnz_blocks, plan.dim, path=path,
             coupling_range=plan.coupling_range,
-            base=plan.base,
+            base=plan.base + hist,  # the kept history stays whatever the solver
         )  # fmt: skip
         hints.append(f"{text}: ~{format_bytes(other.peak)}")
         if plan.path == "direct" and other.need > avail:
             mf = estimate_static_run(
                 plan.n_points, plan.n_bonds, plan.nnz_blocks, plan.dim, path="matrix-free",
-                base=plan.base,
+                base=plan.base + hist,
             )  # fmt: skip
             hints.append(f"solver='amg-cg' with operator='matrix-free': ~{format_bytes(mf.peak)}")
     frac = min(avail / need, 1.0)

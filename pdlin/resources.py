@@ -90,8 +90,9 @@ LONG_RUN_SECONDS = 600.0
 #: modules imported and kernels compiled after the estimate (pyamg, numba's JIT)
 LATE_IMPORTS = 40 * 2**20
 
-#: the nonlinear drivers' first load step compiles the material kernels (numba / LLVM):
-#: measured on cp_shear, RSS 0.127 -> 0.245 GB over the first step of 625 points
+#: the nonlinear drivers' first load step compiles the material kernels (numba / LLVM) where
+#: the material sends its points to them (crystal plasticity from 8,192 points): measured on
+#: cp_shear with the kernels on, RSS 0.127 -> 0.245 GB over the first step of 625 points
 NONLINEAR_LATE_IMPORTS = 110 * 2**20
 
 #: fill constants of the nested-dissection estimate of nnz(L) (see direct_factor_nnz),
@@ -556,6 +557,9 @@ class RunEstimate:
         Order-of-magnitude run time (:data:`SECONDS_PER_NONZERO`).
     coupling_range : int
         1 for one-hop K, 2 for models coupling points two bonds apart.
+    history_steps, history_bytes : int
+        Load steps whose fields a load-stepping driver keeps, and their bytes (included
+        in every stage; :func:`pdlin.problem.plan_memory`).
     """
 
     n_points: int
@@ -567,6 +571,8 @@ class RunEstimate:
     base: int
     seconds: float = 0.0
     coupling_range: int = 1
+    history_steps: int = 0
+    history_bytes: int = 0
 
     @property
     def peak(self) -> int:
@@ -654,9 +660,9 @@ def estimate_static_run(
     stages["output"] = int(
         B + OUTPUT_BYTES_PER_BOND * n_bonds * dim * dim / 4 + OUTPUT_BYTES_PER_POINT * n_points
     )
-    late = LATE_IMPORTS + (TWO_HOP_KERNELS if coupling_range >= 2 else 0)
-    b = current_rss() + late if base is None else int(base)
     nnz = nnz_blocks * dim * dim
+    late = LATE_IMPORTS + (TWO_HOP_KERNELS if coupling_range >= 2 and _compiles(nnz) else 0)
+    b = current_rss() + late if base is None else int(base)
     if path == "matrix-free":
         secs = SECONDS_PER_NONZERO["matrix-free"] * nnz
     else:
@@ -668,6 +674,13 @@ def estimate_static_run(
     return RunEstimate(
         n_points, n_bonds, nnz_blocks, dim, path, stages, b, float(secs), int(coupling_range)
     )
+
+
+def _compiles(work: int) -> bool:
+    """Whether an operation of ``work`` stored entries runs (and compiles) numba kernels."""
+    from ._kernels import use_numba
+
+    return use_numba(work)
 
 
 #: what fits when a MemoryError escapes without an estimate of its own

@@ -122,6 +122,13 @@ def subregion(
     -------
     SubregionProblem
 
+    Notes
+    -----
+    The sub-problem's loads are the problem's on the box's free DOFs: entries on the
+    layer (driven) and on the problem's own supports inside the box are left out; the
+    latter go into those supports' reactions in the whole body, so the sub-problem's
+    reaction there is the whole body's plus that load.
+
     Raises
     ------
     InputError
@@ -218,7 +225,9 @@ def subregion(
         if pts_c.size:
             dirichlet.append(Dirichlet(pts_c, k_val[pts_c, c], components=[c]))
     loads: list[Any] = []
-    fi = f_ext[keep]
+    # the load on free DOFs of the box: an entry on a prescribed DOF (the problem's own
+    # support inside the box) goes straight into that support's reaction and loads nothing
+    fi = np.where(k_presc, 0.0, f_ext[keep])
     loaded = np.flatnonzero(np.any(fi != 0.0, axis=1) & interior)
     if loaded.size:
         measure = 1.0 if d == 3 else cloud.thickness

@@ -88,6 +88,25 @@ def _petsc() -> Any:
     return PETSc
 
 
+def _check_rank_memory(problem: Any, solver: str, size: int, say: Callable[[str], None]) -> None:
+    """Refuse a run whose share per rank (the scipy estimate of
+    :func:`pdlin.problem.plan_memory` over ``size`` ranks) does not fit this rank's
+    memory, before the bond search and assembly."""
+    import dataclasses
+
+    from ..problem import memory_hints, plan_memory
+    from ..resources import check_memory
+
+    plan = plan_memory(problem, "direct" if solver == "direct" else "amg-cg")
+    share = dataclasses.replace(plan, stages={k: -(-v // size) for k, v in plan.stages.items()})
+    say(f"{share.summary()}, per rank of {size}")
+    check_memory(
+        f"this run on {size} rank(s) (its share per rank)",
+        share.need,
+        lambda: memory_hints(share),
+    )
+
+
 def petsc_available() -> bool:
     """Whether petsc4py imports (PETSc installed).
 
@@ -554,6 +573,7 @@ def solve_petsc(
             "horizon / bond_options instead of precomputed bonds"
         )
     say = progress or (lambda msg: None)
+    _check_rank_memory(problem, solver, size, say)
     model, cloud = problem.model, problem.cloud
     d, n = cloud.dim, cloud.n
     if size > 1:

@@ -47,7 +47,11 @@ def _plan(problem: Any, prog: Any, solver: str, steps: int, nonlinear: bool = Fa
 
     plan = plan_memory(problem, solver, history_steps=steps)
     if nonlinear:  # the material kernels' compile replaces the linear models' one
-        plan.base = current_rss() + LATE_IMPORTS + NONLINEAR_LATE_IMPORTS
+        from .._kernels import numba_enabled
+        from ..constitutive.crystal_plasticity import _NUMBA_MIN_POINTS
+
+        compiles = problem.cloud.n >= _NUMBA_MIN_POINTS and numba_enabled()  # no import below
+        plan.base = current_rss() + LATE_IMPORTS + (NONLINEAR_LATE_IMPORTS if compiles else 0)
     prog(plan.summary())
     check_memory("this run", plan.need, lambda: memory_hints(plan))
 
@@ -85,6 +89,20 @@ def _write_progress(out: Path, prog: Any) -> Iterator[None]:
     finally:
         done.set()
         th.join()
+
+
+def _with_write(summary: dict[str, Any], t_write: float) -> dict[str, Any]:
+    """``summary`` with ``timings['write']`` and a total that covers the write as well."""
+    tim = {k: v for k, v in summary["timings"].items() if k != "total"}
+    tim["write"] = round(t_write, 4)
+    tim["total"] = round(summary["timings"].get("total", 0.0) + t_write, 4)
+    summary["timings"] = tim
+    return summary
+
+
+def _timings_line(summary: dict[str, Any]) -> str:
+    """The ``time (s)`` line of a run's printed summary: every stage, then the total."""
+    return "time (s)     " + ", ".join(f"{k} {v:.3f}" for k, v in summary["timings"].items())
 
 
 def _size(path: Path) -> str:
@@ -169,7 +187,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         prog(f"fastest configuration meeting the target: {chosen}")
     else:
         scene = _load(args)
+    if args.resume and scene.nonlinear is None:
+        raise PdlinError("--resume needs a nonlinear scene with solver.checkpoint")
     _check_run_outputs(args, scene)
+    if scene.checks:
+        from ..io.checks import check_before_run
+
+        check_before_run(scene.checks, scene)
     if scene.nonlinear is not None:
         return _run_nonlinear(args, scene, prog)
     if scene.damage is not None:
@@ -178,8 +202,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
         from .steps import run_load_steps
 
         return run_load_steps(args, scene, prog)
-    if args.resume:
-        raise PdlinError("--resume needs a nonlinear scene with solver.checkpoint")
     solver = args.solver or scene.solver
     extra: dict[str, Any] = (
         {"operator": chosen["operator"]} if chosen and "operator" in chosen else {}
@@ -224,12 +246,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             write_result(out, result, time=scene.time)
     t_write = time.perf_counter() - t_write
     prog(f"wrote {_size(out)} in {t_write:.1f} s")
-    summary = result.summary()
-    # the printed total covers the fields and the write as well
-    tim = {k: v for k, v in summary["timings"].items() if k != "total"}
-    tim["write"] = t_write
-    tim["total"] = summary["timings"].get("total", 0.0) + t_write
-    summary["timings"] = tim
+    summary = _with_write(result.summary(), t_write)
     summary["scene"] = scene.name
     if chosen is not None:
         summary["selected"] = {
@@ -263,8 +280,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             f"relative residual {summary['relative_residual']:.2e}"
         )
         print("max |u|      " + ", ".join(f"{v:.6e}" for v in u))
-        t = summary["timings"]
-        print("time (s)     " + ", ".join(f"{k} {v:.3f}" for k, v in t.items()))
+        print(_timings_line(summary))
         print(f"results      {out}")
         if scene.calibration is not None:
             cal = summary["calibration"]
@@ -323,12 +339,16 @@ def _run_damage(args: argparse.Namespace, scene: Any, prog: Any) -> int:
     result = solve_damage(scene.problem, progress=prog, **opts)
     out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.vtu"))
     prog(f"writing {out}")
-    write_points(
-        out,
-        scene.cloud,
-        {"displacement": result.u[-1], "damage": result.damage[-1]},
-    )
-    summary = result.summary()
+    t_write = time.perf_counter()
+    with _write_progress(out, prog):
+        write_points(
+            out,
+            scene.cloud,
+            {"displacement": result.u[-1], "damage": result.damage[-1]},
+        )
+    t_write = time.perf_counter() - t_write
+    prog(f"wrote {_size(out)} in {t_write:.1f} s")
+    summary = _with_write(result.summary(), t_write)
     summary["scene"] = scene.name
     summary["output"] = str(out)
     checks = _checks(scene, result, summary, prog)
@@ -348,7 +368,7 @@ def _run_damage(args: argparse.Namespace, scene: Any, prog: Any) -> int:
         print(f"first break  at load factor {fb:.6g}" if np.isfinite(fb) else "first break  none")
         if result.stopped:
             print(f"stopped      {result.stopped}")
-        print(f"time (s)     {summary['timings']['total']:.3f}")
+        print(_timings_line(summary))
         print(f"results      {out}")
         _print_checks(checks)
     return _check_status(args, checks)
@@ -396,10 +416,14 @@ def _run_nonlinear(args: argparse.Namespace, scene: Any, prog: Any) -> int:
     result = solve_nonlinear(scene.problem, progress=prog, **opts)
     out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.pvd"))
     prog(f"writing {out}")
-    series = write_nonlinear(out, result)
+    t_write = time.perf_counter()
+    with _write_progress(out, prog):
+        series = write_nonlinear(out, result)
     csv_path = _homogenized_path(args, scene, out)
     write_homogenized_csv(csv_path, result)
-    summary = result.summary()
+    t_write = time.perf_counter() - t_write
+    prog(f"wrote {series} and {csv_path} in {t_write:.1f} s")
+    summary = _with_write(result.summary(), t_write)
     summary["scene"] = scene.name
     summary["output"] = str(series)
     summary["homogenized"] = str(csv_path)
@@ -420,7 +444,7 @@ def _run_nonlinear(args: argparse.Namespace, scene: Any, prog: Any) -> int:
                 "mean stress  "
                 + _stress_components(result.homogenized_stress[-1], scene.problem.model)
             )
-        print(f"time (s)     {summary['timings']['total']:.3f}")
+        print(_timings_line(summary))
         print(f"results      {series} (time series), {csv_path} (homogenized)")
         _print_checks(checks)
     return _check_status(args, checks)

@@ -601,6 +601,44 @@ _EVAL = {
 }
 
 
+def check_before_run(checks: list[Check], scene: Any) -> None:
+    """Refuse, before the solve, the checks that cannot apply to ``scene``'s run: a region
+    that selects no point, a quantity or a ``step`` the kind of run (static, damage,
+    nonlinear) does not give.  :func:`evaluate_checks` would find them after the work.
+
+    Raises
+    ------
+    SceneError
+        Naming the check, as :func:`evaluate_checks` would.
+    """
+    kind = (
+        "damage"
+        if scene.damage is not None
+        else "nonlinear"
+        if scene.nonlinear is not None
+        else "static"
+    )
+    cloud = scene.problem.cloud
+    for check in checks:
+        o = check.options
+        if any(k in o for k in ("set", "box", "points")):
+            _region(check, cloud)
+        if check.kind != "value":
+            continue
+        where = check.where
+        name, _ = _parse_quantity(check.quantity, where)
+        if kind == "static" and "step" in o:
+            raise SceneError(f"{where}.step needs a load-stepped (nonlinear or damage) run")
+        if name in ("broken_bonds", "first_break_load", "damage") and kind != "damage":
+            raise SceneError(f"{where}: {name!r} needs a damage run ([damage] table)")
+        if name == "homogenized_stress" and kind != "nonlinear":
+            raise SceneError(f"{where}: {check.quantity!r} needs a nonlinear run")
+        if kind == "nonlinear" and name not in (
+            "displacement", "reaction", "stress", "homogenized_stress",
+        ):  # fmt: skip
+            raise SceneError(f"{where}: nonlinear runs give displacement, reaction and stress")
+
+
 def evaluate_checks(checks: list[Check], scene: Any, result: Any) -> list[CheckResult]:
     """Evaluate parsed checks on a run's result (static, nonlinear or damage).
 

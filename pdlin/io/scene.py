@@ -813,6 +813,14 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
     damage = _damage_options(top, problem, scfg)
     if damage is not None and nonlinear is not None:
         raise SceneError("[damage] runs linear load steps; remove solver.nonlinear")
+    if "fields" in ocfg:
+        if damage is not None or nonlinear is not None:
+            raise SceneError(
+                "output.fields selects the fields of a static run; a "
+                f"{'damage' if damage is not None else 'nonlinear'} run writes its own "
+                "(displacement and damage; the series of every step): remove output.fields"
+            )
+        _check_output_fields(ocfg["fields"], problem.model)
     return Scene(
         name=str(top.get("name", "scene")),
         problem=problem,
@@ -990,6 +998,8 @@ def _problem_scene(top: Mapping[str, Any], base: Path) -> Scene:
     out = ocfg.get("path")
     if out is not None and not isinstance(out, str):
         raise SceneError(f"output.path must be a path string, got {out!r}")
+    if "fields" in ocfg:
+        _check_output_fields(ocfg["fields"], case.problem.model)
     solver = scfg.get("name", case.solve_kwargs.get("solver", "auto"))
     return Scene(
         name=str(top.get("name", name)),
@@ -1167,3 +1177,24 @@ def builtin_scene(name: str) -> tuple[dict[str, Any], str]:
         raise SceneError(f"unknown built-in scene {name!r}; available: {list_builtin_scenes()}")
     text = (resources.files("pdlin") / "examples" / f"{name}.toml").read_text()
     return tomllib.loads(text), text
+
+
+#: the fields of every static result (:meth:`pdlin.StaticResult.fields`); ``stress`` where
+#: the model has one
+STATIC_FIELDS = (
+    "displacement", "reaction", "family_size", "volume", "material",
+    "deformation_gradient", "strain",
+)  # fmt: skip
+
+
+def _check_output_fields(fields: Any, model: Any) -> None:
+    """Refuse ``output.fields`` that no static result of ``model`` has, before the work."""
+    if not isinstance(fields, list) or not all(isinstance(f, str) for f in fields):
+        raise SceneError(f"output.fields must be a list of field names, got {fields!r}")
+    known = [*STATIC_FIELDS, *(["stress"] if hasattr(model, "stress") else [])]
+    unknown = [f for f in fields if f not in known]
+    if unknown:
+        raise SceneError(
+            f"output.fields: unknown field(s) {unknown} for a {type(model).__name__} model; "
+            f"available {sorted(known)}"
+        )

@@ -731,6 +731,17 @@ def matrix_rows(K: sp.sparray, rows: np.ndarray) -> sp.csr_array:
     return sp.csr_array(sp.csr_array(K)[rows])
 
 
+def _block_positions(indptr: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positions in ``data`` of the (block) rows ``rows`` of a CSR / BSR matrix, and their rows.
+
+    Sizes proportional to those rows' entries only (no array of the matrix's size).
+    """
+    starts = indptr[rows]
+    lengths = indptr[rows + 1] - starts
+    take = np.repeat(starts - np.cumsum(lengths) + lengths, lengths) + np.arange(lengths.sum())
+    return take, np.repeat(rows, lengths)
+
+
 def eliminate_dirichlet(
     K: sp.sparray, f: np.ndarray, dofs: np.ndarray, values: np.ndarray, *, inplace: bool = False
 ) -> tuple[sp.sparray, np.ndarray]:
@@ -762,23 +773,27 @@ def eliminate_dirichlet(
     diag = K.diagonal()
     s = float(np.mean(np.abs(diag[free]))) if free.any() else 1.0
     if isinstance(A, sp.bsr_array | sp.bsr_matrix):
+        # only the blocks in prescribed block rows or block columns change: no index or
+        # mask array of K's size beyond one boolean per block (the column test)
         r, c = A.blocksize
-        brow = np.repeat(np.arange(A.shape[0] // r), np.diff(A.indptr))
-        fr = free.reshape(-1, r)[brow]  # (nblocks, r)
-        fc = free.reshape(-1, c)[A.indices]
-        A.data *= fr[:, :, None]
-        A.data *= fc[:, None, :]
+        free_r, free_c = free.reshape(-1, r), free.reshape(-1, c)
+        brows = np.flatnonzero(~free_r.all(axis=1))
+        take, owner = _block_positions(A.indptr, brows)
+        A.data[take] *= free_r[owner][:, :, None]
+        fixed_bcol = np.asarray(~free_c.all(axis=1))
+        in_fixed_col = np.flatnonzero(fixed_bcol[A.indices])
+        A.data[in_fixed_col] *= free_c[A.indices[in_fixed_col]][:, None, :]
         # identity on prescribed diagonal entries
-        isdiag = brow == A.indices
-        pos = np.flatnonzero(isdiag)
-        rows = brow[pos]
+        isdiag = owner == A.indices[take]
+        pos, rows = take[isdiag], owner[isdiag]
         for k in range(r):
             fixed = ~free[r * rows + k]
             A.data[pos[fixed], k, k] = s
     else:
         A = sp.csr_array(A)
-        rows = np.repeat(np.arange(ndof), np.diff(A.indptr))
-        keep = free[rows] & free[A.indices]
+        # a new data array (A may share K's index arrays, which eliminate_zeros compacts)
+        keep = free[A.indices]
+        keep[_block_positions(A.indptr, np.flatnonzero(~free))[0]] = False
         A.data = A.data * keep
         A.eliminate_zeros()
         A = A + sp.diags_array(np.where(free, 0.0, s), format="csr")

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from .. import _progress
 from ..errors import ConvergenceError, InputError, ModelError, NonFiniteError
 from .linear import solve_linear
 
@@ -239,6 +240,9 @@ def newton_step(
                 blocksize=system.dim,
                 symmetric=system.symmetric,
                 direct_cache=direct_cache,
+                progress=None
+                if progress is None
+                else _progress.linear_progress(progress, f"Newton iteration {it}, linear solve"),
             )
         except (ConvergenceError, NonFiniteError) as exc:  # NonFinite: a non-finite K_T
             raise StepFailed(f"Newton: linear solve failed at iteration {it}: {exc}") from exc

@@ -280,6 +280,17 @@ def _run_measured(run: Callable[[], Any], memory: str, t0: float) -> tuple[Any, 
     return res, wall, peak
 
 
+def _solver_used(info: Mapping[str, Any]) -> str:
+    """The solver that ran, with the direct backend in brackets (``'direct (cholmod)'``).
+
+    ``direct_backend='auto'`` picks CHOLMOD or PARDISO when installed, so ``'direct'`` alone
+    would hide which factorization a row timed.
+    """
+    name = str(info.get("solver"))
+    backend = info.get("direct_backend")
+    return f"{name} ({backend})" if backend else name
+
+
 def _measure_point(
     factory: Callable[..., Any],
     params: dict[str, Any],
@@ -334,7 +345,7 @@ def _measure_point(
             "residual": res.relative_residual,
             "h": h,
             "delta": delta,
-            "solver_used": str(res.info.get("solver")),
+            "solver_used": _solver_used(res.info),
             "operator_used": str(res.info.get("operator")),
         },
         "points": np.asarray(cloud.points),
@@ -753,6 +764,11 @@ class TradeoffResult:
                 cells.append(f"{s[:width]:>{width}}")
             mark = "*" if id(r) in front else " "
             lines.append(f"{mark} " + " ".join(cells) + f"  {r.get('status', '')}")
+        used = sorted(
+            {str(r["solver_used"]) for r in self.table if "(" in str(r.get("solver_used") or "")}
+        )
+        if used:  # the factorization a direct row timed: 'auto' depends on what is installed
+            lines.append(f"direct solves ran: {', '.join(used)}")
         for x in ("h", "delta"):
             try:
                 rates = self.rates(x)

@@ -15,7 +15,7 @@ import pdlin
 import pdlin.resources as res
 from pdlin.cli.main import main
 from pdlin.errors import InsufficientMemoryError, PdlinError, SlowRunWarning
-from pdlin.problem import plan_memory
+from pdlin.problem import memory_hints, plan_memory
 from pdlin.resources import MemoryBudget
 
 
@@ -279,3 +279,51 @@ def test_generated_mesh_refuses_fast() -> None:
     with pytest.raises(InsufficientMemoryError, match=r"4,000,004,000,000 nodes.*PB"):
         pdlin.plate_with_hole_mesh(10**6, 10**6)
     assert time.perf_counter() - t0 < 1.0
+
+
+@pytest.mark.parametrize("ranks", [1, 4])
+def test_petsc_backend_refuses_a_rank_share_too_big_before_assembly(monkeypatch, ranks) -> None:
+    """backend='petsc' estimates each rank's share (the run's estimate over the ranks) and
+    refuses it before the bond search and assembly, naming the ranks (main: no check on
+    the PETSc path; PETSc is faked here, petsc4py need not be installed)."""
+    import types
+
+    import pdlin.backends.petsc as bp
+
+    comm = types.SimpleNamespace(getRank=lambda: 0, getSize=lambda: ranks)
+    monkeypatch.setattr(bp, "_petsc", lambda: types.SimpleNamespace(COMM_WORLD=comm))
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("the bond search started before the memory check")
+
+    monkeypatch.setattr(bp, "local_rows", no_work)
+    monkeypatch.setattr(bp, "_layout", no_work)
+    prob = _bar_problem((200, 200))
+    share = plan_memory(prob, "amg-cg").stages["solve"] // ranks
+    _small_budget(monkeypatch, share // 2)  # half of one rank's share
+    with pytest.raises(InsufficientMemoryError, match=rf"{ranks} rank\(s\)"):
+        pdlin.solve(prob, "amg-cg", backend="petsc")
+    if ranks > 1:  # room for two shares but not the whole: this rank goes on to the work
+        _small_budget(monkeypatch, res.LATE_IMPORTS + 2 * share)
+        with pytest.raises(AssertionError, match="bond search started"):
+            pdlin.solve(prob, "amg-cg", backend="petsc")
+
+
+def test_hints_of_a_long_history_count_it_and_offer_fewer_steps(monkeypatch) -> None:
+    """damage.steps = 10⁹: the per-step history is what does not fit; the alternatives'
+    estimates include it (main offered "solver='amg-cg': ~117 MB" for a 13 TB run) and a
+    number of steps that fits is offered."""
+    _small_budget(monkeypatch, 2**30)  # 1 GiB
+    prob = _bar_problem()
+    plan = plan_memory(prob, "direct", history_steps=10**9)
+    hist = 10**9 * prob.cloud.n * (2 + 4 + 2) * 8  # u, stress and two scalars per point and step
+    assert plan.peak >= hist
+    hints = memory_hints(plan)
+    amg = next(h for h in hints if h.startswith("solver='amg-cg'"))
+    units = {"kB": 1e3, "MB": 1e6, "GB": 1e9, "TB": 1e12, "PB": 1e15}  # format_bytes's
+    value, unit = amg.split(": ~")[1].split()[:2]
+    assert float(value) * units[unit] >= hist, amg  # not ~117 MB
+    steps = next(h for h in hints if "load steps" in h)
+    fit = int(steps.split("at most ~")[1].split()[0].replace(",", ""))
+    per_step = prob.cloud.n * (2 + 4 + 2) * 8
+    assert 1 <= fit and fit * per_step < 2**30, steps

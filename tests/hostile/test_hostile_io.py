@@ -187,3 +187,117 @@ def test_reader_rejects_with_the_file_named(tmp_path, make, pattern):
     if "exodus" in pattern or "r.e'" in pattern:
         pytest.importorskip("netCDF4")
     expect(lambda: read_result(make(tmp_path)), InputError, pattern)
+
+
+# -- a real full disk (item 6) ------------------------------------------------------------
+
+_TMPFS_STATIC = (
+    'name = "plate"\n[geometry]\ntype = "grid"\nshape = [12, 12]\nspacing = 0.1\n'
+    '[material]\nE = 1.0\n[horizon]\nratio = 3.015\n[[dirichlet]]\nset = "x-"\nvalue = 0.0\n'
+    '[[dirichlet]]\nset = "x+"\nvalue = 1e-3\ncomponents = "x"\n'
+)
+#: the 8 x 8 polycrystal of test_hostile_checkpoint.py, two Newton steps (a .pvd series)
+_TMPFS_SERIES = (
+    'name = "cp"\n[geometry]\ntype = "grid"\nshape = [8, 8]\nspacing = 0.125\n'
+    '[material]\ntype = "crystal-plasticity"\n[material.polycrystal]\ngrains = 3\nseed = 1\n'
+    '[model]\ntype = "correspondence"\n[horizon]\nratio = 1.0\ninfluence = "constant"\n'
+    '[[dirichlet]]\nset = "boundary"\nvelocity_gradient = [[0.0, 0.004], [0.004, 0.0]]\n'
+    '[solver]\nnonlinear = "newton"\nsteps = 2\nt_end = 2.0\n'
+)
+
+
+@pytest.fixture
+def tiny_disk(tmp_path):
+    """A 1 MiB tmpfs mounted in ``tmp_path`` (needs root and a mount namespace that allows
+    it; skipped otherwise), unmounted after."""
+    import shutil
+    import subprocess
+
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    mount, umount = shutil.which("mount"), shutil.which("umount")
+    if mount is None or umount is None:
+        pytest.skip("no mount command")
+    done = subprocess.run(
+        [mount, "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(disk)], capture_output=True
+    )
+    if done.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {done.stderr.decode().strip()}")
+    try:
+        yield disk
+    finally:
+        subprocess.run([umount, str(disk)], check=False)
+
+
+@pytest.mark.parametrize(
+    "scene, name",
+    # the issue's cases (the .e / .xdmf writers crashed, a .pvd series) in the default run;
+    # the others (each ~2 s: two subprocesses) in the slow tier
+    [(_TMPFS_STATIC, "r.e"), (_TMPFS_STATIC, "r.xdmf"), (_TMPFS_SERIES, "s.pvd")]
+    + [
+        pytest.param(scene, name, marks=pytest.mark.slow)
+        for scene, name in [(_TMPFS_STATIC, "r.vtu"), (_TMPFS_SERIES, "s.xdmf")]
+        + [(_TMPFS_SERIES, "s.exo")]
+    ],
+)
+def test_pdlin_run_on_a_full_disk_is_one_error_line(tmp_path, tiny_disk, scene, name):
+    """``pdlin run`` writing to a real full file system (a tmpfs filled but for 1 kB): one
+    ``pdlin: error:`` line naming the output and the reason, exit 2, the old output byte for
+    byte and nothing partial left (main: h5py / netCDF4 errors, then signal 11)."""
+    import os
+    import subprocess
+    import sys
+
+    if name.endswith((".e", ".exo")):
+        pytest.importorskip("netCDF4")
+    if name.endswith(".xdmf"):
+        pytest.importorskip("h5py")
+    path = tmp_path / "scene.toml"
+    path.write_text(scene)
+    out = tiny_disk / name
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    cmd = [sys.executable, "-m", "pdlin", "run", str(path), "-q", "-o", str(out)]
+    first = subprocess.run(cmd, capture_output=True, env=env, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr.decode()
+
+    def files():
+        return {str(p): p.read_bytes() for p in tiny_disk.rglob("*") if p.is_file()}
+
+    before = files()
+    st = os.statvfs(tiny_disk)
+    (tiny_disk / "filler").write_bytes(b"\0" * (st.f_bavail * st.f_frsize - 1024))
+    before[str(tiny_disk / "filler")] = (tiny_disk / "filler").read_bytes()
+    again = subprocess.run(cmd, capture_output=True, env=env, cwd=tmp_path)
+    err = again.stderr.decode()
+    assert again.returncode == 2, err
+    assert err.count("\n") == 1 and err.startswith("pdlin: error: cannot write "), err
+    assert str(tiny_disk) in err and "No space left on device" in err, err
+    assert files() == before
+    assert not [p for p in tiny_disk.rglob("*") if p.name.endswith((".partial", ".tmp"))]
+
+
+def test_checkpoint_on_a_full_disk_is_one_error_line(tmp_path, tiny_disk):
+    """A nonlinear run whose checkpoint lives on a full file system: one ``pdlin: error:``
+    line naming the checkpoint, exit 2, the previous checkpoint byte for byte, no
+    ``.tmp`` left (item 8 on a real full disk)."""
+    import os
+    import subprocess
+    import sys
+
+    ck = tiny_disk / "cp.ckpt.npz"
+    path = tmp_path / "scene.toml"
+    path.write_text(_TMPFS_SERIES + f"checkpoint = {str(ck)!r}\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    cmd = [sys.executable, "-m", "pdlin", "run", str(path), "-q", "-o", str(tmp_path / "s.pvd")]
+    first = subprocess.run(cmd, capture_output=True, env=env, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr.decode()
+    old = ck.read_bytes()
+    st = os.statvfs(tiny_disk)
+    (tiny_disk / "filler").write_bytes(b"\0" * (st.f_bavail * st.f_frsize - 1024))
+    again = subprocess.run(cmd, capture_output=True, env=env, cwd=tmp_path)
+    err = again.stderr.decode()
+    assert again.returncode == 2, err
+    assert err.count("\n") == 1 and err.startswith("pdlin: error: "), err
+    assert str(ck) in err and "No space left on device" in err, err
+    assert ck.read_bytes() == old
+    assert sorted(p.name for p in tiny_disk.iterdir()) == ["cp.ckpt.npz", "filler"]

@@ -490,3 +490,99 @@ def test_tradeoff_measure_box_refuses_nan():
     sweep = tradeoff_from_dict(data)
     with pytest.raises(SceneError, match=r"tradeoff.measure: box lower corner must not exceed"):
         sweep.factory(m=2.0)
+
+
+#: BASE as a scene file
+_BASE_TOML = """
+[geometry]
+type = "grid"
+shape = [8, 4]
+spacing = 0.1
+[material]
+E = 1.0
+[horizon]
+ratio = 3.015
+[[dirichlet]]
+set = "x-"
+value = 0.0
+[[load]]
+type = "total"
+set = "x+"
+force = [1e-3, 0.0]
+"""
+
+
+@pytest.mark.parametrize(
+    "edit, text, pattern",
+    [
+        # main: the solve ran, then 'output.fields: unknown field(s)' at the write
+        (
+            {"output": {"fields": ["displacement", "bogus"]}},
+            '[output]\nfields = ["displacement", "bogus"]\n',
+            r"output.fields: unknown .*'bogus'",
+        ),
+        # main: ignored silently (a damage run writes displacement and damage)
+        (
+            {"output": {"fields": ["stress"]}, "damage": {"critical_stretch": 0.1}},
+            '[output]\nfields = ["stress"]\n[damage]\ncritical_stretch = 0.1\n',
+            r"output.fields .*static",
+        ),
+    ],
+)
+def test_output_fields_are_checked_before_the_work(tmp_path, capsys, edit, text, pattern):
+    with pytest.raises(SceneError, match=pattern):
+        scene_from_dict({**copy.deepcopy(BASE), **edit}, tmp_path)
+    path = _write(tmp_path, _BASE_TOML + text)
+    assert main(["run", str(path), "-o", str(tmp_path / "r.vtu")]) == 2
+    err = capsys.readouterr().err
+    assert "solve" not in err and "load step" not in err, err  # refused before the work
+    assert not (tmp_path / "r.vtu").exists()
+
+
+def test_known_output_fields_are_written(tmp_path):
+    text = '[output]\nfields = ["displacement", "stress"]\n'
+    path = _write(tmp_path, _BASE_TOML + text)
+    assert main(["run", str(path), "-q", "-o", str(tmp_path / "r.npz")]) == 0
+    import numpy as np
+
+    with np.load(tmp_path / "r.npz") as f:
+        assert {"displacement", "stress"} <= set(f.files), f.files
+
+
+_CHECK = '[[check]]\nkind = "value"\nexpected = 1.0\ntolerance = 0.1\nsource = "test"\n'
+
+
+@pytest.mark.parametrize(
+    "text, pattern",
+    [
+        # main: both found by 'checking 1 reference(s)' after the solve and the write
+        (
+            _CHECK + 'quantity = "displacement_x"\nbox = [[5.0, 5.0], [6.0, 6.0]]\n',
+            r"box selects no",
+        ),
+        (_CHECK + 'quantity = "damage"\n', r"'damage' needs a damage run"),
+        (_CHECK + 'quantity = "homogenized_stress_xy"\n', r"needs a nonlinear run"),
+        (_CHECK + 'quantity = "displacement_x"\nstep = 2\n', r"step needs a load-stepped"),
+    ],
+)
+def test_checks_that_cannot_apply_are_refused_before_the_work(tmp_path, capsys, text, pattern):
+    path = _write(tmp_path, _BASE_TOML + text)
+    assert main(["run", str(path), "-o", str(tmp_path / "r.vtu")]) == 2
+    err = capsys.readouterr().err
+    import re
+
+    assert re.search(pattern, err.splitlines()[-1]), err
+    assert "solve" not in err and "writing" not in err, err  # refused before the work
+    assert not (tmp_path / "r.vtu").exists()
+
+
+@pytest.mark.parametrize("example", ["damage_plate", "bar"])
+def test_resume_of_a_run_without_checkpoints_is_refused_before_the_work(tmp_path, capsys, example):
+    """--resume on a damage or static scene (no checkpoints): one error line, no run (main:
+    a damage run ignored --resume silently and ran from the start)."""
+    out = tmp_path / "r.vtu"
+    assert main(["run", "--example", example, "--resume", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.splitlines()[-1].startswith("pdlin: error: --resume needs a nonlinear scene"), err
+    assert "load step" not in err and "memory estimate" not in err, err
+    assert not out.exists()

@@ -39,13 +39,22 @@ def _chars(var):
 
 def test_static_deck_writes_final_time_to_exodus(bar_dir):
     """Peridigm writes the final state at Solver.Final Time (D6), not at t = 0."""
-    deck = peridigm_deck(dict(LPS_MAT))  # Final Time 2.0 (peridigm_deck's solver)
+    # one load step: one static result (several steps write a series, one time per step)
+    one = {"Initial Time": 0.0, "Final Time": 2.0, "QuasiStatic": {"Number of Load Steps": 1}}
+    deck = peridigm_deck(dict(LPS_MAT), solver=one)
     scene = pdlin.read_deck(write_yaml(bar_dir / "deck.yaml", deck))
-    assert scene.time == 2.0  # the deck's Solver.Final Time
+    assert scene.time == 2.0 and scene.steps is None  # the deck's Solver.Final Time
     res = _cli("run", "deck.yaml", "-q", "-o", "final.e", cwd=bar_dir)
     assert res.returncode == 0, res.stderr
     with netCDF4.Dataset(bar_dir / "final.e") as nc:
         np.testing.assert_array_equal(nc["time_whole"][:], [2.0])  # Final Time above
+    # four load steps (peridigm_deck's solver): the series ends at Final Time 2.0 too
+    write_yaml(bar_dir / "deck.yaml", peridigm_deck(dict(LPS_MAT)))
+    res = _cli("run", "deck.yaml", "-q", "-o", "steps.e", cwd=bar_dir)
+    assert res.returncode == 0, res.stderr
+    with netCDF4.Dataset(bar_dir / "steps.e") as nc:
+        # Peridigm's step times t0 + (i + 1)(t1 - t0) / N from 0 to 2.0 in 4 steps
+        np.testing.assert_array_equal(nc["time_whole"][:], [0.0, 0.5, 1.0, 1.5, 2.0])
     # the Time Steps list: its last entry is the final time
     deck["Peridigm"]["Solver"] = {
         "Initial Time": 0.0,
@@ -80,13 +89,14 @@ def test_output_file_type_exodusii_writes_exodus(bar_dir):
     assert (bar_dir / "out.e").is_file() and not (bar_dir / "out.vtu").exists()
     with netCDF4.Dataset(bar_dir / "out.e") as nc:
         names = _chars(nc["name_nod_var"])
-        np.testing.assert_array_equal(nc["time_whole"][:], [2.0])  # Final Time of the deck
+        # peridigm_deck's four load steps from 0 to its Final Time 2.0
+        np.testing.assert_array_equal(nc["time_whole"][:], [0.0, 0.5, 1.0, 1.5, 2.0])
     # Peridigm's field names (docs/output.md)
     assert {"DisplacementX", "Reaction_ForceX", "Volume"} <= set(names)
     # -o (the user's choice) still overrides the deck
     res = _cli("run", "deck.yaml", "-q", "-o", "mine.vtu", cwd=bar_dir)
     assert res.returncode == 0, res.stderr
-    assert (bar_dir / "mine.vtu").is_file()
+    assert (bar_dir / "mine.pvd").is_file()  # the four load steps: a .vtu series
     # without Output Filename: the deck's name beside it
     del deck["Peridigm"]["Output"]["Output Filename"]
     scene = pdlin.read_deck(write_yaml(bar_dir / "deck.yaml", deck))

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import time
 
+import numpy as np
 import pytest
 
 import pdlin
@@ -86,3 +87,60 @@ def test_cli_reports_bytes_while_writing(tmp_path, monkeypatch, capsys) -> None:
     err = capsys.readouterr().err
     assert seen == [1000]
     assert "  writing: 1.00 kB so far" in err
+
+
+_DAMAGE = _SCENE + "[damage]\ncritical_stretch = 0.1\nsteps = 2\n"
+#: the 8 x 8 polycrystal of tests/hostile/test_hostile_checkpoint.py, two Newton steps
+_NONLINEAR = (
+    'name = "cp"\n[geometry]\ntype = "grid"\nshape = [8, 8]\nspacing = 0.125\n'
+    '[material]\ntype = "crystal-plasticity"\n[material.polycrystal]\ngrains = 3\nseed = 1\n'
+    '[model]\ntype = "correspondence"\n[horizon]\nratio = 1.0\ninfluence = "constant"\n'
+    '[[dirichlet]]\nset = "boundary"\nvelocity_gradient = [[0.0, 0.004], [0.004, 0.0]]\n'
+    '[solver]\nnonlinear = "newton"\nsteps = 2\nt_end = 2.0\n'
+)
+
+
+@pytest.mark.parametrize(
+    "text, out", [(_DAMAGE, "bar.vtu"), (_NONLINEAR, "cp.pvd")], ids=["damage", "nonlinear"]
+)
+def test_cli_damage_and_nonlinear_totals_include_the_write(tmp_path, capsys, text, out) -> None:
+    scene = tmp_path / "scene.toml"
+    scene.write_text(text)
+    path = tmp_path / out
+    assert main(["run", str(scene), "-o", str(path), "--json"]) == 0
+    cap = capsys.readouterr()
+    t = json.loads(cap.out)["timings"]
+    assert t["write"] > 0.0
+    assert t["total"] >= t["write"]
+    assert "wrote " in cap.err and " in " in cap.err.split("wrote ")[1]
+    assert main(["run", str(scene), "-o", str(path)]) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("time (s)"))
+    assert "write " in line and "total " in line
+
+
+def test_newton_linear_solves_report_iterations_and_residuals(monkeypatch) -> None:
+    """Each Newton iteration's linear solve reports its iterations like a static solve."""
+    monkeypatch.setattr(progress_mod, "PROGRESS_EVERY", 0.0)  # every iteration
+    cloud = pdlin.grid((8, 8), spacing=0.125)
+    _, theta = pdlin.voronoi_polycrystal(cloud, 3, seed=1)
+    model = pdlin.Correspondence(material=pdlin.CrystalPlasticity(orientation=theta))
+    bc = pdlin.Dirichlet.velocity_gradient("boundary", 0.002 * np.array([[0, 1.0], [1.0, 0]]))
+    prob = pdlin.StaticProblem(model, cloud, pdlin.find_bonds(cloud, ratio=1.0), dirichlet=[bc])
+    lines: list[str] = []
+    res = pdlin.solve_nonlinear(
+        prob, times=[1.0], method="newton", linear_solver="gmres", progress=lines.append
+    )
+    its = [ln for ln in lines if "gmres: iteration" in ln]
+    assert its, lines
+    assert all(ln.startswith("  t = 1: ") for ln in its)  # the step's prefix
+    assert int(res.iterations[0]) >= 1  # a linear solve ran
+
+
+def test_damage_linear_solves_report_iterations(monkeypatch) -> None:
+    """solve_damage's solves report their iterations, not pdlin.solve's stage lines."""
+    monkeypatch.setattr(progress_mod, "PROGRESS_EVERY", 0.0)  # every iteration
+    lines: list[str] = []
+    pdlin.solve_damage(_problem(), s0=0.1, steps=2, solver="cg", progress=lines.append)
+    its = [ln for ln in lines if "cg: iteration" in ln]
+    assert its and all(ln.startswith("  unit-load solve: cg: iteration") for ln in its), lines
+    assert not any(ln in ("bonds", "solve (cg)") for ln in lines)

@@ -10,6 +10,7 @@ import pytest
 import pdlin
 from pdlin.errors import InputError, SceneError, ShapeError
 from pdlin.io.scene import scene_from_dict
+from pdlin.operators.bc import load_vector
 from pdlin.submodeling import subregion
 from pdlin.sweeps.core import interpolate_field
 
@@ -213,3 +214,38 @@ def _toml(data):
                 lines.append(f"[[{k}]]")
                 lines += [f"{a} = {val(b)}" for a, b in item.items()]
     return "\n".join(lines) + "\n"
+
+
+def test_load_on_the_supported_part_of_a_box_is_dropped_not_refused():
+    """A body force over the whole plate, clamped on x-: a box around the clamped corner
+    whose interior holds only clamped points (the x- column) keeps none of the load on free DOFs;
+    the sub-problem drops the entries on its prescribed DOFs (they go into the support's
+    reaction) instead of refusing the cut as a load acting only on prescribed DOFs."""
+    cloud = pdlin.grid((10, 10), spacing=0.1)
+    bf = pdlin.BodyForce("all", [0.0, -1.0])
+    prob = pdlin.StaticProblem(
+        pdlin.BondBased(E=1.0),
+        cloud,
+        horizon=0.3015,
+        dirichlet=[pdlin.Dirichlet("x-", 0.0)],
+        loads=[bf],
+    )
+    whole = pdlin.solve(prob)
+    box = [[0.0, 0.0], [0.06, 0.35]]  # the x- column (x = 0.05)'s lowest points: all clamped
+    sub = subregion(prob, box, whole)
+    assert sub.interior.sum() > 0
+    res = pdlin.solve(sub.problem)
+    np.testing.assert_allclose(res.u, whole.u[sub.index], atol=1e-12)
+    # the reaction bookkeeping: the box's supports carry the whole body's reaction plus the
+    # load left out (R = -(f_int + f_ext) on prescribed DOFs, pdlin.system)
+    f = load_vector(cloud, [bf]).reshape(cloud.n, 2)[sub.index]
+    inner = sub.interior
+    np.testing.assert_allclose(
+        res.reactions[inner], whole.reactions[sub.index[inner]] + f[inner], atol=1e-12
+    )
+    # a box with free loaded points keeps their load: the fine solve reproduces the whole
+    box2 = [[0.0, 0.0], [0.45, 0.45]]
+    sub2 = subregion(prob, box2, whole)
+    res2 = pdlin.solve(sub2.problem)
+    inner = sub2.interior
+    np.testing.assert_allclose(res2.u[inner], whole.u[sub2.index[inner]], rtol=1e-8, atol=1e-12)

@@ -493,3 +493,18 @@ solver = ["nope", "lu"]
     assert len(lines) == 1 and "Traceback" not in err, err
     assert lines[0].startswith("pdlin: error: every point of the sweep failed (2 of 2")
     assert "solver must be one of" in lines[0]
+
+
+def test_solver_used_names_the_direct_backend_that_ran():
+    """A direct row says which factorization ran: 'auto' picks CHOLMOD / PARDISO when they are
+    installed and the system is large, so "direct" alone hid a change of backend (issue 33)."""
+    from pdlin.solvers import DIRECT_BACKENDS
+    from pdlin.sweeps import affine_patch
+
+    grid = {"model": ["bb"], "dim": [2], "h": [0.1], "m": [2.0], "solver": ["direct", "amg-cg"]}
+    res = tradeoff(affine_patch, grid, memory="none")
+    used = {r["solver"]: r["solver_used"] for r in res.table}
+    backend = used["direct"].removeprefix("direct (").removesuffix(")")
+    assert used["direct"] == f"direct ({backend})" and backend in DIRECT_BACKENDS[1:], used
+    assert used["amg-cg"] == "amg-cg"  # iterative rows unchanged
+    assert f"direct solves ran: direct ({backend})" in res.summary()  # pdlin tradeoff's table
