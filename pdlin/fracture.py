@@ -160,8 +160,8 @@ def solve_damage(
         As in :func:`pdlin.solve`.
     progress : callable, optional
         Called with a message per step, and with the iterations and residual of a
-        linear solve that takes longer than :data:`pdlin._progress.PROGRESS_EVERY`
-        seconds (:func:`pdlin._progress.linear_progress`).
+        linear solve that takes longer than ``pdlin._progress.PROGRESS_EVERY``
+        seconds (``pdlin._progress.linear_progress``).
 
     Returns
     -------

@@ -764,7 +764,7 @@ def solve_nonlinear(
         is cut back to) and, during an increment, one line every ``progress_every``
         seconds (ADR: iteration, e₁, e₂, damping, residual; Newton: iteration, residual,
         step length); a Newton iteration's linear solve also reports its iterations and
-        residual every :data:`pdlin._progress.PROGRESS_EVERY` seconds.
+        residual every ``pdlin._progress.PROGRESS_EVERY`` seconds.
     progress_every : float
         Seconds between the in-step progress lines (default 60; a 10⁵-particle plastic
         step runs ≈ 30,000 ADR iterations in ≈ 6 min, a failing Newton try there ≈ 1.5
