@@ -11,6 +11,9 @@ Cases (each under ~8 GB):
 * ``lps3d``: LPS, 24³ grid, δ = 3.015 h, AMG-CG (``operator='auto'`` goes matrix-free);
 * ``lps3d-direct``: LPS, 12³ grid, δ = 2.015 h, direct (SuperLU: at 24³ its minimum-degree
   factor needs ~6-15 GB and tens of minutes, see benchmarks/README.md);
+* ``lps3d-direct24`` (only with ``--cases``): LPS, 24³ grid, δ = 3.015 h, direct with the
+  backend ``auto`` picks (CHOLMOD or PARDISO after ``scripts/install_direct.sh``; with SuperLU
+  alone the run is refused before its bond search);
 * ``cor2d``: correspondence with stress points, 401² grid, δ = 2 h, AMG-CG;
 * ``cp_shear``: the built-in crystal-plasticity example (625 points, 30 Newton steps).
 
@@ -76,6 +79,10 @@ CASES: dict[str, dict[str, str]] = {
                   solver="amg-cg"),
     "lps3d-direct": dict(shape="[12, 12, 12]", nu="0.25", model="lps", extra="",
                          ratio="2.015", solver="direct"),
+    # the 24³ direct case: needs CHOLMOD / PARDISO (scripts/install_direct.sh);
+    # SuperLU is refused before the bond search (its estimate does not fit in 24 GB)
+    "lps3d-direct24": dict(shape="[24, 24, 24]", nu="0.25", model="lps", extra="",
+                           ratio="3.015", solver="direct"),
     "cor2d": dict(shape="[401, 401]", nu="0.25", model="correspondence",
                   extra='control = "stress_points"', ratio="2.0", solver="amg-cg"),
     "cp_shear": {},
@@ -233,7 +240,11 @@ def main() -> None:
 
     header()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cases", default=",".join(CASES), help="comma-separated case names")
+    ap.add_argument(
+        "--cases",
+        default=",".join(c for c in CASES if c != "lps3d-direct24"),
+        help="comma-separated case names (lps3d-direct24 only when asked)",
+    )
     ap.add_argument("--stages", action="store_true",
                     help="per-stage peak RSS of a 3D bond-based cube (40³, 60³)")  # fmt: skip
     ap.add_argument("--big", action="store_true", help="with --stages: also 80³ and 100³")
