@@ -234,8 +234,15 @@ def _segments_cross_2d(p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.ndarra
     return (o1 * o2 < 0) & (o3 * o4 <= 0) | (o1 * o2 <= 0) & (o3 * o4 < 0)
 
 
+#: tolerance of the barycentric edge tests of :func:`_segments_cross_triangle`: a bond through
+#: the shared edge of two crack triangles lands, by round-off, just outside both unless the
+#: edges are widened a little (dimensionless: a fraction of the triangle)
+_EDGE_TOL = 1e-12
+
+
 def _segments_cross_triangle(p: np.ndarray, q: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """Vectorized segment p-q / triangle intersection (Moller-Trumbore)."""
+    """Vectorized segment p-q / triangle intersection (Moller-Trumbore), edges included up to
+    :data:`_EDGE_TOL` (so a crack made of several triangles has no seams)."""
     v0, v1, v2 = tri
     e1 = v1 - v0
     e2 = v2 - v0
@@ -249,7 +256,8 @@ def _segments_cross_triangle(p: np.ndarray, q: np.ndarray, tri: np.ndarray) -> n
     qv = np.cross(s, e1)
     v = f * np.einsum("ij,ij->i", d, qv)
     t = f * (qv @ e2)
-    return ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < 1)
+    tol = _EDGE_TOL
+    return ok & (u >= -tol) & (v >= -tol) & (u + v <= 1 + tol) & (t > 0) & (t < 1)
 
 
 class _MirroredCracks(NamedTuple):

@@ -131,15 +131,10 @@ def test_crack_triangles_3d():
     assert not np.any((c.points[b.i, 0] - 3) * (c.points[b.j, 0] - 3) < 0)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known defect, not fixed here: the triangle test of find_bonds(cracks=...) is "
-    "exclusive at an edge by round-off, so a bond through the shared edge of two crack "
-    "triangles crosses neither (found on Peridigm's PrecrackJIntegral deck)",
-)
 def test_crack_made_of_two_triangles_cuts_a_bond_through_their_shared_edge():
     # the rectangle x in [-6, 0], z in [-4, 1] of the plane y = 0 as two triangles; the bond
     # (two points of PrecrackJIntegral.g) meets the plane at (-1.5, 0, -0.25), on the diagonal
+    # (found on Peridigm's PrecrackJIntegral deck: by round-off it crossed neither triangle)
     pts = np.array(
         [[-1.5, 0.5000000000000004, 7.285838599102592e-17], [-1.5, -1.5000000000000002, -1.0]]
     )
