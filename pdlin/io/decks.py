@@ -1194,6 +1194,52 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         if k not in root:
             raise SceneError(f"missing deck key Peridigm.{k}")
     disc = _table(root["Discretization"], "Discretization")
+    omit = _peridigm_discretization_keys(disc)
+    cloud, extra = _peridigm_cloud(disc, base)
+    blocks_pts: dict[str, np.ndarray] = extra["blocks"]
+    model, horizon = _peridigm_blocks(root, disc.get("Horizon"), blocks_pts, cloud.n)
+
+    # Peridigm runs a deck without Boundary Conditions (no constraint, no load: u = 0)
+    n = cloud.n
+    bcs = root.get("Boundary Conditions", {})
+    sets = _peridigm_node_sets(bcs, base, n, extra["node_sets"])
+    times = _peridigm_solver(root["Solver"])
+    at_rest = [Dirichlet(np.arange(n), np.zeros((n, cloud.dim)))]
+
+    def conditions(t: float) -> tuple[list[Dirichlet], list[BodyForce]]:
+        dirichlet, loads = _peridigm_bcs(bcs, sets, cloud, t)
+        # nothing prescribed, nothing applied: Peridigm's quasi-static solve stops at its
+        # zero residual, u = 0 (Peridigm's Interfaces deck); pdlin prescribes that u = 0
+        # on every point rather than solving a singular system
+        return (at_rest, loads) if not dirichlet and not loads else (dirichlet, loads)
+
+    dirichlet, loads = conditions(times[-1])
+    if dirichlet is at_rest:
+        _note("Boundary Conditions", "none (no constraint, no load): u = 0 on every point")
+    output = _peridigm_output(root, base, name)
+    filters: list[Callable[[np.ndarray, np.ndarray], np.ndarray]] = []
+    if extra.get("strict_sphere"):
+        filters.append(_strict_sphere(float(horizon[0])))
+    if "Bond Filters" in disc:
+        filters += peridigm_bond_filters(disc["Bond Filters"], "Discretization.Bond Filters")
+    if omit == "All" and len(blocks_pts) > 1:
+        filters.append(_omit_between_blocks(cloud.points, blocks_pts))
+    opts: dict[str, Any] = {}
+    if filters:
+        opts["exclude"] = _any_of(filters)
+    scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
+    scene.time = times[-1]  # Peridigm writes the final state at Final Time
+    if len(times) > 2:
+        # several load steps: each is a linear solve at that step's values (Peridigm's
+        # own times, its initial state included); the last is the scene's problem
+        steps = [(t, _problem(model, cloud, horizon, *conditions(t), opts)) for t in times[:-1]]
+        scene.steps = [*steps, (times[-1], scene.problem)]
+    return scene
+
+
+def _peridigm_discretization_keys(disc: Mapping[str, Any]) -> str:
+    """Check the keys of ``Discretization`` (not the cloud); return ``Omit Bonds Between
+    Blocks`` ('None' or 'All')."""
     if disc.get("Type") not in ("Text File", "Exodus", "PdQuickGrid"):  # name the cause first
         raise SceneError(
             "Discretization.Type must be 'Text File', 'Exodus' or 'PdQuickGrid' (pdlin's deck "
@@ -1216,21 +1262,24 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     for k, why in _PD_DISC.items():
         if why and k in disc and disc["Type"] != "PdQuickGrid":
             _note(f"Discretization.{k}", why)
-    cloud, extra = _peridigm_cloud(disc, base)
-    blocks_pts: dict[str, np.ndarray] = extra["blocks"]
+    return str(omit)
 
+
+def _peridigm_blocks(
+    root: Mapping[str, Any], default_h: Any, blocks_pts: Mapping[str, np.ndarray], n: int
+) -> tuple[Any, np.ndarray]:
+    """The model (one material family, per-point constants) and per-point horizons from
+    ``Materials`` and ``Blocks`` (``default_h``: ``Discretization.Horizon``, if given)."""
     materials = _table(root["Materials"], "Materials")
     mats = {
         mname: _peridigm_material(mname, _table(m, f"Materials.{mname}"), f"Materials.{mname}")
         for mname, m in materials.items()
     }
-    n = cloud.n
     horizon = np.full(n, np.nan)
     K = np.full(n, np.nan)
     G = np.full(n, np.nan)
     kinds: set[str] = set()
     hgs: set[float] = set()
-    default_h = disc.get("Horizon")
     default: tuple[float, dict[str, Any]] | None = None
     named: set[str] = set()
 
@@ -1288,64 +1337,34 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         raise SceneError(
             f"Blocks: all blocks must use one material model family in pdlin, got {sorted(kinds)}"
         )
-    kind = kinds.pop()
-    model = _build_model(kind, K, G, hgs, "Materials")
+    return _build_model(kinds.pop(), K, G, hgs, "Materials"), horizon
 
-    # Peridigm runs a deck without Boundary Conditions (no constraint, no load: u = 0)
-    bcs = root.get("Boundary Conditions", {})
-    sets = _peridigm_node_sets(bcs, base, n, extra["node_sets"])
-    times = _peridigm_solver(root["Solver"])
-    at_rest = [Dirichlet(np.arange(n), np.zeros((n, cloud.dim)))]
 
-    def conditions(t: float) -> tuple[list[Dirichlet], list[BodyForce]]:
-        dirichlet, loads = _peridigm_bcs(bcs, sets, cloud, t)
-        # nothing prescribed, nothing applied: Peridigm's quasi-static solve stops at its
-        # zero residual, u = 0 (Peridigm's Interfaces deck); pdlin prescribes that u = 0
-        # on every point rather than solving a singular system
-        return (at_rest, loads) if not dirichlet and not loads else (dirichlet, loads)
-
-    dirichlet, loads = conditions(times[-1])
-    if dirichlet is at_rest:
-        _note("Boundary Conditions", "none (no constraint, no load): u = 0 on every point")
+def _peridigm_output(root: Mapping[str, Any], base: Path, name: str) -> Path | None:
+    """The result path of a deck's ``Output`` list (``None``: pdlin's default)."""
+    if "Output" not in root:
+        return None
     output = None
-    if "Output" in root:
-        out = _table(root["Output"], "Output")
-        _unknown(out, _PD_OUTPUT, "Output", "Peridigm output")
-        for k, why in _PD_OUTPUT.items():
-            if why and k in out:
-                _note(f"Output.{k}", why)
-        suffix = ".vtu"
-        if "Output File Type" in out:
-            # Peridigm's OutputManagerContainer knows one type
-            if out["Output File Type"] != "ExodusII":
-                raise SceneError(
-                    "Output.Output File Type must be 'ExodusII', got "
-                    f"{out['Output File Type']!r} (Peridigm's only output type; pdlin then "
-                    "writes <Output Filename>.e)"
-                )
-            suffix = ".e"
-            if "Output Filename" not in out:
-                output = _output_inside(base, name, "the deck's name", suffix)
-        if "Output Filename" in out:
-            output = _output_inside(base, out["Output Filename"], "Output.Output Filename", suffix)
-    filters: list[Callable[[np.ndarray, np.ndarray], np.ndarray]] = []
-    if extra.get("strict_sphere"):
-        filters.append(_strict_sphere(float(horizon[0])))
-    if "Bond Filters" in disc:
-        filters += peridigm_bond_filters(disc["Bond Filters"], "Discretization.Bond Filters")
-    if omit == "All" and len(blocks_pts) > 1:
-        filters.append(_omit_between_blocks(cloud.points, blocks_pts))
-    opts: dict[str, Any] = {}
-    if filters:
-        opts["exclude"] = _any_of(filters)
-    scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
-    scene.time = times[-1]  # Peridigm writes the final state at Final Time
-    if len(times) > 2:
-        # several load steps: each is a linear solve at that step's values (Peridigm's
-        # own times, its initial state included); the last is the scene's problem
-        steps = [(t, _problem(model, cloud, horizon, *conditions(t), opts)) for t in times[:-1]]
-        scene.steps = [*steps, (times[-1], scene.problem)]
-    return scene
+    out = _table(root["Output"], "Output")
+    _unknown(out, _PD_OUTPUT, "Output", "Peridigm output")
+    for k, why in _PD_OUTPUT.items():
+        if why and k in out:
+            _note(f"Output.{k}", why)
+    suffix = ".vtu"
+    if "Output File Type" in out:
+        # Peridigm's OutputManagerContainer knows one type
+        if out["Output File Type"] != "ExodusII":
+            raise SceneError(
+                "Output.Output File Type must be 'ExodusII', got "
+                f"{out['Output File Type']!r} (Peridigm's only output type; pdlin then "
+                "writes <Output Filename>.e)"
+            )
+        suffix = ".e"
+        if "Output Filename" not in out:
+            output = _output_inside(base, name, "the deck's name", suffix)
+    if "Output Filename" in out:
+        output = _output_inside(base, out["Output Filename"], "Output.Output Filename", suffix)
+    return output
 
 
 def _output_inside(base: Path, value: Any, key: str, suffix: str = ".vtu") -> Path:
