@@ -820,12 +820,8 @@ def _cmd_plot(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of the ``pdlin`` command."""
-    p = argparse.ArgumentParser(prog="pdlin", description="Static peridynamics on sparse operators")
-    p.add_argument("-v", "--verbose", action="store_true", help="log library messages")
-    sub = p.add_subparsers(dest="command", required=True)
-
+def _add_run(sub: Any) -> None:
+    """The ``pdlin run`` subcommand."""
     r = sub.add_parser("run", help="solve a scene and write the results")
     r.add_argument(
         "scene", nargs="?", help="scene file (.toml) or Peridigm / PeriLab deck (.yaml, .xml)"
@@ -864,6 +860,56 @@ def build_parser() -> argparse.ArgumentParser:
         help="exit with code 5 when one of the scene's [[check]] references fails",
     )
     r.set_defaults(func=_cmd_run)
+
+
+def _add_plot(sub: Any) -> None:
+    """The ``pdlin plot`` subcommand."""
+    pl = sub.add_parser(
+        "plot",
+        help="PNG of a result field (VTU/PVD/XDMF/NPZ/Exodus), or a scene's stiffness pattern",
+    )
+    pl.add_argument("path", nargs="?", help="result file, or scene (.toml) with --spy")
+    pl.add_argument("-o", "--output", help="PNG file (default: beside the input)")
+    pl.add_argument("--field", default="displacement", help="field (default displacement)")
+    pl.add_argument("--component", help="magnitude, x, y, z of vectors; xx, xy, ... of tensors")
+    pl.add_argument("--step", type=int, default=-1, help="step of a series (0-based; -1 last)")
+    pl.add_argument("--scale", type=float, default=0.0, help="draw at x + scale * u")
+    pl.add_argument("--slice", help="plane of a 3D result, e.g. z=0.5 (points within h/2)")
+    pl.add_argument(
+        "--units",
+        help="unit system of the result for the labels: SI, mm-N-MPa, m-N-Pa, mm-kN-GPa "
+        "(default: the labels name the quantity, [length], [stress])",
+    )
+    pl.add_argument(
+        "--homogenized",
+        metavar="CSV",
+        help="also plot this homogenized stress-strain CSV (default: <stem>_homogenized.csv "
+        "beside a series, if it exists)",
+    )
+    pl.add_argument("--convergence", action="store_true", help="linear solver residuals (.npz)")
+    pl.add_argument(
+        "--render", action="store_true", help="3D rendering with pyvista (pdlin[render])"
+    )
+    pl.add_argument("--spy", action="store_true", help="spy plot of the scene's stiffness")
+    pl.add_argument(
+        "--sparsity-vs-horizon",
+        action="store_true",
+        help="nonzeros per row of the scene's stiffness vs delta/h",
+    )
+    pl.add_argument("--ratios", default="2,3,4,5", help="delta/h values (default 2,3,4,5)")
+    pl.add_argument("--order", default="rcm", help="spy ordering: natural or rcm (default)")
+    pl.add_argument("--example", help="a built-in scene (with --spy / --sparsity-vs-horizon)")
+    pl.add_argument("--dpi", type=int, default=120)
+    pl.set_defaults(func=_cmd_plot, scene=None)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``pdlin`` command."""
+    p = argparse.ArgumentParser(prog="pdlin", description="Static peridynamics on sparse operators")
+    p.add_argument("-v", "--verbose", action="store_true", help="log library messages")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    _add_run(sub)
 
     i = sub.add_parser("info", help="points, volumes, bonds and horizons of a mesh or scene")
     i.add_argument(
@@ -926,43 +972,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     t.set_defaults(func=_cmd_tradeoff)
 
-    pl = sub.add_parser(
-        "plot",
-        help="PNG of a result field (VTU/PVD/XDMF/NPZ/Exodus), or a scene's stiffness pattern",
-    )
-    pl.add_argument("path", nargs="?", help="result file, or scene (.toml) with --spy")
-    pl.add_argument("-o", "--output", help="PNG file (default: beside the input)")
-    pl.add_argument("--field", default="displacement", help="field (default displacement)")
-    pl.add_argument("--component", help="magnitude, x, y, z of vectors; xx, xy, ... of tensors")
-    pl.add_argument("--step", type=int, default=-1, help="step of a series (0-based; -1 last)")
-    pl.add_argument("--scale", type=float, default=0.0, help="draw at x + scale * u")
-    pl.add_argument("--slice", help="plane of a 3D result, e.g. z=0.5 (points within h/2)")
-    pl.add_argument(
-        "--units",
-        help="unit system of the result for the labels: SI, mm-N-MPa, m-N-Pa, mm-kN-GPa "
-        "(default: the labels name the quantity, [length], [stress])",
-    )
-    pl.add_argument(
-        "--homogenized",
-        metavar="CSV",
-        help="also plot this homogenized stress-strain CSV (default: <stem>_homogenized.csv "
-        "beside a series, if it exists)",
-    )
-    pl.add_argument("--convergence", action="store_true", help="linear solver residuals (.npz)")
-    pl.add_argument(
-        "--render", action="store_true", help="3D rendering with pyvista (pdlin[render])"
-    )
-    pl.add_argument("--spy", action="store_true", help="spy plot of the scene's stiffness")
-    pl.add_argument(
-        "--sparsity-vs-horizon",
-        action="store_true",
-        help="nonzeros per row of the scene's stiffness vs delta/h",
-    )
-    pl.add_argument("--ratios", default="2,3,4,5", help="delta/h values (default 2,3,4,5)")
-    pl.add_argument("--order", default="rcm", help="spy ordering: natural or rcm (default)")
-    pl.add_argument("--example", help="a built-in scene (with --spy / --sparsity-vs-horizon)")
-    pl.add_argument("--dpi", type=int, default=120)
-    pl.set_defaults(func=_cmd_plot, scene=None)
+    _add_plot(sub)
 
     e = sub.add_parser("examples", help="list the built-in example scenes")
     e.add_argument("--show", metavar="NAME", help="print the scene file of an example")
