@@ -137,7 +137,7 @@ def _case(
     repeats: int = 1,
 ) -> Any:
     import pdlin
-    from pdlin.solvers import nonlinear as nl
+    from pdlin.solvers import adr as nl
     from pdlin.system import constrained_system
 
     pdlin.set_num_threads(threads)

@@ -632,7 +632,7 @@ def elastic_critical_damping(n: int, load: str, control: str) -> float:
     """``2 sqrt(λ_min)`` of ``Λ⁻¹ K_e`` on the free DOFs: the damping that makes the lowest
     elastic mode of ADR's dynamics critical (Gershgorin density ``Λ`` of the elastic
     tangent, Δt = 1, as ``solve_nonlinear``'s default ADR; shift-invert Lanczos)."""
-    from pdlin.solvers.nonlinear import adr_density
+    from pdlin.solvers.adr import adr_density
     from pdlin.system import constrained_system
 
     prob, _ = problem(n, load, control)

@@ -1,5 +1,14 @@
-"""Solvers: direct, AMG-preconditioned Krylov, and the nonlinear step drivers (Newton, ADR)."""
+"""Solvers: direct, AMG-preconditioned Krylov, and the nonlinear step drivers.
 
+The linear solvers live in :mod:`~pdlin.solvers.linear` and :mod:`~pdlin.solvers.direct`;
+one load (sub)step of Newton in :mod:`~pdlin.solvers.newton` and of adaptive dynamic
+relaxation in :mod:`~pdlin.solvers.adr` (their outcome in :mod:`~pdlin.solvers.outcome`);
+the load stepping of :func:`pdlin.solve_nonlinear` in :mod:`~pdlin.solvers.stepping`,
+its options in :mod:`~pdlin.solvers.options` and its checkpoints in
+:mod:`~pdlin.solvers.checkpoint`.
+"""
+
+from .adr import adr_density, adr_step, adr_time_step
 from .conditioning import (
     CONDITION_AUTO_MAX,
     CONDITION_WARN,
@@ -15,14 +24,8 @@ from .linear import (
     amg_hierarchy,
     solve_linear,
 )
-from .nonlinear import (
-    StepFailed,
-    StepOutcome,
-    adr_density,
-    adr_step,
-    adr_time_step,
-    newton_step,
-)
+from .newton import newton_step
+from .outcome import StepFailed, StepOutcome
 
 __all__ = [
     "AUTO_MIN",
