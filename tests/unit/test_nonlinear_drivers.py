@@ -11,7 +11,7 @@ import scipy.sparse as sp
 import pdlin
 from pdlin.errors import ConvergenceError, InputError
 from pdlin.models.base import Model, Response
-from pdlin.solvers.nonlinear import StepFailed
+from pdlin.solvers import StepFailed
 
 
 class CubicChain(Model):
@@ -118,7 +118,7 @@ def test_tangent_predictor_states(predictor):
     # _RESTART_ELASTIC failed tries in a row the retries start from the committed state.
     # Graded chain, maxiter=1: the first increments of steps 2 and 3 fail 3 and 2 times
     # (counts measured 2026-11-25)
-    from pdlin.nonlinear import _RESTART_ELASTIC
+    from pdlin.solvers.stepping import _RESTART_ELASTIC
 
     base = _chain(u_end=0.2, graded=True)
     spy = SpyChain(k=base.model.k)
@@ -496,7 +496,7 @@ def test_increment_carries_into_the_next_step(monkeypatch):
     # (increment 0.5) is cut back once to 0.25 and finishes in two increments; step 2
     # starts from the carried 0.25 and is never cut back (halving from the full step
     # each time would fail once per step)
-    import pdlin.nonlinear as nl
+    import pdlin.solvers.stepping as nl
 
     real_newton = nl.newton_step
     last = [0.0]
@@ -532,7 +532,7 @@ def test_auto_after_a_fallback_newton_tries_fewer_halvings(
     Newton ``fallback_cutbacks`` halvings from a whole-step increment, not ``max_cutbacks``
     from the tiny increment it failed at (a 10⁵-point polycrystal spent ≈ 20 min per step on
     creeping Newton increments before the fallback)."""
-    import pdlin.nonlinear as nl
+    import pdlin.solvers.stepping as nl
 
     real_newton = nl.newton_step
     tries: list[tuple[float, float]] = []
@@ -562,7 +562,7 @@ def test_auto_newton_tries_shrink_over_consecutive_fallbacks(monkeypatch):
     """Every further load step that Newton fails in a row takes one halving off the next
     step's Newton (fallback_cutbacks = 2: 2, 1, then the whole step alone); a step that
     Newton carries restores max_cutbacks."""
-    import pdlin.nonlinear as nl
+    import pdlin.solvers.stepping as nl
 
     real_newton = nl.newton_step
     ok_at = {4 / 6}  # load factors at which Newton is allowed to converge (step 4 of 6)
@@ -586,7 +586,7 @@ def test_auto_newton_tries_shrink_over_consecutive_fallbacks(monkeypatch):
 def test_auto_continues_with_adr_from_newtons_last_increment(monkeypatch):
     # Newton converges up to half of the load and fails beyond; ADR must take over from
     # Newton's converged half step (its start state already has the history of t = 0.5)
-    import pdlin.nonlinear as nl
+    import pdlin.solvers.stepping as nl
 
     real_newton, real_adr = nl.newton_step, nl.adr_step
     seen: list[float] = []
@@ -634,7 +634,7 @@ def test_adr_divergence_names_where_the_iterates_ran_away():
 
 def _refuse_newton(monkeypatch) -> list[float]:
     """Make every Newton increment fail; returns the list of load factors it was tried at."""
-    import pdlin.nonlinear as nl
+    import pdlin.solvers.stepping as nl
 
     tried: list[float] = []
 
@@ -651,7 +651,7 @@ def test_auto_newton_backoff_after_a_long_fallback_streak(monkeypatch, backoff):
     """Newton fails every step: after fallback_cutbacks + 1 = 3 failed steps in a row,
     ``auto`` tries it only when the streak is a power of two (4, 8) and hands the other
     steps to ADR directly; with newton_backoff=False it tries every step."""
-    import pdlin.nonlinear as nl
+    import pdlin.solvers.stepping as nl
 
     tried = _refuse_newton(monkeypatch)
     prob = _chain(u_end=0.05, beta=10.0)
@@ -676,7 +676,7 @@ def test_auto_newton_backoff_after_a_long_fallback_streak(monkeypatch, backoff):
 
 def test_auto_newton_backoff_streak_survives_a_resume(monkeypatch, tmp_path):
     # a resumed run continues the streak from the checkpoint's methods
-    import pdlin.nonlinear as nl
+    import pdlin.solvers.stepping as nl
 
     tried = _refuse_newton(monkeypatch)
     prob = _chain(u_end=0.05, beta=10.0)
@@ -695,7 +695,7 @@ def _limit_adr(
     """Make ADR refuse increments larger than ``limits[step]`` (a fraction of the load
     step; 1-based steps, default: no limit) at once; returns (step, increment) per try
     and the last converged load factor (a list, to reset it for a new run)."""
-    import pdlin.nonlinear as nl
+    import pdlin.solvers.stepping as nl
 
     real_adr = nl.adr_step
     last = [0.0]
@@ -768,7 +768,7 @@ def test_adr_dot_is_the_blas_product_and_keeps_non_finite_values() -> None:
     """The ADR loop's BLAS-free dot product (``_dot``, einsum) equals ``a @ b`` to
     round-off on long vectors, and an inf / nan in either vector reaches the result (the
     loop detects a runaway from ``sqrt(_dot(r, r))``)."""
-    from pdlin.solvers.nonlinear import _dot
+    from pdlin.solvers.adr import _dot
 
     rng = np.random.default_rng(7)
     a, b = rng.standard_normal(200_001), rng.standard_normal(200_001)
@@ -849,7 +849,7 @@ def test_adr_compiled_update_is_the_numpy_update_bitwise(monkeypatch, damping):
     bitwise, for 1 and 2 threads and with constant damping (δu only)."""
     pytest.importorskip("numba")
     from pdlin._kernels import numba_enabled
-    from pdlin.solvers import nonlinear as nl
+    from pdlin.solvers import adr as nl
 
     if not numba_enabled():
         pytest.skip("numba disabled (PDLIN_NUMBA=0)")
@@ -1030,7 +1030,7 @@ def test_adr_snapshots_resume_a_cut_back_step_bitwise(tmp_path, monkeypatch):
 def _chain_system() -> tuple[Any, dict[str, np.ndarray], np.ndarray, np.ndarray]:
     """The graded hardening chain's constrained system, initial state, start (the end
     values, linear in between) and Gershgorin density."""
-    from pdlin.solvers.nonlinear import adr_density
+    from pdlin.solvers.adr import adr_density
 
     system = pdlin.constrained_system(_chain(u_end=0.2, graded=True, beta=10.0))
     st = system.initial_state()
@@ -1039,7 +1039,7 @@ def _chain_system() -> tuple[Any, dict[str, np.ndarray], np.ndarray, np.ndarray]
 
 
 def test_stalled_compares_the_last_window_with_the_best_before():
-    from pdlin.solvers.nonlinear import _stalled
+    from pdlin.solvers.adr import _stalled
 
     falling = [2.0**-k for k in range(40)]  # halves every iteration: never stalled
     assert not _stalled(falling, 40, 10)
@@ -1056,7 +1056,7 @@ def test_adr_polish_finishes_an_undamped_stall_with_newton():
     """Undamped ADR (``damping=0``) never settles: its ‖r‖ oscillates without a trend, so
     the first stall check (iteration 2·stall) calls ``polish``, whose Newton solution ends
     the increment at Newton's residual criterion; e1/e2 are not ADR's then (None)."""
-    from pdlin.solvers.nonlinear import adr_step, newton_step
+    from pdlin.solvers import adr_step, newton_step
 
     system, st, u0, lam = _chain_system()
     tries: list[int] = []
@@ -1081,7 +1081,7 @@ def test_failed_polish_leaves_the_adr_iterates_bitwise():
     """A polish that fails costs its Newton iterations (``polish``) and calls; the ADR
     iteration goes on exactly as without it, and the last try's reason is in the
     budget failure's message."""
-    from pdlin.solvers.nonlinear import StepOutcome, adr_step
+    from pdlin.solvers import StepOutcome, adr_step
 
     system, st, u0, lam = _chain_system()
     tries: list[np.ndarray] = []
@@ -1152,7 +1152,7 @@ def test_polish_arguments_name_themselves(kwargs, match):
 def test_adr_restart_with_polish_tries_is_bitwise_and_keeps_their_count():
     """A snapshot taken after failed polish tries restarts to the same end: the iterates
     bit for bit and the tries' Newton iterations (kept in the snapshot) counted once."""
-    from pdlin.solvers.nonlinear import StepOutcome, adr_step
+    from pdlin.solvers import StepOutcome, adr_step
 
     system, st, u0, lam = _chain_system()
 
