@@ -119,7 +119,19 @@ class NonlinearResult:
     state_steps: list[int] = field(default_factory=list)
 
     def state_at(self, step: int) -> dict[str, np.ndarray] | None:
-        """Committed state after load step ``step`` (0-based), or None if not kept."""
+        """Return the committed state after load step ``step``, or None if not kept.
+
+        Parameters
+        ----------
+        step : int
+            Load-step index (0-based; negative counts from the end).
+
+        Returns
+        -------
+        dict of str to ndarray or None
+            The model's state variables after that step (None: not kept, see
+            ``keep_states``).
+        """
         k = step % self.n_steps if self.n_steps else step
         try:
             return self.states[self.state_steps.index(k)]
@@ -138,6 +150,7 @@ class NonlinearResult:
 
     @property
     def n_steps(self) -> int:
+        """Number of load steps."""
         return int(self.times.size)
 
     def _table(self) -> list[tuple[str, Any]]:
@@ -165,11 +178,19 @@ class NonlinearResult:
         return compact_repr("NonlinearResult", items)
 
     def _repr_html_(self) -> str:
-        """The summary as an HTML table (Jupyter)."""
+        """Return the summary as an HTML table (Jupyter)."""
         return html_table("NonlinearResult", self._table())
 
     def summary(self) -> dict[str, Any]:
-        """Plain-data summary (for the CLI and logs)."""
+        """Return a plain-data summary (for the CLI and logs).
+
+        Returns
+        -------
+        dict
+            Steps, points, dim, drivers used, iteration, constitutive-call, cut-back,
+            relaxation and polish totals, fallbacks, skipped Newton steps, the largest
+            relative residual and the setup and total seconds.
+        """
         return {
             "steps": self.n_steps,
             "points": int(self.u.shape[1]),
@@ -243,12 +264,12 @@ def solve_nonlinear(
     steps : int
         Number of equal load steps up to ``t_end`` (ignored with ``times``).
     method : {'auto', 'newton', 'adr'}
-        'newton': Newton-Raphson with the consistent tangent, backtracking
-        line search and step cut-back.  'adr': adaptive dynamic relaxation
-        (Kilic-Madenci; spec 001 §4).  'auto': Newton, falling back to ADR
-        from Newton's last converged increment when an increment fails even
-        after ``max_cutbacks`` halvings (``result.methods`` says so; after
-        such a step, see ``fallback_cutbacks``).
+        'newton': Newton-Raphson with the consistent tangent, backtracking line search
+        and step cut-back.  'adr': adaptive dynamic relaxation (Kilic & Madenci 2010;
+        Luo, Ramazani & Sundararaghavan 2017, Section 2.2).  'auto': Newton, falling
+        back to ADR from Newton's last converged increment when an increment fails even
+        after ``max_cutbacks`` halvings (``result.methods`` says so; after such a step,
+        see ``fallback_cutbacks``).
     t_end : float, optional
         Time of the full load (default 1): the end of ``steps`` equal steps,
         and the time at which plain prescribed values and loads reach their
@@ -257,17 +278,16 @@ def solve_nonlinear(
     times : sequence of float, optional
         Explicit step times (increasing, > 0).
     predictor : {'auto', 'affine', 'tangent', 'committed-tangent', 'extrapolate', 'previous'}
-        Start of each step: the incremental affine map of a velocity-gradient
-        path (spec 001 §4.3); the tangent predictor ``u + Δu`` with
-        ``K_T(u) Δu = r(u)`` and the prescribed increment imposed (one linear
-        solve; exact for linear models), ``K_T`` the consistent tangent at the
-        end of the last converged increment (its active sets carried on; from
-        the committed state at the first step); 'committed-tangent' the same
-        with ``K_T`` from the committed state (a zero increment: for crystal
-        plasticity the elastic tangent); a linear extrapolation of the last
-        two steps; or the last solution. 'auto': tangent for Newton steps;
-        for ADR steps affine when the prescribed paths share one velocity
-        gradient, else tangent.
+        Start of each step: the incremental affine map of a velocity-gradient path
+        (``exp(L Δt)(X + u) - X``, pdlin's default for ADR); the tangent predictor
+        ``u + Δu`` with ``K_T(u) Δu = r(u)`` and the prescribed increment imposed (one linear
+        solve; exact for linear models), ``K_T`` the consistent tangent at the end of
+        the last converged increment (its active sets carried on; from the committed
+        state at the first step); 'committed-tangent' the same with ``K_T`` from the
+        committed state (a zero increment: for crystal plasticity the elastic tangent);
+        a linear extrapolation of the last two steps; or the last solution. 'auto':
+        tangent for Newton steps; for ADR steps affine when the prescribed paths share
+        one velocity gradient, else tangent.
     rtol, maxiter, line_search, max_cutbacks, linear_solver
         Newton: convergence ``‖r_free‖ <= rtol`` x force scale (the larger of
         ``‖λ f_ext‖`` and the reaction norm), iteration budget per (sub)step,
@@ -312,15 +332,17 @@ def solve_nonlinear(
         with ``'auto'`` it was not faster than the ADR fallback in the measured
         runs (docs/nonlinear.md), hence off by default.
     e_l, density, density_safety, dt, damping, c0, adr_maxiter, floor
-        ADR: target of the relative criteria e₁, e₂ (spec 001 Eqs. 19-20);
+        ADR: target of the relative criteria e₁, e₂ (Luo, Ramazani &
+        Sundararaghavan 2017, Eqs. 19-20);
         fictitious density ``'gershgorin'`` (Kilic-Madenci, ``Λ_ii = s ¼ Δt²
         Σ_j |K_ij|`` of the tangent at each step's predictor, at least that of
         the initial (elastic) tangent, with Δt = ``dt`` or 1 and the safety
         ``s = density_safety``: at ``s = 1`` the highest mode sits at the
         stability limit and decays very slowly, 1.1 keeps it damped;
         hardening materials far from equilibrium may need more) or a
-        positive number / ``(n*dim,)`` array with an explicit ``dt`` (spec
-        001 Eq. 12: ``Λ = 1``, ``Δt = h sqrt(1/E_max)``); constant
+        positive number / ``(n*dim,)`` array with an explicit ``dt`` (the
+        paper's Eq. 12 with ``Λ = 1``: ``Δt = h sqrt(1/E_max)``,
+        :func:`~pdlin.solvers.adr_time_step`); constant
         ``damping`` instead of the adaptive Rayleigh quotient (finite, >= 0); initial
         damping ``c0`` (finite, >= 0); iteration budget per step, an integer >= 1
         (default ``200 ⌈N^(1/dim)⌉ + 2000``); absolute floor on ``‖r‖`` relative to the
@@ -333,7 +355,8 @@ def solve_nonlinear(
         increment at Newton's residual criterion ``rtol`` (``result.polishes`` counts
         its iterations, ``e1``/``e2`` are NaN); a failed one costs its Newton iterations
         and ADR goes on unchanged.  Default (None): on with ``method='auto'``, off with
-        ``'adr'`` (ADR alone, spec 001's method).  ADR's damped dynamics can stall just
+        ``'adr'`` (ADR alone, the method of Luo, Ramazani & Sundararaghavan 2017).
+        ADR's damped dynamics can stall just
         above its criteria near an equilibrium Newton reaches in 2 iterations
         (docs/nonlinear.md: step 30 of the 10⁵-point run).
     adr_stall : int, optional

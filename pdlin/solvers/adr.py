@@ -22,20 +22,42 @@ import scipy.sparse as sp
 from ..errors import InputError, ModelError
 from .outcome import StepFailed, StepOutcome, _force_scale, _residual, _respond
 
-__all__ = ["adr_step", "adr_density", "adr_time_step", "StepFailed", "StepOutcome"]
+__all__ = ["adr_step", "adr_density", "adr_time_step"]
 
 
 def adr_time_step(spacing: float, E_max: float, density: float = 1.0) -> float:
-    """ADR time step of spec 001 Eq. 12, ``Δt = Δx sqrt(Λ / E_max)``.
+    """Return the ADR time step ``Δt = Δx sqrt(Λ / E_max)``.
 
-    With the fictitious density ``Λ`` per unit volume (``Λ = 1`` in spec 001) pass the
-    nodal density ``Λ V`` to :func:`pdlin.solve_nonlinear` (``density=Λ * V``); the
-    step sits at about 0.88-0.95 of the true limit ``2/sqrt(λ_max)`` for δ = h
-    (spec 001 §2.3).
+    Eq. 12 of Luo, Ramazani & Sundararaghavan (2017).  With the fictitious density
+    ``Λ`` per unit volume (``Λ = 1`` in mm-MPa units, pdlin's reading of the paper) pass
+    the nodal density ``Λ V`` to :func:`pdlin.solve_nonlinear` (``density=Λ * V``).
+    Derived (pdlin's eigenvalue computations): for δ = h the step sits at about
+    0.88-0.95 of the true stability limit ``2/sqrt(λ_max)``.
+
+    Parameters
+    ----------
+    spacing : float
+        Grid spacing ``Δx`` (> 0).
+    E_max : float
+        Largest elastic modulus (> 0, the units of the stress).
+    density : float
+        Fictitious density ``Λ`` per unit volume (> 0).
+
+    Returns
+    -------
+    float
+        The time step ``Δt``.
+
+    Raises
+    ------
+    InputError
+        An argument is not a positive finite number.
 
     Examples
     --------
-    >>> [round(adr_time_step(1 / n, 2000.0), 7) for n in (15, 25, 50)]  # spec 001 T14
+    Eq. 12 at E_max = 2000 MPa, Λ = 1 on the paper's 15², 25² and 50² grids:
+
+    >>> [round(adr_time_step(1 / n, 2000.0), 7) for n in (15, 25, 50)]
     [0.0014907, 0.0008944, 0.0004472]
     """
     for name, v in (("spacing", spacing), ("E_max", E_max), ("density", density)):
@@ -58,16 +80,38 @@ def adr_density(
     dt: float = 1.0,
     safety: float = 1.0,
 ) -> np.ndarray:
-    """Fictitious diagonal density from the Gershgorin bound of the tangent (Kilic-Madenci).
+    """Return the fictitious diagonal density from the Gershgorin bound of the tangent.
 
-    ``Λ_ii = safety · ¼ Δt² Σ_j |K_ij|`` over the eliminated tangent at ``u``
-    (default: the prescribed-zero state), so that ``ω_max Δt <= 2`` for
-    every eigenvalue of ``Λ⁻¹ K``: the central-difference update is stable
-    for any damping ``c >= 0``.
+    ``Λ_ii = safety · ¼ Δt² Σ_j |K_ij|`` (Kilic & Madenci 2010) over the eliminated
+    tangent at ``u``, so that ``ω_max Δt <= 2`` for every eigenvalue of ``Λ⁻¹ K``: the
+    central-difference update is stable for any damping ``c >= 0``.
+
+    Parameters
+    ----------
+    system : ConstrainedSystem
+        The problem's constrained system.
+    committed : dict of str to ndarray
+        The committed state the tangent starts from.
+    u : (ndof,) ndarray, optional
+        Where the tangent is taken (default: zero displacement).
+    dt : float
+        ADR time step (> 0).
+    safety : float
+        Factor on the bound (>= 1).
 
     Returns
     -------
-    (ndof,) ndarray, positive
+    (ndof,) ndarray
+        Positive density per DOF (1 on prescribed DOFs).
+
+    Raises
+    ------
+    InputError
+        ``dt <= 0`` or ``safety < 1``.
+    ModelError
+        The model returns no tangent, or a free DOF has an empty tangent row.
+    StepFailed
+        The tangent has a non-finite row at a free DOF.
     """
     if not (dt > 0 and safety >= 1.0):
         raise InputError(f"dt must be > 0 and safety >= 1, got dt = {dt}, safety = {safety}")
@@ -117,15 +161,16 @@ def adr_step(
     polish: Callable[[np.ndarray], StepOutcome] | None = None,
     stall: int = 0,
 ) -> StepOutcome:
-    """Adaptive dynamic relaxation for one load step (spec 001 §4).
+    """Run adaptive dynamic relaxation for one load step.
 
-    Central differences on ``Λ ü + c Λ u̇ = r(u)`` (Eq. 8), ``u⁻¹ = u⁰``;
+    The method of Luo, Ramazani & Sundararaghavan (2017), Section 2.2: central
+    differences on ``Λ ü + c Λ u̇ = r(u)`` (update Eq. 8), ``u⁻¹ = u⁰``;
     damping ``cⁿ = 2 sqrt(uⁿᵀ kⁿ uⁿ / uⁿᵀ uⁿ)`` with the diagonal local
     stiffness ``k_ii = -(r_iⁿ - r_iⁿ⁻¹)/(Λ_ii (u_iⁿ - u_iⁿ⁻¹))`` over free
     DOFs (``c = 0`` when the quotient is <= 0), unless a constant
-    ``damping`` is given.  Stops when ``e₁ = ε₁/ε₁⁰ < e_l`` and
-    ``e₂ = ε₂/ε₂⁰ < e_l`` (``ε₁ = ‖r‖/N``, ``ε₂ = ‖δu‖/N``, ``ε⁰`` of the
-    first iteration), or when ``‖r‖ <= floor`` x the force scale (the
+    ``damping`` is given (Eqs. 13-14).  Stops when ``e₁ = ε₁/ε₁⁰ < e_l`` and
+    ``e₂ = ε₂/ε₂⁰ < e_l`` (Eqs. 19-20: ``ε₁ = ‖r‖/N``, ``ε₂ = ‖δu‖/N``, ``ε⁰`` of
+    the first iteration), or when ``‖r‖ <= floor`` x the force scale (the
     relative criteria degenerate when ``u⁰`` is already the solution).
     ``progress`` (if given) is called every ``progress_every`` seconds with the
     iteration, e₁, e₂, the damping and ‖r‖ relative to the force scale.
@@ -153,8 +198,56 @@ def adr_step(
     the force scale, then a plateau at 1e-6 for 40,000 iterations; Newton from the
     plateau converged in 2).
 
+    Parameters
+    ----------
+    system : ConstrainedSystem
+        The problem's constrained system.
+    u0 : (ndof,) ndarray
+        Start displacement; its prescribed entries hold this step's values.
+    committed : dict of str to ndarray
+        The model's committed state (every response starts from it).
+    factor : float
+        Load factor ``λ`` of the external force ``λ f_ext``.
+    density : (ndof,) ndarray
+        Fictitious diagonal density ``Λ`` (positive, e.g. :func:`adr_density`).
+    dt : float
+        Time step (> 0).
+    e_l : float
+        Target of the relative criteria e₁, e₂.
+    maxiter : int
+        Iteration budget.
+    c0 : float
+        Initial damping of the adaptive damping.
+    damping : float, optional
+        Constant damping instead of the Rayleigh quotient.
+    floor : float
+        Absolute floor on ``‖r‖`` relative to the force scale.
+    progress : callable, optional
+        Receives a progress line every ``progress_every`` seconds.
+    progress_every : float
+        Seconds between progress lines.
+    snapshot : callable, optional
+        Receives the loop's state every ``snapshot_every`` seconds.
+    snapshot_every : float
+        Seconds between snapshots (checked every 64 iterations).
+    restart : dict, optional
+        A ``snapshot`` of an earlier run from the same start, continued.
+    polish : callable, optional
+        Newton from an iterate, tried at stalls and when the budget runs out.
+    stall : int
+        Stall window of ``polish`` in iterations (0: only at the end of the budget).
+
+    Returns
+    -------
+    StepOutcome
+        The converged displacement and response, iterations, constitutive calls,
+        residual history, damping per iteration and the final e₁, e₂ (None, with
+        Newton's residual, for a polished increment).
+
     Raises
     ------
+    InputError
+        ``stall``, ``density`` or ``dt`` out of range.
     StepFailed
         After ``maxiter`` iterations (and a failed ``polish``) or on a non-finite force.
     """
@@ -209,8 +302,11 @@ def adr_step(
 def _runaway_message(
     system: Any, it: int, u_start: np.ndarray, u: np.ndarray, r_new: np.ndarray
 ) -> str:
-    """Why ADR stopped on a non-finite force: where it appeared and where the last finite
-    iterate had moved farthest from the start of the increment (the runaway's seat)."""
+    """Say why ADR stopped on a non-finite force.
+
+    Names where it appeared and where the last finite iterate had moved farthest from
+    the start of the increment (the runaway's seat).
+    """
     d = system.dim
     bad = np.flatnonzero(~np.isfinite(r_new))
     first = int(bad[0]) // d if bad.size else -1
@@ -236,14 +332,14 @@ _ADR_CHUNK = 1 << 16
 
 
 def _adr_kernels(ndof: int) -> Any:
-    """The compiled kernels for an ADR loop over ``ndof`` DOFs, or None (numpy steps)."""
+    """Return the compiled kernels for an ADR loop over ``ndof`` DOFs, or None (numpy)."""
     from .._kernels import _kernels, use_numba
 
     return _kernels() if use_numba(ndof) else None
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> float:
-    """``a · b`` of two vectors without BLAS (numpy's own loop in ``einsum``).
+    """Return ``a · b`` of two vectors without BLAS (numpy's own loop in ``einsum``).
 
     OpenBLAS runs ``ddot`` (and so ``np.linalg.norm``) of long vectors on its own
     threads, which then spin for a while after the call: in the ADR loop they took the
@@ -259,10 +355,12 @@ def _adr_restart(
 ) -> tuple[
     np.ndarray, np.ndarray, np.ndarray, int, float, float, float, int, list[float], list[float]
 ]:
-    """The loop state of an ADR ``snapshot`` (checked): the iterates ``u``, ``u_prev``,
-    ``u_start``, the first iteration to run, the damping, ``ε⁰``, the constitutive calls
-    so far (those of the interrupted run, plus ``calls`` of the restart's start) and the
-    residual and damping histories."""
+    """Return the loop state of an ADR ``snapshot`` (checked).
+
+    The iterates ``u``, ``u_prev``, ``u_start``, the first iteration to run, the
+    damping, ``ε⁰``, the constitutive calls so far (those of the interrupted run, plus
+    ``calls`` of the restart's start) and the residual and damping histories.
+    """
     try:
         vecs = [np.array(snap[k], dtype=float).reshape(-1) for k in ("u", "u_prev", "u_start")]
         it = int(snap["iteration"])
@@ -289,9 +387,11 @@ class _AdrRun:
 
 
 def _stalled(history: list[float], it: int, stall: int) -> bool:
-    """At iteration ``it`` (a multiple of ``stall``, at least ``2 stall``): the best
-    residual of the last ``stall`` iterations is not below half the best before them
-    (``history[j]`` is iteration ``j + 1``'s)."""
+    """Tell whether ADR stalls at iteration ``it`` (a multiple of ``stall``, >= ``2 stall``).
+
+    It does when the best residual of the last ``stall`` iterations is not below half
+    the best before them (``history[j]`` is iteration ``j + 1``'s).
+    """
     return min(history[it - stall : it]) > 0.5 * min(history[: it - stall])
 
 
@@ -433,11 +533,13 @@ def _adr_run(
     polish: Callable[[np.ndarray], StepOutcome] | None = None,
     stall: int = 0,
 ) -> _AdrRun:
-    """The ADR iterations of :func:`adr_step` from ``u`` at rest (``u⁻¹ = u⁰``), its
-    response ``resp`` and residual ``r``; stops on the criteria, on a converged
-    ``polish`` or after ``maxiter`` iterations (not converged: the outcome holds the last
-    iterate).  ``restart``: a ``snapshot`` of an earlier run from the same start,
-    continued after its iteration."""
+    """Run the ADR iterations of :func:`adr_step` from ``u`` at rest (``u⁻¹ = u⁰``).
+
+    ``resp`` and ``r`` are the response and residual at ``u``.  Stops on the criteria,
+    on a converged ``polish`` or after ``maxiter`` iterations (not converged: the
+    outcome holds the last iterate).  ``restart``: a ``snapshot`` of an earlier run from
+    the same start, continued after its iteration.
+    """
     npts = system.n
     u = np.array(u, dtype=float)  # the iterates rotate through three buffers
     u_start = u.copy()

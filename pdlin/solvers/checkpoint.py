@@ -1,5 +1,6 @@
-"""Checkpoints of :func:`pdlin.solve_nonlinear`: an NPZ file per run, written after every
-converged load step, and the ADR snapshots of the running step.
+"""Checkpoints of :func:`pdlin.solve_nonlinear` and the ADR snapshots of a running step.
+
+A checkpoint is one NPZ file per run, written after every converged load step.
 
 A checkpoint carries the per-step records, the last committed state (with
 ``keep_states`` every committed state), the predictor's continuation state and the
@@ -49,16 +50,21 @@ _UNREADABLE = (OSError, ValueError, KeyError, IndexError, EOFError, zipfile.BadZ
 
 
 def _why_unreadable(exc: BaseException) -> str:
-    """Why ``np.load`` could not read a file (numpy takes a file that is no ZIP archive for
-    a pickle and suggests ``allow_pickle=``: here it is just not an NPZ file)."""
+    """Say why ``np.load`` could not read a file.
+
+    numpy takes a file that is no ZIP archive for a pickle and suggests
+    ``allow_pickle=``: here it is just not an NPZ file.
+    """
     if isinstance(exc, ValueError) and "pickled" in str(exc):
         return "not an NPZ file"
     return f"{type(exc).__name__}: {exc}"
 
 
 def _write_atomic_npz(path: Path, arrays: dict[str, np.ndarray], what: str = "checkpoint") -> None:
-    """Write ``arrays`` to ``path`` through ``<path>.tmp`` and a rename: ``path`` holds the
-    old or the new file, never a part of one, and no ``.tmp`` file is left behind.
+    """Write ``arrays`` to ``path`` through ``<path>.tmp`` and a rename.
+
+    ``path`` holds the old or the new file, never a part of one, and no ``.tmp`` file is
+    left behind.
 
     Raises
     ------
@@ -88,7 +94,7 @@ def _write_atomic_npz(path: Path, arrays: dict[str, np.ndarray], what: str = "ch
 
 
 def _write_snapshots(path: Path, snaps: dict[str, dict[str, np.ndarray]]) -> None:
-    """The ADR snapshots of the running load step, by increment key, in one NPZ file."""
+    """Write the ADR snapshots of the running load step, by increment key, to one file."""
     arrays: dict[str, np.ndarray] = {"keys": np.array(list(snaps), dtype=str)}
     for i, entry in enumerate(snaps.values()):
         for name, value in entry.items():
@@ -99,9 +105,12 @@ def _write_snapshots(path: Path, snaps: dict[str, dict[str, np.ndarray]]) -> Non
 def _read_snapshots(
     path: Path, say: Callable[[str], None] = lambda msg: None
 ) -> dict[str, dict[str, np.ndarray]]:
-    """The snapshots of :func:`_write_snapshots` (none from an unreadable file, which is
-    named in a warning and through ``say``: the increments then start afresh, as without
-    snapshots, and end where the snapshots would have led)."""
+    """Read the snapshots of :func:`_write_snapshots`.
+
+    None from an unreadable file, which is named in a warning and through ``say``: the
+    increments then start afresh, as without snapshots, and end where the snapshots
+    would have led.
+    """
     try:
         with np.load(path, allow_pickle=False) as f:
             keys = [str(k) for k in f["keys"]]
@@ -153,8 +162,10 @@ def problem_fingerprint(
 
 
 def _load_digest(system: ConstrainedSystem, t: float, t_end: float) -> str:
-    """The digest of a load step's prescribed DOFs, their values and the external force at
-    time ``t`` (plain values and loads scaled by ``t / t_end``, load paths evaluated)."""
+    """Digest a load step's prescribed DOFs, their values and the external force at ``t``.
+
+    Plain values and loads are scaled by ``t / t_end``, load paths evaluated.
+    """
     factor = t / t_end
     return digest(system.dofs, system.values_at(t, factor), factor * system.f_ext)
 
@@ -188,8 +199,10 @@ def _check_checkpoint(
     fingerprint: dict[str, str],
     branch: bool,
 ) -> None:
-    """Refuse a checkpoint of another problem (``_PARTS``, the step times; the solver
-    options only when not ``branch``), naming the parts that differ.
+    """Refuse a checkpoint of another problem, naming the parts that differ.
+
+    The parts are ``_PARTS`` and the step times; the solver options only when not
+    ``branch``.
 
     Raises
     ------
@@ -232,9 +245,11 @@ def _check_checkpoint(
 def _adr_key(
     t_new: float, u0: np.ndarray, st: dict[str, np.ndarray], dens: Any, opts: tuple[float, ...]
 ) -> str:
-    """A fingerprint of an ADR increment: its target time, start displacement, committed
-    state and density, and ``opts`` (the options that change its iterates: Δt, a
-    constant damping, the budget): a snapshot continues only the same increment."""
+    """Fingerprint an ADR increment: a snapshot continues only the same increment.
+
+    Digests its target time, start displacement, committed state and density, and
+    ``opts`` (the options that change its iterates: Δt, a constant damping, the budget).
+    """
     h = hashlib.sha256(np.array((t_new, *opts), dtype=float).tobytes())
     h.update(np.ascontiguousarray(u0, dtype=float).tobytes())
     h.update(np.ascontiguousarray(dens, dtype=float).tobytes())

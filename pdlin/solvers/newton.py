@@ -44,7 +44,7 @@ def _direction(
     progress: Callable[[str], None] | None,
     it: int,
 ) -> np.ndarray:
-    """The Newton direction ``du`` of ``K_T du = r`` with ``du = 0`` on prescribed DOFs."""
+    """Solve ``K_T du = r`` for the Newton direction (``du = 0`` on prescribed DOFs)."""
     if K is None:
         raise ModelError(
             f"{type(system.model).__name__}.respond(tangent=True) returned no tangent; "

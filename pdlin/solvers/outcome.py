@@ -74,15 +74,18 @@ class StepFailed(ConvergenceError):
 
 
 def _respond(system: Any, u: np.ndarray, committed: Any, what: str, tangent: bool = False) -> Any:
-    """``system.respond`` where a non-finite constitutive response (a material update
-    that failed at a trial state, e.g. a return mapping diverging at an overshooting
-    ADR iterate) fails the step, so that the driver cuts it back, instead of escaping.
+    """Return ``system.respond``, a non-finite constitutive response failing the step.
+
+    A material update that failed at a trial state (e.g. a return mapping diverging at
+    an overshooting ADR iterate) raises :class:`StepFailed`, so that the driver cuts the
+    increment back, instead of escaping.
 
     numpy's floating-point warnings (overflow, invalid, divide) are not issued for
     trial iterates: the overflow of a diverging iterate is not the user's concern, and
     every caller checks what it takes from the response (a non-finite residual fails the
     step or the line-search trial; a committed state is checked by the load-step
-    driver), so nothing non-finite is kept."""
+    driver), so nothing non-finite is kept.
+    """
     try:
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             return system.respond(u, committed, tangent=tangent)
@@ -91,7 +94,7 @@ def _respond(system: Any, u: np.ndarray, committed: Any, what: str, tangent: boo
 
 
 def _residual(system: Any, resp: Any, factor: float) -> np.ndarray:
-    """The residual ``f_int + factor f_ext`` of a response (zero on prescribed DOFs)."""
+    """Return the residual ``f_int + factor f_ext`` of a response (0 on prescribed DOFs)."""
     return system.residual(None, factor=factor, f_int=resp.force)
 
 
@@ -104,8 +107,11 @@ def _force_scale(system: Any, resp: Any, factor: float) -> float:
 
 
 def _linear_solver(system: Any, solver: str) -> str:
-    """The inner linear solver for ``'auto'``: direct up to 2·10⁵ DOFs in 2D (3·10⁴ in
-    3D), then AMG-preconditioned CG (symmetric) or GMRES."""
+    """Resolve the inner linear solver ``'auto'``.
+
+    Direct up to 2·10⁵ DOFs in 2D (3·10⁴ in 3D), then AMG-preconditioned CG
+    (symmetric) or GMRES.
+    """
     if solver != "auto":
         return solver
     limit = 200_000 if system.dim <= 2 else 30_000

@@ -1,5 +1,7 @@
-"""Load stepping of :func:`pdlin.solve_nonlinear`: predictors, automatic increments,
-cut-backs, the Newton -> ADR fallback, Newton's backoff and ADR's polish.
+"""Load stepping of :func:`pdlin.solve_nonlinear`.
+
+Predictors, automatic increments, cut-backs, the Newton -> ADR fallback, Newton's
+backoff and ADR's polish.
 
 Each load step runs Newton (:func:`~pdlin.solvers.newton.newton_step`) and/or adaptive
 dynamic relaxation (:func:`~pdlin.solvers.adr.adr_step`) in automatic increments from
@@ -100,6 +102,28 @@ class _Counts:
 
 
 def step_times(steps: int, t_end: float | None, times: Sequence[float] | None) -> np.ndarray:
+    """Return the load-step times of :func:`pdlin.solve_nonlinear`.
+
+    Parameters
+    ----------
+    steps : int
+        Number of equal steps up to ``t_end`` (ignored with ``times``).
+    t_end : float or None
+        Time of the full load (default 1).
+    times : sequence of float, optional
+        Explicit step times (increasing, > 0).
+
+    Returns
+    -------
+    (K,) ndarray
+        The step times.
+
+    Raises
+    ------
+    InputError
+        ``times`` not increasing and positive, ``steps`` not an integer >= 1 or
+        ``t_end`` not positive.
+    """
     if times is not None:
         arr = np.asarray(times, dtype=float).reshape(-1)
         if (
@@ -121,7 +145,7 @@ def step_times(steps: int, t_end: float | None, times: Sequence[float] | None) -
 
 
 def _affine_path(system: ConstrainedSystem) -> tuple[np.ndarray, np.ndarray] | None:
-    """The (L, center) shared by every TimePath of the system, if there is one."""
+    """Return the (L, center) shared by every TimePath of the system, if there is one."""
     found = None
     for bc in system.paths:
         v = bc.value
@@ -159,21 +183,28 @@ class _Predictor:
         self._fails = 0  # failed tries since the last converged increment
 
     def converged(self, start_state: dict[str, np.ndarray]) -> None:
-        """An increment from ``start_state`` converged: the continuation tangent's state."""
+        """Note a converged increment from ``start_state`` (the continuation tangent's)."""
         self.prev_state = start_state
         self._fails = 0
 
     def failed(self) -> None:
-        """A try failed: after ``_RESTART_ELASTIC`` in a row the retries start from the
-        committed-state (elastic) tangent until an increment converges again."""
+        """Note a failed try.
+
+        After ``_RESTART_ELASTIC`` in a row the retries start from the committed-state
+        (elastic) tangent until an increment converges again.
+        """
         self._fails += 1
         if self._fails >= _RESTART_ELASTIC:
             self.prev_state = None
 
     def resolved(self, driver: str) -> str:
-        """The predictor a driver uses: 'auto' is the tangent one for Newton (half the
-        iterations of the affine map on plastic polycrystals), the affine map of spec 001
-        §4.3 for ADR when the paths share a velocity gradient."""
+        """Return the predictor a driver uses.
+
+        'auto' is the tangent one for Newton (half the iterations of the affine map on
+        plastic polycrystals) and, for ADR when the paths share a velocity gradient,
+        the incremental affine map ``u⁰ = exp(L Δt)(X + u) - X`` (pdlin's default: the
+        paper of Luo, Ramazani & Sundararaghavan 2017 does not state its start).
+        """
         if self.kind != "auto":
             return self.kind
         if driver == "adr" and self.path is not None:
@@ -249,9 +280,11 @@ class _Predictor:
 
 
 def _check_committed(u: np.ndarray, state: Any, k: int, t: float) -> None:
-    """Raise :class:`~pdlin.errors.ConvergenceError` when a converged load step would
-    commit a non-finite displacement or state variable (trial iterates may overflow;
-    their floating-point warnings are not issued, so this is where nothing may pass)."""
+    """Refuse to commit a non-finite displacement or state variable.
+
+    Trial iterates may overflow; their floating-point warnings are not issued, so this
+    is where nothing may pass (raises :class:`~pdlin.errors.ConvergenceError`).
+    """
     where = f"load step {k + 1} (t = {t:.6g})"
     if not np.all(np.isfinite(u)):
         raise ConvergenceError(f"{where}: the converged displacement is not finite")
@@ -490,7 +523,7 @@ class LoadStepper:
             self.saved = _read_snapshots(self.snap_path, say)
 
     def _restore(self, data: dict[str, np.ndarray]) -> None:
-        """The records, committed state and incrementation of a checkpoint's steps."""
+        """Restore the records, committed state and incrementation of a checkpoint."""
         start = self.start = int(data["done"])
         tt = self.tt
         # step wall times and Newton's failure messages of the steps the file holds (runs
@@ -545,7 +578,7 @@ class LoadStepper:
         return self.system.values_at(t, t / self.te)
 
     def _in_step(self, t_new: float) -> Callable[[str], None] | None:
-        """The in-step progress callback of an increment to ``t_new``."""
+        """Return the in-step progress callback of an increment to ``t_new``."""
         if self.progress is None:
             return None
         say = self.say
@@ -575,8 +608,11 @@ class LoadStepper:
         return self._newton_from(t_new, u0, st)
 
     def _newton_from(self, t_new: float, u0: np.ndarray, st: dict[str, np.ndarray]) -> StepOutcome:
-        """Newton from ``u0`` (a predictor, or an ADR iterate for ``polish``), whose
-        prescribed entries are this increment's."""
+        """Run Newton from ``u0`` to ``t_new``.
+
+        ``u0`` is a predictor, or an ADR iterate for ``polish``; its prescribed entries
+        are this increment's.
+        """
         opts = self.newton
         return newton_step(
             self.system,
@@ -595,10 +631,13 @@ class LoadStepper:
         )
 
     def _adr_density(self, st: dict[str, np.ndarray], u0: np.ndarray) -> np.ndarray:
-        """The explicit density, or the Gershgorin density of the tangent at the step's
+        """Return the ADR density of an increment.
+
+        The explicit density, or the Gershgorin density of the tangent at the step's
         start (hardening raises it), never below that of the initial, elastic tangent
         (softening or plastic tangents would under-estimate the stiffness of elastic
-        unloading)."""
+        unloading).
+        """
         opts = self.adr
         if opts.density is not None:
             return opts.density
@@ -614,7 +653,7 @@ class LoadStepper:
     def _snapshots(
         self, t_new: float, u0: np.ndarray, st: dict[str, np.ndarray], dens: np.ndarray
     ) -> tuple[Callable[[dict[str, Any]], None] | None, dict[str, Any] | None]:
-        """The snapshot writer of an ADR increment and the killed run's snapshot of it."""
+        """Return the snapshot writer of an ADR increment and a killed run's snapshot."""
         snap_path = self.snap_path
         if snap_path is None:
             return None, None
@@ -701,7 +740,8 @@ class LoadStepper:
         iterations, any ADR increment (ADR's iterations per increment hardly depend on
         its size).  Returns the outcome of the last sub-step (None when an increment
         fails at the smallest size), why it failed, the counts and the last converged
-        (u, state), from which a fallback driver continues."""
+        (u, state), from which a fallback driver continues.
+        """
         backoff, k, pred = self.backoff, self.k, self.pred
         span = t_target - self.t_cur
         smallest = span / 2.0**cutbacks
@@ -837,7 +877,7 @@ class LoadStepper:
     def _record(
         self, out: StepOutcome, used: str, why: str, cnt: _Counts, damp: list[np.ndarray]
     ) -> StepRecord:
-        """The record of a converged step (its stress from the response or the model)."""
+        """Record a converged step (its stress from the response or the model)."""
         system, n, d = self.system, self.system.n, self.system.dim
         resp, u_new = out.response, out.u
         factor = float(self.tt[self.k]) / self.te
