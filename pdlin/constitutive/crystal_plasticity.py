@@ -1,8 +1,9 @@
 """Rate-independent crystal plasticity (Anand–Kothari 1996) and a Saint Venant–Kirchhoff material.
 
-Spec 001 §3 (checked against Luo, Ramazani & Sundararaghavan, IJSS 2017) and spec 000
-§8–10 (3D polycrystals).  See ``docs/crystal_plasticity.md`` for the equations as
-implemented and the conventions.
+Luo, Ramazani & Sundararaghavan (2017), Section 3 and Appendix (planar polycrystals),
+and Javaheri, Luo, Lakshmanan & Sundararaghavan (2022), Section III (3D polycrystals).
+See ``docs/crystal_plasticity.md`` for the equations as implemented and the
+conventions.
 
 Material interface (used by the nonlinear drivers)
 --------------------------------------------------
@@ -18,11 +19,11 @@ Material interface (used by the nonlinear drivers)
 Conventions
 -----------
 * Units: the defaults are in mm–MPa (stresses in MPa).
-* Orientation ``R`` maps crystal to sample vectors (spec 001 §3.2): 2D
-  ``R = [[cos θ, -sin θ], [sin θ, cos θ]]``; 3D rotation matrices, or Bunge Euler angles
-  ``(φ1, Φ, φ2)`` with ``R = Rz(φ1) Rx(Φ) Rz(φ2)`` (the Bunge matrix ``g = Rᵀ`` maps sample
-  to crystal coordinates).  All constitutive work is done in the crystal frame:
-  ``F_c = Rᵀ F R`` and ``P = R P_c Rᵀ``.
+* Orientation ``R`` maps crystal to sample vectors (Luo, Ramazani & Sundararaghavan
+  2017, Section 4): 2D ``R = [[cos θ, -sin θ], [sin θ, cos θ]]``; 3D rotation matrices,
+  or Bunge Euler angles ``(φ1, Φ, φ2)`` with ``R = Rz(φ1) Rx(Φ) Rz(φ2)`` (the Bunge
+  matrix ``g = Rᵀ`` maps sample to crystal coordinates).  All constitutive work is done
+  in the crystal frame: ``F_c = Rᵀ F R`` and ``P = R P_c Rᵀ``.
 * Lattice reorientation is reported in degrees, counter-clockwise positive (2D).
 """
 
@@ -59,7 +60,8 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
-#: The 12-value orientation set of spec 001 §3.2: θ_k = −π/2 + kπ/12, k = 0..11 (radians).
+#: The 12-value orientation set of Luo, Ramazani & Sundararaghavan (2017), Section 4:
+#: θ_k = −π/2 + kπ/12, k = 0..11 (radians).
 ORIENTATIONS_2D: FloatArray = np.asarray(
     -0.5 * np.pi + np.arange(12) * np.pi / 12.0, dtype=np.float64
 )
@@ -73,21 +75,25 @@ SLIP_FAMILIES: dict[str, tuple[tuple[str, int], ...]] = {
 }
 
 # --- default material data ------------------------------------------------------------
-# planar-2: spec 001 §3.4 (D11 = D22 = 2000, D12 = 1000, D33 = 2000 MPa, engineering shear,
-# errata A6) and §3.5 (h0 = 10, s0 = 10, ss = 200 MPa, a = 2, q = 1.4).
+# planar-2: Luo, Ramazani & Sundararaghavan (2017), Section 4 (D11 = 2, D12 = 1,
+# D33 = 2 GPa; pdlin reads them as Voigt with engineering shear and D22 = D11, since the
+# paper states neither) and Eqs. 22-24 (h0 = 10, s0 = 10, ss = 200 MPa, a = 2, q = 1.4).
 _DEFAULT_ELASTIC: dict[str, dict[str, float]] = {
     "planar-2": {"D11": 2000.0, "D22": 2000.0, "D12": 1000.0, "D33": 2000.0},
-    # fcc [S, not in the specs]: OFHC copper, Kalidindi, Bronkhorst & Anand (1992), MPa.
+    # fcc (pdlin's default, not in the papers): OFHC copper, Kalidindi, Bronkhorst & Anand
+    # (1992), MPa.
     "fcc": {"C11": 170e3, "C12": 124e3, "C44": 75e3},
-    # hcp: Mg, spec 000 §8 (C11 = 59.3, C12 = 25.7, C13 = 21.4, C33 = 61.5, C44 = 16.4 GPa).
+    # hcp: Mg, Javaheri, Luo, Lakshmanan & Sundararaghavan (2022), Section III.C
+    # (C11 = 59.3, C12 = 25.7, C13 = 21.4, C33 = 61.5, C44 = 16.4 GPa).
     "hcp": {"C11": 59.3e3, "C12": 25.7e3, "C13": 21.4e3, "C33": 61.5e3, "C44": 16.4e3},
 }
 _DEFAULT_HARDENING: dict[str, dict[str, Any]] = {
     "planar-2": {"h0": 10.0, "s0": 10.0, "ss": 200.0, "a": 2.0, "q": 1.4},
-    # fcc [S]: Kalidindi, Bronkhorst & Anand (1992), OFHC copper.
+    # fcc (pdlin's default): Kalidindi, Bronkhorst & Anand (1992), OFHC copper.
     "fcc": {"h0": 180.0, "s0": 16.0, "ss": 148.0, "a": 2.25, "q": 1.4},
-    # hcp [S]: the WE43 values of seed 000 are only in its ref. [18] (not available), so
-    # these are *placeholders*: the spec 001 §3.5 law with Mg-like CRSS ratios
+    # hcp (pdlin's default): the WE43 values of Javaheri et al. (2022) are only in its
+    # ref. [18] (not available), so these are *placeholders*: the hardening law of
+    # Luo, Ramazani & Sundararaghavan (2017), Eqs. 22-24, with Mg-like CRSS ratios
     # basal : prismatic : pyramidal<a> : pyramidal<c+a> = 1 : 4 : 4 : 8.
     "hcp": {
         "h0": 10.0,
@@ -97,7 +103,7 @@ _DEFAULT_HARDENING: dict[str, dict[str, Any]] = {
         "q": 1.4,
     },
 }
-#: Default c/a of the hcp lattice [S]: pure Mg (WE43 is within 0.1 %).
+#: Default c/a of the hcp lattice (pdlin's default): pure Mg (WE43 is within 0.1 %).
 DEFAULT_C_OVER_A = 1.624
 
 _ELASTIC_KEYS = {
@@ -164,13 +170,14 @@ _FCC_SYSTEMS = (
 
 
 def slip_systems(slip: str, c_over_a: float = DEFAULT_C_OVER_A) -> tuple[FloatArray, FloatArray]:
-    """Unit slip directions ``m`` and plane normals ``n`` in the crystal frame.
+    """Return the unit slip directions ``m`` and plane normals ``n`` in the crystal frame.
 
     Parameters
     ----------
     slip : {"planar-2", "fcc", "hcp"}
-        ``planar-2``: spec 001 §3.1, system 1 at φ = +30°, system 2 at −30°,
-        ``m = (cos φ, sin φ)``, ``n = (−sin φ, cos φ)`` (errata A11).  ``fcc``: the 12
+        ``planar-2``: the two systems at ±π/6 of Luo, Ramazani & Sundararaghavan
+        (2017), Section 4, system 1 at φ = +30°, system 2 at −30° (pdlin's labelling),
+        ``m = (cos φ, sin φ)``, ``n = (−sin φ, cos φ)``.  ``fcc``: the 12
         {111}<110> systems (cube axes = crystal axes).  ``hcp``: 3 basal, 3 prismatic,
         6 pyramidal <a> {10-11}<11-20> and 6 pyramidal <c+a> {11-22}<11-23> systems,
         ``a1 ∥ e1``, ``c ∥ e3``.
@@ -184,7 +191,7 @@ def slip_systems(slip: str, c_over_a: float = DEFAULT_C_OVER_A) -> tuple[FloatAr
     Examples
     --------
     >>> m, n = slip_systems("planar-2")
-    >>> np.round(np.einsum("ai,aj->aij", m, n)[0], 4).tolist()   # S0^1 of spec §3.1
+    >>> np.round(np.einsum("ai,aj->aij", m, n)[0], 4).tolist()   # S0^1 = m ⊗ n of system 1
     [[-0.433, 0.75], [-0.25, 0.433]]
     >>> [slip_systems(s)[0].shape for s in ("fcc", "hcp")]
     [(12, 3), (18, 3)]
@@ -248,7 +255,7 @@ _NUMBA_MIN_POINTS = _UPDATE_CHUNK
 
 
 def _rows_of(state: Mapping[str, Any], idx: NDArray[np.intp], n: int) -> dict[str, Any]:
-    """The rows ``idx`` of every per-point array of ``state`` (others as they are)."""
+    """Return the rows ``idx`` of every per-point array of ``state`` (others as they are)."""
     return {
         k: (v[idx] if isinstance(v, np.ndarray) and v.ndim and len(v) == n else v)
         for k, v in state.items()
@@ -328,8 +335,9 @@ def _T(a: NDArray[Any]) -> NDArray[Any]:
 
 
 def _mm(a: NDArray[Any], b: NDArray[Any]) -> NDArray[Any]:
-    """Batched ``a @ b``; closed form for stacks of 2 × 2 matrices (5x faster than matmul),
-    with numpy broadcasting of the leading axes.
+    """Multiply stacks of matrices, ``a @ b`` with numpy broadcasting of the leading axes.
+
+    A closed form for stacks of 2 × 2 matrices (5x faster than matmul).
 
     Examples
     --------
@@ -406,11 +414,22 @@ def _set_code(act: NDArray[np.bool_], sgn: FloatArray, bits: NDArray[np.int64]) 
 
 
 def cauchy_stress(P: ArrayLike, F: ArrayLike) -> FloatArray:
-    """Cauchy stress ``σ = P Fᵀ / det F`` of first Piola–Kirchhoff stresses.
+    """Return the Cauchy stress ``σ = P Fᵀ / det F`` of first Piola–Kirchhoff stresses.
 
     Parameters
     ----------
     P, F : (..., d, d) array_like of float
+        First Piola–Kirchhoff stresses and deformation gradients (same shape).
+
+    Returns
+    -------
+    (..., d, d) ndarray
+        Cauchy stresses.
+
+    Raises
+    ------
+    ShapeError
+        ``P`` and ``F`` differ in shape or are not stacks of square matrices.
 
     Examples
     --------
@@ -429,7 +448,8 @@ def cauchy_stress(P: ArrayLike, F: ArrayLike) -> FloatArray:
 
 def _von_mises(sigma: FloatArray) -> FloatArray:
     if sigma.shape[-1] == 2:
-        # spec 001 §3.7 [S], σ33 = 0 (errata A12)
+        # 2D: σ33 = 0 in the von Mises stress (pdlin's convention; the paper only names
+        # the von Mises stress, footnote in its Section 4.3)
         sxx, syy, sxy = sigma[..., 0, 0], sigma[..., 1, 1], sigma[..., 0, 1]
         return np.asarray(np.sqrt(sxx**2 - sxx * syy + syy**2 + 3.0 * sxy**2))
     dev = sigma - np.trace(sigma, axis1=-2, axis2=-1)[..., None, None] / 3.0 * np.eye(3)
@@ -452,7 +472,8 @@ class SaintVenantKirchhoff:
     """Hyperelastic Saint Venant–Kirchhoff material ``S = C : E``, ``P = F S``.
 
     Same interface as :class:`CrystalPlasticity` (the state is empty), useful to test the
-    nonlinear drivers (spec 001 T4: the energy ``Ψ = ½ E : C : E`` is provided).
+    nonlinear drivers (the energy ``Ψ = ½ E : C : E`` is provided, so that a tangent can be
+    checked against the energy's derivatives).
 
     Parameters
     ----------
@@ -480,11 +501,33 @@ class SaintVenantKirchhoff:
         return compact_repr("SaintVenantKirchhoff", {"dim": self.dim, "C": self.C})
 
     def initial_state(self, n: int) -> dict[str, FloatArray]:
-        """Empty state (the material has no internal variables)."""
+        """Return the empty state (the material has no internal variables).
+
+        Parameters
+        ----------
+        n : int
+            Number of points (unused).
+
+        Returns
+        -------
+        dict
+            An empty dict.
+        """
         return {}
 
     def energy(self, F: ArrayLike) -> FloatArray:
-        """Strain energy density ``Ψ = ½ E : C : E`` per point, ``(n,)``."""
+        """Return the strain energy density ``Ψ = ½ E : C : E`` per point.
+
+        Parameters
+        ----------
+        F : (n, d, d) array_like
+            Deformation gradients.
+
+        Returns
+        -------
+        (n,) ndarray
+            ``Ψ`` per point (stress x strain units, e.g. MPa).
+        """
         f = _check_F(F, self.dim)
         E = 0.5 * (_T(f) @ f - np.eye(self.dim))
         S = np.einsum("ijkl,nkl->nij", self.C, E)
@@ -497,7 +540,26 @@ class SaintVenantKirchhoff:
         *,
         tangent: bool = False,
     ) -> tuple[FloatArray, dict[str, FloatArray], FloatArray | None]:
-        """``(P, {}, dP/dF)``; ``dP_ij/dF_kl = δ_ik S_lj + F_ia C_ajbl F_kb``."""
+        """Return the first Piola–Kirchhoff stress and, on request, its tangent.
+
+        Parameters
+        ----------
+        F : (n, d, d) array_like
+            Deformation gradients.
+        state_n : mapping, optional
+            Ignored (the material has no state).
+        tangent : bool
+            Also return ``dP/dF``.
+
+        Returns
+        -------
+        P : (n, d, d) ndarray
+            ``P = F S``, ``S = C : E``.
+        state : dict
+            An empty dict.
+        dPdF : (n, d, d, d, d) ndarray or None
+            ``dP_ij/dF_kl = δ_ik S_lj + F_ia C_ajbl F_kb`` (None unless ``tangent``).
+        """
         f = _check_F(F, self.dim)
         d = self.dim
         E = 0.5 * (_T(f) @ f - np.eye(d))
@@ -512,7 +574,18 @@ class SaintVenantKirchhoff:
 
     @staticmethod
     def cauchy(P: ArrayLike, F: ArrayLike) -> FloatArray:
-        """Cauchy stress ``P Fᵀ / det F``."""
+        """Return the Cauchy stress ``P Fᵀ / det F``.
+
+        Parameters
+        ----------
+        P, F : (..., d, d) array_like of float
+            First Piola–Kirchhoff stresses and deformation gradients.
+
+        Returns
+        -------
+        (..., d, d) ndarray
+            Cauchy stresses.
+        """
         return cauchy_stress(P, F)
 
 
@@ -553,10 +626,13 @@ def _per_system(value: Any, key: str, families: tuple[tuple[str, int], ...]) -> 
 class CrystalPlasticity:
     """Rate-independent single-crystal plasticity with Anand–Kothari return mapping.
 
-    Spec 001 §3: multiplicative ``F = Fᵉ Fᵖ``, St Venant–Kirchhoff elasticity of
-    ``T̄ = 𝓛ᵉ[½(FᵉᵀFᵉ − I)]`` in the intermediate (lattice) frame, resolved shear
-    ``τ^α = T̄ : S₀^α``, hardening ``h^{αβ} = h₀^β (q + (1 − q) δ^{αβ}) (1 − s^β/s_s^β)^a``,
-    active-set return mapping of §3.6 (errata A3, A4, A10).
+    Luo, Ramazani & Sundararaghavan (2017), Section 3: multiplicative ``F = Fᵉ Fᵖ``,
+    St Venant–Kirchhoff elasticity of ``T̄ = 𝓛ᵉ[½(FᵉᵀFᵉ − I)]`` in the intermediate
+    (lattice) frame, resolved shear ``τ^α = T̄ : S₀^α``, hardening
+    ``h^{αβ} = h₀^β (q + (1 − q) δ^{αβ}) (1 − s^β/s_s^β)^a``, active-set return mapping
+    of the paper's Appendix (Eqs. 26-34; in pdlin's reading the consistency condition of
+    the garbled Eq. 32 is ``|τ^α| = s_n^α + Σ_β h^{αβ} Δγ^β``, a system is active when
+    ``|τ_tr^α| > s^α`` and ``h`` is evaluated at the committed ``s_n``).
 
     Parameters
     ----------
@@ -565,35 +641,39 @@ class CrystalPlasticity:
         is 2D (plane strain, out-of-plane stress not modelled), the others 3D.
     elastic : mapping or array_like, optional
         Crystal-frame stiffness.  A mapping of constants: ``planar-2`` ``D11, D22, D12,
-        D33`` (2D Voigt, spec §3.4); ``fcc`` ``C11, C12, C44``; ``hcp`` ``C11, C12, C13,
+        D33`` (2D Voigt); ``fcc`` ``C11, C12, C44``; ``hcp`` ``C11, C12, C13,
         C33, C44`` (c ∥ e3).  Or a plain-Voigt matrix (3 × 3 / 6 × 6) or a full tensor.
-        Defaults: spec 001 §3.4 (planar-2), OFHC copper (fcc, [S] Kalidindi, Bronkhorst &
-        Anand 1992), Mg of spec 000 §8 (hcp), all in MPa.
+        Defaults: Luo, Ramazani & Sundararaghavan (2017), Section 4 (planar-2), OFHC
+        copper (fcc, pdlin's default after Kalidindi, Bronkhorst & Anand 1992), Mg of
+        Javaheri, Luo, Lakshmanan & Sundararaghavan (2022), Section III.C (hcp), all in
+        MPa.
     hardening : mapping, optional
         Keys ``h0, s0, ss, a, q`` (missing keys keep their defaults); each a scalar, a
         mapping family → value or a sequence with one value per family
         (:data:`~pdlin.constitutive.SLIP_FAMILIES`); ``q`` is the latent factor of the
         hardening system β.
-        Defaults: spec 001 §3.5 (planar-2); [S] copper (fcc); [S] placeholders (hcp, see
+        Defaults: Luo, Ramazani & Sundararaghavan 2017, Eqs. 22-24 (planar-2); copper (fcc) and
+        placeholders (hcp), pdlin's defaults (see
         ``docs/crystal_plasticity.md``).
     orientation : float, array_like
         Default orientation of :meth:`initial_state`: 2D angle θ (radians, scalar or
         ``(n,)``); 3D rotation matrices ``(3, 3)``/``(n, 3, 3)`` or Bunge Euler angles
         ``(3,)``/``(n, 3)`` (crystal → sample).
     shear : {"engineering", "tensor"}
-        How the shear entries of a Voigt/constant ``elastic`` act (spec §3.4, errata A6):
+        How the shear entries of a Voigt/constant ``elastic`` act (the paper does not say):
         ``engineering`` (default) ``T̄12 = D33 · 2Ē12``; ``tensor`` ``T̄12 = D33 Ē12``.
     renormalize : bool
-        Rescale ``Fᵖ`` to ``det Fᵖ = 1`` after each update (errata A10; default off).
+        Rescale ``Fᵖ`` to ``det Fᵖ = 1`` after each update (default off, as in the paper's
+        update, whose ``det Fᵖ`` drifts by about 6e-6 per 0.002 step in double slip).
     c_over_a : float
-        hcp axial ratio (default 1.624, Mg [S]).
+        hcp axial ratio (default 1.624, Mg; pdlin's default).
     tangent : {"analytic", "complex-step"}
         How ``update(..., tangent=True)`` computes dP/dF (both are the consistent
         tangent; they agree to ≈1e-15 relative).
     tangent_step : float
         Step of the complex-step tangent.
     active_set : {"auto", "reactivate", "prune"}
-        Active-set search.  ``prune`` is spec 001 §3.6 as written: start from the
+        Active-set search.  ``prune`` is the paper's Appendix as written: start from the
         potentially active set, drop every system with ``Δγ ≤ 0`` and re-solve until no
         point changes (a dropped system is never re-activated).  ``reactivate``
         then checks ``τ^α`` of the final state on the inactive systems and adds back those
@@ -601,12 +681,13 @@ class CrystalPlasticity:
         of the final ``τ^α``), re-solving and pruning again, until no point changes
         (Anand & Kothari 1996; Miehe & Schröder 2001).  Both give identical results
         wherever pruning leaves no inactive system over the yield surface (all
-        ``planar-2`` §8.1 table paths).  ``auto`` (default): ``prune`` for
-        ``planar-2`` (spec 001; its two systems span the 2D deviatoric space, and the
-        re-activation passes make the force non-smooth enough on far-from-equilibrium
-        ADR iterates that a plastic polycrystal step stalled at e₁ ≈ 1.5e-5 with them and
-        converged without), ``reactivate`` for ``fcc`` and ``hcp`` (pruning alone left
-        inactive systems up to 100 % over their resistance).
+        ``planar-2`` material-point reference paths of docs/crystal_plasticity.md).
+        ``auto`` (default): ``prune`` for ``planar-2`` (Luo, Ramazani & Sundararaghavan
+        2017; its two systems span the 2D deviatoric space, and the re-activation passes
+        make the force non-smooth enough on far-from-equilibrium ADR iterates that a
+        plastic polycrystal step stalled at e₁ ≈ 1.5e-5 with them and converged
+        without), ``reactivate`` for ``fcc`` and ``hcp`` (pruning alone left inactive
+        systems up to 100 % over their resistance).
     yield_tol : float
         Relative tolerance of the re-activation check (default 1e-4).
     max_passes : int
@@ -620,9 +701,9 @@ class CrystalPlasticity:
 
     Notes
     -----
-    The consistent tangent is the exact linearization of the §3.6 update with the active
-    set and slip signs of the real solve (after pruning and re-activation) frozen (valid
-    wherever the active set does not switch).
+    The consistent tangent is the exact linearization of the return mapping (the paper's
+    Appendix) with the active set and slip signs of the real solve (after pruning and
+    re-activation) frozen (valid wherever the active set does not switch).
     ``analytic`` (default): forward-mode chain rule, ``dΔγ = A⁻¹(db − dA Δγ)`` with one
     factorization of ``A`` and ``d²`` right-hand sides per point.  ``complex-step``: the
     same derivative as ``Im P(F + i h E_kl) / h`` of the pure update (``d²`` complex
@@ -630,13 +711,13 @@ class CrystalPlasticity:
 
     Examples
     --------
-    Spec 001 T7: the elastic first step of pure shear at θ = 0.
+    The elastic first step of pure shear at θ = 0 (η = 0.002, the paper's Section 4.1).
 
     >>> from scipy.linalg import expm
     >>> mat = CrystalPlasticity()
     >>> F = expm(0.002 * np.array([[0.0, 1.0], [1.0, 0.0]]))[None]
     >>> P, state, _ = mat.update(F, mat.initial_state(1))
-    >>> round(float(mat.cauchy(P, F)[0, 0, 1]), 6)          # 8.000133 (spec §8.1)
+    >>> round(float(mat.cauchy(P, F)[0, 0, 1]), 6)          # 8.000133 (pdlin's reference value)
     8.000133
     >>> mat.nslip, sorted(state)[:4]
     (2, ['Fp', 'R', 'R0', 'dep'])
@@ -832,7 +913,7 @@ class CrystalPlasticity:
 
     # -- state ------------------------------------------------------------------------
     def initial_state(self, n: int, orientation: ArrayLike | None = None) -> dict[str, FloatArray]:
-        """Committed state of ``n`` points at the start of the loading.
+        """Return the committed state of ``n`` points at the start of the loading.
 
         Keys: ``Fp`` (n, d, d) = I (crystal frame), ``s`` (n, nslip) = s0, ``gamma``
         accumulated slips, ``dgamma`` last increments, ``tau`` resolved shears,
@@ -851,6 +932,11 @@ class CrystalPlasticity:
             Number of points.
         orientation : optional
             Overrides the material's orientation (same forms).
+
+        Returns
+        -------
+        dict of str to ndarray
+            The state arrays named above, one row per point.
         """
         n = int(n)
         if n < 0:
@@ -911,10 +997,12 @@ class CrystalPlasticity:
         active: NDArray[np.bool_] | None = None,
         sign: FloatArray | None = None,
     ) -> dict[str, Any]:
-        """Spec 001 §3.6 on a batch (real or complex ``Fc``).
+        """Run the return mapping on a batch (real or complex ``Fc``).
+
+        The update of Luo, Ramazani & Sundararaghavan (2017), Appendix (Eqs. 26-34).
 
         ``active`` (with ``sign``) freezes the active set and the slip signs (tangent);
-        otherwise the active set is searched: §3.6 pruning, then (``active_set=
+        otherwise the active set is searched: the Appendix's pruning, then (``active_set=
         "reactivate"``) re-activation passes until every inactive system satisfies
         ``|τ^α| ≤ s^α (1 + yield_tol)`` at the final state.
         """
@@ -985,7 +1073,7 @@ class CrystalPlasticity:
     def _final_state(
         self, Fc: NDArray[Any], Fp_n: FloatArray, dgam: NDArray[Any], sgn: FloatArray
     ) -> tuple[NDArray[Any], NDArray[Any], NDArray[Any], NDArray[Any]]:
-        """§3.6 step 6: ``(Fᵖ, Fᵖ⁻¹, Fᵉ, T̄)`` of slip increments ``dgam`` with signs ``sgn``."""
+        """Return ``(Fᵖ, Fᵖ⁻¹, Fᵉ, T̄)`` of slip increments ``dgam`` with signs ``sgn``."""
         d, m = self.dim, Fc.shape[0]
         G = np.eye(d) + ((dgam * sgn) @ self._S0flat).reshape(m, d, d)
         Fp = _mm(G, Fp_n)
@@ -1001,7 +1089,10 @@ class CrystalPlasticity:
     def _solve_set(
         A: NDArray[Any], b: NDArray[Any], act: NDArray[np.bool_], *, prune: bool
     ) -> NDArray[Any]:
-        """Solve ``Σ_{β∈act} A^{αβ} Δγ^β = b^α`` per point; with ``prune``, §3.6 step 5.
+        """Solve ``Σ_{β∈act} A^{αβ} Δγ^β = b^α`` per point (``prune``: drop ``Δγ ≤ 0``).
+
+        With ``prune``, the Appendix's pruning: drop the systems with ``Δγ ≤ 0`` and
+        re-solve.
 
         Every point solves its N × N system with the inactive rows/columns replaced by the
         identity.  With ``prune``, every system with ``Δγ ≤ 0`` is dropped (``act`` is
@@ -1047,7 +1138,7 @@ class CrystalPlasticity:
     ) -> tuple[FloatArray, NDArray[np.bool_], NDArray[np.int64]]:
         """Re-activation passes of the active-set search (``active_set="reactivate"``).
 
-        After §3.6 pruning, the resolved shear of the final state,
+        After the Appendix's pruning, the resolved shear of the final state,
         ``τ^α = τ_tr^α − Σ_β sgn_β (Cᵉ_tr S₀^β) : 𝓛ᵉ[S₀^α] Δγ^β`` (the Eq. 31 state on which
         the consistency conditions are solved), is checked on the inactive systems
         against the updated resistance ``s^α = s_n^α + Σ_β h^{αβ} Δγ^β``.  At every point
@@ -1055,7 +1146,7 @@ class CrystalPlasticity:
         set (slip sign ``sign τ^α``) by a principal pivot: ``Δγ^α = t`` grows from 0 with the
         active systems kept consistent, ``Δγ_S(t) = Δγ_S − t A_SS⁻¹ A_Sα``, until α is
         consistent or an active ``Δγ^β`` reaches 0 first (β is pruned and the growth goes
-        on).  The set is then re-solved and pruned as in §3.6, and the check is repeated,
+        on).  The set is then re-solved and pruned as in the Appendix, and the check is repeated,
         only for the points that changed (Anand & Kothari 1996; Miehe & Schröder 2001).
         Plain "add every violated system and re-solve" cycles when the enlarged set is
         (nearly) linearly dependent, as 5 and more fcc systems are.
@@ -1187,10 +1278,21 @@ class CrystalPlasticity:
 
     # -- public update -----------------------------------------------------------------
     def committed_issues(self, state: dict[str, np.ndarray]) -> list[tuple[type[Warning], str]]:
-        """Warnings about a committed state: points whose active-set search did not settle.
+        """Report the points of a committed state whose active-set search did not settle.
 
         Called by the nonlinear drivers after each converged load step (see
         :meth:`pdlin.Model.committed_issues`).
+
+        Parameters
+        ----------
+        state : dict of str to ndarray
+            A committed state (its ``unsettled`` flags; absent: none).
+
+        Returns
+        -------
+        list of (type, str)
+            One ``(ActiveSetWarning, message)`` when some point did not settle, else
+            empty.
 
         Examples
         --------
@@ -1293,7 +1395,7 @@ class CrystalPlasticity:
     def _numba_inputs(
         self, f: FloatArray, state_n: Mapping[str, Any]
     ) -> tuple[tuple[Any, ...], tuple[Any, ...]]:
-        """The input and constant arguments of ``cp_planar_fill`` (contiguous float64)."""
+        """Return the input and constant arguments of ``cp_planar_fill`` (contiguous)."""
         n = f.shape[0]
 
         def arr(key: str, default: Any = None) -> FloatArray:
@@ -1331,11 +1433,14 @@ class CrystalPlasticity:
     def _update_numba(
         self, f: FloatArray, state_n: Mapping[str, Any], tangent: bool
     ) -> tuple[FloatArray, dict[str, FloatArray], FloatArray | None]:
-        """:meth:`update` of planar double slip with §3.6 pruning in the numba kernels
-        ``cp_planar_fill`` and (``tangent``) ``cp_planar_tangent_fill``, the analytic
-        tangent (chunks of points on pdlin's threads); points whose active-set matrix is
-        singular are redone by the numpy path.  Equal to :meth:`_update_points` to
-        round-off (its 4-term products and 2 x 2 solves run through BLAS / LAPACK)."""
+        """Run :meth:`update` of planar double slip in the numba kernels.
+
+        The Appendix's pruning in ``cp_planar_fill`` and (``tangent``)
+        ``cp_planar_tangent_fill``, the analytic tangent (chunks of points on pdlin's
+        threads); points whose active-set matrix is singular are redone by the numpy
+        path.  Equal to :meth:`_update_points` to round-off (its 4-term products and
+        2 x 2 solves run through BLAS / LAPACK).
+        """
         from .._kernels import _kernels
         from .._threads import even_chunks, thread_map
 
@@ -1411,13 +1516,25 @@ class CrystalPlasticity:
         return P, state, D
 
     def piola(self, F: ArrayLike, state_n: Mapping[str, FloatArray]) -> FloatArray:
-        """First Piola–Kirchhoff stress at ``F`` from ``state_n``, without the trial state.
+        """Return the first Piola–Kirchhoff stress at ``F`` from ``state_n``, no trial state.
 
         ``update(F, state_n)[0]``: what an iteration that only needs the force (ADR, a
-        line-search trial) asks for.  For planar double slip with §3.6 pruning the
+        line-search trial) asks for.  For planar double slip with the Appendix's pruning the
         compiled kernel then skips the trial state (Fᵖ, resistances, slips, plastic work,
         lattice rotation): ≈ 40 % less work per point, the same ``P`` bitwise.  Other
         slip families and active-set searches run the full :meth:`update`.
+
+        Parameters
+        ----------
+        F : (n, d, d) array_like
+            Deformation gradients (sample frame).
+        state_n : mapping of str to ndarray
+            The committed state of the ``n`` points.
+
+        Returns
+        -------
+        (n, d, d) ndarray
+            ``P`` in the sample frame.
 
         Examples
         --------
@@ -1493,7 +1610,8 @@ class CrystalPlasticity:
             "unsettled": out["unsettled"].astype(np.float64),
         }
         if d == 2:
-            # spec §3.2 closed form θ = θ0 + atan2(Fe21 − Fe12, Fe11 + Fe22)
+            # closed form of the paper's reorientation (derived, frame independent):
+            # θ = θ0 + atan2(Fe21 − Fe12, Fe11 + Fe22)
             phi = np.arctan2(Fe[:, 1, 0] - Fe[:, 0, 1], Fe[:, 0, 0] + Fe[:, 1, 1])
             theta0 = np.asarray(state_n.get("theta0", np.arctan2(R0[:, 1, 0], R0[:, 0, 0])))
             theta_prev = np.asarray(state_n.get("theta", theta0))
@@ -1501,7 +1619,8 @@ class CrystalPlasticity:
             state["theta"] = theta0 + phi
             state["R"] = _rotation_2d(theta0 + phi)
             state["reorientation"] = np.degrees(phi)
-            # rate form (spec §3.2): Ω Δt = ΔRᵉ Rᵉᵀ, Δθ = (Ω21 − Ω12)/2
+            # rate form (Luo, Ramazani & Sundararaghavan 2017, Section 4):
+            # Ω Δt = ΔRᵉ Rᵉᵀ, Δθ = (Ω21 − Ω12)/2
             Rp = _rotation_2d(theta_prev - theta0)
             Rn = _rotation_2d(phi)
             W = _mm(Rn - Rp, _T(Rn))
@@ -1529,7 +1648,7 @@ class CrystalPlasticity:
         H: FloatArray,
         out: dict[str, Any],
     ) -> FloatArray:
-        """Forward-mode linearization of §3.6 with the active set frozen, all d² directions.
+        """Linearize the return mapping in forward mode, active set frozen, all d² directions.
 
         ``dΔγ = A⁻¹ (db − dA Δγ)`` on the active set (one factorization, d² right-hand
         sides), then the chain rule through Fᵖ, Fᵉ, T̄ and P.
@@ -1634,7 +1753,18 @@ class CrystalPlasticity:
     # -- post-processing ---------------------------------------------------------------
     @staticmethod
     def cauchy(P: ArrayLike, F: ArrayLike) -> FloatArray:
-        """Cauchy stress ``σ = P Fᵀ / det F``."""
+        """Return the Cauchy stress ``σ = P Fᵀ / det F``.
+
+        Parameters
+        ----------
+        P, F : (..., d, d) array_like of float
+            First Piola–Kirchhoff stresses and deformation gradients.
+
+        Returns
+        -------
+        (..., d, d) ndarray
+            Cauchy stresses.
+        """
         return cauchy_stress(P, F)
 
     def schmid_factors(
@@ -1644,7 +1774,7 @@ class CrystalPlasticity:
         *,
         state: Mapping[str, FloatArray] | None = None,
     ) -> FloatArray:
-        """Schmid factors ``𝕊^α = |(m^α·l_c)(n^α·l_c)|``, ``l_c = Rᵀ l_s`` (spec §3.7).
+        """Schmid factors ``𝕊^α = |(m^α·l_c)(n^α·l_c)|``, ``l_c = Rᵀ l_s``.
 
         Parameters
         ----------
@@ -1685,12 +1815,36 @@ class CrystalPlasticity:
 
     @staticmethod
     def reorientation(state: Mapping[str, FloatArray]) -> FloatArray:
-        """Lattice reorientation since the start, degrees (2D: CCW positive; 3D: angle)."""
+        """Return the lattice reorientation since the start, in degrees.
+
+        Parameters
+        ----------
+        state : mapping of str to ndarray
+            A state of :meth:`update` (its ``reorientation`` entry).
+
+        Returns
+        -------
+        (n,) ndarray
+            2D: the signed angle, counter-clockwise positive; 3D: the rotation angle.
+        """
         return np.asarray(state["reorientation"])
 
     @staticmethod
     def plastic_strain_increment(state: Mapping[str, FloatArray]) -> FloatArray:
-        """Equivalent plastic strain increment ``dεᵖ = Σ|τ^α|Δγ^α / σ_eff`` (spec §3.7)."""
+        """Return the equivalent plastic strain increment ``dεᵖ = Σ|τ^α|Δγ^α / σ_eff``.
+
+        Anand & Kalidindi (1994), as in Luo, Ramazani & Sundararaghavan (2017), Section 4.3.
+
+        Parameters
+        ----------
+        state : mapping of str to ndarray
+            A state of :meth:`update` (its ``dep`` entry).
+
+        Returns
+        -------
+        (n,) ndarray
+            ``dεᵖ`` per point of the update that produced ``state``.
+        """
         return np.asarray(state["dep"])
 
 
@@ -1710,7 +1864,7 @@ class MaterialPointResult:
     gamma : (steps, n, nslip) accumulated slips
     s : (steps, n, nslip) slip resistances
     rotation : (steps, n) lattice reorientation in degrees (2D: CCW positive)
-    rotation_rate : (steps, n) Σ θ̇ Δt in degrees (2D rate form, spec T13); NaN in 3D
+    rotation_rate : (steps, n) Σ θ̇ Δt in degrees (2D rate form); NaN in 3D
     plastic : (steps, n) bool, step with Δγ > 0
     yield_step : (n,) first plastic step (0 if none)
     states : list of committed states, one per step
@@ -1728,7 +1882,7 @@ class MaterialPointResult:
     states: list[dict[str, FloatArray]]
 
     def __repr__(self) -> str:
-        """Steps, points, slip systems and the first yield (no arrays)."""
+        """Summarize steps, points, slip systems and the first yield (no arrays)."""
         steps, n, nslip = (int(v) for v in self.gamma.shape)
         plastic = self.yield_step[self.yield_step > 0]
         return compact_repr(
@@ -1748,8 +1902,8 @@ class MaterialPointResult:
 
 _LOADINGS = {
     2: {
-        "shear": np.array([[0.0, 1.0], [1.0, 0.0]]),  # spec 001 §4.2
-        "compression": np.array([[1.0, 0.0], [0.0, -1.0]]),  # Y-compression, spec 001 §4.2
+        "shear": np.array([[0.0, 1.0], [1.0, 0.0]]),  # the paper's Section 4.1
+        "compression": np.array([[1.0, 0.0], [0.0, -1.0]]),  # Y-compression, Section 4.2
         "tension": np.array([[-1.0, 0.0], [0.0, 1.0]]),
     },
     3: {
@@ -1767,7 +1921,9 @@ def material_point(
     eta: float = 0.002,
     orientation: ArrayLike | None = None,
 ) -> MaterialPointResult:
-    """Homogeneous driver ``F(t) = exp(η L t)``, ``t = 1..steps`` (spec 001 §8.1).
+    """Run the homogeneous driver ``F(t) = exp(η L t)``, ``t = 1..steps``.
+
+    pdlin's material-point check (the reference tables of docs/crystal_plasticity.md).
 
     Every orientation is one point of a single batched update per step; the state is
     committed after each step.
@@ -1775,20 +1931,27 @@ def material_point(
     Parameters
     ----------
     material : CrystalPlasticity or SaintVenantKirchhoff
+        The material (its dimension sets ``d``).
     loading : {"shear", "compression", "tension"} or (d, d) array_like
         Velocity gradient ``L``: 2D shear ``[[0, 1], [1, 0]]``, compression (along y)
         ``diag(1, -1)``, tension ``diag(-1, 1)``; 3D shear in the x–y plane, compression
         ``diag(½, ½, -1)`` and tension ``diag(-½, -½, 1)`` (along z).
     steps : int
+        Number of load steps.
     eta : float
         Rate η per load step.
     orientation : optional
         Orientations, one per point (default the material's).
 
+    Returns
+    -------
+    MaterialPointResult
+        Per-step stresses, slips, resistances, reorientation and committed states.
+
     Examples
     --------
     >>> r = material_point(CrystalPlasticity(), "shear", orientation=np.radians([0.0, 60.0]))
-    >>> r.yield_step.tolist(), np.round(r.stress[-1, :, 0, 1], 3).tolist()   # spec §8.1
+    >>> r.yield_step.tolist(), np.round(r.stress[-1, :, 0, 1], 3).tolist()   # reference values
     ([3, 3], [24.005, 10.862])
     """
     from scipy.linalg import expm
