@@ -459,42 +459,40 @@ def solve_nonlinear(
         else 200 * math.ceil(system.n ** (1.0 / system.dim)) + 2000
     )
     polish_on = (method == "auto") if polish is None else polish
-    newton = NewtonOptions(rtol, maxiter, line_search, linear_solver, relax)
+    newton = NewtonOptions(
+        rtol=rtol,
+        maxiter=maxiter,
+        line_search=line_search,
+        linear_solver=linear_solver,
+        relax=relax,
+    )
     adr = ADROptions(
-        e_l,
-        lam,
-        density_safety,
-        adr_dt,
-        damping,
-        c0,
-        budget,
-        floor,
+        e_l=e_l,
+        density=lam,
+        density_safety=density_safety,
+        dt=adr_dt,
+        damping=damping,
+        c0=c0,
+        maxiter=budget,
+        floor=floor,
         stall=int(adr_stall) if adr_stall is not None else max(500, budget // 8),
     )
     control = StepControl(
-        method, predictor, max_cutbacks, fallback_cutbacks, newton_backoff, polish_on
+        method=method,
+        predictor=predictor,
+        max_cutbacks=max_cutbacks,
+        fallback_cutbacks=fallback_cutbacks,
+        newton_backoff=newton_backoff,
+        polish=polish_on,
     )
     ckpt = None if checkpoint is None else Path(checkpoint)
     fp = (
         {} if ckpt is None else problem_fingerprint(system, hom_w, control.fingerprint(newton, adr))
     )
     run = LoadStepper(
-        system,
-        tt,
-        te,
-        control,
-        newton,
-        adr,
-        pred,
-        state0,
-        hom_w,
-        keep_states,
-        ckpt,
-        fp,
-        progress,
-        progress_every,
-        snapshot_every,
-    )
+        system, tt, te, control, newton, adr, pred, state0, hom_w, keep_states, ckpt, fp,
+        progress, progress_every, snapshot_every,
+    )  # fmt: skip
     if resume:
         run.resume(branch=resume == "branch")
     timings: dict[str, Any] = {"setup": time.perf_counter() - t_start}

@@ -55,9 +55,6 @@ __all__ = [
     "homogenize_weights",
     "make_predictor",
     "step_times",
-    "StepFailed",
-    "newton_step",
-    "adr_step",
 ]
 
 log = logging.getLogger(__name__)
