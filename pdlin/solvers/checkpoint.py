@@ -257,3 +257,96 @@ def _adr_key(
         h.update(key.encode())
         h.update(np.ascontiguousarray(st[key]).tobytes())
     return h.hexdigest()
+
+
+def _checkpoint_arrays(
+    cols: dict[str, Any],
+    *,
+    times: np.ndarray,
+    shape: tuple[int, int],
+    fingerprint: dict[str, str],
+    load_digests: list[str],
+    increments: list[float],
+    state: dict[str, Any],
+    states: list[dict[str, Any]] | None,
+    prev_state: dict[str, Any] | None,
+) -> dict[str, np.ndarray]:
+    """Return the arrays of a checkpoint after ``len(load_digests)`` committed steps.
+
+    ``cols`` are the per-step columns (:func:`~pdlin.solvers.stepping.history_arrays`),
+    ``increments`` the automatic incrementation's memory (Newton's and ADR's last
+    increment fractions, ADR's held fraction, the step its hold ends, its length),
+    ``states`` every committed state (None: only the last, ``state``) and ``prev_state``
+    the continuation predictor's state.
+    """
+    arrays: dict[str, np.ndarray] = {
+        "version": np.array(_CHECKPOINT_VERSION),
+        "shape": np.array(list(shape)),
+        "times": times,
+        "done": np.array(len(load_digests)),
+        **{key: cols[key] for key in ("u", "reactions", "iterations", "calls", "cutbacks")},
+        **{key: cols[key] for key in ("relaxations", "polishes", "e1", "e2", "residuals")},
+        "methods": np.array(cols["methods"]),
+        "messages": np.array(cols["messages"]),
+        "step_time": cols["step_time"],
+        **{f"fp__{part}": np.array(value) for part, value in fingerprint.items()},
+        "fp__loads": np.array(load_digests),
+        "increments": np.array(increments, dtype=float),
+    }
+    if cols["stress"] is not None:
+        arrays["stress"] = cols["stress"]
+        arrays["homogenized_stress"] = cols["homogenized_stress"]
+    for key, value in state.items():
+        arrays[f"state__{key}"] = np.asarray(value)
+    if states is not None:
+        # every committed state: a resumed run returns and writes them all
+        for key in state:
+            arrays[f"states__{key}"] = np.stack([np.asarray(st[key]) for st in states])
+    for key, value in (prev_state or {}).items():
+        arrays[f"prev_state__{key}"] = np.asarray(value)
+    return arrays
+
+
+def _checkpoint_steps(data: dict[str, np.ndarray]) -> list[dict[str, Any]]:
+    """Return the record of every step a checkpoint holds, as keyword arguments.
+
+    Steps whose run recorded no wall time get NaN; ``relaxations``, ``polishes`` and
+    ``messages`` are absent from checkpoints of earlier versions (0, 0, empty).
+    """
+    has = data.__contains__
+    return [
+        {
+            "u": np.asarray(data["u"][i], dtype=float),
+            "reactions": np.asarray(data["reactions"][i], dtype=float),
+            "stress": data["stress"][i] if has("stress") else None,
+            "homogenized_stress": data["homogenized_stress"][i] if has("stress") else None,
+            "iterations": int(data["iterations"][i]),
+            "calls": int(data["calls"][i]),
+            "cutbacks": int(data["cutbacks"][i]),
+            "relaxations": int(data["relaxations"][i]) if has("relaxations") else 0,
+            "polishes": int(data["polishes"][i]) if has("polishes") else 0,
+            "e1": float(data["e1"][i]),
+            "e2": float(data["e2"][i]),
+            "residual": float(data["residuals"][i]),
+            "method": str(data["methods"][i]),
+            "message": str(data["messages"][i]) if has("messages") else "",
+            "step_time": float(data["step_time"][i]) if has("step_time") else np.nan,
+            "load_digest": str(data["fp__loads"][i]),
+        }
+        for i in range(int(data["done"]))
+    ]
+
+
+def _checkpoint_states(
+    data: dict[str, np.ndarray],
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Return a checkpoint's last committed state, predictor state and every state.
+
+    The continuation predictor's state is empty from earlier versions; the stacked
+    committed states of every step are empty when written without ``keep_states``.
+    """
+
+    def part(prefix: str) -> dict[str, np.ndarray]:
+        return {k[len(prefix) :]: data[k] for k in data if k.startswith(prefix)}
+
+    return part("state__"), part("prev_state__"), part("states__")

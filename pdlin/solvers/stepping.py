@@ -32,9 +32,11 @@ from ..operators.bc import TimePath, eliminate_dirichlet
 from ..system import ConstrainedSystem
 from .adr import adr_density, adr_step
 from .checkpoint import (
-    _CHECKPOINT_VERSION,
     _adr_key,
     _check_checkpoint,
+    _checkpoint_arrays,
+    _checkpoint_states,
+    _checkpoint_steps,
     _load_digest,
     _read_checkpoint,
     _read_snapshots,
@@ -521,45 +523,20 @@ class LoadStepper:
 
     def _restore(self, data: dict[str, np.ndarray]) -> None:
         """Restore the records, committed state and incrementation of a checkpoint."""
-        start = self.start = int(data["done"])
+        self.records = [StepRecord(**kw) for kw in _checkpoint_steps(data)]
+        start = self.start = len(self.records)
         tt = self.tt
-        # step wall times and Newton's failure messages of the steps the file holds (runs
-        # that wrote none: times unknown, NaN); relaxations, polishes: absent from
-        # checkpoints of earlier versions
-        for i in range(start):
-            self.records.append(
-                StepRecord(
-                    u=np.asarray(data["u"][i], dtype=float),
-                    reactions=np.asarray(data["reactions"][i], dtype=float),
-                    stress=data["stress"][i] if "stress" in data else None,
-                    homogenized_stress=data["homogenized_stress"][i] if "stress" in data else None,
-                    iterations=int(data["iterations"][i]),
-                    calls=int(data["calls"][i]),
-                    cutbacks=int(data["cutbacks"][i]),
-                    relaxations=int(data["relaxations"][i]) if "relaxations" in data else 0,
-                    polishes=int(data["polishes"][i]) if "polishes" in data else 0,
-                    e1=float(data["e1"][i]),
-                    e2=float(data["e2"][i]),
-                    residual=float(data["residuals"][i]),
-                    method=str(data["methods"][i]),
-                    message=str(data["messages"][i]) if "messages" in data else "",
-                    step_time=float(data["step_time"][i]) if "step_time" in data else math.nan,
-                    load_digest=str(data["fp__loads"][i]),
-                )
-            )
-        self.state_c = {k[len("state__") :]: data[k] for k in data if k.startswith("state__")}
+        self.state_c, prev, history = _checkpoint_states(data)
         if start:
             self.u_c = self.records[start - 1].u.reshape(-1).copy()
             self.t_c = float(tt[start - 1])
         if start >= 2:
             self.u_p, self.t_p = self.records[start - 2].u.reshape(-1).copy(), float(tt[start - 2])
-        prev = {k[len("prev_state__") :]: data[k] for k in data if k.startswith("prev_state__")}
         self.pred.prev_state = prev or None  # absent from checkpoints of earlier versions
         if "increments" in data:  # idem: a resumed run continues the same increments
             inc_n, inc_a, b_frac, b_until, b_hold = (float(v) for v in data["increments"])
             self.inc_frac = {"newton": inc_n, "adr": inc_a}
             self.backoff = {"frac": b_frac, "until": int(b_until), "hold": int(b_hold)}
-        history = {k[len("states__") :]: data[k] for k in data if k.startswith("states__")}
         if self.keep_states and history and all(v.shape[:1] == (start,) for v in history.values()):
             # the committed states of every step, as an uninterrupted run keeps them
             self.states = [{key: v[i] for key, v in history.items()} for i in range(start - 1)]
@@ -926,42 +903,24 @@ class LoadStepper:
     def _write_checkpoint(self) -> None:
         """Write the checkpoint after the running step and drop its ADR snapshots."""
         assert self.ckpt is not None
-        k, n, d = self.k, self.system.n, self.system.dim
-        cols = history_arrays(self.records)
-        arrays: dict[str, np.ndarray] = {
-            "version": np.array(_CHECKPOINT_VERSION),
-            "shape": np.array([n, d]),
-            "times": self.tt,
-            "done": np.array(k + 1),
-            **{key: cols[key] for key in ("u", "reactions", "iterations", "calls", "cutbacks")},
-            **{key: cols[key] for key in ("relaxations", "polishes", "e1", "e2", "residuals")},
-            "methods": np.array(cols["methods"]),
-            "messages": np.array(cols["messages"]),
-            "step_time": cols["step_time"],
-            **{f"fp__{part}": np.array(value) for part, value in self.fingerprint.items()},
-            "fp__loads": np.array([r.load_digest for r in self.records]),
-            "increments": np.array(
-                [
-                    self.inc_frac["newton"],
-                    self.inc_frac["adr"],
-                    self.backoff["frac"],
-                    self.backoff["until"],
-                    self.backoff["hold"],
-                ],
-                dtype=float,
-            ),
-        }
-        if cols["stress"] is not None:
-            arrays["stress"] = cols["stress"]
-            arrays["homogenized_stress"] = cols["homogenized_stress"]
-        for key, value in self.state_c.items():
-            arrays[f"state__{key}"] = np.asarray(value)
-        if self.keep_states and self.state_steps == list(range(k + 1)):
-            # every committed state: a resumed run returns and writes them all
-            for key in self.state_c:
-                arrays[f"states__{key}"] = np.stack([np.asarray(st[key]) for st in self.states])
-        for key, value in (self.pred.prev_state or {}).items():
-            arrays[f"prev_state__{key}"] = np.asarray(value)
+        every = self.keep_states and self.state_steps == list(range(self.k + 1))
+        arrays = _checkpoint_arrays(
+            history_arrays(self.records),
+            times=self.tt,
+            shape=(self.system.n, self.system.dim),
+            fingerprint=self.fingerprint,
+            load_digests=[r.load_digest for r in self.records],
+            increments=[
+                self.inc_frac["newton"],
+                self.inc_frac["adr"],
+                self.backoff["frac"],
+                self.backoff["until"],
+                self.backoff["hold"],
+            ],
+            state=self.state_c,
+            states=self.states if every else None,
+            prev_state=self.pred.prev_state,
+        )
         _write_atomic_npz(self.ckpt, arrays)
         self.snaps.clear()  # the step's increments are committed
         self.saved.clear()  # (a killed run's snapshots belong to this step or none)
