@@ -484,22 +484,34 @@ def _directions_mod_sign(xi: np.ndarray, active: np.ndarray) -> np.ndarray:
     return u[np.sort(idx)]
 
 
-def _solve_family(
-    target: np.ndarray,
-    fam: Family,
-    *,
-    weighting: str,
-    lower_bound: float,
-    method: str,
-    qp_solver: str,
-    rcond: float,
-    zero_tol: float,
-    raise_on_infeasible: bool,
-) -> CalibrationResult:
-    t0 = time.perf_counter()
-    dim = fam.dim
-    nv = len(_VOIGT[dim])
-    m = _multiplicity(dim)
+@dataclass(frozen=True)
+class _ReducedSystem:
+    """The weighted least-squares system of one family, merged and factorized.
+
+    ``A t ≈ bw`` in the merged unknowns ``t = sqrt(k) c`` (``k`` identical
+    columns merged into one); ``Vr`` holds the leading ``rank`` right
+    singular vectors and ``t_ls`` the minimum-norm least-squares solution.
+    """
+
+    X: np.ndarray  # (nv(nv+1)/2, M) unweighted design matrix
+    b: np.ndarray  # upper-triangle Voigt entries of the target
+    m: np.ndarray  # Frobenius multiplicity of each entry
+    Xw: np.ndarray  # weighted design matrix
+    bw: np.ndarray  # weighted target
+    first: np.ndarray  # first bond of each merged column
+    inv: np.ndarray  # merged column of each bond
+    sk: np.ndarray  # sqrt of each merged column's count
+    A: np.ndarray  # merged, scaled design matrix (zero columns cleared)
+    nonzero: np.ndarray  # merged columns that carry stiffness
+    s: np.ndarray  # singular values of A
+    Vr: np.ndarray  # (rank, n_columns) leading right singular vectors
+    rank: int
+    t_ls: np.ndarray  # minimum-norm least-squares t (0 on zero columns)
+
+
+def _reduce_family(fam: Family, target: np.ndarray, weighting: str, rcond: float) -> _ReducedSystem:
+    """Build, merge and factorize the weighted system of ``fam`` for ``target``."""
+    m = _multiplicity(fam.dim)
     sqm = np.sqrt(m)
     X = design_matrix(fam.xi, fam.omega, fam.volume, fam.thickness, weighting="voigt")
     b = _voigt_vector(target)
@@ -515,7 +527,6 @@ def _solve_family(
     U, s, Vt = np.linalg.svd(A, full_matrices=False)
     smax = float(s[0]) if s.size else 0.0
     rank = int(np.sum(s > rcond * smax)) if smax > 0 else 0
-    cauchy_dim = _CAUCHY_DIM[dim]
     if rank == 0:
         raise InputError(
             "bonds must carry stiffness, got a family whose design matrix is zero (all omega == 0?)"
@@ -523,91 +534,109 @@ def _solve_family(
     Ur, sr, Vr = U[:, :rank], s[:rank], Vt[:rank]
     t_ls = Vr.T @ ((Ur.T @ bw) / sr)
     t_ls[~nonzero] = 0.0
-    lt = lower_bound * sk
-    dirs = _directions_mod_sign(fam.xi, np.abs(Xw).max(axis=0) > 0)
-    msgs: list[str] = []
-    if rank < cauchy_dim:
-        quart = _unreachable_quartics(dirs, dim)
-        msgs.append(
-            f"rank {rank} < {cauchy_dim}: the quartics {', '.join(quart)} vanish on all "
-            f"{dirs.shape[0]} bond directions (modulo sign) of the family "
-            f"({fam.description or f'{fam.n_bonds} bonds'}), so no micromoduli reach them"
-        )
-    path: list[str] = ["min-norm"]
-    status = "step1"
-    solver_status = ""
+    return _ReducedSystem(X, b, m, Xw, bw, first, inv, sk, A, nonzero, s, Vr, rank, t_ls)
+
+
+@dataclass
+class _Step:
+    """Outcome of the admissibility step (step 2) of one family."""
+
+    t: np.ndarray
+    status: str
+    path: list[str]
+    solver_status: str
+    kkt: dict
+    messages: list[str]
+
+
+def _admissible_step(
+    sys_: _ReducedSystem, *, method: str, lower_bound: float, qp_solver: str
+) -> _Step:
+    """Keep the least-squares solution or move it into ``t >= lower_bound * sqrt(k)``.
+
+    'min-norm' only reports values below the bound (status 'negative');
+    'two-step' and 'robust' (NNLS start) solve the QP that keeps the fitted
+    tensor, statuses 'qp' / 'nnls-qp', or 'infeasible' / 'failed' with NaN.
+    """
+    A, bw, t_ls, sk = sys_.A, sys_.bw, sys_.t_ls, sys_.sk
     kkt = {"equality": 0.0, "bound": 0.0, "stationarity": 0.0, "dual": 0.0}
-    t = t_ls
-    c_ls = (t_ls / sk)[inv]
-    if c_ls[nonzero[inv]].min() < lower_bound:
-        if method == "min-norm":
-            status = "negative"
-            msgs.append(
-                f"minimum-norm least squares has {int(np.sum(c_ls < lower_bound))} micromoduli "
-                f"below the bound {lower_bound:g} (min {c_ls.min():.6g}); use method='two-step' "
-                "or 'robust' for admissible values"
+    step = _Step(t_ls, "step1", ["min-norm"], "", kkt, [])
+    c_ls = (t_ls / sk)[sys_.inv]
+    if not c_ls[sys_.nonzero[sys_.inv]].min() < lower_bound:
+        return step
+    if method == "min-norm":
+        step.status = "negative"
+        step.messages.append(
+            f"minimum-norm least squares has {int(np.sum(c_ls < lower_bound))} micromoduli "
+            f"below the bound {lower_bound:g} (min {c_ls.min():.6g}); use method='two-step' "
+            "or 'robust' for admissible values"
+        )
+        return step
+    lt = lower_bound * sk
+    start = t_ls
+    if method == "robust":
+        from scipy.optimize import nnls
+
+        tp, _ = nnls(A, bw - A @ lt, maxiter=50 * A.shape[1])
+        start = lt + tp
+        step.path.append("nnls")
+    Q = sys_.Vr
+    d = Q @ start
+    scale = max(float(np.abs(start).max()), float(np.abs(lt).max()), 1e-300)
+    out = _run_qp(Q, d / scale, lt / scale, qp_solver)
+    step.path.append(f"qp:{out.solver}")
+    step.solver_status = out.status
+    if out.x is None:
+        infeasible = "nfeasible" in out.status
+        step.status = "infeasible" if infeasible else "failed"
+        step.t = np.full_like(t_ls, np.nan)
+        e_ls = float(np.linalg.norm(bw - A @ t_ls)) / float(np.linalg.norm(bw))
+        if infeasible:
+            step.messages.append(
+                f"infeasible: no micromoduli >= {lower_bound:g} reproduce the "
+                f"least-squares tensor (error {100 * e_ls:.6g} %); the cone "
+                "{X c : c >= bound} misses it. method='robust' gives the nearest "
+                "admissible fit (NNLS) instead"
             )
         else:
-            start = t_ls
-            if method == "robust":
-                from scipy.optimize import nnls
+            step.messages.append(f"the QP solver failed ({out.status}); no solution returned")
+        return step
+    x, ok = _active_set_polish(out.x, Q, d / scale, lt / scale, 1e-9)
+    if ok:
+        step.path.append("active-set")
+    step.status = "nnls-qp" if method == "robust" else "qp"
+    step.t = np.maximum(x * scale, lt)
+    step.kkt = _kkt(step.t, Q, d, lt, scale)
+    return step
 
-                tp, _ = nnls(A, bw - A @ lt, maxiter=50 * A.shape[1])
-                start = lt + tp
-                path.append("nnls")
-            Q = Vr
-            d = Q @ start
-            scale = max(float(np.abs(start).max()), float(np.abs(lt).max()), 1e-300)
-            out = _run_qp(Q, d / scale, lt / scale, qp_solver)
-            path.append(f"qp:{out.solver}")
-            solver_status = out.status
-            if out.x is None:
-                infeasible = "nfeasible" in out.status
-                status = "infeasible" if infeasible else "failed"
-                t = np.full_like(t_ls, np.nan)
-                e_ls = float(np.linalg.norm(bw - A @ t_ls)) / float(np.linalg.norm(bw))
-                if infeasible:
-                    msgs.append(
-                        f"infeasible: no micromoduli >= {lower_bound:g} reproduce the "
-                        f"least-squares tensor (error {100 * e_ls:.6g} %); the cone "
-                        "{X c : c >= bound} misses it. method='robust' gives the nearest "
-                        "admissible fit (NNLS) instead"
-                    )
-                else:
-                    msgs.append(f"the QP solver failed ({out.status}); no solution returned")
-            else:
-                x, ok = _active_set_polish(out.x, Q, d / scale, lt / scale, 1e-9)
-                if ok:
-                    path.append("active-set")
-                t = x * scale
-                status = "nnls-qp" if method == "robust" else "qp"
-                t = np.maximum(t, lt)
-                kkt = _kkt(t, Q, d, lt, scale)
-    c_red = t / sk
-    if status in ("qp", "nnls-qp"):
+
+def _bond_micromoduli(sys_: _ReducedSystem, step: _Step, lower_bound: float) -> np.ndarray:
+    """Expand the merged unknowns ``t`` of ``step`` to one micromodulus per bond."""
+    c_red = step.t / sys_.sk
+    if step.status in ("qp", "nnls-qp"):
         c_red = np.maximum(c_red, lower_bound)  # remove round-off below the bound
-    c_red[~nonzero] = max(lower_bound, 0.0) if status != "negative" else 0.0
-    c = c_red[inv]
-    if status in ("infeasible", "failed") and raise_on_infeasible:
-        raise InputError("calibration " + status + ": " + "; ".join(msgs))
-    valid = np.all(np.isfinite(c))
-    ach = X @ c if valid else np.full(b.shape, np.nan)
-    res_vec = bw - Xw @ c
-    residual = float(np.linalg.norm(res_vec)) if valid else float("nan")
-    e_full = (
-        float(np.sqrt(np.sum(m * (b - ach) ** 2)) / np.sqrt(np.sum(m * b**2)))
-        if valid
-        else float("nan")
-    )
-    if status == "nnls-qp" and valid:
-        e_ls = float(np.sqrt(np.sum(m * (b - X @ c_ls) ** 2)) / np.sqrt(np.sum(m * b**2)))
-        if e_full > e_ls * (1 + 1e-8) + 1e-14:
-            msgs.append(
-                f"the least-squares tensor is outside the cone of admissible micromoduli; "
-                f"NNLS fit error {100 * e_full:.6g} % vs unconstrained {100 * e_ls:.6g} %"
-            )
-    zthr = zero_tol * (float(np.nanmax(np.abs(c))) if valid and c.size else 1.0)
-    n_zero = int(np.sum(np.abs(c - lower_bound) <= zthr)) if valid else 0
+    c_red[~sys_.nonzero] = max(lower_bound, 0.0) if step.status != "negative" else 0.0
+    return c_red[sys_.inv]
+
+
+def _relative_frobenius(sys_: _ReducedSystem, c: np.ndarray) -> float:
+    """``|C - X c|_F / |C|_F`` over the full tensor."""
+    m, b = sys_.m, sys_.b
+    return float(np.sqrt(np.sum(m * (b - sys_.X @ c) ** 2)) / np.sqrt(np.sum(m * b**2)))
+
+
+def _summary_messages(
+    sys_: _ReducedSystem,
+    step: _Step,
+    *,
+    cauchy_dim: int,
+    lower_bound: float,
+    n_zero: int,
+    weighting: str,
+) -> list[str]:
+    """Closing notes of a family: full rank first, then what step 1 or 2 did."""
+    msgs = list(step.messages)
+    rank, status = sys_.rank, step.status
     if rank == cauchy_dim:
         msgs.insert(0, f"rank {rank} (full)")
     if status == "step1":
@@ -621,20 +650,76 @@ def _solve_family(
         )
     if status in ("step1", "qp") and rank == cauchy_dim and weighting == "frobenius":
         msgs.append("the achieved tensor is the Cauchy projection of C")
+    return msgs
+
+
+def _solve_family(
+    target: np.ndarray,
+    fam: Family,
+    *,
+    weighting: str,
+    lower_bound: float,
+    method: str,
+    qp_solver: str,
+    rcond: float,
+    zero_tol: float,
+    raise_on_infeasible: bool,
+) -> CalibrationResult:
+    """Calibrate one family: least squares, then the admissibility step, then the report."""
+    t0 = time.perf_counter()
+    dim = fam.dim
+    sys_ = _reduce_family(fam, target, weighting, rcond)
+    cauchy_dim = _CAUCHY_DIM[dim]
+    rank = sys_.rank
+    dirs = _directions_mod_sign(fam.xi, np.abs(sys_.Xw).max(axis=0) > 0)
+    step = _admissible_step(sys_, method=method, lower_bound=lower_bound, qp_solver=qp_solver)
+    if rank < cauchy_dim:
+        quart = _unreachable_quartics(dirs, dim)
+        step.messages.insert(
+            0,
+            f"rank {rank} < {cauchy_dim}: the quartics {', '.join(quart)} vanish on all "
+            f"{dirs.shape[0]} bond directions (modulo sign) of the family "
+            f"({fam.description or f'{fam.n_bonds} bonds'}), so no micromoduli reach them",
+        )
+    c = _bond_micromoduli(sys_, step, lower_bound)
+    if step.status in ("infeasible", "failed") and raise_on_infeasible:
+        raise InputError("calibration " + step.status + ": " + "; ".join(step.messages))
+    valid = np.all(np.isfinite(c))
+    ach = sys_.X @ c if valid else np.full(sys_.b.shape, np.nan)
+    residual = float(np.linalg.norm(sys_.bw - sys_.Xw @ c)) if valid else float("nan")
+    e_full = _relative_frobenius(sys_, c) if valid else float("nan")
+    if step.status == "nnls-qp" and valid:
+        c_ls = (sys_.t_ls / sys_.sk)[sys_.inv]
+        e_ls = _relative_frobenius(sys_, c_ls)
+        if e_full > e_ls * (1 + 1e-8) + 1e-14:
+            step.messages.append(
+                f"the least-squares tensor is outside the cone of admissible micromoduli; "
+                f"NNLS fit error {100 * e_full:.6g} % vs unconstrained {100 * e_ls:.6g} %"
+            )
+    zthr = zero_tol * (float(np.nanmax(np.abs(c))) if valid and c.size else 1.0)
+    n_zero = int(np.sum(np.abs(c - lower_bound) <= zthr)) if valid else 0
+    msgs = _summary_messages(
+        sys_,
+        step,
+        cauchy_dim=cauchy_dim,
+        lower_bound=lower_bound,
+        n_zero=n_zero,
+        weighting=weighting,
+    )
     return CalibrationResult(
         micromoduli=c,
-        tensor=_voigt_matrix(ach, nv),
+        tensor=_voigt_matrix(ach, len(_VOIGT[dim])),
         target=target,
         relative_error=e_full,
-        status=status,
+        status=step.status,
         message="; ".join(msgs),
-        path=tuple(path),
-        solver_status=solver_status,
+        path=tuple(step.path),
+        solver_status=step.solver_status,
         residual=residual,
-        kkt=kkt,
+        kkt=step.kkt,
         rank=rank,
         n_bonds=fam.n_bonds,
-        n_columns=int(first.size),
+        n_columns=int(sys_.first.size),
         n_directions=int(dirs.shape[0]),
         n_zero=n_zero,
         zero_threshold=zthr,
@@ -646,7 +731,7 @@ def _solve_family(
         weighting=weighting,
         method=method,
         time=time.perf_counter() - t0,
-        extra={"family": fam, "singular_values": s},
+        extra={"family": fam, "singular_values": sys_.s},
     )
 
 
