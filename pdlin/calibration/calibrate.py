@@ -1,9 +1,12 @@
-"""Calibration of anisotropic bond micromoduli (spec 004).
+"""Calibration of anisotropic bond micromoduli (Prakash, anisotropic micromoduli).
 
 The effective tensor of a bond family is linear in the micromoduli,
-``C_PD = X c`` (spec 004 Eq. 29/32).  :func:`~pdlin.calibrate_micromoduli` finds the
-minimum-norm nonnegative ``c`` whose tensor is closest to a target ``C`` in
-the Frobenius norm of the full fourth-order tensor (spec §2.1-2.2).
+``C_PD = X c`` (the paper's Eqs. 29 and 32).  :func:`~pdlin.calibrate_micromoduli` finds
+the minimum-norm nonnegative ``c`` whose tensor is closest to a target ``C`` in the
+Frobenius norm of the full fourth-order tensor: the paper's two-step method (§3,
+Eqs. 36-43) with its least squares weighted by the multiplicity of each Voigt entry
+(derived: the printed unweighted Eq. 34 does not reproduce the paper's Table 1, the
+weighted one does).  The 2D forms are pdlin's extension; the paper is 3D only.
 """
 
 from __future__ import annotations
@@ -42,7 +45,7 @@ _WEIGHTINGS = ("frobenius", "voigt")
 _PAIR_RULES = ("mean", "owner")
 _BOUNDARY_RULES = ("calibrate", "interior-mean", "bulk")
 
-# Voigt index -> tensor index pair (spec 004 §1.2 / §2.7)
+# Voigt index -> tensor index pair (3D: the paper's Voigt map; 2D: 11, 22, 12)
 _VOIGT = {3: ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)), 2: ((0, 0), (1, 1), (0, 1))}
 _CAUCHY_DIM = {3: 15, 2: 5}
 
@@ -56,7 +59,7 @@ def _upper(nv: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _multiplicity(dim: int) -> np.ndarray:
-    """Multiplicity of each upper-triangle Voigt entry in the full tensor (spec §2.1)."""
+    """Return the multiplicity of each upper-triangle Voigt entry in the full tensor."""
     from ..constitutive import frobenius_multiplicity
 
     return frobenius_multiplicity(dim).astype(float)
@@ -117,14 +120,40 @@ def _finite_scalar(value: Any, name: str) -> float:
 def design_matrix(
     xi: Any, omega: Any, volume: Any, thickness: float = 1.0, *, weighting: str = "frobenius"
 ) -> np.ndarray:
-    """Matrix ``X`` with ``C_PD = X c`` over upper-triangle Voigt entries.
+    """Return the design matrix ``X`` with ``C_PD = X c`` over upper-triangle Voigt entries.
 
-    ``X[(a, b), N] = ½ ω_N ζ_a ζ_b V_N t / |ξ_N|³`` (spec 004 Eq. 32, 2D
-    §2.7), rows ordered ``C11, C12, ..., C16, C22, ..., C66`` (21 rows in
-    3D, 6 in 2D).  ``weighting='frobenius'`` multiplies row ``(a, b)`` by
-    ``sqrt(m_ab)``, the multiplicity of that component in the full tensor,
-    so the Euclidean norm of the rows is the Frobenius norm of the tensor
-    (spec §2.1).
+    ``X[(a, b), N] = ½ ω_N ζ_a ζ_b V_N t / |ξ_N|³`` (Prakash, anisotropic
+    micromoduli, Eq. 32; in 2D the same sum over in-plane components times
+    the thickness ``t``), rows ordered ``C11, C12, ..., C16, C22, ..., C66``
+    (21 rows in 3D, 6 in 2D).  ``weighting='frobenius'`` multiplies row
+    ``(a, b)`` by ``sqrt(m_ab)``, the multiplicity of that component in the
+    full tensor, so the Euclidean norm of the rows is the Frobenius norm of
+    the tensor (see :func:`pdlin.constitutive.frobenius_multiplicity`).
+
+    Parameters
+    ----------
+    xi : (M, dim) array_like of float
+        Bond vectors of one family, ``dim`` 2 or 3, all nonzero.
+    omega : float or (M,) array_like of float
+        Influence value of each bond.
+    volume : float or (M,) array_like of float
+        Neighbour volume of each bond (area in 2D).
+    thickness : float
+        Out-of-plane thickness (2D); use 1.0 in 3D.
+    weighting : {'frobenius', 'voigt'}
+        Row weighting by ``sqrt(m_ab)`` or none (the printed Eq. 34).
+
+    Returns
+    -------
+    ndarray of float, shape (21, M) or (6, M)
+        C-contiguous design matrix.
+
+    Raises
+    ------
+    InputError
+        If ``weighting`` is unknown or a bond vector is zero.
+    ShapeError
+        If ``xi`` is not of shape (M, 2) or (M, 3).
 
     Examples
     --------
@@ -177,8 +206,8 @@ class CalibrationResult:
     target : (nv, nv) ndarray
         Voigt target actually fitted (after plane stress/strain reduction).
     relative_error : float or (n,) ndarray
-        ``|C - C_PD|_F / |C|_F`` over the full tensor (spec §2.1; with
-        ``weighting='voigt'`` still the full-tensor Frobenius norm).
+        ``|C - C_PD|_F / |C|_F`` over the full tensor (the paper's relative
+        error; with ``weighting='voigt'`` still the full-tensor Frobenius norm).
     status : str
         'step1' (minimum-norm least squares already >= lower bound), 'qp'
         (bound active, step 2), 'nnls-qp' (robust variant: NNLS start, then
@@ -277,7 +306,14 @@ class CalibrationResult:
         return self.status not in ("infeasible", "failed", "negative")
 
     def summary(self) -> str:
-        """One line per key figure (for logs and the CLI)."""
+        """Return the key figures on one line (for logs and the CLI).
+
+        Returns
+        -------
+        str
+            Status and path, rank, bond count, largest relative error (in %),
+            micromodulus range, mean and norm, and the count at the bound.
+        """
         err = self.relative_error
         e = f"{100 * float(np.max(err)):.6g} %" if np.size(err) else "n/a"
         return (
@@ -634,7 +670,7 @@ def _summary_messages(
     n_zero: int,
     weighting: str,
 ) -> list[str]:
-    """Closing notes of a family: full rank first, then what step 1 or 2 did."""
+    """Return the closing notes of a family: full rank first, then what step 1 or 2 did."""
     msgs = list(step.messages)
     rank, status = sys_.rank, step.status
     if rank == cauchy_dim:
@@ -789,7 +825,8 @@ def calibrate_micromoduli(
 ) -> CalibrationResult:
     """Calibrate bond micromoduli so a bond family reproduces a stiffness tensor.
 
-    Solves spec 004 §2.2: among all minimizers of the Frobenius-norm misfit
+    The two-step method of Prakash, anisotropic micromoduli (§3, Eqs. 36-43),
+    in the Frobenius norm: among all minimizers of the misfit
     ``|C - X c|_F`` (full fourth-order tensor) the one with minimum
     ``|c|_2`` subject to ``c >= lower_bound``.  When the target's Cauchy
     projection (total symmetrization) is reachable, the achieved tensor is
@@ -798,8 +835,8 @@ def calibrate_micromoduli(
     Parameters
     ----------
     C : (6, 6), (3, 3), (3, 3, 3, 3) or (2, 2, 2, 2) array_like
-        Target stiffness: plain Voigt (no factor 2 on shear entries, spec
-        §1.2) or the full tensor.  Must be symmetric, finite and positive
+        Target stiffness: plain Voigt (no factor 2 on shear entries, as
+        in the paper) or the full tensor.  Must be symmetric, finite and positive
         definite.  A 3D target for a 2D family is reduced by ``plane``.
     bonds : Bonds, Family or (M, dim) array_like
         * :class:`pdlin.Bonds` of a whole cloud: every distinct family is
@@ -821,7 +858,7 @@ def calibrate_micromoduli(
         square root of their multiplicity: the least squares is then in the
         Frobenius norm of the full tensor, which reproduces the paper.
         'voigt' is the printed unweighted system (Eq. 34); it does **not**
-        reproduce the paper's numbers (spec §2.1, E1).
+        reproduce the paper's numbers.
     lower_bound : float
         Bound ``l`` with ``c >= l`` (default 0: energy positivity).
     method : {'two-step', 'robust', 'min-norm'}
@@ -833,7 +870,8 @@ def calibrate_micromoduli(
         'min-norm': step 1 only, may return values below the bound (status
         'negative').
     plane : {'stress', 'strain'}
-        Reduction of a 3D target for a 2D family (spec §2.7).
+        Reduction of a 3D target for a 2D family
+        (:func:`pdlin.constitutive.plane_stress`, :func:`pdlin.constitutive.plane_strain`).
     qp_solver : {'clarabel', 'osqp', 'cvxpy'}
         Step-2 backend: Clarabel interior point (default; falls back to
         OSQP), OSQP (eps 1e-10, polishing; falls back to Clarabel), or
@@ -849,7 +887,8 @@ def calibrate_micromoduli(
         Cloud input: 'calibrate' calibrates every distinct (also truncated)
         family; 'interior-mean' calibrates only the complete family (the
         largest one) and gives every bond touching a point with another
-        family the mean complete-family value (spec 004 §4.7 [S]); 'bulk'
+        family the mean complete-family value (pdlin's reading of the
+        "average" the paper's §4.4 example gives to boundary bonds); 'bulk'
         calibrates only the complete family and gives every bond the value
         of its bond vector there (a homogeneous material, ``c = c(ξ)``;
         interior points reproduce the target exactly, truncated families
@@ -865,10 +904,24 @@ def calibrate_micromoduli(
     Returns
     -------
     CalibrationResult
+        Micromoduli, achieved tensor(s), error, status and diagnostics.
+
+    Raises
+    ------
+    InputError
+        If an option is unknown or out of range, the target is not symmetric
+        positive definite, the family carries no stiffness, or (with
+        ``raise_on_infeasible``) no admissible solution exists.
+    ShapeError
+        If ``C`` or the bond vectors have the wrong shape.
+    InputTypeError
+        If ``bonds`` is of an unsupported type.
 
     Examples
     --------
-    Spec 004 §4.1, isotropic Pyroceram on the 924-bond sphere (δ = 6):
+    Prakash, anisotropic micromoduli, §4.1.8: isotropic Pyroceram 9608 on the
+    924-bond sphere (δ = 6); the range of ``c`` is this implementation's
+    output (the paper shows it as a figure only):
 
     >>> import numpy as np
     >>> from pdlin.calibration import lattice_family, calibrate_micromoduli
@@ -946,10 +999,35 @@ def calibrate_micromoduli(
 def max_lower_bound(
     C: Any, family: Family, *, weighting: str = "frobenius", plane: str = "stress"
 ) -> float:
-    """Largest uniform bound ``l`` for which the two-step QP is feasible (spec 004 §4.6).
+    """Return the largest uniform bound ``l`` for which the two-step QP is feasible.
 
     Linear program: maximize ``l`` s.t. ``Xw x = Xw c0`` and ``x >= l``
-    (``c0`` the minimum-norm least-squares solution).
+    (``c0`` the minimum-norm least-squares solution).  Prakash, anisotropic
+    micromoduli (§4.1.8) chose ``l = 0.23`` "after some numerical
+    experimentation"; this gives the limit directly.
+
+    Parameters
+    ----------
+    C : (6, 6), (3, 3), (3, 3, 3, 3) or (2, 2, 2, 2) array_like
+        Target stiffness, as for :func:`calibrate_micromoduli`.
+    family : Family
+        One bond family.
+    weighting : {'frobenius', 'voigt'}
+        Row weighting of the least squares.
+    plane : {'stress', 'strain'}
+        Reduction of a 3D target for a 2D family.
+
+    Returns
+    -------
+    float
+        The largest ``l`` (units of the micromoduli) with an admissible solution.
+
+    Raises
+    ------
+    InputTypeError
+        If ``family`` is not a :class:`~pdlin.calibration.Family`.
+    InputError
+        If the target is invalid or the linear program does not solve.
 
     Examples
     --------
@@ -957,7 +1035,7 @@ def max_lower_bound(
     >>> from pdlin.calibration import lattice_family
     >>> C = np.zeros((6, 6)); C[:3, :3] = 34.4
     >>> C[[0, 1, 2], [0, 1, 2]] = 103.2; C[[3, 4, 5], [3, 4, 5]] = 34.4
-    >>> round(max_lower_bound(C, lattice_family(3, 6.0)), 4)   # spec 004 §4.6: 0.23870
+    >>> round(max_lower_bound(C, lattice_family(3, 6.0)), 4)   # omega = 1: above the paper's 0.23
     0.2387
     """
     from scipy.optimize import linprog

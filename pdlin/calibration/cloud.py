@@ -54,6 +54,16 @@ def group_families(
     Two families are identical when they hold the same multiset of bonds
     ``(xi, omega, volume_j)`` (within a relative tolerance ``rel``).
 
+    Parameters
+    ----------
+    bonds : Bonds
+        Bonds of the whole cloud (CSR by owner point).
+    rel : float
+        Relative tolerance, of the largest magnitude of each quantity, under
+        which two bond vectors, influence values or volumes count as equal.
+    return_types : bool
+        Also return the bond type of every bond and one bond per type.
+
     Returns
     -------
     family_of_point : (n,) ndarray of int
@@ -66,6 +76,11 @@ def group_families(
     bond_type, type_first : (nb,), (ntype,) ndarray of int
         Only with ``return_types``: type id of each bond (same ``xi``,
         ``omega``, ``volume_j``) and one bond per type.
+
+    Raises
+    ------
+    InputError
+        If the grouping fails its exact verification (a 128-bit hash collision).
 
     Examples
     --------
@@ -309,7 +324,42 @@ def calibrate_bonds(
     boundary: str,
     **opts: Any,
 ) -> CalibrationResult:
-    """Calibrate every distinct family of ``bonds`` (see :func:`~pdlin.calibrate_micromoduli`)."""
+    """Calibrate every distinct family of ``bonds`` (see :func:`~pdlin.calibrate_micromoduli`).
+
+    Identical families (see :func:`group_families`) are calibrated once; the
+    values are scattered to every bond by ``boundary`` and ``pair_rule``.
+
+    Parameters
+    ----------
+    target : (nv, nv) ndarray
+        Validated plain-Voigt target in the dimension of ``bonds``.
+    bonds : Bonds
+        Bonds of the whole cloud.
+    thickness : float
+        Out-of-plane thickness (2D).
+    pair_rule : {'mean', 'owner'}
+        Value of bond ``i -> j``: mean of the values calibrated at ``i`` and
+        ``j``, or the owner's.
+    boundary : {'calibrate', 'interior-mean', 'bulk'}
+        Which families are calibrated and how truncated ones are served.
+    **opts
+        ``weighting``, ``lower_bound``, ``method``, ``qp_solver``, ``rcond``,
+        ``zero_tol`` and ``raise_on_infeasible``, as for
+        :func:`~pdlin.calibrate_micromoduli`.
+
+    Returns
+    -------
+    CalibrationResult
+        One micromodulus per directed bond, one achieved tensor and relative
+        error per point, the per-family results in ``families``.
+
+    Raises
+    ------
+    InputError
+        If ``bonds`` is empty, a family has no solution and
+        ``raise_on_infeasible`` is set, or with ``boundary='bulk'`` a bond
+        does not occur in the complete family.
+    """
     t0 = time.perf_counter()
     fam_of_pt, reps, order, btype, tfirst = group_families(bonds, return_types=True)
     ng = reps.size
