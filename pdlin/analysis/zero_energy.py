@@ -7,8 +7,8 @@ Sundararaghavan (2022, Sec. II.B) and Luo & Sundararaghavan (2018):
   ``tol * λ_max`` and subtracts the rigid-body modes (dense ``eigvalsh``
   below ``dense_limit`` DOFs, shift-invert Lanczos above).  On free finite
   bodies with their own truncated shape tensors every control shows the
-  rigid modes only (derived: a truncated family has no lattice symmetry to
-  hide a mode in); the counts discriminate
+  rigid modes only (observed for every control in pdlin's reference
+  computations); the counts discriminate
   on constrained systems (``dofs=`` the real DOFs of a shadow layer).
 * :func:`checkerboard_energy_ratio` compares the Rayleigh quotient of the
   modes ``s(x) (-1)^{θ·idx}``, ``θ ∈ {0, 1}^d``, ``θ ≠ 0``, with that of the
