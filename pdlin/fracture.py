@@ -1,4 +1,6 @@
-"""Quasi-static stretch damage: load steps, bond breaking and re-solves (spec 002 §8).
+"""Quasi-static stretch damage: load steps, bond breaking and re-solves.
+
+The stretch criterion of Liu, Chen & Skelton, XOSB (§5.3, Eq. 88), used quasi-statically.
 
 :func:`solve_damage` drives a linear :class:`~pdlin.StaticProblem` through proportional
 load steps ``t_k = k / steps`` (every prescribed displacement and load scaled by ``t``).

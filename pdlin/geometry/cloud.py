@@ -523,15 +523,17 @@ class GhostLayer(NamedTuple):
 
 
 def ghost_layer(cloud: PointCloud, layers: int = 1) -> GhostLayer:
-    """Add ``layers`` rings of ghost points around a lattice cloud (spec 001 §1, §2.4).
+    """Add ``layers`` rings of ghost points around a lattice cloud.
 
     The ghosts fill the cells of the lattice box grown by ``layers`` cells on every side;
     prescribe their displacement by the same affine map as the boundary (e.g. with
     :meth:`pdlin.Dirichlet.velocity_gradient`) so that the original boundary particles
     have complete families.  With the correspondence model at δ = h or √2 h and the
     original outer ring prescribed, a uniform stress then gives zero force at every free
-    particle (T5) and a single crystal under affine boundary conditions deforms exactly
-    affinely (T21); with truncated families it does not (spec 001 §2.4).
+    particle and a single crystal under affine boundary conditions deforms exactly
+    affinely; with the truncated families of Luo, Ramazani & Sundararaghavan (2017)
+    it does not (derived: a uniform stress then leaves a force ``P n / (2h)`` at the free
+    particles next to an edge).  The ghost layer is pdlin's option, not the paper's.
 
     The original points keep their indices; the ghosts are appended (C order of their
     cells).  Volumes are the lattice cell volume; ``horizon`` and ``material`` are copied

@@ -1,4 +1,8 @@
-"""Seeded Voronoi polycrystals: grain ids and crystal orientations per point (spec 001 §7)."""
+"""Seeded Voronoi polycrystals: grain ids and crystal orientations per point.
+
+As in Luo, Ramazani & Sundararaghavan (2017), §4: Voronoi grains (21 in the paper,
+seeds not given) with orientations from a 12-value set.
+"""
 
 from __future__ import annotations
 
@@ -35,8 +39,9 @@ def voronoi_polycrystal(
         Random seed (reproducible maps).
     orientations : array_like, optional
         2D: the set of angles (radians) grains draw from; default the 12-value set
-        θ_k = −π/2 + kπ/12 of spec 001 §3.2.  When ``n_grains`` is at least the set size,
-        every orientation is used at least once (spec 001 §7 [S]), the rest drawn
+        θ_k = −π/2 + kπ/12 of Luo, Ramazani & Sundararaghavan (2017), §4.  When
+        ``n_grains`` is at least the set size, every orientation is used at least once
+        (pdlin's choice; the paper shows its assignment only in figures), the rest drawn
         uniformly.  3D: default uniformly random rotations
         (``scipy.spatial.transform.Rotation.random``); or a set ``(k, 3, 3)`` of rotation
         matrices drawn from in the same way.

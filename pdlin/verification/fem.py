@@ -2,12 +2,14 @@
 
 A vectorized bilinear-quadrilateral (Q4) assembly with 2 x 2 Gauss quadrature for plane
 stress or plane strain, and a direct (SuperLU) or AMG-CG solve with prescribed nodal
-displacements.  It is the FE reference of spec 002 §9.1 (plate with a central hole) used by
+displacements.  It is the FE reference for the plate with a central hole of Liu, Chen &
+Skelton, XOSB, §5.1, used by
 ``tests/verification/test_xosb_plate.py`` and ``examples/plate_with_hole_xosb.py``.
 
 Its 3D counterpart is the trilinear hexahedron (Hex8, 2 x 2 x 2 Gauss, isotropic), the
-reference of spec 003 §7.3 (R3D brick, nodes at the particles) and spec 002 §9.2 (extruded
-plate with a hole): :func:`hex8_stiffness` and :func:`solve_hex8`.
+reference for the 3D brick of Luo & Sundararaghavan (2018), §5.3 (nodes at the particles),
+and the extruded plate with a hole of the XOSB paper, §5.2: :func:`hex8_stiffness` and
+:func:`solve_hex8`.
 
 It is a verification utility, not part of pdlin's peridynamic API: a single homogeneous
 isotropic material and no checks beyond positive Jacobians.  :func:`grid_fe_reference` builds
@@ -245,12 +247,13 @@ def plate_extension_q4(
     plane: str = "stress",
     solver: str = "lu",
 ) -> np.ndarray:
-    """FE reference of the spec 002 §9.1 plate: prescribed extension of a square plate.
+    """Solve the FE reference of the XOSB plate (§5.1): prescribed extension of a square plate.
 
     ``u_x = 0`` on the left edge ``x = -L/2``, ``u_x = u0`` on the right edge ``x = L/2``,
     ``u_y = 0`` at the two edge mid-nodes ``(±L/2, 0)``; top and bottom free.  For the
-    plate with a hole, mesh it with :func:`pdlin.plate_with_hole_mesh` (the spec's reference
-    is its O-grid at ``4 x 128 x 240``).
+    plate with a hole, mesh it with :func:`pdlin.plate_with_hole_mesh` (pdlin's reference
+    solution uses its O-grid at ``4 x 128 x 240``; the loading is pdlin's reading of the
+    paper, which does not state it).
 
     Parameters
     ----------
