@@ -77,20 +77,30 @@ class DamageResult:
 
     @property
     def n_steps(self) -> int:
+        """Number of load steps stored."""
         return int(self.factors.size)
 
     def __repr__(self) -> str:
-        """Steps, broken bonds and damage (no arrays, no memory address)."""
+        """Return steps, broken bonds and damage (no arrays, no memory address)."""
         items = {k: v for k, v in self.summary().items() if k != "timings"}
         return compact_repr("DamageResult", {**items, "stopped": items["stopped"] or None})
 
     def _repr_html_(self) -> str:
-        """The summary as an HTML table (Jupyter)."""
+        """Return the summary as an HTML table (Jupyter)."""
         rows = [(k.replace("_", " "), v) for k, v in self.summary().items() if k != "timings"]
         return html_table("DamageResult", rows)
 
     def summary(self) -> dict[str, Any]:
-        """Plain-data summary (for the CLI)."""
+        """Return a plain-data summary (for the CLI).
+
+        Returns
+        -------
+        dict
+            ``steps``, ``points``, ``dim``, ``critical_stretch``, ``broken_bonds`` (after
+            the last step), ``max_damage``, ``first_break_load`` (load factor of the
+            first break, or None), ``linear_solves``, ``stopped`` (reason or None) and
+            ``timings`` (seconds per phase, rounded).
+        """
         return {
             "steps": self.n_steps,
             "points": int(self.u.shape[1]),
@@ -106,8 +116,10 @@ class DamageResult:
 
 
 def _check_damage_history(n: int, dim: int, steps: int) -> None:
-    """Refuse a step count whose stored history (u and damage per step, kept twice while
-    the result arrays are built) does not fit in memory."""
+    """Refuse a step count whose stored history does not fit in memory.
+
+    The history is u and damage per step, kept twice while the result arrays are built.
+    """
     from .resources import LONG_RUN_SECONDS, available_memory, check_memory
 
     per_step = 2 * 8 * n * (dim + 1) + 64

@@ -106,6 +106,7 @@ class PointCloud:
     lattice: Lattice | None = None
 
     def __post_init__(self) -> None:
+        """Validate the fields; make points and volumes read-only float arrays."""
         pts = as_float_array(self.points, "points")
         if pts.ndim == 1:
             pts = pts[:, None]
@@ -194,6 +195,21 @@ class PointCloud:
         ``'all'`` (every point) and ``'boundary'`` (the union of the face sets
         ``'x-'``, ``'x+'``, ... the cloud has, e.g. the outermost ring of a
         :func:`pdlin.grid`).
+
+        Parameters
+        ----------
+        name : str
+            A key of :attr:`sets`, ``'all'`` or ``'boundary'``.
+
+        Returns
+        -------
+        ndarray of int
+            Point indices of the set.
+
+        Raises
+        ------
+        InputError
+            If no set of that name exists (the message lists the known ones).
 
         Examples
         --------
@@ -286,13 +302,37 @@ class PointCloud:
         return _as_index_array(where, "point selection", self.n)
 
     def with_sets(self, **sets: Any) -> PointCloud:
-        """Return a copy with extra named point sets."""
+        """Return a copy with extra named point sets.
+
+        Parameters
+        ----------
+        **sets : array_like of int
+            New sets by name (an existing name is replaced).
+
+        Returns
+        -------
+        PointCloud
+            A validated copy; the lattice metadata is kept.
+        """
         merged = dict(self.sets)
         merged.update(sets)
         return self.replace(sets=merged)
 
     def replace(self, **changes: Any) -> PointCloud:
-        """Return a copy with some fields replaced (validated again)."""
+        """Return a copy with some fields replaced (validated again).
+
+        Parameters
+        ----------
+        **changes
+            New values for ``points``, ``volumes``, ``horizon``, ``material``, ``sets``,
+            ``thickness`` or ``lattice``.  New ``points`` drop the lattice metadata unless
+            ``lattice`` is given too.
+
+        Returns
+        -------
+        PointCloud
+            The new cloud.
+        """
         data: dict[str, Any] = {
             "points": self.points,
             "volumes": self.volumes,
@@ -308,7 +348,23 @@ class PointCloud:
         return PointCloud(**data)
 
     def subset(self, index: Sequence[int] | np.ndarray) -> PointCloud:
-        """Return the cloud restricted to ``index`` (sets are re-indexed)."""
+        """Return the cloud restricted to ``index`` (sets are re-indexed).
+
+        Parameters
+        ----------
+        index : array_like of int
+            Points to keep, in the order of the new cloud.
+
+        Returns
+        -------
+        PointCloud
+            The subset, without lattice metadata; sets keep their surviving points.
+
+        Raises
+        ------
+        InputError
+            If an index is out of range or not an integer.
+        """
         idx = _as_index_array(index, "index", self.n)
         new_of_old = np.full(self.n, -1, dtype=np.intp)
         new_of_old[idx] = np.arange(idx.size)
@@ -326,6 +382,7 @@ class PointCloud:
         )
 
     def __repr__(self) -> str:
+        """Return size, dimension, total volume and set names (no arrays)."""
         return (
             f"PointCloud(n={self.n}, dim={self.dim}, volume={self.volumes.sum():.6g}, "
             f"sets={sorted(self.sets)})"
@@ -336,7 +393,7 @@ _AXES = "xyz"
 
 
 def _face_sets(points: np.ndarray, lo: np.ndarray, hi: np.ndarray, h: np.ndarray) -> dict:
-    """Sets 'x-', 'x+', ... holding the outermost layer of a box of points."""
+    """Return the sets 'x-', 'x+', ... holding the outermost layer of a box of points."""
     sets: dict[str, np.ndarray] = {}
     for k in range(points.shape[1]):
         tol = 0.5 * h[k]

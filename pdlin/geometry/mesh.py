@@ -241,7 +241,7 @@ def cell_measures(points: Any, cells: Any, cell_type: str) -> tuple[np.ndarray, 
 
 
 def _quad_is_simple(x: np.ndarray, sign: np.ndarray) -> np.ndarray:
-    """True for quads that one diagonal splits into two same-signed triangles."""
+    """Flag the quads that one diagonal splits into two same-signed triangles."""
 
     def tri(a: int, b: int, c: int) -> np.ndarray:
         return _cross2(x[:, b] - x[:, a], x[:, c] - x[:, a]) * sign
@@ -604,7 +604,7 @@ def _point_cloud(
     thickness: float,
     sets_from_data: bool,
 ) -> PointCloud:
-    """A mesh of ``vertex`` cells only (or without cells) as the cloud of its points."""
+    """Convert a mesh of ``vertex`` cells only (or without cells) to the cloud of its points."""
     allpts = np.asarray(mesh.points, dtype=np.float64)
     if allpts.ndim != 2 or allpts.shape[0] == 0 or not 1 <= allpts.shape[1] <= 3:
         raise InputError(f"mesh points must be an (n, 1..3) array, got shape {allpts.shape}")

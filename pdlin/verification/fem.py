@@ -558,8 +558,10 @@ def solve_hex8(
 
 
 def _lattice_cells(cloud: Any) -> tuple[np.ndarray, np.ndarray]:
-    """Q4 / Hex8 connectivity between neighbouring lattice points (cells whose corners all
-    exist), and the points' coordinates."""
+    """Return the Q4 / Hex8 connectivity between neighbouring lattice points, and their coordinates.
+
+    Cells are kept where all corners exist.
+    """
     lat = cloud.lattice
     shape = tuple(int(v) for v in lat.shape)
     flat_node = np.full(int(np.prod(shape)), -1, dtype=np.intp)
