@@ -50,7 +50,24 @@ class SubregionProblem:
 
 
 def problem_horizon(problem: StaticProblem) -> float:
-    """Largest horizon of a problem (its bonds, ``horizon`` or ``ratio`` x spacing).
+    """Return the largest horizon of a problem (its bonds, ``horizon`` or ``ratio`` x spacing).
+
+    Parameters
+    ----------
+    problem : StaticProblem
+        The problem; its bonds, ``horizon``, the cloud's horizon or
+        ``bond_options['ratio']`` times the (lattice or median) spacing is used,
+        in that order.
+
+    Returns
+    -------
+    float
+        The largest horizon, in length units.
+
+    Raises
+    ------
+    InputError
+        If the problem has none of them.
 
     Examples
     --------
