@@ -620,10 +620,8 @@ def as_influence(
     Notes
     -----
     Higher-order sets have negative weights (used unchanged in K, F and the
-    force state, as in the paper).  Pass the callable
-    to a model that accepts them; an influence check that rejects negative
-    values (as :func:`pdlin.find_bonds` did when this was written) refuses
-    them.
+    force state, as in the paper).  :func:`pdlin.find_bonds` accepts them with
+    ``allow_negative_influence=True``; bond-based models refuse such bonds.
 
     Examples
     --------
