@@ -16,7 +16,7 @@ import numpy as np
 
 from .._validation import as_float_array, positive_scalar
 from ..errors import InputError, ShapeError
-from ..geometry.bonds import SHAPES, _shape_mask
+from ..geometry.bonds import SHAPES, shape_mask
 from ..geometry.influence import InfluenceFunction, evaluate_influence
 
 __all__ = ["Family", "LATTICES", "lattice_family", "equiangle_rotation", "reflection"]
@@ -242,7 +242,7 @@ def lattice_family(
     offs = offs[np.any(offs != 0, axis=1)]
     vec = offs @ basis
     length = np.sqrt(np.einsum("ij,ij->i", vec, vec))
-    keep = _shape_mask(vec, length, np.full(length.size, hor), shape, ax, rtol)
+    keep = shape_mask(vec, length, np.full(length.size, hor), shape, ax, rtol)
     vec, length = vec[keep], length[keep]
     if vec.shape[0] == 0:
         raise InputError(

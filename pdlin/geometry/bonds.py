@@ -265,7 +265,7 @@ def resolve_horizon(
     return h
 
 
-def _shape_mask(
+def shape_mask(
     xi: np.ndarray,
     length: np.ndarray,
     hor: np.ndarray,
@@ -273,6 +273,28 @@ def _shape_mask(
     axes: np.ndarray | None,
     rtol: float,
 ) -> np.ndarray:
+    """Flag the bond vectors inside a neighbourhood shape (inclusive membership).
+
+    Parameters
+    ----------
+    xi : (m, dim) ndarray of float
+        Bond vectors.
+    length : (m,) ndarray of float
+        Their lengths ``|xi|``.
+    hor : (m,) ndarray of float
+        Horizon of each bond (sphere radius, cube half-width).
+    shape : {'sphere', 'cube', 'ellipsoid', 'box'}
+        Neighbourhood shape (see :data:`SHAPES`).
+    axes : (dim,) ndarray of float or None
+        Semi-axes ('ellipsoid') or half-widths ('box'); unused otherwise.
+    rtol : float
+        Relative tolerance of the membership test.
+
+    Returns
+    -------
+    ndarray of bool, shape (m,)
+        True for bonds inside the shape.
+    """
     if shape == "sphere":
         return length <= hor * (1.0 + rtol)
     if shape == "cube":
@@ -403,7 +425,7 @@ def _lattice_pairs(
     offs = offs[np.any(offs != 0, axis=1)]
     vec = offs * h
     length = np.sqrt(np.sum(vec**2, axis=1))
-    keep = _shape_mask(vec, length, np.full(length.size, hor), shape, axes, rtol)
+    keep = shape_mask(vec, length, np.full(length.size, hor), shape, axes, rtol)
     offs, vec, length = offs[keep], vec[keep], length[keep]
     shp = np.array(lat.shape)
     strides = np.array([int(np.prod(shp[k + 1 :])) for k in range(dim)], dtype=np.int64)
@@ -536,7 +558,7 @@ def _tree_pairs(
         i, j, xi = cand
         length = _lengths_of_distinct(pts, i, j, xi)
         hij = np.full(1, hor[0]) if bool(np.all(hor == hor[0])) else np.maximum(hor[i], hor[j])
-        keep = _shape_mask(xi, length, hij, shape, axes, rtol)
+        keep = shape_mask(xi, length, hij, shape, axes, rtol)
         if keep.all():  # spheres: the candidates' margin rarely holds a bond
             return i, j, xi, length
         return i[keep], j[keep], xi[keep], length[keep]
@@ -558,7 +580,7 @@ def _tree_pairs(
     xi = pts[b] - pts[a]
     length = _lengths_of_distinct(pts, a, b, xi)
     hij = np.maximum(hor[a], hor[b])
-    keep = _shape_mask(xi, length, hij, shape, axes, rtol)
+    keep = shape_mask(xi, length, hij, shape, axes, rtol)
     a, b, xi, length = a[keep], b[keep], xi[keep], length[keep]
     nb = 2 * a.size
     ii = np.concatenate([a, b])
