@@ -156,7 +156,7 @@ def solve_damage(
     rtol: float = 1e-10,
     progress: Callable[[str], None] | None = None,
 ) -> DamageResult:
-    """Proportional load steps with irreversible stretch-based bond breaking.
+    """Apply proportional load steps with irreversible stretch-based bond breaking.
 
     Parameters
     ----------

@@ -424,7 +424,7 @@ def isotropic_constants(
     mu: Any = None,
     rtol: float = 1e-9,
 ) -> tuple[Any, Any]:
-    """Young's modulus and Poisson ratio ``(E, ν)`` from any two isotropic constants.
+    """Convert any two isotropic constants to Young's modulus and Poisson ratio ``(E, ν)``.
 
     Accepts two (or more, if consistent) of ``E``, ``nu``, ``K`` (bulk
     modulus), ``G`` or ``mu`` (shear modulus, the same constant) and ``lam``

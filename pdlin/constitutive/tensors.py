@@ -177,7 +177,7 @@ def _same_format(V: FloatArray, is_voigt: bool) -> FloatArray:
 
 
 def voigt_to_tensor(C: ArrayLike) -> FloatArray:
-    """Full fourth-order tensor of a plain-Voigt stiffness matrix.
+    """Return the full fourth-order tensor of a plain-Voigt stiffness matrix.
 
     Parameters
     ----------
@@ -210,7 +210,7 @@ def voigt_to_tensor(C: ArrayLike) -> FloatArray:
 
 
 def tensor_to_voigt(T: ArrayLike, *, rtol: float = _SYM_RTOL) -> FloatArray:
-    """Plain-Voigt matrix of a full fourth-order stiffness tensor.
+    """Return the plain-Voigt matrix of a full fourth-order stiffness tensor.
 
     Parameters
     ----------
@@ -448,7 +448,7 @@ def rotate(C: ArrayLike, Q: ArrayLike, *, atol: float = 1e-10) -> FloatArray:
 
 
 def frobenius_multiplicity(dim: int = 3) -> NDArray[np.int64]:
-    """Multiplicities of the upper-triangle Voigt entries in the full tensor.
+    """Return the multiplicities of the upper-triangle Voigt entries in the full tensor.
 
     Entry ``(α, β)``, ``α ≤ β``, row-major, stands for ``m`` components of the full
     tensor: 3D ``m = 1`` (α = β ≤ 3), 2 (α < β ≤ 3), 4 (α ≤ 3 < β), 4 (α = β > 3),
@@ -487,7 +487,7 @@ def frobenius_multiplicity(dim: int = 3) -> NDArray[np.int64]:
 
 
 def voigt_upper(C: ArrayLike) -> FloatArray:
-    """Upper-triangle Voigt entries, row-major: 21 (3D) or 6 (2D) values.
+    """Return the upper-triangle Voigt entries, row-major: 21 (3D) or 6 (2D) values.
 
     Order ``C11, C12, ..., C16, C22, ..., C66`` (2D: ``C11, C12, C13, C22, C23, C33``), the
     order of :func:`frobenius_multiplicity`.
@@ -562,7 +562,7 @@ _CAUCHY_PAIRS: dict[int, tuple[tuple[tuple[int, int], tuple[int, int]], ...]] = 
 
 
 def cauchy_projection(C: ArrayLike) -> FloatArray:
-    """Orthogonal projection onto totally symmetric tensors (the Cauchy subspace).
+    """Project orthogonally onto totally symmetric tensors (the Cauchy subspace).
 
     ``C_sym,ijkl = (C_ijkl + C_ikjl + C_iljk) / 3``: for a tensor with minor and major
     symmetry this is the average over all 24 index permutations, hence idempotent, the
@@ -772,7 +772,7 @@ def _as_3d(C: Any) -> tuple[FloatArray, bool]:
 
 
 def plane_strain(C: ArrayLike) -> FloatArray:
-    """In-plane (x–y) stiffness under plane strain: Voigt rows/columns (11, 22, 12).
+    """Return the in-plane (x–y) stiffness under plane strain: Voigt rows/columns (11, 22, 12).
 
     The in-plane part of the 3D tensor (pdlin's 2D reduction).
 
@@ -802,7 +802,7 @@ def plane_strain(C: ArrayLike) -> FloatArray:
 
 
 def plane_stress(C: ArrayLike) -> FloatArray:
-    """In-plane stiffness under plane stress, ``Q = C_pp - C_po C_oo⁻¹ C_op``.
+    """Return the in-plane stiffness under plane stress, ``Q = C_pp - C_po C_oo⁻¹ C_op``.
 
     ``p = {1, 2, 6}`` and ``o = {3, 4, 5}`` in Voigt numbering: the out-of-plane
     stresses σ33, σ23, σ31 vanish.

@@ -428,7 +428,7 @@ def grid(
     horizon: float | None = None,
     thickness: float = 1.0,
 ) -> PointCloud:
-    """Cell-centred uniform grid of points in 1D, 2D or 3D.
+    """Build a cell-centred uniform grid of points in 1D, 2D or 3D.
 
     Parameters
     ----------
@@ -505,7 +505,7 @@ def from_image(
     horizon: float | None = None,
     thickness: float = 1.0,
 ) -> PointCloud:
-    """Point cloud from a pixel/voxel array of phase ids (a microstructure).
+    """Build a point cloud from a pixel/voxel array of phase ids (a microstructure).
 
     Parameters
     ----------

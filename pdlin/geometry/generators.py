@@ -67,7 +67,7 @@ def plate_with_hole_mesh(
     layers: int | None = None,
     depth: float | None = None,
 ) -> Any:
-    """Square plate with a central circular hole as a :class:`meshio.Mesh`.
+    """Mesh a square plate with a central circular hole as a :class:`meshio.Mesh`.
 
     The default ``'ogrid'`` backend builds the structured O-grid of the
     plate example of Liu, Chen & Skelton, XOSB (§5.1; the paper gives only the

@@ -157,7 +157,7 @@ def _faces_measure(x: np.ndarray, cell_type: str) -> tuple[np.ndarray, np.ndarra
 
 
 def cell_measures(points: Any, cells: Any, cell_type: str) -> tuple[np.ndarray, np.ndarray]:
-    """Signed measure and centroid of every cell of one type.
+    """Compute the signed measure and centroid of every cell of one type.
 
     Parameters
     ----------
@@ -381,7 +381,7 @@ def read_mesh(
     file_format: str | None = None,
     volume: float | str | None = None,
 ) -> PointCloud:
-    """Point cloud with one point per mesh cell (centroid, exact measure).
+    """Read a mesh as a point cloud with one point per cell (centroid, exact measure).
 
     A mesh of ``vertex`` cells only (or of points without cells) is a point cloud
     already, as Peridigm's and pdlin's own ``.vtu`` files are: its points are the

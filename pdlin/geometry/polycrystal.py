@@ -23,7 +23,7 @@ def voronoi_polycrystal(
     seed: int | np.random.Generator | None = 0,
     orientations: ArrayLike | None = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Voronoi grain map of a point cloud and one crystal orientation per point.
+    """Build a Voronoi grain map of a point cloud and one crystal orientation per point.
 
     Grain seeds are ``n_grains`` distinct points of the cloud drawn at random (so every
     grain holds at least its seed); each point joins the grain of its nearest seed

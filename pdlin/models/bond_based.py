@@ -315,7 +315,7 @@ class BondBased(Model):
         return implied_poisson_ratio(dim, self.plane)
 
     def young_modulus(self, dim: int) -> np.ndarray:
-        """Young's modulus (scalar or per point) in ``dim`` dimensions.
+        """Return Young's modulus (scalar or per point) in ``dim`` dimensions.
 
         With a single ``K``, ``G`` or ``lam`` it is converted with the
         implied Poisson ratio of ``dim`` / ``plane`` (the constants are 3D
@@ -740,7 +740,7 @@ class BondBased(Model):
         *,
         tangent: bool = False,
     ) -> Any:
-        """Force, state and tangent for the nonlinear drivers (see :meth:`pdlin.Model.respond`).
+        """Return force, state and tangent for the nonlinear drivers (:meth:`pdlin.Model.respond`).
 
         With ``kinematics='finite'`` the PMB force and its consistent tangent
         (symmetric, BSR); otherwise the linear model.

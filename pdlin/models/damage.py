@@ -61,7 +61,7 @@ _FACTORS = {
 def critical_stretch(
     G0: Any, E: Any, horizon: Any, *, plane: str | None = None, dim: int = 2
 ) -> Any:
-    """Critical bond stretch ``S0`` from the critical energy release rate ``G0``.
+    """Compute the critical bond stretch ``S0`` from the critical energy release rate ``G0``.
 
     Parameters
     ----------
@@ -157,7 +157,7 @@ def _check(cloud: PointCloud, bonds: Bonds, u: Any) -> np.ndarray:
 
 
 def bond_stretch(cloud: PointCloud, bonds: Bonds, u: Any) -> np.ndarray:
-    """Exact stretch ``(|xi + eta| - |xi|) / |xi|`` of every directed bond.
+    """Compute the exact stretch ``(|xi + eta| - |xi|) / |xi|`` of every directed bond.
 
     Parameters
     ----------

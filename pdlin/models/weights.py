@@ -147,7 +147,7 @@ def _lattice_points(dim: int, s_max: int) -> tuple[tuple[int, ...], tuple[np.nda
 
 
 def lattice_shells(dim: int, horizon_ratio: float) -> tuple[tuple[int, ...], tuple[int, ...]]:
-    """Shells of the horizon on the 1D line, 2D square or 3D cubic lattice.
+    """Return the shells of the horizon on the 1D line, 2D square or 3D cubic lattice.
 
     Parameters
     ----------
@@ -356,7 +356,7 @@ class HigherOrderWeights:
         return self.weights
 
     def offsets(self) -> tuple[np.ndarray, np.ndarray]:
-        """Integer lattice offsets of the horizon and their float weights.
+        """Return the integer lattice offsets of the horizon and their float weights.
 
         Returns
         -------
@@ -599,7 +599,7 @@ class LatticeInfluence:
 def as_influence(
     result: HigherOrderWeights, h: float, *, rtol: float = 1e-9, require_valid: bool = True
 ) -> LatticeInfluence:
-    """Influence function of a weight set for a lattice of spacing ``h``.
+    """Return the influence function of a weight set for a lattice of spacing ``h``.
 
     Parameters
     ----------
@@ -806,7 +806,7 @@ def _offsets_float(
 def gradient_symbol(
     weights: WeightsLike, theta: Any, *, dim: int | None = None, chunk: int = 32768
 ) -> np.ndarray:
-    """Lattice Fourier symbol ``g(theta) = Omega^-1 sum_p omega(|p|) p sin(theta·p)``.
+    """Evaluate the lattice Fourier symbol ``g(theta) = Omega^-1 sum_p omega(|p|) p sin(theta·p)``.
 
     For ``u_a = v exp(i theta . a)`` the intact-lattice gradient is
     ``i v (x) g(theta) / h`` (derived from the paper's Eq. 18); the zeros of
@@ -1025,7 +1025,7 @@ def moment_weights(
     rcond: float = 1e-10,
     chunk: int = 2048,
 ) -> MomentWeights:
-    """Minimum-norm moment-corrected weights for arbitrary (irregular) families.
+    """Compute minimum-norm moment-corrected weights for arbitrary (irregular) families.
 
     For each family, find the weights closest to ``base`` in the
     volume-weighted norm ``sum_b V_b (omega_b - base_b)^2`` such that every

@@ -68,7 +68,7 @@ def q4_stiffness(
     plane: str = "stress",
     thickness: float = 1.0,
 ) -> sp.csr_array:
-    """Global stiffness matrix of a Q4 mesh (2 x 2 Gauss, vectorized assembly).
+    """Assemble the global stiffness matrix of a Q4 mesh (2 x 2 Gauss, vectorized).
 
     Parameters
     ----------
@@ -145,7 +145,7 @@ def solve_q4(
     solver: str = "lu",
     rtol: float = 1e-12,
 ) -> np.ndarray:
-    """Nodal displacements of a Q4 mesh with prescribed DOFs and no external forces.
+    """Solve for the nodal displacements of a Q4 mesh with prescribed DOFs and no external forces.
 
     Parameters
     ----------
@@ -409,7 +409,7 @@ def _lame(E: float, nu: float) -> tuple[float, float]:
 
 
 def hex8_stiffness(points: Any, hexes: Any, E: float, nu: float) -> sp.csr_array:
-    """Global stiffness matrix of a trilinear hexahedron (Hex8) mesh, 2 x 2 x 2 Gauss.
+    """Assemble the global stiffness matrix of a trilinear hexahedron (Hex8) mesh, 2 x 2 x 2 Gauss.
 
     The assembly is vectorized over elements (a loop over the 8 Gauss points only) and
     goes through a COO intermediate, like :func:`q4_stiffness`.
@@ -505,7 +505,7 @@ def solve_hex8(
     solver: str = "lu",
     rtol: float = 1e-12,
 ) -> np.ndarray:
-    """Nodal displacements of a Hex8 mesh with prescribed DOFs and no external forces.
+    """Solve for the nodal displacements of a Hex8 mesh with prescribed DOFs and no external forces.
 
     The 3D counterpart of :func:`solve_q4` (same arguments, without ``plane``).
 
@@ -580,7 +580,7 @@ def _lattice_cells(cloud: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def grid_fe_reference(problem: Any, *, solver: str = "auto") -> np.ndarray:
-    """Finite-element counterpart of a grid problem: displacements at its points.
+    """Solve the finite-element counterpart of a grid problem: displacements at its points.
 
     Q4 (2D) or Hex8 (3D) elements join neighbouring lattice points (the particles are the
     nodes, cells with a missing corner — holes, voids — are left out), with the model's
