@@ -180,6 +180,7 @@ def solve_damage(
     Returns
     -------
     DamageResult
+        Per-step displacements, damage, broken-bond counts and the last solve.
 
     Raises
     ------

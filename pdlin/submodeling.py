@@ -138,6 +138,7 @@ def subregion(
     Returns
     -------
     SubregionProblem
+        The sub-problem, the kept points' indices, the interior mask and the layer.
 
     Notes
     -----

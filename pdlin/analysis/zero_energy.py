@@ -64,9 +64,11 @@ class ZeroEnergyReport:
     eigenvalues : ndarray
         The smallest eigenvalues computed (ascending).
     lambda_max : float
+        Largest eigenvalue of K (the scale of ``tol``).
     method : str
         'dense' or 'shift-invert'.
     tol : float
+        Zero threshold relative to ``lambda_max``.
     """
 
     n_zero: int

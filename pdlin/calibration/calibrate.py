@@ -237,10 +237,13 @@ class CalibrationResult:
     n_zero : int
         Micromoduli within ``zero_threshold`` of the lower bound.
     zero_threshold : float
+        Absolute distance from the bound below which a micromodulus counts as zero.
     lower_bound : float
+        The bound ``l`` of ``c >= l`` used.
     c_min, c_max, c_mean, c_norm : float
         Min, max, mean and Euclidean norm of ``micromoduli``.
     weighting, method : str
+        The ``weighting`` and ``method`` arguments used.
     time : float
         Wall time in seconds.
     families : tuple of CalibrationResult

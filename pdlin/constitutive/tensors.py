@@ -223,6 +223,7 @@ def tensor_to_voigt(T: ArrayLike, *, rtol: float = _SYM_RTOL) -> FloatArray:
     Returns
     -------
     C : (6, 6) or (3, 3) ndarray
+        Plain-Voigt matrix (no factor 2 on shear entries).
 
     Raises
     ------

@@ -35,6 +35,7 @@ class Bonds:
     Attributes
     ----------
     n_points : int
+        Number of points of the cloud.
     i, j : (nb,) ndarray of int
         Owner and neighbor of each bond.
     xi : (nb, dim) ndarray
@@ -647,6 +648,7 @@ def find_bonds(
     Parameters
     ----------
     cloud : PointCloud
+        The points (their lattice metadata enables the integer-stencil search).
     horizon : float or (n,) array_like, optional
         Constant or per-point horizon delta_i.  ``j`` is in the family of
         ``i`` when ``|x_j - x_i| <= max(delta_i, delta_j)`` (the symmetric
@@ -685,6 +687,7 @@ def find_bonds(
     Returns
     -------
     Bonds
+        Directed bonds in CSR order (both directions stored).
 
     Examples
     --------

@@ -192,6 +192,7 @@ class BondBased(Model):
     average : {'arithmetic', 'harmonic'}
         How a bond combines the per-point moduli of its two ends.
     nu_mismatch : {'raise', 'warn'}
+        What a ``nu`` other than the implied one does (see :meth:`check`).
     kinematics : {'small', 'finite'}
         ``'finite'``: the model is the prototype microelastic (PMB) force with
         the exact stretch ``(|ξ+η| - |ξ|)/|ξ|`` along the deformed bond

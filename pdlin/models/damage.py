@@ -162,6 +162,7 @@ def bond_stretch(cloud: PointCloud, bonds: Bonds, u: Any) -> np.ndarray:
     Parameters
     ----------
     cloud : PointCloud
+        The points.
     bonds : Bonds
         Bonds of ``cloud``.
     u : (n, dim) or (n * dim,) array_like
@@ -199,6 +200,7 @@ def break_bonds(cloud: PointCloud, bonds: Bonds, u: Any, s0: Any) -> tuple[Bonds
     Parameters
     ----------
     cloud : PointCloud
+        The points.
     bonds : Bonds
         Current (possibly already damaged) bonds of ``cloud``.
     u : (n, dim) or (n * dim,) array_like
@@ -313,6 +315,7 @@ def isolated_points(bonds: Bonds) -> np.ndarray:
     Parameters
     ----------
     bonds : Bonds
+        Current (possibly damaged) bonds.
 
     Returns
     -------
@@ -340,6 +343,7 @@ def drop_isolated(cloud: PointCloud, bonds: Bonds) -> tuple[PointCloud, Bonds, n
     Parameters
     ----------
     cloud : PointCloud
+        The points.
     bonds : Bonds
         Bonds of ``cloud`` (typically after :func:`break_bonds`).
 

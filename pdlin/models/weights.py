@@ -152,6 +152,7 @@ def lattice_shells(dim: int, horizon_ratio: float) -> tuple[tuple[int, ...], tup
     Parameters
     ----------
     dim : {1, 2, 3}
+        1D line, 2D square or 3D cubic lattice.
     horizon_ratio : float
         delta / h (inclusive, relative tolerance 1e-12).
 
@@ -604,6 +605,7 @@ def as_influence(
     Parameters
     ----------
     result : HigherOrderWeights
+        The weight set.
     h : float
         Lattice spacing (> 0).
     rtol : float
@@ -706,7 +708,8 @@ def lattice_moment(
 
     Returns
     -------
-    sympy.Rational (or a float when the weights are floats)
+    sympy.Rational or float
+        The moment (a float when the weights are floats).
 
     Examples
     --------
@@ -875,6 +878,7 @@ def symbol_extremes(
     Parameters
     ----------
     weights : HigherOrderWeights or mapping of int to number
+        A weight set or ``{s: omega}``.
     dim : int, optional
         Required when ``weights`` is a mapping.
     exclusion : float
@@ -1066,6 +1070,7 @@ def moment_weights(
     Returns
     -------
     MomentWeights
+        Corrected weights per bond, with per-family residual, rank and shape-tensor ratio.
 
     Examples
     --------

@@ -321,6 +321,7 @@ def evaluate_q4(points: Any, quads: Any, u: Any, xq: Any, *, candidates: int = 8
     Returns
     -------
     (m,) or (m, k) ndarray
+        The interpolated values at ``xq`` (the shape of ``u`` per point).
 
     Raises
     ------
@@ -602,6 +603,7 @@ def grid_fe_reference(problem: Any, *, solver: str = "auto") -> np.ndarray:
     Returns
     -------
     (n, dim) ndarray
+        FE displacement at each point of the problem's cloud.
 
     Raises
     ------
