@@ -689,6 +689,16 @@ def find_bonds(
     Bonds
         Directed bonds in CSR order (both directions stored).
 
+    Raises
+    ------
+    InputError
+        If an option is invalid (``shape``, ``rtol``, ``method``, ``axes``), a non-sphere
+        shape has a per-point horizon, or ``cloud`` is not a PointCloud.
+    ShapeError
+        If ``exclude`` returns a mask of the wrong shape.
+    NoNeighborsError
+        If a point has no bond and ``allow_isolated`` is False.
+
     Examples
     --------
     >>> import pdlin

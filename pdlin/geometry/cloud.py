@@ -450,6 +450,13 @@ def grid(
         Points in C order (last axis fastest) with volumes ``prod(h)`` and
         the face sets ``'x-'``, ``'x+'``, ``'y-'``, ... (outermost layer).
 
+    Raises
+    ------
+    InputError
+        If ``shape`` is not integer, an entry is < 1, or a spacing is not > 0.
+    ShapeError
+        If ``shape`` has not 1-3 entries, or ``spacing`` / ``origin`` has the wrong length.
+
     Examples
     --------
     >>> cloud = grid((4, 2), spacing=0.5)
@@ -521,6 +528,13 @@ def from_image(
     PointCloud
         One point per non-void cell, ``material`` set to the phase id and one
         named set ``'phase<k>'`` per phase, plus the box face sets.
+
+    Raises
+    ------
+    ShapeError
+        If ``image`` is empty or not 1-, 2- or 3-dimensional.
+    InputError
+        If ``image`` holds non-integer ids or only the void phase.
 
     Examples
     --------
@@ -609,6 +623,11 @@ def ghost_layer(cloud: PointCloud, layers: int = 1) -> GhostLayer:
     -------
     GhostLayer
         ``(cloud, ghost, source)``.
+
+    Raises
+    ------
+    InputError
+        If ``cloud`` has no lattice metadata or ``layers`` is not an integer >= 1.
 
     Examples
     --------

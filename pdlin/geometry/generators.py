@@ -129,6 +129,14 @@ def plate_with_hole_mesh(
         physical groups of dimension 2 on the faces (tags 1-5, 7, 8; tag 6,
         dimension 3, is the ``block``).
 
+    Raises
+    ------
+    InputError
+        If ``radius >= length / 2``, ``backend`` is unknown, or ``layers`` and ``depth``
+        are not given together (``layers`` only with ``backend='ogrid'``).
+    ImportError
+        If meshio is not installed.
+
     Examples
     --------
     >>> mesh = plate_with_hole_mesh(4, 3)

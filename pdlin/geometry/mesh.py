@@ -179,6 +179,13 @@ def cell_measures(points: Any, cells: Any, cell_type: str) -> tuple[np.ndarray, 
     centroid : (m, dim) ndarray
         True length/area/volume centroid (not the node average).
 
+    Raises
+    ------
+    InputError
+        If ``cell_type`` is not supported or a node index is out of range.
+    ShapeError
+        If ``points`` or ``cells`` has the wrong shape for the cell type.
+
     Notes
     -----
     Polygons (triangles, quads, polygons) use the shoelace formula and its

@@ -53,6 +53,13 @@ def voronoi_polycrystal(
     orientation : (n,) ndarray (2D angles) or (n, 3, 3) ndarray (3D, crystal → sample)
         Orientation of each point's grain, ready for ``CrystalPlasticity(orientation=...)``.
 
+    Raises
+    ------
+    InputError
+        If ``n_grains`` is not an integer in ``[1, n]`` or ``seed`` is of the wrong type.
+    ShapeError
+        If the points are not 2D or 3D, or ``orientations`` has the wrong shape or is empty.
+
     Examples
     --------
     >>> import pdlin

@@ -216,6 +216,13 @@ def break_bonds(cloud: PointCloud, bonds: Bonds, u: Any, s0: Any) -> tuple[Bonds
     n_broken : int
         Number of directed bonds removed (twice the number of broken pairs).
 
+    Raises
+    ------
+    ShapeError
+        If ``s0`` is neither a scalar nor one value per bond.
+    InputError
+        If ``s0`` is not > 0.
+
     Notes
     -----
     Points may be left without bonds; they must be dropped from static
@@ -272,6 +279,15 @@ def damage_index(bonds_intact: Bonds, bonds_now: Bonds) -> np.ndarray:
     (n_points,) ndarray
         ``phi`` in [0, 1]; 0 for points that had no bonds to begin with.
 
+    Raises
+    ------
+    InputTypeError
+        If an argument is not :class:`~pdlin.geometry.bonds.Bonds`.
+    ShapeError
+        If the two bond sets have different point counts.
+    InputError
+        If ``bonds_now`` is not a subset of ``bonds_intact``.
+
     Examples
     --------
     >>> import numpy as np, pdlin
@@ -322,6 +338,11 @@ def isolated_points(bonds: Bonds) -> np.ndarray:
     ndarray of int
         Sorted point indices with ``bonds.family_size == 0``.
 
+    Raises
+    ------
+    InputTypeError
+        If ``bonds`` is not :class:`~pdlin.geometry.bonds.Bonds`.
+
     Examples
     --------
     >>> import numpy as np, pdlin
@@ -355,6 +376,13 @@ def drop_isolated(cloud: PointCloud, bonds: Bonds) -> tuple[PointCloud, Bonds, n
         The same bonds, with point indices of the new cloud.
     keep : ndarray of int
         Old index of every kept point (``u_full[keep] = u_sub`` maps back).
+
+    Raises
+    ------
+    InputTypeError
+        If ``cloud`` is not a PointCloud.
+    ShapeError
+        If ``bonds`` are not the bonds of ``cloud``.
 
     Examples
     --------

@@ -619,6 +619,15 @@ def as_influence(
     LatticeInfluence
         ``f(length, horizon) -> omega``, vectorized.
 
+    Raises
+    ------
+    InputTypeError
+        If ``result`` is not a :class:`HigherOrderWeights`.
+    ModelError
+        If the set is not 'valid' and ``require_valid`` is True (or has no unique set).
+    InputError
+        If ``h`` is not a finite number > 0.
+
     Notes
     -----
     Higher-order sets have negative weights (used unchanged in K, F and the
@@ -711,6 +720,11 @@ def lattice_moment(
     sympy.Rational or float
         The moment (a float when the weights are floats).
 
+    Raises
+    ------
+    InputError
+        If ``exponents`` are not ``dim`` integers >= 0.
+
     Examples
     --------
     >>> # the first nonzero moment of the Table 3 set (delta = 3h; derived, not in the paper)
@@ -754,6 +768,11 @@ def gradient_exactness_order(
     -------
     int
         The largest exact degree (at most ``max_degree``).
+
+    Raises
+    ------
+    ModelError
+        If ``Omega = 0`` (the intact shape tensor is singular).
 
     Examples
     --------
@@ -834,6 +853,13 @@ def gradient_symbol(
     (..., dim) ndarray
         ``g h`` (dimensionless).
 
+    Raises
+    ------
+    ShapeError
+        If ``theta`` does not end in an axis of length ``dim``.
+    ModelError
+        If ``Omega = 0``.
+
     Examples
     --------
     >>> import numpy as np
@@ -890,6 +916,13 @@ def symbol_extremes(
     -------
     dict
         ``{'min': float, 'argmin': ndarray, 'max': float, 'argmax': ndarray}``.
+
+    Raises
+    ------
+    InputError
+        If ``weights`` is a mapping and ``dim`` is not given.
+    ModelError
+        If ``Omega = 0``.
 
     Examples
     --------
@@ -1071,6 +1104,13 @@ def moment_weights(
     -------
     MomentWeights
         Corrected weights per bond, with per-family residual, rank and shape-tensor ratio.
+
+    Raises
+    ------
+    ShapeError
+        If ``xi``, ``volumes``, ``base`` or ``indptr`` has the wrong shape.
+    InputError
+        If a volume is not > 0 or ``order`` is not an integer >= 1.
 
     Examples
     --------

@@ -89,6 +89,11 @@ def q4_stiffness(
     scipy.sparse.csr_array
         ``(2n, 2n)`` symmetric stiffness; DOF ``2 i + c`` is component ``c`` of node ``i``.
 
+    Raises
+    ------
+    ValueError
+        If ``quads`` is not ``(ne, 4)`` or an element has a zero Jacobian.
+
     Examples
     --------
     One unit square element: the stiffness annihilates the three rigid-body modes.
@@ -270,6 +275,11 @@ def plate_extension_q4(
     -------
     (n, 2) ndarray
         Nodal displacements.
+
+    Raises
+    ------
+    ValueError
+        If the mesh has no nodes on ``x = ±L/2`` including the mid-nodes ``(±L/2, 0)``.
 
     Examples
     --------
