@@ -41,6 +41,15 @@ class Family:
         Out-of-plane thickness (2D; 1 in 3D).
     description : str
         Human-readable origin, used in calibration messages.
+
+    Raises
+    ------
+    ShapeError
+        If ``xi`` is not ``(M, 2)`` or ``(M, 3)``, or ``omega`` / ``volume`` is
+        neither a scalar nor ``(M,)``.
+    InputError
+        If the family is empty, a bond vector is zero, ``omega < 0``,
+        ``volume <= 0`` or the thickness is not > 0.
     """
 
     xi: Any

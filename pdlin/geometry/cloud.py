@@ -85,6 +85,14 @@ class PointCloud:
     lattice : Lattice, optional
         Regular-lattice metadata, enabling the stencil bond search.
 
+    Raises
+    ------
+    ShapeError
+        If ``points``, ``volumes``, ``horizon`` or ``material`` has the wrong shape.
+    InputError
+        If there is no point, a volume or horizon is not > 0, ``material`` is not
+        integer, or a set name is not a string.
+
     Examples
     --------
     >>> import numpy as np

@@ -207,6 +207,12 @@ class BondBased(Model):
         computed once per ``(cloud, bonds)`` and used by ``stiffness``,
         ``internal_force``, ``stress`` and ``effective_tensor``.
 
+    Raises
+    ------
+    InputError
+        If an option is unknown, a modulus is not > 0, a micromodulus is negative,
+        or the elastic constants and the micromodulus are both or neither given.
+
     Examples
     --------
     >>> import numpy as np, pdlin
