@@ -144,7 +144,18 @@ def _fmt(v: Any) -> str:
 
 
 def point_key(params: Mapping[str, Any]) -> str:
-    """Key of a sweep point: ``name=value`` pairs in the grid's order.
+    """Build the key of a sweep point: ``name=value`` pairs in the grid's order.
+
+    Parameters
+    ----------
+    params : mapping str -> value
+        The point's swept parameters, in the grid's order.
+
+    Returns
+    -------
+    str
+        ``name=value`` joined by ``;``, values in their canonical text (the key of
+        ``resume`` and of the table's ``key`` column).
 
     Examples
     --------
@@ -201,6 +212,20 @@ def interpolate_field(points: np.ndarray, values: np.ndarray, xq: np.ndarray) ->
     Identical clouds are copied; 1D uses :func:`numpy.interp`; grids (tensor-product
     point sets) use :class:`scipy.interpolate.RegularGridInterpolator` (linear, linearly
     extrapolated outside); scattered clouds use ``griddata`` (linear, nearest outside).
+
+    Parameters
+    ----------
+    points : (n, d) array
+        Positions of the known field.
+    values : (n, k) array
+        The field at ``points``.
+    xq : (q, d) array
+        Positions to interpolate at.
+
+    Returns
+    -------
+    (q, k) array
+        The interpolated field.
 
     Examples
     --------
@@ -282,7 +307,7 @@ def _run_measured(run: Callable[[], Any], memory: str, t0: float) -> tuple[Any, 
 
 
 def _solver_used(info: Mapping[str, Any]) -> str:
-    """The solver that ran, with the direct backend in brackets (``'direct (cholmod)'``).
+    """Name the solver that ran, with the direct backend in brackets (``'direct (cholmod)'``).
 
     ``direct_backend='auto'`` picks CHOLMOD or PARDISO when installed, so ``'direct'`` alone
     would hide which factorization a row timed.
@@ -418,8 +443,10 @@ def _measure_nonlinear(
 
 
 def _warm_imports() -> None:
-    """Import the lazily imported solver modules once in the parent, so that forked
-    points do not each pay (and time) their import."""
+    """Import the lazily imported solver modules once in the parent process.
+
+    Forked points then do not each pay (and time) their import.
+    """
     import importlib
 
     for name in ("pyamg", "scipy.sparse.linalg", "scipy.interpolate", "pdlin.models"):
@@ -600,7 +627,7 @@ def _typed(row: Mapping[str, Any], columns: Sequence[str]) -> dict[str, Any]:
 
 @dataclass
 class TradeoffResult:
-    """The table of a sweep and what to read from it.
+    """Hold the table of a sweep and answer what to read from it.
 
     Attributes
     ----------
@@ -631,7 +658,13 @@ class TradeoffResult:
     time: str = "t_total"
 
     def ok(self) -> list[dict[str, Any]]:
-        """Rows that finished with a finite error and time."""
+        """Return the rows that finished with a finite error and time.
+
+        Returns
+        -------
+        list of dict
+            Rows with status 'ok' (the 'reference' row of a 'finest' sweep excluded).
+        """
         return [
             r
             for r in self.table
@@ -645,6 +678,11 @@ class TradeoffResult:
 
         A row is dominated when another is at least as fast and at least as accurate,
         and strictly better in one of the two.
+
+        Returns
+        -------
+        list of dict
+            The non-dominated rows of :meth:`ok`, by increasing ``time`` column.
         """
         rows = self.ok()
         if not rows:
@@ -657,7 +695,24 @@ class TradeoffResult:
         return [rows[i] for i in keep]
 
     def best(self, target_error: float) -> dict[str, Any] | None:
-        """The fastest row whose error is at most ``target_error`` (None if no row is)."""
+        """Return the fastest row whose error is at most ``target_error``.
+
+        Parameters
+        ----------
+        target_error : float
+            Largest acceptable error, in the units of the sweep's metric (> 0).
+
+        Returns
+        -------
+        dict or None
+            The row of :meth:`ok` with the smallest ``time`` column among those meeting
+            the target; ``None`` if no row does.
+
+        Raises
+        ------
+        InputError
+            When ``target_error`` is not positive.
+        """
         if not target_error > 0:
             raise InputError(f"target_error must be > 0, got {target_error}")
         ok = [r for r in self.ok() if float(r["error"]) <= target_error]
@@ -685,6 +740,11 @@ class TradeoffResult:
         list of dict
             Per group: its fixed parameters, ``rate`` (slope of log error against
             log x), ``n`` points, ``x`` and ``error`` lists.
+
+        Raises
+        ------
+        InputError
+            When ``vary`` is not one of the swept parameters (or none can be inferred).
         """
         if vary is None:
             cands = [x] + (["N", "n"] if x == "h" else ["m", "h", "N", "n"] if x == "delta" else [])
@@ -720,11 +780,29 @@ class TradeoffResult:
         return out
 
     def columns(self) -> list[str]:
-        """Column names of the table: key, swept parameters, measurements."""
+        """Return the column names of the table.
+
+        Returns
+        -------
+        list of str
+            ``'key'``, the swept parameters, then :data:`METRIC_COLUMNS` not swept.
+        """
         return ["key", *self.params, *[c for c in METRIC_COLUMNS if c not in self.params]]
 
     def to_csv(self, path: str | os.PathLike[str]) -> Path:
-        """Write the table as CSV."""
+        """Write the table as CSV.
+
+        Parameters
+        ----------
+        path : str or path-like
+            File to write (overwritten); one header row of :meth:`columns`, one row per
+            point.
+
+        Returns
+        -------
+        pathlib.Path
+            The path written.
+        """
         p = Path(path)
         with open(p, "w", newline="") as f:
             w = csv.writer(f)
@@ -735,7 +813,19 @@ class TradeoffResult:
         return p
 
     def to_json(self, path: str | os.PathLike[str] | None = None) -> str:
-        """The table, Pareto keys and rates as JSON (written to ``path`` if given)."""
+        """Serialize the table and the Pareto keys as JSON.
+
+        Parameters
+        ----------
+        path : str or path-like, optional
+            Also write the text to this file.
+
+        Returns
+        -------
+        str
+            JSON object with ``params``, ``reference``, ``time``, ``table`` (one object
+            per row, NaN as null) and ``pareto`` (keys of the front).
+        """
         data = {
             "params": self.params,
             "reference": self.reference,
@@ -749,7 +839,21 @@ class TradeoffResult:
         return text
 
     def summary(self, *, target_error: float | None = None, width: int = 10) -> str:
-        """A printable table of the rows (Pareto rows marked ``*``), rates and the choice."""
+        """Format the rows (Pareto rows marked ``*``), the rates and the best choice.
+
+        Parameters
+        ----------
+        target_error : float, optional
+            Also name the fastest configuration meeting this error (:meth:`best`).
+        width : int
+            Width of each column, characters (longer cells are cut).
+
+        Returns
+        -------
+        str
+            Multi-line text: the reference, one line per row, the direct backends that
+            ran, the rates in ``h`` and ``delta``, and the choice.
+        """
         front = {id(r) for r in self.pareto()}
         cols = self.params + ["error", "t_total", "t_solve", "peak_mb", "nnz", "iterations"]
         head = "  " + " ".join(f"{c[:width]:>{width}}" for c in cols) + "  status"
