@@ -405,7 +405,8 @@ def plate_with_hole(
     ν = 0.33 (bond-based: ν = 1/3), the finite-element displacement
     (:func:`pdlin.verification.plate_extension_q4` on the O-grid ``4 x n_ang x n_rad`` of
     ``fe_mesh``, interpolated by :func:`pdlin.verification.evaluate_q4`) prescribed on the
-    points within ``2 δ`` of the left and right edges.  The error is measured on the remaining points.
+    points within ``2 δ`` of the left and right edges.  The error is measured on the
+    remaining points.
 
     Parameters
     ----------
