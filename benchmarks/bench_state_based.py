@@ -287,7 +287,8 @@ def main(argv: list[str] | None = None) -> None:
         type=int,
         default=0,
         metavar="LAYERS",
-        help="the seed's 3D block with a hole: 4 x 32 x 60 O-grid x LAYERS (23: 176,640 cells)",
+        help="the XOSB paper's 3D block with a hole: 4 x 32 x 60 O-grid x LAYERS "
+        "(23: 176,640 cells)",
     )
     args = p.parse_args(argv)
     header()
