@@ -173,6 +173,13 @@ def read_result(path: str | Path) -> ResultFile:
     Returns
     -------
     ResultFile
+        Points, times, the fields of every step under their API keys, point sets.
+
+    Raises
+    ------
+    InputError
+        When the suffix is not readable, the file does not exist or cannot be read as a
+        pdlin result.
 
     Examples
     --------

@@ -282,11 +282,25 @@ def write_series(
     path : str or Path
     cloud : PointCloud
     times : (k,) sequence of float
+        Time of each step, increasing.
     steps : sequence of k mappings ``name -> (n,) or (n, c)`` array
+        The point fields of each step.
 
     Returns
     -------
-    Path of the main file (``.xdmf``, ``.pvd`` or ``.npz``).
+    Path
+        The main file (``.xdmf``, ``.pvd``, ``.npz`` or ``.e``/``.exo``).
+
+    Raises
+    ------
+    ShapeError
+        When ``times`` and ``steps`` differ in length (or are empty), or a field has not
+        one row per point.
+    InputError
+        When ``times`` is not increasing, the suffix is not a series format, or a field
+        is empty, unnamed or holds NaN or inf.
+    WriteError
+        When a file cannot be written.
 
     Examples
     --------

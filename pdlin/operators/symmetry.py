@@ -901,6 +901,16 @@ def symmetry_reduction(
     Returns
     -------
     SymmetryReduction
+        The mirror cloud, the bonds of the augmented cloud and the model mapped onto it.
+
+    Raises
+    ------
+    InputTypeError
+        When ``model`` is not a pdlin model or ``cloud`` not a :class:`PointCloud`.
+    ModelError
+        When ``model.coupling_range`` is not an integer >= 1.
+    NoNeighborsError
+        When a real point has no bond and ``allow_isolated`` is not set.
 
     Examples
     --------
