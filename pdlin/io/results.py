@@ -280,7 +280,9 @@ def write_series(
     Parameters
     ----------
     path : str or Path
+        ``.xdmf``, ``.pvd``, ``.vtu`` (written as ``.pvd``), ``.npz``, ``.e`` or ``.exo``.
     cloud : PointCloud
+        The ``n`` points (positions and point sets).
     times : (k,) sequence of float
         Time of each step, increasing.
     steps : sequence of k mappings ``name -> (n,) or (n, c)`` array
