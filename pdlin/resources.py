@@ -318,6 +318,7 @@ def available_memory() -> MemoryBudget:
     Returns
     -------
     MemoryBudget
+        The smallest headroom in bytes and every limit found.
 
     Examples
     --------

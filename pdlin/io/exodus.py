@@ -176,16 +176,19 @@ def write_exodus_file(
     out : Path
         File to create (the caller stages it for the atomic replace).
     points : (n, dim) ndarray
+        Point coordinates (padded with zeros to ``coordx/y/z``).
     material : (n,) ndarray of int
         Phase of each point; element block ``material + 1``.
     sets : mapping of name to index arrays
         Written as node sets, in this order, with ids 1, 2, ...
     times : (k,) ndarray
+        Time of each step (``time_whole``).
     steps : k mappings of file field name -> (n,) / (n, c) arrays
         The same names and shapes in every step.
     dim : int
         Dimension of the cloud, stored as the global attribute ``pdlin_dim``.
     title : str
+        The file's ``title`` attribute.
     """
     netCDF4 = need_netcdf4()
     pts = np.zeros((points.shape[0], 3))

@@ -33,7 +33,9 @@ class ResultFile:
     Attributes
     ----------
     path : Path
+        The file read.
     points : (n, dim) ndarray
+        Point coordinates (without the zero padding of the 3D file formats).
     times : (k,) ndarray
         Step times (``[0.0]`` for a single result).
     steps : list of k dicts

@@ -369,6 +369,8 @@ def mirror_cloud(
     Returns
     -------
     MirrorCloud
+        The augmented cloud (real points first, then the ghosts), each ghost's source
+        point and reflection signs.
 
     Raises
     ------
@@ -542,6 +544,7 @@ class SymmetryReduction:
     Attributes
     ----------
     mirror : MirrorCloud
+        The real points and their ghosts.
     bonds : Bonds
         Bonds of the augmented cloud (real points and ghosts).
     model : Model
@@ -888,6 +891,7 @@ def symmetry_reduction(
     cloud : PointCloud
         The modelled half / quarter / eighth.
     planes : SymmetryPlane or sequence of them
+        The symmetry planes, at most one per axis.
     horizon : float or (n,) array_like, optional
         As in :func:`pdlin.find_bonds` (default ``cloud.horizon``); a per-point
         horizon is copied to the ghosts.

@@ -85,6 +85,7 @@ class TradeoffCase:
     Attributes
     ----------
     problem : StaticProblem
+        The configured problem of this point.
     solve_kwargs : dict
         Extra keyword arguments of :func:`pdlin.solve` (the swept ``solver``, ``rtol``,
         ``operator``, ``maxiter`` override them).

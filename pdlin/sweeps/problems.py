@@ -244,6 +244,7 @@ def tension_bar(
     model : str
         :func:`make_model` name.
     dim : {2, 3}
+        Dimension of the bar.
     h : float
         Grid spacing.
     m : float
