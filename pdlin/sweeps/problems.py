@@ -21,9 +21,13 @@ References
 .. [1] Javaheri, Luo, Lakshmanan & Sundararaghavan (2022), AIAA J.: the bar of
    Sec. III.A, Eqs. 27-28.
 .. [2] Luo & Sundararaghavan (2018), IJSS 150: the plate with a square hole of
-   Sec. 5.2 (the paper gives no dimensions or loads; pdlin's reconstruction).
+   Sec. 5.2 (the paper gives no dimensions or loads; pdlin's reconstruction,
+   ``docs/theory/conventions.md``, "Plate with a square hole").
 .. [3] Liu, Chen & Skelton, XOSB: the plate with a central hole of Sec. 5.1 (the mesh
-   and boundary condition are pdlin's reconstruction).
+   and boundary condition are pdlin's reconstruction, ``docs/theory/conventions.md``,
+   "Plate with a hole").
+
+Each paper's full reference is in ``docs/theory/references.md``.
 """
 
 from __future__ import annotations
