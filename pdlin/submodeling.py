@@ -20,8 +20,9 @@ from typing import Any
 import numpy as np
 
 from ._validation import as_float_array
+from .constraints import load_vector, resolve_dirichlet
 from .errors import InputError, ShapeError
-from .operators.bc import BodyForce, Dirichlet, load_vector, resolve_dirichlet
+from .operators.bc import BodyForce, Dirichlet
 from .problem import StaticProblem
 
 __all__ = ["SubregionProblem", "subregion", "problem_horizon"]

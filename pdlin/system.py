@@ -28,21 +28,20 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .errors import InputError, InputTypeError, ModelError
-from .fields import deformation_gradient
-from .geometry.bonds import Bonds
-from .geometry.cloud import PointCloud
-from .models.base import Model
-from .operators.assembly import assemble_stiffness
-from .operators.bc import (
-    Dirichlet,
-    TimePath,
+from .constraints import (
     check_constraints,
     eliminate_dirichlet,
     load_vector,
     matrix_rows,
     resolve_dirichlet,
 )
+from .errors import InputError, InputTypeError, ModelError
+from .fields import deformation_gradient
+from .geometry.bonds import Bonds
+from .geometry.cloud import PointCloud
+from .models.base import Model
+from .operators.assembly import assemble_stiffness
+from .operators.bc import Dirichlet, TimePath
 from .operators.rigid import rigid_body_modes
 from .operators.symmetry import symmetry_reduction
 

@@ -45,11 +45,11 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from .._validation import integer, tolerance
+from ..constraints import check_constraints, load_vector, resolve_dirichlet
 from ..errors import ConvergenceError, InputError, InputTypeError, NoNeighborsError
 from ..fields import small_strain
 from ..geometry.bonds import Bonds, find_bonds, resolve_horizon
 from ..geometry.cloud import PointCloud
-from ..operators.bc import check_constraints, load_vector, resolve_dirichlet
 from ..problem import StaticResult
 
 __all__ = [

@@ -503,7 +503,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_sparsity(args: argparse.Namespace) -> int:
-    from ..operators.bc import resolve_dirichlet
+    from ..constraints import resolve_dirichlet
     from ..operators.sparsity import sparsity_report
 
     scene = _load(args)
