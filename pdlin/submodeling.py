@@ -257,7 +257,7 @@ def subregion(
 
 
 def _driver_arrays(driver: Any) -> tuple[np.ndarray, np.ndarray]:
-    from .problem import StaticResult
+    from .system import StaticResult
 
     if isinstance(driver, StaticResult):
         return np.asarray(driver.problem.cloud.points), np.asarray(driver.u, dtype=float)

@@ -20,14 +20,17 @@ The pieces:
 
 from __future__ import annotations
 
+import logging
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Protocol, cast, runtime_checkable
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ._repr import compact_repr, html_table
 from .constraints import (
     check_constraints,
     eliminate_dirichlet,
@@ -35,17 +38,31 @@ from .constraints import (
     matrix_rows,
     resolve_dirichlet,
 )
-from .errors import InputError, InputTypeError, ModelError
-from .fields import deformation_gradient
-from .geometry.bonds import Bonds
+from .errors import FloatingBodyError, InputError, InputTypeError, ModelError
+from .fields import deformation_gradient, small_strain
+from .geometry.bonds import Bonds, resolve_horizon
 from .geometry.cloud import PointCloud
 from .models.base import Model
 from .operators.assembly import assemble_stiffness
 from .operators.bc import Dirichlet, TimePath
 from .operators.rigid import rigid_body_modes
-from .operators.symmetry import symmetry_reduction
+from .operators.symmetry import MirrorCloud, SymmetryReduction, mirror_cloud, symmetry_reduction
+from .problem import StaticProblem
 
-__all__ = ["Discretization", "PlainDiscretization", "ConstrainedSystem", "constrained_system"]
+__all__ = [
+    "Discretization",
+    "PlainDiscretization",
+    "PointDiscretization",
+    "ConstrainedSystem",
+    "StaticResult",
+    "constrained_system",
+    "discretize",
+    "constrain",
+    "point_system",
+    "mirror_reach",
+]
+
+log = logging.getLogger(__name__)
 
 
 @runtime_checkable
@@ -416,25 +433,26 @@ class ConstrainedSystem:
         return matrix_rows(K, self.dofs)
 
 
-def constrained_system(problem: Any) -> ConstrainedSystem:
-    """Transform a :class:`~pdlin.StaticProblem` once into its constrained system.
+def discretize(problem: StaticProblem) -> Discretization:
+    """Build the discretization a problem is solved on: its cloud, or the mirrored cloud.
 
-    Finds the bonds (on the mirrored cloud with symmetry planes), resolves
-    the Dirichlet conditions (plus the planes' own), builds the load
-    vector and checks that no rigid motion stays free.
+    Parameters
+    ----------
+    problem : StaticProblem
+        Without symmetry planes its bonds are ``problem.get_bonds()``; with them they are
+        found on the mirrored cloud (:func:`~pdlin.operators.symmetry.symmetry_reduction`).
+
+    Returns
+    -------
+    Discretization
+        A :class:`PlainDiscretization` or a
+        :class:`~pdlin.operators.symmetry.SymmetryReduction`.
 
     Raises
     ------
-    FloatingBodyError
-        When the conditions leave rigid-body motions free.
-    InputError
-        When a load acts on prescribed DOFs only (a :class:`~pdlin.TotalForce` acting
-        there in part warns, :class:`~pdlin.errors.AccuracyWarning`).
+    ModelError
+        When the discretization does not implement :class:`Discretization`.
     """
-    from .problem import StaticProblem
-
-    if not isinstance(problem, StaticProblem):
-        raise InputTypeError(f"problem must be a StaticProblem, got {type(problem).__name__}")
     model, cloud = problem.model, problem.cloud
     disc: Any
     if problem.symmetry:
@@ -445,10 +463,380 @@ def constrained_system(problem: Any) -> ConstrainedSystem:
         disc = PlainDiscretization(model, cloud, problem.get_bonds())
     if not isinstance(disc, Discretization):  # pragma: no cover - interface guard
         raise ModelError(f"{type(disc).__name__} does not implement Discretization")
-    dofs, vals = resolve_dirichlet(cloud, (*problem.dirichlet, *disc.dirichlet()))
+    return disc
+
+
+def constrain(problem: StaticProblem, disc: Any) -> ConstrainedSystem:
+    """Apply a problem's Dirichlet conditions and loads to a discretization.
+
+    Resolves the Dirichlet conditions (plus the discretization's own, e.g. the symmetry
+    planes'), builds the load vector and checks that no rigid motion stays free.
+
+    Parameters
+    ----------
+    problem : StaticProblem
+        Supplies ``dirichlet`` and ``loads``.
+    disc : Discretization or PointDiscretization
+        Supplies the extra conditions, the load vector and the rigid-motion check.
+
+    Returns
+    -------
+    ConstrainedSystem
+
+    Raises
+    ------
+    FloatingBodyError
+        When the conditions leave rigid-body motions free.
+    InputError
+        When a load acts on prescribed DOFs only (a :class:`~pdlin.TotalForce` acting
+        there in part warns, :class:`~pdlin.errors.AccuracyWarning`).
+    """
+    dofs, vals = resolve_dirichlet(disc.cloud, (*problem.dirichlet, *disc.dirichlet()))
     # a load on prescribed DOFs only would vanish into the support: refused here, where
-    # every driver (solve, solve_nonlinear, solve_damage, the CLI) passes
+    # every driver (solve, solve_nonlinear, solve_damage, the CLI, PETSc) passes
     f_ext = disc.load_vector(problem.loads, prescribed=dofs)
     disc.check_constraints(dofs)
     paths = tuple(bc for bc in problem.dirichlet if isinstance(bc.value, TimePath))
     return ConstrainedSystem(disc, dofs, vals, np.asarray(f_ext, dtype=float), problem, paths)
+
+
+def constrained_system(problem: StaticProblem) -> ConstrainedSystem:
+    """Transform a :class:`~pdlin.StaticProblem` once into its constrained system.
+
+    Finds the bonds (on the mirrored cloud with symmetry planes, :func:`discretize`),
+    resolves the Dirichlet conditions (plus the planes' own), builds the load vector and
+    checks that no rigid motion stays free (:func:`constrain`).
+
+    Parameters
+    ----------
+    problem : StaticProblem
+        The problem.
+
+    Returns
+    -------
+    ConstrainedSystem
+
+    Raises
+    ------
+    InputTypeError
+        When ``problem`` is not a :class:`~pdlin.StaticProblem`.
+    FloatingBodyError
+        When the conditions leave rigid-body motions free.
+    InputError
+        When a load acts on prescribed DOFs only (a :class:`~pdlin.TotalForce` acting
+        there in part warns, :class:`~pdlin.errors.AccuracyWarning`).
+    """
+    if not isinstance(problem, StaticProblem):
+        raise InputTypeError(f"problem must be a StaticProblem, got {type(problem).__name__}")
+    return constrain(problem, discretize(problem))
+
+
+@dataclass(frozen=True, eq=False)
+class PointDiscretization:
+    """The point data of a discretization, without bonds: conditions, loads, rigid motions.
+
+    A distributed driver (the PETSc backend) builds the constrained system's prescribed
+    DOFs, values and load vector from it on every rank (:func:`point_system`) and finds
+    the bonds of its own points only.  With symmetry planes it holds the mirrored cloud
+    (point data), whose reduction supplies the planes' conditions and the loads' shares.
+
+    Parameters
+    ----------
+    model : Model
+        The problem's model.
+    points : PointCloud
+        The solved points (the modelled part with symmetry planes).
+    bonds : Bonds, optional
+        Precomputed bonds of the problem (their connectivity is checked); None treats the
+        cloud as one connected piece.
+    mirror : MirrorCloud, optional
+        The mirrored cloud of a problem with symmetry planes.
+    """
+
+    model: Any
+    points: PointCloud
+    bonds: Bonds | None = None
+    mirror: MirrorCloud | None = None
+
+    @property
+    def cloud(self) -> PointCloud:
+        """The solved points."""
+        return self.points
+
+    def _reduction(self) -> SymmetryReduction:
+        """The symmetry reduction without bonds (its conditions and loads need none)."""
+        assert self.mirror is not None
+        return SymmetryReduction(self.mirror, cast(Bonds, None), self.model)
+
+    def dirichlet(self) -> list[Dirichlet]:
+        """Return the symmetry planes' conditions (none without planes).
+
+        Returns
+        -------
+        list of Dirichlet
+            Zero normal displacement of the points lying on each plane.
+        """
+        return [] if self.mirror is None else self._reduction().dirichlet()
+
+    def load_vector(
+        self, loads: Sequence[Any], *, prescribed: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Compute the external force ``(ndof,)`` as the full discretization does.
+
+        Parameters
+        ----------
+        loads : sequence of BodyForce / TotalForce
+            The problem's loads.
+        prescribed : (m,) ndarray of int, optional
+            Prescribed DOFs; a load acting on them only raises.
+
+        Returns
+        -------
+        (ndof,) ndarray
+            Nodal forces; with symmetry planes the points lying on a plane carry their share.
+        """
+        if self.mirror is None:
+            return load_vector(self.points, loads, prescribed=prescribed)
+        return self._reduction().load_vector(loads, prescribed=prescribed)
+
+    def check_constraints(self, dofs: np.ndarray) -> None:
+        """Raise when the prescribed DOFs leave a rigid motion free.
+
+        Parameters
+        ----------
+        dofs : (m,) ndarray of int
+            Prescribed DOFs.
+
+        Raises
+        ------
+        FloatingBodyError
+            When a rigid motion (one compatible with the symmetry planes) stays free.
+        """
+        if self.mirror is None:
+            check_constraints(self.points, self.bonds, dofs)
+            return
+        modes, names = self._reduction().rigid_modes()
+        if not names:
+            return
+        try:
+            check_constraints(self.points, None, dofs, extra_modes=modes)
+        except FloatingBodyError as exc:
+            msg = re.sub(r"\bmode (\d+)\b", lambda mt: names[int(mt.group(1))], str(exc))
+            planes = ", ".join(p.name for p in self.mirror.planes)
+            raise FloatingBodyError(
+                f"{msg}; the symmetry planes {planes} leave these rigid motions to "
+                f"constrain: {', '.join(names)}"
+            ) from exc
+
+
+def mirror_reach(model: Any, cloud: PointCloud, horizon: Any, bond_options: Any) -> float:
+    """Depth of the ghost layer of a symmetry reduction: coupling range times bond reach.
+
+    Parameters
+    ----------
+    model : Model
+        Its ``coupling_range`` (1 for bond-based, 2 for state-based models).
+    cloud : PointCloud
+        The modelled part.
+    horizon : float or (n,) array_like, optional
+        As in :func:`pdlin.find_bonds`.
+    bond_options : mapping
+        :func:`pdlin.find_bonds` keyword arguments (``ratio``, ``axes``).
+
+    Returns
+    -------
+    float
+        The ``reach`` :func:`~pdlin.operators.symmetry.symmetry_reduction` mirrors with.
+    """
+    opts = dict(bond_options or {})
+    hor = resolve_horizon(cloud, horizon, opts.get("ratio"))
+    reach = float(hor.max())
+    if opts.get("axes") is not None:
+        reach = max(reach, float(np.max(np.asarray(opts["axes"], dtype=float))))
+    return int(getattr(model, "coupling_range", 1)) * reach
+
+
+def point_system(problem: StaticProblem) -> ConstrainedSystem:
+    """Build a problem's constrained system without searching its bonds.
+
+    The prescribed DOFs and values, the load vector and the free mask are those of
+    :func:`constrained_system` (the same functions on the same points); the rigid-motion
+    check treats the cloud as one connected piece unless the problem has precomputed
+    bonds.  Its discretization is a :class:`PointDiscretization`: it has no operators, so
+    a driver that uses it (the PETSc backend) assembles and eliminates its own rows.
+
+    Parameters
+    ----------
+    problem : StaticProblem
+        The problem.
+
+    Returns
+    -------
+    ConstrainedSystem
+
+    Raises
+    ------
+    InputTypeError
+        When ``problem`` is not a :class:`~pdlin.StaticProblem`.
+    FloatingBodyError
+        When the conditions leave rigid-body motions free.
+    InputError
+        When a load acts on prescribed DOFs only.
+    """
+    if not isinstance(problem, StaticProblem):
+        raise InputTypeError(f"problem must be a StaticProblem, got {type(problem).__name__}")
+    mirror = None
+    if problem.symmetry:
+        reach = mirror_reach(problem.model, problem.cloud, problem.horizon, problem.bond_options)
+        mirror = mirror_cloud(problem.cloud, problem.symmetry, reach)
+    disc = PointDiscretization(problem.model, problem.cloud, problem.bonds, mirror)
+    return constrain(problem, disc)
+
+
+@dataclass
+class StaticResult:
+    """Solution of a :class:`StaticProblem`.
+
+    Attributes
+    ----------
+    u : (n, dim) ndarray
+        Displacements.
+    converged : bool
+    n_iter : int
+    residuals : list of float
+        Relative residual history of the linear solver.
+    relative_residual : float
+        True relative residual ``||b - A x|| / ||b||`` of the eliminated system.
+    timings : dict
+        Seconds spent in 'bonds', 'assembly', 'setup', 'solve' and 'total'.
+    reactions : (n, dim) ndarray
+        Nodal reaction forces (non-zero only on prescribed DOFs).
+    info : dict
+        Solver details (name, AMG levels and complexity, fill-in, ...).
+    """
+
+    problem: StaticProblem
+    bonds: Bonds
+    u: np.ndarray
+    converged: bool
+    n_iter: int
+    residuals: list[float]
+    relative_residual: float
+    timings: dict[str, float]
+    reactions: np.ndarray
+    prescribed_dofs: np.ndarray
+    info: dict[str, Any]
+    stiffness: sp.sparray | None = None
+    #: the constrained system the driver solved (its discretization maps fields back)
+    system: ConstrainedSystem | None = None
+
+    @property
+    def symmetry(self) -> SymmetryReduction | None:
+        """Mirrored cloud, bonds and operators when the problem has symmetry planes.
+
+        ``bonds`` then holds the real-real bonds only.
+        """
+        disc = None if self.system is None else self.system.disc
+        return disc if isinstance(disc, SymmetryReduction) else None
+
+    @property
+    def _disc(self) -> Any:
+        if self.system is not None:
+            return self.system.disc
+        return PlainDiscretization(self.problem.model, self.problem.cloud, self.bonds)
+
+    def deformation_gradient(self) -> np.ndarray:
+        """Nonlocal deformation gradient per point ``(n, dim, dim)``."""
+        return np.asarray(self._disc.deformation_gradient(self.u))
+
+    def strain(self) -> np.ndarray:
+        """Small strain per point ``(n, dim, dim)``."""
+        return small_strain(self.deformation_gradient())
+
+    def stress(self) -> np.ndarray:
+        """Model stress per point ``(n, dim, dim)`` (virial for bond-based models)."""
+        return np.asarray(self._disc.stress(self.u))
+
+    def reaction(self, where: Any) -> np.ndarray:
+        """Total reaction force on a point set ``(dim,)``."""
+        idx = self.problem.cloud.select(where)
+        return self.reactions[idx].sum(axis=0)
+
+    def fields(self) -> dict[str, np.ndarray]:
+        """All point fields as numpy arrays (for output)."""
+        out: dict[str, np.ndarray] = {
+            "displacement": self.u,
+            "reaction": self.reactions,
+            "family_size": np.asarray(self._disc.family_size, dtype=float),
+            "volume": np.asarray(self.problem.cloud.volumes),
+            "material": np.asarray(self.problem.cloud.material, dtype=float),
+        }
+        try:
+            F = self.deformation_gradient()
+            out["deformation_gradient"] = F.reshape(F.shape[0], -1)
+            out["strain"] = small_strain(F).reshape(F.shape[0], -1)
+        except InputError as exc:
+            log.warning("strain not written: %s", exc)
+        if hasattr(self.problem.model, "stress"):
+            s = self.stress()
+            out["stress"] = s.reshape(s.shape[0], -1)
+        return out
+
+    def _table(self) -> list[tuple[str, Any]]:
+        u = self.u
+        return [
+            ("model", repr(self.problem.model)),
+            ("points", int(u.shape[0])),
+            ("dim", int(u.shape[1])),
+            ("bonds", int(self.bonds.n_bonds)),
+            ("DOFs", int(u.size)),
+            ("prescribed DOFs", int(np.asarray(self.prescribed_dofs).size)),
+            ("solver", self.info.get("solver")),
+            ("converged", bool(self.converged)),
+            ("iterations", int(self.n_iter)),
+            ("relative residual", float(self.relative_residual)),
+            ("max |u|", float(np.abs(u).max()) if u.size else 0.0),
+            ("time (s)", float(self.timings.get("total", np.nan))),
+        ]
+
+    def __repr__(self) -> str:
+        """Sizes, solver, iterations and residual (no arrays, no memory address).
+
+        Examples
+        --------
+        >>> import pdlin
+        >>> prob = pdlin.StaticProblem(pdlin.BondBased(E=1.0), pdlin.grid((20,), spacing=0.05),
+        ...     horizon=0.1, dirichlet=[pdlin.Dirichlet("x-", 0.0)],
+        ...     loads=[pdlin.TotalForce("x+", [1e-3])])
+        >>> pdlin.solve(prob, solver="direct")  # doctest: +ELLIPSIS
+        StaticResult(points=20, dim=1, bonds=74, DOFs=20, solver='direct', converged=True,
+            iterations=1, ...)
+        """
+        names = {"relative residual": "residual", "max |u|": "max_abs_u", "time (s)": "seconds"}
+        items = {
+            names.get(k, k): v for k, v in self._table() if k not in ("model", "prescribed DOFs")
+        }
+        return compact_repr("StaticResult", items)
+
+    def _repr_html_(self) -> str:
+        """The summary as an HTML table (Jupyter)."""
+        return html_table("StaticResult", self._table())
+
+    def summary(self) -> dict[str, Any]:
+        """Short plain-data summary (used by the CLI)."""
+        u = self.u
+        return {
+            "points": int(u.shape[0]),
+            "dim": int(u.shape[1]),
+            "bonds": int(self.bonds.n_bonds),
+            "solver": self.info.get("solver"),
+            **(
+                {"direct_backend": self.info["direct_backend"]}
+                if "direct_backend" in self.info
+                else {}
+            ),
+            "iterations": int(self.n_iter),
+            "relative_residual": float(self.relative_residual),
+            "max_abs_u": [float(v) for v in np.abs(u).max(axis=0)],
+            "timings": {k: round(v, 4) for k, v in self.timings.items()},
+        }

@@ -169,7 +169,7 @@ def _check_run_outputs(args: argparse.Namespace, scene: Any) -> None:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from ..io.results import SERIES_SUFFIXES, SUPPORTED_SUFFIXES, write_result
-    from ..problem import solve
+    from ..static import solve
 
     prog = _Progress(args.quiet)
     prog("reading scene")

@@ -846,7 +846,7 @@ def _subregion_scene(top: Mapping[str, Any], base: Path) -> Scene:
     import copy
     import time
 
-    from ..problem import solve
+    from ..static import solve
     from ..submodeling import subregion
     from ..sweeps.scene import rescale_grid
 

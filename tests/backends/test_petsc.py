@@ -160,12 +160,6 @@ def test_petsc_options_and_errors():
         pdlin.solve(prob, "amg-cg", rtol=1e-12, backend="petsc", petsc_options={"ksp_max_it": 2})
     res = pdlin.solve(prob, "cg", backend="petsc", petsc_options={"ksp_type": "minres"})
     assert res.info["ksp_type"] == "minres"
-    sym = pdlin.StaticProblem(
-        prob.model, prob.cloud, horizon=0.13, symmetry=[pdlin.SymmetryPlane("y", 0.0)],
-        dirichlet=prob.dirichlet,
-    )  # fmt: skip
-    with pytest.raises(InputError, match="symmetry planes"):
-        pdlin.solve(sym, backend="petsc")
 
 
 @needs_petsc
