@@ -504,8 +504,10 @@ def local_rows_mirrored(
     >>> from pdlin.backends.petsc import local_rows_mirrored
     >>> cloud = pdlin.grid((12, 12), spacing=0.1)
     >>> prob = pdlin.StaticProblem(pdlin.LPS(E=1.0, nu=0.25), cloud,
-    ...     bond_options={"ratio": 3.015}, symmetry=[pdlin.SymmetryPlane("x")])
-    >>> planes = pdlin.point_system(prob).disc.mirror.planes
+    ...     bond_options={"ratio": 3.015}, symmetry=[pdlin.SymmetryPlane("x")],
+    ...     dirichlet=[pdlin.Dirichlet("y-", 0.0)])
+    >>> from pdlin.system import point_system
+    >>> planes = point_system(prob).disc.mirror.planes
     >>> rows, index, _, _ = local_rows_mirrored(prob.model, cloud, np.arange(30), planes,
     ...     bond_options={"ratio": 3.015})
     >>> K = pdlin.constrained_system(prob).assemble()
