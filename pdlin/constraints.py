@@ -122,10 +122,29 @@ def resolve_dirichlet(
 
     :class:`~pdlin.TimePath` values are evaluated at time ``t``.
 
+    Parameters
+    ----------
+    cloud : PointCloud
+        The solved points.
+    conditions : sequence of Dirichlet
+        The conditions (a DOF named twice must get the same value).
+    t : float
+        Time at which :class:`~pdlin.TimePath` values are evaluated.
+
     Returns
     -------
     dofs : (m,) sorted ndarray of int
+        Prescribed DOFs ``dim * point + component``, each once.
     values : (m,) ndarray
+        Their values.
+
+    Raises
+    ------
+    InputError
+        For a condition that is not a Dirichlet, selects no points, or prescribes a DOF
+        with two different values.
+    ShapeError
+        For a value of the wrong shape.
     """
     d = cloud.dim
     all_dofs = []
@@ -182,7 +201,9 @@ def load_vector(
     Parameters
     ----------
     cloud : PointCloud
+        The loaded points (their volumes, and thickness in 2D / cross-section in 1D).
     loads : sequence of BodyForce / TotalForce
+        The loads.
     prescribed : (m,) array_like of int, optional
         Prescribed DOFs (Dirichlet conditions, symmetry planes; :func:`resolve_dirichlet`).
         A force on a prescribed DOF never enters the equations of the free DOFs: it is
@@ -191,6 +212,11 @@ def load_vector(
         which only part does is applied as it is (see docs/boundary_conditions.md).
     names : sequence of str, optional
         Labels of the loads in messages (default ``loads[k]``).
+
+    Returns
+    -------
+    (n*dim,) ndarray
+        Nodal external forces, flat.
 
     Raises
     ------
@@ -292,9 +318,21 @@ def check_constraints(
 
     Parameters
     ----------
+    cloud : PointCloud
+        The solved points.
+    bonds : Bonds or None
+        Their bonds (connectivity); None treats the cloud as one piece.
+    dofs : (m,) ndarray of int
+        Prescribed DOFs.
     extra_modes : (n*dim, k) array, optional
         Alternative basis of the motions to check (e.g. modes compatible
-        with symmetry planes).
+        with symmetry planes); it applies when the cloud is one piece.
+
+    Raises
+    ------
+    FloatingBodyError
+        When a piece has no prescribed DOF, or the prescribed DOFs leave a rigid motion
+        (named in the message) free.
     """
     d = cloud.dim
     if bonds is not None:
@@ -396,7 +434,7 @@ def _free_mode_names(null: np.ndarray, keep: np.ndarray, names: list[str], d: in
 
 
 def _independent_columns(B: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
-    """Indices of a maximal set of linearly independent columns of ``B`` (pivoted QR).
+    """Find a maximal set of linearly independent columns of ``B`` (pivoted QR).
 
     Columns are normalized first; a column whose norm is below ``rtol`` times the
     largest is dropped outright.  The indices are returned in ascending order.
@@ -419,9 +457,22 @@ def _independent_columns(B: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
 
 
 def matrix_rows(K: sp.sparray, rows: np.ndarray) -> sp.csr_array:
-    """Rows ``rows`` of a CSR or BSR matrix as a CSR array ``(len(rows), ncols)``.
+    """Take some rows of a CSR or BSR matrix as a CSR array.
 
-    For BSR only the block rows that hold ``rows`` are converted.
+    For BSR only the block rows that hold ``rows`` are converted (the reactions of a
+    solve are taken from K's prescribed rows this way before an in-place elimination).
+
+    Parameters
+    ----------
+    K : sparse array (CSR or BSR)
+        The matrix.
+    rows : (k,) array_like of int
+        Scalar row indices, in the order wanted.
+
+    Returns
+    -------
+    csr_array of shape (k, ncols)
+        Those rows.
 
     Examples
     --------
@@ -473,11 +524,30 @@ def eliminate_dirichlet(
 
     Parameters
     ----------
-    K : sparse array (CSR or BSR)
+    K : sparse array (CSR or BSR) of shape (ndof, ndof)
+        The stiffness; a BSR K keeps its block structure and needs its diagonal blocks
+        stored.
     f : (ndof,) ndarray
-    dofs, values : prescribed DOFs and values (see :func:`resolve_dirichlet`)
+        External force.
+    dofs : (m,) ndarray of int
+        Prescribed DOFs (see :func:`resolve_dirichlet`).
+    values : (m,) ndarray
+        Their values.
     inplace : bool
         Overwrite K's data (saves a copy of the largest array).
+
+    Returns
+    -------
+    A : sparse array of shape (ndof, ndof)
+        ``K`` with the prescribed rows and columns replaced by ``s I``, ``s`` the mean
+        |diagonal| of the free DOFs (1 when none is free).
+    b : (ndof,) ndarray
+        ``f - K u_c`` on the free rows, ``s u_c`` on the prescribed ones.
+
+    Raises
+    ------
+    ShapeError
+        When ``f`` does not match ``K``.
     """
     ndof = K.shape[0]
     if f.shape != (ndof,):

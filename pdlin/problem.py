@@ -54,7 +54,10 @@ _MOVED = {
 
 
 def __getattr__(name: str) -> Any:
-    """Deprecated access to ``solve``, ``StaticResult`` and ``FORCE_BALANCE_TOL``."""
+    """Return ``solve``, ``StaticResult`` or ``FORCE_BALANCE_TOL`` from their new modules.
+
+    Deprecated access (a :class:`DeprecationWarning`); other names raise AttributeError.
+    """
     if name in _MOVED:
         warnings.warn(
             f"pdlin.problem.{name} moved to {_MOVED[name]}.{name}; the old path will be "
@@ -128,6 +131,7 @@ class StaticProblem:
     ratio: InitVar[float | None] = None
 
     def __post_init__(self, ratio: float | None = None) -> None:
+        """Check the data and normalize conditions, loads and planes to tuples."""
         if not hasattr(self.model, "stiffness") or not hasattr(self.model, "internal_force"):
             raise InputTypeError(f"model must be a pdlin model, got {type(self.model).__name__}")
         if not isinstance(self.cloud, PointCloud):
@@ -235,12 +239,20 @@ class StaticProblem:
         return compact_repr("StaticProblem", self._repr_items())
 
     def get_bonds(self) -> Bonds:
-        """The problem's bonds (built on demand when not given)."""
+        """Return the problem's bonds (built on demand when not given).
+
+        Returns
+        -------
+        Bonds
+            ``bonds``, else ``find_bonds(cloud, horizon, **bond_options)`` (a new search
+            on each call).
+        """
         if self.bonds is not None:
             return self.bonds
         return find_bonds(self.cloud, self.horizon, **dict(self.bond_options))
 
 
+#: values of ``pdlin.solve(..., operator=...)``
 OPERATORS = ("assembled", "matrix-free", "auto")
 
 
@@ -253,7 +265,7 @@ def plan_memory(
     direct_backend: str = "auto",
     history_steps: int = 0,
 ) -> RunEstimate:
-    """Peak-memory estimate of ``solve(problem, ...)`` before any bond is searched.
+    """Estimate the peak memory of ``solve(problem, ...)`` before any bond is searched.
 
     ``history_steps`` adds the per-step fields a load-stepping driver keeps
     (:func:`pdlin.solve_damage`, :func:`pdlin.solve_nonlinear`: u, stress and two scalars
@@ -263,6 +275,32 @@ def plan_memory(
     the neighbours of a lattice ball otherwise), the blocks of K (pairs within
     ``coupling_range`` horizons), picks the operator path ``solve`` would take and adds up
     the stages with the coefficients of :mod:`pdlin.resources`.
+
+    Parameters
+    ----------
+    problem : StaticProblem
+        The problem.
+    solver : str
+        As for :func:`pdlin.solve` (decides the direct or iterative path).
+    operator : {'auto', 'assembled', 'matrix-free'}
+        As for :func:`pdlin.solve`.
+    keep_stiffness : bool
+        As for :func:`pdlin.solve` (forces the assembled path).
+    direct_backend : str
+        As for :func:`pdlin.solve` (the factorization's memory coefficients).
+    history_steps : int
+        Load steps whose fields a stepping driver keeps.
+
+    Returns
+    -------
+    RunEstimate
+        Bonds, blocks, operator path and the bytes of every stage (``need``, ``peak``).
+
+    Raises
+    ------
+    InputError
+        When ``operator`` is not one of :data:`OPERATORS`, or ``'matrix-free'`` is asked
+        with symmetry planes or the direct solver.
 
     Examples
     --------
@@ -315,8 +353,22 @@ def plan_memory(
 
 
 def memory_hints(plan: RunEstimate) -> list[str]:
-    """What would fit instead of ``plan``: iterative or matrix-free solves, a coarser grid,
-    PETSc on more ranks (each with its estimated peak), fewer load steps (a kept history)."""
+    """List what would fit in the available memory instead of ``plan``.
+
+    Iterative or matrix-free solves, a coarser grid, PETSc on more ranks (each with its
+    estimated peak), fewer load steps (a kept history).
+
+    Parameters
+    ----------
+    plan : RunEstimate
+        The estimate that does not fit (:func:`plan_memory`).
+
+    Returns
+    -------
+    list of str
+        One hint per alternative, for the message of
+        :class:`~pdlin.errors.InsufficientMemoryError`.
+    """
     avail = max(resources.available_memory().bytes, 1)  # patchable in tests
     need = max(plan.need, 1)
     hints: list[str] = []
@@ -376,7 +428,7 @@ def choose_operator(
     *,
     nblocks: int = 0,
 ) -> tuple[str, str]:
-    """Assembled or matrix-free K, and why.
+    """Choose the assembled or matrix-free K, and say why.
 
     In 3D a two-hop K is applied matrix-free when it averages more than 60 blocks per point
     (LPS/XOSB at δ = 3 h: 300-830, correspondence at δ = 2 h: ~185): assembling it is then
@@ -384,6 +436,38 @@ def choose_operator(
     cheaper.  Sparse two-hop operators (nearest-neighbour correspondence: 25 blocks per
     point) are assembled, which also lets AMG see the operator itself instead of a
     surrogate.
+
+    Parameters
+    ----------
+    operator : {'auto', 'assembled', 'matrix-free'}
+        The request.
+    model : Model
+        Its ``coupling_range`` counts.
+    cloud : PointCloud
+        The solved points.
+    solver : str
+        The linear solver ('direct' needs the assembled K).
+    est_bytes : int
+        Estimated bytes of the assembled K.
+    assembled_only : bool
+        The discretization has no matrix-free operator (symmetry planes).
+    keep_stiffness : bool
+        The result keeps the assembled K.
+    nblocks : int
+        Estimated stored blocks of K.
+
+    Returns
+    -------
+    path : {'assembled', 'matrix-free'}
+        The operator path.
+    reason : str
+        Why, for ``result.info['operator_reason']``.
+
+    Raises
+    ------
+    InputError
+        For an unknown ``operator``, or ``'matrix-free'`` with symmetry planes or with
+        ``solver='direct'``.
     """
     if operator not in OPERATORS:
         raise InputError(f"operator must be one of {OPERATORS}, got {operator!r}")

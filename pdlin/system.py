@@ -69,44 +69,122 @@ log = logging.getLogger(__name__)
 class Discretization(Protocol):
     """A model's operators on the points a driver solves for.
 
-    Vectors are ``(n, dim)`` or flat ``(n*dim,)`` on :attr:`cloud`.
+    Vectors are ``(n, dim)`` or flat ``(n*dim,)`` on :attr:`cloud`.  Implemented by
+    :class:`PlainDiscretization` and :class:`~pdlin.operators.symmetry.SymmetryReduction`.
     """
 
     model: Any
 
     @property
-    def cloud(self) -> PointCloud: ...
+    def cloud(self) -> PointCloud:
+        """The solved points."""
+        ...
 
     @property
-    def real_bonds(self) -> Bonds: ...
+    def real_bonds(self) -> Bonds:
+        """Bonds between solved points (ghost bonds of a reduction excluded)."""
+        ...
 
     @property
-    def family_size(self) -> np.ndarray: ...
+    def family_size(self) -> np.ndarray:
+        """Bonds per solved point ``(n,)``."""
+        ...
 
-    def stiffness(self) -> sp.sparray: ...
+    def stiffness(self) -> sp.sparray:
+        """Return the assembled stiffness on the solved DOFs."""
+        ...
 
-    def internal_force(self, u: Any, *, linear: bool = True) -> np.ndarray: ...
+    def internal_force(self, u: Any, *, linear: bool = True) -> np.ndarray:
+        """Return ``f_int(u)`` on the solved points.
+
+        Parameters
+        ----------
+        u : (n, dim) or (n*dim,) array_like
+            Displacement of the solved points.
+        linear : bool
+            The linearized (small-displacement) force, else the model's nonlinear one.
+        """
+        ...
 
     def load_vector(
         self, loads: Sequence[Any], *, prescribed: np.ndarray | None = None
-    ) -> np.ndarray: ...
+    ) -> np.ndarray:
+        """Return the external nodal force ``(n*dim,)``.
 
-    def dirichlet(self) -> list[Dirichlet]: ...
+        Parameters
+        ----------
+        loads : sequence of BodyForce / TotalForce
+            The problem's loads.
+        prescribed : (m,) ndarray of int, optional
+            Prescribed DOFs; a load acting on them only raises.
+        """
+        ...
 
-    def check_constraints(self, dofs: np.ndarray) -> None: ...
+    def dirichlet(self) -> list[Dirichlet]:
+        """Return the discretization's own conditions (e.g. the symmetry planes')."""
+        ...
 
-    def deformation_gradient(self, u: Any) -> np.ndarray: ...
+    def check_constraints(self, dofs: np.ndarray) -> None:
+        """Raise :class:`~pdlin.FloatingBodyError` when ``dofs`` leave a rigid motion free.
 
-    def stress(self, u: Any) -> np.ndarray: ...
+        Parameters
+        ----------
+        dofs : (m,) ndarray of int
+            Prescribed DOFs.
+        """
+        ...
 
-    def initial_state(self) -> dict[str, np.ndarray]: ...
+    def deformation_gradient(self, u: Any) -> np.ndarray:
+        """Return the nonlocal deformation gradient ``(n, dim, dim)``.
 
-    def respond(self, u: Any, state: dict[str, np.ndarray], *, tangent: bool = False) -> Any: ...
+        Parameters
+        ----------
+        u : (n, dim) array_like
+            Displacement of the solved points.
+        """
+        ...
+
+    def stress(self, u: Any) -> np.ndarray:
+        """Return the model's stress ``(n, dim, dim)``.
+
+        Parameters
+        ----------
+        u : (n, dim) array_like
+            Displacement of the solved points.
+        """
+        ...
+
+    def initial_state(self) -> dict[str, np.ndarray]:
+        """Return the model's committed state before the first load step."""
+        ...
+
+    def respond(self, u: Any, state: dict[str, np.ndarray], *, tangent: bool = False) -> Any:
+        """Return the model's ``Response`` (force, trial state, tangent) at ``u``.
+
+        Parameters
+        ----------
+        u : (n, dim) array_like
+            Displacement of the solved points.
+        state : dict of str to ndarray
+            Committed state of the last converged load step (not modified).
+        tangent : bool
+            Also return the tangent stiffness.
+        """
+        ...
 
 
 @dataclass(frozen=True, eq=False)
 class PlainDiscretization:
     """The model on the cloud itself (no reduction).
+
+    Parameters
+    ----------
+    model : Model
+        Any pdlin model.
+    points : PointCloud
+        The solved points.
+    bonds : Bonds
+        Their bonds.
 
     Examples
     --------
@@ -124,62 +202,199 @@ class PlainDiscretization:
 
     @property
     def cloud(self) -> PointCloud:
+        """The solved points (``points``)."""
         return self.points
 
     @property
     def real_bonds(self) -> Bonds:
+        """The bonds (all between solved points)."""
         return self.bonds
 
     @property
     def family_size(self) -> np.ndarray:
+        """Bonds per point ``(n,)``."""
         return self.bonds.family_size
 
     def stiffness(self) -> sp.sparray:
-        """Assembled stiffness of the model (BSR with blocksize dim)."""
+        """Assemble the model's stiffness.
+
+        Returns
+        -------
+        sparse array of shape (n*dim, n*dim)
+            BSR with blocksize dim.
+        """
         return assemble_stiffness(self.model, self.points, self.bonds)
 
     def internal_force(self, u: Any, *, linear: bool = True) -> np.ndarray:
+        """Compute the model's internal force.
+
+        Parameters
+        ----------
+        u : (n, dim) or (n*dim,) array_like
+            Displacement.
+        linear : bool
+            The linearized force ``-K u``, else the model's nonlinear force.
+
+        Returns
+        -------
+        (n, dim) ndarray
+            Nodal internal forces.
+        """
         return np.asarray(self.model.internal_force(self.points, self.bonds, u, linear=linear))
 
     def load_vector(
         self, loads: Sequence[Any], *, prescribed: np.ndarray | None = None
     ) -> np.ndarray:
-        """External force ``(ndof,)``; loads acting on ``prescribed`` DOFs only raise."""
+        """Compute the external force; loads acting on ``prescribed`` DOFs only raise.
+
+        Parameters
+        ----------
+        loads : sequence of BodyForce / TotalForce
+            The problem's loads.
+        prescribed : (m,) ndarray of int, optional
+            Prescribed DOFs (see :func:`pdlin.constraints.load_vector`).
+
+        Returns
+        -------
+        (n*dim,) ndarray
+            Nodal external forces.
+        """
         return load_vector(self.points, loads, prescribed=prescribed)
 
     def dirichlet(self) -> list[Dirichlet]:
-        """No extra conditions (a reduction adds its plane conditions here)."""
+        """Return no extra conditions (a reduction adds its plane conditions here).
+
+        Returns
+        -------
+        list of Dirichlet
+            Empty.
+        """
         return []
 
     def check_constraints(self, dofs: np.ndarray) -> None:
+        """Raise when ``dofs`` leave a rigid motion of a bond-connected piece free.
+
+        Parameters
+        ----------
+        dofs : (m,) ndarray of int
+            Prescribed DOFs.
+
+        Raises
+        ------
+        FloatingBodyError
+            When a piece has no prescribed DOF or a rigid motion stays free.
+        """
         check_constraints(self.points, self.bonds, dofs)
 
     def deformation_gradient(self, u: Any) -> np.ndarray:
+        """Compute the nonlocal deformation gradient.
+
+        Parameters
+        ----------
+        u : (n, dim) array_like
+            Displacement.
+
+        Returns
+        -------
+        (n, dim, dim) ndarray
+            ``F`` per point.
+        """
         return deformation_gradient(self.points, self.bonds, u)
 
     def stress(self, u: Any) -> np.ndarray:
+        """Compute the model's stress.
+
+        Parameters
+        ----------
+        u : (n, dim) array_like
+            Displacement.
+
+        Returns
+        -------
+        (n, dim, dim) ndarray
+            Stress per point (virial for bond-based models).
+
+        Raises
+        ------
+        InputError
+            When the model defines no stress.
+        """
         if not hasattr(self.model, "stress"):
             raise InputError(f"model {type(self.model).__name__} does not define a stress")
         return np.asarray(self.model.stress(self.points, self.bonds, u))
 
     def initial_state(self) -> dict[str, np.ndarray]:
+        """Return the model's committed state before the first load step.
+
+        Returns
+        -------
+        dict of str to ndarray
+            Per-point state arrays (empty for elastic models).
+        """
         return dict(self.model.initial_state(self.points, self.bonds))
 
     def respond(self, u: Any, state: dict[str, np.ndarray], *, tangent: bool = False) -> Any:
+        """Return the model's response at ``u`` from the committed ``state``.
+
+        Parameters
+        ----------
+        u : (n, dim) array_like
+            Displacement.
+        state : dict of str to ndarray
+            Committed state of the last converged load step (not modified).
+        tangent : bool
+            Also compute the tangent stiffness.
+
+        Returns
+        -------
+        Response
+            Internal force, trial state and (with ``tangent``) the tangent.
+        """
         return self.model.respond(self.points, self.bonds, u, state, tangent=tangent)
 
     # -- matrix-free path (only the plain discretization has it) ----------
     def operator(self) -> spla.LinearOperator:
+        """Return the model's matrix-free stiffness operator.
+
+        Returns
+        -------
+        LinearOperator of shape (n*dim, n*dim)
+            Applies K without assembling it (``model.operator``).
+        """
         return self.model.operator(self.points, self.bonds)
 
     def surrogate_stiffness(self) -> sp.sparray:
+        """Assemble the model's one-hop surrogate of K (the matrix-free preconditioner's).
+
+        Returns
+        -------
+        sparse array of shape (n*dim, n*dim)
+            ``model.surrogate_stiffness``.
+        """
         return self.model.surrogate_stiffness(self.points, self.bonds)
 
     def estimate_nnz_blocks(self) -> int:
+        """Estimate the stored blocks of the assembled K.
+
+        Returns
+        -------
+        int
+            ``dim x dim`` blocks of K (``model.estimate_nnz_blocks``).
+        """
         return int(self.model.estimate_nnz_blocks(self.points, self.bonds))
 
     def with_model(self, model: Any) -> PlainDiscretization:
-        """The same points and bonds under another model (e.g. a preconditioner's)."""
+        """Return the same points and bonds under another model (e.g. a preconditioner's).
+
+        Parameters
+        ----------
+        model : Model
+            The other model.
+
+        Returns
+        -------
+        PlainDiscretization
+        """
         return PlainDiscretization(model, self.points, self.bonds)
 
 
@@ -197,6 +412,10 @@ class ConstrainedSystem:
         Their prescribed values (at load factor 1).
     f_ext : (ndof,) ndarray
         External nodal forces (at load factor 1).
+    problem : StaticProblem or None
+        The problem it was built from.
+    paths : tuple of Dirichlet
+        Conditions whose value is a :class:`~pdlin.TimePath` (re-evaluated per time).
 
     Examples
     --------
@@ -228,22 +447,27 @@ class ConstrainedSystem:
 
     @property
     def model(self) -> Any:
+        """The model (of the discretization: per-point parameters mapped to ghosts)."""
         return self.disc.model
 
     @property
     def dim(self) -> int:
+        """Spatial dimension."""
         return self.cloud.dim
 
     @property
     def n(self) -> int:
+        """Number of solved points."""
         return self.cloud.n
 
     @property
     def ndof(self) -> int:
+        """Number of solved DOFs, ``n * dim``."""
         return self.cloud.n * self.cloud.dim
 
     @property
     def symmetric(self) -> bool:
+        """Whether the model's stiffness is symmetric (CG applies)."""
         return bool(getattr(self.model, "symmetric", True))
 
     @property
@@ -261,23 +485,52 @@ class ConstrainedSystem:
         return hasattr(self.disc, "operator")
 
     def near_null(self) -> np.ndarray:
-        """Rigid-body modes with the prescribed rows zeroed (AMG near-null space)."""
+        """Return the rigid-body modes with the prescribed rows zeroed (AMG near-null space).
+
+        Returns
+        -------
+        (ndof, k) ndarray
+            The ``k`` rigid-body modes of the solved points (3 in 2D, 6 in 3D).
+        """
         B = rigid_body_modes(self.cloud)
         B[self.dofs] = 0.0
         return B
 
     def prescribed(self, factor: float = 1.0) -> np.ndarray:
-        """Full displacement vector ``(ndof,)`` holding ``factor`` x the prescribed values."""
+        """Return the full displacement vector holding ``factor`` x the prescribed values.
+
+        Parameters
+        ----------
+        factor : float
+            Load factor.
+
+        Returns
+        -------
+        (ndof,) ndarray
+            Zero on the free DOFs.
+        """
         u = np.zeros(self.ndof)
         u[self.dofs] = factor * self.values
         return u
 
     def values_at(self, t: float, factor: float) -> np.ndarray:
-        """Prescribed values at time ``t`` of a load path ``(m,)``.
+        """Return the prescribed values at time ``t`` of a load path.
 
         Plain values are scaled by the load ``factor``; :class:`~pdlin.TimePath`
         values (e.g. :meth:`~pdlin.Dirichlet.velocity_gradient`) are evaluated
         at ``t`` instead.
+
+        Parameters
+        ----------
+        t : float
+            Time of the load step.
+        factor : float
+            Load factor of the plain values.
+
+        Returns
+        -------
+        (m,) ndarray
+            Values of :attr:`dofs`.
         """
         vals = factor * self.values
         if self.paths:
@@ -287,24 +540,53 @@ class ConstrainedSystem:
 
     # -- operators ----------------------------------------------------------
     def estimate_nnz_blocks(self) -> int:
+        """Estimate the stored ``dim x dim`` blocks of the assembled stiffness.
+
+        Returns
+        -------
+        int
+            Block count (the memory plan and the operator choice use it).
+        """
         if hasattr(self.disc, "estimate_nnz_blocks"):
             return int(self.disc.estimate_nnz_blocks())
         return int(self.model.estimate_nnz_blocks(self.cloud, self.disc.real_bonds))
 
     def assemble(self) -> sp.sparray:
-        """The (unconstrained) stiffness on the solved DOFs."""
+        """Assemble the (unconstrained) stiffness on the solved DOFs.
+
+        Returns
+        -------
+        sparse array of shape (ndof, ndof)
+            BSR with blocksize dim.
+        """
         return self.disc.stiffness()
 
     def eliminate(
         self, K: sp.sparray, *, inplace: bool = False, factor: float = 1.0
     ) -> tuple[sp.sparray, np.ndarray]:
-        """Eliminated system ``(A, b)`` for the unknown ``x`` with ``x[dofs] = 0``.
+        """Return the eliminated system ``(A, b)`` for the unknown ``x`` with ``x[dofs] = 0``.
 
         ``A`` keeps K's size and block structure (prescribed rows and
         columns become ``s I``); ``b`` holds ``f_ext - K_fc u_c`` on the free
         rows and 0 on the prescribed ones, so the relative residual of a
         solve is that of the free equations.  :meth:`expand` writes the
         prescribed values back.
+
+        Parameters
+        ----------
+        K : sparse array of shape (ndof, ndof)
+            The stiffness (:meth:`assemble`).
+        inplace : bool
+            Overwrite K's data (saves a copy of the largest array).
+        factor : float
+            Load factor of the prescribed values and the external force.
+
+        Returns
+        -------
+        A : sparse array of shape (ndof, ndof)
+            The eliminated matrix.
+        b : (ndof,) ndarray
+            The eliminated right-hand side.
         """
         A, b = eliminate_dirichlet(
             K, factor * self.f_ext, self.dofs, factor * self.values, inplace=inplace
@@ -314,7 +596,18 @@ class ConstrainedSystem:
         return A, b
 
     def eliminate_matrix(self, K: sp.sparray) -> sp.sparray:
-        """``K`` with the prescribed rows and columns replaced by ``s I`` (no load)."""
+        """Replace the prescribed rows and columns of ``K`` by ``s I`` (no load), in place.
+
+        Parameters
+        ----------
+        K : sparse array of shape (ndof, ndof)
+            A matrix on the solved DOFs (a preconditioner's stiffness, a surrogate).
+
+        Returns
+        -------
+        sparse array of shape (ndof, ndof)
+            The eliminated matrix.
+        """
         A, _ = eliminate_dirichlet(
             K, np.zeros(self.ndof), self.dofs, np.zeros(self.dofs.size), inplace=True
         )
@@ -323,11 +616,30 @@ class ConstrainedSystem:
     def matrix_free(
         self, factor: float = 1.0
     ) -> tuple[spla.LinearOperator, np.ndarray, sp.sparray]:
-        """Eliminated matrix-free system and the eliminated surrogate preconditioner matrix.
+        """Return the eliminated matrix-free system and its eliminated surrogate.
 
         Prescribed rows and columns become ``s * I`` in both, with ``s`` the
         mean free diagonal of the surrogate, as in :meth:`eliminate`; ``b``
         is 0 on the prescribed rows.
+
+        Parameters
+        ----------
+        factor : float
+            Load factor of the prescribed values and the external force.
+
+        Returns
+        -------
+        A : LinearOperator of shape (ndof, ndof)
+            The eliminated operator.
+        b : (ndof,) ndarray
+            The eliminated right-hand side.
+        P : sparse array of shape (ndof, ndof)
+            The eliminated one-hop surrogate (to build the preconditioner from).
+
+        Raises
+        ------
+        InputError
+            When the discretization has no matrix-free operator (symmetry planes).
         """
         if not self.matrix_free_capable:
             raise InputError(
@@ -356,7 +668,25 @@ class ConstrainedSystem:
         return A, b, P
 
     def preconditioner_matrix(self, pmodel: Any) -> sp.sparray:
-        """Eliminated assembled stiffness of another model on the same points and bonds."""
+        """Return the eliminated assembled stiffness of another model on the same bonds.
+
+        Parameters
+        ----------
+        pmodel : Model
+            The preconditioner's model.
+
+        Returns
+        -------
+        sparse array of shape (ndof, ndof)
+            Its stiffness with the prescribed rows and columns replaced by ``s I``.
+
+        Raises
+        ------
+        InputTypeError
+            When ``pmodel`` is not a pdlin model.
+        InputError
+            With symmetry planes.
+        """
         if not isinstance(pmodel, Model):
             raise InputTypeError(
                 "preconditioner must be a pdlin model (BondBased, LPS, XOSB, Correspondence), "
@@ -371,7 +701,25 @@ class ConstrainedSystem:
 
     # -- vectors -------------------------------------------------------------
     def expand(self, x: np.ndarray, factor: float = 1.0) -> np.ndarray:
-        """Displacement ``(n, dim)`` from a solution ``x`` of the eliminated system."""
+        """Return the displacement from a solution ``x`` of the eliminated system.
+
+        Parameters
+        ----------
+        x : (ndof,) array_like
+            Solution of the eliminated system.
+        factor : float
+            Load factor of the prescribed values written back.
+
+        Returns
+        -------
+        (n, dim) ndarray
+            ``x`` with the prescribed values on :attr:`dofs`.
+
+        Raises
+        ------
+        InputError
+            When ``x`` does not have ``ndof`` entries.
+        """
         u = np.array(x, dtype=float).reshape(-1)
         if u.shape != (self.ndof,):
             raise InputError(f"x must have {self.ndof} entries, got {u.shape}")
@@ -379,26 +727,76 @@ class ConstrainedSystem:
         return u.reshape(self.n, self.dim)
 
     def initial_state(self) -> dict[str, np.ndarray]:
-        """The model's committed state before the first load step."""
+        """Return the model's committed state before the first load step.
+
+        Returns
+        -------
+        dict of str to ndarray
+            Per-point state arrays (empty for elastic models).
+        """
         return dict(self.disc.initial_state())
 
     def respond(self, u: Any, state: dict[str, np.ndarray], *, tangent: bool = False) -> Any:
-        """The model's ``Response`` at ``u`` (flat or ``(n, dim)``).
+        """Return the model's ``Response`` at ``u`` (flat or ``(n, dim)``).
 
         A pure function of ``(u, state)``: ``state`` is the committed state
         of the last converged load step and is never modified.
+
+        Parameters
+        ----------
+        u : (ndof,) or (n, dim) array_like
+            Displacement.
+        state : dict of str to ndarray
+            Committed state.
+        tangent : bool
+            Also compute the tangent stiffness.
+
+        Returns
+        -------
+        Response
+            Internal force, trial state and (with ``tangent``) the tangent.
         """
         uu = np.asarray(u, dtype=float).reshape(self.n, self.dim)
         return self.disc.respond(uu, state, tangent=tangent)
 
     def internal_force(self, u: Any, *, linear: bool = True) -> np.ndarray:
-        """``f_int(u)`` flat ``(ndof,)``."""
+        """Compute the internal force ``f_int(u)``.
+
+        Parameters
+        ----------
+        u : (ndof,) or (n, dim) array_like
+            Displacement.
+        linear : bool
+            The linearized force, else the model's nonlinear one.
+
+        Returns
+        -------
+        (ndof,) ndarray
+            Flat nodal internal forces.
+        """
         return np.asarray(self.disc.internal_force(u, linear=linear), dtype=float).reshape(-1)
 
     def residual(
         self, u: Any, *, factor: float = 1.0, linear: bool = True, f_int: Any = None
     ) -> np.ndarray:
-        """Out-of-balance force ``f_int(u) + factor f_ext`` on the free DOFs (0 elsewhere)."""
+        """Compute the out-of-balance force ``f_int(u) + factor f_ext`` on the free DOFs.
+
+        Parameters
+        ----------
+        u : (ndof,) or (n, dim) array_like
+            Displacement.
+        factor : float
+            Load factor of the external force.
+        linear : bool
+            The linearized internal force, else the model's nonlinear one.
+        f_int : array_like, optional
+            The internal force at ``u`` when already computed.
+
+        Returns
+        -------
+        (ndof,) ndarray
+            Residual, 0 on the prescribed DOFs.
+        """
         fi = self.internal_force(u, linear=linear) if f_int is None else np.ravel(f_int)
         r = fi + factor * self.f_ext
         r[self.dofs] = 0.0
@@ -413,11 +811,27 @@ class ConstrainedSystem:
         linear: bool = True,
         f_int: Any = None,
     ) -> np.ndarray:
-        """Nodal reactions ``(n, dim)``: ``-(f_int + f_ext)`` on the prescribed DOFs.
+        """Compute the nodal reactions ``-(f_int + f_ext)`` on the prescribed DOFs.
 
-        ``rows`` are K's prescribed rows (``pdlin.operators.bc.matrix_rows``,
-        kept before an in-place elimination), which give ``f_int = -K u``
-        there without a full internal-force pass.
+        Parameters
+        ----------
+        u : (ndof,) or (n, dim) array_like
+            Displacement.
+        factor : float
+            Load factor of the external force.
+        rows : sparse array, optional
+            K's prescribed rows (:meth:`prescribed_rows`, kept before an in-place
+            elimination), which give ``f_int = -K u`` there without a full
+            internal-force pass.
+        linear : bool
+            The linearized internal force, else the model's nonlinear one.
+        f_int : array_like, optional
+            The internal force at ``u`` when already computed.
+
+        Returns
+        -------
+        (n, dim) ndarray
+            Reactions, 0 on the free DOFs.
         """
         flat = np.asarray(u, dtype=float).reshape(-1)
         reac = np.zeros(self.ndof)
@@ -429,7 +843,18 @@ class ConstrainedSystem:
         return reac.reshape(self.n, self.dim)
 
     def prescribed_rows(self, K: sp.sparray) -> sp.csr_array:
-        """K's prescribed rows (for :meth:`reactions`), taken before elimination."""
+        """Return K's prescribed rows (for :meth:`reactions`), taken before elimination.
+
+        Parameters
+        ----------
+        K : sparse array of shape (ndof, ndof)
+            The stiffness.
+
+        Returns
+        -------
+        csr_array of shape (m, ndof)
+            The rows of :attr:`dofs` (:func:`pdlin.constraints.matrix_rows`).
+        """
         return matrix_rows(K, self.dofs)
 
 
@@ -564,7 +989,7 @@ class PointDiscretization:
         return self.points
 
     def _reduction(self) -> SymmetryReduction:
-        """The symmetry reduction without bonds (its conditions and loads need none)."""
+        """Return the symmetry reduction without bonds (its conditions and loads need none)."""
         assert self.mirror is not None
         return SymmetryReduction(self.mirror, cast(Bonds, None), self.model)
 
@@ -695,14 +1120,20 @@ def point_system(problem: StaticProblem) -> ConstrainedSystem:
 
 @dataclass
 class StaticResult:
-    """Solution of a :class:`StaticProblem`.
+    """Solution of a :class:`~pdlin.StaticProblem` (the result of :func:`pdlin.solve`).
 
     Attributes
     ----------
+    problem : StaticProblem
+        The problem solved.
+    bonds : Bonds
+        Its bonds (between real points with symmetry planes).
     u : (n, dim) ndarray
         Displacements.
     converged : bool
+        True (a missed tolerance raises :class:`~pdlin.ConvergenceError` instead).
     n_iter : int
+        Iterations of the linear solver (1 for 'direct').
     residuals : list of float
         Relative residual history of the linear solver.
     relative_residual : float
@@ -711,8 +1142,14 @@ class StaticResult:
         Seconds spent in 'bonds', 'assembly', 'setup', 'solve' and 'total'.
     reactions : (n, dim) ndarray
         Nodal reaction forces (non-zero only on prescribed DOFs).
+    prescribed_dofs : (m,) ndarray of int
+        The prescribed DOFs (Dirichlet conditions and symmetry planes).
     info : dict
         Solver details (name, AMG levels and complexity, fill-in, ...).
+    stiffness : sparse array or None
+        The unconstrained K with ``keep_stiffness=True``.
+    system : ConstrainedSystem or None
+        The constrained system the driver solved (its discretization maps fields back).
     """
 
     problem: StaticProblem
@@ -746,24 +1183,62 @@ class StaticResult:
         return PlainDiscretization(self.problem.model, self.problem.cloud, self.bonds)
 
     def deformation_gradient(self) -> np.ndarray:
-        """Nonlocal deformation gradient per point ``(n, dim, dim)``."""
+        """Compute the nonlocal deformation gradient per point.
+
+        Returns
+        -------
+        (n, dim, dim) ndarray
+            ``F`` at each point (with ghost bonds on a symmetry plane's side).
+        """
         return np.asarray(self._disc.deformation_gradient(self.u))
 
     def strain(self) -> np.ndarray:
-        """Small strain per point ``(n, dim, dim)``."""
+        """Compute the small strain per point.
+
+        Returns
+        -------
+        (n, dim, dim) ndarray
+            The symmetric part of ``F - I``.
+        """
         return small_strain(self.deformation_gradient())
 
     def stress(self) -> np.ndarray:
-        """Model stress per point ``(n, dim, dim)`` (virial for bond-based models)."""
+        """Compute the model's stress per point.
+
+        Returns
+        -------
+        (n, dim, dim) ndarray
+            Stress (virial for bond-based models).
+        """
         return np.asarray(self._disc.stress(self.u))
 
     def reaction(self, where: Any) -> np.ndarray:
-        """Total reaction force on a point set ``(dim,)``."""
+        """Sum the reaction forces over a point set.
+
+        Parameters
+        ----------
+        where : str or index array or mask
+            Point set name (e.g. ``'x-'``), indices or a boolean mask.
+
+        Returns
+        -------
+        (dim,) ndarray
+            Total reaction force on those points.
+        """
         idx = self.problem.cloud.select(where)
         return self.reactions[idx].sum(axis=0)
 
     def fields(self) -> dict[str, np.ndarray]:
-        """All point fields as numpy arrays (for output)."""
+        """Collect all point fields as numpy arrays (for output).
+
+        Returns
+        -------
+        dict of str to ndarray
+            ``displacement``, ``reaction``, ``family_size``, ``volume``, ``material``,
+            ``deformation_gradient`` and ``strain`` (flattened ``dim*dim``; omitted with a
+            logged warning when the shape tensor is singular) and ``stress`` when the model
+            defines one; one row per point.
+        """
         out: dict[str, np.ndarray] = {
             "displacement": self.u,
             "reaction": self.reactions,
@@ -819,11 +1294,17 @@ class StaticResult:
         return compact_repr("StaticResult", items)
 
     def _repr_html_(self) -> str:
-        """The summary as an HTML table (Jupyter)."""
+        """Render the summary as an HTML table (Jupyter)."""
         return html_table("StaticResult", self._table())
 
     def summary(self) -> dict[str, Any]:
-        """Short plain-data summary (used by the CLI)."""
+        """Summarize the run as plain data (used by the CLI).
+
+        Returns
+        -------
+        dict
+            Sizes, solver, iterations, residual, ``max_abs_u`` per component and timings.
+        """
         u = self.u
         return {
             "points": int(u.shape[0]),

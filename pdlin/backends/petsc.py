@@ -114,7 +114,12 @@ def _check_rank_memory(problem: Any, solver: str, size: int, say: Callable[[str]
 
 
 def petsc_available() -> bool:
-    """Whether petsc4py imports (PETSc installed).
+    """Tell whether petsc4py imports (PETSc installed).
+
+    Returns
+    -------
+    bool
+        True when ``backend='petsc'`` can run.
 
     Examples
     --------
@@ -130,7 +135,15 @@ def petsc_available() -> bool:
 
 
 def comm_rank_size() -> tuple[int, int]:
-    """``(rank, size)`` of PETSc's ``COMM_WORLD`` (``(0, 1)`` without petsc4py)."""
+    """Return ``(rank, size)`` of PETSc's ``COMM_WORLD``.
+
+    Returns
+    -------
+    rank : int
+        This process's rank (0 without petsc4py).
+    size : int
+        Number of ranks (1 without petsc4py).
+    """
     if not petsc_available():
         return 0, 1
     PETSc = _petsc()
@@ -390,7 +403,7 @@ def _check_isolated(
 
 
 def _owned_block_rows(K: Any, index: np.ndarray, m: int, cloud: PointCloud) -> sp.bsr_array:
-    """The first ``m`` block rows of a local-cloud K, columns in the cloud's numbering."""
+    """Keep the first ``m`` block rows of a local-cloud K, columns in the cloud's numbering."""
     d = cloud.dim
     K = (
         K
@@ -408,7 +421,7 @@ def _owned_block_rows(K: Any, index: np.ndarray, m: int, cloud: PointCloud) -> s
 
 @dataclasses.dataclass
 class _LocalPart:
-    """This rank's owned rows and what its point fields are computed on.
+    """Owned rows of this rank and what its point fields are computed on.
 
     The fields are evaluated on ``field_cloud`` / ``field_bonds`` with the displacement
     ``expand(u[index])`` (the local cloud itself, or its mirrored cloud with symmetry
@@ -578,18 +591,49 @@ class PetscStaticResult(StaticResult):
     point_fields: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
 
     def deformation_gradient(self) -> np.ndarray:
+        """Return the gathered nonlocal deformation gradient.
+
+        Returns
+        -------
+        (n, dim, dim) ndarray
+            ``F`` per point.
+
+        Raises
+        ------
+        InputError
+            When a rank could not compute it (singular shape tensor).
+        """
         if "deformation_gradient" not in self.point_fields:
             raise InputError("the deformation gradient was not computed (singular shape tensor)")
         d = self.u.shape[1]
         return self.point_fields["deformation_gradient"].reshape(-1, d, d)
 
     def stress(self) -> np.ndarray:
+        """Return the gathered model stress.
+
+        Returns
+        -------
+        (n, dim, dim) ndarray
+            Stress per point.
+
+        Raises
+        ------
+        InputError
+            When the model gave no stress.
+        """
         if "stress" not in self.point_fields:
             raise InputError(f"model {type(self.problem.model).__name__} gave no stress")
         d = self.u.shape[1]
         return self.point_fields["stress"].reshape(-1, d, d)
 
     def fields(self) -> dict[str, np.ndarray]:
+        """Collect the gathered point fields (as :meth:`pdlin.StaticResult.fields`).
+
+        Returns
+        -------
+        dict of str to ndarray
+            One row per point.
+        """
         out: dict[str, np.ndarray] = {
             "displacement": self.u,
             "reaction": self.reactions,
@@ -606,6 +650,13 @@ class PetscStaticResult(StaticResult):
         return out
 
     def summary(self) -> dict[str, Any]:
+        """Summarize the run as plain data, with the global bond count and the ranks.
+
+        Returns
+        -------
+        dict
+            :meth:`pdlin.StaticResult.summary` plus ``ranks``.
+        """
         s = super().summary()
         s["bonds"] = int(self.info.get("n_bonds", s["bonds"]))
         s["ranks"] = int(self.info.get("ranks", 1))
@@ -878,7 +929,7 @@ def _check_arguments(
 
 @dataclasses.dataclass
 class _Eliminated:
-    """This rank's eliminated block rows (new column numbering not yet applied)."""
+    """Eliminated block rows of this rank (new column numbering not yet applied)."""
 
     data: np.ndarray  # (nnzb, d, d) eliminated blocks
     cols: np.ndarray  # (nnzb,) block columns, the cloud's numbering
@@ -938,7 +989,7 @@ def _petsc_matrix(
     layout: _Layout,
     mat_type: str,
 ) -> Any:
-    """The distributed matrix: owned block rows in the new numbering, one CSR call."""
+    """Create the distributed matrix: owned block rows in the new numbering, one CSR call."""
     m = layout.hi - layout.lo
     d = data.shape[1]
     N = layout.perm.size * d
@@ -1123,7 +1174,22 @@ def _ksp_setup(
 
 
 def gather_counts(PETSc: Any, value: int, size: int) -> list[int]:
-    """One integer per rank, gathered to every rank."""
+    """Gather one integer per rank to every rank (collective).
+
+    Parameters
+    ----------
+    PETSc : module
+        ``petsc4py.PETSc``.
+    value : int
+        This rank's integer.
+    size : int
+        Number of ranks.
+
+    Returns
+    -------
+    list of int
+        The ``size`` integers in rank order.
+    """
     v = PETSc.Vec().createMPI((1, size), comm=PETSc.COMM_WORLD)
     v.setArray(np.array([float(value)]))
     sc, full = PETSc.Scatter.toAll(v)

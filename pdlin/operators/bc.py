@@ -40,7 +40,7 @@ _MOVED = (
 
 
 def __getattr__(name: str) -> Any:
-    """Deprecated access to the functions moved to :mod:`pdlin.constraints`."""
+    """Return a function moved to :mod:`pdlin.constraints` (deprecated access, warns)."""
     if name in _MOVED:
         warnings.warn(
             f"pdlin.operators.bc.{name} moved to pdlin.constraints.{name}; the old path "
@@ -59,7 +59,24 @@ _AX = {"x": 0, "y": 1, "z": 2}
 
 
 def parse_components(components: Any, dim: int) -> np.ndarray:
-    """Components as indices: None (all), 'x', 'xz', 0, [0, 2].
+    """Convert a components spec to axis indices: None (all), 'x', 'xz', 0, [0, 2].
+
+    Parameters
+    ----------
+    components : None, str, int or sequence of int
+        None for all axes, letters from 'xyz' or axis indices.
+    dim : int
+        Spatial dimension.
+
+    Returns
+    -------
+    (k,) ndarray of int
+        Distinct axes in ``[0, dim)``, in the given order.
+
+    Raises
+    ------
+    InputError
+        For letters outside 'xyz', repeated axes or axes ``>= dim``.
 
     Examples
     --------
@@ -169,6 +186,7 @@ class Dirichlet:
     components: Any = None
 
     def __post_init__(self) -> None:
+        """Check the point selection, the value and the components eagerly."""
         _check_where(self.where, "where")
         _check_value(self.value, "value")
         if self.components is not None:
@@ -184,7 +202,31 @@ class Dirichlet:
         center: Any = None,
         components: Any = None,
     ) -> Dirichlet:
-        """Affine field ``u = (F - I)(X - center) + translation``."""
+        """Prescribe the affine field ``u = (F - I)(X - center) + translation``.
+
+        Parameters
+        ----------
+        where : str or index array or mask
+            Point set name (e.g. ``'x-'``) or indices.
+        F : (dim, dim) array_like
+            Deformation gradient.
+        translation : (dim,) array_like, optional
+            Rigid translation (default 0).
+        center : (dim,) array_like, optional
+            Fixed point of ``F`` (default the origin).
+        components : str or sequence of int, optional
+            Constrained components (default all).
+
+        Returns
+        -------
+        Dirichlet
+            With a callable value evaluated on the selected points.
+
+        Raises
+        ------
+        ShapeError
+            When ``F`` is not square or ``center`` / ``translation`` do not match it.
+        """
         Fm = as_float_array(F, "F", ndim=2)
         if Fm.shape[0] != Fm.shape[1]:
             raise ShapeError(f"F must be square (dim, dim), got {Fm.shape}")
@@ -211,12 +253,36 @@ class Dirichlet:
         center: Any = None,
         components: Any = None,
     ) -> Dirichlet:
-        """Affine path ``u(X, t) = (exp(L t) - I)(X - center)`` of a constant velocity gradient.
+        """Prescribe the path ``u(X, t) = (exp(L t) - I)(X - center)`` of a velocity gradient.
 
-        The homogeneous deformation ``F(t) = exp(L t)`` (``Ḟ F⁻¹ = L``) of
-        spec 001 §4.2, e.g. pure shear ``L = η [[0, 1], [1, 0]]`` with
-        ``center`` at the domain corner.  Evaluated at each load step's time
-        by :func:`pdlin.solve_nonlinear` (at ``t = 1`` by :func:`pdlin.solve`).
+        The homogeneous deformation ``F(t) = exp(L t)`` (``Ḟ F⁻¹ = L``) of the boundary
+        condition of Luo, Ramazani & Sundararaghavan (2017), Sect. 4 (their Eq. 25 gives
+        pure shear ``L = η [[0, 1], [1, 0]]`` and compression ``L = η [[1, 0], [0, -1]]``);
+        with ``center`` at the domain corner (pdlin's choice of origin: another one adds
+        a rigid translation).  Evaluated at each load step's time by
+        :func:`pdlin.solve_nonlinear` (at ``t = 1`` by :func:`pdlin.solve`).
+
+        Parameters
+        ----------
+        where : str or index array or mask
+            Point set name (e.g. ``'x-'``) or indices.
+        L : (dim, dim) array_like
+            Constant velocity gradient.
+        center : (dim,) array_like, optional
+            Fixed point of the motion (default the origin).
+        components : str or sequence of int, optional
+            Constrained components (default all).
+
+        Returns
+        -------
+        Dirichlet
+            With a :class:`TimePath` value (its ``L`` and ``center`` set for the drivers'
+            affine predictor).
+
+        Raises
+        ------
+        ShapeError
+            When ``L`` is not square or ``center`` does not match it.
 
         Examples
         --------
@@ -252,25 +318,45 @@ class BodyForce:
 
     The nodal load is ``b(x_i) * V_i`` (times the thickness in 2D / the
     cross-section in 1D).
+
+    Parameters
+    ----------
+    where : str or index array or mask or None
+        Point set name (e.g. ``'x-'``), indices, a mask, or None for all points.
+    density : float, array_like or callable
+        Force per unit volume: a scalar, ``(dim,)``, ``(m, dim)``, or a callable of the
+        ``(m, dim)`` reference points returning one of these.
     """
 
     where: Any
     density: Any
 
     def __post_init__(self) -> None:
+        """Check the point selection and the density eagerly."""
         _check_where(self.where, "where")
         _check_value(self.density, "density")
 
 
 @dataclass(frozen=True)
 class TotalForce:
-    """A total force spread over a point set in proportion to point volume."""
+    """A total force spread over a point set in proportion to point volume.
+
+    Parameters
+    ----------
+    where : str or index array or mask or None
+        Point set name (e.g. ``'x+'``), indices, a mask, or None for all points.
+    force : (dim,) array_like
+        The total force.
+    weights : (m,) array_like, optional
+        Non-negative shares of the selected points (default their volumes).
+    """
 
     where: Any
     force: Any
     weights: Any = field(default=None)
 
     def __post_init__(self) -> None:
+        """Check the point selection, the force and the weights eagerly."""
         _check_where(self.where, "where")
         _check_value(self.force, "force")
         if self.weights is not None:

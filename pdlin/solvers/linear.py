@@ -272,11 +272,23 @@ class AMGHierarchy:
             self._AP = L0.A @ L0.P
 
     def operator_complexity(self) -> float:
-        """Total nonzeros of all levels over those of the finest."""
+        """Compute the operator complexity of the hierarchy.
+
+        Returns
+        -------
+        float
+            Total nonzeros of all levels over those of the finest.
+        """
         return float(self.ml.operator_complexity())
 
     def grid_complexity(self) -> float:
-        """Total unknowns of all levels over those of the finest."""
+        """Compute the grid complexity of the hierarchy.
+
+        Returns
+        -------
+        float
+            Total unknowns of all levels over those of the finest.
+        """
         return float(self.ml.grid_complexity())
 
     def _cycle(self, k: int, b: np.ndarray) -> np.ndarray:
@@ -304,17 +316,39 @@ class AMGHierarchy:
         return x
 
     def apply(self, b: np.ndarray) -> np.ndarray:
-        """One cycle from a zero initial guess: an approximation of ``A⁻¹ b``."""
+        """Apply one cycle from a zero initial guess: an approximation of ``A⁻¹ b``.
+
+        Parameters
+        ----------
+        b : (n,) array_like
+            Right-hand side.
+
+        Returns
+        -------
+        (n,) ndarray
+            The cycle's approximation of ``A⁻¹ b``.
+        """
         return self._cycle(0, np.asarray(b, dtype=float).ravel())
 
     def apply_with_product(self, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """One cycle ``z ≈ A⁻¹ b`` together with ``A z``.
+        """Apply one cycle ``z ≈ A⁻¹ b`` and return ``A z`` with it.
 
         A Krylov method needs ``A z`` anyway; the cycle already forms
         ``A x`` after pre-smoothing and can update it through the coarse
         correction with the stored ``A P``, so ``A z`` costs one mat-vec
-        (of the post-smoothing correction) instead of two.  Returns the
-        same ``z`` as :meth:`apply` (up to rounding).
+        (of the post-smoothing correction) instead of two.
+
+        Parameters
+        ----------
+        b : (n,) array_like
+            Right-hand side.
+
+        Returns
+        -------
+        z : (n,) ndarray
+            The same ``z`` as :meth:`apply` (up to rounding).
+        Az : (n,) ndarray
+            ``A z``.
 
         Examples
         --------
@@ -348,7 +382,13 @@ class AMGHierarchy:
         return x, q
 
     def aspreconditioner(self) -> spla.LinearOperator:
-        """The cycle as a :class:`scipy.sparse.linalg.LinearOperator`."""
+        """Wrap the cycle as a :class:`scipy.sparse.linalg.LinearOperator`.
+
+        Returns
+        -------
+        LinearOperator of shape (n, n)
+            Applies :meth:`apply`.
+        """
         n = self.levels[0].A.shape[0]
         return spla.LinearOperator((n, n), matvec=self.apply, dtype=float)
 
@@ -609,7 +649,7 @@ def check_force_balance(
 
 
 def _check(A: Any, x: np.ndarray, b: np.ndarray, rtol: float, name: str, extra: str = "") -> float:
-    """True relative residual ``||b - A x|| / ||b||`` (inf when it cannot be computed)."""
+    """Compute the true relative residual ``||b - A x|| / ||b||`` (inf when it cannot be)."""
     nb = safe_norm(b)
     if not np.all(np.isfinite(x)):
         raise ConvergenceError(f"{name}: solution holds NaN or inf{extra}")
@@ -759,7 +799,7 @@ def _solve_scaled(
     condition: bool | str = "auto",
     progress: Callable[[str], None] | None = None,
 ) -> LinearSolveInfo:
-    """The body of :func:`solve_linear` for a right-hand side of unit magnitude."""
+    """Solve for a right-hand side of unit magnitude (the body of :func:`solve_linear`)."""
     n = A.shape[0]
     if maxiter is None:
         maxiter = max(200, min(n, 5000))
