@@ -16,6 +16,16 @@ The pieces:
 * :class:`ConstrainedSystem` -- a discretization plus Dirichlet conditions
   and loads: Dirichlet elimination that keeps the BSR block structure,
   matrix-free systems, residuals of the free equations, reactions.
+* :func:`constrained_system` = :func:`discretize` then :func:`constrain`;
+  :func:`point_system` builds the same prescribed DOFs, values and loads on a
+  :class:`PointDiscretization` (no bonds) for drivers that assemble their own
+  rows (the PETSc backend).
+* :class:`StaticResult` -- a solution of the system, with its fields.
+
+Layers: the problem's data (:mod:`pdlin.problem`) and the functions of the
+system (:mod:`pdlin.constraints`) below, the drivers (:func:`pdlin.solve` in
+:mod:`pdlin.static`, :func:`pdlin.solve_nonlinear`,
+:mod:`pdlin.backends.petsc`) on top.
 """
 
 from __future__ import annotations

@@ -6,17 +6,21 @@
 1. partitions the points (recursive coordinate bisection, :func:`rcb_partition`;
    the same on every rank, no communication) and owns one contiguous range of
    them in the new numbering;
-2. grows its owned points by ``model.coupling_range`` horizons (a KD-tree over
-   the coordinates: the point cloud itself is O(n) on every rank) and finds
-   the bonds of that *local cloud* only;
-3. assembles the model's stiffness on the local cloud with the model's own
-   routine and keeps the block rows of its owned points (their families and
-   their neighbours' families are complete there, so those rows equal the rows
-   of the global K);
-4. eliminates the Dirichlet DOFs on its rows exactly as
-   :meth:`pdlin.system.ConstrainedSystem.eliminate` does (prescribed rows and
-   columns become ``s I`` with ``s`` the mean free diagonal of the global K, the
-   load ``b = f - K_fc u_c``), and hands its rows to PETSc in one CSR call
+2. takes the prescribed DOFs, values and load vector of the constrained system
+   (:func:`pdlin.system.point_system`: the functions of :mod:`pdlin.constraints`
+   on the same points as the scipy path, without a global bond search);
+3. grows its owned points by ``model.coupling_range`` horizons (a KD-tree over
+   the coordinates: the point cloud itself is O(n) on every rank), finds the
+   bonds of that *local cloud* only and assembles the model's stiffness there
+   with the model's own routine, keeping the block rows of its owned points
+   (their families and their neighbours' families are complete there, so those
+   rows equal the rows of the global K); with symmetry planes the local cloud is
+   mirrored and the rows are those of the reduced ``K_sym``
+   (:func:`local_rows_mirrored`);
+4. eliminates the prescribed DOFs from its own rows by the rule of
+   :func:`pdlin.constraints.eliminate_dirichlet` (prescribed rows and columns
+   become ``s I`` with ``s`` the mean free diagonal of the global K, the load
+   ``b = f - K_fc u_c``), and hands its rows to PETSc in one CSR call
    (``MatMPIAIJSetPreallocationCSR`` / ``MatMPIBAIJSetPreallocationCSR``);
 5. solves with KSP (CG + GAMG with the rigid-body near-null space, GMRES for
    nonsymmetric models, or LU through MUMPS) and checks the true residual.
@@ -66,6 +70,7 @@ __all__ = [
     "solve_petsc",
     "rcb_partition",
     "local_rows",
+    "local_rows_mirrored",
     "petsc_available",
     "comm_rank_size",
     "PARTITIONS",
@@ -744,9 +749,9 @@ def solve_petsc(
     Parameters
     ----------
     problem : StaticProblem
-        Without symmetry planes; on several ranks with ``horizon`` /
-        ``bond_options`` (no precomputed bonds) and point-independent model
-        parameters.
+        A linear problem, with or without symmetry planes; on several ranks with
+        ``horizon`` / ``bond_options`` (no precomputed bonds) and point-independent
+        model parameters.
     solver : str
         pdlin's names: 'auto' (CG + GAMG, GMRES + GAMG for nonsymmetric
         models), 'amg-cg', 'amg-gmres', 'cg', 'jacobi-cg', 'gmres',
@@ -779,7 +784,10 @@ def solve_petsc(
     ImportError
         When petsc4py is not installed.
     InputError
-        For unsupported options (symmetry planes, ...).
+        For invalid arguments, a nonlinear model, ``mat_type='baij'`` with GAMG, or
+        precomputed bonds / per-point model parameters on several ranks.
+    FloatingBodyError
+        When the conditions leave a rigid motion free.
     ConvergenceError
         When KSP diverges or the true residual misses ``10 rtol`` (1e-8 for 'direct').
     """
