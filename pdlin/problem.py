@@ -21,7 +21,6 @@ from typing import Any
 
 import numpy as np
 
-from . import resources
 from ._repr import Raw as _Raw
 from ._repr import compact_repr
 from ._validation import as_float_array
@@ -369,7 +368,10 @@ def memory_hints(plan: RunEstimate) -> list[str]:
         One hint per alternative, for the message of
         :class:`~pdlin.errors.InsufficientMemoryError`.
     """
-    avail = max(resources.available_memory().bytes, 1)  # patchable in tests
+    # looked up at call time: tests replace pdlin.resources.available_memory
+    from .resources import available_memory
+
+    avail = max(available_memory().bytes, 1)
     need = max(plan.need, 1)
     hints: list[str] = []
     hist = plan.history_bytes
