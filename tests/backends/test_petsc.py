@@ -292,3 +292,24 @@ def test_symmetry_planes_two_ranks_match_scipy(tmp_path):
             assert r0["n_bonds"] == ref.bonds.n_bonds
             assert np.isclose(r0["max_abs_reaction"], np.abs(ref.reactions).max(), rtol=1e-7,
                               atol=1e-30)  # fmt: skip
+
+
+@pytest.mark.parametrize("name", list(cases.SYMMETRY_CASES) + ["lps-2d"])
+def test_point_system_matches_the_constrained_system(name):
+    """PETSc's bond-free system has the scipy system's prescribed DOFs, values and loads."""
+    from pdlin.system import constrained_system, point_system
+
+    prob = cases.symmetry_problem(name) if name in cases.SYMMETRY_CASES else cases.problem(name)
+    full, pts = constrained_system(prob), point_system(prob)
+    assert np.array_equal(pts.dofs, full.dofs) and np.array_equal(pts.values, full.values)
+    assert np.array_equal(pts.f_ext, full.f_ext) and np.array_equal(pts.free, full.free)
+
+
+def test_point_system_names_the_motions_the_planes_leave():
+    prob = cases.symmetry_problem("sym-lps-3d")  # planes y and z: the x translation is free
+    free = pdlin.StaticProblem(prob.model, prob.cloud, bond_options=prob.bond_options,
+                               symmetry=prob.symmetry, loads=prob.loads)  # fmt: skip
+    from pdlin.system import point_system
+
+    with pytest.raises(pdlin.FloatingBodyError, match="translation x"):
+        point_system(free)
