@@ -49,7 +49,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _context import header  # noqa: E402
 
 import pdlin  # noqa: E402
-from pdlin.operators.bc import eliminate_dirichlet, resolve_dirichlet  # noqa: E402
+from pdlin.constraints import eliminate_dirichlet, resolve_dirichlet  # noqa: E402
 from pdlin.solvers.linear import amg_hierarchy  # noqa: E402
 
 

@@ -49,8 +49,8 @@ from typing import Any
 import numpy as np
 
 import pdlin
+from pdlin.constraints import resolve_dirichlet
 from pdlin.models.correspondence import CONTROLS
-from pdlin.operators.bc import resolve_dirichlet
 from pdlin.verification.fem import solve_q4
 
 # --- 1D graded bar: Luo & Sundararaghavan (2018), Sec. 5.1 ---------------------------------

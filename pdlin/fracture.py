@@ -28,7 +28,9 @@ from ._validation import integer
 from .errors import InputError, InputTypeError, SlowRunWarning
 from .geometry.bonds import Bonds
 from .models.damage import bond_stretch, break_bonds, damage_index, isolated_points
-from .problem import StaticProblem, StaticResult, solve
+from .problem import StaticProblem
+from .static import solve
+from .system import StaticResult
 
 __all__ = ["DamageResult", "solve_damage"]
 

@@ -20,8 +20,9 @@ from typing import Any
 import numpy as np
 
 from ._validation import as_float_array
+from .constraints import load_vector, resolve_dirichlet
 from .errors import InputError, ShapeError
-from .operators.bc import BodyForce, Dirichlet, load_vector, resolve_dirichlet
+from .operators.bc import BodyForce, Dirichlet
 from .problem import StaticProblem
 
 __all__ = ["SubregionProblem", "subregion", "problem_horizon"]
@@ -274,7 +275,7 @@ def subregion(
 
 
 def _driver_arrays(driver: Any) -> tuple[np.ndarray, np.ndarray]:
-    from .problem import StaticResult
+    from .system import StaticResult
 
     if isinstance(driver, StaticResult):
         return np.asarray(driver.problem.cloud.points), np.asarray(driver.u, dtype=float)

@@ -34,6 +34,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .._validation import as_float_array
+from ..constraints import check_constraints, load_vector
 from ..errors import (
     FloatingBodyError,
     InputError,
@@ -46,7 +47,7 @@ from ..fields import deformation_gradient
 from ..geometry.bonds import Bonds, _MirroredCracks, find_bonds, resolve_horizon
 from ..geometry.cloud import PointCloud
 from .assembly import assemble_stiffness
-from .bc import BodyForce, Dirichlet, TotalForce, check_constraints, load_vector
+from .bc import BodyForce, Dirichlet, TotalForce
 from .rigid import rigid_body_modes, rigid_mode_names
 
 __all__ = [

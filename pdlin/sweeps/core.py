@@ -29,7 +29,8 @@ import numpy as np
 
 from ..errors import InputError, InputTypeError
 from ..io.output import write_error
-from ..problem import StaticProblem, solve
+from ..problem import StaticProblem
+from ..static import solve
 
 __all__ = [
     "TradeoffCase",

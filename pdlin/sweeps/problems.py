@@ -702,8 +702,8 @@ def square_hole_plate(
     >>> case.problem.cloud.n, case.reference.shape
     (117, (117, 2))
     """
+    from ..constraints import resolve_dirichlet
     from ..models.correspondence import Correspondence
-    from ..operators.bc import resolve_dirichlet
     from ..verification.fem import solve_q4
 
     base, _, control = str(model).partition(":")

@@ -215,7 +215,7 @@ def _solve_prescribed(
     u[fixed] = vals
     if solver == "amg":
         import pdlin
-        from pdlin.operators.bc import eliminate_dirichlet
+        from pdlin.constraints import eliminate_dirichlet
         from pdlin.solvers import solve_linear
 
         a, b = eliminate_dirichlet(k.tobsr(blocksize=(dim, dim)), f.copy(), fixed, vals)
@@ -634,7 +634,7 @@ def grid_fe_reference(problem: Any, *, solver: str = "auto") -> np.ndarray:
     >>> bool(np.allclose(u[:, 1], -0.25 * 0.01 * y, atol=1e-14))   # uniaxial stress, exact
     True
     """
-    from ..operators.bc import load_vector, resolve_dirichlet
+    from ..constraints import load_vector, resolve_dirichlet
 
     cloud = problem.cloud
     d = cloud.dim

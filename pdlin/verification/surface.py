@@ -18,7 +18,8 @@ import numpy as np
 from ..geometry.cloud import grid
 from ..models.base import Model
 from ..operators.bc import Dirichlet, TotalForce
-from ..problem import StaticProblem, solve
+from ..problem import StaticProblem
+from ..static import solve
 
 __all__ = ["tension_bar_error", "plate_tension_errors", "shear_block_error"]
 
