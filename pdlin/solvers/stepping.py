@@ -27,8 +27,9 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
+from ..constraints import eliminate_dirichlet
 from ..errors import ConvergenceError, InputError, TrialStateWarning
-from ..operators.bc import TimePath, eliminate_dirichlet
+from ..operators.bc import TimePath
 from ..system import ConstrainedSystem
 from .adr import adr_density, adr_step
 from .checkpoint import (
