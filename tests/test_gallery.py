@@ -1,9 +1,9 @@
 """The built-in scene gallery: every scene runs and its [[check]] references pass.
 
-Each gallery scene declares what it verifies in ``[[check]]`` tables (closed forms, FE
-references, the full model of a symmetry-reduced one, spec tables); ``pdlin run`` prints
-one PASS/FAIL line per check.  These tests run every scene through the CLI, require every
-check to pass, and perturb the physics (or the reference) to show that the checks fail.
+Each gallery scene declares what it verifies in ``[[check]]`` tables (closed forms, FE references,
+the full model of a symmetry-reduced one, reference tables); ``pdlin run`` prints one PASS/FAIL line
+per check.  These tests run every scene through the CLI, require every check to pass, and perturb
+the physics (or the reference) to show that the checks fail.
 """
 
 from __future__ import annotations

@@ -33,7 +33,8 @@ def random_rotation(seed: int) -> np.ndarray:
 
 
 def bond_tensor(xi: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Spec Eq. 29 (ω = ΔV = 1): C_ijkl = ½ Σ c ξiξjξkξl/|ξ|³ — Cauchy by construction."""
+    """Prakash, anisotropic micromoduli, Eq. 29 (ω = ΔV = 1): C_ijkl = ½ Σ c ξiξjξkξl/|ξ|³ — Cauchy
+    by construction."""
     r = np.linalg.norm(xi, axis=1)
     return 0.5 * np.einsum("n,ni,nj,nk,nl->ijkl", c / r**3, xi, xi, xi, xi)
 

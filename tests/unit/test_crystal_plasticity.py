@@ -109,7 +109,7 @@ def test_hcp_families_geometry():
 
 
 def _t8_path(mat, rng, n=64, steps=15):
-    """Yield ``(state_n, F, state_new)`` along the random-increment paths of spec T8.
+    """Yield ``(state_n, F, state_new)`` along the random-increment paths of check T8.
 
     Increments of 0.002 for the planar material (D = 2000 MPa); the 3D defaults are
     30-85x stiffer and the Eq. 31 vs Fᵉ consistency gap grows as C Δγ², so their
@@ -150,8 +150,8 @@ def test_t8_return_mapping_invariants(slip, rng):
         n_pruned += int(new["pruned"].sum())
         n_react += int(new["reactivated"].sum())
         assert not np.any(new["unsettled"])
-        # spec T8: active |abs(τ) − s| ≤ 2e-3 s; inactive abs(τ) ≤ s (1 + 1e-3), every
-        # system of every lattice (re-activation passes, active_set="reactivate")
+        # check T8: active |abs(τ) − s| ≤ 2e-3 s; inactive abs(τ) ≤ s (1 + 1e-3), every system of
+        # every lattice (re-activation passes, active_set="reactivate")
         assert np.all(np.abs(tau - s)[act] <= 2e-3 * s[act])
         assert np.all(tau[~act] <= s[~act] * (1 + 1e-3) + 1e-12 * s_scale)
         detFp_n = np.linalg.det(state["Fp"])
@@ -472,7 +472,7 @@ def test_rotated_crystal_frame_convention():
 
 
 def test_svk_energy_gradient(rng):
-    # spec T4 ingredient: P = ∂Ψ/∂F (central FD), and the analytic tangent = FD of P
+    # T4 ingredient: P = ∂Ψ/∂F (central FD), and the analytic tangent = FD of P
     C = pdlin.constitutive.isotropic(E=1000.0, nu=0.3)
     svk = SaintVenantKirchhoff(C)
     F = np.eye(3) + 0.05 * rng.normal(size=(5, 3, 3))

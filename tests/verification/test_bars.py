@@ -76,8 +76,9 @@ def test_bar_3d_shadow_layer_uniaxial_exact_interior():
     strain = res.strain()[real]
     np.testing.assert_allclose(strain[:, 0, 0], eps, rtol=1e-8)
     np.testing.assert_allclose(strain[:, 1, 1], -nu * eps, rtol=1e-8)
-    # virial stress = C_i : eps with the point's discrete effective tensor (seed 004 Eq. 29),
-    # which differs from the continuum C by the lattice quadrature (0.4 % at 3.015 h)
+    # virial stress = C_i : eps with the point's discrete effective tensor (Prakash, anisotropic
+    # micromoduli, Eq. 29), which differs from the continuum C by the lattice quadrature (0.4 % at
+    # 3.015 h)
     C = pdlin.BondBased(E=E).effective_tensor(cloud, res.bonds)[real]
     expected = np.einsum("nijkl,kl->nij", C, F - np.eye(3))
     stress = res.stress()[real]
