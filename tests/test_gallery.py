@@ -496,8 +496,7 @@ def test_plate_with_hole_ogrid_reproduces_the_xosb_example():
     # ring max |u - u_FE| / range_ring(u_FE), (u_x, u_y): examples/plate_with_hole_xosb.py
     # --coarse (4 x 24 x 45) prints XOSB 1.02 % / 3.31 %, OSBPD 2.44 % / 9.59 % (paper
     # linearization); reference values (Liu, Chen & Skelton, XOSB, Sec. 5.1 setup) at 7,680
-    # particles:
-    # 0.95 / 2.2 and 1.4 / 14.5
+    # particles: 0.95 / 2.2 and 1.4 / 14.5
     for model, expected in (("xosb", (0.0102, 0.0331)), ("lps", (0.0244, 0.0959))):
         case = plate_with_hole_ogrid(model, linearization="paper")
         u = pdlin.solve(case.problem, **case.solve_kwargs).u

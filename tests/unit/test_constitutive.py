@@ -1,6 +1,6 @@
 """Unit tests of pdlin.constitutive: elasticity tensors (Prakash, anisotropic micromoduli: Eq. 29,
 Eq. 49, Appendix A and the materials of Sec. 4.1; docs/theory/conventions.md#voigt-notation and
-#frobenius-norm-of-a-stiffness-tensor; the 2D forms are pdlin's extension)."""
+conventions.md#frobenius-norm-of-a-stiffness-tensor; the 2D forms are pdlin's extension)."""
 
 from __future__ import annotations
 

@@ -490,7 +490,7 @@ def test_example_plate_with_hole_runs(capsys: pytest.CaptureFixture) -> None:
     # u_x = u0 = 5e-4 m is prescribed on the right edge layer (the maximum)
     np.testing.assert_allclose(summary["max_abs_u"][0], 5e-4, rtol=1e-12)
     b0, b90 = summary["hole_beta_0"], summary["hole_beta_90"]
-    # pdlin's Q4 reference (conventions.md#plate-with-a-hole): u_x = 3.9e-4 (beta 0) > 2.5e-4 (beta
+    # Q4 FE reference (conventions.md#plate-with-a-hole): u_x = 3.9e-4 (beta 0) > 2.5e-4 (beta
     # 90) > 0, u_y(90) < 0
     assert 0 < b90["u_x"] < b0["u_x"] < 5e-4
     assert b90["u_y"] < 0

@@ -18,11 +18,9 @@ from pdlin.errors import InputError, InputTypeError, ModelError, ShapeError
 #: the order of D11 in Luo, Ramazani & Sundararaghavan (2017), Sec. 4)
 C_ISO = isotropic_2d(2000.0, 0.3, plane="strain")
 
-#: (control, bond ratio) pairs exercised by the tangent tests: Luo, Ramazani & Sundararaghavan
-#: (2017)'s setting
-#: ('none', δ = h and √2 h), stress points (Luo & Sundararaghavan (2018), δ = h), higher-order
-#: weights (δ = 2h) and the
-#: linear add-ons
+#: (control, bond ratio) pairs exercised by the tangent tests: the setting of Luo, Ramazani &
+#: Sundararaghavan (2017) ('none', δ = h and √2 h), stress points (Luo & Sundararaghavan (2018),
+#: δ = h), higher-order weights (δ = 2h) and the linear add-ons
 CASES = [
     ("none", 1.0),
     ("none", np.sqrt(2.0)),

@@ -2,7 +2,7 @@
 
 Every literal number is printed in the paper (the comment names its section, equation or table), a
 reference value computed by an independent implementation of the calibration ("reference"; not in
-the paper), or derived (docs/theory/conventions.md #calibration-in-the-frobenius-norm).  V1-V25
+the paper), or derived (docs/theory/conventions.md#calibration-in-the-frobenius-norm).  V1-V25
 label the acceptance checks.
 """
 

@@ -133,7 +133,7 @@ def test_t17_elastic_step_adr_vs_newton_error_decreases_with_e_l():
 
 def test_t18_plastic_step_homogenized_stress_adr_vs_newton(tmp_path):
     # from a shared committed state (Newton to step 5, plastic), one more step with Newton and with
-    # ADR: ‖Δσ̄‖ <= 1e-3 ‖σ̄‖; each residual below its criterion Newton with the elastic
+    # ADR: ‖Δσ̄‖ <= 1e-3 ‖σ̄‖; each residual below its criterion. Newton with the elastic
     # (committed-state) tangent predictor, as in the paper's implicit scheme; the default
     # continuation predictor starts from another point and reaches another equilibrium: 1.6e-3 from
     # ADR's here. Both predictors stay within the band measured over 18 shared-state steps (12²,

@@ -1,12 +1,11 @@
 """Liu, Chen & Skelton, XOSB, Sec. 5.2: 3D block with a hole (the Sec. 5.1 plate extruded 0.3 m),
 XOSBPD vs OSBPD vs Hex8.
 
-Setup (pdlin's reconstruction, docs/theory/conventions.md#block-with-a-hole; a small CI size): the
-O-grid 4 x 8 x 15 extruded into 8
-layers of hexahedra (``pdlin.plate_with_hole_mesh(8, 15, layers=8, depth=0.3)``, 3,840 cells
-= 3,840 particles), δ_i = 3.01 V_i^(1/3), E = 70 GPa, ν = 0.33, u0 = 5e-4 m, z faces free.
-PD boundary condition "B" as in the 2D test (conventions.md#plate-with-a-hole): the FE displacement
-(all three
+Setup (pdlin's reconstruction, docs/theory/conventions.md#block-with-a-hole; a small CI size):
+the O-grid 4 x 8 x 15 extruded into 8 layers of hexahedra
+(``pdlin.plate_with_hole_mesh(8, 15, layers=8, depth=0.3)``, 3,840 cells = 3,840 particles),
+δ_i = 3.01 V_i^(1/3), E = 70 GPa, ν = 0.33, u0 = 5e-4 m, z faces free.  PD boundary condition
+"B" as in the 2D test (conventions.md#plate-with-a-hole): the FE displacement (all three
 components) prescribed on the outermost radial layer of the left and right blocks, through
 the whole thickness (128 particles).  Ring metric as in 2D: max over the hole ring
 (first radial layer) of the two mid-thickness layers (z = 0.131 and 0.169 m, 64 particles)

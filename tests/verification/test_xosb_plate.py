@@ -10,7 +10,7 @@ u_FE| / range_ring(u_FE), per component.
 
 FE reference: our own Q4 plane-stress solve (2 x 2 Gauss, vectorized assembly, spsolve) on the
 O-grid 4 x 64 x 120, i.e. 2x coarser than the 4 x 128 x 240 reference mesh; the 2x coarser mesh
-differs from that one by 1.05e-4 max|u| (pdlin's reference computation).  It is checked against the
+differs from that one by 1.05e-4 max|u| (independent reference computation).  It is checked against the
 recorded FE hole-edge values of the 4 x 128 x 240 mesh before use.  FE values at the PD centroids
 are interpolated linearly (Delaunay) from the FE nodes.
 """
@@ -68,7 +68,8 @@ def test_fe_reference_matches_spec_hole_edge_values(fe):
     pts, u = fe
     on_hole = np.isclose(np.hypot(*pts.T), 0.1)
     beta = np.degrees(np.arctan2(pts[:, 1], pts[:, 0])) % 360
-    # FE on the hole edge r = 0.1 (β: u_x, u_y in m): pdlin's Q4 reference on the 4 x 128 x 240 mesh
+    # FE on the hole edge r = 0.1 (β: u_x, u_y in m): Q4 reference on the 4 x 128 x 240 mesh (values
+    # recorded from an independent implementation)
     table = {
         0: (3.9003e-4, 0.0),
         45: (3.4932e-4, -3.3438e-5),
@@ -80,7 +81,7 @@ def test_fe_reference_matches_spec_hole_edge_values(fe):
     for b, ref in table.items():
         k = np.flatnonzero(on_hole & np.isclose(beta, b, atol=1e-6))
         assert k.size == 1
-        # 2x coarser FE mesh: differs by ~1.05e-4 max|u| (pdlin's reference computation); allow 5e-4
+        # 2x coarser FE mesh: differs by ~1.05e-4 max|u| (independent reference computation); allow 5e-4
         assert np.abs(u[k[0]] - ref).max() <= 5e-4 * scale
 
 
