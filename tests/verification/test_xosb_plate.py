@@ -10,9 +10,9 @@ u_FE| / range_ring(u_FE), per component.
 
 FE reference: our own Q4 plane-stress solve (2 x 2 Gauss, vectorized assembly, spsolve) on the
 O-grid 4 x 64 x 120, i.e. 2x coarser than the 4 x 128 x 240 reference mesh; the 2x coarser mesh
-differs from that one by 1.05e-4 max|u| (independent reference computation).  It is checked against the
-recorded FE hole-edge values of the 4 x 128 x 240 mesh before use.  FE values at the PD centroids
-are interpolated linearly (Delaunay) from the FE nodes.
+differs from that one by 1.05e-4 max|u| (independent reference computation).  It is checked against
+the recorded FE hole-edge values of the 4 x 128 x 240 mesh before use.  FE values at the PD
+centroids are interpolated linearly (Delaunay) from the FE nodes.
 """
 
 from __future__ import annotations
@@ -81,7 +81,8 @@ def test_fe_reference_matches_spec_hole_edge_values(fe):
     for b, ref in table.items():
         k = np.flatnonzero(on_hole & np.isclose(beta, b, atol=1e-6))
         assert k.size == 1
-        # 2x coarser FE mesh: differs by ~1.05e-4 max|u| (independent reference computation); allow 5e-4
+        # 2x coarser FE mesh: differs by ~1.05e-4 max|u| (independent reference computation); allow
+        # 5e-4
         assert np.abs(u[k[0]] - ref).max() <= 5e-4 * scale
 
 
