@@ -56,8 +56,8 @@ def test_gradient_operator_matches_fields_deformation_gradient(dim, n, ratio, in
     grad = (G @ u.ravel()).reshape(cloud.n, dim, dim)
     F = deformation_gradient(cloud, bonds, u)
     np.testing.assert_allclose(grad, F - np.eye(dim), atol=1e-12 * np.abs(F).max())
-    # exact for affine fields everywhere (boundary points included): derived from Javaheri et al.
-    # (2022), Eq. 6
+    # exact for affine fields everywhere (boundary points included): derived from
+    # Javaheri et al. (2022), Eq. 6
     H = rng.normal(size=(dim, dim)) * 1e-2
     ua = cloud.points @ H.T + rng.normal(size=dim)
     grad = (G @ ua.ravel()).reshape(cloud.n, dim, dim)
@@ -658,8 +658,8 @@ def test_gradient_convergence_spec_000_v5(ratio, control, infl, err_h01, order):
 
 
 def _reference_K(model: pdlin.Correspondence, cloud, bonds) -> np.ndarray:
-    """Dense Gᵀ blockdiag(w V Pᵀ C P) G from the CSR gradient matrix (definition; Javaheri et al.
-    (2022), Eqs. 6-8)."""
+    """Dense Gᵀ blockdiag(w V Pᵀ C P) G from the CSR gradient matrix (definition;
+    Javaheri et al. (2022), Eqs. 6-8)."""
     p = model._plan(cloud, bonds)
     G = model.gradient_matrix(cloud, bonds).toarray()
     D = np.zeros((G.shape[0],) * 2)

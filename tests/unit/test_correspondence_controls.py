@@ -80,8 +80,10 @@ def _force_state_loop(model, cloud, bonds, u):
 
 
 def _control_loop(model, cloud, bonds, u):
-    """V∘L of the springs (Eq. 7) or ADS (Eq. 8) force states, Luo & Sundararaghavan (2018), Sec.
-    2.2."""
+    """V∘L of the springs (Eq. 7) or ADS (Eq. 8) force states.
+
+    Luo & Sundararaghavan (2018), Sec. 2.2.
+    """
     c = model.control_constants(cloud, bonds)
     i, j = bonds.i, bonds.j
     om = model.bond_weights(cloud, bonds)

@@ -88,8 +88,10 @@ def test_bar_3d_shadow_layer_uniaxial_exact_interior():
 
 @pytest.mark.slow
 def test_spec004_static_uniaxial_tension_analytical_micromodulus(spec004_tension):
-    """Prakash, anisotropic micromoduli, Sec. 4.4: 24^3 cube, delta = 2, c = 18K/(pi delta^4) (Eq.
-    18)."""
+    """Prakash, anisotropic micromoduli, Sec. 4.4: 24^3 cube, delta = 2, c = 18K/(pi delta^4).
+
+    The analytical micromodulus is the paper's Eq. 18.
+    """
     cloud = pdlin.grid((24, 24, 24), spacing=1.0, origin=(-0.5, -0.5, -0.5))
     bonds = pdlin.find_bonds(cloud, 2.0)
     model = pdlin.BondBased(E=86e9)  # Pyroceram, nu = 1/4: c = 20.5310 GPa/m^4 (Eq. 18)
