@@ -319,7 +319,8 @@ def test_infeasible_target_is_reported_not_returned_wrong():
 
 
 def test_lower_bound_above_max_is_infeasible():
-    """A uniform bound above max_lower_bound (0.23870, spec 004 §4.6) has no solution."""
+    """A uniform bound above max_lower_bound (0.23870, reference value for isotropic delta = 6,
+    omega = 1) has no solution."""
     fam = lattice_family(3, 6.0)
     C = cm.material("isotropic")
     lmax = max_lower_bound(C, fam)

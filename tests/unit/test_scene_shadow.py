@@ -61,7 +61,7 @@ def test_correspondence_whole_frame_keeps_the_stress_formulation():
     data["shadow"] = {"F": F_UNI}
     data["geometry"]["shape"] = [40, 16]
     sc = scene_from_dict(data)
-    assert sc.problem.model.shadow is not None  # spec 000 §7 shadow problem
+    assert sc.problem.model.shadow is not None  # shadow problem (Javaheri et al. (2022), Sec. II.D)
     assert len(sc.problem.loads) == 1  # the shadow-stress force
 
 

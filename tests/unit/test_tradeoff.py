@@ -18,8 +18,9 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 def test_rate_in_h_recovered_on_graded_bar():
-    # spec 000 §10.A: higher-order correspondence errors fall like N^(-1/2) (ratio 1.41 per
-    # doubling, V16) because of the sqrt singularity at x = 1/2
+    # graded bar (Javaheri et al. (2022), Sec. III.A): higher-order correspondence errors fall like
+    # N^(-1/2) (ratio 1.41 per doubling, reference computation) because of the sqrt singularity at x
+    # = 1/2
     res = tradeoff(graded_bar, {"control": ["higher_order"], "m": [1, 2], "N": [100, 200, 500]},
                    memory="none")  # fmt: skip
     rates = res.rates("h")
@@ -27,7 +28,8 @@ def test_rate_in_h_recovered_on_graded_bar():
     for g in rates:
         assert g["rate"] == pytest.approx(0.5, abs=0.05)
         assert g["n"] == 3
-    # the N = 500, 2h entry of the spec 000 §10.A table: max |u - u_ex| = 1.51e-4 (± 1 %)
+    # the N = 500, 2h entry of the reference table (test_correspondence_bar.py): max |u - u_ex| =
+    # 1.51e-4 (± 1 %)
     row = next(r for r in res.table if r["m"] == 2 and r["N"] == 500)
     u_max = 1e-3 + 4e-3 * np.sqrt(2.0) * np.sqrt(0.5 - 0.5 / 500)  # max |u_ex| on the real points
     assert row["error"] * u_max == pytest.approx(1.51e-4, rel=0.01)
@@ -344,8 +346,8 @@ def test_nonlinear_scene_tradeoff_homogenized_stress_against_the_finest_run(name
     assert ref["solver_used"] == "newton" and ref["operator_used"] == "homogenized-stress"
     same_h = rows[(0.0625, "adr")]
     assert same_h["solver_used"] == "adr" and same_h["iterations"] > 10 * ref["iterations"]
-    # ADR (e_l = 1e-6) against Newton on the same grid: a few 1e-3 at most (spec 001 T18
-    # tolerance 1e-3 per plastic step, plus the non-unique plastic fields; measured 1.3e-3)
+    # ADR (e_l = 1e-6) against Newton on the same grid: a few 1e-3 at most (test_t18's tolerance
+    # 1e-3 per plastic step, plus the non-unique plastic fields; measured 1.3e-3)
     assert 0.0 < same_h["error"] < 1e-2
     # the coarse grid discretizes the Voronoi grains differently: a larger, method-
     # independent error (measured 0.10 shear / 0.07 compression at 4 steps)
