@@ -30,13 +30,18 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .._arrays import (
+    mandel_weights,
+    n_orientations,
+    per_point_outer,
+    voigt_pairs,
+    with_diagonal_blocks,
+)
 from .._kernels import _kernels, bsr_matmul, bsr_transpose, use_numba
 from .._threads import even_chunks, ptr_chunks, thread_map
 from .._validation import as_displacement, as_float_array, check_finite, integer
 from ..constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
-from ..constitutive.tensors import _mandel_weights, _pairs
 from ..errors import InputError, InputTypeError, ModelError, ShapeError
-from ..fields import _per_point_outer
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
 from ._state import uniform_nu_constants
@@ -182,7 +187,7 @@ def _check_stiffness_per_point(arr: np.ndarray) -> None:
     scale = np.maximum(np.abs(U).max(axis=(1, 2)), np.finfo(float).tiny)
     bad = ~np.isfinite(U).all(axis=(1, 2))
     bad |= np.abs(U - U.transpose(0, 2, 1)).max(axis=(1, 2)) > 1e-12 * scale
-    w = _mandel_weights(2 if nv == 3 else 3) if nv > 1 else np.ones(1)
+    w = mandel_weights(2 if nv == 3 else 3) if nv > 1 else np.ones(1)
     ok = ~bad
     eig = np.linalg.eigvalsh(U[ok] * np.outer(w, w))
     tol = 1e-13 * np.maximum(np.abs(eig).max(axis=1), np.finfo(float).tiny)
@@ -249,14 +254,14 @@ def _halves_well_conditioned(
         kern = mod.sp_halves_2d
         thread_map(lambda r: kern(r[0], r[1], *args), ptr_chunks(bptr, _POINT_CHUNK))
         return ok2
-    full_k = _per_point_outer(bonds.i, n, omega_v, bonds.xi, bonds.xi)
-    full_g = _per_point_outer(bonds.i, n, geo, bonds.xi, bonds.xi)
+    full_k = per_point_outer(bonds.i, n, omega_v, bonds.xi, bonds.xi)
+    full_g = per_point_outer(bonds.i, n, geo, bonds.xi, bonds.xi)
     scale = np.sqrt(np.einsum("nij,nij->n", full_g, full_g))
     ok = np.ones(n, dtype=bool)
     for side in sides:
-        half = _per_point_outer(bonds.i, n, np.where(side, omega_v, 0.0), bonds.xi, bonds.xi)
+        half = per_point_outer(bonds.i, n, np.where(side, omega_v, 0.0), bonds.xi, bonds.xi)
         other = full_k - half
-        half_g = _per_point_outer(bonds.i, n, np.where(side, geo, 0.0), bonds.xi, bonds.xi)
+        half_g = per_point_outer(bonds.i, n, np.where(side, geo, 0.0), bonds.xi, bonds.xi)
         diff = 2.0 * half_g - full_g
         balanced = np.sqrt(np.einsum("nij,nij->n", diff, diff)) <= SP_BALANCE_TOL * scale
         ok &= _ratio_ok(half) & _ratio_ok(other) & balanced
@@ -319,7 +324,7 @@ def _coefficients(
     mod = _kernels() if ptrs is not None and use_numba(xi.size) else None
     if mod is not None and ptrs is not None and d == 2 and override_rows is None:
         return _coefficients_2d_fused(mod, ptrs, owner_b, n_gp, w, xi)
-    K = _per_point_outer(owner_b, n_gp, w, xi, xi, runs=ptrs)  # pdlin.fields' shape tensor
+    K = per_point_outer(owner_b, n_gp, w, xi, xi, runs=ptrs)  # pdlin.fields' shape tensor
     if override_rows is not None and override_rows.size:
         assert override_kinv is not None
         K[override_rows] = np.linalg.inv(override_kinv)
@@ -870,34 +875,21 @@ def _with_diagonal_blocks(K: sp.sparray, d: int) -> sp.bsr_array:
     """``K`` as BSR with every diagonal block stored (explicit zeros where empty).
 
     Energy-free shadow points may have empty rows; Dirichlet elimination writes its identity
-    into stored diagonal entries.
+    into stored diagonal entries.  Large matrices find the stored diagonals in row chunks
+    with numba.
     """
     Kb = sp.bsr_array(K, blocksize=(d, d))
-    nrow = Kb.shape[0] // d
     mod = _kernels() if use_numba(Kb.indices.size) else None
-    if mod is not None:  # row chunks on the threads
-        has = np.empty(nrow, dtype=bool)
-        ptr = np.asarray(Kb.indptr, dtype=np.int64)
-        ind = np.ascontiguousarray(Kb.indices)
-        thread_map(
-            lambda r: mod.rows_with_diagonal(r[0], r[1], ptr, ind, has),
-            ptr_chunks(ptr, _DROP_CHUNK),
-        )
-    else:
-        rows = np.repeat(np.arange(nrow), np.diff(Kb.indptr))
-        has = np.zeros(nrow, dtype=bool)
-        has[rows[Kb.indices == rows]] = True
-    if has.all():
-        return Kb
-    Kc = sp.coo_array(Kb)
-    nd = Kb.shape[0]
-    ar = np.arange(nd)
-    Kc = sp.coo_array(
-        (np.concatenate([Kc.data, np.zeros(nd)]),
-         (np.concatenate([Kc.row, ar]), np.concatenate([Kc.col, ar]))),
-        shape=Kb.shape,
-    )  # fmt: skip
-    return sp.bsr_array(Kc.tocsr(), blocksize=(d, d))
+    if mod is None:
+        return with_diagonal_blocks(Kb)
+    has = np.empty(Kb.shape[0] // d, dtype=bool)
+    ptr = np.asarray(Kb.indptr, dtype=np.int64)
+    ind = np.ascontiguousarray(Kb.indices)
+    thread_map(
+        lambda r: mod.rows_with_diagonal(r[0], r[1], ptr, ind, has),
+        ptr_chunks(ptr, _DROP_CHUNK),
+    )
+    return with_diagonal_blocks(Kb, has_diagonal=has)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -956,9 +948,7 @@ def _orientation_count(orientation: Any, dim: int) -> int | None:
     """Points described by a material orientation (None: one for all points)."""
     if orientation is None:
         return None
-    from ..constitutive.crystal_plasticity import _n_orientations
-
-    return _n_orientations(orientation, dim)
+    return n_orientations(orientation, dim)
 
 
 def _tangent_blocks_product(
@@ -1981,7 +1971,7 @@ class Correspondence(Model):
         if d == 1:
             Cv = A.reshape(n, 1, 1)
         else:
-            ij = np.array(_pairs(d))
+            ij = np.array(voigt_pairs(d))
             Cv = A[:, ij[:, 0, None], ij[:, 1, None], ij[None, :, 0], ij[None, :, 1]]
         try:
             _check_stiffness_per_point(Cv)

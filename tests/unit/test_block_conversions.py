@@ -309,7 +309,7 @@ def test_bsr_transpose_equals_scipy(monkeypatch: pytest.MonkeyPatch, blocksize, 
 
 def _coefficients_before(owner_b, n_gp, omega, volume_j, xi):
     """Correspondence bond coefficients ``ω V_j K⁻¹ ξ`` as computed before (2D / 3D)."""
-    from pdlin.fields import _per_point_outer
+    from pdlin._arrays import per_point_outer as _per_point_outer
 
     w = omega * volume_j
     K = _per_point_outer(owner_b, n_gp, w, xi, xi)
@@ -353,7 +353,7 @@ def test_correspondence_coefficients_and_moduli_threaded(monkeypatch, dim: int) 
 def test_per_point_outer_threaded_equals_one_bincount(monkeypatch: pytest.MonkeyPatch) -> None:
     """Shape-tensor sums in runs of non-interleaving owners (1-3 threads): bitwise one
     bincount per entry over all bonds (the computation before)."""
-    from pdlin import fields
+    from pdlin import _arrays
 
     cloud = pdlin.grid((23, 19), spacing=0.1)
     bonds = pdlin.find_bonds(cloud, ratio=2.0)
@@ -373,12 +373,12 @@ def test_per_point_outer_threaded_equals_one_bincount(monkeypatch: pytest.Monkey
                 out[:, r, c] = np.bincount(owner, weights=w * xi[:, r] * xi[:, c], minlength=n)
         return out
 
-    monkeypatch.setattr(fields, "_CHUNK", 40)  # many runs
+    monkeypatch.setattr(_arrays, "OUTER_CHUNK", 40)  # many runs
     for owner, n in cases:
         ref = before(owner, n)
         for nt in (1, 2, 3):
             pdlin.set_num_threads(nt)
-            got = fields._per_point_outer(owner, n, w, xi, xi)
+            got = _arrays.per_point_outer(owner, n, w, xi, xi)
             assert np.array_equal(got.view(np.int64), ref.view(np.int64))
     # the stress-point halves with their runs given (point p: bonds indptr[p]:indptr[p+1],
     # owners 2p and 2p + 1), numba passes and numpy chunks
@@ -389,7 +389,7 @@ def test_per_point_outer_threaded_equals_one_bincount(monkeypatch: pytest.Monkey
         monkeypatch.setattr(_kernels, "_loaded", None if numba_on else False)
         for nt in (1, 2, 3):
             pdlin.set_num_threads(nt)
-            got = fields._per_point_outer(owner, n, w, xi, xi, runs=runs)
+            got = _arrays.per_point_outer(owner, n, w, xi, xi, runs=runs)
             assert np.array_equal(got.view(np.int64), ref.view(np.int64))
 
 
