@@ -185,13 +185,14 @@ def per_point_outer(
 ) -> np.ndarray:
     """Return the per-owner sums of weighted outer products of bond vectors.
 
-    ``out[p] = Σ_{e: owner_e = p} w_e a_e ⊗ b_e``: each entry is one ``np.bincount``
-    over the bonds.  When the bonds split into consecutive runs whose owners do not
-    interleave (sorted owners, as in :class:`pdlin.Bonds`, or the two half families of a
-    point's stress points), runs of about :data:`OUTER_CHUNK` bonds are summed on pdlin's
-    threads, each owner's sum over the same bonds in the same order as one global ``np.bincount``: the same bits (with
-    numba, each run is one ``nogil`` pass of that arithmetic, since ``np.bincount`` holds
-    the GIL and its chunks would run one at a time).
+    ``out[p] = Σ_{e: owner_e = p} w_e a_e ⊗ b_e``: each entry is one
+    ``np.bincount`` over the bonds.  When the bonds split into consecutive runs
+    whose owners do not interleave (sorted owners, as in :class:`pdlin.Bonds`, or
+    the two half families of a point's stress points), runs of about
+    :data:`OUTER_CHUNK` bonds are summed on pdlin's threads, each owner's sum over
+    the same bonds in the same order as one global ``np.bincount``: the same bits
+    (with numba, each run is one ``nogil`` pass of that arithmetic, since
+    ``np.bincount`` holds the GIL and its chunks would run one at a time).
 
     Parameters
     ----------
