@@ -1,178 +1,55 @@
-"""Correspondence (non-ordinary state-based) peridynamics on sparse operators.
-
-The model is linear small strain (spec 000 §8, spec 003 §2): a nonlocal
-displacement gradient per *gradient point* (a particle, or a stress point
-of a particle), ``∇u_g = Σ_b (u_b - u_a) ⊗ c_gb`` with
-``c_gb = ω_ab V_b K_g⁻¹ ξ_ab`` (spec 000 §3), Cauchy stress
-``σ_g = C_a : ε_g`` used in place of ``P``, and the energy
-``Π = ½ Σ_g w_g V_a ε_g : C_a : ε_g``.  The stiffness is therefore
-
-``K = Gᵀ blockdiag(w_g V_a C_a) G``
-
-with ``G`` the sparse gradient operator (``n_gp·d²`` x ``n·d``); it is
-symmetric PSD for any sign of the weights.  Zero-energy-mode controls:
-``'none'``, ``'higher_order'`` (spec 000), ``'penalty'`` (a bond-based
-penalty on the non-affine part of each bond), ``'stress_points'``
-(spec 003 §4) and the baseline control forces ``'springs'`` and
-``'ads'`` (averaged displacement state, spec 003 §3).  See
-``docs/correspondence.md``.
-"""
+"""TODO model."""
 
 from __future__ import annotations
 
 import dataclasses
 import logging
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .._arrays import (
+from ..._arrays import (
     mandel_weights,
     n_orientations,
-    per_point_outer,
     voigt_pairs,
-    with_diagonal_blocks,
 )
-from .._kernels import _kernels, bsr_matmul, bsr_transpose, use_numba
-from .._threads import even_chunks, ptr_chunks, thread_map
-from .._validation import as_displacement, as_float_array, check_finite, integer
-from ..constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
-from ..errors import InputError, InputTypeError, ModelError, ShapeError
-from ..geometry.bonds import Bonds
-from ..geometry.cloud import PointCloud
-from ._state import uniform_nu_constants
-from .base import Model, Response
-from .bond_based import BondBased, _c1111
-
-__all__ = [
-    "Correspondence",
-    "CONTROLS",
-    "gradient_operator",
-    "voigt_projector",
-    "intact_shape_tensor",
-    "shadow_real_counts",
-    "shadow_problem",
-    "solve_matrix_free",
-]
+from ..._kernels import _kernels, bsr_matmul, bsr_transpose, use_numba
+from ..._threads import even_chunks, ptr_chunks, thread_map
+from ..._validation import as_displacement, as_float_array, check_finite, integer
+from ...constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
+from ...errors import InputError, InputTypeError, ModelError, ShapeError
+from ...geometry.bonds import Bonds
+from ...geometry.cloud import PointCloud
+from .._state import uniform_nu_constants
+from ..base import Model, Response
+from ..bond_based import BondBased, _c1111
+from . import gradient as _gradient
+from .controls import (
+    _SP_CASES,
+    CONTROLS,
+    DEFAULT_CONTROL_COEFFICIENT,
+    _halves_well_conditioned,
+    _sides,
+)
+from .gradient import (
+    _blocks_to_csr,
+    _coefficients,
+    _drop_zero_blocks,
+    _gradient_blocks,
+    _GradientBlocks,
+    _mean_per_point,
+    _rows_matmul,
+    _tangent_blocks_product,
+    _with_diagonal_blocks,
+    intact_shape_tensor,
+    voigt_projector,
+)
 
 log = logging.getLogger(__name__)
-
-#: zero-energy-mode controls accepted by :class:`Correspondence`
-CONTROLS = ("none", "higher_order", "penalty", "stress_points", "springs", "ads")
-
-#: default dimensionless coefficient C̃ of the 'springs' and 'ads' controls (family-normalized,
-#: :meth:`Correspondence.control_constants`).  Measured on a free-surface 2D bar (61 x 11,
-#: δ = h...3h, docs/correspondence.md): springs bias the stiffness by ≈ 1.1 C̃ at any δ/h
-#: (0.01: 1.2 %), ADS only near free surfaces (0.03: elongation ≤ 0.11 %, lateral strain
-#: ≤ 0.6 %) while keeping the checkerboard energy ratio ≥ 2 (stress points: 3.5-43)
-DEFAULT_CONTROL_COEFFICIENT: dict[str, float] = {"springs": 0.01, "ads": 0.03}
-
-#: stress-point cases (spec 003 §4.1): sign vector s of SP1's bonds, per dimension
-_SP_CASES: dict[int, np.ndarray] = {
-    1: np.array([[1]]),
-    2: np.array([[1, 1], [1, -1]]),
-    3: np.array([[1, 1, 1], [1, 1, -1], [1, -1, 1], [-1, 1, 1]]),
-}
-
-#: smallest eigenvalue ratio λ_min/λ_max of a half-family shape tensor for which a
-#: particle gets two stress points (nearest-neighbour interior particles: 1)
-SP_MIN_RATIO = 1e-2
-
-#: largest relative imbalance ``‖K_1 - K_2‖_F / ‖K‖_F`` of the two half-family shape tensors
-#: for which a particle gets two stress points (complete lattice families: 0 to round-off)
-SP_BALANCE_TOL = 1e-6
-
-
-def _coefficients_2d_fused(
-    mod: Any,
-    ptrs: tuple[np.ndarray, np.ndarray],
-    owner_b: np.ndarray,
-    n_gp: int,
-    w: np.ndarray,
-    xi: np.ndarray,
-) -> np.ndarray:
-    """:func:`_coefficients` in 2D as one numba pass per point chunk (shape tensors, their
-    inverses and the coefficients; the numpy path's arithmetic and error)."""
-    bptr, gptr = ptrs
-    K = np.empty((n_gp, 2, 2))
-    bad = np.empty(n_gp, dtype=bool)
-    out = np.empty_like(xi, dtype=np.float64)
-    args = (
-        bptr,
-        gptr,
-        np.ascontiguousarray(owner_b, dtype=np.int64),
-        np.ascontiguousarray(w, dtype=np.float64),
-        np.ascontiguousarray(xi, dtype=np.float64),
-        K,
-        bad,
-        out,
-    )
-    kern = mod.coefficients_2d_fill
-    thread_map(lambda r: kern(r[0], r[1], *args), ptr_chunks(bptr, _POINT_CHUNK))
-    if bad.any():
-        _raise_singular(np.flatnonzero(bad), 2)
-    return out
-
-
-def _raise_singular(bad: np.ndarray, d: int) -> None:
-    raise ModelError(
-        f"shape tensor must be invertible at every gradient point, got {bad.size} singular "
-        f"one(s) (first: gradient point {int(bad[0])}); its bonds do not span {d}D "
-        "(isolated points, one-point-wide strips, or weights with Ω = 0)"
-    )
-
-
-def _half_space_basis(s: np.ndarray, d: int) -> list[np.ndarray]:
-    """The orthogonal basis of case ``s`` whose projections decide a bond's side."""
-    basis = [np.asarray(s, dtype=float)]
-    if d >= 2:
-        t = np.zeros(d)
-        t[0], t[1] = -s[1], s[0]
-        basis.append(t)
-    if d == 3:
-        basis.append(np.cross(basis[0], basis[1]))
-    return basis
-
-
-def _sides(bonds: Bonds, cases: np.ndarray) -> np.ndarray:
-    """``(n_cases, nb)`` bool: :func:`_half_space` of every case (numba: bond chunks on
-    the threads)."""
-    xi = bonds.xi
-    mod = _kernels() if use_numba(xi.size * cases.shape[0]) else None
-    if mod is None:
-        return np.stack([_half_space(xi, s) for s in cases])
-    d = xi.shape[1]
-    basis = np.array([_half_space_basis(s, d) for s in cases])  # (n_cases, d, d)
-    vnorm = np.linalg.norm(basis, axis=2)
-    out = np.empty((cases.shape[0], xi.shape[0]), dtype=bool)
-    xi_c = np.ascontiguousarray(xi, dtype=np.float64)
-    kern = mod.half_space_fill
-    thread_map(
-        lambda r: kern(r[0], r[1], xi_c, basis, vnorm, out), even_chunks(xi.shape[0], _ROW_CHUNK)
-    )
-    return out
-
-
-def _half_space(xi: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Bonds owned by stress point 1 of case ``s``: ``s·ξ > 0``, ties by orthogonal vectors.
-
-    ``ξ`` and ``-ξ`` always land on different sides, so the two halves of a point-symmetric
-    family are mirror images (each holds half of its shape tensor).
-    """
-    basis = _half_space_basis(s, xi.shape[1])
-    tol = 1e-9 * np.linalg.norm(xi, axis=1)
-    key = np.zeros(xi.shape[0])
-    undecided = np.ones(xi.shape[0], dtype=bool)
-    for v in basis:
-        proj = xi @ v
-        take = undecided & (np.abs(proj) > tol * np.linalg.norm(v))
-        key[take] = proj[take]
-        undecided &= ~take
-    return key > 0
 
 
 def _check_stiffness_per_point(arr: np.ndarray) -> None:
@@ -200,696 +77,9 @@ def _check_stiffness_per_point(arr: np.ndarray) -> None:
         raise InputError(f"C[{k}] must be a symmetric positive definite Voigt stiffness")
 
 
-def _ratio_ok(K: np.ndarray) -> np.ndarray:
-    """Per tensor of ``K (n, d, d)``: λ_min/λ_max ≥ SP_MIN_RATIO.
-
-    2 x 2 in closed form, ``(a + c)/2 ± hypot((a - c)/2, b)`` (accurate to ~ε/SP_MIN_RATIO
-    at the threshold; 10x faster than batched LAPACK), otherwise ``eigvalsh``.
-    """
-    if K.shape[1] == 2:
-        mid = 0.5 * (K[:, 0, 0] + K[:, 1, 1])
-        rad = np.hypot(0.5 * (K[:, 0, 0] - K[:, 1, 1]), K[:, 0, 1])
-        lo, hi = mid - rad, mid + rad
-    else:
-        lam = np.linalg.eigvalsh(K)
-        lo, hi = lam[:, 0], lam[:, -1]
-    return lo >= SP_MIN_RATIO * np.maximum(hi, 1e-300)
-
-
-def _halves_well_conditioned(
-    bonds: Bonds, omega_v: np.ndarray, sides: np.ndarray, n: int, omega: np.ndarray | None = None
-) -> np.ndarray:
-    """Per point: in every case (row of ``sides``) both halves' shape tensors are well
-    conditioned and *balanced*, ``‖K_1 - K_2‖_F ≤ SP_BALANCE_TOL ‖K‖_F``.
-
-    Balance is a property of the family's geometry: it is tested on the tensors of the
-    weights ``omega`` (without volumes) when given, so a lattice with non-uniform volumes
-    keeps its two stress points (spec 003's scheme) while truncated families next to free
-    surfaces and irregular clouds get one gradient point.
-
-    The second half's tensor is the full one minus the first's (one pass per case).  Balanced
-    halves (``K_1 = K_2 = K/2``: a point-symmetric, complete family) are what makes two
-    stress points of weight ``w`` act on a uniform stress exactly like one gradient point of
-    weight ``2w`` (``w (K/2)⁻¹ = 2w K⁻¹`` on every bond), hence consistent next to free
-    surfaces; unbalanced halves of truncated families are not (measured: 1.1 % patch-test
-    error on a free-surface 2D bar at δ = 3h).
-    """
-    geo = omega_v if omega is None else omega
-    mod = _kernels() if use_numba(bonds.xi.size * sides.shape[0]) else None
-    if mod is not None and bonds.dim == 2 and bonds.n_points == n:
-        # one nogil pass per point chunk on the threads (the same tensors; the decisions
-        # compare with tolerances far above round-off)
-        ok2 = np.empty(n, dtype=bool)
-        bptr = np.asarray(bonds.indptr, dtype=np.int64)
-        args = (
-            bptr,
-            np.ascontiguousarray(bonds.xi, dtype=np.float64),
-            np.ascontiguousarray(omega_v, dtype=np.float64),
-            np.ascontiguousarray(geo, dtype=np.float64),
-            np.ascontiguousarray(sides),
-            SP_MIN_RATIO,
-            SP_BALANCE_TOL,
-            ok2,
-        )
-        kern = mod.sp_halves_2d
-        thread_map(lambda r: kern(r[0], r[1], *args), ptr_chunks(bptr, _POINT_CHUNK))
-        return ok2
-    full_k = per_point_outer(bonds.i, n, omega_v, bonds.xi, bonds.xi)
-    full_g = per_point_outer(bonds.i, n, geo, bonds.xi, bonds.xi)
-    scale = np.sqrt(np.einsum("nij,nij->n", full_g, full_g))
-    ok = np.ones(n, dtype=bool)
-    for side in sides:
-        half = per_point_outer(bonds.i, n, np.where(side, omega_v, 0.0), bonds.xi, bonds.xi)
-        other = full_k - half
-        half_g = per_point_outer(bonds.i, n, np.where(side, geo, 0.0), bonds.xi, bonds.xi)
-        diff = 2.0 * half_g - full_g
-        balanced = np.sqrt(np.einsum("nij,nij->n", diff, diff)) <= SP_BALANCE_TOL * scale
-        ok &= _ratio_ok(half) & _ratio_ok(other) & balanced
-    return ok
-
-
 #: default byte budget of an assembled K (beyond it :meth:`Correspondence.plan`
 #: chooses the matrix-free operator)
 DEFAULT_MAX_BYTES = 4 * 1024**3
-
-
-# ---------------------------------------------------------------------------
-# operators
-
-
-def voigt_projector(dim: int) -> np.ndarray:
-    """Map ``vec(∇u)`` (row-major ``(i, j)`` → ``d*i + j``) to Voigt strain.
-
-    Engineering shear: 2D ``[ε11, ε22, γ12]``, 3D
-    ``[ε11, ε22, ε33, γ23, γ13, γ12]`` (the order of
-    :mod:`pdlin.constitutive`).  ``Pᵀ C P`` is the full tensor ``C_ijkl``
-    acting on ``vec(∇u)``.
-
-    Examples
-    --------
-    >>> voigt_projector(2).tolist()
-    [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], [0.0, 1.0, 1.0, 0.0]]
-    """
-    pairs = {1: ((0, 0),), 2: ((0, 0), (1, 1), (0, 1)),
-             3: ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))}  # fmt: skip
-    if dim not in pairs:
-        raise InputError(f"dim must be 1, 2 or 3, got {dim}")
-    P = np.zeros((len(pairs[dim]), dim * dim))
-    for a, (i, j) in enumerate(pairs[dim]):
-        P[a, dim * i + j] = 1.0
-        P[a, dim * j + i] = 1.0
-    return P
-
-
-def _coefficients(
-    owner_b: np.ndarray,
-    n_gp: int,
-    omega: np.ndarray,
-    volume_j: np.ndarray,
-    xi: np.ndarray,
-    kinv_override: Mapping[int, np.ndarray] | None = None,
-    override_rows: np.ndarray | None = None,
-    override_kinv: np.ndarray | None = None,
-    ptrs: tuple[np.ndarray, np.ndarray] | None = None,
-) -> np.ndarray:
-    """Bond coefficients ``c_b = ω V_j K_g⁻¹ ξ`` (nb, d); K_g from the gradient point's bonds.
-
-    ``ptrs = (bptr, gptr)``: point ``p`` owns the bonds ``bptr[p]:bptr[p+1]`` and the
-    gradient points ``gptr[p]:gptr[p+1]`` of those bonds (no control, stress points): the
-    shape tensors are then summed over point chunks on the threads without a pass to find
-    them, and in 2D with numba tensors, inverses and coefficients are one pass.
-    """
-    d = xi.shape[1]
-    w = omega * volume_j
-    mod = _kernels() if ptrs is not None and use_numba(xi.size) else None
-    if mod is not None and ptrs is not None and d == 2 and override_rows is None:
-        return _coefficients_2d_fused(mod, ptrs, owner_b, n_gp, w, xi)
-    K = per_point_outer(owner_b, n_gp, w, xi, xi, runs=ptrs)  # pdlin.fields' shape tensor
-    if override_rows is not None and override_rows.size:
-        assert override_kinv is not None
-        K[override_rows] = np.linalg.inv(override_kinv)
-    tr = np.abs(np.einsum("nii->n", K))
-    if d == 2:  # closed form (batched 2 x 2 LAPACK calls cost ~10x more)
-        det = K[:, 0, 0] * K[:, 1, 1] - K[:, 0, 1] * K[:, 1, 0]
-    else:
-        det = np.linalg.det(K)
-    bad = np.flatnonzero(~(np.abs(det) > 1e-12 * np.maximum(tr / d, 1e-300) ** d))
-    if bad.size:
-        _raise_singular(bad, d)
-    if d == 2:  # adjugate / det (as accurate as LU for 2 x 2)
-        Kinv = np.empty_like(K)
-        Kinv[:, 0, 0] = K[:, 1, 1]
-        Kinv[:, 1, 1] = K[:, 0, 0]
-        Kinv[:, 0, 1] = -K[:, 0, 1]
-        Kinv[:, 1, 0] = -K[:, 1, 0]
-        Kinv /= det[:, None, None]
-    else:
-        Kinv = np.linalg.inv(K)
-    if override_rows is not None and override_rows.size:
-        Kinv[override_rows] = override_kinv
-    Kinv = np.ascontiguousarray(Kinv, dtype=np.float64)
-    out = np.empty_like(xi)
-    mod = _kernels() if use_numba(xi.size) else None
-    if mod is not None:  # one nogil pass per bond chunk, the numpy path's arithmetic
-        kern = mod.bond_coefficients_fill
-        own_c = np.ascontiguousarray(owner_b, dtype=np.int64)
-        xi_c = np.ascontiguousarray(xi, dtype=np.float64)
-        w_c = np.ascontiguousarray(w, dtype=np.float64)
-
-        def fused(rng: tuple[int, int]) -> None:
-            kern(rng[0], rng[1], own_c, w_c, xi_c, Kinv, out)
-
-        thread_map(fused, even_chunks(xi.shape[0], _ROW_CHUNK))
-        return out
-    cols = [np.ascontiguousarray(Kinv[:, :, q]) for q in range(d)]
-
-    def chunk(rng: tuple[int, int]) -> None:  # fixed bond chunks on the threads (elementwise)
-        b0, b1 = rng
-        own = owner_b[b0:b1]
-        c = np.zeros((b1 - b0, d))
-        for q in range(d):  # Σ_q K⁻¹[:, q] ξ_q, gathered per component (no batched einsum)
-            c += cols[q][own] * xi[b0:b1, q : q + 1]
-        np.multiply(w[b0:b1, None], c, out=out[b0:b1])
-
-    thread_map(chunk, even_chunks(xi.shape[0], _ROW_CHUNK))
-    return out
-
-
-@dataclasses.dataclass(frozen=True)
-class _GradientBlocks:
-    """G by (gradient point, point) blocks: block ``(g, col)`` is ``I_d ⊗ val`` (d² x d).
-
-    Blocks of a gradient point are contiguous (``indptr``) and sorted by point; the
-    owner's block (``diag``) holds ``-Σ c`` (zero on intact horizons).
-    """
-
-    indptr: np.ndarray  # (n_gp + 1,)
-    col: np.ndarray  # (nblk,) point of each block
-    val: np.ndarray  # (nblk, d) coefficient vector
-    diag: np.ndarray  # (nblk,) bool: owner's block, no bond in it
-    bond_block: np.ndarray  # (nb,) block holding each bond's (g, j)
-    owner_block: np.ndarray  # (n_gp,) block of each gradient point's owner
-
-    @property
-    def row(self) -> np.ndarray:
-        """Gradient point of each block, ``(nblk,)``."""
-        return np.repeat(np.arange(self.indptr.size - 1), np.diff(self.indptr))
-
-
-def _gradient_blocks(
-    gp_owner: np.ndarray,
-    gp_of_bond: np.ndarray,
-    j: np.ndarray,
-    c: np.ndarray,
-    n_points: int,
-    ptrs: tuple[np.ndarray, np.ndarray] | None = None,
-) -> _GradientBlocks:
-    """Block structure of G from bond coefficients; round-off diagonals snapped to 0.
-
-    One sort of the ``(g, point)`` keys (bonds and owners together); repeated pairs
-    (periodic images of one point in a small lattice) are summed.
-    """
-    d = c.shape[1]
-    n_gp = gp_owner.size
-    fast = _fused_blocks(gp_owner, gp_of_bond, j, c, n_points, ptrs)
-    if fast is None:
-        fast = _owner_sorted_blocks(gp_owner, gp_of_bond, j, c, n_points)
-    if fast is not None:
-        return fast
-    # diagonal -Σ_b c_gb per gradient point; exact zero on intact (symmetric) horizons
-    diag = np.empty((n_gp, d))
-    scale = np.empty((n_gp, d))
-    for q in range(d):
-        diag[:, q] = -np.bincount(gp_of_bond, weights=c[:, q], minlength=n_gp)
-        scale[:, q] = np.bincount(gp_of_bond, weights=np.abs(c[:, q]), minlength=n_gp)
-    diag[np.abs(diag) <= 64 * np.finfo(float).eps * scale] = 0.0
-    keys = np.concatenate(
-        [
-            gp_of_bond.astype(np.int64) * n_points + j,
-            np.arange(n_gp, dtype=np.int64) * n_points + gp_owner,
-        ]
-    )
-    vals = np.concatenate([c, diag])
-    is_diag = np.concatenate([np.zeros(j.size, dtype=bool), np.ones(n_gp, dtype=bool)])
-    order = np.argsort(keys, kind="stable")
-    keys = keys[order]
-    vals = vals[order]
-    is_diag = is_diag[order]
-    first = np.ones(keys.size, dtype=bool)
-    first[1:] = keys[1:] != keys[:-1]
-    block_of = np.empty(keys.size, dtype=np.int64)  # block of each input entry
-    block_of[order] = np.cumsum(first) - 1
-    if not first.all():  # repeated (g, point) pairs: sum them
-        starts = np.flatnonzero(first)
-        vals = np.add.reduceat(vals, starts, axis=0)
-        is_diag = np.logical_and.reduceat(is_diag, starts)
-        keys = keys[starts]
-    g = keys // n_points
-    indptr = np.zeros(n_gp + 1, dtype=np.int64)
-    np.cumsum(np.bincount(g, minlength=n_gp), out=indptr[1:])
-    nb = j.size
-    return _GradientBlocks(indptr, keys - g * n_points, vals, is_diag, block_of[:nb], block_of[nb:])
-
-
-def _fused_blocks(
-    gp_owner: np.ndarray,
-    gp_of_bond: np.ndarray,
-    j: np.ndarray,
-    c: np.ndarray,
-    n_points: int,
-    ptrs: tuple[np.ndarray, np.ndarray] | None = None,
-) -> _GradientBlocks | None:
-    """The blocks of :func:`_gradient_blocks` in one numba pass per point chunk, when each
-    point owns consecutive gradient points and the bonds of those gradient points in the
-    :class:`Bonds` order (no control, stress points): None otherwise (or without numba).
-
-    A gradient point's blocks are its bonds in order (increasing, distinct neighbours,
-    none the owner) with the owner's block among them: their slots are known from the
-    counts, so point chunks write them on the threads (``np.bincount``, which the sorting
-    path sums with, holds the GIL); the sums run over the same bonds in the same order:
-    the same arrays bitwise.
-    """
-    n_gp, nb, d = gp_owner.size, j.size, c.shape[1]
-    mod = _kernels() if use_numba(nb * d) else None
-    if mod is None or n_gp == 0:
-        return None
-    if ptrs is not None:  # the structure is known (see _coefficients)
-        bptr, gptr = ptrs
-    else:
-        if not bool(np.all(gp_owner[1:] >= gp_owner[:-1])):
-            return None
-        own_b = gp_owner[gp_of_bond]  # point of each bond
-        if not bool(np.all(own_b[1:] >= own_b[:-1])):
-            return None
-        pts = np.arange(n_points + 1)
-        gptr = np.searchsorted(gp_owner, pts).astype(np.int64)
-        bptr = np.searchsorted(own_b, pts).astype(np.int64)
-    per_gp = np.bincount(gp_of_bond, minlength=n_gp)
-    indptr = np.zeros(n_gp + 1, dtype=np.int64)
-    np.cumsum(per_gp + 1, out=indptr[1:])
-    nblk = int(indptr[-1])
-    col = np.empty(nblk, dtype=np.int64)
-    val = np.empty((nblk, d))
-    is_diag = np.empty(nblk, dtype=bool)
-    bond_block = np.empty(nb, dtype=np.int64)
-    owner_block = np.empty(n_gp, dtype=np.int64)
-    kern = mod.gradient_blocks_fill
-    gob = np.ascontiguousarray(gp_of_bond, dtype=np.int64)
-    jc = np.ascontiguousarray(j, dtype=np.int64)
-    cc = np.ascontiguousarray(c, dtype=np.float64)
-    tiny = 64 * np.finfo(float).eps
-    layout_ok = np.empty(n_points, dtype=bool)
-
-    def chunk(rng: tuple[int, int]) -> None:
-        kern(
-            rng[0], rng[1], bptr, gptr, gob, jc, cc, indptr, col, val, is_diag, bond_block,
-            owner_block, tiny, layout_ok,
-        )  # fmt: skip
-
-    thread_map(chunk, ptr_chunks(bptr, _POINT_CHUNK))
-    if not layout_ok.all():  # repeated neighbours (periodic images) or a bond to itself
-        return None
-    return _GradientBlocks(indptr, col, val, is_diag, bond_block, owner_block)
-
-
-def _owner_sorted_blocks(
-    gp_owner: np.ndarray, gp_of_bond: np.ndarray, j: np.ndarray, c: np.ndarray, n_points: int
-) -> _GradientBlocks | None:
-    """The blocks of :func:`_gradient_blocks` without its sort, when one gradient point per
-    point owns that point's bonds in the :class:`Bonds` order (no control): None otherwise.
-
-    Block slots are known (bond ``b`` of point ``g``: ``b + g + [j_b > g]``; the owner's
-    block after its smaller neighbours), so fixed point chunks write them on the threads;
-    each per-point sum runs over the same bonds in the same order as the sorting path's
-    ``np.bincount``: the same arrays bitwise.
-    """
-    n_gp, nb, d = gp_owner.size, j.size, c.shape[1]
-    if n_gp != n_points or nb == 0 or not np.array_equal(gp_owner, np.arange(n_gp)):
-        return None
-    g = gp_of_bond
-    if not bool(np.all(g[1:] >= g[:-1])) or bool(np.any(j == g)):
-        return None
-    if not bool(np.all((j[1:] > j[:-1]) | (g[1:] != g[:-1]))):
-        return None
-    bptr = np.zeros(n_gp + 1, dtype=np.int64)
-    np.cumsum(np.bincount(g, minlength=n_gp), out=bptr[1:])
-    nblk = nb + n_gp
-    col = np.empty(nblk, dtype=np.int64)
-    val = np.empty((nblk, d))
-    is_diag = np.zeros(nblk, dtype=bool)
-    bond_block = np.empty(nb, dtype=np.int64)
-    owner_block = np.empty(n_gp, dtype=np.int64)
-    tiny = 64 * np.finfo(float).eps
-
-    def chunk(rng: tuple[int, int]) -> None:
-        p0, p1 = rng
-        b0, b1 = int(bptr[p0]), int(bptr[p1])
-        own, nbr = g[b0:b1], j[b0:b1]
-        pos = np.arange(b0, b1) + own + (nbr > own)
-        bond_block[b0:b1] = pos
-        col[pos] = nbr
-        val[pos] = c[b0:b1]
-        loc = own - p0
-        pts = np.arange(p0, p1)
-        dpos = bptr[p0:p1] + pts + np.bincount(loc[nbr < own], minlength=p1 - p0)
-        owner_block[p0:p1] = dpos
-        col[dpos] = pts
-        is_diag[dpos] = True
-        for q in range(d):
-            dq = -np.bincount(loc, weights=c[b0:b1, q], minlength=p1 - p0)
-            sq = np.bincount(loc, weights=np.abs(c[b0:b1, q]), minlength=p1 - p0)
-            dq[np.abs(dq) <= tiny * sq] = 0.0
-            val[dpos, q] = dq
-
-    step = 1 << 16
-    starts = g[np.arange(step, nb, step)]
-    edges = np.unique(np.concatenate([[0], starts, [n_gp]]))
-    thread_map(chunk, list(zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True)))
-    indptr = bptr + np.arange(n_gp + 1)
-    return _GradientBlocks(indptr, col, val, is_diag, bond_block, owner_block)
-
-
-def _blocks_to_csr(blk: _GradientBlocks, n_points: int) -> sp.csr_array:
-    """G in CSR, rows ``(g, i, q)``: the nonzero coefficients only.
-
-    Exact zeros are dropped: the owner's entries of a symmetric family, and the components
-    of bond coefficients ``c_gp`` that vanish — at δ = h on a grid half of them (an axial
-    bond's coefficient has no transverse component), so keeping them doubled the work of
-    every ``G u`` and ``Gᵀ s`` (the sums are the same without them)."""
-    d = blk.val.shape[1]
-    n_gp = blk.indptr.size - 1
-    counts = np.diff(blk.indptr)
-    g = blk.row
-    pos = np.arange(g.size) - blk.indptr[g]
-    iq = np.arange(d * d).reshape(1, d, d)  # i*d + q
-    # full layout: row (g, i, q) holds all blocks of g in order
-    off = (
-        (d * d * blk.indptr[g])[:, None, None] + iq * counts[g][:, None, None] + pos[:, None, None]
-    )
-    n_full = int(d * d * blk.indptr[-1])
-    data = np.empty(n_full)
-    data[off] = np.broadcast_to(blk.val[:, None, :], off.shape)
-    idx_dtype = np.int32 if max(n_full, n_points * d) < np.iinfo(np.int32).max else np.int64
-    indices = np.empty(n_full, dtype=idx_dtype)
-    comp = np.arange(d)
-    indices[off] = np.broadcast_to((blk.col[:, None] * d + comp)[:, :, None], off.shape)
-    drop_bq = blk.val == 0.0  # (nblk, q): zero coefficients (every i)
-    lengths = np.repeat(counts, d * d)
-    if drop_bq.any():
-        keep = np.ones(n_full, dtype=bool)
-        keep[off[np.broadcast_to(drop_bq[:, None, :], off.shape)]] = False
-        data, indices = data[keep], indices[keep]
-        b, q = np.nonzero(drop_bq)
-        rows = ((g[b][:, None] * d + comp) * d + q[:, None]).ravel()  # every i
-        lengths = lengths - np.bincount(rows, minlength=n_gp * d * d)
-    indptr = np.zeros(n_gp * d * d + 1, dtype=idx_dtype)
-    np.cumsum(lengths, out=indptr[1:])
-    return sp.csr_array((data, indices, indptr), shape=(n_gp * d * d, n_points * d))
-
-
-def _gradient_csr(
-    gp_owner: np.ndarray,
-    gp_of_bond: np.ndarray,
-    j: np.ndarray,
-    c: np.ndarray,
-    n_points: int,
-) -> sp.csr_array:
-    """Assemble G (n_gp·d² x n·d) from bond coefficients; round-off diagonals snapped to 0."""
-    return _blocks_to_csr(_gradient_blocks(gp_owner, gp_of_bond, j, c, n_points), n_points)
-
-
-def gradient_operator(
-    cloud: PointCloud, bonds: Bonds, omega: np.ndarray | None = None
-) -> sp.csr_array:
-    """Sparse nonlocal gradient ``G``: ``(G @ u.ravel()).reshape(n, d, d) = ∇u``.
-
-    ``G_j[a, b] = c_ab,j`` and ``G_j[a, a] = -Σ_b c_ab,j`` with
-    ``c_ab = ω_ab V_b K_a⁻¹ ξ_ab`` (spec 000 §3); rows are ordered
-    ``(a, i, j)`` for ``∂u_i/∂X_j`` and columns are interleaved DOFs.
-    ``G u`` equals ``pdlin.deformation_gradient(cloud, bonds, u) - I``, so it
-    is exact for affine fields wherever ``K_a`` is invertible.  Diagonals
-    that vanish up to round-off (intact horizons) are stored as exact zeros.
-
-    Parameters
-    ----------
-    cloud : PointCloud
-    bonds : Bonds
-    omega : (nb,) array_like, optional
-        Weights replacing ``bonds.omega`` (may be negative, e.g. the
-        higher-order sets of spec 000).
-
-    Returns
-    -------
-    scipy.sparse.csr_array of shape (n*d*d, n*d)
-
-    Examples
-    --------
-    >>> import numpy as np, pdlin
-    >>> cloud = pdlin.grid((5, 4), spacing=0.1)
-    >>> bonds = pdlin.find_bonds(cloud, ratio=2.0)
-    >>> G = gradient_operator(cloud, bonds)
-    >>> H = np.array([[1e-3, 2e-3], [-4e-3, 5e-4]])
-    >>> grad = (G @ (cloud.points @ H.T).ravel()).reshape(cloud.n, 2, 2)
-    >>> bool(np.allclose(grad, H, atol=1e-14))
-    True
-    """
-    om = bonds.omega if omega is None else as_float_array(omega, "omega")
-    if om.shape != (bonds.n_bonds,):
-        raise ShapeError(f"omega must have shape ({bonds.n_bonds},), got {om.shape}")
-    c = _coefficients(bonds.i, cloud.n, om, bonds.volume_j, bonds.xi)
-    return _gradient_csr(np.arange(cloud.n), bonds.i, bonds.j, c, cloud.n)
-
-
-def intact_shape_tensor(cloud: PointCloud, bonds: Bonds, omega_fn: Any) -> np.ndarray:
-    """Shape tensor of a complete lattice horizon, ``(d, d)``.
-
-    Built from the integer stencil ``|p h| <= δ`` of a :func:`pdlin.grid`
-    cloud with uniform spacing, volume and horizon; ``omega_fn(length,
-    horizon)`` gives the weights.  Shadow particles use it (spec 000 §7).
-    """
-    lat = cloud.lattice
-    if lat is None:
-        raise ModelError("a shadow layer needs a pdlin.grid cloud (lattice metadata), got none")
-    hs = np.asarray(lat.spacing, dtype=float)
-    hor = np.asarray(bonds.horizon, dtype=float)
-    if not (np.allclose(hs, hs[0], rtol=1e-12) and np.allclose(hor, hor[0], rtol=1e-12)):
-        raise ModelError("a shadow layer needs equal spacing on every axis and a constant horizon")
-    vol = np.asarray(cloud.volumes)
-    if not np.allclose(vol, vol[0], rtol=1e-12):
-        raise ModelError("a shadow layer needs uniform point volumes")
-    d = cloud.dim
-    delta = float(hor[0])
-    m = int(np.floor(delta * (1 + 1e-9) / hs[0]))
-    rng = np.arange(-m, m + 1)
-    offs = np.stack([g.ravel() for g in np.meshgrid(*([rng] * d), indexing="ij")], axis=1)
-    offs = offs[np.any(offs != 0, axis=1)]
-    vec = offs * hs[0]
-    length = np.sqrt(np.sum(vec**2, axis=1))
-    keep = length <= delta * (1 + 1e-9)
-    vec, length = vec[keep], length[keep]
-    om = np.asarray(omega_fn(length, np.full(length.size, delta)), dtype=float)
-    return np.einsum("b,bi,bj->ij", om * vol[0], vec, vec)
-
-
-def shadow_real_counts(cloud: PointCloud, shadow: np.ndarray) -> np.ndarray:
-    """Number of real (non-shadow) lattice positions along each axis, ``(d,)``."""
-    lat = cloud.lattice
-    if lat is None:
-        raise ModelError("shadow_real_counts needs a pdlin.grid cloud, got no lattice metadata")
-    real = np.ones(cloud.n, dtype=bool)
-    real[shadow] = False
-    if not real.any():
-        return np.zeros(cloud.dim, dtype=int)
-    idx = np.arange(cloud.n) if lat.index is None else np.asarray(lat.index)
-    multi = np.unravel_index(idx[real], lat.shape)
-    return np.array([np.unique(mk).size for mk in multi])
-
-
-# ---------------------------------------------------------------------------
-# the model
-
-
-def _mean_per_point(owner: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
-    """Plain mean of gradient-point tensors ``(n_gp, d, d)`` over each point's gradient points."""
-    d = values.shape[1]
-    cnt = np.bincount(owner, minlength=n).astype(float)
-    flat = values.reshape(len(owner), d * d)
-    out = np.stack([np.bincount(owner, weights=flat[:, k], minlength=n) for k in range(d * d)], 1)
-    return (out / cnt[:, None]).reshape(n, d, d)
-
-
-#: rows per chunk of the threaded dense products (fixed: results do not depend on the
-#: thread count)
-_ROW_CHUNK = 1 << 15
-#: stored blocks per chunk of block rows in the zero-block dropping
-_DROP_CHUNK = 1 << 16
-#: bonds per chunk of points in the numba passes over points (coefficients, G's blocks,
-#: stress-point sides)
-_POINT_CHUNK = 1 << 16
-
-
-def _rows_matmul(
-    A: np.ndarray,
-    M: np.ndarray,
-    row_scale: np.ndarray | Callable[[int, int], np.ndarray] | None = None,
-) -> np.ndarray:
-    """``A @ M`` (times ``row_scale`` per row: an array, or a function giving the scales of
-    the rows ``a:b``), computed in fixed row chunks on threads."""
-    out = np.empty((A.shape[0], M.shape[1]))
-
-    def chunk(rng: tuple[int, int]) -> None:
-        a, b = rng
-        np.matmul(A[a:b], M, out=out[a:b])
-        if callable(row_scale):
-            out[a:b] *= row_scale(a, b)[:, None]
-        elif row_scale is not None:
-            out[a:b] *= row_scale[a:b, None]
-
-    thread_map(chunk, even_chunks(A.shape[0], _ROW_CHUNK))
-    return out
-
-
-def _drop_zero_blocks(
-    K: sp.bsr_array, sizes: tuple[np.ndarray, np.ndarray] | None = None
-) -> sp.bsr_array:
-    """``K`` without its stored blocks that cancel in exact arithmetic.
-
-    At δ = h the nearest-neighbour blocks of ``Wᵀ W`` cancel exactly (the decoupled
-    sub-lattices), and higher-order weights cancel more: keeping them would inflate nnz and
-    every product with K. In floating point some of these sums leave round-off (3D δ = h:
-    entries ~1e-17 of the diagonal, 4.6 % more blocks on a 24³ grid), so an off-diagonal
-    block ``(i, j)`` is dropped when ``max|K_ij| <= 16 ε sqrt(max|K_ii| max|K_jj|)``: below
-    the round-off of the product itself, symmetric in ``(i, j)`` (``K`` stays bitwise
-    symmetric) and independent of the units. Diagonal blocks are always kept. ``sizes``:
-    the block sizes of :func:`pdlin._kernels.bsr_matmul` (``block_sizes=True``), if known.
-    """
-    nrow = K.shape[0] // K.blocksize[0]
-    ptr = np.asarray(K.indptr, dtype=np.int64)
-    mod = _kernels() if use_numba(K.data.size) else None
-    if mod is not None:
-        return _drop_zero_blocks_fused(K, mod, sizes)
-    flat = K.data.reshape(K.data.shape[0], -1)
-    size = np.empty(flat.shape[0])
-    dsize = np.zeros(nrow)
-    # fixed chunks of block rows on the threads (elementwise work: results do not depend
-    # on the thread count); the kept blocks are copied chunk by chunk into their slots
-    chunks = ptr_chunks(ptr, _DROP_CHUNK)
-
-    def block_sizes(rng: tuple[int, int]) -> None:
-        r0, r1 = rng
-        b0, b1 = int(ptr[r0]), int(ptr[r1])
-        sz = size[b0:b1]
-        # max |entry| per block, column by column (3x faster than axis=)
-        np.abs(flat[b0:b1, 0], out=sz)
-        for c in range(1, flat.shape[1]):
-            np.maximum(sz, np.abs(flat[b0:b1, c]), out=sz)
-        brow = np.repeat(np.arange(r0, r1), np.diff(ptr[r0 : r1 + 1]))
-        on = K.indices[b0:b1] == brow
-        dsize[brow[on]] = sz[on]
-
-    thread_map(block_sizes, chunks)
-    keep = np.empty(flat.shape[0], dtype=bool)
-    counts = np.empty(nrow, dtype=np.int64)
-    eps2 = (16.0 * np.finfo(float).eps) ** 2
-
-    def marks(rng: tuple[int, int]) -> None:
-        r0, r1 = rng
-        b0, b1 = int(ptr[r0]), int(ptr[r1])
-        brow = np.repeat(np.arange(r0, r1), np.diff(ptr[r0 : r1 + 1]))
-        col = K.indices[b0:b1]
-        tol = dsize[brow]
-        tol *= dsize[col]
-        tol *= eps2
-        sz = size[b0:b1]
-        sz *= sz
-        kp = keep[b0:b1]
-        np.greater(sz, tol, out=kp)
-        kp |= col == brow
-        cs = np.zeros(b1 - b0 + 1, dtype=np.int64)
-        np.cumsum(kp, out=cs[1:])
-        counts[r0:r1] = cs[ptr[r0 + 1 : r1 + 1] - b0] - cs[ptr[r0:r1] - b0]
-
-    thread_map(marks, chunks)
-    if keep.all():
-        return K
-    indptr = np.zeros(nrow + 1, dtype=K.indptr.dtype)
-    np.cumsum(counts, out=indptr[1:])
-    total = int(indptr[-1])
-    data = np.empty((total,) + K.data.shape[1:])
-    indices = np.empty(total, dtype=K.indices.dtype)
-
-    def copy(rng: tuple[int, int]) -> None:
-        r0, r1 = rng
-        b0, b1 = int(ptr[r0]), int(ptr[r1])
-        o0, o1 = int(indptr[r0]), int(indptr[r1])
-        kp = keep[b0:b1]
-        np.compress(kp, K.data[b0:b1], axis=0, out=data[o0:o1])
-        np.compress(kp, K.indices[b0:b1], out=indices[o0:o1])
-
-    thread_map(copy, chunks)
-    return sp.bsr_array((data, indices, indptr), shape=K.shape, blocksize=K.blocksize)
-
-
-def _drop_zero_blocks_fused(
-    K: sp.bsr_array, mod: Any, sizes: tuple[np.ndarray, np.ndarray] | None
-) -> sp.bsr_array:
-    """:func:`_drop_zero_blocks` in nogil numba passes over row chunks on the threads
-    (block sizes unless given, kept blocks, copy): the same decisions and arrays."""
-    nrow = K.shape[0] // K.blocksize[0]
-    ptr = np.asarray(K.indptr, dtype=np.int64)
-    ind = np.ascontiguousarray(K.indices)
-    data = np.ascontiguousarray(K.data)
-    chunks = ptr_chunks(ptr, _DROP_CHUNK)
-    if sizes is None:
-        size = np.empty(data.shape[0])
-        dsize = np.empty(nrow)
-        thread_map(lambda r: mod.block_sizes_fill(r[0], r[1], ptr, ind, data, size, dsize), chunks)
-    else:
-        size, dsize = sizes
-    keep = np.empty(data.shape[0], dtype=bool)
-    counts = np.empty(nrow, dtype=np.int64)
-    eps2 = (16.0 * np.finfo(float).eps) ** 2
-    thread_map(
-        lambda r: mod.block_keep_fill(r[0], r[1], ptr, ind, size, dsize, eps2, keep, counts),
-        chunks,
-    )
-    if int(counts.sum()) == data.shape[0]:
-        return K
-    indptr = np.zeros(nrow + 1, dtype=np.int64)
-    np.cumsum(counts, out=indptr[1:])
-    total = int(indptr[-1])
-    out_dat = np.empty((total,) + data.shape[1:])
-    out_ind = np.empty(total, dtype=ind.dtype)
-    thread_map(
-        lambda r: mod.block_compress_fill(
-            r[0], r[1], ptr, ind, data, keep, indptr, out_ind, out_dat
-        ),
-        chunks,
-    )
-    return sp.bsr_array(
-        (out_dat, out_ind, indptr.astype(K.indptr.dtype)), shape=K.shape, blocksize=K.blocksize
-    )
-
-
-def _with_diagonal_blocks(K: sp.sparray, d: int) -> sp.bsr_array:
-    """``K`` as BSR with every diagonal block stored (explicit zeros where empty).
-
-    Energy-free shadow points may have empty rows; Dirichlet elimination writes its identity
-    into stored diagonal entries.  Large matrices find the stored diagonals in row chunks
-    with numba.
-    """
-    Kb = sp.bsr_array(K, blocksize=(d, d))
-    mod = _kernels() if use_numba(Kb.indices.size) else None
-    if mod is None:
-        return with_diagonal_blocks(Kb)
-    has = np.empty(Kb.shape[0] // d, dtype=bool)
-    ptr = np.asarray(Kb.indptr, dtype=np.int64)
-    ind = np.ascontiguousarray(Kb.indices)
-    thread_map(
-        lambda r: mod.rows_with_diagonal(r[0], r[1], ptr, ind, has),
-        ptr_chunks(ptr, _DROP_CHUNK),
-    )
-    return with_diagonal_blocks(Kb, has_diagonal=has)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -949,24 +139,6 @@ def _orientation_count(orientation: Any, dim: int) -> int | None:
     if orientation is None:
         return None
     return n_orientations(orientation, dim)
-
-
-def _tangent_blocks_product(
-    blk: _GradientBlocks, A: np.ndarray, d: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """Blocks of ``G`` (d² x d) and of ``A G`` (d² x d) for blockdiag ``A`` (n_gp, d², d²).
-
-    The G block of (g, point) is ``I_d ⊗ c``: entry ``[(i, q), k] = δ_ik c_q`` (rows
-    ``(i, q)`` in the row-major order of ``vec F``).
-    """
-    nblk = blk.col.size
-    Gd = np.zeros((nblk, d, d, d))  # [b, i, q, k]
-    for i in range(d):
-        Gd[:, i, :, i] = blk.val
-    # (A G)[b, p, k] = Σ_q A[g, p, (k, q)] c_bq
-    Ar = A.reshape(-1, d * d, d, d)[blk.row]  # (nblk, d², k, q)
-    AG = np.einsum("bpkq,bq->bpk", Ar, blk.val)
-    return Gd.reshape(nblk, d * d, d), AG
 
 
 class Correspondence(Model):
@@ -1310,7 +482,7 @@ class Correspondence(Model):
             raise ModelError("control='higher_order' needs a constant horizon, got a per-point one")
         ratio = float(hor[0]) / h
         try:
-            from .weights import as_influence, higher_order_weights
+            from ..weights import as_influence, higher_order_weights
         except ImportError:
             if abs(ratio - 1.0) < 1e-6:  # δ = h: the only shell, weight 1 (spec 000 §6 Table)
                 return lambda length, horizon: np.ones_like(length)
@@ -1369,7 +541,7 @@ class Correspondence(Model):
                 lambda r: mod.sp_gp_of_bond(
                     r[0], r[1], bptr, base, full, chosen, first, gp_of_bond
                 ),
-                ptr_chunks(bptr, _POINT_CHUNK),
+                ptr_chunks(bptr, _gradient._POINT_CHUNK),
             )
         else:
             second = full[bonds.i] & ~first[chosen[bonds.i], np.arange(bonds.n_bonds)]
@@ -1411,7 +583,7 @@ class Correspondence(Model):
             energy[rows] = False
             fn = self._omega_fn(cloud, bonds)
             if fn is None:
-                from ..geometry.influence import influence_function
+                from ...geometry.influence import influence_function
 
                 fn = influence_function(bonds.influence)
             K_int = intact_shape_tensor(cloud, bonds, fn)
@@ -1446,7 +618,7 @@ class Correspondence(Model):
                 g0, g1 = rng
                 D[g0:g1] = (P.T @ Cv[g0:g1] @ P) * scale[g0:g1, None, None]
 
-            thread_map(chunk, even_chunks(Cv.shape[0], _ROW_CHUNK))
+            thread_map(chunk, even_chunks(Cv.shape[0], _gradient._ROW_CHUNK))
             return D
 
         plan = _Plan(gp_owner, gp_of_bond, w, energy, omega, blocks, n, stiffness_fn, d_fn)
@@ -2066,7 +1238,7 @@ class Correspondence(Model):
         w = p._lazy["neg_wv"]
         flat = np.empty_like(P)
         if P.size >= _THREADED_MULTIPLY:  # numpy's loop releases the GIL: row chunks
-            from .._threads import even_chunks, thread_map
+            from ..._threads import even_chunks, thread_map
 
             thread_map(
                 lambda c: np.multiply(P[c[0] : c[1]], w[c[0] : c[1]], out=flat[c[0] : c[1]]),
@@ -2230,7 +1402,7 @@ class Correspondence(Model):
             K = self.tangent_matrix(cloud, bonds, A)
         cauchy: Any = getattr(self.material, "cauchy", None)
         if cauchy is None:
-            from ..constitutive.crystal_plasticity import cauchy_stress
+            from ...constitutive.crystal_plasticity import cauchy_stress
 
             cauchy = cauchy_stress
         owner = p.gp_owner
@@ -2334,125 +1506,6 @@ class Correspondence(Model):
         return {**items, **super()._repr_items()}
 
 
-def shadow_problem(
-    model: Correspondence,
-    cloud: PointCloud,
-    bonds: Bonds,
-    F: Any,
-    *,
-    depth: float | None = None,
-    allow_odd: bool = False,
-) -> Any:
-    """Static problem with a shadow layer of depth δ prescribed to the affine field of ``F``.
-
-    Returns a :class:`pdlin.StaticProblem` whose model is ``model`` with
-    ``shadow`` set, whose Dirichlet condition is :func:`pdlin.shadow_layer`
-    and whose load is the shadow-stress force :meth:`Correspondence.shadow_loads`
-    (spec 000 §7).  Odd real counts along an axis make K_RR singular
-    (spec 000 §4 parity rule) and raise unless ``allow_odd``; stress points,
-    springs and ADS couple the sublattices and are exempt.
-
-    Examples
-    --------
-    >>> import numpy as np, pdlin
-    >>> from pdlin.models.correspondence import shadow_problem
-    >>> cloud = pdlin.grid((12, 12), spacing=0.1)
-    >>> bonds = pdlin.find_bonds(cloud, ratio=2.0)
-    >>> C = pdlin.constitutive.isotropic_2d(1.0, 0.3, plane="strain")
-    >>> F = np.eye(2) + [[0.02, 0.005], [0.003, -0.01]]
-    >>> prob = shadow_problem(pdlin.Correspondence(C), cloud, bonds, F)
-    >>> res = pdlin.solve(prob, solver="direct")
-    >>> bool(np.abs(res.u - cloud.points @ (F - np.eye(2)).T).max() < 1e-12)
-    True
-    """
-    from ..operators.bc import BodyForce, shadow_layer
-    from ..problem import StaticProblem
-
-    dep = float(np.max(bonds.horizon)) if depth is None else float(depth)
-    bc, shadow = shadow_layer(cloud, F, dep)
-    counts = shadow_real_counts(cloud, shadow)
-    # stress points and springs / ADS couple the sublattices: no parity rule
-    decoupled = model.control not in ("stress_points", "springs", "ads")
-    if decoupled and not allow_odd and np.any(counts % 2 == 1):
-        raise ModelError(
-            f"real particle counts per axis must be even with a shadow layer (K_RR is singular "
-            f"otherwise, spec 000 §4), got {counts.tolist()}; pass allow_odd=True to proceed"
-        )
-    params = dict(model.__dict__)
-    m2 = Correspondence.__new__(Correspondence)
-    m2.__dict__.update(params)
-    m2.shadow = np.asarray(shadow, dtype=np.intp)
-    m2._cache = None
-    m2.assembly = {}
-    f = m2.shadow_loads(cloud, bonds, F=F)
-    real = np.setdiff1d(np.arange(cloud.n), shadow)
-    vol = np.asarray(cloud.volumes) * (1.0 if cloud.dim == 3 else cloud.thickness)
-    load = BodyForce(real, f[real] / vol[real, None])
-    return StaticProblem(m2, cloud, bonds, dirichlet=[bc], loads=[load])
-
-
-def solve_matrix_free(
-    problem: Any,
-    *,
-    rtol: float = 1e-8,
-    maxiter: int | None = None,
-    preconditioner: str = "jacobi",
-) -> Any:
-    """Solve a static correspondence problem without assembling K.
-
-    CG on the matrix-free operator ``K x = Gᵀ(D(G x))`` (+ penalty)
-    restricted to the free DOFs, preconditioned by the diagonal of
-    :meth:`Correspondence.surrogate_stiffness` (the bond-based K of the
-    same bonds, ``'jacobi'``, default), smoothed-aggregation AMG on that
-    surrogate (``'amg'``) or nothing (``'none'``).  The true residual is
-    checked; a miss raises :class:`~pdlin.errors.ConvergenceError`.  This is
-    ``pdlin.solve(problem, solver=..., operator="matrix-free")`` with the
-    preconditioner named the Correspondence way.
-
-    Measured (20³ cube, shadow layer, HO weights, rtol 1e-10; iterations
-    none / jacobi / amg): δ = h 111 / 111 / 275, 2h 103 / 103 / 219,
-    3h 569 / 569 / 720.  The bond-based surrogate does not see the
-    odd-even decoupling of the correspondence operator, so its AMG
-    hierarchy is a poor preconditioner; it is kept as an option.
-
-    Returns
-    -------
-    pdlin.StaticResult
-        ``info['solver']`` names the path and preconditioner.
-
-    Examples
-    --------
-    >>> import numpy as np, pdlin
-    >>> from pdlin.models.correspondence import solve_matrix_free
-    >>> cloud = pdlin.grid((12, 6), spacing=0.1)
-    >>> prob = pdlin.StaticProblem(pdlin.Correspondence(E=1.0, nu=0.3, control="penalty"),
-    ...     cloud, horizon=0.2, dirichlet=[pdlin.Dirichlet("x-", 0.0)],
-    ...     loads=[pdlin.TotalForce("x+", [1e-3, 0.0])])
-    >>> res = solve_matrix_free(prob, rtol=1e-10)
-    >>> ref = pdlin.solve(prob, solver="direct")
-    >>> bool(np.allclose(res.u, ref.u, rtol=1e-7, atol=1e-9 * np.abs(ref.u).max()))
-    True
-    """
-    from ..problem import solve
-
-    solvers = {"amg": "amg-cg", "jacobi": "jacobi-cg", "none": "cg"}
-    if preconditioner not in solvers:
-        raise InputError(
-            f"preconditioner must be 'amg', 'jacobi' or 'none', got {preconditioner!r}"
-        )
-    if not isinstance(problem.model, Correspondence):
-        raise InputError(
-            f"problem.model must be a Correspondence, got {type(problem.model).__name__}"
-        )
-    return solve(
-        problem,
-        solver=solvers[preconditioner],
-        rtol=rtol,
-        maxiter=maxiter,
-        operator="matrix-free",
-    )
-
-
 #: entries of a stress array from which ``w V P`` is multiplied in row chunks on threads
 _THREADED_MULTIPLY = 1 << 18
 
@@ -2462,7 +1515,7 @@ def _threaded(p: _Plan, key: str, A: Any) -> Any:
     kept in the plan) when it holds at least two blocks' worth of entries, so that the
     nonlinear iterations' ``G u``, ``Gᵀ (w V P)`` and ``K_c u`` run on pdlin's threads
     (the same values bitwise); smaller ones stay plain scipy products."""
-    from .._threads import ROW_BLOCK_NNZ, RowBlocks
+    from ..._threads import ROW_BLOCK_NNZ, RowBlocks
 
     if A.nnz < 2 * ROW_BLOCK_NNZ:
         return A
