@@ -257,7 +257,7 @@ def test_drop_zero_blocks_threaded_equals_serial(
     """δ = h: the nearest-neighbour blocks of Wᵀ W cancel and are dropped; the threaded
     pass (small chunks: many per thread, empty block rows included) keeps the same blocks,
     numpy chunks or numba passes, with the block sizes computed or given by the product."""
-    from pdlin.models.correspondence import model as corr
+    from pdlin.models.correspondence import gradient as corr
 
     cloud = pdlin.grid((9, 8, 7) if dim == 3 else (31, 23), spacing=0.1)
     bonds = pdlin.find_bonds(cloud, ratio=1.0)

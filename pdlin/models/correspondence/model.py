@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import warnings
 from collections.abc import Mapping
 from typing import Any
 
@@ -17,8 +16,8 @@ from ..._arrays import (
     n_orientations,
     voigt_pairs,
 )
-from ..._kernels import _kernels, bsr_matmul, bsr_transpose, use_numba
-from ..._threads import even_chunks, ptr_chunks, thread_map
+from ..._kernels import bsr_matmul, bsr_transpose
+from ..._threads import even_chunks, thread_map
 from ..._validation import as_displacement, as_float_array, check_finite, integer
 from ...constitutive import check_stiffness, isotropic, isotropic_2d, plane_strain, plane_stress
 from ...errors import InputError, InputTypeError, ModelError, ShapeError
@@ -27,18 +26,14 @@ from ...geometry.cloud import PointCloud
 from .._state import uniform_nu_constants
 from ..base import Model, Response
 from ..bond_based import BondBased, _c1111
+from . import controls as _controls
 from . import gradient as _gradient
 from .controls import (
-    _SP_CASES,
     CONTROLS,
     DEFAULT_CONTROL_COEFFICIENT,
-    _halves_well_conditioned,
-    _sides,
 )
 from .gradient import (
-    _blocks_to_csr,
     _coefficients,
-    _drop_zero_blocks,
     _gradient_blocks,
     _GradientBlocks,
     _mean_per_point,
@@ -115,7 +110,7 @@ class _Plan:
     def G(self) -> sp.csr_array:
         """G in CSR ``(n_gp*d*d, n*d)``, built from the blocks on first use."""
         if "G" not in self._lazy:
-            self._lazy["G"] = _blocks_to_csr(self.blocks, self.n_points)
+            self._lazy["G"] = _gradient._blocks_to_csr(self.blocks, self.n_points)
         return self._lazy["G"]
 
 
@@ -496,63 +491,8 @@ class Correspondence(Model):
     def _gradient_points(
         self, cloud: PointCloud, bonds: Bonds
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        n = cloud.n
-        if self.control != "stress_points":
-            return np.arange(n), bonds.i, np.ones(n)
-        d = cloud.dim
-        cases = _SP_CASES[d]
-        # SP1 of case s owns the bonds with s·ξ > 0 (ties broken by the next vectors of an
-        # orthogonal basis); for nearest-neighbour axis bonds this is spec 003's
-        # {s_k e_k} / {-s_k e_k} split, for larger horizons its half-space extension
-        first = _sides(bonds, cases)  # (n_cases, nb)
-        omega = self.bond_weights(cloud, bonds)
-        full = _halves_well_conditioned(bonds, omega * bonds.volume_j, first, n, omega)
-        if bonds.n_bonds and not full.any():
-            warnings.warn(
-                "stress points: no particle has two balanced, well-conditioned half families "
-                "(irregular cloud or a body thinner than two horizons); every particle gets one "
-                "gradient point and the control is inactive (ordinary correspondence): use "
-                "control='penalty' on irregular clouds",
-                UserWarning,
-                stacklevel=4,
-            )
-        cases = _SP_CASES[d]
-        if self.case is None:
-            # one draw per full-horizon particle, in point order (the convention of the
-            # spec 003 reference implementation, so seeded results are comparable)
-            chosen = np.zeros(n, dtype=np.intp)
-            chosen[full] = np.random.default_rng(self.seed).integers(
-                0, cases.shape[0], int(full.sum())
-            )
-        else:
-            if not 0 <= self.case < cases.shape[0]:
-                raise InputError(
-                    f"case must be in [0, {cases.shape[0] - 1}] in {d}D, got {self.case}"
-                )
-            chosen = np.full(n, self.case)
-        n_sp = np.where(full, 2, 1)
-        base = np.zeros(n, dtype=np.intp)
-        np.cumsum(n_sp[:-1], out=base[1:])
-        mod = _kernels() if use_numba(bonds.n_bonds) else None
-        if mod is not None:  # point chunks on the threads
-            gp_of_bond = np.empty(bonds.n_bonds, dtype=np.intp)
-            bptr = np.asarray(bonds.indptr, dtype=np.int64)
-            thread_map(
-                lambda r: mod.sp_gp_of_bond(
-                    r[0], r[1], bptr, base, full, chosen, first, gp_of_bond
-                ),
-                ptr_chunks(bptr, _gradient._POINT_CHUNK),
-            )
-        else:
-            second = full[bonds.i] & ~first[chosen[bonds.i], np.arange(bonds.n_bonds)]
-            gp_of_bond = base[bonds.i] + second
-        gp_owner = np.repeat(np.arange(n), n_sp)
-        # one-SP weight: spec 003 §4.3 (w_s for every SP) on the paper's nearest-neighbour
-        # families; beyond them a one-SP particle is an ordinary gradient point carrying its
-        # whole volume (2 w_s, as its two half-SPs would for a uniform stress)
-        single = 1.0 if int(bonds.family_size.max(initial=0)) <= 2 * d else 2.0
-        weight = np.where(np.repeat(full, n_sp), 1.0, single) * self.sp_weight
-        return gp_owner, gp_of_bond, weight
+        """See :func:`pdlin.models.correspondence.controls.gradient_points`."""
+        return _controls.gradient_points(self, cloud, bonds)
 
     # -- assembly plan ----------------------------------------------------
     def _plan(self, cloud: PointCloud, bonds: Bonds) -> _Plan:
@@ -652,94 +592,18 @@ class Correspondence(Model):
         return sp.bsr_array((p.D, ar[:-1], ar), shape=(n_gp * q, n_gp * q), blocksize=(q, q))
 
     def _penalty_k(self, cloud: PointCloud, bonds: Bonds, p: _Plan) -> np.ndarray:
-        """Penalty stiffness per bond ``½ penalty k_b`` (0 on energy-free owners), ``(nb,)``."""
-        d = cloud.dim
-        Cv = self.voigt_stiffness(cloud)
-        axial = np.einsum("nkk->n", Cv[:, :d, :d]) / d
-        e_eq = axial / _c1111(np.ones(1), d, self.plane)[0]
-        bb = BondBased(E=e_eq, plane=self.plane)
-        k = 0.5 * self.penalty * bb.bond_stiffness(cloud, dataclasses.replace(bonds, omega=p.omega))
-        return k * p.energy[bonds.i]
+        """See :func:`pdlin.models.correspondence.controls.penalty_bond_stiffness`."""
+        return _controls.penalty_bond_stiffness(self, cloud, bonds, p)
 
     def _penalty_force(
         self, cloud: PointCloud, bonds: Bonds, p: _Plan, k: np.ndarray, x: np.ndarray
     ) -> np.ndarray:
-        """``Zᵀ(k z)`` with ``z_b = u_j - u_i - ∇u_g ξ_b``, matrix-free, ``(n*d,)``."""
-        d, n = cloud.dim, cloud.n
-        u = x.reshape(n, d)
-        grad = (p.G @ x).reshape(-1, d, d)
-        z = u[bonds.j] - u[bonds.i] - np.einsum("bij,bj->bi", grad[p.gp_of_bond], bonds.xi)
-        kz = k[:, None] * z
-        out = np.empty((n, d))
-        for a in range(d):
-            out[:, a] = np.bincount(bonds.j, weights=kz[:, a], minlength=n) - np.bincount(
-                bonds.i, weights=kz[:, a], minlength=n
-            )
-        # -Gᵀ Xᵀ(k z): per gradient point (g, i, q): Σ_b k z_i ξ_q
-        ngp = p.gp_owner.size
-        t = np.empty((ngp, d, d))
-        for a in range(d):
-            for q in range(d):
-                t[:, a, q] = np.bincount(
-                    p.gp_of_bond, weights=kz[:, a] * bonds.xi[:, q], minlength=ngp
-                )
-        return out.ravel() - np.asarray(p.G.T @ t.ravel())
+        """See :func:`pdlin.models.correspondence.controls.penalty_force`."""
+        return _controls.penalty_force(cloud, bonds, p, k, x)
 
     def _penalty_matrix(self, cloud: PointCloud, bonds: Bonds, p: _Plan) -> sp.bsr_array:
-        """``Zᵀ diag(k) Z`` with ``Z = Z_s ⊗ I_d`` (BSR, d x d blocks).
-
-        ``z_b = u_j - u_i - ∇u_g ξ_b`` and the G block of (g, point p) is ``I_d ⊗ c_gp``, so
-        every block of Z is a multiple of ``I_d`` and ``Z_s = E - X G_s``: ``E`` the bond
-        incidence (``e_j - e_i``), ``X`` puts ``ξ_b`` in the row of the bond's gradient point,
-        ``G_s`` the scalar gradient (rows ``(g, q)``, block values ``c_gp``).  Expanded,
-
-        ``Z_sᵀ k Z_s = Eᵀ k E + T + Tᵀ``, ``T = G_sᵀ U``, ``U = ½ M G_s - Xᵀ k E``,
-
-        with ``M = Xᵀ k X = blockdiag_g(Σ_b k_b ξ_b ξ_bᵀ)``; ``U`` has the block pattern of
-        ``G_s``.  The product ``G_sᵀ U`` costs ``n_gp d m²`` multiply-adds for ``m`` family
-        members, ``Rᵀ R`` with ``R = √k Z_s`` would cost ``n_b m² = n_gp m³`` (6x more at 2D
-        δ = 2h, 40x at 3D δ = 3h).  ``T + Tᵀ`` and ``Eᵀ k E = (√k E)ᵀ(√k E)`` are bitwise
-        symmetric, so is the sum.
-        """
-        d, n = cloud.dim, cloud.n
-        k = self._penalty_k(cloud, bonds, p)
-        blk = p.blocks
-        g = p.gp_of_bond
-        nb = g.size
-        n_gp = blk.indptr.size - 1
-        nblk = blk.col.size
-        kx = k[:, None] * bonds.xi
-        # M_g = Σ_b k_b ξ_b ξ_bᵀ; U block (g, p) = ½ M_g c_gp - Σ_{b: j_b = p} k_b ξ_b
-        # (+ Σ_b k_b ξ_b on the owner's block)
-        M = np.empty((n_gp, d, d))
-        for q in range(d):
-            for r in range(q, d):
-                M[:, q, r] = M[:, r, q] = np.bincount(
-                    g, weights=kx[:, q] * bonds.xi[:, r], minlength=n_gp
-                )
-        U = np.einsum("bqr,br->bq", M[blk.row], blk.val)
-        U *= 0.5
-        for q in range(d):
-            U[:, q] -= np.bincount(blk.bond_block, weights=kx[:, q], minlength=nblk)
-            U[blk.owner_block, q] += np.bincount(g, weights=kx[:, q], minlength=n_gp)
-        shape = (n_gp * d, n)
-        Gs = sp.bsr_array((blk.val[:, :, None], blk.col, blk.indptr), shape=shape, blocksize=(d, 1))
-        Us = sp.bsr_array((U[:, :, None], blk.col, blk.indptr), shape=shape, blocksize=(d, 1))
-        T = sp.csr_array(sp.csr_array(Gs).T @ sp.csr_array(Us))
-        # √k E: +√k at j_b, -√k at the owner (k ≥ 0: bond_stiffness rejects signed weights)
-        sk = np.sqrt(k)
-        Ek = sp.csr_array(
-            (
-                np.stack([sk, -sk], 1).ravel(),
-                np.stack([blk.col[blk.bond_block], p.gp_owner[g]], 1).ravel(),
-                np.arange(0, 2 * nb + 1, 2),
-            ),
-            shape=(nb, n),
-        )
-        Ks = sp.csr_array(Ek.T @ Ek + (T + T.T))
-        Ks.sum_duplicates()
-        blocks = Ks.data[:, None, None] * np.eye(d)
-        return sp.bsr_array((blocks, Ks.indices, Ks.indptr), shape=(n * d, n * d), blocksize=(d, d))
+        """See :func:`pdlin.models.correspondence.controls.penalty_matrix`."""
+        return _controls.penalty_matrix(self, cloud, bonds, p)
 
     # -- springs / ADS (spec 003 §3) ----------------------------------------
     def control_constants(self, cloud: PointCloud, bonds: Bonds) -> dict[str, float]:
@@ -778,86 +642,13 @@ class Correspondence(Model):
         >>> round(c3["S_ref"] / (2 * 0.1 * (0.1**2 + 0.2**2 + 0.3**2)), 12)
         1.0
         """
-        d = cloud.dim
-        Cv = self.voigt_stiffness(cloud)
-        e_ref = float(np.max(np.einsum("nkk->n", Cv[:, :d, :d]) / d))
-        vol = np.asarray(cloud.volumes, dtype=float) * (1.0 if d == 3 else cloud.thickness)
-        v_ref = float(np.mean(vol))
-        shortest = np.full(cloud.n, np.inf)
-        np.minimum.at(shortest, bonds.i, bonds.length)
-        has = np.isfinite(shortest)
-        if not has.any():
-            raise ModelError("springs/ADS controls need bonds, got a cloud without any")
-        h_ref = float(np.mean(shortest[has]))
-        wv = self.bond_weights(cloud, bonds) * vol[bonds.j]
-        s_ref = float(np.max(np.bincount(bonds.i, weights=wv * bonds.length**2, minlength=cloud.n)))
-        o_ref = float(np.max(np.bincount(bonds.i, weights=wv, minlength=cloud.n)))
-        if not (s_ref > 0 and o_ref > 0):
-            raise ModelError(
-                "springs/ADS controls need positive family moments Σ ω V_j |ξ|², Σ ω V_j, "
-                f"got {s_ref:.3g}, {o_ref:.3g}"
-            )
-        c = self.coefficient
-        return {
-            "coefficient": c,
-            "E_ref": e_ref,
-            "V_ref": v_ref,
-            "h_ref": h_ref,
-            "S_ref": s_ref,
-            "Omega_ref": o_ref,
-            "C1": d * c * e_ref / s_ref,
-            "C2": 4.0 * d * d * c * e_ref / (s_ref * o_ref),
-        }
-
-    def _laplacian(
-        self, cloud: PointCloud, bonds: Bonds, w: np.ndarray, rows: np.ndarray | None = None
-    ) -> sp.csr_array:
-        """``(Lap_w u)_i = Σ_b w_b (u_i - u_j)`` over the bonds of i, ⊗ I_d; ``rows``: keep only."""
-        n, d = cloud.n, cloud.dim
-        i, j = bonds.i, bonds.j
-        if rows is not None:
-            keep = rows[i]
-            i, j, w = i[keep], j[keep], w[keep]
-        L = sp.coo_array(
-            (np.concatenate([w, -w]), (np.concatenate([i, i]), np.concatenate([i, j]))),
-            shape=(n, n),
-        ).tocsr()
-        return sp.csr_array(sp.kron(L, sp.eye_array(d), format="csr"))
+        return _controls.control_constants(self, cloud, bonds)
 
     def _control_factors(
         self, cloud: PointCloud, bonds: Bonds, p: _Plan
     ) -> tuple[sp.csr_array, sp.csr_array] | None:
-        """The springs / ADS stiffness as a product ``S @ N`` of one-hop matrices (or None).
-
-        Springs: ``S = Σ_b C1 ω V_i V_j (e_i - e_j)(e_i - e_j)ᵀ ⊗ I``, ``N = I``
-        (every bond, shadow ones too).  ADS: ``S = C2 diag(V) Lap_V``,
-        ``N = Lap_ωV`` with the rows of shadow particles zeroed (their
-        averaged displacement state is that of the affine continuation, 0).
-        """
-        if self.control not in ("springs", "ads") or self.coefficient == 0:
-            return None
-        d = cloud.dim
-        c = self.control_constants(cloud, bonds)
-        vol = np.asarray(cloud.volumes, dtype=float) * (1.0 if d == 3 else cloud.thickness)
-        vi, vj = vol[bonds.i], vol[bonds.j]
-        nd = cloud.n * d
-        if self.control == "springs":
-            k = c["C1"] * p.omega * vi * vj
-            i, j = bonds.i, bonds.j
-            Ls = sp.coo_array(
-                (np.concatenate([k, k, -k, -k]),
-                 (np.concatenate([i, j, i, j]), np.concatenate([i, j, j, i]))),
-                shape=(cloud.n, cloud.n),
-            ).tocsr()  # fmt: skip
-            S = sp.csr_array(sp.kron(Ls, sp.eye_array(d), format="csr"))
-            return S, sp.csr_array(sp.eye_array(nd, format="csr"))
-        S = self._laplacian(cloud, bonds, c["C2"] * vi * vj)  # diag(V) Lap_V, symmetric
-        rows = None
-        if self.shadow is not None:
-            rows = np.ones(cloud.n, dtype=bool)
-            rows[self.shadow] = False
-        N = self._laplacian(cloud, bonds, p.omega * vj, rows)
-        return S, N
+        """See :func:`pdlin.models.correspondence.controls.control_factors`."""
+        return _controls.control_factors(self, cloud, bonds, p)
 
     def _control_matrix(self, cloud: PointCloud, bonds: Bonds, p: _Plan) -> sp.csr_array | None:
         """Assembled springs / ADS stiffness ``S N`` (None for the other controls)."""
@@ -923,7 +714,7 @@ class Correspondence(Model):
         if Wdata is not None:
             W = sp.bsr_array((Wdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
             K, sizes = bsr_matmul(bsr_transpose(W), W, block_sizes=True)
-            return _drop_zero_blocks(K, sizes)
+            return _gradient._drop_zero_blocks(K, sizes)
         Bdata = bdata()
         B = sp.bsr_array((Bdata, blk.col, blk.indptr), shape=shape, blocksize=(nv, d))
         ar = np.arange(n_gp + 1, dtype=np.int32)
@@ -1295,7 +1086,7 @@ class Correspondence(Model):
         shape = (n_gp * d * d, p.n_points * d)
         Gb = sp.bsr_array((Gd, blk.col, blk.indptr), shape=shape, blocksize=(d * d, d))
         AGb = sp.bsr_array((AG, blk.col, blk.indptr), shape=shape, blocksize=(d * d, d))
-        K = _drop_zero_blocks(bsr_matmul(bsr_transpose(Gb), AGb))
+        K = _gradient._drop_zero_blocks(bsr_matmul(bsr_transpose(Gb), AGb))
         Kc = self._addon_matrix(cloud, bonds, p)
         if Kc is not None:
             K = sp.bsr_array(sp.csr_array(K) + Kc, blocksize=(d, d))
