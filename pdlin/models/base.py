@@ -111,18 +111,36 @@ class Model(ABC):
         return spla.aslinearoperator(self.stiffness(cloud, bonds))
 
     def surrogate_stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.sparray:
-        """Assembled one-hop matrix spectrally close to K, used to precondition
-        the matrix-free path (default: the bond-based stiffness with the
-        model's ``E`` on the same bonds)."""
-        from .bond_based import BondBased
+        """Return an assembled one-hop matrix spectrally close to ``K``.
 
-        E = getattr(self, "E", None)
-        if E is None:
-            raise ModelError(
-                f"{type(self).__name__} has no surrogate stiffness for the matrix-free path "
-                "(define surrogate_stiffness or use operator='assembled')"
-            )
-        return BondBased(E=E, plane=getattr(self, "plane", "stress")).stiffness(cloud, bonds)
+        The matrix-free path preconditions with it.  The default is the model's own
+        stiffness when ``K`` couples one horizon (``coupling_range == 1``: it is its
+        own best surrogate); models coupling two horizons override it (state-based:
+        the bond-based ``K`` of the same bonds).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points.
+        bonds : Bonds
+            Their bonds.
+
+        Returns
+        -------
+        scipy.sparse.sparray
+            ``(n*dim, n*dim)``.
+
+        Raises
+        ------
+        ModelError
+            The model couples two horizons and defines no surrogate.
+        """
+        if self.coupling_range == 1:
+            return self.stiffness(cloud, bonds)
+        raise ModelError(
+            f"{type(self).__name__} has no surrogate stiffness for the matrix-free path "
+            "(define surrogate_stiffness or use operator='assembled')"
+        )
 
     def energy(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> float:
         """Linearized strain energy ``½ uᵀ K u`` (matrix-free where possible)."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from .._validation import as_bool
-from ._state import OrdinaryStateBased, analytic_weighted_volume, bulk_shear_moduli
+from .ordinary_state import OrdinaryStateBased, analytic_weighted_volume, bulk_shear_moduli
 
 __all__ = ["LPS", "bulk_shear_moduli", "analytic_weighted_volume"]
 

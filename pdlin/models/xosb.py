@@ -10,7 +10,7 @@ from .._validation import as_bool, positive_scalar
 from ..errors import InputError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
-from ._state import OrdinaryStateBased, StateWeights
+from .ordinary_state import OrdinaryStateBased, StateWeights
 
 __all__ = ["XOSB", "StateWeights"]
 

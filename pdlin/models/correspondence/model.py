@@ -23,9 +23,9 @@ from ...constitutive import check_stiffness, isotropic, isotropic_2d, plane_stra
 from ...errors import InputError, InputTypeError, ModelError, ShapeError
 from ...geometry.bonds import Bonds
 from ...geometry.cloud import PointCloud
-from .._state import uniform_nu_constants
 from ..base import Model, Response
 from ..bond_based import BondBased, _c1111
+from ..ordinary_state import uniform_nu_constants
 from . import controls as _controls
 from . import gradient as _gradient
 from .controls import (

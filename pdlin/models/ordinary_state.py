@@ -96,6 +96,73 @@ def uniform_nu_constants(
     return E_, float(nu_arr.ravel()[0])
 
 
+def elastic_constants(
+    owner: str, E: Any, nu: Any, *, K: Any, G: Any, lam: Any, mu: Any, plane: str
+) -> tuple[np.ndarray, float, str]:
+    """Return the checked elastic constants ``(E, ν, plane)`` of a state-based model.
+
+    The one front of the isotropic constants of :class:`OrdinaryStateBased`,
+    :class:`pdlin.LPS` and :class:`pdlin.XOSB`: ``E`` and ``nu``, or any two of
+    ``K, G, lam, mu`` (converted by :func:`uniform_nu_constants`).
+
+    Parameters
+    ----------
+    owner : str
+        Name of the model, for the error messages.
+    E : float or (n,) array_like or None
+        Young's modulus (per point for graded materials).
+    nu : float or None
+        Poisson ratio in (-1, 0.5).
+    K, G, lam, mu : float or (n,) array_like or None
+        Bulk modulus, shear modulus, Lamé's first constant, shear modulus (``mu`` is
+        ``G``): any two instead of ``E, nu``.
+    plane : {'stress', 'strain'}
+        2D assumption.
+
+    Returns
+    -------
+    E : ndarray
+        Young's modulus, a 0-d or ``(n,)`` float array, positive.
+    nu : float
+        The Poisson ratio, one for every point.
+    plane : str
+        ``plane``, checked.
+
+    Raises
+    ------
+    InputError
+        Neither ``E, nu`` nor two other constants, constants implying a varying ν,
+        ``E <= 0`` or not a scalar / ``(n,)`` array, ``nu`` outside (-1, 0.5), or an
+        unknown ``plane``.
+
+    Examples
+    --------
+    >>> E, nu, plane = elastic_constants("LPS", None, None, K=2.0, G=1.0, lam=None,
+    ...                                  mu=None, plane="strain")
+    >>> float(E), round(nu, 12), plane
+    (2.4, 0.2, 'strain')
+    """
+    if all(v is None for v in (K, G, lam, mu)):
+        if E is None or nu is None:
+            raise InputError(
+                f"{owner} needs E and nu (or two of K, G, lam, mu), got E = {E!r}, nu = {nu!r}"
+            )
+    else:
+        E, nu = uniform_nu_constants(owner, E, nu, K=K, G=G, lam=lam, mu=mu)
+    E_arr = as_float_array(E, "E")
+    if E_arr.ndim > 1 or np.any(E_arr <= 0):
+        raise InputError(f"E must be a positive scalar or (n,) array, got {E!r}")
+    try:
+        nu_f = float(nu)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"nu must be a number in (-1, 0.5), got {nu!r}") from exc
+    if not -1.0 < nu_f < 0.5:
+        raise InputError(f"nu must be in (-1, 0.5), got {nu_f}")
+    if plane not in _PLANES:
+        raise InputError(f"plane must be 'stress' or 'strain', got {plane!r}")
+    return E_arr, nu_f, plane
+
+
 def bulk_shear_moduli(E: Any, nu: float, dim: int, plane: str = "stress") -> tuple[Any, Any]:
     """Bulk modulus κ and shear modulus μ of spec 002 Eq. 66.
 
@@ -603,32 +670,15 @@ class OrdinaryStateBased(Model):
     ) -> None:
         self.surface_correction = check_surface_correction(surface_correction, type(self).__name__)
         self._surface_cache: tuple[PointCloud, Bonds, SurfaceFactors] | None = None
-        if all(v is None for v in (K, G, lam, mu)):
-            if E is None or nu is None:
-                raise InputError(
-                    f"{type(self).__name__} needs E and nu (or two of K, G, lam, mu), got "
-                    f"E = {E!r}, nu = {nu!r}"
-                )
-        else:
-            E, nu = uniform_nu_constants(type(self).__name__, E, nu, K=K, G=G, lam=lam, mu=mu)
-        self.E = as_float_array(E, "E")
-        if self.E.ndim > 1 or np.any(self.E <= 0):
-            raise InputError(f"E must be a positive scalar or (n,) array, got {E!r}")
-        try:
-            self.nu = float(nu)
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"nu must be a number in (-1, 0.5), got {nu!r}") from exc
-        if not -1.0 < self.nu < 0.5:
-            raise InputError(f"nu must be in (-1, 0.5), got {self.nu}")
-        if plane not in _PLANES:
-            raise InputError(f"plane must be 'stress' or 'strain', got {plane!r}")
+        self.E, self.nu, self.plane = elastic_constants(
+            type(self).__name__, E, nu, K=K, G=G, lam=lam, mu=mu, plane=plane
+        )
         if linearization not in _LINEARIZATIONS:
             raise InputError(f"linearization must be 'energy' or 'paper', got {linearization!r}")
         if weighted_volume not in ("analytic", "discrete"):
             raise InputError(
                 f"weighted_volume must be 'analytic' or 'discrete', got {weighted_volume!r}"
             )
-        self.plane = plane
         self.linearization = linearization
         self.weighted_volume = weighted_volume
         self.fallback = bool(fallback)
@@ -1039,6 +1089,28 @@ class OrdinaryStateBased(Model):
         for r0, r1 in _row_chunks(np.asarray(adj.indptr, dtype=np.int64), 1 << 22):
             total += int((adj[r0:r1] @ adj).nnz)
         return total
+
+    def surrogate_stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.sparray:
+        """Return the one-hop matrix that preconditions the matrix-free path.
+
+        It is the stiffness of :class:`pdlin.BondBased` with this model's ``E`` and
+        ``plane`` on the same bonds, spectrally close to the state-based ``K``.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points.
+        bonds : Bonds
+            Their bonds.
+
+        Returns
+        -------
+        scipy.sparse.bsr_array
+            The bond-based ``K``, ``(n*dim, n*dim)``.
+        """
+        from .bond_based import BondBased
+
+        return BondBased(E=self.E, plane=self.plane).stiffness(cloud, bonds)
 
     def describe(self) -> dict[str, Any]:
         return {
