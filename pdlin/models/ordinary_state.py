@@ -137,10 +137,10 @@ def elastic_constants(
 
     Examples
     --------
-    >>> E, nu, plane = elastic_constants("LPS", None, None, K=2.0, G=1.0, lam=None,
+    >>> E, nu, plane = elastic_constants("LPS", None, None, K=5.0, G=3.0, lam=None,
     ...                                  mu=None, plane="strain")
-    >>> float(E), round(nu, 12), plane
-    (2.4, 0.2, 'strain')
+    >>> round(float(E), 12), round(nu, 12), plane   # E = 9KG/(3K+G), ν = (3K-2G)/(2(3K+G))
+    (7.5, 0.25, 'strain')
     """
     if all(v is None for v in (K, G, lam, mu)):
         if E is None or nu is None:
