@@ -1,6 +1,6 @@
 """Shared machinery of the ordinary state-based models (LPS / OSBPD and XOSB).
 
-Notation follows spec 002 (sections 3-7).  Per ordered bond ``b = (i -> j)``:
+Notation follows Liu, Chen & Skelton, XOSB (Eqs. 9-70).  Per ordered bond ``b = (i -> j)``:
 
 - ``e_b = n_b · (u_j - u_i)`` (linearized) or ``|Y| - r`` (nonlinear);
 - ``θ_i = Σ_b a_b e_b`` with ``a_b = ω^h_b r_b V_j``;
@@ -11,7 +11,7 @@ Notation follows spec 002 (sections 3-7).  Per ordered bond ``b = (i -> j)``:
 - nodal force ``f_i = Σ_b V_i V_j (t_b + t_rev(b)) M_b``, i.e. ``f = -B(M)ᵀ (w ⊙ t)``.
 
 The linearized stiffness (``f = -K u``) is assembled with one sparse product
-``K = Xᵀ Y`` of stacked point-level operators (spec 002 §7):
+``K = Xᵀ Y`` of stacked point-level operators (derived):
 
 - energy: ``K_E = Θᵀ diag(κV + s) Θ - ΓᵀΘ - ΘᵀΓ + Bᵀ diag(w c) B`` with
   ``Γ = Pᵀ diag(w c r / n_d) B`` and ``s_i = Σ_b w c r² / n_d²``
@@ -69,7 +69,7 @@ _CHUNK = 1 << 14
 _PLANES = ("stress", "strain")
 _LINEARIZATIONS = ("energy", "paper")
 
-#: right-hand sides r of the constraint systems (spec 002 §4 table)
+#: right-hand sides r of the constraint systems (Liu, Chen & Skelton, XOSB, Eqs. 29-64)
 TARGET_H = {2: np.array([1.0, 1.0, 0.0]), 3: np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])}
 TARGET_D = {
     2: np.array([1.5, 1.5, 0.5, 0.0, 0.0]),
@@ -164,7 +164,7 @@ def elastic_constants(
 
 
 def bulk_shear_moduli(E: Any, nu: float, dim: int, plane: str = "stress") -> tuple[Any, Any]:
-    """Bulk modulus κ and shear modulus μ of spec 002 Eq. 66.
+    """Bulk modulus κ and shear modulus μ of Liu, Chen & Skelton, XOSB, Eq. 66.
 
     ``κ = E/(3(1-2ν))`` (3D), ``E/(2(1+ν)(1-2ν))`` (plane strain),
     ``E/(2(1-ν))`` (plane stress); ``μ = E/(2(1+ν))``.
@@ -191,7 +191,7 @@ def bulk_shear_moduli(E: Any, nu: float, dim: int, plane: str = "stress") -> tup
 
 
 def analytic_weighted_volume(horizon: Any, dim: int) -> np.ndarray:
-    """Weighted volume ``m = ∫ ω r² dV`` of a full ball with ω = 1 (spec 002 Eq. 25).
+    """Weighted volume ``m = ∫ ω r² dV`` of a full ball with ω = 1 (Liu, Chen & Skelton, XOSB, Eq. 25).
 
     ``πδ⁴/2`` in 2D, ``4πδ⁵/5`` in 3D.
 
@@ -250,7 +250,7 @@ def _basis_d_t(x: np.ndarray) -> np.ndarray:
 
 
 def basis_h(x: np.ndarray) -> np.ndarray:
-    """Hydrostatic basis ξ̂^h (spec 002 §4), ``(m, 3)`` in 2D, ``(m, 6)`` in 3D.
+    """Hydrostatic basis ξ̂^h (Liu, Chen & Skelton, XOSB, Eqs. 30-44), ``(m, 3)`` in 2D, ``(m, 6)`` in 3D.
 
     Examples
     --------
@@ -261,7 +261,7 @@ def basis_h(x: np.ndarray) -> np.ndarray:
 
 
 def basis_d(x: np.ndarray) -> np.ndarray:
-    """Deviatoric basis ξ̂^d (spec 002 §4), ``(m, 5)`` in 2D, ``(m, 15)`` in 3D.
+    """Deviatoric basis ξ̂^d (Liu, Chen & Skelton, XOSB, Eqs. 45-64), ``(m, 5)`` in 2D, ``(m, 15)`` in 3D.
 
     Examples
     --------
@@ -303,7 +303,7 @@ class StateWeights:
     omega_h_force, omega_d_force : (nb,) ndarray
         Weights ω̃ used in the force state (spherical at fallback points).
     fallback : (n,) ndarray of bool
-        Points whose family has some ω^h < 0 (spec 002 §5).
+        Points whose family has some ω^h < 0 (Liu, Chen & Skelton, XOSB, Sec. 3.3).
     singular : (n,) ndarray of bool
         Points whose λ system was singular or ill-conditioned (min-norm λ used).
     cond_h, cond_d : (n,) ndarray
@@ -390,7 +390,7 @@ def compute_weights(
     fallback: bool = True,
     max_cond: float = 1e10,
 ) -> StateWeights:
-    """Spherical and (optionally) corrected influence weights (spec 002 §3-5).
+    """Spherical and (optionally) corrected influence weights (Liu, Chen & Skelton, XOSB, Eqs. 9-64 and Sec. 3.3).
 
     Vectorized and chunked over owner rows: Gram entries are accumulated by
     segment sums over the owner-sorted bonds per chunk, the small systems are solved
@@ -881,7 +881,7 @@ class OrdinaryStateBased(Model):
         linear: bool = True,
         force_weights: bool = False,
     ) -> np.ndarray:
-        """``W_i = κθ²/2 + μ Σ_j ω^d (e^d)² V_j`` (spec 002 Eq. 22), ``(n,)``.
+        """``W_i = κθ²/2 + μ Σ_j ω^d (e^d)² V_j`` (Liu, Chen & Skelton, XOSB, Eq. 22), ``(n,)``.
 
         ``force_weights=True`` uses ω̃^d (spherical at fallback points), the
         energy whose Hessian is ``K_E``.
@@ -955,7 +955,7 @@ class OrdinaryStateBased(Model):
         """Per-point stress ``σ_i = Σ_j t_ij n_ij ⊗ ξ_ij V_j`` (paper t), ``(n, d, d)``.
 
         Equals ``κ tr ε I + 2μ ε^d`` for affine ``u`` at non-fallback XOSB
-        points (spec 002 §4, stress consistency).
+        points (Liu, Chen & Skelton, XOSB, Eq. 29, stress consistency).
         """
         t, unit, _ = self._force_state(cloud, bonds, u, True, "paper")
         d = cloud.dim

@@ -16,7 +16,7 @@ __all__ = ["XOSB", "StateWeights"]
 
 
 class XOSB(OrdinaryStateBased):
-    """XOSBPD: ordinary state-based PD with corrected influence weights (spec 002).
+    """XOSBPD: ordinary state-based PD with corrected influence weights (Liu, Chen & Skelton, XOSB).
 
     Per point, ``ω^h = ω_s^h + λ^h·ξ̂^h`` and ``ω^d = ω_s^d + λ^d·ξ̂^d`` solve
     small Gram systems (3x3 / 6x6 and 5x5 / 15x15) so that ``θ_i = tr ε``
@@ -24,7 +24,7 @@ class XOSB(OrdinaryStateBased):
     strain, at every point of any family (boundaries, graded meshes,
     variable horizons, crack faces).  Points whose family has some
     ``ω^h < 0`` fall back to the spherical weights in the force state
-    (spec 002 §5); θ keeps the corrected ``ω^h``.
+    (Liu, Chen & Skelton, XOSB, Sec. 3.3); θ keeps the corrected ``ω^h``.
 
     Parameters
     ----------
@@ -59,7 +59,7 @@ class XOSB(OrdinaryStateBased):
     >>> cloud = pdlin.grid((40, 20), spacing=0.025)
     >>> bonds = pdlin.find_bonds(cloud, ratio=3.01)
     >>> model = pdlin.XOSB(E=70e9, nu=0.33)
-    >>> model.fallback_points(cloud, bonds).size     # the four corners (spec 002 §5)
+    >>> model.fallback_points(cloud, bonds).size     # the four corners (Sec. 3.3)
     4
     >>> eps = np.array([[1e-3, 4e-4], [4e-4, -2e-4]])
     >>> theta = model.dilatation(cloud, bonds, cloud.points @ eps.T)

@@ -33,7 +33,7 @@ CONTROLS = ("none", "higher_order", "penalty", "stress_points", "springs", "ads"
 DEFAULT_CONTROL_COEFFICIENT: dict[str, float] = {"springs": 0.01, "ads": 0.03}
 
 
-#: stress-point cases (spec 003 §4.1): sign vector s of SP1's bonds, per dimension
+#: stress-point cases (Luo & Sundararaghavan (2018), Sec. 3, Fig. 5): sign vector s of SP1's bonds, per dimension
 _SP_CASES: dict[int, np.ndarray] = {
     1: np.array([[1]]),
     2: np.array([[1, 1], [1, -1]]),
@@ -125,7 +125,7 @@ def _halves_well_conditioned(
 
     Balance is a property of the family's geometry: it is tested on the tensors of the
     weights ``omega`` (without volumes) when given, so a lattice with non-uniform volumes
-    keeps its two stress points (spec 003's scheme) while truncated families next to free
+    keeps its two stress points (the scheme of Luo & Sundararaghavan (2018)) while truncated families next to free
     surfaces and irregular clouds get one gradient point.
 
     The second half's tensor is the full one minus the first's (one pass per case).  Balanced
@@ -178,7 +178,7 @@ def gradient_points(
     d = cloud.dim
     cases = _SP_CASES[d]
     # SP1 of case s owns the bonds with s·ξ > 0 (ties broken by the next vectors of an
-    # orthogonal basis); for nearest-neighbour axis bonds this is spec 003's
+    # orthogonal basis); for nearest-neighbour axis bonds this is Luo & Sundararaghavan (2018)'s
     # {s_k e_k} / {-s_k e_k} split, for larger horizons its half-space extension
     first = _sides(bonds, cases)  # (n_cases, nb)
     omega = model.bond_weights(cloud, bonds)
@@ -195,7 +195,7 @@ def gradient_points(
     cases = _SP_CASES[d]
     if model.case is None:
         # one draw per full-horizon particle, in point order (the convention of the
-        # spec 003 reference implementation, so seeded results are comparable)
+        # paper's random choice per particle, Sec. 3, so seeded results are comparable)
         chosen = np.zeros(n, dtype=np.intp)
         chosen[full] = np.random.default_rng(model.seed).integers(
             0, cases.shape[0], int(full.sum())
@@ -219,7 +219,7 @@ def gradient_points(
         second = full[bonds.i] & ~first[chosen[bonds.i], np.arange(bonds.n_bonds)]
         gp_of_bond = base[bonds.i] + second
     gp_owner = np.repeat(np.arange(n), n_sp)
-    # one-SP weight: spec 003 §4.3 (w_s for every SP) on the paper's nearest-neighbour
+    # one-SP weight: w_s for every SP (pdlin's default, see the docs) on the paper's nearest-neighbour
     # families; beyond them a one-SP particle is an ordinary gradient point carrying its
     # whole volume (2 w_s, as its two half-SPs would for a uniform stress)
     single = 1.0 if int(bonds.family_size.max(initial=0)) <= 2 * d else 2.0
@@ -323,7 +323,7 @@ def penalty_matrix(
 
 
 def control_constants(model: Correspondence, cloud: PointCloud, bonds: Bonds) -> dict[str, float]:
-    """Constants of the ``'springs'`` / ``'ads'`` control forces (spec 003 §3).
+    """Constants of the ``'springs'`` / ``'ads'`` control forces (Luo & Sundararaghavan (2018), Eqs. 7-8).
 
     Returns ``{'coefficient': C̃, 'E_ref', 'V_ref', 'h_ref', 'S_ref', 'Omega_ref',
     'C1', 'C2'}``.  ``E_ref = max_i tr(C_i[:d, :d])/d`` (the largest mean axial
@@ -338,10 +338,10 @@ def control_constants(model: Correspondence, cloud: PointCloud, bonds: Bonds) ->
     "Laplacian" material of modulus ``C̃ E_ref``: uniaxial stretch gains the stress
     ``C̃ E_ref ε``), and ADS stores ``½ C̃ E_ref ℓ² |∇²u|²`` with ``ℓ² = S_ref/Ω_ref``
     the family's mean square bond length (zero on affine fields, except where families
-    are truncated).  On the nearest-neighbour families of spec 003 (``S = 2d V h²``,
+    are truncated).  On the nearest-neighbour families of Luo & Sundararaghavan (2018) (``S = 2d V h²``,
     ``Ω = 2d V``) this is ``C1 = C̃ E/(2 V h²)``, ``C2 = C̃ E/(V² h²)``: on a uniform
     chain (``V = A h``, ω = 1) springs add ``C̃ (E A / h) Lap0`` and ADS
-    ``C̃ (E A / h) Lap0²`` (spec 003 §3, ``Lap0`` the chain graph Laplacian).  ``V_ref``
+    ``C̃ (E A / h) Lap0²`` (derived, ``Lap0`` the chain graph Laplacian).  ``V_ref``
     (mean volume) and ``h_ref`` (mean shortest bond) are reported for information.
 
     Examples

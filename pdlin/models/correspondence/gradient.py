@@ -407,7 +407,7 @@ def gradient_operator(
     """Sparse nonlocal gradient ``G``: ``(G @ u.ravel()).reshape(n, d, d) = ∇u``.
 
     ``G_j[a, b] = c_ab,j`` and ``G_j[a, a] = -Σ_b c_ab,j`` with
-    ``c_ab = ω_ab V_b K_a⁻¹ ξ_ab`` (spec 000 §3); rows are ordered
+    ``c_ab = ω_ab V_b K_a⁻¹ ξ_ab`` (Javaheri et al. (2022), Eqs. 6-7, in sparse form); rows are ordered
     ``(a, i, j)`` for ``∂u_i/∂X_j`` and columns are interleaved DOFs.
     ``G u`` equals ``pdlin.deformation_gradient(cloud, bonds, u) - I``, so it
     is exact for affine fields wherever ``K_a`` is invertible.  Diagonals
@@ -419,7 +419,7 @@ def gradient_operator(
     bonds : Bonds
     omega : (nb,) array_like, optional
         Weights replacing ``bonds.omega`` (may be negative, e.g. the
-        higher-order sets of spec 000).
+        higher-order sets of Javaheri et al. (2022)).
 
     Returns
     -------
@@ -448,7 +448,7 @@ def intact_shape_tensor(cloud: PointCloud, bonds: Bonds, omega_fn: Any) -> np.nd
 
     Built from the integer stencil ``|p h| <= δ`` of a :func:`pdlin.grid`
     cloud with uniform spacing, volume and horizon; ``omega_fn(length,
-    horizon)`` gives the weights.  Shadow particles use it (spec 000 §7).
+    horizon)`` gives the weights.  Shadow particles use it (pdlin's choice for the shadow layer of Javaheri et al. (2022), Sec. II.D).
     """
     lat = cloud.lattice
     if lat is None:

@@ -161,7 +161,7 @@ class Correspondence(Model):
           LAMMPS-PD ``ω = 1/|ξ|``, or ``'constant'``).
         * ``'higher_order'``: the model re-weights the bonds of a
           :func:`pdlin.grid` cloud with
-          ``pdlin.higher_order_weights(dim, δ/h)`` (spec 000 §6; negative
+          ``pdlin.higher_order_weights(dim, δ/h)`` (Javaheri et al. (2022), Sec. II.C.1; negative
           weights allowed).  Build the bonds with ``find_bonds(cloud,
           ratio=m)`` (any influence: it is replaced).
         * ``'penalty'``: adds ``½ Σ_b ½ penalty k_b |z_b|²`` with
@@ -171,7 +171,7 @@ class Correspondence(Model):
           bond-based ``C_1111`` equals the mean axial modulus of ``C_i``:
           ``penalty = 1`` resists non-affine motion like a bond-based
           material of the same stiffness (full vector, not projected).
-        * ``'stress_points'``: spec 003: two stress points per full-horizon
+        * ``'stress_points'``: Luo & Sundararaghavan (2018), Sec. 3: two stress points per full-horizon
           particle, one per boundary particle.  Stress point 1 of case ``s``
           owns the bonds with ``s·ξ > 0`` (ties broken by orthogonal
           vectors), stress point 2 the rest: for nearest-neighbour axis bonds
@@ -181,18 +181,18 @@ class Correspondence(Model):
           have well-conditioned shape tensors (``λ_min/λ_max ≥ SP_MIN_RATIO``)
           and are *balanced* (``‖K_1 - K_2‖ ≤ SP_BALANCE_TOL ‖K‖``: complete,
           point-symmetric families), otherwise one.  The one-SP weight is
-          ``w_s`` on the paper's nearest-neighbour families (spec 003 §4.3: the
+          ``w_s`` on the paper's nearest-neighbour families (derived: the
           body is the node hull, a bar of ``n_y`` rows has the section
           ``(n_y - 1) h``) and ``2 w_s`` beyond them (an ordinary gradient
           point with its whole volume, section ``n_y h``).  Truncated families
           split into unbalanced halves do not act on a uniform stress like
           one gradient point, which made the free-surface bar at δ = 3h fail
           its patch test by 1.1 % before this rule.
-        * ``'springs'``: spec 003 Eq. 7, the force state
+        * ``'springs'``: Luo & Sundararaghavan (2018), Eq. 7, the force state
           ``T_a⟨ξ_ij⟩ = C1 ω (u_j - u_i)`` (full vector) added to every
           bond: ``K_a`` is the graph Laplacian ⊗ I_d with bond weight
           ``2 C1 ω V_i V_j``.
-        * ``'ads'``: spec 003 Eq. 8, the averaged displacement state
+        * ``'ads'``: Luo & Sundararaghavan (2018), Eq. 8, the averaged displacement state
           ``T_a,i = C2 Σ_k ω V_k (u_k - u_i)`` (one vector per particle):
           ``K_a = C2 diag(V) Lap_V Lap_ωV``.  Symmetric for constant ω
           (the spec's ω = 1) and any V; nonsymmetric for varying ω
@@ -208,7 +208,7 @@ class Correspondence(Model):
         ``E_ref = max_i tr(C_i[:d, :d])/d``.  At ``C̃ = 1`` the springs are a
         full-vector material of modulus ``E_ref`` (energy ``½ E_ref |∇u|²``)
         at any ``δ/h`` and dimension; on nearest-neighbour families this is
-        spec 003 §3's ``C̃ (E A / h) Lap0`` (springs) and ``C̃ (E A / h) Lap0²``
+        (derived) ``C̃ (E A / h) Lap0`` (springs) and ``C̃ (E A / h) Lap0²``
         (ADS) in 1D.  Neither control passes an affine patch test next to
         free surfaces (both act on affine fields there): measured on a 2D
         free-surface bar, springs stiffen uniaxial tension by ≈ 1.1 C̃ and
@@ -223,7 +223,7 @@ class Correspondence(Model):
         hand-made weight set); with ``'higher_order'`` it replaces the
         generated set.
     shadow : (m,) array_like of int, optional
-        Shadow particles (spec 000 §7, e.g. from :func:`pdlin.shadow_layer`):
+        Shadow particles (Javaheri et al. (2022), Sec. II.D, e.g. from :func:`pdlin.shadow_layer`):
         they carry no energy, and their gradient rows use the intact-lattice
         shape tensor (with stress points: the intact one-bond-per-axis
         tensor of a stress point, ``ω V h² I``); their prescribed stress
@@ -236,7 +236,7 @@ class Correspondence(Model):
         One fixed stress-point case for every particle (default: random).
     sp_weight : float
         Stress-point weight ``w_s`` (½: passes the patch test and gives
-        exact 1D reactions, spec 003 §4.3; 1 is the paper's literal scheme).
+        exact 1D reactions, pdlin's default; 1 is the literal scheme of Luo & Sundararaghavan (2018)).
     max_bytes : int
         Budget of an assembled K; beyond it :meth:`plan` picks the
         matrix-free operator.
@@ -248,7 +248,7 @@ class Correspondence(Model):
         :class:`pdlin.SaintVenantKirchhoff`.  The model is then finite strain
         (``nonlinear = True``): :meth:`initial_state` and :meth:`respond` give
         ``F = I + G u``, ``f = -Gᵀ vec(w V P)`` and ``K_T = Gᵀ blockdiag(w V
-        dP/dF) G`` (spec 001 §2); ``symmetric`` is False unless the material is
+        dP/dF) G`` (Luo, Ramazani & Sundararaghavan (2017), Eqs. 15-18, in matrix form); ``symmetric`` is False unless the material is
         hyperelastic.  Penalty, springs and ADS act as linear add-ons; the
         linearized ``K`` uses ``dP/dF`` at ``F = I``.  Not with ``shadow``.
 
@@ -479,7 +479,9 @@ class Correspondence(Model):
         try:
             from ..weights import as_influence, higher_order_weights
         except ImportError:
-            if abs(ratio - 1.0) < 1e-6:  # δ = h: the only shell, weight 1 (spec 000 §6 Table)
+            if (
+                abs(ratio - 1.0) < 1e-6
+            ):  # δ = h: the only shell, weight 1 (Javaheri et al. (2022), Table 1)
                 return lambda length, horizon: np.ones_like(length)
             raise ModelError(
                 f"control='higher_order' at δ/h = {ratio:g} needs pdlin.models.weights "
@@ -605,9 +607,9 @@ class Correspondence(Model):
         """See :func:`pdlin.models.correspondence.controls.penalty_matrix`."""
         return _controls.penalty_matrix(self, cloud, bonds, p)
 
-    # -- springs / ADS (spec 003 §3) ----------------------------------------
+    # -- springs / ADS (Luo & Sundararaghavan (2018), Eqs. 7-8) ----------------------------------------
     def control_constants(self, cloud: PointCloud, bonds: Bonds) -> dict[str, float]:
-        """Constants of the ``'springs'`` / ``'ads'`` control forces (spec 003 §3).
+        """Constants of the ``'springs'`` / ``'ads'`` control forces (Luo & Sundararaghavan (2018), Eqs. 7-8).
 
         Returns ``{'coefficient': C̃, 'E_ref', 'V_ref', 'h_ref', 'S_ref', 'Omega_ref',
         'C1', 'C2'}``.  ``E_ref = max_i tr(C_i[:d, :d])/d`` (the largest mean axial
@@ -622,10 +624,10 @@ class Correspondence(Model):
         "Laplacian" material of modulus ``C̃ E_ref``: uniaxial stretch gains the stress
         ``C̃ E_ref ε``), and ADS stores ``½ C̃ E_ref ℓ² |∇²u|²`` with ``ℓ² = S_ref/Ω_ref``
         the family's mean square bond length (zero on affine fields, except where families
-        are truncated).  On the nearest-neighbour families of spec 003 (``S = 2d V h²``,
+        are truncated).  On the nearest-neighbour families of Luo & Sundararaghavan (2018) (``S = 2d V h²``,
         ``Ω = 2d V``) this is ``C1 = C̃ E/(2 V h²)``, ``C2 = C̃ E/(V² h²)``: on a uniform
         chain (``V = A h``, ω = 1) springs add ``C̃ (E A / h) Lap0`` and ADS
-        ``C̃ (E A / h) Lap0²`` (spec 003 §3, ``Lap0`` the chain graph Laplacian).  ``V_ref``
+        ``C̃ (E A / h) Lap0²`` (derived, ``Lap0`` the chain graph Laplacian).  ``V_ref``
         (mean volume) and ``h_ref`` (mean shortest bond) are reported for information.
 
         Examples
@@ -884,7 +886,7 @@ class Correspondence(Model):
     ) -> np.ndarray:
         """Nodal internal force ``f = -Gᵀ vec(w V σ)`` (small strain: ``f = -K u``).
 
-        The elastic model is linear small strain (spec 000 §8), so ``linear=False``
+        The elastic model is linear small strain (Javaheri et al. (2022), Sec. III.C), so ``linear=False``
         returns the same force.  With ``material=``, ``linear=False`` is the finite-strain
         force of :meth:`respond` from the initial state; ``linear=True`` is ``-K u`` with the
         material's small-strain stiffness.
@@ -973,18 +975,18 @@ class Correspondence(Model):
         return self._material_initial_state(cloud, p.gp_owner)
 
     def deformation_gradient(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
-        """``F = I + G u`` per gradient point ``(n_gp, d, d)`` (spec 001 Eq. 16).
+        """``F = I + G u`` per gradient point ``(n_gp, d, d)`` (Luo, Ramazani & Sundararaghavan (2017), Eq. 16).
 
         Exact for affine fields at every gradient point whose shape tensor is invertible,
-        truncated families included (spec 001 §2.4, T1).
+        truncated families included (derived).
         """
         return np.eye(cloud.dim) + self.gradient(cloud, bonds, u)
 
     def nodal_force(self, cloud: PointCloud, bonds: Bonds, P: Any) -> np.ndarray:
         """Nodal force of a first Piola–Kirchhoff stress per gradient point, ``(n, d)``.
 
-        ``f = -Gᵀ vec(w V P)`` (spec 001 §2.1: ``L = -V⁻¹ Bᵀ(V ⊙ P)``, ``f = V L``), i.e.
-        the pairwise sum ``f_a = V_a Σ_b ω V_b (P_a K_a⁻¹ + P_b K_b⁻¹) ξ_ab`` of spec 001
+        ``f = -Gᵀ vec(w V P)`` (derived matrix form: ``L = -V⁻¹ Bᵀ(V ⊙ P)``, ``f = V L``), i.e.
+        the pairwise sum ``f_a = V_a Σ_b ω V_b (P_a K_a⁻¹ + P_b K_b⁻¹) ξ_ab`` of Luo, Ramazani & Sundararaghavan (2017)
         Eqs. 15–18 for one gradient point per particle.
 
         Parameters
@@ -995,7 +997,7 @@ class Correspondence(Model):
         Examples
         --------
         A uniform stress on a truncated-family grid at δ = h gives ``V P n / (2h)`` on the
-        first free ring (spec 001 §2.4), here ``0.25² · 1 / 0.5`` in x at the second column:
+        first free ring (derived), here ``0.25² · 1 / 0.5`` in x at the second column:
 
         >>> import numpy as np, pdlin
         >>> cloud = pdlin.grid((4, 4), spacing=0.25)
@@ -1230,7 +1232,7 @@ class Correspondence(Model):
 
         ``-(Σ_j G_jᵀ (w V σ_S,:j))`` over the gradient points of the shadow
         particles (stress points: ``w = w_s``), whose rows of G are built from
-        the intact shape tensor (spec 000 §7); add it to the external load
+        the intact shape tensor (pdlin's choice for the shadow layer of Javaheri et al. (2022), Sec. II.D); add it to the external load
         (e.g. as a :class:`pdlin.BodyForce` on the real points, see
         :func:`shadow_problem`).  Give the shadow stress directly
         (``stress``, ``(m, d, d)`` or ``(d, d)``) or through ``F``

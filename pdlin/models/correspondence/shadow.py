@@ -40,8 +40,8 @@ def shadow_problem(
     Returns a :class:`pdlin.StaticProblem` whose model is ``model`` with
     ``shadow`` set, whose Dirichlet condition is :func:`pdlin.shadow_layer`
     and whose load is the shadow-stress force :meth:`Correspondence.shadow_loads`
-    (spec 000 §7).  Odd real counts along an axis make K_RR singular
-    (spec 000 §4 parity rule) and raise unless ``allow_odd``; stress points,
+    (Javaheri et al. (2022), Sec. II.D).  Odd real counts along an axis make K_RR singular
+    (derived parity rule, see docs/correspondence.md) and raise unless ``allow_odd``; stress points,
     springs and ADS couple the sublattices and are exempt.
 
     Examples
@@ -68,7 +68,7 @@ def shadow_problem(
     if decoupled and not allow_odd and np.any(counts % 2 == 1):
         raise ModelError(
             f"real particle counts per axis must be even with a shadow layer (K_RR is singular "
-            f"otherwise, spec 000 §4), got {counts.tolist()}; pass allow_odd=True to proceed"
+            f"otherwise), got {counts.tolist()}; pass allow_odd=True to proceed"
         )
     params = dict(model.__dict__)
     m2 = Correspondence.__new__(Correspondence)
