@@ -94,6 +94,14 @@ class LPS(OrdinaryStateBased):
         self.peridigm = peridigm
 
     def describe(self) -> dict[str, Any]:
+        """Return a plain-data description of the model (for results and logs).
+
+        Returns
+        -------
+        dict
+            As :meth:`OrdinaryStateBased.describe`, with ``peridigm`` and
+            ``surface_correction``.
+        """
         out = super().describe()
         out["peridigm"] = self.peridigm
         out["surface_correction"] = self.surface_correction

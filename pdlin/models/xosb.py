@@ -110,10 +110,34 @@ class XOSB(OrdinaryStateBased):
         )
 
     def fallback_points(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
-        """Indices of the points that use spherical weights in the force state."""
+        """Return the indices of the points that use spherical weights in the force state.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        (k,) ndarray of int
+        """
         w: StateWeights = self.weights(cloud, bonds)
         return np.flatnonzero(w.fallback)
 
     def singular_points(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
-        """Indices of the points whose λ system was singular / ill-conditioned."""
+        """Return the indices of the points whose λ system was singular / ill-conditioned.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        (k,) ndarray of int
+        """
         return np.flatnonzero(self.weights(cloud, bonds).singular)

@@ -33,7 +33,8 @@ CONTROLS = ("none", "higher_order", "penalty", "stress_points", "springs", "ads"
 DEFAULT_CONTROL_COEFFICIENT: dict[str, float] = {"springs": 0.01, "ads": 0.03}
 
 
-#: stress-point cases (Luo & Sundararaghavan (2018), Sec. 3, Fig. 5): sign vector s of SP1's bonds, per dimension
+#: stress-point cases (Luo & Sundararaghavan (2018), Sec. 3, Fig. 5): sign vector s of SP1's
+#: bonds, per dimension
 _SP_CASES: dict[int, np.ndarray] = {
     1: np.array([[1]]),
     2: np.array([[1, 1], [1, -1]]),
@@ -52,7 +53,7 @@ SP_BALANCE_TOL = 1e-6
 
 
 def _half_space_basis(s: np.ndarray, d: int) -> list[np.ndarray]:
-    """The orthogonal basis of case ``s`` whose projections decide a bond's side."""
+    """Return the orthogonal basis of case ``s`` whose projections decide a bond's side."""
     basis = [np.asarray(s, dtype=float)]
     if d >= 2:
         t = np.zeros(d)
@@ -64,8 +65,10 @@ def _half_space_basis(s: np.ndarray, d: int) -> list[np.ndarray]:
 
 
 def _sides(bonds: Bonds, cases: np.ndarray) -> np.ndarray:
-    """``(n_cases, nb)`` bool: :func:`_half_space` of every case (numba: bond chunks on
-    the threads)."""
+    """Return ``(n_cases, nb)`` bool: :func:`_half_space` of every case.
+
+    With numba: bond chunks on the threads.
+    """
     xi = bonds.xi
     mod = _kernels() if use_numba(xi.size * cases.shape[0]) else None
     if mod is None:
@@ -120,13 +123,17 @@ def _ratio_ok(K: np.ndarray) -> np.ndarray:
 def _halves_well_conditioned(
     bonds: Bonds, omega_v: np.ndarray, sides: np.ndarray, n: int, omega: np.ndarray | None = None
 ) -> np.ndarray:
-    """Per point: in every case (row of ``sides``) both halves' shape tensors are well
+    """Return, per point, whether both halves of every case are well conditioned and balanced.
+
+    Balanced: ``‖K_1 - K_2‖_F ≤ SP_BALANCE_TOL ‖K‖_F``.
+
+    Per point: in every case (row of ``sides``) both halves' shape tensors are well
     conditioned and *balanced*, ``‖K_1 - K_2‖_F ≤ SP_BALANCE_TOL ‖K‖_F``.
 
     Balance is a property of the family's geometry: it is tested on the tensors of the
     weights ``omega`` (without volumes) when given, so a lattice with non-uniform volumes
-    keeps its two stress points (the scheme of Luo & Sundararaghavan (2018)) while truncated families next to free
-    surfaces and irregular clouds get one gradient point.
+    keeps its two stress points (the scheme of Luo & Sundararaghavan (2018)) while
+    truncated families next to free surfaces and irregular clouds get one gradient point.
 
     The second half's tensor is the full one minus the first's (one pass per case).  Balanced
     halves (``K_1 = K_2 = K/2``: a point-symmetric, complete family) are what makes two
@@ -172,6 +179,35 @@ def _halves_well_conditioned(
 def gradient_points(
     model: Correspondence, cloud: PointCloud, bonds: Bonds
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return the gradient points of ``model``: owner, bond owner and weight.
+
+    One gradient point per particle, or with ``control='stress_points'`` two per particle whose
+    half families are well conditioned and balanced (Luo & Sundararaghavan (2018), Sec. 3;
+    :class:`Correspondence` describes the split and the weights).
+
+    Parameters
+    ----------
+    model : Correspondence
+        The model (its control parameters).
+    cloud : PointCloud
+        The points (``n`` of them, dimension ``d``).
+    bonds : Bonds
+        Their bonds (``nb`` ordered bonds).
+
+    Returns
+    -------
+    gp_owner : (n_gp,) ndarray of int
+        Particle of each gradient point.
+    gp_of_bond : (nb,) ndarray of int
+        Gradient point owning each bond.
+    weight : (n_gp,) ndarray of float
+        Weight ``w_g`` of each gradient point.
+
+    Raises
+    ------
+    InputError
+        ``model.case`` out of range for the dimension.
+    """
     n = cloud.n
     if model.control != "stress_points":
         return np.arange(n), bonds.i, np.ones(n)
@@ -219,9 +255,9 @@ def gradient_points(
         second = full[bonds.i] & ~first[chosen[bonds.i], np.arange(bonds.n_bonds)]
         gp_of_bond = base[bonds.i] + second
     gp_owner = np.repeat(np.arange(n), n_sp)
-    # one-SP weight: w_s for every SP (pdlin's default, see the docs) on the paper's nearest-neighbour
-    # families; beyond them a one-SP particle is an ordinary gradient point carrying its
-    # whole volume (2 w_s, as its two half-SPs would for a uniform stress)
+    # one-SP weight: w_s for every SP (pdlin's default, see the docs) on the paper's
+    # nearest-neighbour families; beyond them a one-SP particle is an ordinary gradient
+    # point carrying its whole volume (2 w_s, as its two half-SPs would for a uniform stress)
     single = 1.0 if int(bonds.family_size.max(initial=0)) <= 2 * d else 2.0
     weight = np.where(np.repeat(full, n_sp), 1.0, single) * model.sp_weight
     return gp_owner, gp_of_bond, weight
@@ -230,7 +266,26 @@ def gradient_points(
 def penalty_bond_stiffness(
     model: Correspondence, cloud: PointCloud, bonds: Bonds, p: _Plan
 ) -> np.ndarray:
-    """Penalty stiffness per bond ``½ penalty k_b`` (0 on energy-free owners), ``(nb,)``."""
+    """Return the penalty stiffness per bond, ``½ penalty k_b``.
+
+    Penalty stiffness per bond ``½ penalty k_b`` (0 on energy-free owners), ``(nb,)``.
+
+    Parameters
+    ----------
+    model : Correspondence
+        The model (its control parameters).
+    cloud : PointCloud
+        The points (``n`` of them, dimension ``d``).
+    bonds : Bonds
+        Their bonds (``nb`` ordered bonds).
+    p : _Plan
+        The model's assembly plan on ``(cloud, bonds)``.
+
+    Returns
+    -------
+    (nb,) ndarray of float
+        Zero on bonds of energy-free (shadow) owners.
+    """
     d = cloud.dim
     Cv = model.voigt_stiffness(cloud)
     axial = np.einsum("nkk->n", Cv[:, :d, :d]) / d
@@ -243,7 +298,28 @@ def penalty_bond_stiffness(
 def penalty_force(
     cloud: PointCloud, bonds: Bonds, p: _Plan, k: np.ndarray, x: np.ndarray
 ) -> np.ndarray:
-    """``Zᵀ(k z)`` with ``z_b = u_j - u_i - ∇u_g ξ_b``, matrix-free, ``(n*d,)``."""
+    """Return the penalty force ``Zᵀ(k z)`` of a displacement, matrix-free.
+
+    ``Zᵀ(k z)`` with ``z_b = u_j - u_i - ∇u_g ξ_b``, matrix-free, ``(n*d,)``.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+        The points (``n`` of them, dimension ``d``).
+    bonds : Bonds
+        Their bonds (``nb`` ordered bonds).
+    p : _Plan
+        The model's assembly plan on ``(cloud, bonds)``.
+    k : (nb,) ndarray of float
+        Penalty stiffness per bond (:func:`penalty_bond_stiffness`).
+    x : (n*d,) ndarray of float
+        Displacement, flat.
+
+    Returns
+    -------
+    (n*d,) ndarray of float
+        ``Zᵀ(k z)`` with ``z_b = u_j - u_i - ∇u_g ξ_b``.
+    """
     d, n = cloud.dim, cloud.n
     u = x.reshape(n, d)
     grad = (p.G @ x).reshape(-1, d, d)
@@ -266,7 +342,9 @@ def penalty_force(
 def penalty_matrix(
     model: Correspondence, cloud: PointCloud, bonds: Bonds, p: _Plan
 ) -> sp.bsr_array:
-    """``Zᵀ diag(k) Z`` with ``Z = Z_s ⊗ I_d`` (BSR, d x d blocks).
+    """Return the assembled penalty stiffness ``Zᵀ diag(k) Z``.
+
+    ``Zᵀ diag(k) Z`` with ``Z = Z_s ⊗ I_d`` (BSR, d x d blocks).
 
     ``z_b = u_j - u_i - ∇u_g ξ_b`` and the G block of (g, point p) is ``I_d ⊗ c_gp``, so
     every block of Z is a multiple of ``I_d`` and ``Z_s = E - X G_s``: ``E`` the bond
@@ -280,6 +358,22 @@ def penalty_matrix(
     members, ``Rᵀ R`` with ``R = √k Z_s`` would cost ``n_b m² = n_gp m³`` (6x more at 2D
     δ = 2h, 40x at 3D δ = 3h).  ``T + Tᵀ`` and ``Eᵀ k E = (√k E)ᵀ(√k E)`` are bitwise
     symmetric, so is the sum.
+
+    Parameters
+    ----------
+    model : Correspondence
+        The model (its control parameters).
+    cloud : PointCloud
+        The points (``n`` of them, dimension ``d``).
+    bonds : Bonds
+        Their bonds (``nb`` ordered bonds).
+    p : _Plan
+        The model's assembly plan on ``(cloud, bonds)``.
+
+    Returns
+    -------
+    scipy.sparse.bsr_array
+        ``(n*d, n*d)``, blocks ``(d, d)``, bitwise symmetric.
     """
     d, n = cloud.dim, cloud.n
     k = model._penalty_k(cloud, bonds, p)
@@ -323,7 +417,10 @@ def penalty_matrix(
 
 
 def control_constants(model: Correspondence, cloud: PointCloud, bonds: Bonds) -> dict[str, float]:
-    """Constants of the ``'springs'`` / ``'ads'`` control forces (Luo & Sundararaghavan (2018), Eqs. 7-8).
+    """Return the constants of the springs / ADS control forces of ``model``.
+
+    See :meth:`Correspondence.control_constants` for their meaning
+    (Luo & Sundararaghavan (2018), Eqs. 7-8, normalized by the family).
 
     Returns ``{'coefficient': C̃, 'E_ref', 'V_ref', 'h_ref', 'S_ref', 'Omega_ref',
     'C1', 'C2'}``.  ``E_ref = max_i tr(C_i[:d, :d])/d`` (the largest mean axial
@@ -338,11 +435,30 @@ def control_constants(model: Correspondence, cloud: PointCloud, bonds: Bonds) ->
     "Laplacian" material of modulus ``C̃ E_ref``: uniaxial stretch gains the stress
     ``C̃ E_ref ε``), and ADS stores ``½ C̃ E_ref ℓ² |∇²u|²`` with ``ℓ² = S_ref/Ω_ref``
     the family's mean square bond length (zero on affine fields, except where families
-    are truncated).  On the nearest-neighbour families of Luo & Sundararaghavan (2018) (``S = 2d V h²``,
-    ``Ω = 2d V``) this is ``C1 = C̃ E/(2 V h²)``, ``C2 = C̃ E/(V² h²)``: on a uniform
-    chain (``V = A h``, ω = 1) springs add ``C̃ (E A / h) Lap0`` and ADS
+    are truncated).  On the nearest-neighbour families of Luo & Sundararaghavan (2018)
+    (``S = 2d V h²``, ``Ω = 2d V``) this is ``C1 = C̃ E/(2 V h²)``, ``C2 = C̃ E/(V² h²)``:
+    on a uniform chain (``V = A h``, ω = 1) springs add ``C̃ (E A / h) Lap0`` and ADS
     ``C̃ (E A / h) Lap0²`` (derived, ``Lap0`` the chain graph Laplacian).  ``V_ref``
     (mean volume) and ``h_ref`` (mean shortest bond) are reported for information.
+
+    Parameters
+    ----------
+    model : Correspondence
+        The model (its control parameters).
+    cloud : PointCloud
+        The points (``n`` of them, dimension ``d``).
+    bonds : Bonds
+        Their bonds (``nb`` ordered bonds).
+
+    Returns
+    -------
+    dict of str -> float
+        ``coefficient``, ``E_ref``, ``V_ref``, ``h_ref``, ``S_ref``, ``Omega_ref``, ``C1``, ``C2``.
+
+    Raises
+    ------
+    ModelError
+        No bonds, or non-positive family moments.
 
     Examples
     --------
@@ -393,7 +509,26 @@ def control_constants(model: Correspondence, cloud: PointCloud, bonds: Bonds) ->
 def laplacian(
     cloud: PointCloud, bonds: Bonds, w: np.ndarray, rows: np.ndarray | None = None
 ) -> sp.csr_array:
-    """``(Lap_w u)_i = Σ_b w_b (u_i - u_j)`` over the bonds of i, ⊗ I_d; ``rows``: keep only."""
+    """Return the weighted graph Laplacian of the bonds, ⊗ I_d.
+
+    ``(Lap_w u)_i = Σ_b w_b (u_i - u_j)`` over the bonds of i.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+        The points (``n`` of them, dimension ``d``).
+    bonds : Bonds
+        Their bonds (``nb`` ordered bonds).
+    w : (nb,) ndarray of float
+        Bond weights.
+    rows : (n,) ndarray of bool, optional
+        Keep only the bonds of these owners (default: all).
+
+    Returns
+    -------
+    scipy.sparse.csr_array
+        ``(n*d, n*d)``.
+    """
     n, d = cloud.n, cloud.dim
     i, j = bonds.i, bonds.j
     if rows is not None:
@@ -409,12 +544,28 @@ def laplacian(
 def control_factors(
     model: Correspondence, cloud: PointCloud, bonds: Bonds, p: _Plan
 ) -> tuple[sp.csr_array, sp.csr_array] | None:
-    """The springs / ADS stiffness as a product ``S @ N`` of one-hop matrices (or None).
+    """Return the springs / ADS stiffness as a product ``S @ N`` of one-hop matrices.
 
     Springs: ``S = Σ_b C1 ω V_i V_j (e_i - e_j)(e_i - e_j)ᵀ ⊗ I``, ``N = I``
     (every bond, shadow ones too).  ADS: ``S = C2 diag(V) Lap_V``,
     ``N = Lap_ωV`` with the rows of shadow particles zeroed (their
     averaged displacement state is that of the affine continuation, 0).
+
+    Parameters
+    ----------
+    model : Correspondence
+        The model (its control parameters).
+    cloud : PointCloud
+        The points (``n`` of them, dimension ``d``).
+    bonds : Bonds
+        Their bonds (``nb`` ordered bonds).
+    p : _Plan
+        The model's assembly plan on ``(cloud, bonds)``.
+
+    Returns
+    -------
+    tuple of two scipy.sparse.csr_array or None
+        ``(S, N)``, each ``(n*d, n*d)``; None for the other controls or a zero coefficient.
     """
     if model.control not in ("springs", "ads") or model.coefficient == 0:
         return None

@@ -29,8 +29,11 @@ def _coefficients_2d_fused(
     w: np.ndarray,
     xi: np.ndarray,
 ) -> np.ndarray:
-    """:func:`_coefficients` in 2D as one numba pass per point chunk (shape tensors, their
-    inverses and the coefficients; the numpy path's arithmetic and error)."""
+    """Return :func:`_coefficients` in 2D from one numba pass per point chunk.
+
+    Shape tensors, their inverses and the coefficients, with the numpy path's arithmetic
+    and error.
+    """
     bptr, gptr = ptrs
     K = np.empty((n_gp, 2, 2))
     bad = np.empty(n_gp, dtype=bool)
@@ -67,6 +70,16 @@ def voigt_projector(dim: int) -> np.ndarray:
     ``[ε11, ε22, ε33, γ23, γ13, γ12]`` (the order of
     :mod:`pdlin.constitutive`).  ``Pᵀ C P`` is the full tensor ``C_ijkl``
     acting on ``vec(∇u)``.
+
+    Parameters
+    ----------
+    dim : {1, 2, 3}
+        Spatial dimension.
+
+    Returns
+    -------
+    (nv, dim*dim) ndarray of float
+        ``P`` with ``ε_voigt = P vec(∇u)``; ``nv`` = 1, 3, 6.
 
     Examples
     --------
@@ -242,9 +255,11 @@ def _fused_blocks(
     n_points: int,
     ptrs: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> _GradientBlocks | None:
-    """The blocks of :func:`_gradient_blocks` in one numba pass per point chunk, when each
-    point owns consecutive gradient points and the bonds of those gradient points in the
-    :class:`Bonds` order (no control, stress points): None otherwise (or without numba).
+    """Return the blocks of :func:`_gradient_blocks` in one numba pass per point chunk.
+
+    Only when each point owns consecutive gradient points and the bonds of those
+    gradient points in the :class:`Bonds` order (no control, stress points): None
+    otherwise (or without numba).
 
     A gradient point's blocks are its bonds in order (increasing, distinct neighbours,
     none the owner) with the owner's block among them: their slots are known from the
@@ -298,8 +313,10 @@ def _fused_blocks(
 def _owner_sorted_blocks(
     gp_owner: np.ndarray, gp_of_bond: np.ndarray, j: np.ndarray, c: np.ndarray, n_points: int
 ) -> _GradientBlocks | None:
-    """The blocks of :func:`_gradient_blocks` without its sort, when one gradient point per
-    point owns that point's bonds in the :class:`Bonds` order (no control): None otherwise.
+    """Return the blocks of :func:`_gradient_blocks` without its sort.
+
+    Only when one gradient point per point owns that point's bonds in the :class:`Bonds`
+    order (no control): None otherwise.
 
     Block slots are known (bond ``b`` of point ``g``: ``b + g + [j_b > g]``; the owner's
     block after its smaller neighbours), so fixed point chunks write them on the threads;
@@ -353,12 +370,13 @@ def _owner_sorted_blocks(
 
 
 def _blocks_to_csr(blk: _GradientBlocks, n_points: int) -> sp.csr_array:
-    """G in CSR, rows ``(g, i, q)``: the nonzero coefficients only.
+    """Return G in CSR, rows ``(g, i, q)``: the nonzero coefficients only.
 
     Exact zeros are dropped: the owner's entries of a symmetric family, and the components
     of bond coefficients ``c_gp`` that vanish — at δ = h on a grid half of them (an axial
     bond's coefficient has no transverse component), so keeping them doubled the work of
-    every ``G u`` and ``Gᵀ s`` (the sums are the same without them)."""
+    every ``G u`` and ``Gᵀ s`` (the sums are the same without them).
+    """
     d = blk.val.shape[1]
     n_gp = blk.indptr.size - 1
     counts = np.diff(blk.indptr)
@@ -407,8 +425,8 @@ def gradient_operator(
     """Sparse nonlocal gradient ``G``: ``(G @ u.ravel()).reshape(n, d, d) = ∇u``.
 
     ``G_j[a, b] = c_ab,j`` and ``G_j[a, a] = -Σ_b c_ab,j`` with
-    ``c_ab = ω_ab V_b K_a⁻¹ ξ_ab`` (Javaheri et al. (2022), Eqs. 6-7, in sparse form); rows are ordered
-    ``(a, i, j)`` for ``∂u_i/∂X_j`` and columns are interleaved DOFs.
+    ``c_ab = ω_ab V_b K_a⁻¹ ξ_ab`` (Javaheri et al. (2022), Eqs. 6-7, in sparse form); rows
+    are ordered ``(a, i, j)`` for ``∂u_i/∂X_j`` and columns are interleaved DOFs.
     ``G u`` equals ``pdlin.deformation_gradient(cloud, bonds, u) - I``, so it
     is exact for affine fields wherever ``K_a`` is invertible.  Diagonals
     that vanish up to round-off (intact horizons) are stored as exact zeros.
@@ -444,11 +462,26 @@ def gradient_operator(
 
 
 def intact_shape_tensor(cloud: PointCloud, bonds: Bonds, omega_fn: Any) -> np.ndarray:
-    """Shape tensor of a complete lattice horizon, ``(d, d)``.
+    """Return the shape tensor of a complete lattice horizon, ``(d, d)``.
 
     Built from the integer stencil ``|p h| <= δ`` of a :func:`pdlin.grid`
     cloud with uniform spacing, volume and horizon; ``omega_fn(length,
-    horizon)`` gives the weights.  Shadow particles use it (pdlin's choice for the shadow layer of Javaheri et al. (2022), Sec. II.D).
+    horizon)`` gives the weights.  Shadow particles use it (pdlin's choice for the shadow
+    layer of Javaheri et al. (2022), Sec. II.D).
+
+    Parameters
+    ----------
+    cloud : PointCloud
+        The points (``n`` of them, dimension ``d``).
+    bonds : Bonds
+        Their bonds (``nb`` ordered bonds).
+    omega_fn : callable
+        ``ω(length, horizon)``, the influence function.
+
+    Returns
+    -------
+    (d, d) ndarray of float
+        ``Σ_p ω V p h ⊗ p h`` over the stencil.
     """
     lat = cloud.lattice
     if lat is None:
@@ -502,8 +535,10 @@ def _rows_matmul(
     M: np.ndarray,
     row_scale: np.ndarray | Callable[[int, int], np.ndarray] | None = None,
 ) -> np.ndarray:
-    """``A @ M`` (times ``row_scale`` per row: an array, or a function giving the scales of
-    the rows ``a:b``), computed in fixed row chunks on threads."""
+    """Return ``A @ M``, times ``row_scale`` per row, in fixed row chunks on threads.
+
+    ``row_scale`` is an array, or a function giving the scales of the rows ``a:b``.
+    """
     out = np.empty((A.shape[0], M.shape[1]))
 
     def chunk(rng: tuple[int, int]) -> None:
@@ -602,8 +637,11 @@ def _drop_zero_blocks(
 def _drop_zero_blocks_fused(
     K: sp.bsr_array, mod: Any, sizes: tuple[np.ndarray, np.ndarray] | None
 ) -> sp.bsr_array:
-    """:func:`_drop_zero_blocks` in nogil numba passes over row chunks on the threads
-    (block sizes unless given, kept blocks, copy): the same decisions and arrays."""
+    """Return :func:`_drop_zero_blocks` from nogil numba passes over row chunks.
+
+    Block sizes unless given, kept blocks, copy, on the threads: the same decisions and
+    arrays.
+    """
     nrow = K.shape[0] // K.blocksize[0]
     ptr = np.asarray(K.indptr, dtype=np.int64)
     ind = np.ascontiguousarray(K.indices)

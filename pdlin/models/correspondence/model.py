@@ -171,8 +171,8 @@ class Correspondence(Model):
           bond-based ``C_1111`` equals the mean axial modulus of ``C_i``:
           ``penalty = 1`` resists non-affine motion like a bond-based
           material of the same stiffness (full vector, not projected).
-        * ``'stress_points'``: Luo & Sundararaghavan (2018), Sec. 3: two stress points per full-horizon
-          particle, one per boundary particle.  Stress point 1 of case ``s``
+        * ``'stress_points'``: Luo & Sundararaghavan (2018), Sec. 3: two stress points per
+          full-horizon particle, one per boundary particle.  Stress point 1 of case ``s``
           owns the bonds with ``s·ξ > 0`` (ties broken by orthogonal
           vectors), stress point 2 the rest: for nearest-neighbour axis bonds
           this is the paper's ``{s_k e_k} / {-s_k e_k}`` split, for larger
@@ -236,7 +236,8 @@ class Correspondence(Model):
         One fixed stress-point case for every particle (default: random).
     sp_weight : float
         Stress-point weight ``w_s`` (½: passes the patch test and gives
-        exact 1D reactions, pdlin's default; 1 is the literal scheme of Luo & Sundararaghavan (2018)).
+        exact 1D reactions, pdlin's default; 1 is the literal scheme of Luo &
+        Sundararaghavan (2018)).
     max_bytes : int
         Budget of an assembled K; beyond it :meth:`plan` picks the
         matrix-free operator.
@@ -248,9 +249,10 @@ class Correspondence(Model):
         :class:`pdlin.SaintVenantKirchhoff`.  The model is then finite strain
         (``nonlinear = True``): :meth:`initial_state` and :meth:`respond` give
         ``F = I + G u``, ``f = -Gᵀ vec(w V P)`` and ``K_T = Gᵀ blockdiag(w V
-        dP/dF) G`` (Luo, Ramazani & Sundararaghavan (2017), Eqs. 15-18, in matrix form); ``symmetric`` is False unless the material is
-        hyperelastic.  Penalty, springs and ADS act as linear add-ons; the
-        linearized ``K`` uses ``dP/dF`` at ``F = I``.  Not with ``shadow``.
+        dP/dF) G`` (Luo, Ramazani & Sundararaghavan (2017), Eqs. 15-18, in matrix form);
+        ``symmetric`` is False unless the material is hyperelastic.  Penalty, springs and ADS
+        act as linear add-ons; the linearized ``K`` uses ``dP/dF`` at ``F = I``.  Not with
+        ``shadow``.
 
     Examples
     --------
@@ -379,11 +381,27 @@ class Correspondence(Model):
 
     # -- material --------------------------------------------------------
     def voigt_stiffness(self, cloud: PointCloud) -> np.ndarray:
-        """Per-point Voigt stiffness ``(n, nv, nv)`` in the cloud's dimension.
+        """Return the per-point Voigt stiffness ``(n, nv, nv)`` in the cloud's dimension.
 
         With ``material=`` it is the material's tangent ``dP/dF`` at ``F = I`` from its
         initial state (the small-strain stiffness, rotated by the particle's orientation):
         the linearized ``K`` and the penalty / springs / ADS constants use it.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points.
+
+        Returns
+        -------
+        (n, nv, nv) ndarray of float
+            Read-only; a broadcast view when one C serves every point.
+
+        Raises
+        ------
+        InputError, ShapeError, ModelError
+            A stiffness of the wrong shape or not positive definite, or a material of
+            another dimension.
         """
         if self.material is not None:
             return self._material_voigt(cloud)
@@ -453,7 +471,26 @@ class Correspondence(Model):
 
     # -- weights ----------------------------------------------------------
     def bond_weights(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
-        """The ω used per bond, ``(nb,)`` (higher-order sets may be negative)."""
+        """Return the ω used per bond (higher-order sets may be negative).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        (nb,) ndarray of float
+            The model's ``influence``, the higher-order set, or the bonds' own ω.
+
+        Raises
+        ------
+        ModelError
+            ``control='higher_order'`` on a cloud that is not an equal-spacing grid, or with
+            a per-point horizon.
+        """
         fn = self._omega_fn(cloud, bonds)
         if fn is None:
             return np.asarray(bonds.omega, dtype=float)
@@ -573,17 +610,59 @@ class Correspondence(Model):
         return plan
 
     def gradient(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
-        """Displacement gradient per gradient point ``(n_gp, d, d)``."""
+        """Return the displacement gradient per gradient point.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+        u : (n, d) array_like
+            Nodal displacement.
+
+        Returns
+        -------
+        (n_gp, d, d) ndarray of float
+            ``∇u`` at each gradient point (:meth:`stress_points` maps them to particles).
+        """
         p = self._plan(cloud, bonds)
         uu = _as_u(u, cloud)
         return (p.G @ uu.ravel()).reshape(-1, cloud.dim, cloud.dim)
 
     def gradient_matrix(self, cloud: PointCloud, bonds: Bonds) -> sp.csr_array:
-        """The gradient operator G of the model (gradient points x DOFs)."""
+        """Return the gradient operator G of the model.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        scipy.sparse.csr_array
+            ``(n_gp*d*d, n*d)``: rows ``(g, i, j)`` of ``∇u``, columns the DOFs.
+        """
         return self._plan(cloud, bonds).G
 
     def stress_points(self, cloud: PointCloud, bonds: Bonds) -> dict[str, np.ndarray]:
-        """Bookkeeping of the gradient points: ``owner``, ``bond_owner``, ``weight``."""
+        """Return the bookkeeping of the gradient points.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        dict of str -> ndarray
+            ``owner`` (particle of each gradient point), ``bond_owner`` (gradient point of
+            each bond), ``weight`` (``w_g``).
+        """
         p = self._plan(cloud, bonds)
         return {"owner": p.gp_owner, "bond_owner": p.gp_of_bond, "weight": p.weight}
 
@@ -607,9 +686,11 @@ class Correspondence(Model):
         """See :func:`pdlin.models.correspondence.controls.penalty_matrix`."""
         return _controls.penalty_matrix(self, cloud, bonds, p)
 
-    # -- springs / ADS (Luo & Sundararaghavan (2018), Eqs. 7-8) ----------------------------------------
+    # -- springs / ADS (Luo & Sundararaghavan (2018), Eqs. 7-8) -----------------------
     def control_constants(self, cloud: PointCloud, bonds: Bonds) -> dict[str, float]:
-        """Constants of the ``'springs'`` / ``'ads'`` control forces (Luo & Sundararaghavan (2018), Eqs. 7-8).
+        """Return the constants of the ``'springs'`` / ``'ads'`` control forces.
+
+        Luo & Sundararaghavan (2018), Eqs. 7-8, with pdlin's family normalization.
 
         Returns ``{'coefficient': C̃, 'E_ref', 'V_ref', 'h_ref', 'S_ref', 'Omega_ref',
         'C1', 'C2'}``.  ``E_ref = max_i tr(C_i[:d, :d])/d`` (the largest mean axial
@@ -624,11 +705,29 @@ class Correspondence(Model):
         "Laplacian" material of modulus ``C̃ E_ref``: uniaxial stretch gains the stress
         ``C̃ E_ref ε``), and ADS stores ``½ C̃ E_ref ℓ² |∇²u|²`` with ``ℓ² = S_ref/Ω_ref``
         the family's mean square bond length (zero on affine fields, except where families
-        are truncated).  On the nearest-neighbour families of Luo & Sundararaghavan (2018) (``S = 2d V h²``,
-        ``Ω = 2d V``) this is ``C1 = C̃ E/(2 V h²)``, ``C2 = C̃ E/(V² h²)``: on a uniform
-        chain (``V = A h``, ω = 1) springs add ``C̃ (E A / h) Lap0`` and ADS
+        are truncated).  On the nearest-neighbour families of Luo & Sundararaghavan (2018)
+        (``S = 2d V h²``, ``Ω = 2d V``) this is ``C1 = C̃ E/(2 V h²)``, ``C2 = C̃ E/(V² h²)``:
+        on a uniform chain (``V = A h``, ω = 1) springs add ``C̃ (E A / h) Lap0`` and ADS
         ``C̃ (E A / h) Lap0²`` (derived, ``Lap0`` the chain graph Laplacian).  ``V_ref``
         (mean volume) and ``h_ref`` (mean shortest bond) are reported for information.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        dict of str -> float
+            ``coefficient``, ``E_ref``, ``V_ref``, ``h_ref``, ``S_ref``, ``Omega_ref``,
+            ``C1``, ``C2``.
+
+        Raises
+        ------
+        ModelError
+            No bonds, or non-positive family moments.
 
         Examples
         --------
@@ -674,7 +773,20 @@ class Correspondence(Model):
         return (lambda x: S @ (N @ x)), (lambda x: Nt @ (S @ x))
 
     def stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.bsr_array:
-        """Assembled ``K = Gᵀ blockdiag(w V C) G`` (+ penalty / springs / ADS), BSR (dim blocks)."""
+        """Return the assembled ``K = Gᵀ blockdiag(w V C) G`` (+ penalty / springs / ADS).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        scipy.sparse.bsr_array
+            ``(n*d, n*d)``, blocks ``(d, d)``, every diagonal block stored.
+        """
         p = self._plan(cloud, bonds)
         d = cloud.dim
         self.plan(cloud, bonds)
@@ -767,14 +879,40 @@ class Correspondence(Model):
         return W * sq[blk.row][:, None, None]
 
     def apply(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
-        """Matrix-free ``K u`` through G (and the bonds for the penalty), ``(n*d,)``."""
+        """Return the matrix-free product ``K u`` through G (and the bonds for the penalty).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+        u : (n, d) array_like
+            Nodal displacement.
+
+        Returns
+        -------
+        (n*d,) ndarray of float
+        """
         return np.asarray(self.linear_operator(cloud, bonds) @ np.asarray(u, float).reshape(-1))
 
     def linear_operator(self, cloud: PointCloud, bonds: Bonds) -> spla.LinearOperator:
-        """Matrix-free ``K`` as a :class:`scipy.sparse.linalg.LinearOperator`.
+        """Return the matrix-free ``K`` as a :class:`scipy.sparse.linalg.LinearOperator`.
 
         ``K x = Gᵀ(D(G x))`` plus, for the penalty, ``Zᵀ(k Z x)`` evaluated
         bond by bond (vectorized); memory is that of G and the bond arrays.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        scipy.sparse.linalg.LinearOperator
+            ``(n*d, n*d)``, with ``rmatvec`` for the nonsymmetric controls.
         """
         p = self._plan(cloud, bonds)
         nd = cloud.n * cloud.dim
@@ -807,11 +945,24 @@ class Correspondence(Model):
         return spla.LinearOperator((nd, nd), matvec=mv, rmatvec=rmv, dtype=float)
 
     def operator(self, cloud: PointCloud, bonds: Bonds) -> spla.LinearOperator:
-        """Matrix-free ``K`` (the :class:`~pdlin.models.base.Model` interface name)."""
+        """Return the matrix-free ``K`` (the :class:`~pdlin.models.base.Model` interface name).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        scipy.sparse.linalg.LinearOperator
+            :meth:`linear_operator`.
+        """
         return self.linear_operator(cloud, bonds)
 
     def surrogate_stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.bsr_array:
-        """One-hop preconditioner base: bond-based K plus half its graph Laplacian ⊗ I.
+        """Return the one-hop preconditioner base: bond-based K plus half its graph Laplacian ⊗ I.
 
         The bond-based stiffness of the same bonds (ω ≥ 0, equivalent modulus) resists only
         bond stretch: with nearest-neighbour axis bonds it has shear mechanisms, and its
@@ -820,6 +971,18 @@ class Correspondence(Model):
         vector, like the correspondence operator), removes them and, measured, cuts the
         AMG-CG iterations of the matrix-free solve (3D brick with stress points: breakdown
         → 52; 14³ higher-order δ = 2h: 156 → 75; 2D penalty: 32 → 26).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        scipy.sparse.bsr_array
+            ``(n*d, n*d)``, blocks ``(d, d)``.
         """
         d = cloud.dim
         Cv = self.voigt_stiffness(cloud)
@@ -836,12 +999,28 @@ class Correspondence(Model):
         return sp.bsr_array(K + 0.5 * sp.kron(L, sp.eye_array(d), format="bsr"), blocksize=(d, d))
 
     def plan(self, cloud: PointCloud, bonds: Bonds) -> dict[str, Any]:
-        """Decide between assembled K and the matrix-free operator (also in ``self.assembly``).
+        """Return the decision between assembled K and the matrix-free operator.
+
+        It is also kept in ``self.assembly``.
+
+        Decide between assembled K and the matrix-free operator (also in ``self.assembly``).
 
         The estimate counts the two-hop block pattern (:meth:`estimate_nnz_blocks`)
         and the intermediate products; beyond ``max_bytes`` the matrix-free
         path (``K x = Gᵀ(D(G x))``, preconditioned with AMG on
         :meth:`surrogate_stiffness`) is chosen.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        dict
+            ``path`` ('assembled' or 'matrix-free'), the byte estimate and the reason.
         """
         d = cloud.dim
         nblk = self.estimate_nnz_blocks(cloud, bonds)
@@ -857,11 +1036,22 @@ class Correspondence(Model):
         return info
 
     def estimate_nnz_blocks(self, cloud: PointCloud, bonds: Bonds) -> int:
-        """Upper bound of the dim x dim blocks of K: the two-hop pattern.
+        """Return an upper bound of the dim x dim blocks of K: the two-hop pattern.
 
         On a lattice: interior points x the size of the stencil difference
         set ``{q - p}``; otherwise the number of points within twice the
         largest horizon of each point (cKDTree counts).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        int
         """
         lat = cloud.lattice
         n = cloud.n
@@ -884,12 +1074,27 @@ class Correspondence(Model):
     def internal_force(
         self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, *, linear: bool = True
     ) -> np.ndarray:
-        """Nodal internal force ``f = -Gᵀ vec(w V σ)`` (small strain: ``f = -K u``).
+        """Return the nodal internal force ``f = -Gᵀ vec(w V σ)`` (small strain: ``f = -K u``).
 
-        The elastic model is linear small strain (Javaheri et al. (2022), Sec. III.C), so ``linear=False``
-        returns the same force.  With ``material=``, ``linear=False`` is the finite-strain
-        force of :meth:`respond` from the initial state; ``linear=True`` is ``-K u`` with the
-        material's small-strain stiffness.
+        The elastic model is linear small strain (Javaheri et al. (2022), Sec. III.C), so
+        ``linear=False`` returns the same force.  With ``material=``, ``linear=False`` is the
+        finite-strain force of :meth:`respond` from the initial state; ``linear=True`` is
+        ``-K u`` with the material's small-strain stiffness.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+        u : (n, d) array_like
+            Nodal displacement.
+        linear : bool
+            With ``material=``: ``-K u`` (True) or the finite-strain force (False).
+
+        Returns
+        -------
+        (n, d) ndarray of float
         """
         uu = _as_u(u, cloud)
         if not linear and self.material is not None:
@@ -905,7 +1110,7 @@ class Correspondence(Model):
             )
 
     def _material_initial_state(self, cloud: PointCloud, owner: np.ndarray) -> dict[str, Any]:
-        """The material's initial state for points ``owner`` (particle of each row)."""
+        """Return the material's initial state for points ``owner`` (particle of each row)."""
         mat = self.material
         self._check_material_dim(cloud)
         o = getattr(mat, "orientation", None)
@@ -949,12 +1154,25 @@ class Correspondence(Model):
         return Cv
 
     def initial_state(self, cloud: PointCloud, bonds: Bonds) -> dict[str, np.ndarray]:
-        """The material's committed state before the first load step, per gradient point.
+        """Return the material's committed state before the first load step, per gradient point.
 
         One entry per gradient point (``stress_points(...)['owner']`` maps them to their
         particle: one per particle without stress points).  A per-particle orientation of
         the material (``CrystalPlasticity(orientation=theta)``, ``theta (n,)``) is given to
         every gradient point of that particle.  Empty without ``material=``.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        dict of str -> ndarray
+            The material's state arrays, one row per gradient point (empty without
+            ``material=``).
 
         Examples
         --------
@@ -975,24 +1193,44 @@ class Correspondence(Model):
         return self._material_initial_state(cloud, p.gp_owner)
 
     def deformation_gradient(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
-        """``F = I + G u`` per gradient point ``(n_gp, d, d)`` (Luo, Ramazani & Sundararaghavan (2017), Eq. 16).
+        """Return ``F = I + G u`` per gradient point ``(n_gp, d, d)``.
+
+        Luo, Ramazani & Sundararaghavan (2017), Eq. 16.
 
         Exact for affine fields at every gradient point whose shape tensor is invertible,
         truncated families included (derived).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+        u : (n, d) array_like
+            Nodal displacement.
+
+        Returns
+        -------
+        (n_gp, d, d) ndarray of float
         """
         return np.eye(cloud.dim) + self.gradient(cloud, bonds, u)
 
     def nodal_force(self, cloud: PointCloud, bonds: Bonds, P: Any) -> np.ndarray:
-        """Nodal force of a first Piola–Kirchhoff stress per gradient point, ``(n, d)``.
+        """Return the nodal force of a first Piola–Kirchhoff stress per gradient point.
 
         ``f = -Gᵀ vec(w V P)`` (derived matrix form: ``L = -V⁻¹ Bᵀ(V ⊙ P)``, ``f = V L``), i.e.
-        the pairwise sum ``f_a = V_a Σ_b ω V_b (P_a K_a⁻¹ + P_b K_b⁻¹) ξ_ab`` of Luo, Ramazani & Sundararaghavan (2017)
-        Eqs. 15–18 for one gradient point per particle.
+        the pairwise sum ``f_a = V_a Σ_b ω V_b (P_a K_a⁻¹ + P_b K_b⁻¹) ξ_ab`` of Luo, Ramazani
+        & Sundararaghavan (2017), Eqs. 15–18, for one gradient point per particle.
 
         Parameters
         ----------
         P : (n_gp, d, d) or (d, d) array_like of float
             Stress per gradient point (``(d, d)``: the same at every one).
+
+        Returns
+        -------
+        (n, d) ndarray of float
+            ``f = -Gᵀ vec(w V P)``.
 
         Examples
         --------
@@ -1020,10 +1258,11 @@ class Correspondence(Model):
         return self._force_of(cloud, p, arr.reshape(n_gp, d * d)).reshape(cloud.n, d)
 
     def _force_of(self, cloud: PointCloud, p: _Plan, P: np.ndarray) -> np.ndarray:
-        """``-Gᵀ vec(w V P)`` for a checked ``(n_gp, d*d)`` stress, flat ``(n*d,)``.
+        """Return ``-Gᵀ vec(w V P)`` for a checked ``(n_gp, d*d)`` stress, flat ``(n*d,)``.
 
         The weights ``-w V`` (0 at energy-free points) are kept in the plan, the sign
-        folded into them (the same bits as negating the product)."""
+        folded into them (the same bits as negating the product).
+        """
         if "neg_wv" not in p._lazy:
             d = cloud.dim
             vol = np.asarray(cloud.volumes) * (1.0 if d == 3 else cloud.thickness)
@@ -1042,8 +1281,11 @@ class Correspondence(Model):
         return np.asarray(_threaded(p, "GT", p.G.T) @ flat.ravel())
 
     def _addon_matrix(self, cloud: PointCloud, bonds: Bonds, p: _Plan) -> sp.csr_array | None:
-        """Assembled penalty / springs / ADS stiffness ``K_c`` (None without such a control),
-        built once per plan: the nonlinear force ``-K_c u`` and the tangent's ``+K_c``."""
+        """Return the assembled penalty / springs / ADS stiffness ``K_c`` (or None).
+
+        None without such a control; built once per plan: the nonlinear force ``-K_c u``
+        and the tangent's ``+K_c``.
+        """
         if "addon" not in p._lazy:
             if self.control == "penalty" and self.penalty > 0:
                 Kc = sp.csr_array(self._penalty_matrix(cloud, bonds, p))
@@ -1105,7 +1347,7 @@ class Correspondence(Model):
         *,
         tangent: bool = False,
     ) -> Response:
-        """Finite-strain force, trial state, tangent and Cauchy stress at ``u``.
+        """Return the finite-strain force, trial state, tangent and Cauchy stress at ``u``.
 
         ``F_g = I + (G u)_g`` per gradient point; ``P, trial, dP/dF =
         material.update(F, state, tangent=tangent)`` (without the tangent, from a
@@ -1123,6 +1365,19 @@ class Correspondence(Model):
             ``force (n, d)``, ``state`` (trial, per gradient point), ``tangent`` (BSR or
             None), ``stress`` (Cauchy per particle: mean over its gradient points, ``(n, d,
             d)``), ``calls`` (constitutive evaluations: the number of gradient points).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+        u : (n, d) array_like
+            Nodal displacement.
+        state : dict of str -> ndarray
+            Committed state (per gradient point).
+        tangent : bool
+            Whether to compute ``K_T``.
 
         Examples
         --------
@@ -1206,7 +1461,21 @@ class Correspondence(Model):
         return Response(force.reshape(n, d), trial, K, sigma, int(n_gp))
 
     def stress(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
-        """Cauchy stress per particle ``(n, d, d)``: the mean over its stress points."""
+        """Return the Cauchy stress per particle: the mean over its stress points.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+        u : (n, d) array_like
+            Nodal displacement.
+
+        Returns
+        -------
+        (n, d, d) ndarray of float
+        """
         p = self._plan(cloud, bonds)
         d = cloud.dim
         grad = self.gradient(cloud, bonds, u).reshape(-1, d * d)
@@ -1215,7 +1484,21 @@ class Correspondence(Model):
         return _mean_per_point(p.gp_owner, (sv @ P).reshape(-1, d, d), cloud.n)
 
     def strain(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
-        """Small strain per particle ``(n, d, d)``: the mean over its stress points."""
+        """Return the small strain per particle: the mean over its stress points.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+        u : (n, d) array_like
+            Nodal displacement.
+
+        Returns
+        -------
+        (n, d, d) ndarray of float
+        """
         p = self._plan(cloud, bonds)
         grad = self.gradient(cloud, bonds, u)
         return _mean_per_point(p.gp_owner, 0.5 * (grad + np.swapaxes(grad, 1, 2)), cloud.n)
@@ -1228,15 +1511,37 @@ class Correspondence(Model):
         F: Any = None,
         stress: Any = None,
     ) -> np.ndarray:
-        """Nodal force of the prescribed shadow stress on the real points, ``(n, d)``.
+        """Return the nodal force of the prescribed shadow stress on the real points.
 
         ``-(Σ_j G_jᵀ (w V σ_S,:j))`` over the gradient points of the shadow
         particles (stress points: ``w = w_s``), whose rows of G are built from
-        the intact shape tensor (pdlin's choice for the shadow layer of Javaheri et al. (2022), Sec. II.D); add it to the external load
+        the intact shape tensor (pdlin's choice for the shadow layer of Javaheri et al.
+        (2022), Sec. II.D); add it to the external load
         (e.g. as a :class:`pdlin.BodyForce` on the real points, see
         :func:`shadow_problem`).  Give the shadow stress directly
         (``stress``, ``(m, d, d)`` or ``(d, d)``) or through ``F``
         (``σ = C : ε(F)`` with each shadow particle's own C).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+        F : (d, d) array_like, optional
+            Deformation gradient of the shadow particles (``σ = C : ε(F)``).
+        stress : (m, d, d) or (d, d) array_like, optional
+            The shadow stress itself, instead of ``F``.
+
+        Returns
+        -------
+        (n, d) ndarray of float
+            Zero on the shadow particles.
+
+        Raises
+        ------
+        ModelError, InputError
+            No ``shadow`` set, or not exactly one of ``F`` and ``stress``.
         """
         if self.shadow is None:
             raise ModelError("shadow_loads needs a model built with shadow=indices, got None")
@@ -1271,6 +1576,13 @@ class Correspondence(Model):
         return -np.asarray(p.G.T @ full.ravel()).reshape(cloud.n, d)
 
     def describe(self) -> dict[str, Any]:
+        """Return a plain-data description of the model (for results and logs).
+
+        Returns
+        -------
+        dict
+            Model name, elastic constants or material, control and its parameters.
+        """
         out: dict[str, Any] = {
             "model": "Correspondence",
             "control": self.control,
@@ -1304,10 +1616,13 @@ _THREADED_MULTIPLY = 1 << 18
 
 
 def _threaded(p: _Plan, key: str, A: Any) -> Any:
-    """``A`` for repeated mat-vecs: as :class:`pdlin._threads.RowBlocks` (built once,
-    kept in the plan) when it holds at least two blocks' worth of entries, so that the
-    nonlinear iterations' ``G u``, ``Gᵀ (w V P)`` and ``K_c u`` run on pdlin's threads
-    (the same values bitwise); smaller ones stay plain scipy products."""
+    """Return ``A`` for repeated mat-vecs, row-blocked on threads when it is large.
+
+    As :class:`pdlin._threads.RowBlocks` (built once, kept in the plan) when it holds at
+    least two blocks' worth of entries, so that the nonlinear iterations' ``G u``,
+    ``Gᵀ (w V P)`` and ``K_c u`` run on pdlin's threads (the same values bitwise);
+    smaller ones stay plain scipy products.
+    """
     from ..._threads import ROW_BLOCK_NNZ, RowBlocks
 
     if A.nnz < 2 * ROW_BLOCK_NNZ:

@@ -13,7 +13,25 @@ from .model import Correspondence
 
 
 def shadow_real_counts(cloud: PointCloud, shadow: np.ndarray) -> np.ndarray:
-    """Number of real (non-shadow) lattice positions along each axis, ``(d,)``."""
+    """Return the number of real (non-shadow) lattice positions along each axis.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+        A :func:`pdlin.grid` cloud.
+    shadow : (m,) array_like of int
+        The shadow particles.
+
+    Returns
+    -------
+    (d,) ndarray of int
+        Zeros when every particle is a shadow one.
+
+    Raises
+    ------
+    ModelError
+        The cloud has no lattice.
+    """
     lat = cloud.lattice
     if lat is None:
         raise ModelError("shadow_real_counts needs a pdlin.grid cloud, got no lattice metadata")
@@ -35,7 +53,7 @@ def shadow_problem(
     depth: float | None = None,
     allow_odd: bool = False,
 ) -> Any:
-    """Static problem with a shadow layer of depth δ prescribed to the affine field of ``F``.
+    """Return a static problem with a shadow layer prescribed to the affine field of ``F``.
 
     Returns a :class:`pdlin.StaticProblem` whose model is ``model`` with
     ``shadow`` set, whose Dirichlet condition is :func:`pdlin.shadow_layer`
@@ -43,6 +61,32 @@ def shadow_problem(
     (Javaheri et al. (2022), Sec. II.D).  Odd real counts along an axis make K_RR singular
     (derived parity rule, see docs/correspondence.md) and raise unless ``allow_odd``; stress points,
     springs and ADS couple the sublattices and are exempt.
+
+    Parameters
+    ----------
+    model : Correspondence
+        The model (copied, with ``shadow`` set).
+    cloud : PointCloud
+        A :func:`pdlin.grid` cloud.
+    bonds : Bonds
+        Its bonds.
+    F : (d, d) array_like
+        The affine deformation gradient.
+    depth : float, optional
+        Depth of the shadow layer (default: the largest horizon, δ).
+    allow_odd : bool
+        Proceed with odd real counts (singular ``K_RR`` without a coupling control).
+
+    Returns
+    -------
+    pdlin.StaticProblem
+        Model, cloud, bonds, the shadow Dirichlet condition and the shadow-stress load.
+
+    Raises
+    ------
+    ModelError
+        Odd real counts along an axis without ``allow_odd`` (controls 'none',
+        'higher_order', 'penalty').
 
     Examples
     --------
