@@ -1,4 +1,19 @@
-"""TODO controls."""
+"""The zero-energy-mode controls of :class:`~pdlin.models.correspondence.Correspondence`.
+
+What each control adds to the plain correspondence operator ``Gᵀ blockdiag(w V C) G``:
+
+- ``'stress_points'`` (Luo & Sundararaghavan (2018), Sec. 3): the split of each family
+  into two half families with their own gradient points (:func:`gradient_points`);
+- ``'penalty'``: ``½ Σ_b ½ penalty k_b |z_b|²`` on the non-affine part of each bond
+  (:func:`penalty_matrix`, :func:`penalty_force`);
+- ``'springs'`` and ``'ads'`` (Luo & Sundararaghavan (2018), Eqs. 7-8): one-hop
+  stiffness factors ``S N`` (:func:`control_factors`) with family-normalized constants
+  (:func:`control_constants`).
+
+``'none'`` and ``'higher_order'`` change only the bond weights (the model's
+``bond_weights``).  Every function takes the model and reads its parameters; the model's
+methods of the same names delegate here.
+"""
 
 from __future__ import annotations
 
@@ -20,6 +35,21 @@ from . import gradient as _gradient
 
 if TYPE_CHECKING:
     from .model import Correspondence, _Plan
+
+__all__ = [
+    "CONTROLS",
+    "DEFAULT_CONTROL_COEFFICIENT",
+    "SP_MIN_RATIO",
+    "SP_BALANCE_TOL",
+    "gradient_points",
+    "penalty_bond_stiffness",
+    "penalty_force",
+    "penalty_matrix",
+    "control_constants",
+    "laplacian",
+    "control_factors",
+]
+
 
 #: zero-energy-mode controls accepted by :class:`Correspondence`
 CONTROLS = ("none", "higher_order", "penalty", "stress_points", "springs", "ads")

@@ -1,4 +1,11 @@
-"""TODO gradient."""
+"""The sparse gradient operator of correspondence peridynamics and its block products.
+
+``∇u_g = Σ_b (u_b - u_a) ⊗ c_gb`` with ``c_gb = ω_ab V_b K_g⁻¹ ξ_ab`` (Javaheri et al.
+(2022), Eqs. 6-7, in sparse form): bond coefficients (:func:`_coefficients`), the blocks of
+G per (gradient point, point) pair, G in CSR, and the products and zero-block dropping of
+``Gᵀ D G``.  Large inputs run in fixed chunks on pdlin's threads (and in numba passes when
+numba is installed), with the same bits as the serial numpy path.
+"""
 
 from __future__ import annotations
 
@@ -19,6 +26,12 @@ from ..._validation import as_float_array
 from ...errors import InputError, ModelError, ShapeError
 from ...geometry.bonds import Bonds
 from ...geometry.cloud import PointCloud
+
+__all__ = [
+    "gradient_operator",
+    "voigt_projector",
+    "intact_shape_tensor",
+]
 
 
 def _coefficients_2d_fused(

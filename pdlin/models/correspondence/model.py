@@ -1,4 +1,4 @@
-"""TODO model."""
+"""The :class:`Correspondence` model: assembly plan, operators and material interface."""
 
 from __future__ import annotations
 
@@ -43,6 +43,12 @@ from .gradient import (
     intact_shape_tensor,
     voigt_projector,
 )
+
+__all__ = [
+    "Correspondence",
+    "DEFAULT_MAX_BYTES",
+]
+
 
 log = logging.getLogger(__name__)
 

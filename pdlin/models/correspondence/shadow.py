@@ -1,4 +1,4 @@
-"""TODO shadow."""
+"""Shadow-layer problems of correspondence peridynamics (Javaheri et al. (2022), Sec. II.D)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,11 @@ from ...errors import ModelError
 from ...geometry.bonds import Bonds
 from ...geometry.cloud import PointCloud
 from .model import Correspondence
+
+__all__ = [
+    "shadow_problem",
+    "shadow_real_counts",
+]
 
 
 def shadow_real_counts(cloud: PointCloud, shadow: np.ndarray) -> np.ndarray:
