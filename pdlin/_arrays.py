@@ -150,7 +150,7 @@ def with_diagonal_blocks(
     >>> Kd.nnz, Kd.indices.tolist(), bool((Kd.toarray() == K.toarray()).all())
     (16, [0, 1, 0, 1], True)
     """
-    r = K.blocksize[0] if blocksize is None else int(blocksize)  # type: ignore[attr-defined]
+    r = K.blocksize[0] if blocksize is None else int(blocksize)
     Kb = sp.bsr_array(K, blocksize=(r, r))
     nbr = Kb.shape[0] // r
     brow = np.repeat(np.arange(nbr), np.diff(Kb.indptr))

@@ -24,6 +24,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.sparse as sp
 
+import pdlin.models.correspondence.gradient as _gradient
+
 from ..._arrays import per_point_outer
 from ..._kernels import _kernels, use_numba
 from ..._threads import even_chunks, ptr_chunks, thread_map
@@ -31,7 +33,6 @@ from ...errors import InputError, ModelError
 from ...geometry.bonds import Bonds
 from ...geometry.cloud import PointCloud
 from ..bond_based import BondBased, _c1111
-from . import gradient as _gradient
 
 if TYPE_CHECKING:
     from .model import Correspondence, _Plan

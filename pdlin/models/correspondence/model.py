@@ -11,6 +11,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+import pdlin.models.correspondence.controls as _controls
+import pdlin.models.correspondence.gradient as _gradient
+
 from ..._arrays import (
     mandel_weights,
     n_orientations,
@@ -26,8 +29,6 @@ from ...geometry.cloud import PointCloud
 from ..base import Model, Response
 from ..bond_based import BondBased, _c1111
 from ..ordinary_state import uniform_nu_constants
-from . import controls as _controls
-from . import gradient as _gradient
 from .controls import (
     CONTROLS,
     DEFAULT_CONTROL_COEFFICIENT,
