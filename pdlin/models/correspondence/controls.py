@@ -32,7 +32,7 @@ from ..._threads import even_chunks, ptr_chunks, thread_map
 from ...errors import InputError, ModelError
 from ...geometry.bonds import Bonds
 from ...geometry.cloud import PointCloud
-from ..bond_based import BondBased, _c1111
+from ..bond_based import BondBased, implied_poisson_ratio
 
 if TYPE_CHECKING:
     from .model import Correspondence, _Plan
@@ -43,6 +43,7 @@ __all__ = [
     "SP_MIN_RATIO",
     "SP_BALANCE_TOL",
     "gradient_points",
+    "unit_axial_modulus",
     "penalty_bond_stiffness",
     "penalty_force",
     "penalty_matrix",
@@ -207,6 +208,38 @@ def _halves_well_conditioned(
     return ok
 
 
+def unit_axial_modulus(dim: int, plane: str) -> float:
+    """Return the axial modulus ``C_1111`` of a bond-based material of unit ``E``.
+
+    Bond-based peridynamics implies ν (1/4 in 3D and plane strain, 1/3 in plane stress,
+    :func:`pdlin.implied_poisson_ratio`); the penalty and the surrogate stiffness divide a
+    mean axial modulus by this to get the equivalent bond-based ``E``.
+
+    Parameters
+    ----------
+    dim : {1, 2, 3}
+        Spatial dimension.
+    plane : {'stress', 'strain'}
+        2D assumption.
+
+    Returns
+    -------
+    float
+        ``1`` in 1D, ``1/(1-ν²)`` in plane stress, ``(1-ν)/((1+ν)(1-2ν))`` otherwise.
+
+    Examples
+    --------
+    >>> unit_axial_modulus(3, "stress")
+    1.2
+    """
+    if dim == 1:
+        return 1.0
+    nu = implied_poisson_ratio(dim, plane)
+    if dim == 2 and plane == "stress":
+        return float(1.0 / (1.0 - nu**2))
+    return float(1.0 * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu)))
+
+
 def gradient_points(
     model: Correspondence, cloud: PointCloud, bonds: Bonds
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -320,7 +353,7 @@ def penalty_bond_stiffness(
     d = cloud.dim
     Cv = model.voigt_stiffness(cloud)
     axial = np.einsum("nkk->n", Cv[:, :d, :d]) / d
-    e_eq = axial / _c1111(np.ones(1), d, model.plane)[0]
+    e_eq = axial / unit_axial_modulus(d, model.plane)
     bb = BondBased(E=e_eq, plane=model.plane)
     k = 0.5 * model.penalty * bb.bond_stiffness(cloud, dataclasses.replace(bonds, omega=p.omega))
     return k * p.energy[bonds.i]

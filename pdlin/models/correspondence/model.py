@@ -27,7 +27,7 @@ from ...errors import InputError, InputTypeError, ModelError, ShapeError
 from ...geometry.bonds import Bonds
 from ...geometry.cloud import PointCloud
 from ..base import Model, Response
-from ..bond_based import BondBased, _c1111
+from ..bond_based import BondBased
 from ..ordinary_state import uniform_nu_constants
 from .controls import (
     CONTROLS,
@@ -994,7 +994,7 @@ class Correspondence(Model):
         d = cloud.dim
         Cv = self.voigt_stiffness(cloud)
         axial = np.einsum("nkk->n", Cv[:, :d, :d]) / d
-        e_eq = axial / _c1111(np.ones(1), d, self.plane)[0]
+        e_eq = axial / _controls.unit_axial_modulus(d, self.plane)
         b = dataclasses.replace(bonds, omega=np.abs(self.bond_weights(cloud, bonds)))
         K = sp.bsr_array(BondBased(E=e_eq, plane=self.plane).stiffness(cloud, b))
         n = cloud.n
