@@ -17,7 +17,7 @@ import scipy.sparse as sp
 import pdlin
 from pdlin import _kernels
 from pdlin._kernels import csr_to_bsr_rows, csr_to_bsr_t
-from pdlin.models import _state
+from pdlin.models import ordinary_state as _state
 
 
 @pytest.fixture(autouse=True)

@@ -486,25 +486,6 @@ def control_constants(model: Correspondence, cloud: PointCloud, bonds: Bonds) ->
     See :meth:`Correspondence.control_constants` for their meaning
     (Luo & Sundararaghavan (2018), Eqs. 7-8, normalized by the family).
 
-    Returns ``{'coefficient': C̃, 'E_ref', 'V_ref', 'h_ref', 'S_ref', 'Omega_ref',
-    'C1', 'C2'}``.  ``E_ref = max_i tr(C_i[:d, :d])/d`` (the largest mean axial
-    modulus; ``E`` in 1D); the family moments ``S_i = Σ_j ω V_j |ξ_ij|²`` and
-    ``Ω_i = Σ_j ω V_j`` (``V`` times the thickness in 2D / cross-section in 1D) give
-    ``S_ref = max_i S_i`` and ``Omega_ref = max_i Ω_i`` (a complete family on a lattice), and
-
-    ``C1 = d C̃ E_ref / S_ref``,    ``C2 = 4 d² C̃ E_ref / (S_ref Ω_ref)``.
-
-    Meaning, for any ``δ/h`` and dimension: under a homogeneous gradient ``H`` the springs
-    of a complete family store ``½ C̃ E_ref |H|²`` per unit volume (a full-vector
-    "Laplacian" material of modulus ``C̃ E_ref``: uniaxial stretch gains the stress
-    ``C̃ E_ref ε``), and ADS stores ``½ C̃ E_ref ℓ² |∇²u|²`` with ``ℓ² = S_ref/Ω_ref``
-    the family's mean square bond length (zero on affine fields, except where families
-    are truncated).  On the nearest-neighbour families of Luo & Sundararaghavan (2018)
-    (``S = 2d V h²``, ``Ω = 2d V``) this is ``C1 = C̃ E/(2 V h²)``, ``C2 = C̃ E/(V² h²)``:
-    on a uniform chain (``V = A h``, ω = 1) springs add ``C̃ (E A / h) Lap0`` and ADS
-    ``C̃ (E A / h) Lap0²`` (derived, ``Lap0`` the chain graph Laplacian).  ``V_ref``
-    (mean volume) and ``h_ref`` (mean shortest bond) are reported for information.
-
     Parameters
     ----------
     model : Correspondence
@@ -523,20 +504,6 @@ def control_constants(model: Correspondence, cloud: PointCloud, bonds: Bonds) ->
     ------
     ModelError
         No bonds, or non-positive family moments.
-
-    Examples
-    --------
-    >>> import pdlin
-    >>> cloud = pdlin.grid((11,), spacing=0.1)
-    >>> bonds = pdlin.find_bonds(cloud, ratio=1.0)
-    >>> m = pdlin.Correspondence(E=2.0, control="springs", coefficient=0.5)
-    >>> c = m.control_constants(cloud, bonds)
-    >>> round(2 * c["C1"] * c["V_ref"] ** 2, 12)   # C̃ E A / h = 0.5 * 2 / 0.1
-    10.0
-    >>> b3 = pdlin.find_bonds(cloud, ratio=3.0)   # same springs' modulus, 6 bonds
-    >>> c3 = m.control_constants(cloud, b3)
-    >>> round(c3["S_ref"] / (2 * 0.1 * (0.1**2 + 0.2**2 + 0.3**2)), 12)
-    1.0
     """
     d = cloud.dim
     Cv = model.voigt_stiffness(cloud)
