@@ -51,7 +51,8 @@ __all__ = [
 ]
 
 
-log = logging.getLogger(__name__)
+#: the package's logger (its name as before the split into modules)
+log = logging.getLogger("pdlin.models.correspondence")
 
 
 def _check_stiffness_per_point(arr: np.ndarray) -> None:
