@@ -1619,6 +1619,10 @@ class Correspondence(Model):
         return {**items, **super()._repr_items()}
 
 
+#: the public path of the class (repr, pickles, checkpoint fingerprints as before the split)
+Correspondence.__module__ = "pdlin.models.correspondence"
+
+
 #: entries of a stress array from which ``w V P`` is multiplied in row chunks on threads
 _THREADED_MULTIPLY = 1 << 18
 
