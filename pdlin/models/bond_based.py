@@ -19,8 +19,8 @@ from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
 from ..geometry.influence import influence_function
 from ..operators.assembly import pair_stiffness_bsr
-from ._state import uniform_nu_constants
 from .base import Model
+from .ordinary_state import uniform_nu_constants
 from .surface import (
     SurfaceFactors,
     angular_moment,

@@ -553,14 +553,13 @@ def test_higher_order_uses_generated_weights():
 
 @pytest.mark.parametrize("pre", ["jacobi", "amg", "none"])
 def test_solve_matrix_free_matches_direct(pre, rng):
-    from pdlin.models.correspondence import solve_matrix_free
-
+    solver = {"jacobi": "jacobi-cg", "amg": "amg-cg", "none": "cg"}[pre]
     cloud = pdlin.grid((12, 12), spacing=0.1)
     bonds = pdlin.find_bonds(cloud, ratio=2.0)
     F = np.eye(2) + rng.normal(size=(2, 2)) * 1e-2
     for control in ("higher_order", "penalty"):
         prob = shadow_problem(pdlin.Correspondence(E=1.0, nu=0.3, control=control), cloud, bonds, F)
-        res = solve_matrix_free(prob, rtol=1e-12, preconditioner=pre)
+        res = pdlin.solve(prob, solver=solver, rtol=1e-12, operator="matrix-free")
         ref = pdlin.solve(prob, solver="direct")
         assert res.relative_residual <= 1e-11
         assert res.info["operator"] == "matrix-free"
@@ -721,7 +720,7 @@ def test_per_point_stiffness_validated_at_every_point():
 
 def test_gradient_sums_repeated_point_pairs():
     """A (gradient point, point) pair given twice is one block holding the sum (as COO would)."""
-    from pdlin.models.correspondence import _gradient_csr
+    from pdlin.models.correspondence.gradient import _gradient_csr
 
     rng = np.random.default_rng(3)
     n, d = 6, 2
@@ -743,7 +742,7 @@ def test_gradient_sums_repeated_point_pairs():
 def test_stiffness_stores_no_cancelled_blocks():
     """δ = h: the a ± e_i blocks of Wᵀ W cancel exactly and are not stored (nnz of the derived
     tables)."""
-    from pdlin.models.correspondence import _drop_zero_blocks
+    from pdlin.models.correspondence.gradient import _drop_zero_blocks
 
     cloud = _grid(2, 9)
     bonds = pdlin.find_bonds(cloud, ratio=1.0)
@@ -825,7 +824,7 @@ def test_penalty_matrix_is_z_transpose_k_z(dim, n, ratio, jitter):
 
 def test_ratio_ok_closed_form_2d_matches_eigvalsh():
     """The 2 x 2 closed form of the stress-point conditioning test agrees with LAPACK."""
-    from pdlin.models.correspondence import SP_MIN_RATIO, _ratio_ok
+    from pdlin.models.correspondence.controls import SP_MIN_RATIO, _ratio_ok
 
     rng = np.random.default_rng(5)
     A = rng.standard_normal((5000, 2, 2))

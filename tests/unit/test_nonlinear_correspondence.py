@@ -168,7 +168,7 @@ def test_response_stress_and_calls():
 def test_response_stress_is_computed_on_first_read_only(monkeypatch):
     """ADR iterations and line-search trials never read the stress: respond defers the
     per-particle Cauchy mean to the first read of ``stress`` and keeps it."""
-    from pdlin.models import correspondence as cm
+    from pdlin.models.correspondence import model as cm
 
     cloud = _cloud(6)
     bonds = pdlin.find_bonds(cloud, ratio=1.0)
@@ -457,7 +457,7 @@ def test_operators_hold_no_explicit_zeros(control):
 def test_force_weights_multiplied_in_row_chunks_on_threads(monkeypatch):
     """``w V P`` of a large stress array is multiplied in row chunks on pdlin's threads
     (from ``_THREADED_MULTIPLY`` entries); the nodal force is the same bitwise."""
-    from pdlin.models import correspondence as corr
+    from pdlin.models.correspondence import model as corr
 
     cloud = _cloud(8)
     bonds = pdlin.find_bonds(cloud, ratio=2.0)

@@ -18,7 +18,7 @@ import scipy.sparse as sp
 
 import pdlin
 from pdlin.errors import InputError, InputTypeError, ModelError
-from pdlin.models._state import TARGET_D, TARGET_H, basis_d, basis_h, bulk_shear_moduli
+from pdlin.models.ordinary_state import TARGET_D, TARGET_H, basis_d, basis_h, bulk_shear_moduli
 
 # -- clouds ------------------------------------------------------------------
 
