@@ -617,6 +617,30 @@ class BondBased(Model):
         """
         return pair_stiffness_bsr(bonds, self._bond_stiffness_fn(cloud, bonds))
 
+    def surrogate_stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.bsr_array:
+        """Return the one-hop matrix that preconditions the matrix-free path.
+
+        It is the stiffness of a plain ``BondBased(E, plane)`` on the same bonds: this
+        model's own options (per-bond micromoduli, surface corrections, averaging) are
+        left out, which keeps the preconditioner cheap to assemble.  Without an ``E``
+        (micromoduli given directly) it is the model's own stiffness.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points.
+        bonds : Bonds
+            Their bonds.
+
+        Returns
+        -------
+        scipy.sparse.bsr_array, shape (n * dim, n * dim)
+            The plain bond-based stiffness.
+        """
+        if self.E is None:
+            return super().surrogate_stiffness(cloud, bonds)
+        return BondBased(E=self.E, plane=self.plane).stiffness(cloud, bonds)
+
     def internal_force(
         self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, *, linear: bool = True
     ) -> np.ndarray:
