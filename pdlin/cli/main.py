@@ -116,7 +116,7 @@ def _size(path: Path) -> str:
 
 
 def _load(args: argparse.Namespace) -> Any:
-    from ..io.scene import builtin_scene, load_scene, scene_from_dict
+    from ..scene.scene import builtin_scene, load_scene, scene_from_dict
 
     if getattr(args, "example", None):
         data, _ = builtin_scene(args.example)
@@ -124,7 +124,7 @@ def _load(args: argparse.Namespace) -> Any:
     if not args.scene:
         raise PdlinError("give a scene file or --example NAME")
     if Path(args.scene).suffix.lower() in (".yaml", ".yml", ".xml"):
-        from ..io.decks import read_deck  # Peridigm / PeriLab input decks
+        from ..scene.decks import read_deck  # Peridigm / PeriLab input decks
 
         return read_deck(args.scene)
     return load_scene(args.scene)
@@ -177,7 +177,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.select:
         if not args.scene:
             raise PdlinError("--select needs a scene file with a [tradeoff] table")
-        from ..sweeps.scene import select_scene
+        from ..scene.tradeoff import select_scene
 
         if args.output:  # before the sweep; the kind of run is known after it
             _check_out(args.output, tuple({*SUPPORTED_SUFFIXES, *SERIES_SUFFIXES}), "-o/--output")
@@ -191,7 +191,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise PdlinError("--resume needs a nonlinear scene with solver.checkpoint")
     _check_run_outputs(args, scene)
     if scene.checks:
-        from ..io.checks import check_before_run
+        from ..scene.checks import check_before_run
 
         check_before_run(scene.checks, scene)
     if scene.nonlinear is not None:
@@ -293,7 +293,7 @@ def _checks(scene: Any, result: Any, summary: dict[str, Any], prog: Any) -> list
     """Evaluate the scene's [[check]] tables; add them to the summary."""
     if not scene.checks:
         return []
-    from ..io.checks import evaluate_checks
+    from ..scene.checks import evaluate_checks
 
     prog(f"checking {len(scene.checks)} reference(s)")
     res = evaluate_checks(scene.checks, scene, result)
@@ -466,8 +466,8 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
     path = Path(args.mesh)
     if path.suffix in (".toml", ".yaml", ".yml", ".xml"):
-        from ..io.decks import read_deck
-        from ..io.scene import load_scene
+        from ..scene.decks import read_deck
+        from ..scene.scene import load_scene
 
         scene = load_scene(path) if path.suffix == ".toml" else read_deck(path)
         cloud = scene.cloud
@@ -572,7 +572,7 @@ def _calibration_line(cal: dict[str, Any]) -> str:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    from ..io.targets import load_calibration
+    from ..scene.targets import load_calibration
 
     job = load_calibration(args.target)
     out = Path(args.output) if args.output else job.output
@@ -628,12 +628,12 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def _cmd_examples(args: argparse.Namespace) -> int:
-    from ..io.scene import builtin_scene, list_builtin_scenes
+    from ..scene.scene import builtin_scene, list_builtin_scenes
 
     if args.show:
         print(builtin_scene(args.show)[1])
         return 0
-    from ..io.checks import parse_checks
+    from ..scene.checks import parse_checks
 
     rows = []
     for name in list_builtin_scenes():
@@ -661,11 +661,11 @@ def _cmd_examples(args: argparse.Namespace) -> int:
 
 
 def _cmd_tradeoff(args: argparse.Namespace) -> int:
-    from ..sweeps.scene import load_tradeoff
+    from ..scene.tradeoff import load_tradeoff
 
     if getattr(args, "example", None):
-        from ..io.scene import builtin_scene
-        from ..sweeps.scene import tradeoff_from_dict
+        from ..scene.scene import builtin_scene
+        from ..scene.tradeoff import tradeoff_from_dict
 
         data, _ = builtin_scene(args.example)
         if "tradeoff" not in data:

@@ -1,0 +1,1200 @@
+"""Scene files (TOML): geometry, material, model, horizon, BCs, loads, solver, output.
+
+A scene is plain data; :func:`load_scene` validates every key and builds
+the pdlin objects.  Errors name the offending key (``dirichlet[1].set``).
+See ``docs/scene.md`` for the full reference.
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._validation import as_float_array
+from ..errors import AccuracyWarning, InsufficientMemoryError, PdlinError, SceneError
+from ..geometry.bonds import SHAPES, Bonds, find_bonds
+from ..geometry.cloud import PointCloud, from_image, grid
+from ..geometry.influence import INFLUENCE_FUNCTIONS
+from ..models.base import Model
+from ..models.bond_based import BondBased
+from ..operators.bc import (
+    BodyForce,
+    Dirichlet,
+    TotalForce,
+    load_vector,
+    resolve_dirichlet,
+    shadow_layer,
+)
+from ..problem import StaticProblem
+from ._keys import check_keys, read_toml
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = [
+    "Scene",
+    "load_scene",
+    "scene_from_dict",
+    "builtin_scene",
+    "list_builtin_scenes",
+    "MODELS",
+]
+
+_TOP = {
+    "name",
+    "geometry",
+    "material",
+    "model",
+    "horizon",
+    "dirichlet",
+    "load",
+    "shadow",
+    "symmetry",
+    "solver",
+    "output",
+    "tradeoff",  # read by pdlin.scene.tradeoff (pdlin tradeoff), ignored by run
+    "subregion",
+    "check",  # [[check]]: references the run verifies (pdlin.scene.checks)
+    "damage",  # stretch damage: load steps with bond breaking (pdlin.solve_damage)
+    "about",  # description / runtime shown by `pdlin examples`
+    "problem",  # a bundled problem of pdlin.sweeps.problems instead of geometry, ...
+}
+#: top-level keys of a scene built from a bundled problem ([problem] factory = ...)
+_PROBLEM_TOP = {"name", "problem", "solver", "output", "check", "about"}
+_DAMAGE = {"critical_stretch", "G0", "steps", "max_resolves"}
+_ABOUT = {"description", "runtime"}
+_SUBREGION = {"box", "coarse", "layer"}
+_GEOM = {
+    "grid": {"type", "shape", "spacing", "origin", "thickness", "ghost_layers", "holes"},
+    "mesh": {"type", "path", "thickness", "dim", "volume"},
+    "image": {"type", "path", "data", "spacing", "origin", "void", "thickness", "ghost_layers"},
+}
+_MATERIAL = {
+    "type",
+    "slip",
+    "orientation",
+    "elastic",
+    "hardening",
+    "shear",
+    "polycrystal",
+    "E",
+    "nu",
+    "K",
+    "G",
+    "lam",
+    "mu",
+    "plane",
+    "micromodulus",
+    "calibration",
+    "stiffness",
+}
+_CP_KEYS = ("slip", "orientation", "elastic", "hardening", "shear", "polycrystal")
+_POLYCRYSTAL = {"grains", "seed"}
+#: isotropic constants a material table may give (any two; per phase tables allowed)
+_ISO_KEYS = ("E", "nu", "K", "G", "lam", "mu")
+_CALIBRATION = {
+    "target",
+    "method",
+    "lower_bound",
+    "weighting",
+    "qp_solver",
+    "boundary",
+    "pair_rule",
+}
+_MODEL = {
+    "type",
+    "nu_mismatch",
+    "average",
+    "linearization",
+    "weighted_volume",
+    "peridigm",
+    "fallback",
+    "control",
+    "penalty",
+    "coefficient",
+    "seed",
+    "surface_correction",
+}
+_MODEL_KEYS = {
+    "bond_based": {"type", "nu_mismatch", "average", "surface_correction"},
+    "lps": {"type", "linearization", "weighted_volume", "peridigm", "surface_correction"},
+    "xosb": {"type", "linearization", "weighted_volume", "fallback"},
+    "correspondence": {"type", "control", "penalty", "coefficient", "seed"},
+}
+_HORIZON = {"value", "ratio", "shape", "axes", "influence", "cracks"}
+_DIRICHLET = {
+    "set",
+    "box",
+    "points",
+    "components",
+    "value",
+    "F",
+    "translation",
+    "center",
+    "velocity_gradient",
+}
+_LOAD = {"type", "set", "box", "points", "force", "density"}
+_SHADOW = {"F", "depth", "faces", "translation", "mode"}
+_SYMMETRY = {"axis", "position", "side"}
+#: [solver] keys of solve_nonlinear (with rtol / maxiter for Newton)
+_NONLINEAR_KEYS = (
+    "steps",
+    "t_end",
+    "e_l",
+    "predictor",
+    "checkpoint",
+    "max_cutbacks",
+    "fallback_cutbacks",
+    "newton_backoff",
+    "relax",
+    "polish",
+    "adr_stall",
+    "progress_every",
+    "snapshot_every",
+    "density",
+    "dt",
+    "damping",
+)
+_SOLVER = {
+    "name",
+    "rtol",
+    "maxiter",
+    "direct_backend",
+    "nonlinear",
+    "backend",
+    "petsc_options",
+    *_NONLINEAR_KEYS,
+}
+_OUTPUT = {"path", "fields", "homogenized"}
+
+
+def _check_keys(table: Any, allowed: set[str], where: str) -> dict[str, Any]:
+    return check_keys(table, allowed, where, what="scene key")
+
+
+def _require(table: Mapping[str, Any], key: str, where: str) -> Any:
+    if key not in table:
+        raise SceneError(f"missing scene key {where}.{key}")
+    return table[key]
+
+
+def _build_model(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud) -> Model:
+    mtype = material.get("type", "elastic")
+    if mtype not in ("elastic", "crystal-plasticity"):
+        raise SceneError(f"material.type must be 'elastic' or 'crystal-plasticity', got {mtype!r}")
+    if mtype == "elastic":
+        extra = [k for k in _CP_KEYS if k in material]
+        if extra:
+            raise SceneError(
+                f"material.{extra[0]} is a crystal-plasticity key; set material.type = "
+                "'crystal-plasticity' or remove it"
+            )
+    kind = cfg.get("type", "bond_based")
+    if mtype == "crystal-plasticity" and kind != "correspondence":
+        raise SceneError(
+            "material.type = 'crystal-plasticity' needs model.type = 'correspondence', "
+            f"got {kind!r}"
+        )
+    try:
+        builder = MODELS[kind]
+    except KeyError:
+        raise SceneError(f"model.type must be one of {sorted(MODELS)}, got {kind!r}") from None
+    if kind in _MODEL_KEYS:
+        _check_keys(cfg, _MODEL_KEYS[kind], "model")
+    return builder(cfg, material, cloud)
+
+
+def _no_keys(material: Mapping[str, Any], keys: tuple[str, ...], kind: str) -> None:
+    for k in keys:
+        if k in material:
+            raise SceneError(f"material.{k} is not used by model.type = {kind!r}")
+
+
+def _state_based(kind: str) -> Callable[[Mapping[str, Any], Mapping[str, Any], PointCloud], Model]:
+    def build(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud) -> Model:
+        from ..models import LPS, XOSB
+
+        _no_keys(material, ("micromodulus", "stiffness"), kind)
+        iso = _isotropic(material, cloud, kind)
+        opts = {k: cfg[k] for k in cfg if k != "type"}
+        cls = LPS if kind == "lps" else XOSB
+        return cls(**iso, plane=material.get("plane", "stress"), **opts)
+
+    return build
+
+
+def _correspondence(
+    cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud
+) -> Model:
+    from ..models import Correspondence
+    from .targets import target_from_table
+
+    _no_keys(material, ("micromodulus",), "correspondence")
+    opts = {k: cfg[k] for k in cfg if k != "type"}
+    if material.get("type") == "crystal-plasticity":
+        return Correspondence(material=_crystal_plasticity(material, cloud), **opts)
+    plane = material.get("plane", "stress")
+    if "stiffness" in material:
+        given = [k for k in _ISO_KEYS if k in material]
+        if given:
+            raise SceneError(
+                f"material.stiffness and material.{given[0]} exclude each other "
+                "(give a Voigt stiffness or isotropic constants)"
+            )
+        C = target_from_table(material["stiffness"], "material.stiffness")
+        return Correspondence(C, plane=plane, **opts)
+    iso = _isotropic(material, cloud, "correspondence", minimum=1 if cloud.dim == 1 else 2)
+    return Correspondence(**iso, plane=plane, **opts)
+
+
+def _crystal_plasticity(material: Mapping[str, Any], cloud: PointCloud) -> Any:
+    """``[material] type = "crystal-plasticity"``: slip systems, constants, orientations."""
+    from ..constitutive.crystal_plasticity import CrystalPlasticity
+    from ..geometry.polycrystal import voronoi_polycrystal
+
+    bad = [k for k in _ISO_KEYS + ("plane", "stiffness", "micromodulus") if k in material]
+    if bad:
+        raise SceneError(
+            f"material.{bad[0]} is not used by material.type = 'crystal-plasticity' (give "
+            "material.elastic = {{...}} for the crystal's elastic constants)"
+        )
+    orientation: Any = material.get("orientation", 0.0)
+    if "polycrystal" in material:
+        if "orientation" in material:
+            raise SceneError("material.orientation and material.polycrystal exclude each other")
+        pc = _check_keys(material["polycrystal"], _POLYCRYSTAL, "material.polycrystal")
+        grains = _require(pc, "grains", "material.polycrystal")
+        if isinstance(grains, bool) or not isinstance(grains, int) or grains < 1:
+            raise SceneError(f"material.polycrystal.grains must be an integer >= 1, got {grains!r}")
+        seed = int(pc.get("seed", 0))
+        if "ghost" in cloud.sets:
+            # grains on the real points; a ghost copies the orientation of its nearest one
+            from scipy.spatial import cKDTree
+
+            real = np.setdiff1d(np.arange(cloud.n), cloud.point_set("ghost"))
+            _, ori_real = voronoi_polycrystal(cloud.points[real], grains, seed=seed)
+            _, near = cKDTree(cloud.points[real]).query(cloud.points)
+            orientation = ori_real[near]
+        else:
+            _, orientation = voronoi_polycrystal(cloud, grains, seed=seed)
+    kw: dict[str, Any] = {}
+    for key in ("elastic", "hardening", "shear"):
+        if key in material:
+            kw[key] = material[key]
+    return CrystalPlasticity(material.get("slip", "planar-2"), orientation=orientation, **kw)
+
+
+def _isotropic(
+    material: Mapping[str, Any], cloud: PointCloud, kind: str, *, minimum: int = 2
+) -> dict[str, Any]:
+    """The isotropic constants of a material table (E, nu, K, G, lam, mu; per phase).
+
+    Fewer than ``minimum`` of them raise (the model checks the set further).
+    """
+    iso = {k: per_phase(material[k], cloud, f"material.{k}") for k in _ISO_KEYS if k in material}
+    if len(iso) < minimum:
+        raise SceneError(
+            f"model.type = {kind!r} needs two isotropic constants in [material] "
+            f"(E and nu, or K and G, or lam and mu, ...), got {sorted(iso) or 'none'}"
+        )
+    return iso
+
+
+def per_phase(value: Any, cloud: PointCloud, key: str) -> Any:
+    """A material constant given as a number, or a table ``{"<phase id>" = value}``.
+
+    Tables are mapped onto points through ``cloud.material``; every phase
+    present in the cloud must be listed.
+    """
+    if not isinstance(value, Mapping):
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise SceneError(
+                f"{key} must be a number or a table of per-phase numbers, got {value!r}"
+            )
+        return value
+    try:
+        table = {int(k): float(v) for k, v in value.items()}
+    except (TypeError, ValueError) as exc:
+        raise SceneError(f"{key} table must map integer phase ids to numbers: {exc}") from exc
+    mat = np.asarray(cloud.material)
+    phases = np.unique(mat)
+    missing = [int(p) for p in phases if int(p) not in table]
+    if missing:
+        raise SceneError(f"{key} has no value for phase(s) {missing} present in the geometry")
+    lut = np.zeros(int(phases.max()) + 1)
+    for k, v in table.items():
+        if 0 <= k < lut.size:
+            lut[k] = v
+    return lut[mat]
+
+
+def _bond_based(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud) -> Model:
+    iso = _isotropic(material, cloud, "bond_based", minimum=0)  # E, K, G or lam alone suffice
+    return BondBased(
+        **iso,
+        plane=material.get("plane", "stress"),
+        micromodulus=material.get("micromodulus"),
+        average=cfg.get("average", "arithmetic"),
+        nu_mismatch=cfg.get("nu_mismatch", "raise"),
+        surface_correction=cfg.get("surface_correction"),
+    )
+
+
+#: model builders by scene name: ``builder(model_table, material_table, cloud) -> Model``
+MODELS: dict[str, Callable[[Mapping[str, Any], Mapping[str, Any], PointCloud], Model]] = {
+    "bond_based": _bond_based,
+    "lps": _state_based("lps"),
+    "xosb": _state_based("xosb"),
+    "correspondence": _correspondence,
+}
+
+
+@dataclass
+class Scene:
+    """A parsed scene: the problem plus how to solve it and where to write."""
+
+    name: str
+    problem: StaticProblem
+    solver: str = "auto"
+    rtol: float = 1e-8
+    maxiter: int | None = None
+    #: factorization of ``solver = "direct"`` (``pdlin.solve(direct_backend=...)``)
+    direct_backend: str = "auto"
+    output: Path | None = None
+    fields: list[str] | None = None
+    #: time of the static state (a deck's ``Solver.Final Time``), written as the Exodus
+    #: ``time_whole`` of the result as Peridigm writes its final state; 0 for scenes
+    time: float = 0.0
+    base_dir: Path = field(default_factory=Path.cwd)
+    #: result of ``[material.calibration]`` (anisotropic micromoduli), if any
+    calibration: Any = None
+    #: ``solve_nonlinear`` options (``method`` and the [solver] load-step keys) when the
+    #: scene asks for a nonlinear solve or its material is nonlinear; else None
+    nonlinear: dict[str, Any] | None = None
+    #: CSV of the homogenized response per load step (nonlinear scenes)
+    homogenized: Path | None = None
+    #: ``[subregion]`` scenes: the driving coarse solve and the cut (see
+    #: :func:`pdlin.subregion`): box, layer, coarse spacing, points, seconds
+    subregion: dict[str, Any] | None = None
+    #: ``[[check]]`` tables (:func:`pdlin.scene.checks.parse_checks`)
+    checks: list[Any] = field(default_factory=list)
+    #: ``[damage]`` options of :func:`pdlin.solve_damage` (``s0``, ``steps``, ...), or None
+    damage: dict[str, Any] | None = None
+    #: the bundled problem's :class:`~pdlin.sweeps.TradeoffCase` ([problem] scenes)
+    case: Any = None
+    #: ``[about]`` table: description and typical runtime
+    about: dict[str, str] = field(default_factory=dict)
+    #: linear-solve backend ('scipy' or 'petsc', ``[solver] backend``)
+    backend: str = "scipy"
+    #: PETSc options of the 'petsc' backend (``[solver.petsc_options]``)
+    petsc_options: dict[str, Any] | None = None
+    #: load steps of a deck with several (Peridigm's ``Number of Load Steps`` / ``Time
+    #: Steps``): ``(time, problem)`` per step, the last being ``problem``; ``pdlin run``
+    #: solves each and writes a time series.  None: one solve.
+    steps: list[tuple[float, StaticProblem]] | None = None
+
+    @property
+    def cloud(self) -> PointCloud:
+        return self.problem.cloud
+
+    @property
+    def model(self) -> Model:
+        return self.problem.model
+
+    def bonds(self) -> Bonds:
+        return self.problem.get_bonds()
+
+
+def _resolve_path(p: Any, base: Path, key: str) -> Path:
+    if not isinstance(p, str):
+        raise SceneError(f"{key} must be a path string, got {p!r}")
+    path = Path(p)
+    if not path.is_absolute():
+        path = base / path
+    if not path.exists():
+        raise SceneError(f"{key}: file not found: {path}")
+    return path
+
+
+def _number(value: Any, key: str, *, positive: bool = False) -> float:
+    """A TOML number (int or float, not bool) as a float, else SceneError naming ``key``."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise SceneError(f"{key} must be a number, got {type(value).__name__} {value!r}")
+    v = float(value)
+    if positive and not (np.isfinite(v) and v > 0):
+        raise SceneError(f"{key} must be > 0, got {v}")
+    if not np.isfinite(v):  # TOML has inf and nan
+        raise SceneError(f"{key} must be finite, got {v}")
+    return v
+
+
+def _span(cloud: PointCloud) -> str:
+    """``'points span [0, 0] to [1, 0.5]'``: the cloud's bounding box for messages."""
+    lo, hi = cloud.bounds
+    return "points span [{}] to [{}]".format(
+        ", ".join(f"{v:g}" for v in lo), ", ".join(f"{v:g}" for v in hi)
+    )
+
+
+def _holes(cloud: PointCloud, holes: Any) -> PointCloud:
+    """Remove the grid points inside circular (2D) / spherical (3D) holes."""
+    if not isinstance(holes, list):
+        raise SceneError(
+            f"geometry.holes must be an array of tables {{center = [...], radius = r}}, "
+            f"got {holes!r}"
+        )
+    inside = np.zeros(cloud.n, dtype=bool)
+    shape = {1: "interval", 2: "circle", 3: "sphere"}[cloud.dim]
+    for k, hole in enumerate(holes):  # a handful of holes, vectorized over points
+        key = f"geometry.holes[{k}]"
+        hole = _check_keys(hole, {"center", "radius"}, key)
+        r = _number(_require(hole, "radius", key), f"{key}.radius", positive=True)
+        c = _require(hole, "center", key)
+        if not isinstance(c, list) or len(c) != cloud.dim:
+            raise SceneError(f"{key}.center must list {cloud.dim} coordinates, got {c!r}")
+        centre = [_number(v, f"{key}.center[{j}]") for j, v in enumerate(c)]
+        mine = np.linalg.norm(cloud.points - np.asarray(centre), axis=1) < r
+        if not mine.any():
+            raise SceneError(
+                f"{key} ({shape} at ({', '.join(f'{v:g}' for v in centre)}), radius {r:g}) "
+                f"removes no points of the grid ({_span(cloud)}); move it into the body or "
+                "drop it"
+            )
+        inside |= mine
+    if inside.all():
+        raise SceneError("geometry.holes remove every point of the grid")
+    return cloud.subset(np.flatnonzero(~inside))
+
+
+def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
+    if not isinstance(cfg, Mapping):
+        raise SceneError(f"geometry must be a table, got {type(cfg).__name__}")
+    kind = cfg.get("type", "grid")
+    if kind not in _GEOM:
+        raise SceneError(f"geometry.type must be one of {sorted(_GEOM)}, got {kind!r}")
+    _check_keys(cfg, _GEOM[kind], "geometry")
+    thickness = _number(cfg.get("thickness", 1.0), "geometry.thickness", positive=True)
+    if kind == "grid":
+        shape = _require(cfg, "shape", "geometry")
+        if not isinstance(shape, int | list) or isinstance(shape, bool):
+            raise SceneError(
+                f"geometry.shape must be an integer or a list of integers, got {shape!r}"
+            )
+        spacing = cfg.get("spacing", 1.0)
+        for k, v in enumerate(spacing if isinstance(spacing, list) else [spacing]):
+            _number(v, "geometry.spacing" + (f"[{k}]" if isinstance(spacing, list) else ""))
+        cloud = grid(shape, spacing, cfg.get("origin"), thickness=thickness)
+        return _holes(cloud, cfg["holes"]) if "holes" in cfg else cloud
+    if kind == "mesh":
+        path = _resolve_path(_require(cfg, "path", "geometry"), base, "geometry.path")
+        from ..geometry import mesh as mesh_mod  # lazy: meshio readers
+
+        kwargs: dict[str, Any] = {}
+        if "dim" in cfg:
+            if isinstance(cfg["dim"], bool) or not isinstance(cfg["dim"], int):
+                raise SceneError(f"geometry.dim must be 1, 2 or 3, got {cfg['dim']!r}")
+            kwargs["dim"] = cfg["dim"]
+        if "volume" in cfg:  # point clouds (vertex cells): a number or a point field name
+            vol = cfg["volume"]
+            kwargs["volume"] = (
+                vol if isinstance(vol, str) else _number(vol, "geometry.volume", positive=True)
+            )
+        cloud = mesh_mod.read_mesh(path, **kwargs)
+        return cloud.replace(thickness=thickness) if thickness != 1.0 else cloud
+    # image
+    if "data" in cfg:
+        img = np.asarray(cfg["data"])
+    else:
+        path = _resolve_path(_require(cfg, "path", "geometry"), base, "geometry.path")
+        img = np.load(path)
+    return from_image(
+        img, cfg.get("spacing", 1.0), cfg.get("origin"), void=cfg.get("void"), thickness=thickness
+    )
+
+
+def _where(cfg: Mapping[str, Any], cloud: PointCloud, key: str) -> Any:
+    given = [k for k in ("set", "box", "points") if k in cfg]
+    if len(given) != 1:
+        raise SceneError(
+            f"{key} needs exactly one of 'set', 'box', 'points', got {given or 'none'}"
+        )
+    k = given[0]
+    if k == "set":
+        name = cfg["set"]
+        try:
+            cloud.point_set(name)  # named sets, plus 'all' and 'boundary'
+        except PdlinError as exc:
+            raise SceneError(f"{key}.set: {exc}") from None
+        return name
+    if k == "box":
+        box = cfg["box"]
+        try:
+            idx = cloud.select(box=(box[0], box[1]))
+        except (PdlinError, TypeError, IndexError, KeyError) as exc:
+            raise SceneError(f"{key}.box must be [[lower...], [upper...]]: {exc}") from exc
+        if idx.size == 0:
+            raise SceneError(f"{key}.box selects no points: {box!r}, {_span(cloud)}")
+        return idx
+    pts = cfg["points"]
+    if (
+        not isinstance(pts, list)
+        or not pts
+        or not all(isinstance(p, int) and not isinstance(p, bool) for p in pts)
+    ):
+        raise SceneError(f"{key}.points must be a non-empty list of point indices, got {pts!r}")
+    if min(pts) < 0 or max(pts) >= cloud.n:
+        raise SceneError(
+            f"{key}.points must hold indices in [0, {cloud.n - 1}], got range "
+            f"[{min(pts)}, {max(pts)}]"
+        )
+    return np.asarray(pts, dtype=np.intp)
+
+
+def _dirichlet(bc: Mapping[str, Any], where: Any, key: str) -> Dirichlet:
+    """One ``[[dirichlet]]`` table as a :class:`Dirichlet` (value, F or velocity_gradient)."""
+    if "velocity_gradient" in bc:
+        clash = [k for k in ("value", "F", "translation") if k in bc]
+        if clash:
+            raise SceneError(f"{key} takes 'velocity_gradient' or '{clash[0]}', not both")
+        return Dirichlet.velocity_gradient(
+            where,
+            bc["velocity_gradient"],
+            center=bc.get("center"),
+            components=bc.get("components"),
+        )
+    if "F" in bc:
+        if "value" in bc:
+            raise SceneError(f"{key} takes 'value' or 'F', not both")
+        return Dirichlet.affine(
+            where,
+            bc["F"],
+            translation=bc.get("translation"),
+            center=bc.get("center"),
+            components=bc.get("components"),
+        )
+    return Dirichlet(where, bc.get("value", 0.0), bc.get("components"))
+
+
+def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None) -> Scene:
+    """Build a :class:`Scene` from a parsed TOML mapping.
+
+    Examples
+    --------
+    >>> sc = scene_from_dict({
+    ...     "geometry": {"type": "grid", "shape": [20], "spacing": 0.05},
+    ...     "material": {"E": 1.0},
+    ...     "horizon": {"ratio": 3.015},
+    ...     "dirichlet": [{"set": "x-", "value": 0.0}],
+    ...     "load": [{"type": "total", "set": "x+", "force": [1e-3]}],
+    ... })
+    >>> sc.problem.cloud.n, sc.solver
+    (20, 'auto')
+    >>> scene_from_dict({"geometry": {"type": "grid", "shape": [4]}, "materal": {}})
+    Traceback (most recent call last):
+    ...
+    pdlin.errors.SceneError: unknown scene key 'materal'; did you mean 'material'?
+    """
+    base = Path(base_dir) if base_dir is not None else Path.cwd()
+    top = _check_keys(data, _TOP, "")
+    if "subregion" in top:
+        return _subregion_scene(top, base)
+    if "problem" in top:
+        return _problem_scene(top, base)
+    try:
+        gcfg = _require(top, "geometry", "scene")
+        cloud = _geometry(gcfg, base)
+        n_real = cloud.n
+        if isinstance(gcfg, Mapping) and "ghost_layers" in gcfg:
+            layers = gcfg["ghost_layers"]
+            if isinstance(layers, bool) or not isinstance(layers, int) or layers < 1:
+                raise SceneError(f"geometry.ghost_layers must be an integer >= 1, got {layers!r}")
+            from ..geometry.cloud import ghost_layer
+
+            cloud = ghost_layer(cloud, layers).cloud
+        material = _check_keys(_require(top, "material", "scene"), _MATERIAL, "material")
+        model_cfg = _check_keys(top.get("model", {}), _MODEL, "model")
+        hcfg = _check_keys(_require(top, "horizon", "scene"), _HORIZON, "horizon")
+        if ("value" in hcfg) == ("ratio" in hcfg):
+            given = [k for k in ("value", "ratio") if k in hcfg]
+            raise SceneError(
+                f"horizon needs exactly one of 'value' or 'ratio', got {given or 'none'}"
+            )
+        if "ratio" in hcfg:
+            _number(hcfg["ratio"], "horizon.ratio", positive=True)
+        else:
+            hv = hcfg["value"]
+            if isinstance(hv, list):
+                for k, v in enumerate(hv):
+                    _number(v, f"horizon.value[{k}]", positive=True)
+            else:
+                _number(hv, "horizon.value", positive=True)
+        for key, allowed in (("shape", SHAPES), ("influence", tuple(INFLUENCE_FUNCTIONS))):
+            if key in hcfg and hcfg[key] not in allowed:
+                raise SceneError(f"horizon.{key} must be one of {list(allowed)}, got {hcfg[key]!r}")
+        bond_options: dict[str, Any] = {
+            k: hcfg[k] for k in ("shape", "axes", "influence", "cracks") if k in hcfg
+        }
+        if "ratio" in hcfg:
+            bond_options["ratio"] = float(hcfg["ratio"])
+        if "cracks" in hcfg:  # finite numbers now; a crack cutting no bond raises in find_bonds
+            try:
+                as_float_array(hcfg["cracks"], "horizon.cracks")
+            except PdlinError as exc:
+                raise SceneError(str(exc)) from exc
+        horizon = hcfg.get("value")
+        bonds = None
+        calibration = None
+        if "calibration" in material:
+            model, bonds, calibration = _calibrated_model(
+                material, model_cfg, cloud, horizon, bond_options, "symmetry" in top
+            )
+        else:
+            model = _build_model(model_cfg, material, cloud)
+        for name in ("dirichlet", "load", "symmetry"):
+            if name in top and not isinstance(top[name], list):
+                raise SceneError(
+                    f"{name} must be an array of tables ([[{name}]]), got "
+                    f"{type(top[name]).__name__}"
+                )
+        dirichlet: list[Dirichlet] = []
+        for k, bc in enumerate(top.get("dirichlet", [])):
+            key = f"dirichlet[{k}]"
+            bc = _check_keys(bc, _DIRICHLET, key)
+            where = _where(bc, cloud, key)
+            try:
+                dirichlet.append(_dirichlet(bc, where, key))
+            except SceneError:
+                raise
+            except PdlinError as exc:
+                raise SceneError(f"{key}: {exc}") from exc
+        shadow_loads: list[Any] = []
+        if "shadow" in top:
+            sh = _check_keys(top["shadow"], _SHADOW, "shadow")
+            depth = sh.get("depth")
+            if depth is None:
+                hv = (
+                    horizon
+                    if horizon is not None
+                    else float(bond_options.get("ratio", 0))
+                    * float(
+                        np.max(cloud.lattice.spacing)
+                        if cloud.lattice is not None
+                        else np.median(cloud.spacing)
+                    )
+                )
+                depth = float(np.max(hv))
+            from ..models.correspondence import Correspondence, shadow_problem
+
+            partial = sh.get("faces") is not None or sh.get("translation") is not None
+            mode = sh.get("mode")
+            if mode is None:
+                mode = (
+                    "stress"
+                    if isinstance(model, Correspondence) and not partial
+                    else "displacement"
+                )
+            if mode not in ("stress", "displacement"):
+                raise SceneError(f"shadow.mode must be 'stress' or 'displacement', got {mode!r}")
+            if mode == "stress" and not isinstance(model, Correspondence):
+                raise SceneError(
+                    "shadow.mode = 'stress' is the correspondence shadow problem (spec 000 "
+                    f"section 7); got model {type(model).__name__}: use 'displacement'"
+                )
+            if mode == "stress" and partial:
+                raise SceneError(
+                    "shadow.mode = 'stress' needs the whole frame: shadow.faces/translation "
+                    "apply to mode = 'displacement' (the layer prescribed like any points)"
+                )
+            if sh.get("depth") is None and mode == "displacement":
+                # two-hop models (state-based, correspondence) need two horizons of layer
+                depth = float(depth) * int(getattr(model, "coupling_range", 1))
+            if mode == "stress" and isinstance(model, Correspondence):
+                # correspondence shadow particles use the intact-lattice shape tensor and act
+                # through their prescribed stress (spec 000 section 7)
+                bonds = bonds if bonds is not None else find_bonds(cloud, horizon, **bond_options)
+                sp_prob = shadow_problem(
+                    model, cloud, bonds, _require(sh, "F", "shadow"), depth=float(depth)
+                )
+                model = sp_prob.model
+                dirichlet.extend(sp_prob.dirichlet)
+                shadow_loads = list(sp_prob.loads)
+            else:
+                bc_sh, _ = shadow_layer(
+                    cloud,
+                    _require(sh, "F", "shadow"),
+                    float(depth),
+                    faces=sh.get("faces"),
+                    translation=sh.get("translation"),
+                )
+                dirichlet.append(bc_sh)
+        loads: list[BodyForce | TotalForce] = list(shadow_loads)
+        for k, ld in enumerate(top.get("load", [])):
+            key = f"load[{k}]"
+            ld = _check_keys(ld, _LOAD, key)
+            where = _where(ld, cloud, key)
+            kind = ld.get("type", "total")
+            if kind not in ("total", "body"):
+                raise SceneError(f"{key}.type must be 'total' or 'body', got {kind!r}")
+            vkey = "force" if kind == "total" else "density"
+            value = _require(ld, vkey, key)
+            try:
+                loads.append(
+                    TotalForce(where, value) if kind == "total" else BodyForce(where, value)
+                )
+            except PdlinError as exc:
+                raise SceneError(f"{key}.{vkey}: {exc}") from exc
+        extra: dict[str, Any] = {}
+        if "symmetry" in top:
+            from ..operators import symmetry as sym_mod
+
+            planes = []
+            for k, s in enumerate(top["symmetry"]):
+                s = _check_keys(s, _SYMMETRY, f"symmetry[{k}]")
+                planes.append(
+                    sym_mod.SymmetryPlane(
+                        _require(s, "axis", f"symmetry[{k}]"),
+                        _number(s.get("position", 0.0), f"symmetry[{k}].position"),
+                        side=s.get("side"),
+                    )
+                )
+            extra["symmetry"] = tuple(planes)
+        problem = StaticProblem(
+            model,
+            cloud,
+            bonds,
+            horizon=horizon,
+            dirichlet=dirichlet,
+            loads=loads,
+            bond_options=bond_options,
+            **extra,
+        )
+        # resolve the conditions and loads on the cloud now (cheap, no bonds): shapes,
+        # conflicts, empty selections and loads on prescribed points only are reported
+        # before any assembly (the symmetry planes' conditions are checked at solve time)
+        dofs, _ = resolve_dirichlet(cloud, dirichlet)
+        load_names = ["shadow stress load"] * len(shadow_loads) + [
+            f"load[{k}]" for k in range(len(loads) - len(shadow_loads))
+        ]
+        with warnings.catch_warnings():  # partial losses warn once, when the scene is solved
+            warnings.simplefilter("ignore", AccuracyWarning)
+            load_vector(cloud, loads, prescribed=dofs, names=load_names)
+        scfg = _check_keys(top.get("solver", {}), _SOLVER, "solver")
+        ocfg = _check_keys(top.get("output", {}), _OUTPUT, "output")
+    except (SceneError, InsufficientMemoryError):  # a valid scene too large for memory
+        raise
+    except PdlinError as exc:
+        raise SceneError(f"invalid scene: {exc}") from exc
+    out = ocfg.get("path")
+    for key in ("path", "homogenized"):
+        if key in ocfg and not isinstance(ocfg[key], str):
+            raise SceneError(f"output.{key} must be a path string, got {ocfg[key]!r}")
+    if "fields" in ocfg and (
+        not isinstance(ocfg["fields"], list) or not all(isinstance(f, str) for f in ocfg["fields"])
+    ):
+        raise SceneError(f"output.fields must be a list of field names, got {ocfg['fields']!r}")
+    if "name" in top and not isinstance(top["name"], str):
+        raise SceneError(f"name must be a string, got {top['name']!r}")
+    _solver_options(scfg)
+    nonlinear = _nonlinear_options(scfg, problem, base)
+    if nonlinear is not None and cloud.n != n_real:
+        nonlinear["homogenize"] = np.arange(n_real)  # ghosts are not part of the body
+    hom = ocfg.get("homogenized")
+    if hom is not None and nonlinear is None:
+        raise SceneError("output.homogenized needs a nonlinear solve ([solver] nonlinear = ...)")
+    damage = _damage_options(top, problem, scfg)
+    if damage is not None and nonlinear is not None:
+        raise SceneError("[damage] runs linear load steps; remove solver.nonlinear")
+    if "fields" in ocfg:
+        if damage is not None or nonlinear is not None:
+            raise SceneError(
+                "output.fields selects the fields of a static run; a "
+                f"{'damage' if damage is not None else 'nonlinear'} run writes its own "
+                "(displacement and damage; the series of every step): remove output.fields"
+            )
+        _check_output_fields(ocfg["fields"], problem.model)
+    return Scene(
+        name=str(top.get("name", "scene")),
+        problem=problem,
+        checks=_checks(top),
+        damage=damage,
+        about=_about(top),
+        solver=str(scfg.get("name", "auto")),
+        rtol=float(scfg.get("rtol", 1e-8)),
+        maxiter=None if scfg.get("maxiter") is None else int(scfg["maxiter"]),
+        direct_backend=str(scfg.get("direct_backend", "auto")),
+        output=None if out is None else (Path(out) if Path(out).is_absolute() else base / out),
+        fields=ocfg.get("fields"),
+        base_dir=base,
+        calibration=calibration,
+        nonlinear=nonlinear,
+        homogenized=None if hom is None else (Path(hom) if Path(hom).is_absolute() else base / hom),
+        backend=str(scfg.get("backend", "scipy")),
+        petsc_options=None if "petsc_options" not in scfg else dict(scfg["petsc_options"]),
+    )
+
+
+def _subregion_scene(top: Mapping[str, Any], base: Path) -> Scene:
+    """A ``[subregion]`` scene: a coarse solve of the whole body drives the box (fine).
+
+    ``coarse`` is the spacing factor of the driving run (default 2: twice the scene's
+    spacing), ``layer`` the driven layer's thickness (default: horizon x the model's
+    coupling range).  The coarse solve runs here, once, with the scene's solver.
+    """
+    import copy
+    import time
+
+    from ..problem import solve
+    from ..submodeling import subregion
+    from .tradeoff import rescale_grid
+
+    sub = _check_keys(top["subregion"], _SUBREGION, "subregion")
+    data = {k: copy.deepcopy(v) for k, v in top.items() if k != "subregion"}
+    if "symmetry" in data or "shadow" in data:
+        raise SceneError("subregion cannot be combined with symmetry or shadow tables")
+    geo = data.get("geometry", {})
+    if not isinstance(geo, Mapping) or geo.get("type", "grid") != "grid":
+        raise SceneError("subregion needs geometry.type = 'grid' (the coarse run rescales it)")
+    factor = _number(sub.get("coarse", 2.0), "subregion.coarse")
+    if not (np.isfinite(factor) and factor >= 1.0):
+        raise SceneError(f"subregion.coarse must be a number >= 1, got {factor}")
+    box = _require(sub, "box", "subregion")
+    fine = scene_from_dict(data, base)
+    if fine.nonlinear is not None:
+        raise SceneError("subregion supports linear scenes (the driver is one linear solve)")
+    spacing = float(np.max(np.asarray(geo.get("spacing", 1.0), dtype=float)))
+    coarse_data = copy.deepcopy(data)
+    rescale_grid(coarse_data, spacing * factor, "subregion.coarse")
+    coarse = scene_from_dict(coarse_data, base)
+    t0 = time.perf_counter()
+    kw: dict[str, Any] = {"solver": coarse.solver, "rtol": coarse.rtol}
+    if coarse.maxiter is not None:
+        kw["maxiter"] = coarse.maxiter
+    res = solve(coarse.problem, **kw)
+    t_coarse = time.perf_counter() - t0
+    layer = sub.get("layer")
+    if layer is not None:
+        layer = _number(layer, "subregion.layer", positive=True)
+    try:
+        cut = subregion(fine.problem, box, res, layer=layer)
+    except PdlinError as exc:
+        raise SceneError(f"subregion: {exc}") from exc
+    n_whole = fine.problem.cloud.n
+    fine.problem = cut.problem
+    fine.subregion = {
+        "box": np.asarray(box, dtype=float).tolist(),
+        "layer": cut.layer,
+        "coarse_spacing": float(spacing) * factor,
+        "coarse_points": coarse.problem.cloud.n,
+        "points": cut.problem.cloud.n,
+        "free_points": int(cut.interior.sum()),
+        "whole_body_points": n_whole,
+        "t_coarse": t_coarse,
+        "interior": cut.interior,
+    }
+    return fine
+
+
+def _checks(top: Mapping[str, Any]) -> list[Any]:
+    from .checks import parse_checks
+
+    return parse_checks(top["check"]) if "check" in top else []
+
+
+def _about(top: Mapping[str, Any]) -> dict[str, str]:
+    about = _check_keys(top.get("about", {}), _ABOUT, "about")
+    for k, v in about.items():
+        if not isinstance(v, str):
+            raise SceneError(f"about.{k} must be a string, got {v!r}")
+    return about
+
+
+def _damage_options(
+    top: Mapping[str, Any], problem: StaticProblem, scfg: Mapping[str, Any]
+) -> dict[str, Any] | None:
+    """``[damage]``: critical stretch (or G0) and load steps of :func:`pdlin.solve_damage`."""
+    if "damage" not in top:
+        return None
+    d = _check_keys(top["damage"], _DAMAGE, "damage")
+    if ("critical_stretch" in d) == ("G0" in d):
+        raise SceneError("damage needs exactly one of 'critical_stretch' or 'G0'")
+    if problem.symmetry:
+        raise SceneError("[damage] cannot be combined with [[symmetry]] planes")
+    opts: dict[str, Any] = {}
+    if "critical_stretch" in d:
+        opts["s0"] = _number(d["critical_stretch"], "damage.critical_stretch", positive=True)
+    else:
+        from ..models.damage import critical_stretch
+
+        g0 = _number(d["G0"], "damage.G0", positive=True)
+        model = problem.model
+        E = getattr(model, "E", None)
+        if not isinstance(model, BondBased) or E is None or np.ndim(E) != 0:
+            raise SceneError(
+                "damage.G0 needs a bond-based model with one scalar material.E (the "
+                "critical-stretch forms of pdlin.critical_stretch); give "
+                "damage.critical_stretch otherwise"
+            )
+        cloud = problem.cloud
+        delta = problem.get_bonds().horizon.max()
+        plane = getattr(model, "plane", "stress") if cloud.dim == 2 else None
+        opts["s0"] = critical_stretch(g0, float(E), float(delta), plane=plane, dim=cloud.dim)
+    for key, lo in (("steps", 1), ("max_resolves", 1)):
+        if key in d:
+            v = d[key]
+            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+                raise SceneError(f"damage.{key} must be an integer >= {lo}, got {v!r}")
+            opts[key] = v
+    opts["solver"] = str(scfg.get("name", "auto"))
+    if "rtol" in scfg:
+        opts["rtol"] = float(scfg["rtol"])
+    return opts
+
+
+def _problem_scene(top: Mapping[str, Any], base: Path) -> Scene:
+    """A scene built from a bundled problem of :mod:`pdlin.sweeps.problems`.
+
+    ``[problem] factory = "graded_bar"`` plus the factory's keyword parameters; the
+    problem carries its own reference (closed form or finite elements), which checks of
+    ``kind = "reference"`` compare against.
+    """
+    import inspect
+
+    from ..sweeps.problems import FACTORIES
+
+    extra = sorted(set(top) - _PROBLEM_TOP)
+    if extra:
+        raise SceneError(
+            f"scene key {extra[0]!r} cannot be combined with [problem] (a bundled problem "
+            f"defines its own geometry, model and conditions); allowed: {sorted(_PROBLEM_TOP)}"
+        )
+    cfg = top["problem"]
+    if not isinstance(cfg, Mapping):
+        raise SceneError(f"problem must be a table, got {type(cfg).__name__}")
+    name = cfg.get("factory")
+    if name not in FACTORIES:
+        raise SceneError(f"problem.factory must be one of {sorted(FACTORIES)}, got {name!r}")
+    factory = FACTORIES[name]
+    params = set(inspect.signature(factory).parameters)
+    _check_keys(cfg, params | {"factory"}, "problem")
+    kwargs = {k: (tuple(v) if isinstance(v, list) else v) for k, v in cfg.items() if k != "factory"}
+    try:
+        case = factory(**kwargs)
+    except SceneError:
+        raise
+    except (PdlinError, TypeError) as exc:
+        raise SceneError(f"problem ({name}): {exc}") from exc
+    scfg = _check_keys(top.get("solver", {}), {"name", "rtol", "maxiter"}, "solver")
+    _solver_options(scfg)
+    ocfg = _check_keys(top.get("output", {}), {"path", "fields"}, "output")
+    out = ocfg.get("path")
+    if out is not None and not isinstance(out, str):
+        raise SceneError(f"output.path must be a path string, got {out!r}")
+    if "fields" in ocfg:
+        _check_output_fields(ocfg["fields"], case.problem.model)
+    solver = scfg.get("name", case.solve_kwargs.get("solver", "auto"))
+    return Scene(
+        name=str(top.get("name", name)),
+        problem=case.problem,
+        solver=str(solver),
+        rtol=float(scfg.get("rtol", case.solve_kwargs.get("rtol", 1e-8))),
+        maxiter=None if scfg.get("maxiter") is None else int(scfg["maxiter"]),
+        output=None if out is None else (Path(out) if Path(out).is_absolute() else base / out),
+        fields=ocfg.get("fields"),
+        base_dir=base,
+        checks=_checks(top),
+        case=case,
+        about=_about(top),
+    )
+
+
+def _solver_options(scfg: Mapping[str, Any]) -> None:
+    """Type and range checks of the [solver] table's linear-solve keys."""
+    from ..solvers.linear import DIRECT_BACKENDS, SOLVERS
+
+    if "name" in scfg and scfg["name"] not in SOLVERS:
+        raise SceneError(f"solver.name must be one of {list(SOLVERS)}, got {scfg['name']!r}")
+    if "direct_backend" in scfg and scfg["direct_backend"] not in DIRECT_BACKENDS:
+        raise SceneError(
+            f"solver.direct_backend must be one of {list(DIRECT_BACKENDS)}, got "
+            f"{scfg['direct_backend']!r}"
+        )
+    if "rtol" in scfg:
+        rtol = _number(scfg["rtol"], "solver.rtol")
+        if not (np.isfinite(rtol) and 0 < rtol < 1):
+            raise SceneError(f"solver.rtol must be a number in (0, 1), got {rtol}")
+    if "maxiter" in scfg:
+        mi = scfg["maxiter"]
+        if isinstance(mi, bool) or not isinstance(mi, int) or mi < 1:
+            raise SceneError(f"solver.maxiter must be an integer >= 1, got {mi!r}")
+    from ..backends import BACKENDS
+
+    if "backend" in scfg and scfg["backend"] not in BACKENDS:
+        raise SceneError(f"solver.backend must be one of {list(BACKENDS)}, got {scfg['backend']!r}")
+    if "petsc_options" in scfg:
+        po = scfg["petsc_options"]
+        if not isinstance(po, Mapping) or not all(
+            isinstance(v, str | int | float) and not isinstance(v, bool) for v in po.values()
+        ):
+            raise SceneError(
+                "solver.petsc_options must be a table of PETSc option names to strings or "
+                f"numbers, got {po!r}"
+            )
+        if scfg.get("backend", "scipy") != "petsc":
+            raise SceneError("solver.petsc_options needs solver.backend = 'petsc'")
+    if scfg.get("backend") == "petsc" and "nonlinear" in scfg:
+        raise SceneError("solver.backend = 'petsc' solves linear scenes; remove solver.nonlinear")
+
+
+def _nonlinear_options(
+    scfg: Mapping[str, Any], problem: StaticProblem, base: Path
+) -> dict[str, Any] | None:
+    """``solve_nonlinear`` keyword arguments from the [solver] table (None: linear solve)."""
+    from ..nonlinear import METHODS
+
+    method = scfg.get("nonlinear")
+    given = [k for k in _NONLINEAR_KEYS if k in scfg]
+    if method is None:
+        if getattr(problem.model, "nonlinear", False):
+            method = "auto"
+        elif given:
+            raise SceneError(
+                f"solver.{given[0]} needs a nonlinear solve: add solver.nonlinear = "
+                "'auto' | 'newton' | 'adr'"
+            )
+        else:
+            return None
+    if method not in METHODS:
+        raise SceneError(f"solver.nonlinear must be one of {list(METHODS)}, got {method!r}")
+    opts: dict[str, Any] = {"method": method}
+    for k in given:
+        opts[k] = scfg[k]
+    for k in ("steps", "max_cutbacks", "fallback_cutbacks", "relax", "adr_stall"):
+        if k in opts:
+            v = opts[k]
+            lo = 1 if k in ("steps", "adr_stall") else 0
+            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+                raise SceneError(f"solver.{k} must be an integer >= {lo}, got {v!r}")
+    for k in ("newton_backoff", "polish"):
+        if k in opts and not isinstance(opts[k], bool):
+            raise SceneError(f"solver.{k} must be true or false, got {opts[k]!r}")
+    for k in ("t_end", "e_l", "dt"):
+        if k in opts:
+            _number(opts[k], f"solver.{k}", positive=True)
+    for k in ("progress_every", "snapshot_every"):
+        if k in opts:
+            every = _number(opts[k], f"solver.{k}")
+            if not (np.isfinite(every) and every >= 0):
+                raise SceneError(f"solver.{k} must be seconds >= 0, got {every}")
+    if "damping" in opts:
+        dmp = _number(opts["damping"], "solver.damping")
+        if not (np.isfinite(dmp) and dmp >= 0):
+            raise SceneError(f"solver.damping must be >= 0, got {dmp}")
+    if "density" in opts and opts["density"] != "gershgorin":
+        if isinstance(opts["density"], str):
+            raise SceneError(
+                f"solver.density must be 'gershgorin' or a number > 0, got {opts['density']!r}"
+            )
+        _number(opts["density"], "solver.density", positive=True)
+    if "checkpoint" in opts:
+        ck = opts["checkpoint"]
+        if not isinstance(ck, str):
+            raise SceneError(f"solver.checkpoint must be a path string, got {ck!r}")
+        opts["checkpoint"] = Path(ck) if Path(ck).is_absolute() else base / ck
+    if "rtol" in scfg:
+        opts["rtol"] = float(scfg["rtol"])
+    if "maxiter" in scfg:
+        opts["maxiter"] = int(scfg["maxiter"])
+    return opts
+
+
+def _calibrated_model(
+    material: Mapping[str, Any],
+    model_cfg: Mapping[str, Any],
+    cloud: PointCloud,
+    horizon: Any,
+    bond_options: Mapping[str, Any],
+    has_symmetry: bool,
+) -> tuple[Model, Bonds, Any]:
+    """Bond-based model with micromoduli calibrated to ``material.calibration.target``."""
+    from ..calibration import calibrate_micromoduli
+    from .targets import target_from_table
+
+    if model_cfg.get("type", "bond_based") != "bond_based":
+        raise SceneError("material.calibration needs model.type = 'bond_based'")
+    if has_symmetry:
+        raise SceneError(
+            "material.calibration cannot be combined with [[symmetry]] planes (per-bond "
+            "micromoduli are calibrated on the part's own bonds)"
+        )
+    for key in ("E", "micromodulus"):
+        if key in material:
+            raise SceneError(f"material.{key} and material.calibration exclude each other")
+    cal = _check_keys(material["calibration"], _CALIBRATION, "material.calibration")
+    target = target_from_table(
+        _require(cal, "target", "material.calibration"), "material.calibration.target"
+    )
+    bonds = find_bonds(cloud, horizon, **dict(bond_options))
+    opts = {k: cal[k] for k in cal if k != "target"}
+    opts.setdefault("method", "robust")
+    res = calibrate_micromoduli(
+        target, bonds, thickness=cloud.thickness, plane=material.get("plane", "stress"), **opts
+    )
+    if res.status in ("infeasible", "failed") or not np.all(np.isfinite(res.micromoduli)):
+        raise SceneError(f"material.calibration failed ({res.status}): {res.message}")
+    model = BondBased(micromodulus=res.micromoduli, plane=material.get("plane", "stress"))
+    return model, bonds, res
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read and validate a TOML scene file (paths inside are relative to it)."""
+    data, base = read_toml(path, "scene")
+    return scene_from_dict(data, base)
+
+
+def list_builtin_scenes(*, hidden: bool = False) -> list[str]:
+    """Names of the example scenes shipped with pdlin.
+
+    Names starting with ``_`` are reference scenes used by other scenes' checks; they
+    are listed only with ``hidden=True``.
+    """
+    files = resources.files("pdlin") / "examples"
+    names = sorted(f.name[:-5] for f in files.iterdir() if f.name.endswith(".toml"))
+    return names if hidden else [n for n in names if not n.startswith("_")]
+
+
+def builtin_scene(name: str) -> tuple[dict[str, Any], str]:
+    """Parsed data and text of a built-in example scene."""
+    if name not in list_builtin_scenes(hidden=True):
+        raise SceneError(f"unknown built-in scene {name!r}; available: {list_builtin_scenes()}")
+    text = (resources.files("pdlin") / "examples" / f"{name}.toml").read_text()
+    return tomllib.loads(text), text
+
+
+#: the fields of every static result (:meth:`pdlin.StaticResult.fields`); ``stress`` where
+#: the model has one
+STATIC_FIELDS = (
+    "displacement", "reaction", "family_size", "volume", "material",
+    "deformation_gradient", "strain",
+)  # fmt: skip
+
+
+def _check_output_fields(fields: Any, model: Any) -> None:
+    """Refuse ``output.fields`` that no static result of ``model`` has, before the work."""
+    if not isinstance(fields, list) or not all(isinstance(f, str) for f in fields):
+        raise SceneError(f"output.fields must be a list of field names, got {fields!r}")
+    known = [*STATIC_FIELDS, *(["stress"] if hasattr(model, "stress") else [])]
+    unknown = [f for f in fields if f not in known]
+    if unknown:
+        raise SceneError(
+            f"output.fields: unknown field(s) {unknown} for a {type(model).__name__} model; "
+            f"available {sorted(known)}"
+        )
