@@ -190,6 +190,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.resume and scene.nonlinear is None:
         raise PdlinError("--resume needs a nonlinear scene with solver.checkpoint")
     _check_run_outputs(args, scene)
+    scene.prepare()  # work loading deferred to the run (a [subregion] coarse solve)
     if scene.checks:
         from ..scene.checks import check_before_run
 

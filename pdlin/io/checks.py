@@ -1,4 +1,4 @@
-"""Deprecated alias of :mod:`pdlin.scene.checks` (moved there; this path works for one release)."""
+"""Deprecated alias of :mod:`pdlin.scene.checks` (moved; works for one release)."""
 
 import importlib
 import warnings
@@ -10,8 +10,7 @@ warnings.warn(
     stacklevel=2,
 )
 
-__all__ = ['Check', 'CheckResult', 'parse_checks', 'evaluate_checks', 'format_check', 'uniaxial_F', 'KINDS', 'METRICS']
-
 
 def __getattr__(name: str) -> Any:
+    # every name, public or not, from the new module (PEP 562)
     return getattr(importlib.import_module("pdlin.scene.checks"), name)

@@ -1,4 +1,4 @@
-"""Deprecated alias of :mod:`pdlin.scene.targets` (moved there; this path works for one release)."""
+"""Deprecated alias of :mod:`pdlin.scene.targets` (moved; works for one release)."""
 
 import importlib
 import warnings
@@ -10,8 +10,7 @@ warnings.warn(
     stacklevel=2,
 )
 
-__all__ = ['target_from_table', 'CalibrationJob', 'calibration_from_dict', 'load_calibration']
-
 
 def __getattr__(name: str) -> Any:
+    # every name, public or not, from the new module (PEP 562)
     return getattr(importlib.import_module("pdlin.scene.targets"), name)

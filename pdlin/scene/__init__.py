@@ -25,7 +25,13 @@ from .checks import Check, CheckResult, evaluate_checks, parse_checks
 from .decks import read_deck
 from .scene import Scene, builtin_scene, list_builtin_scenes, load_scene, scene_from_dict
 from .targets import CalibrationJob, calibration_from_dict, load_calibration, target_from_table
-from .tradeoff import SceneSweep, load_tradeoff, run_scene_tradeoff, select_scene, tradeoff_from_dict
+from .tradeoff import (
+    SceneSweep,
+    load_tradeoff,
+    run_scene_tradeoff,
+    select_scene,
+    tradeoff_from_dict,
+)
 
 __all__ = [
     "Scene",

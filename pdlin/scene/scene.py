@@ -401,6 +401,31 @@ class Scene:
     #: Steps``): ``(time, problem)`` per step, the last being ``problem``; ``pdlin run``
     #: solves each and writes a time series.  None: one solve.
     steps: list[tuple[float, StaticProblem]] | None = None
+    #: work loading deferred to the run (a ``[subregion]`` scene's coarse solve and cut),
+    #: done once by :meth:`prepare`; None when there is none left
+    pending: Callable[[Scene], None] | None = field(default=None, repr=False, compare=False)
+
+    def prepare(self) -> Scene:
+        """Do the work loading deferred to the run, once, and return the scene.
+
+        Loading never solves: a ``[subregion]`` scene's coarse solve of the whole body
+        and the cut of its box happen here.  Reading :attr:`problem` or
+        :attr:`subregion` calls this first, so a scene is always used prepared.
+
+        Returns
+        -------
+        Scene
+            ``self``, with :attr:`problem` and :attr:`subregion` final.
+
+        Raises
+        ------
+        SceneError
+            The cut of the ``[subregion]`` box failed (naming ``subregion``).
+        """
+        job, self.pending = self.pending, None
+        if job is not None:
+            job(self)
+        return self
 
     @property
     def cloud(self) -> PointCloud:
@@ -412,6 +437,26 @@ class Scene:
 
     def bonds(self) -> Bonds:
         return self.problem.get_bonds()
+
+
+def _prepared(name: str) -> property:
+    """A :class:`Scene` field read through :meth:`Scene.prepare` (stored as ``_<name>``)."""
+    slot = f"_{name}"
+
+    def get(self: Scene) -> Any:
+        if self.__dict__.get("pending") is not None:
+            self.prepare()
+        return self.__dict__[slot]
+
+    def put(self: Scene, value: Any) -> None:
+        self.__dict__[slot] = value
+
+    return property(get, put, doc=f"The scene's ``{name}``, after :meth:`Scene.prepare`.")
+
+
+# the dataclass __init__ assigns these through the properties (the defaults stay in it)
+setattr(Scene, "problem", _prepared("problem"))  # noqa: B010
+setattr(Scene, "subregion", _prepared("subregion"))  # noqa: B010
 
 
 def _resolve_path(p: Any, base: Path, key: str) -> Path:
@@ -847,12 +892,12 @@ def _subregion_scene(top: Mapping[str, Any], base: Path) -> Scene:
 
     ``coarse`` is the spacing factor of the driving run (default 2: twice the scene's
     spacing), ``layer`` the driven layer's thickness (default: horizon x the model's
-    coupling range).  The coarse solve runs here, once, with the scene's solver.
+    coupling range).  Loading builds and checks the fine and coarse scenes and the cut
+    (with a zero driver); the coarse solve, with the scene's solver, and the real cut
+    wait for :meth:`Scene.prepare`.
     """
     import copy
-    import time
 
-    from ..problem import solve
     from ..submodeling import subregion
     from .tradeoff import rescale_grid
 
@@ -874,33 +919,57 @@ def _subregion_scene(top: Mapping[str, Any], base: Path) -> Scene:
     coarse_data = copy.deepcopy(data)
     rescale_grid(coarse_data, spacing * factor, "subregion.coarse")
     coarse = scene_from_dict(coarse_data, base)
-    t0 = time.perf_counter()
-    kw: dict[str, Any] = {"solver": coarse.solver, "rtol": coarse.rtol}
-    if coarse.maxiter is not None:
-        kw["maxiter"] = coarse.maxiter
-    res = solve(coarse.problem, **kw)
-    t_coarse = time.perf_counter() - t0
     layer = sub.get("layer")
     if layer is not None:
         layer = _number(layer, "subregion.layer", positive=True)
-    try:
-        cut = subregion(fine.problem, box, res, layer=layer)
+    try:  # the cut's own checks (box, layer, model) now: the same cut with u = 0 driving
+        subregion(fine.problem, box, np.zeros_like, layer=layer)
     except PdlinError as exc:
         raise SceneError(f"subregion: {exc}") from exc
-    n_whole = fine.problem.cloud.n
-    fine.problem = cut.problem
-    fine.subregion = {
-        "box": np.asarray(box, dtype=float).tolist(),
-        "layer": cut.layer,
-        "coarse_spacing": float(spacing) * factor,
-        "coarse_points": coarse.problem.cloud.n,
-        "points": cut.problem.cloud.n,
-        "free_points": int(cut.interior.sum()),
-        "whole_body_points": n_whole,
-        "t_coarse": t_coarse,
-        "interior": cut.interior,
-    }
+    cut = _SubregionCut(coarse, box, layer, spacing * factor)
+    fine.pending = cut
     return fine
+
+
+@dataclass(frozen=True)
+class _SubregionCut:
+    """The deferred part of a ``[subregion]`` scene: coarse solve, then the cut."""
+
+    coarse: Scene
+    box: Any
+    layer: float | None
+    coarse_spacing: float
+
+    def __call__(self, scene: Scene) -> None:
+        import time
+
+        from ..problem import solve
+        from ..submodeling import subregion
+
+        coarse = self.coarse
+        t0 = time.perf_counter()
+        kw: dict[str, Any] = {"solver": coarse.solver, "rtol": coarse.rtol}
+        if coarse.maxiter is not None:
+            kw["maxiter"] = coarse.maxiter
+        res = solve(coarse.problem, **kw)
+        t_coarse = time.perf_counter() - t0
+        whole = scene.problem
+        try:
+            cut = subregion(whole, self.box, res, layer=self.layer)
+        except PdlinError as exc:
+            raise SceneError(f"subregion: {exc}") from exc
+        scene.problem = cut.problem
+        scene.subregion = {
+            "box": np.asarray(self.box, dtype=float).tolist(),
+            "layer": cut.layer,
+            "coarse_spacing": self.coarse_spacing,
+            "coarse_points": coarse.problem.cloud.n,
+            "points": cut.problem.cloud.n,
+            "free_points": int(cut.interior.sum()),
+            "whole_body_points": whole.cloud.n,
+            "t_coarse": t_coarse,
+            "interior": cut.interior,
+        }
 
 
 def _checks(top: Mapping[str, Any]) -> list[Any]:

@@ -38,8 +38,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import PdlinError, SceneError
-from ._keys import check_keys, read_toml
 from ..sweeps.core import SOLVE_KEYS, TradeoffCase, TradeoffResult, tradeoff
+from ._keys import check_keys, read_toml
 
 __all__ = [
     "SceneSweep",

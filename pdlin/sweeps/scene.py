@@ -1,4 +1,4 @@
-"""Deprecated alias of :mod:`pdlin.scene.tradeoff` (moved there; this path works for one release)."""
+"""Deprecated alias of :mod:`pdlin.scene.tradeoff` (moved; works for one release)."""
 
 import importlib
 import warnings
@@ -10,8 +10,7 @@ warnings.warn(
     stacklevel=2,
 )
 
-__all__ = ["SceneSweep", "load_tradeoff", "tradeoff_from_dict", "run_scene_tradeoff", "select_scene"]
-
 
 def __getattr__(name: str) -> Any:
+    # every name, public or not, from the new module (PEP 562)
     return getattr(importlib.import_module("pdlin.scene.tradeoff"), name)
