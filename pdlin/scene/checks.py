@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import PdlinError, SceneError
-from ._keys import check_keys
+from ._keys import check_keys, number
 
 __all__ = [
     "Check",
@@ -129,15 +129,6 @@ def format_check(r: CheckResult) -> str:
     )
 
 
-def _num(value: Any, key: str, *, positive: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise SceneError(f"{key} must be a number, got {type(value).__name__} {value!r}")
-    v = float(value)
-    if not np.isfinite(v) or (positive and v <= 0):
-        raise SceneError(f"{key} must be a {'positive ' if positive else ''}finite number, got {v}")
-    return v
-
-
 def _matrix(value: Any, key: str) -> np.ndarray:
     try:
         a = np.asarray(value, dtype=float)
@@ -190,11 +181,11 @@ def parse_checks(table: Any) -> list[Check]:
                 raise SceneError(
                     f"{where} takes a relative 'tolerance' or an absolute 'atol', not both"
                 )
-            tol = _num(t["atol"], f"{where}.atol", positive=True)
+            tol = number(t["atol"], f"{where}.atol", positive=True, phrase=True)
         elif "tolerance" not in t:
             raise SceneError(f"missing scene key {where}.tolerance")
         else:
-            tol = _num(t["tolerance"], f"{where}.tolerance", positive=True)
+            tol = number(t["tolerance"], f"{where}.tolerance", positive=True, phrase=True)
         quantity = t.get("quantity", "displacement" if kind != "value" else None)
         if quantity is None:
             raise SceneError(f"missing scene key {where}.quantity")
@@ -210,9 +201,9 @@ def _validate(kind: str, quantity: str, opts: dict[str, Any], where: str) -> Non
     if kind == "value":
         if "expected" not in opts:
             raise SceneError(f"missing scene key {where}.expected")
-        _num(opts["expected"], f"{where}.expected")
+        number(opts["expected"], f"{where}.expected", phrase=True)
         if "atol" in opts:
-            _num(opts["atol"], f"{where}.atol", positive=True)
+            number(opts["atol"], f"{where}.atol", positive=True, phrase=True)
         if opts.get("reduce", "mean") not in _REDUCE:
             raise SceneError(
                 f"{where}.reduce must be one of {list(_REDUCE)}, got {opts['reduce']!r}"
@@ -246,9 +237,9 @@ def _validate(kind: str, quantity: str, opts: dict[str, Any], where: str) -> Non
             raise SceneError(f"missing scene key {where}.nu")
         for key in ("strain", "stress", "nu"):
             if key in opts:
-                _num(opts[key], f"{where}.{key}")
+                number(opts[key], f"{where}.{key}", phrase=True)
         if "E" in opts:
-            _num(opts["E"], f"{where}.E", positive=True)
+            number(opts["E"], f"{where}.E", positive=True, phrase=True)
         if opts.get("axis", "x") not in tuple(_AXES):
             raise SceneError(f"{where}.axis must be 'x', 'y' or 'z', got {opts['axis']!r}")
     if kind == "scene" and not isinstance(opts.get("scene"), str):
@@ -258,7 +249,7 @@ def _validate(kind: str, quantity: str, opts: dict[str, Any], where: str) -> Non
     if "metric" in opts and opts["metric"] not in METRICS:
         raise SceneError(f"{where}.metric must be one of {list(METRICS)}, got {opts['metric']!r}")
     if "eta" in opts:
-        _num(opts["eta"], f"{where}.eta", positive=True)
+        number(opts["eta"], f"{where}.eta", positive=True, phrase=True)
 
 
 def _parse_quantity(q: str, where: str) -> tuple[str, tuple[int, ...]]:

@@ -33,7 +33,7 @@ from ..operators.bc import (
     shadow_layer,
 )
 from ..problem import StaticProblem
-from ._keys import check_keys, read_toml
+from ._keys import check_keys, number, read_toml
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -470,18 +470,6 @@ def _resolve_path(p: Any, base: Path, key: str) -> Path:
     return path
 
 
-def _number(value: Any, key: str, *, positive: bool = False) -> float:
-    """A TOML number (int or float, not bool) as a float, else SceneError naming ``key``."""
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise SceneError(f"{key} must be a number, got {type(value).__name__} {value!r}")
-    v = float(value)
-    if positive and not (np.isfinite(v) and v > 0):
-        raise SceneError(f"{key} must be > 0, got {v}")
-    if not np.isfinite(v):  # TOML has inf and nan
-        raise SceneError(f"{key} must be finite, got {v}")
-    return v
-
-
 def _span(cloud: PointCloud) -> str:
     """``'points span [0, 0] to [1, 0.5]'``: the cloud's bounding box for messages."""
     lo, hi = cloud.bounds
@@ -502,11 +490,11 @@ def _holes(cloud: PointCloud, holes: Any) -> PointCloud:
     for k, hole in enumerate(holes):  # a handful of holes, vectorized over points
         key = f"geometry.holes[{k}]"
         hole = _check_keys(hole, {"center", "radius"}, key)
-        r = _number(_require(hole, "radius", key), f"{key}.radius", positive=True)
+        r = number(_require(hole, "radius", key), f"{key}.radius", positive=True)
         c = _require(hole, "center", key)
         if not isinstance(c, list) or len(c) != cloud.dim:
             raise SceneError(f"{key}.center must list {cloud.dim} coordinates, got {c!r}")
-        centre = [_number(v, f"{key}.center[{j}]") for j, v in enumerate(c)]
+        centre = [number(v, f"{key}.center[{j}]") for j, v in enumerate(c)]
         mine = np.linalg.norm(cloud.points - np.asarray(centre), axis=1) < r
         if not mine.any():
             raise SceneError(
@@ -527,7 +515,7 @@ def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
     if kind not in _GEOM:
         raise SceneError(f"geometry.type must be one of {sorted(_GEOM)}, got {kind!r}")
     _check_keys(cfg, _GEOM[kind], "geometry")
-    thickness = _number(cfg.get("thickness", 1.0), "geometry.thickness", positive=True)
+    thickness = number(cfg.get("thickness", 1.0), "geometry.thickness", positive=True)
     if kind == "grid":
         shape = _require(cfg, "shape", "geometry")
         if not isinstance(shape, int | list) or isinstance(shape, bool):
@@ -536,7 +524,7 @@ def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
             )
         spacing = cfg.get("spacing", 1.0)
         for k, v in enumerate(spacing if isinstance(spacing, list) else [spacing]):
-            _number(v, "geometry.spacing" + (f"[{k}]" if isinstance(spacing, list) else ""))
+            number(v, "geometry.spacing" + (f"[{k}]" if isinstance(spacing, list) else ""))
         cloud = grid(shape, spacing, cfg.get("origin"), thickness=thickness)
         return _holes(cloud, cfg["holes"]) if "holes" in cfg else cloud
     if kind == "mesh":
@@ -551,7 +539,7 @@ def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
         if "volume" in cfg:  # point clouds (vertex cells): a number or a point field name
             vol = cfg["volume"]
             kwargs["volume"] = (
-                vol if isinstance(vol, str) else _number(vol, "geometry.volume", positive=True)
+                vol if isinstance(vol, str) else number(vol, "geometry.volume", positive=True)
             )
         cloud = mesh_mod.read_mesh(path, **kwargs)
         return cloud.replace(thickness=thickness) if thickness != 1.0 else cloud
@@ -674,14 +662,14 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
                 f"horizon needs exactly one of 'value' or 'ratio', got {given or 'none'}"
             )
         if "ratio" in hcfg:
-            _number(hcfg["ratio"], "horizon.ratio", positive=True)
+            number(hcfg["ratio"], "horizon.ratio", positive=True)
         else:
             hv = hcfg["value"]
             if isinstance(hv, list):
                 for k, v in enumerate(hv):
-                    _number(v, f"horizon.value[{k}]", positive=True)
+                    number(v, f"horizon.value[{k}]", positive=True)
             else:
-                _number(hv, "horizon.value", positive=True)
+                number(hv, "horizon.value", positive=True)
         for key, allowed in (("shape", SHAPES), ("influence", tuple(INFLUENCE_FUNCTIONS))):
             if key in hcfg and hcfg[key] not in allowed:
                 raise SceneError(f"horizon.{key} must be one of {list(allowed)}, got {hcfg[key]!r}")
@@ -807,7 +795,7 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
                 planes.append(
                     sym_mod.SymmetryPlane(
                         _require(s, "axis", f"symmetry[{k}]"),
-                        _number(s.get("position", 0.0), f"symmetry[{k}].position"),
+                        number(s.get("position", 0.0), f"symmetry[{k}].position"),
                         side=s.get("side"),
                     )
                 )
@@ -908,7 +896,7 @@ def _subregion_scene(top: Mapping[str, Any], base: Path) -> Scene:
     geo = data.get("geometry", {})
     if not isinstance(geo, Mapping) or geo.get("type", "grid") != "grid":
         raise SceneError("subregion needs geometry.type = 'grid' (the coarse run rescales it)")
-    factor = _number(sub.get("coarse", 2.0), "subregion.coarse")
+    factor = number(sub.get("coarse", 2.0), "subregion.coarse")
     if not (np.isfinite(factor) and factor >= 1.0):
         raise SceneError(f"subregion.coarse must be a number >= 1, got {factor}")
     box = _require(sub, "box", "subregion")
@@ -921,7 +909,7 @@ def _subregion_scene(top: Mapping[str, Any], base: Path) -> Scene:
     coarse = scene_from_dict(coarse_data, base)
     layer = sub.get("layer")
     if layer is not None:
-        layer = _number(layer, "subregion.layer", positive=True)
+        layer = number(layer, "subregion.layer", positive=True)
     try:  # the cut's own checks (box, layer, model) now: the same cut with u = 0 driving
         subregion(fine.problem, box, np.zeros_like, layer=layer)
     except PdlinError as exc:
@@ -999,11 +987,11 @@ def _damage_options(
         raise SceneError("[damage] cannot be combined with [[symmetry]] planes")
     opts: dict[str, Any] = {}
     if "critical_stretch" in d:
-        opts["s0"] = _number(d["critical_stretch"], "damage.critical_stretch", positive=True)
+        opts["s0"] = number(d["critical_stretch"], "damage.critical_stretch", positive=True)
     else:
         from ..models.damage import critical_stretch
 
-        g0 = _number(d["G0"], "damage.G0", positive=True)
+        g0 = number(d["G0"], "damage.G0", positive=True)
         model = problem.model
         E = getattr(model, "E", None)
         if not isinstance(model, BondBased) or E is None or np.ndim(E) != 0:
@@ -1097,7 +1085,7 @@ def _solver_options(scfg: Mapping[str, Any]) -> None:
             f"{scfg['direct_backend']!r}"
         )
     if "rtol" in scfg:
-        rtol = _number(scfg["rtol"], "solver.rtol")
+        rtol = number(scfg["rtol"], "solver.rtol")
         if not (np.isfinite(rtol) and 0 < rtol < 1):
             raise SceneError(f"solver.rtol must be a number in (0, 1), got {rtol}")
     if "maxiter" in scfg:
@@ -1157,14 +1145,14 @@ def _nonlinear_options(
             raise SceneError(f"solver.{k} must be true or false, got {opts[k]!r}")
     for k in ("t_end", "e_l", "dt"):
         if k in opts:
-            _number(opts[k], f"solver.{k}", positive=True)
+            number(opts[k], f"solver.{k}", positive=True)
     for k in ("progress_every", "snapshot_every"):
         if k in opts:
-            every = _number(opts[k], f"solver.{k}")
+            every = number(opts[k], f"solver.{k}")
             if not (np.isfinite(every) and every >= 0):
                 raise SceneError(f"solver.{k} must be seconds >= 0, got {every}")
     if "damping" in opts:
-        dmp = _number(opts["damping"], "solver.damping")
+        dmp = number(opts["damping"], "solver.damping")
         if not (np.isfinite(dmp) and dmp >= 0):
             raise SceneError(f"solver.damping must be >= 0, got {dmp}")
     if "density" in opts and opts["density"] != "gershgorin":
@@ -1172,7 +1160,7 @@ def _nonlinear_options(
             raise SceneError(
                 f"solver.density must be 'gershgorin' or a number > 0, got {opts['density']!r}"
             )
-        _number(opts["density"], "solver.density", positive=True)
+        number(opts["density"], "solver.density", positive=True)
     if "checkpoint" in opts:
         ck = opts["checkpoint"]
         if not isinstance(ck, str):

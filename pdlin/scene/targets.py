@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import PdlinError, SceneError
-from ._keys import check_keys, read_toml
+from ._keys import check_keys, number, read_toml
 
 if sys.version_info >= (3, 11):
     pass
@@ -68,17 +68,6 @@ def _matrix(value: Any, where: str) -> np.ndarray:
         raise SceneError(
             f"{where} must be a numeric matrix (array of arrays of numbers), got {value!r}: {exc}"
         ) from exc
-
-
-def _number(value: Any, where: str, *, integer: bool = False) -> Any:
-    """A TOML number (an integer when ``integer``), or SceneError naming ``where``."""
-    ok = isinstance(value, int) and not isinstance(value, bool)
-    if not integer:
-        ok = ok or isinstance(value, float)
-    if not ok:
-        kind = "an integer" if integer else "a number"
-        raise SceneError(f"{where} must be {kind}, got {value!r}")
-    return value
 
 
 def target_from_table(table: Mapping[str, Any], where: str = "target") -> np.ndarray:
@@ -178,10 +167,10 @@ def calibration_from_dict(
         if k not in fam_cfg:
             raise SceneError(f"missing key family.{k}")
     target = target_from_table(top["target"])
-    dim = _number(fam_cfg["dim"], "family.dim", integer=True)
-    horizon = float(_number(fam_cfg["horizon"], "family.horizon"))
-    spacing = float(_number(fam_cfg.get("spacing", 1.0), "family.spacing"))
-    thickness = float(_number(fam_cfg.get("thickness", 1.0), "family.thickness"))
+    dim = number(fam_cfg["dim"], "family.dim", integer=True, type_name=False)
+    horizon = number(fam_cfg["horizon"], "family.horizon", type_name=False)
+    spacing = number(fam_cfg.get("spacing", 1.0), "family.spacing", type_name=False)
+    thickness = number(fam_cfg.get("thickness", 1.0), "family.thickness", type_name=False)
     try:
         family = lattice_family(
             dim,
@@ -200,7 +189,9 @@ def calibration_from_dict(
     options.pop("boundary", None)
     options.pop("pair_rule", None)
     if "lower_bound" in options:
-        options["lower_bound"] = _number(options["lower_bound"], "calibration.lower_bound")
+        options["lower_bound"] = number(
+            options["lower_bound"], "calibration.lower_bound", type_name=False
+        )
     if "raise_on_infeasible" in options and not isinstance(options["raise_on_infeasible"], bool):
         raise SceneError(
             "calibration.raise_on_infeasible must be true or false, got "

@@ -14,6 +14,7 @@ from ...errors import PdlinError, SceneError
 from ...geometry.cloud import PointCloud
 from ...operators.bc import Dirichlet, load_vector, resolve_dirichlet
 from ...problem import StaticProblem
+from .._keys import number
 from ..scene import Scene
 
 # the logger keeps the name of the module the deck readers came from
@@ -149,20 +150,9 @@ def _note(key: str, why: str) -> None:
     log.info("deck key %s accepted without effect: %s", key, why)
 
 
-# a decimal floating-point literal (what Teuchos reads as a double; YAML 1.1 loads
-# exponents without a sign, "160.0e10", as strings)
-_NUMBER_TEXT = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
-
-
 def _number(value: Any, key: str, *, positive: bool = False) -> float:
-    if isinstance(value, str) and _NUMBER_TEXT.fullmatch(value.strip()):
-        value = float(value.strip())
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise SceneError(f"{key} must be a number, got {value!r}")
-    v = float(value)
-    if not np.isfinite(v) or (positive and v <= 0):
-        raise SceneError(f"{key} must be {'> 0' if positive else 'finite'}, got {v}")
-    return v
+    """A deck number: :func:`pdlin.scene._keys.number`, decimal text accepted."""
+    return float(number(value, key, positive=positive, text=True, type_name=False))
 
 
 def _flag(value: Any, key: str) -> bool:

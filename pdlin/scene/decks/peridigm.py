@@ -14,12 +14,12 @@ from ...geometry.cloud import PointCloud
 from ...io.exodus import entity_ids
 from ...io.exodus import entity_names as _exodus_names
 from ...operators.bc import BodyForce, Dirichlet
+from .._keys import NUMBER_TEXT
 from ..scene import Scene
 from ._common import (
     _BOOL_SPELLINGS,
     _COORD,
     _ELASTIC_CONSTANTS,
-    _NUMBER_TEXT,
     _bulk_shear,
     _cloud,
     _constants,
@@ -918,7 +918,7 @@ def _peridigm_blocks(
         h = b.get("Horizon", default_h)
         if h is None:
             raise SceneError(f"missing deck key {key}.Horizon")
-        if isinstance(h, str) and not _NUMBER_TEXT.fullmatch(h.strip()):
+        if isinstance(h, str) and not NUMBER_TEXT.fullmatch(h.strip()):
             raise SceneError(
                 f"{key}.Horizon: expressions for the horizon are not supported; give a number"
             )
@@ -1056,7 +1056,7 @@ def _peridigm_solver(solver: Any) -> list[float]:
     if "Time Steps" in sub and not ("Final Time" in s and "Number of Load Steps" in sub):
         text = sub["Time Steps"]
         times = str(text).split()
-        if not times or not all(_NUMBER_TEXT.fullmatch(v) for v in times):
+        if not times or not all(NUMBER_TEXT.fullmatch(v) for v in times):
             raise SceneError(
                 f"{skey}.Time Steps must be a list of times separated by spaces, got {text!r}"
             )
