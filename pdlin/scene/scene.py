@@ -620,6 +620,31 @@ def _dirichlet(bc: Mapping[str, Any], where: Any, key: str) -> Dirichlet:
 def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None) -> Scene:
     """Build a :class:`Scene` from a parsed TOML mapping.
 
+    Every key is checked and the conditions and loads are resolved on the cloud (no
+    bonds, no assembly, no solve); see ``docs/scene.md`` for the keys.
+
+    Parameters
+    ----------
+    data : Mapping
+        The parsed scene (what :func:`tomllib.loads` gives for a scene file).
+    base_dir : str or Path, optional
+        Folder that relative paths inside the scene are resolved against (default: the
+        working directory).
+
+    Returns
+    -------
+    Scene
+        The scene; a ``[subregion]`` scene's coarse solve waits for
+        :meth:`Scene.prepare`.
+
+    Raises
+    ------
+    SceneError
+        An unknown key (with the closest valid one), a missing or invalid value, named by
+        its key path (``dirichlet[1].set``).
+    InsufficientMemoryError
+        A valid scene too large for the memory.
+
     Examples
     --------
     >>> sc = scene_from_dict({
@@ -643,189 +668,231 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
     if "problem" in top:
         return _problem_scene(top, base)
     try:
-        gcfg = _require(top, "geometry", "scene")
-        cloud = _geometry(gcfg, base)
-        n_real = cloud.n
-        if isinstance(gcfg, Mapping) and "ghost_layers" in gcfg:
-            layers = gcfg["ghost_layers"]
-            if isinstance(layers, bool) or not isinstance(layers, int) or layers < 1:
-                raise SceneError(f"geometry.ghost_layers must be an integer >= 1, got {layers!r}")
-            from ..geometry.cloud import ghost_layer
-
-            cloud = ghost_layer(cloud, layers).cloud
-        material = _check_keys(_require(top, "material", "scene"), _MATERIAL, "material")
-        model_cfg = _check_keys(top.get("model", {}), _MODEL, "model")
-        hcfg = _check_keys(_require(top, "horizon", "scene"), _HORIZON, "horizon")
-        if ("value" in hcfg) == ("ratio" in hcfg):
-            given = [k for k in ("value", "ratio") if k in hcfg]
-            raise SceneError(
-                f"horizon needs exactly one of 'value' or 'ratio', got {given or 'none'}"
-            )
-        if "ratio" in hcfg:
-            number(hcfg["ratio"], "horizon.ratio", positive=True)
-        else:
-            hv = hcfg["value"]
-            if isinstance(hv, list):
-                for k, v in enumerate(hv):
-                    number(v, f"horizon.value[{k}]", positive=True)
-            else:
-                number(hv, "horizon.value", positive=True)
-        for key, allowed in (("shape", SHAPES), ("influence", tuple(INFLUENCE_FUNCTIONS))):
-            if key in hcfg and hcfg[key] not in allowed:
-                raise SceneError(f"horizon.{key} must be one of {list(allowed)}, got {hcfg[key]!r}")
-        bond_options: dict[str, Any] = {
-            k: hcfg[k] for k in ("shape", "axes", "influence", "cracks") if k in hcfg
-        }
-        if "ratio" in hcfg:
-            bond_options["ratio"] = float(hcfg["ratio"])
-        if "cracks" in hcfg:  # finite numbers now; a crack cutting no bond raises in find_bonds
-            try:
-                as_float_array(hcfg["cracks"], "horizon.cracks")
-            except PdlinError as exc:
-                raise SceneError(str(exc)) from exc
-        horizon = hcfg.get("value")
-        bonds = None
-        calibration = None
-        if "calibration" in material:
-            model, bonds, calibration = _calibrated_model(
-                material, model_cfg, cloud, horizon, bond_options, "symmetry" in top
-            )
-        else:
-            model = _build_model(model_cfg, material, cloud)
-        for name in ("dirichlet", "load", "symmetry"):
-            if name in top and not isinstance(top[name], list):
-                raise SceneError(
-                    f"{name} must be an array of tables ([[{name}]]), got "
-                    f"{type(top[name]).__name__}"
-                )
-        dirichlet: list[Dirichlet] = []
-        for k, bc in enumerate(top.get("dirichlet", [])):
-            key = f"dirichlet[{k}]"
-            bc = _check_keys(bc, _DIRICHLET, key)
-            where = _where(bc, cloud, key)
-            try:
-                dirichlet.append(_dirichlet(bc, where, key))
-            except SceneError:
-                raise
-            except PdlinError as exc:
-                raise SceneError(f"{key}: {exc}") from exc
-        shadow_loads: list[Any] = []
-        if "shadow" in top:
-            sh = _check_keys(top["shadow"], _SHADOW, "shadow")
-            depth = sh.get("depth")
-            if depth is None:
-                hv = (
-                    horizon
-                    if horizon is not None
-                    else float(bond_options.get("ratio", 0))
-                    * float(
-                        np.max(cloud.lattice.spacing)
-                        if cloud.lattice is not None
-                        else np.median(cloud.spacing)
-                    )
-                )
-                depth = float(np.max(hv))
-            from ..models.correspondence import Correspondence, shadow_problem
-
-            partial = sh.get("faces") is not None or sh.get("translation") is not None
-            mode = sh.get("mode")
-            if mode is None:
-                mode = (
-                    "stress"
-                    if isinstance(model, Correspondence) and not partial
-                    else "displacement"
-                )
-            if mode not in ("stress", "displacement"):
-                raise SceneError(f"shadow.mode must be 'stress' or 'displacement', got {mode!r}")
-            if mode == "stress" and not isinstance(model, Correspondence):
-                raise SceneError(
-                    "shadow.mode = 'stress' is the correspondence shadow problem (spec 000 "
-                    f"section 7); got model {type(model).__name__}: use 'displacement'"
-                )
-            if mode == "stress" and partial:
-                raise SceneError(
-                    "shadow.mode = 'stress' needs the whole frame: shadow.faces/translation "
-                    "apply to mode = 'displacement' (the layer prescribed like any points)"
-                )
-            if sh.get("depth") is None and mode == "displacement":
-                # two-hop models (state-based, correspondence) need two horizons of layer
-                depth = float(depth) * int(getattr(model, "coupling_range", 1))
-            if mode == "stress" and isinstance(model, Correspondence):
-                # correspondence shadow particles use the intact-lattice shape tensor and act
-                # through their prescribed stress (spec 000 section 7)
-                bonds = bonds if bonds is not None else find_bonds(cloud, horizon, **bond_options)
-                sp_prob = shadow_problem(
-                    model, cloud, bonds, _require(sh, "F", "shadow"), depth=float(depth)
-                )
-                model = sp_prob.model
-                dirichlet.extend(sp_prob.dirichlet)
-                shadow_loads = list(sp_prob.loads)
-            else:
-                bc_sh, _ = shadow_layer(
-                    cloud,
-                    _require(sh, "F", "shadow"),
-                    float(depth),
-                    faces=sh.get("faces"),
-                    translation=sh.get("translation"),
-                )
-                dirichlet.append(bc_sh)
-        loads: list[BodyForce | TotalForce] = list(shadow_loads)
-        for k, ld in enumerate(top.get("load", [])):
-            key = f"load[{k}]"
-            ld = _check_keys(ld, _LOAD, key)
-            where = _where(ld, cloud, key)
-            kind = ld.get("type", "total")
-            if kind not in ("total", "body"):
-                raise SceneError(f"{key}.type must be 'total' or 'body', got {kind!r}")
-            vkey = "force" if kind == "total" else "density"
-            value = _require(ld, vkey, key)
-            try:
-                loads.append(
-                    TotalForce(where, value) if kind == "total" else BodyForce(where, value)
-                )
-            except PdlinError as exc:
-                raise SceneError(f"{key}.{vkey}: {exc}") from exc
-        extra: dict[str, Any] = {}
-        if "symmetry" in top:
-            from ..operators import symmetry as sym_mod
-
-            planes = []
-            for k, s in enumerate(top["symmetry"]):
-                s = _check_keys(s, _SYMMETRY, f"symmetry[{k}]")
-                planes.append(
-                    sym_mod.SymmetryPlane(
-                        _require(s, "axis", f"symmetry[{k}]"),
-                        number(s.get("position", 0.0), f"symmetry[{k}].position"),
-                        side=s.get("side"),
-                    )
-                )
-            extra["symmetry"] = tuple(planes)
-        problem = StaticProblem(
-            model,
-            cloud,
-            bonds,
-            horizon=horizon,
-            dirichlet=dirichlet,
-            loads=loads,
-            bond_options=bond_options,
-            **extra,
-        )
-        # resolve the conditions and loads on the cloud now (cheap, no bonds): shapes,
-        # conflicts, empty selections and loads on prescribed points only are reported
-        # before any assembly (the symmetry planes' conditions are checked at solve time)
-        dofs, _ = resolve_dirichlet(cloud, dirichlet)
-        load_names = ["shadow stress load"] * len(shadow_loads) + [
-            f"load[{k}]" for k in range(len(loads) - len(shadow_loads))
-        ]
-        with warnings.catch_warnings():  # partial losses warn once, when the scene is solved
-            warnings.simplefilter("ignore", AccuracyWarning)
-            load_vector(cloud, loads, prescribed=dofs, names=load_names)
+        problem, n_real, calibration = _scene_problem(top, base)
         scfg = _check_keys(top.get("solver", {}), _SOLVER, "solver")
         ocfg = _check_keys(top.get("output", {}), _OUTPUT, "output")
     except (SceneError, InsufficientMemoryError):  # a valid scene too large for memory
         raise
     except PdlinError as exc:
         raise SceneError(f"invalid scene: {exc}") from exc
+    return _scene(top, base, problem, n_real, calibration, scfg, ocfg)
+
+
+def _scene_problem(top: Mapping[str, Any], base: Path) -> tuple[StaticProblem, int, Any]:
+    """The scene's problem, its number of real (not ghost) points and its calibration."""
+    gcfg = _require(top, "geometry", "scene")
+    cloud = _geometry(gcfg, base)
+    n_real = cloud.n
+    if isinstance(gcfg, Mapping) and "ghost_layers" in gcfg:
+        layers = gcfg["ghost_layers"]
+        if isinstance(layers, bool) or not isinstance(layers, int) or layers < 1:
+            raise SceneError(f"geometry.ghost_layers must be an integer >= 1, got {layers!r}")
+        from ..geometry.cloud import ghost_layer
+
+        cloud = ghost_layer(cloud, layers).cloud
+    material = _check_keys(_require(top, "material", "scene"), _MATERIAL, "material")
+    model_cfg = _check_keys(top.get("model", {}), _MODEL, "model")
+    horizon, bond_options = _horizon(top)
+    bonds = None
+    calibration = None
+    if "calibration" in material:
+        model, bonds, calibration = _calibrated_model(
+            material, model_cfg, cloud, horizon, bond_options, "symmetry" in top
+        )
+    else:
+        model = _build_model(model_cfg, material, cloud)
+    for name in ("dirichlet", "load", "symmetry"):
+        if name in top and not isinstance(top[name], list):
+            raise SceneError(
+                f"{name} must be an array of tables ([[{name}]]), got {type(top[name]).__name__}"
+            )
+    dirichlet: list[Dirichlet] = []
+    for k, bc in enumerate(top.get("dirichlet", [])):
+        key = f"dirichlet[{k}]"
+        bc = _check_keys(bc, _DIRICHLET, key)
+        where = _where(bc, cloud, key)
+        try:
+            dirichlet.append(_dirichlet(bc, where, key))
+        except SceneError:
+            raise
+        except PdlinError as exc:
+            raise SceneError(f"{key}: {exc}") from exc
+    shadow_loads: list[Any] = []
+    if "shadow" in top:
+        model, bonds, shadow_loads = _shadow(
+            top["shadow"], model, cloud, horizon, bond_options, bonds, dirichlet
+        )
+    loads = _loads(top, cloud, shadow_loads)
+    extra: dict[str, Any] = {}
+    if "symmetry" in top:
+        extra["symmetry"] = _symmetry(top["symmetry"])
+    problem = StaticProblem(
+        model,
+        cloud,
+        bonds,
+        horizon=horizon,
+        dirichlet=dirichlet,
+        loads=loads,
+        bond_options=bond_options,
+        **extra,
+    )
+    # resolve the conditions and loads on the cloud now (cheap, no bonds): shapes,
+    # conflicts, empty selections and loads on prescribed points only are reported
+    # before any assembly (the symmetry planes' conditions are checked at solve time)
+    dofs, _ = resolve_dirichlet(cloud, dirichlet)
+    load_names = ["shadow stress load"] * len(shadow_loads) + [
+        f"load[{k}]" for k in range(len(loads) - len(shadow_loads))
+    ]
+    with warnings.catch_warnings():  # partial losses warn once, when the scene is solved
+        warnings.simplefilter("ignore", AccuracyWarning)
+        load_vector(cloud, loads, prescribed=dofs, names=load_names)
+    return problem, n_real, calibration
+
+
+def _horizon(top: Mapping[str, Any]) -> tuple[Any, dict[str, Any]]:
+    """The ``[horizon]`` table: the horizon value (None: by ratio) and the bond options."""
+    hcfg = _check_keys(_require(top, "horizon", "scene"), _HORIZON, "horizon")
+    if ("value" in hcfg) == ("ratio" in hcfg):
+        given = [k for k in ("value", "ratio") if k in hcfg]
+        raise SceneError(f"horizon needs exactly one of 'value' or 'ratio', got {given or 'none'}")
+    if "ratio" in hcfg:
+        number(hcfg["ratio"], "horizon.ratio", positive=True)
+    else:
+        hv = hcfg["value"]
+        if isinstance(hv, list):
+            for k, v in enumerate(hv):
+                number(v, f"horizon.value[{k}]", positive=True)
+        else:
+            number(hv, "horizon.value", positive=True)
+    for key, allowed in (("shape", SHAPES), ("influence", tuple(INFLUENCE_FUNCTIONS))):
+        if key in hcfg and hcfg[key] not in allowed:
+            raise SceneError(f"horizon.{key} must be one of {list(allowed)}, got {hcfg[key]!r}")
+    bond_options: dict[str, Any] = {
+        k: hcfg[k] for k in ("shape", "axes", "influence", "cracks") if k in hcfg
+    }
+    if "ratio" in hcfg:
+        bond_options["ratio"] = float(hcfg["ratio"])
+    if "cracks" in hcfg:  # finite numbers now; a crack cutting no bond raises in find_bonds
+        try:
+            as_float_array(hcfg["cracks"], "horizon.cracks")
+        except PdlinError as exc:
+            raise SceneError(str(exc)) from exc
+    return hcfg.get("value"), bond_options
+
+
+def _shadow(
+    table: Any,
+    model: Model,
+    cloud: PointCloud,
+    horizon: Any,
+    bond_options: Mapping[str, Any],
+    bonds: Bonds | None,
+    dirichlet: list[Dirichlet],
+) -> tuple[Model, Bonds | None, list[Any]]:
+    """The ``[shadow]`` frame: appends its conditions; the model, bonds and stress loads."""
+    from ..models.correspondence import Correspondence, shadow_problem
+
+    sh = _check_keys(table, _SHADOW, "shadow")
+    depth = sh.get("depth")
+    if depth is None:
+        hv = (
+            horizon
+            if horizon is not None
+            else float(bond_options.get("ratio", 0))
+            * float(
+                np.max(cloud.lattice.spacing)
+                if cloud.lattice is not None
+                else np.median(cloud.spacing)
+            )
+        )
+        depth = float(np.max(hv))
+    partial = sh.get("faces") is not None or sh.get("translation") is not None
+    mode = sh.get("mode")
+    if mode is None:
+        mode = "stress" if isinstance(model, Correspondence) and not partial else "displacement"
+    if mode not in ("stress", "displacement"):
+        raise SceneError(f"shadow.mode must be 'stress' or 'displacement', got {mode!r}")
+    if mode == "stress" and not isinstance(model, Correspondence):
+        raise SceneError(
+            "shadow.mode = 'stress' is the correspondence shadow problem (spec 000 "
+            f"section 7); got model {type(model).__name__}: use 'displacement'"
+        )
+    if mode == "stress" and partial:
+        raise SceneError(
+            "shadow.mode = 'stress' needs the whole frame: shadow.faces/translation "
+            "apply to mode = 'displacement' (the layer prescribed like any points)"
+        )
+    if sh.get("depth") is None and mode == "displacement":
+        # two-hop models (state-based, correspondence) need two horizons of layer
+        depth = float(depth) * int(getattr(model, "coupling_range", 1))
+    if mode == "stress" and isinstance(model, Correspondence):
+        # correspondence shadow particles use the intact-lattice shape tensor and act
+        # through their prescribed stress (spec 000 section 7)
+        bonds = bonds if bonds is not None else find_bonds(cloud, horizon, **bond_options)
+        sp_prob = shadow_problem(
+            model, cloud, bonds, _require(sh, "F", "shadow"), depth=float(depth)
+        )
+        dirichlet.extend(sp_prob.dirichlet)
+        return sp_prob.model, bonds, list(sp_prob.loads)
+    bc_sh, _ = shadow_layer(
+        cloud,
+        _require(sh, "F", "shadow"),
+        float(depth),
+        faces=sh.get("faces"),
+        translation=sh.get("translation"),
+    )
+    dirichlet.append(bc_sh)
+    return model, bonds, []
+
+
+def _loads(
+    top: Mapping[str, Any], cloud: PointCloud, shadow_loads: list[Any]
+) -> list[BodyForce | TotalForce]:
+    """The ``[[load]]`` tables, after the shadow frame's stress loads."""
+    loads: list[BodyForce | TotalForce] = list(shadow_loads)
+    for k, ld in enumerate(top.get("load", [])):
+        key = f"load[{k}]"
+        ld = _check_keys(ld, _LOAD, key)
+        where = _where(ld, cloud, key)
+        kind = ld.get("type", "total")
+        if kind not in ("total", "body"):
+            raise SceneError(f"{key}.type must be 'total' or 'body', got {kind!r}")
+        vkey = "force" if kind == "total" else "density"
+        value = _require(ld, vkey, key)
+        try:
+            loads.append(TotalForce(where, value) if kind == "total" else BodyForce(where, value))
+        except PdlinError as exc:
+            raise SceneError(f"{key}.{vkey}: {exc}") from exc
+    return loads
+
+
+def _symmetry(tables: list[Any]) -> tuple[Any, ...]:
+    """The ``[[symmetry]]`` planes."""
+    from ..operators import symmetry as sym_mod
+
+    planes = []
+    for k, s in enumerate(tables):
+        s = _check_keys(s, _SYMMETRY, f"symmetry[{k}]")
+        planes.append(
+            sym_mod.SymmetryPlane(
+                _require(s, "axis", f"symmetry[{k}]"),
+                number(s.get("position", 0.0), f"symmetry[{k}].position"),
+                side=s.get("side"),
+            )
+        )
+    return tuple(planes)
+
+
+def _scene(
+    top: Mapping[str, Any],
+    base: Path,
+    problem: StaticProblem,
+    n_real: int,
+    calibration: Any,
+    scfg: Mapping[str, Any],
+    ocfg: Mapping[str, Any],
+) -> Scene:
+    """The scene around its problem: output, solver, nonlinear and damage options."""
     out = ocfg.get("path")
     for key in ("path", "homogenized"):
         if key in ocfg and not isinstance(ocfg[key], str):
@@ -838,7 +905,7 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         raise SceneError(f"name must be a string, got {top['name']!r}")
     _solver_options(scfg)
     nonlinear = _nonlinear_options(scfg, problem, base)
-    if nonlinear is not None and cloud.n != n_real:
+    if nonlinear is not None and problem.cloud.n != n_real:
         nonlinear["homogenize"] = np.arange(n_real)  # ghosts are not part of the body
     hom = ocfg.get("homogenized")
     if hom is not None and nonlinear is None:

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import SceneError
+from ...geometry.cloud import PointCloud
 from ...operators.bc import Dirichlet
 from ..scene import Scene
 from ._common import (
@@ -88,6 +89,7 @@ _PL_STATIC = {
 
 
 def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
+    """The scene of a PeriLab deck (the body of its top-level ``PeriLab`` list)."""
     root = _table(deck, "PeriLab")
     _unknown(root, _PL_TOP, "PeriLab", "PeriLab deck")
     for k in ("Discretization", "Models", "Blocks", "Boundary Conditions", "Solver"):
@@ -96,7 +98,23 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     for k in ("Outputs", "Compute Class Parameters"):
         if k in root:
             _note(f"PeriLab.{k}", _PL_TOP[k])
-    disc = _table(root["Discretization"], "Discretization")
+    cloud, block_id, sets, mesh = _perilab_mesh(root["Discretization"], base)
+    dim = cloud.dim
+    mats = _perilab_materials(root["Models"], dim)
+    horizon, mat = _perilab_blocks(root["Blocks"], block_id, mats, mesh)
+    model = _perilab_model(mat, dim)
+    t = _perilab_solver(root["Solver"])
+    dirichlet = _perilab_bcs(root["Boundary Conditions"], sets, cloud, t)
+    scene = _scene(name, model, cloud, horizon, dirichlet, [], base, None)
+    scene.time = t  # the state at Final Time
+    return scene
+
+
+def _perilab_mesh(
+    value: Any, base: Path
+) -> tuple[PointCloud, np.ndarray, dict[str, np.ndarray], Path]:
+    """``Discretization``: the cloud, each point's block id, the node sets, the mesh file."""
+    disc = _table(value, "Discretization")
     _unknown(disc, _PL_DISC, "Discretization", "PeriLab discretization")
     if disc.get("Type") != "Text File":
         raise SceneError(
@@ -124,14 +142,16 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         )
     data = _read_text_table(path, "Discretization.Input Mesh File", (len(header),))
     dim = len(header) - 2
-    block_id = data[:, dim]
     cloud = _cloud(data[:, :dim], data[:, dim + 1], "Discretization.Input Mesh File")
-    n = cloud.n
     sets: dict[str, np.ndarray] = {}
     for sname, v in _table(disc.get("Node Sets", {}), "Discretization.Node Sets").items():
-        sets[sname] = _node_ids(v, base, f"Discretization.Node Sets.{sname}", n)
+        sets[sname] = _node_ids(v, base, f"Discretization.Node Sets.{sname}", cloud.n)
+    return cloud, data[:, dim], sets, path
 
-    models = _table(root["Models"], "Models")
+
+def _perilab_materials(value: Any, dim: int) -> dict[str, dict[str, Any]]:
+    """``Models``: each material's kind, elastic constants and plane."""
+    models = _table(value, "Models")
     _unknown(models, _PL_MODELS, "Models", "PeriLab models")
     for k in models:
         if _PL_MODELS[k]:
@@ -167,9 +187,16 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         if _PL_KINDS[kind] != "bond_based" and len(consts) != 2:
             raise SceneError(f"{key} needs exactly two of {list(_ELASTIC_CONSTANTS)}")
         mats[mname] = {"kind": _PL_KINDS[kind], "consts": consts, "plane": plane or "stress"}
-    horizon = np.full(n, np.nan)
+    return mats
+
+
+def _perilab_blocks(
+    value: Any, block_id: np.ndarray, mats: Mapping[str, dict[str, Any]], mesh: Path
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """``Blocks``: the horizon of every point and the one material of all blocks."""
+    horizon = np.full(block_id.shape[0], np.nan)
     assigned: dict[str, Any] = {}
-    for bname, b in _table(root["Blocks"], "Blocks").items():
+    for bname, b in _table(value, "Blocks").items():
         key = f"Blocks.{bname}"
         b = _table(b, key)
         if "Damage Model" in b:
@@ -183,7 +210,7 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
             bid = int(m_.group(1))
         idx = np.flatnonzero(block_id == bid)
         if idx.size == 0:
-            raise SceneError(f"{key}: block id {bid} has no points in {path.name}")
+            raise SceneError(f"{key}: block id {bid} has no points in {mesh.name}")
         pl_mat = b.get("Material Model")
         if pl_mat not in mats:
             raise SceneError(f"{key}.Material Model: {pl_mat!r} is not defined ({sorted(mats)})")
@@ -197,10 +224,12 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         raise SceneError(
             f"Blocks: pdlin's PeriLab reader takes one material for all blocks, got {sorted(used)}"
         )
-    mat = mats[used.pop()]
-    model = _perilab_model(mat, dim)
+    return horizon, mats[used.pop()]
 
-    s = _table(root["Solver"], "Solver")
+
+def _perilab_solver(value: Any) -> float:
+    """``Solver``: checks of the static subset; the ``Final Time`` the state is solved at."""
+    s = _table(value, "Solver")
     _unknown(s, _PL_SOLVER, "Solver", "PeriLab solver (static subset)")
     if "Static" not in s:
         raise SceneError(
@@ -219,10 +248,16 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         _note(f"Solver.Static.{k}", _PL_STATIC[k])
     if "Final Time" not in s:
         raise SceneError("missing deck key Solver.Final Time")
-    t = _number(s["Final Time"], "Solver.Final Time")
+    return _number(s["Final Time"], "Solver.Final Time")
 
+
+def _perilab_bcs(
+    value: Any, sets: Mapping[str, np.ndarray], cloud: PointCloud, t: float
+) -> list[Dirichlet]:
+    """``Boundary Conditions``: prescribed displacements at time ``t``."""
+    dim = cloud.dim
     dirichlet: list[Dirichlet] = []
-    for bcname, bc in _table(root["Boundary Conditions"], "Boundary Conditions").items():
+    for bcname, bc in _table(value, "Boundary Conditions").items():
         key = f"Boundary Conditions.{bcname}"
         bc = _table(bc, key)
         _unknown(bc, _PL_BC, key, "PeriLab boundary condition")
@@ -248,9 +283,7 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
             bc.get("Value", 0.0), cloud.points[idx], t, f"{key}.Value", caret_power=True
         )
         dirichlet.append(Dirichlet(idx, val[:, None], components=[_COORD[coord]]))
-    scene = _scene(name, model, cloud, horizon, dirichlet, [], base, None)
-    scene.time = t  # the state at Final Time
-    return scene
+    return dirichlet
 
 
 def _perilab_model(mat: Mapping[str, Any], dim: int) -> Any:
