@@ -108,12 +108,30 @@ class CheckResult:
     measure: str
 
     def line(self) -> str:
-        """The one-line report ``pdlin run`` prints."""
+        """Format the one-line report ``pdlin run`` prints.
+
+        Returns
+        -------
+        str
+            :func:`format_check` of this result.
+        """
         return format_check(self)
 
 
 def format_check(r: CheckResult) -> str:
-    """``check: <quantity> = computed vs reference (source): <measure> X - PASS within tol``.
+    """Format a check's result as ``pdlin run`` prints it.
+
+    ``check: <quantity> = computed vs reference (source): <measure> X - PASS within tol``.
+
+    Parameters
+    ----------
+    r : CheckResult
+        The evaluated check.
+
+    Returns
+    -------
+    str
+        One line, ending in ``PASS`` or ``FAIL`` and the tolerance.
 
     Examples
     --------
@@ -142,8 +160,21 @@ def _matrix(value: Any, key: str) -> np.ndarray:
 def parse_checks(table: Any) -> list[Check]:
     """Validate a scene's ``check`` entry (one table or an array of tables).
 
-    Raises :class:`~pdlin.errors.SceneError` naming the key (``check[1].tolerance``)
-    for unknown kinds or keys, missing ones and values of the wrong type.
+    Parameters
+    ----------
+    table : Mapping or list of Mapping
+        The scene's ``check`` value: one table or an array of tables (``[[check]]``).
+
+    Returns
+    -------
+    list of Check
+        One validated check per table, in order.
+
+    Raises
+    ------
+    SceneError
+        Naming the key (``check[1].tolerance``) of an unknown kind or key, a missing one
+        or a value of the wrong type.
 
     Examples
     --------
@@ -463,6 +494,22 @@ def _affine(F: np.ndarray, center: Any, translation: Any, X: np.ndarray, where: 
 def uniaxial_F(axis: str, strain: float, nu: float, dim: int) -> np.ndarray:
     """Deformation gradient of uniaxial stress: ``ε`` along ``axis``, ``-ν ε`` across.
 
+    Parameters
+    ----------
+    axis : {'x', 'y', 'z'}
+        The loaded axis.
+    strain : float
+        Axial strain ``ε``.
+    nu : float
+        Poisson's ratio ``ν``.
+    dim : int
+        Dimension (1, 2 or 3).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``F = I + ε e⊗e - ν ε (I - e⊗e)``, shape ``(dim, dim)``.
+
     Examples
     --------
     >>> uniaxial_F("x", 1e-3, 0.25, 2).tolist()
@@ -593,9 +640,18 @@ _EVAL = {
 
 
 def check_before_run(checks: list[Check], scene: Any) -> None:
-    """Refuse, before the solve, the checks that cannot apply to ``scene``'s run: a region
-    that selects no point, a quantity or a ``step`` the kind of run (static, damage,
-    nonlinear) does not give.  :func:`evaluate_checks` would find them after the work.
+    """Refuse, before the solve, the checks that cannot apply to ``scene``'s run.
+
+    A region that selects no point, a quantity or a ``step`` the kind of run (static,
+    damage, nonlinear) does not give: :func:`evaluate_checks` would find them only after
+    the work.
+
+    Parameters
+    ----------
+    checks : list of Check
+        The scene's parsed checks.
+    scene : Scene
+        The scene about to run (prepared: its problem is the one solved).
 
     Raises
     ------
@@ -632,6 +688,26 @@ def check_before_run(checks: list[Check], scene: Any) -> None:
 
 def evaluate_checks(checks: list[Check], scene: Any, result: Any) -> list[CheckResult]:
     """Evaluate parsed checks on a run's result (static, nonlinear or damage).
+
+    Parameters
+    ----------
+    checks : list of Check
+        Parsed checks (:func:`parse_checks`).
+    scene : Scene
+        The scene that was run.
+    result : StaticResult, NonlinearResult or DamageResult
+        Its result.
+
+    Returns
+    -------
+    list of CheckResult
+        One per check, in order.
+
+    Raises
+    ------
+    SceneError
+        A check that cannot be evaluated on this result (naming it); a ``scene`` check
+        whose other scene cannot be loaded or does not share this scene's points.
 
     Examples
     --------

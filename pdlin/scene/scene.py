@@ -296,7 +296,7 @@ def _crystal_plasticity(material: Mapping[str, Any], cloud: PointCloud) -> Any:
 def _isotropic(
     material: Mapping[str, Any], cloud: PointCloud, kind: str, *, minimum: int = 2
 ) -> dict[str, Any]:
-    """The isotropic constants of a material table (E, nu, K, G, lam, mu; per phase).
+    """Read the isotropic constants of a material table (E, nu, K, G, lam, mu; per phase).
 
     Fewer than ``minimum`` of them raise (the model checks the set further).
     """
@@ -310,10 +310,33 @@ def _isotropic(
 
 
 def per_phase(value: Any, cloud: PointCloud, key: str) -> Any:
-    """A material constant given as a number, or a table ``{"<phase id>" = value}``.
+    """Map a material constant given per phase onto the points.
 
     Tables are mapped onto points through ``cloud.material``; every phase
     present in the cloud must be listed.
+
+    A constant is a number, or a table ``{"<phase id>" = value}`` mapped onto points
+    through ``cloud.material``; every phase present in the cloud must be listed.
+
+    Parameters
+    ----------
+    value : float or Mapping
+        The constant as written in the scene.
+    cloud : PointCloud
+        The scene's points (``cloud.material`` holds each point's phase id).
+    key : str
+        The constant's key path for messages (``material.E``).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The number as given, or one value per point, shape ``(n,)``.
+
+    Raises
+    ------
+    SceneError
+        A value that is neither a number nor a table of phase ids to numbers, or a
+        phase of the cloud missing from the table.
     """
     if not isinstance(value, Mapping):
         if isinstance(value, bool) or not isinstance(value, int | float):
@@ -429,18 +452,27 @@ class Scene:
 
     @property
     def cloud(self) -> PointCloud:
+        """The problem's points."""
         return self.problem.cloud
 
     @property
     def model(self) -> Model:
+        """The problem's model."""
         return self.problem.model
 
     def bonds(self) -> Bonds:
+        """Return the problem's bonds (found on first use).
+
+        Returns
+        -------
+        Bonds
+            :meth:`pdlin.StaticProblem.get_bonds` of :attr:`problem`.
+        """
         return self.problem.get_bonds()
 
 
 def _prepared(name: str) -> property:
-    """A :class:`Scene` field read through :meth:`Scene.prepare` (stored as ``_<name>``)."""
+    """Make a :class:`Scene` field read through :meth:`Scene.prepare` (kept as ``_<name>``)."""
     slot = f"_{name}"
 
     def get(self: Scene) -> Any:
@@ -679,7 +711,7 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
 
 
 def _scene_problem(top: Mapping[str, Any], base: Path) -> tuple[StaticProblem, int, Any]:
-    """The scene's problem, its number of real (not ghost) points and its calibration."""
+    """Build the scene's problem; also its number of real (not ghost) points, calibration."""
     gcfg = _require(top, "geometry", "scene")
     cloud = _geometry(gcfg, base)
     n_real = cloud.n
@@ -750,7 +782,7 @@ def _scene_problem(top: Mapping[str, Any], base: Path) -> tuple[StaticProblem, i
 
 
 def _horizon(top: Mapping[str, Any]) -> tuple[Any, dict[str, Any]]:
-    """The ``[horizon]`` table: the horizon value (None: by ratio) and the bond options."""
+    """Read ``[horizon]``: the horizon value (None: by ratio) and the bond options."""
     hcfg = _check_keys(_require(top, "horizon", "scene"), _HORIZON, "horizon")
     if ("value" in hcfg) == ("ratio" in hcfg):
         given = [k for k in ("value", "ratio") if k in hcfg]
@@ -789,7 +821,7 @@ def _shadow(
     bonds: Bonds | None,
     dirichlet: list[Dirichlet],
 ) -> tuple[Model, Bonds | None, list[Any]]:
-    """The ``[shadow]`` frame: appends its conditions; the model, bonds and stress loads."""
+    """Add the ``[shadow]`` frame's conditions; return the model, bonds and stress loads."""
     from ..models.correspondence import Correspondence, shadow_problem
 
     sh = _check_keys(table, _SHADOW, "shadow")
@@ -848,7 +880,7 @@ def _shadow(
 def _loads(
     top: Mapping[str, Any], cloud: PointCloud, shadow_loads: list[Any]
 ) -> list[BodyForce | TotalForce]:
-    """The ``[[load]]`` tables, after the shadow frame's stress loads."""
+    """Read the ``[[load]]`` tables, after the shadow frame's stress loads."""
     loads: list[BodyForce | TotalForce] = list(shadow_loads)
     for k, ld in enumerate(top.get("load", [])):
         key = f"load[{k}]"
@@ -867,7 +899,7 @@ def _loads(
 
 
 def _symmetry(tables: list[Any]) -> tuple[Any, ...]:
-    """The ``[[symmetry]]`` planes."""
+    """Read the ``[[symmetry]]`` planes."""
     from ..operators import symmetry as sym_mod
 
     planes = []
@@ -892,7 +924,7 @@ def _scene(
     scfg: Mapping[str, Any],
     ocfg: Mapping[str, Any],
 ) -> Scene:
-    """The scene around its problem: output, solver, nonlinear and damage options."""
+    """Build the scene around its problem: output, solver, nonlinear and damage options."""
     out = ocfg.get("path")
     for key in ("path", "homogenized"):
         if key in ocfg and not isinstance(ocfg[key], str):
@@ -943,7 +975,7 @@ def _scene(
 
 
 def _subregion_scene(top: Mapping[str, Any], base: Path) -> Scene:
-    """A ``[subregion]`` scene: a coarse solve of the whole body drives the box (fine).
+    """Build a ``[subregion]`` scene: a coarse solve of the whole body drives the box.
 
     ``coarse`` is the spacing factor of the driving run (default 2: twice the scene's
     spacing), ``layer`` the driven layer's thickness (default: horizon x the model's
@@ -1084,7 +1116,7 @@ def _damage_options(
 
 
 def _problem_scene(top: Mapping[str, Any], base: Path) -> Scene:
-    """A scene built from a bundled problem of :mod:`pdlin.sweeps.problems`.
+    """Build a scene from a bundled problem of :mod:`pdlin.sweeps.problems`.
 
     ``[problem] factory = "graded_bar"`` plus the factory's keyword parameters; the
     problem carries its own reference (closed form or finite elements), which checks of
@@ -1279,16 +1311,45 @@ def _calibrated_model(
 
 
 def load_scene(path: str | Path) -> Scene:
-    """Read and validate a TOML scene file (paths inside are relative to it)."""
+    """Read and validate a TOML scene file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.toml`` file; paths inside it are relative to its folder.
+
+    Returns
+    -------
+    Scene
+        As :func:`scene_from_dict` builds it (nothing is solved).
+
+    Raises
+    ------
+    SceneError
+        A missing file, invalid TOML or an invalid scene key (named by its path).
+    """
     data, base = read_toml(path, "scene")
     return scene_from_dict(data, base)
 
 
 def list_builtin_scenes(*, hidden: bool = False) -> list[str]:
-    """Names of the example scenes shipped with pdlin.
+    """List the example scenes shipped with pdlin.
 
     Names starting with ``_`` are reference scenes used by other scenes' checks; they
     are listed only with ``hidden=True``.
+
+    Names starting with ``_`` are reference scenes used by other scenes' checks; they
+    are listed only with ``hidden=True``.
+
+    Parameters
+    ----------
+    hidden : bool, optional
+        Include the reference scenes.
+
+    Returns
+    -------
+    list of str
+        Sorted scene names (``pdlin run --example NAME``).
     """
     files = resources.files("pdlin") / "examples"
     names = sorted(f.name[:-5] for f in files.iterdir() if f.name.endswith(".toml"))
@@ -1296,7 +1357,25 @@ def list_builtin_scenes(*, hidden: bool = False) -> list[str]:
 
 
 def builtin_scene(name: str) -> tuple[dict[str, Any], str]:
-    """Parsed data and text of a built-in example scene."""
+    """Read a built-in example scene.
+
+    Parameters
+    ----------
+    name : str
+        One of :func:`list_builtin_scenes` (``hidden=True``).
+
+    Returns
+    -------
+    data : dict
+        The parsed TOML (for :func:`scene_from_dict`).
+    text : str
+        The file's text.
+
+    Raises
+    ------
+    SceneError
+        An unknown name (the message lists the available ones).
+    """
     if name not in list_builtin_scenes(hidden=True):
         raise SceneError(f"unknown built-in scene {name!r}; available: {list_builtin_scenes()}")
     text = (resources.files("pdlin") / "examples" / f"{name}.toml").read_text()

@@ -61,7 +61,7 @@ def _keys(table: Any, allowed: set[str], where: str) -> dict[str, Any]:
 
 
 def _matrix(value: Any, where: str) -> np.ndarray:
-    """A numeric array from TOML, or SceneError naming ``where``."""
+    """Read a numeric array from TOML, or raise SceneError naming ``where``."""
     try:
         return np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -71,7 +71,25 @@ def _matrix(value: Any, where: str) -> np.ndarray:
 
 
 def target_from_table(table: Mapping[str, Any], where: str = "target") -> np.ndarray:
-    """Voigt stiffness from a target table (see the module docstring).
+    """Build the Voigt stiffness of a target table (see the module docstring).
+
+    Parameters
+    ----------
+    table : Mapping
+        Exactly one of ``class`` (with ``constants``), ``material`` or ``voigt``;
+        optional ``rotation`` and ``plane``.
+    where : str, optional
+        The table's key path for messages.
+
+    Returns
+    -------
+    numpy.ndarray
+        Voigt stiffness, ``(6, 6)`` (``(3, 3)`` with ``plane``).
+
+    Raises
+    ------
+    SceneError
+        A missing, unknown or invalid key, named by its path.
 
     Examples
     --------
@@ -133,7 +151,13 @@ class CalibrationJob:
     plot: Path | None = None
 
     def run(self) -> Any:
-        """Calibrate and return the :class:`~pdlin.calibration.CalibrationResult`."""
+        """Calibrate and return the :class:`~pdlin.calibration.CalibrationResult`.
+
+        Returns
+        -------
+        CalibrationResult
+            Micromoduli, status and the fitted tensor's error.
+        """
         from ..calibration import calibrate_micromoduli
 
         return calibrate_micromoduli(self.target, self.family, **self.options)
@@ -143,6 +167,25 @@ def calibration_from_dict(
     data: Mapping[str, Any], base_dir: str | Path | None = None
 ) -> CalibrationJob:
     """Build a :class:`CalibrationJob` from parsed TOML.
+
+    Parameters
+    ----------
+    data : Mapping
+        Parsed calibration file: ``target``, ``family``, optional ``calibration``
+        options and ``output``.
+    base_dir : str or Path, optional
+        Folder that relative output paths are resolved against (default: the working
+        directory).
+
+    Returns
+    -------
+    CalibrationJob
+        Ready to :meth:`~CalibrationJob.run`.
+
+    Raises
+    ------
+    SceneError
+        A missing, unknown or invalid key, named by its path.
 
     Examples
     --------
@@ -222,6 +265,22 @@ def calibration_from_dict(
 
 
 def load_calibration(path: str | Path) -> CalibrationJob:
-    """Read and validate a calibration TOML file."""
+    """Read and validate a calibration TOML file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The calibration ``.toml`` file.
+
+    Returns
+    -------
+    CalibrationJob
+        As :func:`calibration_from_dict` builds it.
+
+    Raises
+    ------
+    SceneError
+        A missing file, invalid TOML or an invalid key.
+    """
     data, base = read_toml(path, "calibration")
     return calibration_from_dict(data, base)

@@ -92,7 +92,18 @@ class SceneSweep:
     measure_box: np.ndarray | None = None
 
     def scene_data(self, **params: Any) -> dict[str, Any]:
-        """The scene dictionary of one sweep point (solver keys excluded)."""
+        """Return the scene dictionary of one sweep point (solver keys excluded).
+
+        Parameters
+        ----------
+        **params
+            The point's value of each swept key (``h``, ``m``, ``model``, ...).
+
+        Returns
+        -------
+        dict
+            A deep copy of the base scene with the point's edits.
+        """
         data = copy.deepcopy(self.data)
         for key, value in params.items():
             if key in SOLVE_KEYS:
@@ -101,7 +112,18 @@ class SceneSweep:
         return data
 
     def factory(self, **params: Any) -> TradeoffCase:
-        """Build one point's case (the factory passed to :func:`pdlin.tradeoff`)."""
+        """Build one point's case (the factory passed to :func:`pdlin.tradeoff`).
+
+        Parameters
+        ----------
+        **params
+            The point's value of each swept key.
+
+        Returns
+        -------
+        TradeoffCase
+            The point's problem, reference and solve options.
+        """
         from .scene import scene_from_dict
 
         sc = scene_from_dict(self.scene_data(**params), self.base_dir)
@@ -156,7 +178,18 @@ class SceneSweep:
         return TradeoffCase(sc.problem, kw, exact=exact, reference=reference, measure=measure, h=h)
 
     def run(self, **kwargs: Any) -> TradeoffResult:
-        """Run the sweep (keyword arguments override the scene's options)."""
+        """Run the sweep (keyword arguments override the scene's options).
+
+        Parameters
+        ----------
+        **kwargs
+            Keyword arguments of :func:`pdlin.tradeoff` (override the scene's).
+
+        Returns
+        -------
+        TradeoffResult
+            One row per sweep point: error, time, memory.
+        """
         opts = {**self.options, **kwargs}
         return tradeoff(self.factory, self.grid, **opts)
 
@@ -176,6 +209,21 @@ def rescale_grid(data: dict[str, Any], h: float, where: str) -> None:
 
     Shared by sweeps over ``h`` and the coarse run of ``[subregion]`` scenes; ``where``
     names the scene key that asked for it in the errors.
+
+    Parameters
+    ----------
+    data : dict
+        A scene dictionary with ``geometry.type = "grid"``; edited in place.
+    h : float
+        The new spacing.
+    where : str
+        The scene key that asked for it (``tradeoff.sweep.h``, ``subregion.coarse``).
+
+    Raises
+    ------
+    SceneError
+        A non-grid geometry, or conditions or loads selecting points by index (the new
+        grid has other points); named by ``where``.
     """
     geo = data.get("geometry", {})
     if geo.get("type", "grid") != "grid":
@@ -226,7 +274,24 @@ def _apply(data: dict[str, Any], key: str, value: Any) -> None:
 
 
 def tradeoff_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None) -> SceneSweep:
-    """A :class:`SceneSweep` from a parsed scene with a ``[tradeoff]`` table.
+    """Build a :class:`SceneSweep` from a parsed scene with a ``[tradeoff]`` table.
+
+    Parameters
+    ----------
+    data : Mapping
+        The parsed scene.
+    base_dir : str or Path, optional
+        Folder of the scene's relative paths (default: the working directory).
+
+    Returns
+    -------
+    SceneSweep
+        The base scene, the swept keys and the sweep's options.
+
+    Raises
+    ------
+    SceneError
+        No ``[tradeoff]`` table, or an invalid key of it (named by its path).
 
     Examples
     --------
@@ -308,13 +373,37 @@ def tradeoff_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = No
 
 
 def load_tradeoff(path: str | Path) -> SceneSweep:
-    """Read a scene file with a ``[tradeoff]`` table."""
+    """Read a scene file with a ``[tradeoff]`` table.
+
+    Parameters
+    ----------
+    path : str or Path
+        The scene ``.toml`` file.
+
+    Returns
+    -------
+    SceneSweep
+        As :func:`tradeoff_from_dict` builds it.
+    """
     data, base = read_toml(path, "scene")
     return tradeoff_from_dict(data, base)
 
 
 def run_scene_tradeoff(path: str | Path, **kwargs: Any) -> TradeoffResult:
-    """:func:`pdlin.tradeoff` on a scene file's ``[tradeoff]`` sweep."""
+    """Run :func:`pdlin.tradeoff` on a scene file's ``[tradeoff]`` sweep.
+
+    Parameters
+    ----------
+    path : str or Path
+        The scene ``.toml`` file.
+    **kwargs
+        Keyword arguments of :meth:`SceneSweep.run`.
+
+    Returns
+    -------
+    TradeoffResult
+        One row per sweep point.
+    """
     return load_tradeoff(path).run(**kwargs)
 
 
@@ -326,13 +415,35 @@ def select_scene(
     resume: bool = True,
     progress: Callable[..., Any] | None = None,
 ) -> tuple[Any, dict[str, Any], TradeoffResult]:
-    """The scene's fastest measured configuration meeting its error target.
+    """Pick the scene's fastest measured configuration meeting its error target.
 
     "Model only what a scene requires": runs (or resumes) the scene's ``[tradeoff]``
     sweep, takes the fastest row whose error is at most ``target_error`` (default
     ``tradeoff.target_error``) and returns that configuration as a
     :class:`~pdlin.scene.Scene` ready to solve, with the chosen parameters and the
     sweep's result.
+
+    Parameters
+    ----------
+    path : str or Path
+        The scene ``.toml`` file with a ``[tradeoff]`` table.
+    target_error : float, optional
+        Largest error accepted (default ``tradeoff.target_error``).
+    output : str or Path, optional
+        Where the sweep's table is written and resumed from.
+    resume : bool, optional
+        Reuse the finished points of an earlier run.
+    progress : callable, optional
+        Called with progress messages.
+
+    Returns
+    -------
+    scene : Scene
+        The chosen configuration, ready to solve.
+    chosen : dict
+        Its parameters.
+    result : TradeoffResult
+        The sweep.
 
     Raises
     ------

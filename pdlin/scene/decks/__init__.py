@@ -57,7 +57,7 @@ __all__ = ["read_deck", "deck_expression", "peridigm_hourglass_penalty", "peridi
 
 # --------------------------------------------------------------------------------------
 def read_deck(path: str | Path) -> Scene:
-    """Read a Peridigm (YAML / XML) or PeriLab (YAML) input deck as a pdlin scene.
+    r"""Read a Peridigm (YAML / XML) or PeriLab (YAML) input deck as a pdlin scene.
 
     The returned ``pdlin.scene.Scene`` is what ``pdlin.scene.load_scene``
     gives for a TOML scene: ``pdlin.solve(read_deck(p).problem)`` solves it and
@@ -83,7 +83,7 @@ def read_deck(path: str | Path) -> Scene:
     --------
     >>> import pathlib, tempfile, pdlin
     >>> d = pathlib.Path(tempfile.mkdtemp())
-    >>> _ = (d / "bar.txt").write_text("\\n".join(
+    >>> _ = (d / "bar.txt").write_text("\n".join(
     ...     f"{0.5 * i + 0.25} 0.25 0.25 1 0.125" for i in range(6)))
     >>> _ = (d / "bar.yaml").write_text('''
     ... Peridigm:

@@ -93,7 +93,7 @@ def _read_text(path: Path, key: str) -> str:
 
 
 def _node_ids(value: Any, base: Path, key: str, n: int) -> np.ndarray:
-    """A node set: a file of 1-based ids, an inline list or string of them -> 0-based."""
+    """Read a node set: a file of 1-based ids, an inline list or string of them -> 0-based."""
     if isinstance(value, list):
         toks: list[Any] = value
     elif isinstance(value, int) and not isinstance(value, bool):
@@ -151,7 +151,7 @@ def _note(key: str, why: str) -> None:
 
 
 def _number(value: Any, key: str, *, positive: bool = False) -> float:
-    """A deck number: :func:`pdlin.scene._keys.number`, decimal text accepted."""
+    """Parse a deck number: :func:`pdlin.scene._keys.number`, decimal text accepted."""
     return float(number(value, key, positive=positive, text=True, type_name=False))
 
 

@@ -42,7 +42,7 @@ __all__ = ["peridigm_hourglass_penalty", "peridigm_bond_filters"]
 
 
 def peridigm_hourglass_penalty(coefficient: float, K: Any, G: Any) -> Any:
-    """pdlin ``penalty`` matching Peridigm's ``Hourglass Coefficient`` micromodulus scale.
+    """Return the pdlin ``penalty`` matching Peridigm's ``Hourglass Coefficient``.
 
     Peridigm's correspondence hourglass force has the bond constant
     ``18 C_hg K / (π δ⁴)`` (``correspondence.cxx``); pdlin's penalty control uses the
@@ -53,6 +53,18 @@ def peridigm_hourglass_penalty(coefficient: float, K: Any, G: Any) -> Any:
     bond-direction projection of the non-affine displacement with a force that holds
     the deformation gradient fixed (nonsymmetric Jacobian); pdlin's penalty is the
     energy ``½ Σ ½ k_b |z_b|²`` of the full vector with ``k_b ∝ 1/|ξ|``.
+
+    Parameters
+    ----------
+    coefficient : float
+        Peridigm's ``Hourglass Coefficient`` ``C_hg``.
+    K, G : float or numpy.ndarray
+        Bulk and shear moduli (per point or scalar).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        ``1.8 C_hg K / (K + 4G/3)``, shaped like ``K``.
 
     Examples
     --------
@@ -449,6 +461,23 @@ def peridigm_bond_filters(
     Peridigm filters each point's neighbour list from that point; ``find_bonds`` drops a
     bond when either direction is cut.
 
+    Parameters
+    ----------
+    filters : Mapping
+        The deck's ``Discretization.Bond Filters`` list (name -> filter list).
+    key : str
+        Its key path for messages.
+
+    Returns
+    -------
+    list of callable
+        One ``exclude(xi, xj) -> bool array`` per filter (points of shape ``(m, 3)``).
+
+    Raises
+    ------
+    SceneError
+        An unknown filter type or a missing or invalid key, named by its path.
+
     Examples
     --------
     >>> import numpy as np
@@ -733,7 +762,7 @@ def _exodus_cloud_from(ds: Any, path: Path, key: str, sp: Any) -> tuple[PointClo
 
 
 def _peridigm_material(name: str, mat: Mapping[str, Any], key: str) -> dict[str, Any]:
-    """A Peridigm material list -> {'kind': pdlin model, 'K', 'G', 'hourglass'}."""
+    """Read a Peridigm material list -> {'kind': pdlin model, 'K', 'G', 'hourglass'}."""
     model = mat.get("Material Model")
     if model not in _PD_MATERIALS:
         hint = (
@@ -848,8 +877,10 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
 
 
 def _peridigm_discretization_keys(disc: Mapping[str, Any]) -> str:
-    """Check the keys of ``Discretization`` (not the cloud); return ``Omit Bonds Between
-    Blocks`` ('None' or 'All')."""
+    """Check the keys of ``Discretization`` (not the cloud).
+
+    Returns its ``Omit Bonds Between Blocks``: 'None' or 'All'.
+    """
     if disc.get("Type") not in ("Text File", "Exodus", "PdQuickGrid"):  # name the cause first
         raise SceneError(
             "Discretization.Type must be 'Text File', 'Exodus' or 'PdQuickGrid' (pdlin's deck "
@@ -878,8 +909,11 @@ def _peridigm_discretization_keys(disc: Mapping[str, Any]) -> str:
 def _peridigm_blocks(
     root: Mapping[str, Any], default_h: Any, blocks_pts: Mapping[str, np.ndarray], n: int
 ) -> tuple[Any, np.ndarray]:
-    """The model (one material family, per-point constants) and per-point horizons from
-    ``Materials`` and ``Blocks`` (``default_h``: ``Discretization.Horizon``, if given)."""
+    """Build the model and the per-point horizons from ``Materials`` and ``Blocks``.
+
+    One material family with per-point constants; ``default_h`` is
+    ``Discretization.Horizon``, if given.
+    """
     materials = _table(root["Materials"], "Materials")
     mats = {
         mname: _peridigm_material(mname, _table(m, f"Materials.{mname}"), f"Materials.{mname}")
@@ -951,7 +985,7 @@ def _peridigm_blocks(
 
 
 def _peridigm_output(root: Mapping[str, Any], base: Path, name: str) -> Path | None:
-    """The result path of a deck's ``Output`` list (``None``: pdlin's default)."""
+    """Return the result path of a deck's ``Output`` list (``None``: pdlin's default)."""
     if "Output" not in root:
         return None
     output = None
@@ -1018,7 +1052,7 @@ def _peridigm_node_sets(
 
 
 def _peridigm_solver(solver: Any) -> list[float]:
-    """The solver keys; Peridigm's step times (``Peridigm.cpp``, ``executeQuasiStatic``).
+    """Check the solver keys; return Peridigm's step times (``Peridigm.cpp``).
 
     ``Final Time`` with ``Number of Load Steps N``: ``t0`` and ``t0 + (i + 1) (t1 - t0) / N``;
     else the ``Time Steps`` list; ``Final Time`` alone: ``[t0, t1]`` (one solve at ``t1``).

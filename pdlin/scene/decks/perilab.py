@@ -89,7 +89,7 @@ _PL_STATIC = {
 
 
 def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
-    """The scene of a PeriLab deck (the body of its top-level ``PeriLab`` list)."""
+    """Read the scene of a PeriLab deck (the body of its top-level ``PeriLab`` list)."""
     root = _table(deck, "PeriLab")
     _unknown(root, _PL_TOP, "PeriLab", "PeriLab deck")
     for k in ("Discretization", "Models", "Blocks", "Boundary Conditions", "Solver"):
