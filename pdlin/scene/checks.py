@@ -27,7 +27,8 @@ Every check names its reference (``source``) and a tolerance.  Kinds:
     the full one).
 ``material-point``
     The homogenized stress of every load step against the homogeneous crystal-plasticity
-    driver :func:`pdlin.material_point` at the same steps (spec 001 §8.1).
+    driver :func:`pdlin.material_point` at the same steps (the constitutive model of Luo,
+    Ramazani & Sundararaghavan 2017, Sec. 3).
 
 Quantities of ``value`` checks: a field component ``displacement_x``, ``strain_xy``,
 ``stress_yy``, ``deformation_gradient_xx`` (reduced by ``reduce``: mean, max, min, sum,
@@ -70,8 +71,9 @@ KINDS: dict[str, set[str]] = {
     "material-point": {"loading", "eta"},
 }
 _REDUCE = ("mean", "max", "min", "sum", "max-abs")
-#: error measures of field checks: the trade-off harness's three and spec 002 §9.1's
-#: ``rel-range`` = max over components of max |u_c - r_c| / range(r_c)
+#: error measures of field checks: the trade-off harness's three and ``rel-range`` (pdlin's
+#: ring metric of the XOSB plate with a hole, Liu, Chen & Skelton, XOSB, Sec. 5.1):
+#: max over components of max |u_c - r_c| / range(r_c)
 METRICS = ("rel-max", "rel-l2", "max-abs", "rel-range")
 _FIELDS = (
     "displacement",

@@ -846,8 +846,8 @@ def _shadow(
         raise SceneError(f"shadow.mode must be 'stress' or 'displacement', got {mode!r}")
     if mode == "stress" and not isinstance(model, Correspondence):
         raise SceneError(
-            "shadow.mode = 'stress' is the correspondence shadow problem (spec 000 "
-            f"section 7); got model {type(model).__name__}: use 'displacement'"
+            "shadow.mode = 'stress' is the correspondence shadow problem (Javaheri et "
+            f"al. 2022, Sec. II.D); got model {type(model).__name__}: use 'displacement'"
         )
     if mode == "stress" and partial:
         raise SceneError(
@@ -859,7 +859,8 @@ def _shadow(
         depth = float(depth) * int(getattr(model, "coupling_range", 1))
     if mode == "stress" and isinstance(model, Correspondence):
         # correspondence shadow particles use the intact-lattice shape tensor and act
-        # through their prescribed stress (spec 000 section 7)
+        # through their prescribed stress (Javaheri et al. 2022, Sec. II.D; the paper does not
+        # say which shape tensor: the intact lattice's is pdlin's reading)
         bonds = bonds if bonds is not None else find_bonds(cloud, horizon, **bond_options)
         sp_prob = shadow_problem(
             model, cloud, bonds, _require(sh, "F", "shadow"), depth=float(depth)

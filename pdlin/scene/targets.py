@@ -4,7 +4,7 @@ A target stiffness is given in a TOML table as one of
 
 * ``class = "<symmetry class>"`` with ``constants = { C11 = ..., ... }``
   (the keyword arguments of the :mod:`pdlin.constitutive` constructor),
-* ``material = "<name>"`` (the spec-004 reference materials),
+* ``material = "<name>"`` (the named materials of :func:`pdlin.constitutive.material`),
 * ``voigt = [[...], ...]`` (6x6 or 3x3 plain Voigt matrix),
 
 optionally rotated by ``rotation = [[...], ...]`` (an orthogonal matrix,
