@@ -1,43 +1,23 @@
 """Peridigm and PeriLab input decks (static subset) read into a pdlin ``Scene``.
 
 :func:`read_deck` turns a Peridigm deck (YAML or Teuchos ParameterList XML) or a
-PeriLab.jl deck (YAML) into the same ``pdlin.scene.Scene`` a TOML scene
+PeriLab.jl deck (YAML) into the same :class:`pdlin.scene.Scene` a TOML scene
 gives, so ``pdlin run DECK.yaml`` and :func:`pdlin.solve` work unchanged.  Every
 key is checked: physics pdlin does not have raises :class:`pdlin.errors.SceneError`
 naming the key path and what is supported; cosmetic keys (``Verbose``, output
-frequency, compute classes, ...) are accepted and logged.  The key-by-key mapping
-is in ``docs/decks.md``.
+frequency, compute classes, ...) are accepted and logged (logger ``pdlin.io.decks``,
+the name the readers had before they moved here).  The key-by-key mapping is in
+``docs/decks.md``.
 
-Sources of the formats (read, not copied):
-
-* Peridigm ``examples/tensile_test/tensile_test.yaml`` / ``.xml`` and
-  ``examples/wave_in_bar/wave_in_bar.yaml`` (deck layout, node-set files);
-* Peridigm ``src/io/discretization/Peridigm_TextFileDiscretization.cpp`` (text
-  discretization: five columns ``x y z block_id volume``, comment lines start with
-  ``#``, ``/`` or ``*``, blocks named ``block_<id>``, 3D only);
-* Peridigm ``src/core/Peridigm_BoundaryAndInitialConditionManager.cpp`` and
-  ``Peridigm_Enums.cpp`` (names containing ``NODE_SET`` after upper-casing and
-  ``' ' -> '_'`` are node-set definitions: a file of 1-based ids or an inline list;
-  ``Full Domain`` / ``All Sets``; ``Coordinate`` defaults to x);
-* Peridigm ``src/core/Peridigm_BoundaryCondition.cpp`` (``Value`` is a function of
-  ``x, y, z, t``, optionally written ``value = ...``);
-* Peridigm ``src/materials/Peridigm_Material.cpp`` (exactly two of Bulk Modulus,
-  Shear Modulus, Young's Modulus, Poisson's Ratio), ``elastic.cxx`` (linear
-  peridynamic solid, ω = 1, discrete weighted volume), ``elastic_bond_based.cxx``
-  (``c = 18 K / (π δ⁴)``), ``correspondence.cxx`` (hourglass force
-  ``18 C_hg K / (π δ⁴)``);
-* Peridigm ``src/io/discretization/Peridigm_ExodusDiscretization.cpp`` and
-  ``Peridigm_GeometryUtils.cpp`` (one point per element: tets and hexes at their
-  centroid with their volume, hexes by a 24-tet decomposition, spheres at their node
-  with their volume attribute; blank block / node-set names are ``block_<id>`` /
-  ``nodelist_<id>`` by the Exodus ids);
-* Peridigm ``src/io/discretization/Peridigm_PdQuickGridDiscretization.cpp`` and
-  ``src/io/mesh_input/quick_grid/QuickGrid.cxx`` (``TensorProduct3DMeshGenerator``: cell
-  centres, cell volumes, ``SphericalNormFunction``);
-* Peridigm ``src/core/Peridigm.cpp`` (the keys its quasi-static solvers read; ``Time
-  Steps``) and Teuchos ``XMLObject::getRequiredBool`` (``true/yes/1``, ``false/no/0``);
-* PeriLab.jl ``examples/Dogbone/Dogbone.yaml``, ``Dogbone_plastic_corr_static.yaml``,
-  ``Dogbone.txt`` (``header: x y block_id volume``) and ``ns_Dogbone_2.txt``.
+Modules
+-------
+:mod:`pdlin.scene.decks.expressions`
+    The whitelisted evaluator of boundary-condition expressions ``f(x, y, z, t)``.
+:mod:`pdlin.scene.decks.peridigm`
+    Peridigm decks: discretizations (text, Exodus, PdQuickGrid), materials, blocks,
+    bond filters, boundary conditions, solver and output lists.
+:mod:`pdlin.scene.decks.perilab`
+    PeriLab.jl decks: text meshes, material models, blocks, static solver, conditions.
 """
 
 from __future__ import annotations

@@ -1,4 +1,34 @@
-"""Peridigm input decks (YAML or Teuchos XML, static subset) read into a pdlin scene."""
+"""Peridigm input decks (YAML or Teuchos XML, static subset) read into a pdlin scene.
+
+Sources of the format (read, not copied):
+
+* Peridigm ``examples/tensile_test/tensile_test.yaml`` / ``.xml`` and
+  ``examples/wave_in_bar/wave_in_bar.yaml`` (deck layout, node-set files);
+* Peridigm ``src/io/discretization/Peridigm_TextFileDiscretization.cpp`` (text
+  discretization: five columns ``x y z block_id volume``, comment lines start with
+  ``#``, ``/`` or ``*``, blocks named ``block_<id>``, 3D only);
+* Peridigm ``src/core/Peridigm_BoundaryAndInitialConditionManager.cpp`` and
+  ``Peridigm_Enums.cpp`` (names containing ``NODE_SET`` after upper-casing and
+  ``' ' -> '_'`` are node-set definitions: a file of 1-based ids or an inline list;
+  ``Full Domain`` / ``All Sets``; ``Coordinate`` defaults to x);
+* Peridigm ``src/core/Peridigm_BoundaryCondition.cpp`` (``Value`` is a function of
+  ``x, y, z, t``, optionally written ``value = ...``);
+* Peridigm ``src/materials/Peridigm_Material.cpp`` (exactly two of Bulk Modulus,
+  Shear Modulus, Young's Modulus, Poisson's Ratio), ``elastic.cxx`` (linear
+  peridynamic solid, ω = 1, discrete weighted volume), ``elastic_bond_based.cxx``
+  (``c = 18 K / (π δ⁴)``), ``correspondence.cxx`` (hourglass force
+  ``18 C_hg K / (π δ⁴)``);
+* Peridigm ``src/io/discretization/Peridigm_ExodusDiscretization.cpp`` and
+  ``Peridigm_GeometryUtils.cpp`` (one point per element: tets and hexes at their
+  centroid with their volume, hexes by a 24-tet decomposition, spheres at their node
+  with their volume attribute; blank block / node-set names are ``block_<id>`` /
+  ``nodelist_<id>`` by the Exodus ids);
+* Peridigm ``src/io/discretization/Peridigm_PdQuickGridDiscretization.cpp`` and
+  ``src/io/mesh_input/quick_grid/QuickGrid.cxx`` (``TensorProduct3DMeshGenerator``: cell
+  centres, cell volumes, ``SphericalNormFunction``);
+* Peridigm ``src/core/Peridigm.cpp`` (the keys its quasi-static solvers read; ``Time
+  Steps``) and Teuchos ``XMLObject::getRequiredBool`` (``true/yes/1``, ``false/no/0``).
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,11 @@
-"""PeriLab.jl input decks (YAML, static subset) read into a pdlin scene."""
+"""PeriLab.jl input decks (YAML, static subset) read into a pdlin scene.
+
+One material for all blocks, linear elastic (``PD Solid Elastic`` as pdlin's LPS,
+``Bond-based Elastic``, ``Correspondence Elastic``), displacement conditions evaluated
+at ``Final Time``.  Sources of the format (read, not copied): PeriLab.jl
+``examples/Dogbone/Dogbone.yaml``, ``Dogbone_plastic_corr_static.yaml``, ``Dogbone.txt``
+(``header: x y block_id volume``) and ``ns_Dogbone_2.txt``.
+"""
 
 from __future__ import annotations
 
@@ -267,7 +274,7 @@ def _perilab_bcs(
             )
         if bc.get("Type", "Dirichlet") != "Dirichlet":
             raise SceneError(f"{key}.Type: only 'Dirichlet' is supported, got {bc.get('Type')!r}")
-        set_name = bc.get("Node Set")
+        set_name: Any = bc.get("Node Set")
         if set_name not in sets:
             raise SceneError(
                 f"{key}.Node Set: {set_name!r} is not under Discretization.Node Sets "
