@@ -160,3 +160,55 @@ def number(
     if bad:
         raise SceneError(f"{key} must be {'> 0' if positive else 'finite'}, got {v}")
     return value if integer else v
+
+
+def scene_keys(table: Any, allowed: set[str], where: str) -> dict[str, Any]:
+    """Check a scene table's keys: :func:`check_keys` naming them ``scene key``.
+
+    Parameters
+    ----------
+    table : Mapping
+        The table.
+    allowed : set of str
+        Its valid keys.
+    where : str
+        Its key path (``""`` for the top level).
+
+    Returns
+    -------
+    dict
+        A shallow copy of ``table``.
+
+    Raises
+    ------
+    SceneError
+        As :func:`check_keys`.
+    """
+    return check_keys(table, allowed, where, what="scene key")
+
+
+def require(table: Mapping[str, Any], key: str, where: str) -> Any:
+    """Return ``table[key]``, or raise naming the missing scene key.
+
+    Parameters
+    ----------
+    table : Mapping
+        The table.
+    key : str
+        The required key.
+    where : str
+        The table's key path (``"subregion"``).
+
+    Returns
+    -------
+    Any
+        The value.
+
+    Raises
+    ------
+    SceneError
+        ``missing scene key <where>.<key>``.
+    """
+    if key not in table:
+        raise SceneError(f"missing scene key {where}.{key}")
+    return table[key]

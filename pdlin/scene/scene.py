@@ -33,7 +33,9 @@ from ..operators.bc import (
     shadow_layer,
 )
 from ..problem import StaticProblem
-from ._keys import check_keys, number, read_toml
+from ._keys import number, read_toml, require, scene_keys
+from .materials import _MATERIAL, _MODEL, MODELS, _build_model, _calibrated_model
+from .materials import per_phase as per_phase  # public here before the split
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -77,58 +79,6 @@ _GEOM = {
     "grid": {"type", "shape", "spacing", "origin", "thickness", "ghost_layers", "holes"},
     "mesh": {"type", "path", "thickness", "dim", "volume"},
     "image": {"type", "path", "data", "spacing", "origin", "void", "thickness", "ghost_layers"},
-}
-_MATERIAL = {
-    "type",
-    "slip",
-    "orientation",
-    "elastic",
-    "hardening",
-    "shear",
-    "polycrystal",
-    "E",
-    "nu",
-    "K",
-    "G",
-    "lam",
-    "mu",
-    "plane",
-    "micromodulus",
-    "calibration",
-    "stiffness",
-}
-_CP_KEYS = ("slip", "orientation", "elastic", "hardening", "shear", "polycrystal")
-_POLYCRYSTAL = {"grains", "seed"}
-#: isotropic constants a material table may give (any two; per phase tables allowed)
-_ISO_KEYS = ("E", "nu", "K", "G", "lam", "mu")
-_CALIBRATION = {
-    "target",
-    "method",
-    "lower_bound",
-    "weighting",
-    "qp_solver",
-    "boundary",
-    "pair_rule",
-}
-_MODEL = {
-    "type",
-    "nu_mismatch",
-    "average",
-    "linearization",
-    "weighted_volume",
-    "peridigm",
-    "fallback",
-    "control",
-    "penalty",
-    "coefficient",
-    "seed",
-    "surface_correction",
-}
-_MODEL_KEYS = {
-    "bond_based": {"type", "nu_mismatch", "average", "surface_correction"},
-    "lps": {"type", "linearization", "weighted_volume", "peridigm", "surface_correction"},
-    "xosb": {"type", "linearization", "weighted_volume", "fallback"},
-    "correspondence": {"type", "control", "penalty", "coefficient", "seed"},
 }
 _HORIZON = {"value", "ratio", "shape", "axes", "influence", "cracks"}
 _DIRICHLET = {
@@ -175,210 +125,6 @@ _SOLVER = {
     *_NONLINEAR_KEYS,
 }
 _OUTPUT = {"path", "fields", "homogenized"}
-
-
-def _check_keys(table: Any, allowed: set[str], where: str) -> dict[str, Any]:
-    return check_keys(table, allowed, where, what="scene key")
-
-
-def _require(table: Mapping[str, Any], key: str, where: str) -> Any:
-    if key not in table:
-        raise SceneError(f"missing scene key {where}.{key}")
-    return table[key]
-
-
-def _build_model(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud) -> Model:
-    mtype = material.get("type", "elastic")
-    if mtype not in ("elastic", "crystal-plasticity"):
-        raise SceneError(f"material.type must be 'elastic' or 'crystal-plasticity', got {mtype!r}")
-    if mtype == "elastic":
-        extra = [k for k in _CP_KEYS if k in material]
-        if extra:
-            raise SceneError(
-                f"material.{extra[0]} is a crystal-plasticity key; set material.type = "
-                "'crystal-plasticity' or remove it"
-            )
-    kind = cfg.get("type", "bond_based")
-    if mtype == "crystal-plasticity" and kind != "correspondence":
-        raise SceneError(
-            "material.type = 'crystal-plasticity' needs model.type = 'correspondence', "
-            f"got {kind!r}"
-        )
-    try:
-        builder = MODELS[kind]
-    except KeyError:
-        raise SceneError(f"model.type must be one of {sorted(MODELS)}, got {kind!r}") from None
-    if kind in _MODEL_KEYS:
-        _check_keys(cfg, _MODEL_KEYS[kind], "model")
-    return builder(cfg, material, cloud)
-
-
-def _no_keys(material: Mapping[str, Any], keys: tuple[str, ...], kind: str) -> None:
-    for k in keys:
-        if k in material:
-            raise SceneError(f"material.{k} is not used by model.type = {kind!r}")
-
-
-def _state_based(kind: str) -> Callable[[Mapping[str, Any], Mapping[str, Any], PointCloud], Model]:
-    def build(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud) -> Model:
-        from ..models import LPS, XOSB
-
-        _no_keys(material, ("micromodulus", "stiffness"), kind)
-        iso = _isotropic(material, cloud, kind)
-        opts = {k: cfg[k] for k in cfg if k != "type"}
-        cls = LPS if kind == "lps" else XOSB
-        return cls(**iso, plane=material.get("plane", "stress"), **opts)
-
-    return build
-
-
-def _correspondence(
-    cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud
-) -> Model:
-    from ..models import Correspondence
-    from .targets import target_from_table
-
-    _no_keys(material, ("micromodulus",), "correspondence")
-    opts = {k: cfg[k] for k in cfg if k != "type"}
-    if material.get("type") == "crystal-plasticity":
-        return Correspondence(material=_crystal_plasticity(material, cloud), **opts)
-    plane = material.get("plane", "stress")
-    if "stiffness" in material:
-        given = [k for k in _ISO_KEYS if k in material]
-        if given:
-            raise SceneError(
-                f"material.stiffness and material.{given[0]} exclude each other "
-                "(give a Voigt stiffness or isotropic constants)"
-            )
-        C = target_from_table(material["stiffness"], "material.stiffness")
-        return Correspondence(C, plane=plane, **opts)
-    iso = _isotropic(material, cloud, "correspondence", minimum=1 if cloud.dim == 1 else 2)
-    return Correspondence(**iso, plane=plane, **opts)
-
-
-def _crystal_plasticity(material: Mapping[str, Any], cloud: PointCloud) -> Any:
-    """``[material] type = "crystal-plasticity"``: slip systems, constants, orientations."""
-    from ..constitutive.crystal_plasticity import CrystalPlasticity
-    from ..geometry.polycrystal import voronoi_polycrystal
-
-    bad = [k for k in _ISO_KEYS + ("plane", "stiffness", "micromodulus") if k in material]
-    if bad:
-        raise SceneError(
-            f"material.{bad[0]} is not used by material.type = 'crystal-plasticity' (give "
-            "material.elastic = {{...}} for the crystal's elastic constants)"
-        )
-    orientation: Any = material.get("orientation", 0.0)
-    if "polycrystal" in material:
-        if "orientation" in material:
-            raise SceneError("material.orientation and material.polycrystal exclude each other")
-        pc = _check_keys(material["polycrystal"], _POLYCRYSTAL, "material.polycrystal")
-        grains = _require(pc, "grains", "material.polycrystal")
-        if isinstance(grains, bool) or not isinstance(grains, int) or grains < 1:
-            raise SceneError(f"material.polycrystal.grains must be an integer >= 1, got {grains!r}")
-        seed = int(pc.get("seed", 0))
-        if "ghost" in cloud.sets:
-            # grains on the real points; a ghost copies the orientation of its nearest one
-            from scipy.spatial import cKDTree
-
-            real = np.setdiff1d(np.arange(cloud.n), cloud.point_set("ghost"))
-            _, ori_real = voronoi_polycrystal(cloud.points[real], grains, seed=seed)
-            _, near = cKDTree(cloud.points[real]).query(cloud.points)
-            orientation = ori_real[near]
-        else:
-            _, orientation = voronoi_polycrystal(cloud, grains, seed=seed)
-    kw: dict[str, Any] = {}
-    for key in ("elastic", "hardening", "shear"):
-        if key in material:
-            kw[key] = material[key]
-    return CrystalPlasticity(material.get("slip", "planar-2"), orientation=orientation, **kw)
-
-
-def _isotropic(
-    material: Mapping[str, Any], cloud: PointCloud, kind: str, *, minimum: int = 2
-) -> dict[str, Any]:
-    """Read the isotropic constants of a material table (E, nu, K, G, lam, mu; per phase).
-
-    Fewer than ``minimum`` of them raise (the model checks the set further).
-    """
-    iso = {k: per_phase(material[k], cloud, f"material.{k}") for k in _ISO_KEYS if k in material}
-    if len(iso) < minimum:
-        raise SceneError(
-            f"model.type = {kind!r} needs two isotropic constants in [material] "
-            f"(E and nu, or K and G, or lam and mu, ...), got {sorted(iso) or 'none'}"
-        )
-    return iso
-
-
-def per_phase(value: Any, cloud: PointCloud, key: str) -> Any:
-    """Map a material constant given per phase onto the points.
-
-    Tables are mapped onto points through ``cloud.material``; every phase
-    present in the cloud must be listed.
-
-    A constant is a number, or a table ``{"<phase id>" = value}`` mapped onto points
-    through ``cloud.material``; every phase present in the cloud must be listed.
-
-    Parameters
-    ----------
-    value : float or Mapping
-        The constant as written in the scene.
-    cloud : PointCloud
-        The scene's points (``cloud.material`` holds each point's phase id).
-    key : str
-        The constant's key path for messages (``material.E``).
-
-    Returns
-    -------
-    float or numpy.ndarray
-        The number as given, or one value per point, shape ``(n,)``.
-
-    Raises
-    ------
-    SceneError
-        A value that is neither a number nor a table of phase ids to numbers, or a
-        phase of the cloud missing from the table.
-    """
-    if not isinstance(value, Mapping):
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise SceneError(
-                f"{key} must be a number or a table of per-phase numbers, got {value!r}"
-            )
-        return value
-    try:
-        table = {int(k): float(v) for k, v in value.items()}
-    except (TypeError, ValueError) as exc:
-        raise SceneError(f"{key} table must map integer phase ids to numbers: {exc}") from exc
-    mat = np.asarray(cloud.material)
-    phases = np.unique(mat)
-    missing = [int(p) for p in phases if int(p) not in table]
-    if missing:
-        raise SceneError(f"{key} has no value for phase(s) {missing} present in the geometry")
-    lut = np.zeros(int(phases.max()) + 1)
-    for k, v in table.items():
-        if 0 <= k < lut.size:
-            lut[k] = v
-    return lut[mat]
-
-
-def _bond_based(cfg: Mapping[str, Any], material: Mapping[str, Any], cloud: PointCloud) -> Model:
-    iso = _isotropic(material, cloud, "bond_based", minimum=0)  # E, K, G or lam alone suffice
-    return BondBased(
-        **iso,
-        plane=material.get("plane", "stress"),
-        micromodulus=material.get("micromodulus"),
-        average=cfg.get("average", "arithmetic"),
-        nu_mismatch=cfg.get("nu_mismatch", "raise"),
-        surface_correction=cfg.get("surface_correction"),
-    )
-
-
-#: model builders by scene name: ``builder(model_table, material_table, cloud) -> Model``
-MODELS: dict[str, Callable[[Mapping[str, Any], Mapping[str, Any], PointCloud], Model]] = {
-    "bond_based": _bond_based,
-    "lps": _state_based("lps"),
-    "xosb": _state_based("xosb"),
-    "correspondence": _correspondence,
-}
 
 
 @dataclass
@@ -521,9 +267,9 @@ def _holes(cloud: PointCloud, holes: Any) -> PointCloud:
     shape = {1: "interval", 2: "circle", 3: "sphere"}[cloud.dim]
     for k, hole in enumerate(holes):  # a handful of holes, vectorized over points
         key = f"geometry.holes[{k}]"
-        hole = _check_keys(hole, {"center", "radius"}, key)
-        r = number(_require(hole, "radius", key), f"{key}.radius", positive=True)
-        c = _require(hole, "center", key)
+        hole = scene_keys(hole, {"center", "radius"}, key)
+        r = number(require(hole, "radius", key), f"{key}.radius", positive=True)
+        c = require(hole, "center", key)
         if not isinstance(c, list) or len(c) != cloud.dim:
             raise SceneError(f"{key}.center must list {cloud.dim} coordinates, got {c!r}")
         centre = [number(v, f"{key}.center[{j}]") for j, v in enumerate(c)]
@@ -546,10 +292,10 @@ def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
     kind = cfg.get("type", "grid")
     if kind not in _GEOM:
         raise SceneError(f"geometry.type must be one of {sorted(_GEOM)}, got {kind!r}")
-    _check_keys(cfg, _GEOM[kind], "geometry")
+    scene_keys(cfg, _GEOM[kind], "geometry")
     thickness = number(cfg.get("thickness", 1.0), "geometry.thickness", positive=True)
     if kind == "grid":
-        shape = _require(cfg, "shape", "geometry")
+        shape = require(cfg, "shape", "geometry")
         if not isinstance(shape, int | list) or isinstance(shape, bool):
             raise SceneError(
                 f"geometry.shape must be an integer or a list of integers, got {shape!r}"
@@ -560,7 +306,7 @@ def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
         cloud = grid(shape, spacing, cfg.get("origin"), thickness=thickness)
         return _holes(cloud, cfg["holes"]) if "holes" in cfg else cloud
     if kind == "mesh":
-        path = _resolve_path(_require(cfg, "path", "geometry"), base, "geometry.path")
+        path = _resolve_path(require(cfg, "path", "geometry"), base, "geometry.path")
         from ..geometry import mesh as mesh_mod  # lazy: meshio readers
 
         kwargs: dict[str, Any] = {}
@@ -579,7 +325,7 @@ def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
     if "data" in cfg:
         img = np.asarray(cfg["data"])
     else:
-        path = _resolve_path(_require(cfg, "path", "geometry"), base, "geometry.path")
+        path = _resolve_path(require(cfg, "path", "geometry"), base, "geometry.path")
         img = np.load(path)
     return from_image(
         img, cfg.get("spacing", 1.0), cfg.get("origin"), void=cfg.get("void"), thickness=thickness
@@ -694,15 +440,15 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
     pdlin.errors.SceneError: unknown scene key 'materal'; did you mean 'material'?
     """
     base = Path(base_dir) if base_dir is not None else Path.cwd()
-    top = _check_keys(data, _TOP, "")
+    top = scene_keys(data, _TOP, "")
     if "subregion" in top:
         return _subregion_scene(top, base)
     if "problem" in top:
         return _problem_scene(top, base)
     try:
         problem, n_real, calibration = _scene_problem(top, base)
-        scfg = _check_keys(top.get("solver", {}), _SOLVER, "solver")
-        ocfg = _check_keys(top.get("output", {}), _OUTPUT, "output")
+        scfg = scene_keys(top.get("solver", {}), _SOLVER, "solver")
+        ocfg = scene_keys(top.get("output", {}), _OUTPUT, "output")
     except (SceneError, InsufficientMemoryError):  # a valid scene too large for memory
         raise
     except PdlinError as exc:
@@ -712,7 +458,7 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
 
 def _scene_problem(top: Mapping[str, Any], base: Path) -> tuple[StaticProblem, int, Any]:
     """Build the scene's problem; also its number of real (not ghost) points, calibration."""
-    gcfg = _require(top, "geometry", "scene")
+    gcfg = require(top, "geometry", "scene")
     cloud = _geometry(gcfg, base)
     n_real = cloud.n
     if isinstance(gcfg, Mapping) and "ghost_layers" in gcfg:
@@ -722,8 +468,8 @@ def _scene_problem(top: Mapping[str, Any], base: Path) -> tuple[StaticProblem, i
         from ..geometry.cloud import ghost_layer
 
         cloud = ghost_layer(cloud, layers).cloud
-    material = _check_keys(_require(top, "material", "scene"), _MATERIAL, "material")
-    model_cfg = _check_keys(top.get("model", {}), _MODEL, "model")
+    material = scene_keys(require(top, "material", "scene"), _MATERIAL, "material")
+    model_cfg = scene_keys(top.get("model", {}), _MODEL, "model")
     horizon, bond_options = _horizon(top)
     bonds = None
     calibration = None
@@ -741,7 +487,7 @@ def _scene_problem(top: Mapping[str, Any], base: Path) -> tuple[StaticProblem, i
     dirichlet: list[Dirichlet] = []
     for k, bc in enumerate(top.get("dirichlet", [])):
         key = f"dirichlet[{k}]"
-        bc = _check_keys(bc, _DIRICHLET, key)
+        bc = scene_keys(bc, _DIRICHLET, key)
         where = _where(bc, cloud, key)
         try:
             dirichlet.append(_dirichlet(bc, where, key))
@@ -783,7 +529,7 @@ def _scene_problem(top: Mapping[str, Any], base: Path) -> tuple[StaticProblem, i
 
 def _horizon(top: Mapping[str, Any]) -> tuple[Any, dict[str, Any]]:
     """Read ``[horizon]``: the horizon value (None: by ratio) and the bond options."""
-    hcfg = _check_keys(_require(top, "horizon", "scene"), _HORIZON, "horizon")
+    hcfg = scene_keys(require(top, "horizon", "scene"), _HORIZON, "horizon")
     if ("value" in hcfg) == ("ratio" in hcfg):
         given = [k for k in ("value", "ratio") if k in hcfg]
         raise SceneError(f"horizon needs exactly one of 'value' or 'ratio', got {given or 'none'}")
@@ -824,7 +570,7 @@ def _shadow(
     """Add the ``[shadow]`` frame's conditions; return the model, bonds and stress loads."""
     from ..models.correspondence import Correspondence, shadow_problem
 
-    sh = _check_keys(table, _SHADOW, "shadow")
+    sh = scene_keys(table, _SHADOW, "shadow")
     depth = sh.get("depth")
     if depth is None:
         hv = (
@@ -863,13 +609,13 @@ def _shadow(
         # say which shape tensor: the intact lattice's is pdlin's reading)
         bonds = bonds if bonds is not None else find_bonds(cloud, horizon, **bond_options)
         sp_prob = shadow_problem(
-            model, cloud, bonds, _require(sh, "F", "shadow"), depth=float(depth)
+            model, cloud, bonds, require(sh, "F", "shadow"), depth=float(depth)
         )
         dirichlet.extend(sp_prob.dirichlet)
         return sp_prob.model, bonds, list(sp_prob.loads)
     bc_sh, _ = shadow_layer(
         cloud,
-        _require(sh, "F", "shadow"),
+        require(sh, "F", "shadow"),
         float(depth),
         faces=sh.get("faces"),
         translation=sh.get("translation"),
@@ -885,13 +631,13 @@ def _loads(
     loads: list[BodyForce | TotalForce] = list(shadow_loads)
     for k, ld in enumerate(top.get("load", [])):
         key = f"load[{k}]"
-        ld = _check_keys(ld, _LOAD, key)
+        ld = scene_keys(ld, _LOAD, key)
         where = _where(ld, cloud, key)
         kind = ld.get("type", "total")
         if kind not in ("total", "body"):
             raise SceneError(f"{key}.type must be 'total' or 'body', got {kind!r}")
         vkey = "force" if kind == "total" else "density"
-        value = _require(ld, vkey, key)
+        value = require(ld, vkey, key)
         try:
             loads.append(TotalForce(where, value) if kind == "total" else BodyForce(where, value))
         except PdlinError as exc:
@@ -905,10 +651,10 @@ def _symmetry(tables: list[Any]) -> tuple[Any, ...]:
 
     planes = []
     for k, s in enumerate(tables):
-        s = _check_keys(s, _SYMMETRY, f"symmetry[{k}]")
+        s = scene_keys(s, _SYMMETRY, f"symmetry[{k}]")
         planes.append(
             sym_mod.SymmetryPlane(
-                _require(s, "axis", f"symmetry[{k}]"),
+                require(s, "axis", f"symmetry[{k}]"),
                 number(s.get("position", 0.0), f"symmetry[{k}].position"),
                 side=s.get("side"),
             )
@@ -989,7 +735,7 @@ def _subregion_scene(top: Mapping[str, Any], base: Path) -> Scene:
     from ..submodeling import subregion
     from .tradeoff import rescale_grid
 
-    sub = _check_keys(top["subregion"], _SUBREGION, "subregion")
+    sub = scene_keys(top["subregion"], _SUBREGION, "subregion")
     data = {k: copy.deepcopy(v) for k, v in top.items() if k != "subregion"}
     if "symmetry" in data or "shadow" in data:
         raise SceneError("subregion cannot be combined with symmetry or shadow tables")
@@ -999,7 +745,7 @@ def _subregion_scene(top: Mapping[str, Any], base: Path) -> Scene:
     factor = number(sub.get("coarse", 2.0), "subregion.coarse")
     if not (np.isfinite(factor) and factor >= 1.0):
         raise SceneError(f"subregion.coarse must be a number >= 1, got {factor}")
-    box = _require(sub, "box", "subregion")
+    box = require(sub, "box", "subregion")
     fine = scene_from_dict(data, base)
     if fine.nonlinear is not None:
         raise SceneError("subregion supports linear scenes (the driver is one linear solve)")
@@ -1067,7 +813,7 @@ def _checks(top: Mapping[str, Any]) -> list[Any]:
 
 
 def _about(top: Mapping[str, Any]) -> dict[str, str]:
-    about = _check_keys(top.get("about", {}), _ABOUT, "about")
+    about = scene_keys(top.get("about", {}), _ABOUT, "about")
     for k, v in about.items():
         if not isinstance(v, str):
             raise SceneError(f"about.{k} must be a string, got {v!r}")
@@ -1080,7 +826,7 @@ def _damage_options(
     """``[damage]``: critical stretch (or G0) and load steps of :func:`pdlin.solve_damage`."""
     if "damage" not in top:
         return None
-    d = _check_keys(top["damage"], _DAMAGE, "damage")
+    d = scene_keys(top["damage"], _DAMAGE, "damage")
     if ("critical_stretch" in d) == ("G0" in d):
         raise SceneError("damage needs exactly one of 'critical_stretch' or 'G0'")
     if problem.symmetry:
@@ -1141,7 +887,7 @@ def _problem_scene(top: Mapping[str, Any], base: Path) -> Scene:
         raise SceneError(f"problem.factory must be one of {sorted(FACTORIES)}, got {name!r}")
     factory = FACTORIES[name]
     params = set(inspect.signature(factory).parameters)
-    _check_keys(cfg, params | {"factory"}, "problem")
+    scene_keys(cfg, params | {"factory"}, "problem")
     kwargs = {k: (tuple(v) if isinstance(v, list) else v) for k, v in cfg.items() if k != "factory"}
     try:
         case = factory(**kwargs)
@@ -1149,9 +895,9 @@ def _problem_scene(top: Mapping[str, Any], base: Path) -> Scene:
         raise
     except (PdlinError, TypeError) as exc:
         raise SceneError(f"problem ({name}): {exc}") from exc
-    scfg = _check_keys(top.get("solver", {}), {"name", "rtol", "maxiter"}, "solver")
+    scfg = scene_keys(top.get("solver", {}), {"name", "rtol", "maxiter"}, "solver")
     _solver_options(scfg)
-    ocfg = _check_keys(top.get("output", {}), {"path", "fields"}, "output")
+    ocfg = scene_keys(top.get("output", {}), {"path", "fields"}, "output")
     out = ocfg.get("path")
     if out is not None and not isinstance(out, str):
         raise SceneError(f"output.path must be a path string, got {out!r}")
@@ -1271,44 +1017,6 @@ def _nonlinear_options(
     if "maxiter" in scfg:
         opts["maxiter"] = int(scfg["maxiter"])
     return opts
-
-
-def _calibrated_model(
-    material: Mapping[str, Any],
-    model_cfg: Mapping[str, Any],
-    cloud: PointCloud,
-    horizon: Any,
-    bond_options: Mapping[str, Any],
-    has_symmetry: bool,
-) -> tuple[Model, Bonds, Any]:
-    """Bond-based model with micromoduli calibrated to ``material.calibration.target``."""
-    from ..calibration import calibrate_micromoduli
-    from .targets import target_from_table
-
-    if model_cfg.get("type", "bond_based") != "bond_based":
-        raise SceneError("material.calibration needs model.type = 'bond_based'")
-    if has_symmetry:
-        raise SceneError(
-            "material.calibration cannot be combined with [[symmetry]] planes (per-bond "
-            "micromoduli are calibrated on the part's own bonds)"
-        )
-    for key in ("E", "micromodulus"):
-        if key in material:
-            raise SceneError(f"material.{key} and material.calibration exclude each other")
-    cal = _check_keys(material["calibration"], _CALIBRATION, "material.calibration")
-    target = target_from_table(
-        _require(cal, "target", "material.calibration"), "material.calibration.target"
-    )
-    bonds = find_bonds(cloud, horizon, **dict(bond_options))
-    opts = {k: cal[k] for k in cal if k != "target"}
-    opts.setdefault("method", "robust")
-    res = calibrate_micromoduli(
-        target, bonds, thickness=cloud.thickness, plane=material.get("plane", "stress"), **opts
-    )
-    if res.status in ("infeasible", "failed") or not np.all(np.isfinite(res.micromoduli)):
-        raise SceneError(f"material.calibration failed ({res.status}): {res.message}")
-    model = BondBased(micromodulus=res.micromoduli, plane=material.get("plane", "stress"))
-    return model, bonds, res
 
 
 def load_scene(path: str | Path) -> Scene:
