@@ -9,8 +9,8 @@ import pytest
 
 import pdlin
 from pdlin.errors import InputError, SceneError, ShapeError
-from pdlin.scene.scene import scene_from_dict
 from pdlin.operators.bc import load_vector
+from pdlin.scene.scene import scene_from_dict
 from pdlin.submodeling import subregion
 from pdlin.sweeps.core import interpolate_field
 

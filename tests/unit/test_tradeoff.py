@@ -356,8 +356,8 @@ def test_nonlinear_scene_tradeoff_homogenized_stress_against_the_finest_run(name
 
 def test_nonlinear_tradeoff_rejects_linear_only_options_and_keys():
     from pdlin.errors import SceneError
-    from pdlin.sweeps import tension_bar
     from pdlin.scene.tradeoff import tradeoff_from_dict
+    from pdlin.sweeps import tension_bar
 
     data = _short_cp("cp_shear", steps=1)
     data["tradeoff"]["exact"] = {"F": [[1.0, 0.0], [0.0, 1.0]]}
