@@ -51,10 +51,11 @@ from .operators import (
     shadow_layer,
     sparsity_report,
 )
-from .problem import StaticProblem, StaticResult, solve
+from .problem import StaticProblem
+from .static import solve
 from .submodeling import SubregionProblem, subregion
 from .sweeps import TradeoffCase, TradeoffResult, tradeoff
-from .system import ConstrainedSystem, constrained_system
+from .system import ConstrainedSystem, StaticResult, constrained_system
 
 if TYPE_CHECKING:
     from .models.weights import (

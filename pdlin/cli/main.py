@@ -174,7 +174,7 @@ def _check_run_outputs(args: argparse.Namespace, scene: Any) -> None:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from ..io.results import SERIES_SUFFIXES, SUPPORTED_SUFFIXES, write_result
-    from ..problem import solve
+    from ..static import solve
 
     prog = _Progress(args.quiet)
     prog("reading scene")
@@ -509,7 +509,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_sparsity(args: argparse.Namespace) -> int:
-    from ..operators.bc import resolve_dirichlet
+    from ..constraints import resolve_dirichlet
     from ..operators.sparsity import sparsity_report
 
     scene = _load(args)

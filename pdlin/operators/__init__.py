@@ -1,17 +1,8 @@
 """Operators: assembly, boundary conditions, loads, rigid-body modes, sparsity reports."""
 
+from ..constraints import check_constraints, eliminate_dirichlet, load_vector, resolve_dirichlet
 from .assembly import assemble_stiffness, bond_pattern_bsr, pair_stiffness_bsr
-from .bc import (
-    BodyForce,
-    Dirichlet,
-    TimePath,
-    TotalForce,
-    check_constraints,
-    eliminate_dirichlet,
-    load_vector,
-    resolve_dirichlet,
-    shadow_layer,
-)
+from .bc import BodyForce, Dirichlet, TimePath, TotalForce, shadow_layer
 from .rigid import rigid_body_modes
 from .sparsity import SparsityReport, coupling_pattern, plot_spy, sparsity_report
 from .symmetry import (

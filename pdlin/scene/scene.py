@@ -18,20 +18,14 @@ from typing import Any
 import numpy as np
 
 from .._validation import as_float_array
+from ..constraints import load_vector, resolve_dirichlet
 from ..errors import AccuracyWarning, InsufficientMemoryError, PdlinError, SceneError
 from ..geometry.bonds import SHAPES, Bonds, find_bonds
 from ..geometry.cloud import PointCloud, from_image, grid
 from ..geometry.influence import INFLUENCE_FUNCTIONS
 from ..models.base import Model
 from ..models.bond_based import BondBased
-from ..operators.bc import (
-    BodyForce,
-    Dirichlet,
-    TotalForce,
-    load_vector,
-    resolve_dirichlet,
-    shadow_layer,
-)
+from ..operators.bc import BodyForce, Dirichlet, TotalForce, shadow_layer
 from ..problem import StaticProblem
 from ._keys import number, read_toml, require, scene_keys
 from .materials import _MATERIAL, _MODEL, MODELS, _build_model, _calibrated_model
@@ -777,7 +771,7 @@ class _SubregionCut:
     def __call__(self, scene: Scene) -> None:
         import time
 
-        from ..problem import solve
+        from ..static import solve
         from ..submodeling import subregion
 
         coarse = self.coarse

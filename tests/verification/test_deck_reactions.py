@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 from test_external_references import _peridigm_lps_force
 
 import pdlin
-from pdlin.operators.bc import resolve_dirichlet
+from pdlin.constraints import resolve_dirichlet
 from pdlin.scene.scene import scene_from_dict
 
 yaml = pytest.importorskip("yaml")

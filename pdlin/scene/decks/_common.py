@@ -10,9 +10,10 @@ from typing import Any
 
 import numpy as np
 
+from ...constraints import load_vector, resolve_dirichlet
 from ...errors import PdlinError, SceneError
 from ...geometry.cloud import PointCloud
-from ...operators.bc import Dirichlet, load_vector, resolve_dirichlet
+from ...operators.bc import Dirichlet
 from ...problem import StaticProblem
 from .._keys import number
 from ..scene import Scene
