@@ -600,7 +600,8 @@ def _shadow(
     if mode == "stress" and isinstance(model, Correspondence):
         # correspondence shadow particles use the intact-lattice shape tensor and act
         # through their prescribed stress (Javaheri et al. 2022, Sec. II.D; the paper does not
-        # say which shape tensor: the intact lattice's is pdlin's reading)
+        # say which shape tensor: the intact lattice's is pdlin's reading, see
+        # docs/theory/conventions.md#shadow-boundary-layer)
         bonds = bonds if bonds is not None else find_bonds(cloud, horizon, **bond_options)
         sp_prob = shadow_problem(
             model, cloud, bonds, require(sh, "F", "shadow"), depth=float(depth)
