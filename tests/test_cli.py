@@ -12,7 +12,7 @@ import pytest
 import pdlin
 from pdlin.cli.main import main
 from pdlin.errors import PdlinError, SceneError
-from pdlin.io.scene import list_builtin_scenes, load_scene
+from pdlin.scene.scene import list_builtin_scenes, load_scene
 
 SCENE = """
 name = "plate"
@@ -497,7 +497,7 @@ def test_ghost_layer_scene_reproduces_the_material_point(tmp_path, capsys):
 
 def test_nonlinear_scene_options_pass_snapshot_every(tmp_path):
     # solver.snapshot_every reaches solve_nonlinear (ADR snapshots next to the checkpoint)
-    from pdlin.io.scene import _nonlinear_options
+    from pdlin.scene.scene import _nonlinear_options
 
     problem = load_scene(_write(tmp_path, CP_SCENE)).problem
     cfg = {"nonlinear": "adr", "snapshot_every": 120, "checkpoint": "cp.ckpt.npz"}
@@ -508,7 +508,7 @@ def test_nonlinear_scene_options_pass_snapshot_every(tmp_path):
 
 def test_nonlinear_scene_options_pass_polish(tmp_path):
     # solver.polish / solver.adr_stall reach solve_nonlinear (Newton finishing stalled ADR)
-    from pdlin.io.scene import _nonlinear_options
+    from pdlin.scene.scene import _nonlinear_options
 
     problem = load_scene(_write(tmp_path, CP_SCENE)).problem
     cfg = {"nonlinear": "adr", "polish": True, "adr_stall": 400}
@@ -529,9 +529,9 @@ def _no_work(monkeypatch):
     import pdlin.io.results
     import pdlin.nonlinear
     import pdlin.plotting
+    import pdlin.scene.tradeoff
     import pdlin.static
-    import pdlin.sweeps.scene
-    from pdlin.io.targets import CalibrationJob
+    from pdlin.scene.targets import CalibrationJob
 
     monkeypatch.setattr(pdlin.static, "solve", work)
     monkeypatch.setattr(pdlin.nonlinear, "solve_nonlinear", work)
@@ -541,7 +541,7 @@ def _no_work(monkeypatch):
     # pdlin.plotting binds read_result at its import: patched there too (and restored), so
     # no module imported during the test keeps the stand-in (docs/output.md's doctest did)
     monkeypatch.setattr(pdlin.plotting, "read_result", work)
-    monkeypatch.setattr(pdlin.sweeps.scene.SceneSweep, "run", work)
+    monkeypatch.setattr(pdlin.scene.tradeoff.SceneSweep, "run", work)
     monkeypatch.setattr(CalibrationJob, "run", work)
 
 

@@ -19,8 +19,8 @@ import pytest
 import pdlin
 from pdlin.cli.main import main
 from pdlin.errors import SceneError
-from pdlin.io.checks import evaluate_checks, parse_checks
-from pdlin.io.scene import builtin_scene, list_builtin_scenes, scene_from_dict
+from pdlin.scene.checks import evaluate_checks, parse_checks
+from pdlin.scene.scene import builtin_scene, list_builtin_scenes, scene_from_dict
 
 #: scenes taking more than a few seconds (multi-second AMG solves in 3D, 30 nonlinear load
 #: steps of a 625-point polycrystal)

@@ -23,7 +23,7 @@ from pdlin import constitutive as cm
 from pdlin.calibration import Family, design_matrix, lattice_family, max_lower_bound
 from pdlin.cli.main import main
 from pdlin.errors import InputError, InputTypeError, NonFiniteError, SceneError, ShapeError
-from pdlin.io.targets import calibration_from_dict
+from pdlin.scene.targets import calibration_from_dict
 
 cal = pdlin.calibrate_micromoduli
 C_ISO = cm.isotropic(E=1.0, nu=0.25)  # Cauchy-isotropic (nu = 1/4): reachable exactly

@@ -12,7 +12,7 @@ import numpy as np
 
 import pdlin
 from pdlin.cli.main import _stress_components, main
-from pdlin.io.scene import load_scene
+from pdlin.scene.scene import load_scene
 
 EXAMPLES = Path(pdlin.__file__).parent / "examples"
 

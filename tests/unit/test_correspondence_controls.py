@@ -450,7 +450,7 @@ def test_spurious_low_modes_vs_q4_spec_003_v12_v13():
 
 
 def test_scene_model_accepts_coefficient():
-    from pdlin.io.scene import _build_model
+    from pdlin.scene.materials import _build_model
 
     cloud = pdlin.grid((4, 4), spacing=0.1)
     cfg = {"type": "correspondence", "control": "ads", "coefficient": 0.25}

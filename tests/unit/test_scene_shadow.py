@@ -10,7 +10,7 @@ import pytest
 
 import pdlin
 from pdlin.errors import SceneError
-from pdlin.io.scene import scene_from_dict
+from pdlin.scene.scene import scene_from_dict
 
 # uniaxial stress along x for E = 1, nu = 0.3 (plane stress): eps_yy = -0.3 eps_xx
 F_UNI = [[1.001, 0.0], [0.0, 1.0 - 0.3e-3]]

@@ -228,7 +228,7 @@ def test_cli_tradeoff_on_scene(tmp_path, capsys):
 
 def test_scene_sweep_errors(tmp_path):
     from pdlin.errors import SceneError
-    from pdlin.sweeps.scene import tradeoff_from_dict
+    from pdlin.scene.tradeoff import tradeoff_from_dict
 
     base = {
         "geometry": {"type": "grid", "shape": [20], "spacing": 0.05},
@@ -254,7 +254,7 @@ def test_run_select_solves_the_fastest_configuration_meeting_the_target(tmp_path
     # (or reuses its finished points) and solves the fastest configuration within the target
     from pdlin.cli.main import main
     from pdlin.errors import SceneError
-    from pdlin.sweeps.scene import select_scene
+    from pdlin.scene.tradeoff import select_scene
 
     scene = (EXAMPLES / "tradeoff_plate.toml").read_text()
     scene = scene.replace('model = ["bond_based", "lps", "xosb"]', 'model = ["bond_based", "lps"]')
@@ -310,7 +310,7 @@ def test_tradeoff_on_the_builtin_bar_scene(tmp_path, capsys):
 
 
 def test_builtin_scene_without_a_tradeoff_table(monkeypatch, capsys):
-    import pdlin.io.scene as scene_mod
+    import pdlin.scene.scene as scene_mod
     from pdlin.cli.main import main
 
     data, path = scene_mod.builtin_scene("cp_shear")
@@ -321,7 +321,7 @@ def test_builtin_scene_without_a_tradeoff_table(monkeypatch, capsys):
 
 
 def _short_cp(name, steps=4):
-    from pdlin.io.scene import builtin_scene
+    from pdlin.scene.scene import builtin_scene
 
     data, _ = builtin_scene(name)
     data["solver"].update(steps=steps, t_end=float(steps))
@@ -333,7 +333,7 @@ def test_nonlinear_scene_tradeoff_homogenized_stress_against_the_finest_run(name
     # the built-in crystal-plasticity scenes carry a [tradeoff] table (h x method, reference
     # the finest Newton run); here 4 load steps and coarser grids: each point is solved by
     # solve_nonlinear and its error is that of the homogenized stress history
-    from pdlin.sweeps.scene import tradeoff_from_dict
+    from pdlin.scene.tradeoff import tradeoff_from_dict
 
     data = _short_cp(name)
     assert data["tradeoff"]["reference"] == "finest"
@@ -358,8 +358,8 @@ def test_nonlinear_scene_tradeoff_homogenized_stress_against_the_finest_run(name
 
 def test_nonlinear_tradeoff_rejects_linear_only_options_and_keys():
     from pdlin.errors import SceneError
+    from pdlin.scene.tradeoff import tradeoff_from_dict
     from pdlin.sweeps import tension_bar
-    from pdlin.sweeps.scene import tradeoff_from_dict
 
     data = _short_cp("cp_shear", steps=1)
     data["tradeoff"]["exact"] = {"F": [[1.0, 0.0], [0.0, 1.0]]}
@@ -380,7 +380,7 @@ def test_scene_fem_reference_q4_at_the_particles():
     # particles, the scene's own conditions and nodal forces); correspondence (penalty)
     # converges to it: errors measured 0.225 / 0.141 / 0.085 at h = 0.1 / 0.05 / 0.025
     # (rate 0.70: the O(h) hull difference and the nodal end loads), 2026-11-25
-    from pdlin.sweeps.scene import tradeoff_from_dict
+    from pdlin.scene.tradeoff import tradeoff_from_dict
 
     data = {
         "geometry": {"type": "grid", "shape": [40, 20], "spacing": 0.05},
@@ -407,7 +407,7 @@ def test_scene_fem_reference_q4_at_the_particles():
 )
 def test_scene_reference_errors(table, match):
     from pdlin.errors import SceneError
-    from pdlin.sweeps.scene import tradeoff_from_dict
+    from pdlin.scene.tradeoff import tradeoff_from_dict
 
     data = {
         "geometry": {"type": "grid", "shape": [10, 5], "spacing": 0.1},
