@@ -345,9 +345,9 @@ def _rel_range(u: np.ndarray, r: np.ndarray) -> float:
 def _metric(name: str) -> Any:
     if name == "rel-range":
         return _rel_range
-    from ..sweeps.core import _metric as tradeoff_metric
+    from ..sweeps.core import error_metric
 
-    return tradeoff_metric(name)
+    return error_metric(name)
 
 
 class _Outcome:
