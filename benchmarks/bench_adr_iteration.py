@@ -99,8 +99,9 @@ def _with_stored_zeros() -> None:
     import scipy.sparse as sp
 
     from pdlin.models import correspondence as corr
+    from pdlin.models.correspondence import gradient
 
-    live = corr._blocks_to_csr
+    live = gradient._blocks_to_csr
 
     def blocks_to_csr(blk: Any, n_points: int) -> Any:
         # the live conversion keeps nonzeros only: mark the bond coefficients' vanishing
@@ -119,7 +120,7 @@ def _with_stored_zeros() -> None:
                 p._lazy["addon"] = self._control_matrix(cloud, bonds, p)
         return p._lazy["addon"]
 
-    corr._blocks_to_csr = blocks_to_csr  # type: ignore[assignment]
+    gradient._blocks_to_csr = blocks_to_csr  # type: ignore[assignment]
     corr.Correspondence._addon_matrix = addon_matrix  # type: ignore[method-assign]
 
 

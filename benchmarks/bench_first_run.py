@@ -27,7 +27,7 @@ from _context import Timing, header, timed  # noqa: E402
 
 
 def scenes() -> list[str]:
-    """The gallery's scene names (``pdlin.io.scene``'s built-in examples)."""
+    """The gallery's scene names (``pdlin.scene``'s built-in examples)."""
     out = subprocess.run(
         [sys.executable, "-m", "pdlin.cli.main", "examples"],
         capture_output=True,

@@ -27,7 +27,7 @@ from .geometry import Bonds, GhostLayer, PointCloud, find_bonds, from_image, gho
 from .geometry.generators import plate_with_hole_mesh
 from .geometry.mesh import read_mesh
 from .geometry.polycrystal import voronoi_polycrystal
-from .io.decks import read_deck
+from .scene.decks import read_deck
 from .models import LPS, XOSB, BondBased, Correspondence, Model, shadow_problem
 from .models.damage import (
     bond_stretch,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._arrays import per_point_outer
 from .errors import InputError, ShapeError
 from .geometry.bonds import Bonds
 from .geometry.cloud import PointCloud
@@ -15,96 +16,6 @@ __all__ = [
     "isotropic_stress",
     "von_mises",
 ]
-
-
-def _per_point_outer(
-    owner: np.ndarray,
-    n: int,
-    w: np.ndarray,
-    a: np.ndarray,
-    b: np.ndarray,
-    runs: tuple[np.ndarray, np.ndarray] | None = None,
-) -> np.ndarray:
-    """out[p] = Σ_{bonds of p} w a ⊗ b, vectorized with one bincount per entry.
-
-    When the bonds split into consecutive runs whose owners do not interleave (sorted
-    owners, as in :class:`Bonds`, or the two half families of a point's stress points),
-    fixed runs of about ``_CHUNK`` bonds are summed on the threads, each owner's sum over
-    the same bonds in the same order as one global ``np.bincount``: the same bits (with
-    numba, each run is one ``nogil`` pass of that arithmetic, since ``np.bincount`` holds
-    the GIL and its chunks would run one at a time). ``runs = (bptr, optr)``: the bonds
-    ``bptr[k]:bptr[k+1]`` have the owners ``optr[k]:optr[k+1]`` (e.g. the gradient points of
-    point ``k``), so the runs are known without a pass over the owners.
-    """
-    d = a.shape[1]
-    nb = owner.size
-
-    def fill(out: np.ndarray, p0: int, p1: int, b0: int, b1: int) -> None:
-        own = owner[b0:b1] - p0 if p0 else owner[b0:b1]
-        for r in range(d):
-            wa = w[b0:b1] * a[b0:b1, r]
-            for c in range(d):
-                out[p0:p1, r, c] = np.bincount(own, weights=wa * b[b0:b1, c], minlength=p1 - p0)
-
-    if nb < 2 * _CHUNK:
-        out = np.empty((n, d, d))
-        fill(out, 0, n, 0, nb)
-        return out
-    from ._kernels import _kernels
-
-    mod = _kernels()
-    if mod is not None:  # one nogil pass per run (np.bincount holds the GIL): same sums
-        kern = mod.outer_sums_fill
-        own_c = np.ascontiguousarray(owner, dtype=np.int64)
-        w_c = np.ascontiguousarray(w, dtype=np.float64)
-        a_c = np.ascontiguousarray(a, dtype=np.float64)
-        b_c = a_c if b is a else np.ascontiguousarray(b, dtype=np.float64)
-
-        def fill(out: np.ndarray, p0: int, p1: int, b0: int, b1: int) -> None:
-            kern(p0, p1, b0, b1, own_c, w_c, a_c, b_c, out)
-
-    targets = np.arange(_CHUNK, nb, _CHUNK)
-    if runs is not None:
-        from ._threads import ptr_chunks
-
-        bptr, optr = runs
-        ends = np.array([e for _, e in ptr_chunks(bptr, _CHUNK)][:-1], dtype=np.int64)
-        cuts, first = bptr[ends], optr[ends]
-    elif bool(np.all(owner[1:] >= owner[:-1])):  # sorted: cut where an owner's run starts
-        cuts = np.unique(np.searchsorted(owner, owner[targets], side="left"))
-        cuts = cuts[cuts > 0]
-        first = owner[cuts]
-    else:
-        # a cut before bond e is clean when every owner before it is below every one after
-        pre_max = np.maximum.accumulate(owner)
-        suf_min = np.minimum.accumulate(owner[::-1])[::-1]
-        clean = np.flatnonzero(pre_max[:-1] < suf_min[1:]) + 1
-        pick = np.searchsorted(clean, targets)
-        cuts = np.unique(clean[pick[pick < clean.size]])
-        first = suf_min[cuts]
-    if cuts.size == 0:
-        out = np.empty((n, d, d))
-        fill(out, 0, n, 0, nb)
-        return out
-    from ._threads import thread_map
-
-    b_edges = np.concatenate([[0], cuts, [nb]])
-    p_edges = np.concatenate([[0], first, [n]])  # owners of run k: [p_k, p_{k+1})
-    out = np.empty((n, d, d))
-    spans = [
-        (int(p_edges[k]), int(p_edges[k + 1]), int(b_edges[k]), int(b_edges[k + 1]))
-        for k in range(b_edges.size - 1)
-    ]
-
-    def chunk(span: tuple[int, int, int, int]) -> None:
-        fill(out, *span)
-
-    thread_map(chunk, spans)
-    return out
-
-
-#: bonds per chunk of the threaded per-point sums
-_CHUNK = 1 << 16
 
 
 def shape_tensor(bonds: Bonds) -> np.ndarray:
@@ -121,7 +32,7 @@ def shape_tensor(bonds: Bonds) -> np.ndarray:
         Symmetric shape tensor per point (zero for points without bonds).
     """
     w = bonds.omega * bonds.volume_j
-    return _per_point_outer(bonds.i, bonds.n_points, w, bonds.xi, bonds.xi)
+    return per_point_outer(bonds.i, bonds.n_points, w, bonds.xi, bonds.xi)
 
 
 def deformation_gradient(
@@ -178,7 +89,7 @@ def deformation_gradient(
     end = int(bonds.indptr[n])
     i, j, xi = bonds.i[:end], bonds.j[:end], bonds.xi[:end]
     w = bonds.omega[:end] * bonds.volume_j[:end]
-    K = _per_point_outer(i, n, w, xi, xi)
+    K = per_point_outer(i, n, w, xi, xi)
     det = np.linalg.det(K)
     scale = np.einsum("nii->n", K) ** d / d**d
     bad = np.flatnonzero(np.abs(det) <= 1e-12 * np.maximum(scale, 1e-300))
@@ -188,7 +99,7 @@ def deformation_gradient(
             f"{int(bonds.family_size[bad[0]])} bonds): its family does not span {d}D"
         )
     eta = uu[j] - uu[i]
-    N = _per_point_outer(i, n, w, eta, xi)
+    N = per_point_outer(i, n, w, eta, xi)
     Kinv = np.linalg.inv(K)
     return np.eye(d)[None] + N @ Kinv
 

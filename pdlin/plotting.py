@@ -465,7 +465,7 @@ def plot_scene_spy(scene: Any, *, order: str = "rcm", ax: Any = None) -> Plot:
     _plt()
     import scipy.sparse as sp
 
-    from .io.scene import load_scene
+    from .scene.scene import load_scene
     from .operators.sparsity import plot_spy
     from .system import constrained_system
 
@@ -492,7 +492,7 @@ def plot_sparsity_vs_horizon(
     """
     plt = _plt()
     from .geometry.bonds import find_bonds
-    from .io.scene import load_scene
+    from .scene.scene import load_scene
     from .operators.sparsity import sparsity_report
 
     sc = scene if hasattr(scene, "model") else load_scene(scene)

@@ -36,7 +36,8 @@ def rng() -> np.random.Generator:
 
 @pytest.fixture
 def spec004_tension():
-    """Spec 004 §4.7 uniaxial tension of the 24³ cube (Δ = 1, centres at 0..23).
+    """Prakash, anisotropic micromoduli, Sec. 4.4: uniaxial tension of the 24³ cube (Δ = 1, centres
+    at 0..23).
 
     Returns ``build(model, cloud, bonds) -> StaticProblem``: u_z = 0 on z = 0, u_x = 0 on
     x = 0, u_y = 0 on y = 0 (DOF elimination) and +z force 1 MN per top-layer particle.

@@ -12,7 +12,7 @@ import pytest
 import pdlin
 from pdlin.cli.main import main
 from pdlin.errors import PdlinError, SceneError
-from pdlin.io.scene import list_builtin_scenes, load_scene
+from pdlin.scene.scene import list_builtin_scenes, load_scene
 
 SCENE = """
 name = "plate"
@@ -244,7 +244,8 @@ def test_calibrate_command(tmp_path, capsys):
     p.write_text(CALIBRATION)
     assert main(["calibrate", str(p), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
-    assert summary["status"] == "step1" and summary["bonds"] == 924  # spec 004 V4
+    # sphere delta = 6 on the unit cubic lattice
+    assert summary["status"] == "step1" and summary["bonds"] == 924
     C = cst.transversely_isotropic(499.0, 542.0, 166.0, 239.0, 239.0)
     assert summary["relative_error"] == pytest.approx(cst.cauchy_distance(C), rel=1e-9)
     data = np.load(tmp_path / "c.npz")
@@ -255,7 +256,8 @@ def test_calibrate_command(tmp_path, capsys):
 
 def test_calibrate_infeasible_and_bad_target(tmp_path, capsys):
     p = tmp_path / "t.toml"
-    # spec 004 4.2: monoclinic at delta = 2 has no nonnegative solution
+    # Prakash, anisotropic micromoduli, Sec. 4.2.1: monoclinic at delta = 2 has no nonnegative
+    # solution
     p.write_text(
         CALIBRATION.replace(
             'class = "transversely_isotropic"\nconstants = '
@@ -347,9 +349,10 @@ name = "direct"
     ],
 )
 def test_scene_models_reproduce_affine_field_with_shadow_layer(tmp_path, model, material, ratio):
-    # state-based models couple two horizons: their layer must be two horizons deep for the
-    # real points to see only affine dilatations; correspondence uses the intact-lattice
-    # shape tensor on a one-horizon layer (spec 000 section 7)
+    # state-based models couple two horizons: their layer must be two horizons deep for the real
+    # points to see only affine dilatations; correspondence uses the intact-lattice shape tensor on
+    # a one-horizon layer (Javaheri et al. (2022), Sec. II.D;
+    # docs/theory/conventions.md#shadow-boundary-layer)
     depth = "depth = 0.62" if "correspondence" not in model else ""
     text = _BASE_2D.format(ratio=ratio, depth=depth)
     text += f"[model]\n{model}\n[material]\n{material}\n"
@@ -421,7 +424,8 @@ path = "out/cp.pvd"
 
 
 def test_run_nonlinear_scene_writes_series_csv_and_resumes(tmp_path, capsys):
-    # a single crystal (θ = 15°) in shear: step 3 is the first plastic one (spec 001 §8.1)
+    # a single crystal (θ = 15°) in shear: step 3 is the first plastic one (material-point reference
+    # tables, conventions.md#polycrystal)
     scene = _write(tmp_path, CP_SCENE)
     assert main(["run", str(scene), "--json", "-q"]) == 0
     summary = json.loads(capsys.readouterr().out)
@@ -437,7 +441,7 @@ def test_run_nonlinear_scene_writes_series_csv_and_resumes(tmp_path, capsys):
     res = pdlin.solve_nonlinear(load_scene(scene).problem, steps=4, t_end=4.0, method="newton")
     np.testing.assert_allclose(summary["final_homogenized_stress"], res.homogenized_stress[-1])
     # elastic step 1 of this crystal: mean σ_xy close to the material point (8.000 at θ = 0;
-    # truncated families soften it, spec 001 §2.4)
+    # truncated families soften it, derived: conventions.md#crystal-plasticity-conventions)
     assert 5.0 < float(rows[1].split(",")[4]) < 8.5
     # a resumed run continues after the 4 committed steps of the checkpoint: nothing to do
     assert main(["run", str(scene), "--json", "-q", "--resume"]) == 0
@@ -474,8 +478,9 @@ def test_linear_scene_rejects_load_step_keys_without_nonlinear(tmp_path):
 
 
 def test_ghost_layer_scene_reproduces_the_material_point(tmp_path, capsys):
-    # spec 001 T21 through a scene: ghost ring + outer ring prescribed by the same path, the
-    # single crystal deforms affinely and its mean stress is the §8.1 material-point stress
+    # derived (conventions.md#crystal-plasticity-conventions) through a scene: ghost ring + outer
+    # ring prescribed by the same path, the single crystal deforms affinely and its mean stress is
+    # the material-point stress
     text = CP_SCENE.replace("spacing = 0.125\n", "spacing = 0.125\nghost_layers = 1\n").replace(
         '[[dirichlet]]\nset = "boundary"',
         '[[dirichlet]]\nset = "ghost"\nvelocity_gradient = [[0.0, 0.002], [0.002, 0.0]]\n'
@@ -492,7 +497,7 @@ def test_ghost_layer_scene_reproduces_the_material_point(tmp_path, capsys):
 
 def test_nonlinear_scene_options_pass_snapshot_every(tmp_path):
     # solver.snapshot_every reaches solve_nonlinear (ADR snapshots next to the checkpoint)
-    from pdlin.io.scene import _nonlinear_options
+    from pdlin.scene.scene import _nonlinear_options
 
     problem = load_scene(_write(tmp_path, CP_SCENE)).problem
     cfg = {"nonlinear": "adr", "snapshot_every": 120, "checkpoint": "cp.ckpt.npz"}
@@ -503,7 +508,7 @@ def test_nonlinear_scene_options_pass_snapshot_every(tmp_path):
 
 def test_nonlinear_scene_options_pass_polish(tmp_path):
     # solver.polish / solver.adr_stall reach solve_nonlinear (Newton finishing stalled ADR)
-    from pdlin.io.scene import _nonlinear_options
+    from pdlin.scene.scene import _nonlinear_options
 
     problem = load_scene(_write(tmp_path, CP_SCENE)).problem
     cfg = {"nonlinear": "adr", "polish": True, "adr_stall": 400}
@@ -524,9 +529,9 @@ def _no_work(monkeypatch):
     import pdlin.io.results
     import pdlin.nonlinear
     import pdlin.plotting
+    import pdlin.scene.tradeoff
     import pdlin.static
-    import pdlin.sweeps.scene
-    from pdlin.io.targets import CalibrationJob
+    from pdlin.scene.targets import CalibrationJob
 
     monkeypatch.setattr(pdlin.static, "solve", work)
     monkeypatch.setattr(pdlin.nonlinear, "solve_nonlinear", work)
@@ -536,7 +541,7 @@ def _no_work(monkeypatch):
     # pdlin.plotting binds read_result at its import: patched there too (and restored), so
     # no module imported during the test keeps the stand-in (docs/output.md's doctest did)
     monkeypatch.setattr(pdlin.plotting, "read_result", work)
-    monkeypatch.setattr(pdlin.sweeps.scene.SceneSweep, "run", work)
+    monkeypatch.setattr(pdlin.scene.tradeoff.SceneSweep, "run", work)
     monkeypatch.setattr(CalibrationJob, "run", work)
 
 

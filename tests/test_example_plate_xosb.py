@@ -24,17 +24,19 @@ def test_plate_with_hole_xosb_tutorial(tmp_path):
     out = ex.main(n_ang, n_rad, plot=str(tmp_path / "ring.png"))
     assert out["points"] == 4 * n_ang * n_rad
     err = out["ring_error"]
-    # Provenance: spec 002 §9.1 (Ex. 1, BC "B") / §11 C2 -- XOSBPD's ring u_y error is several
-    # times smaller than uncorrected OSBPD's (2.2 % vs 14.5 % at 7,680 particles, [REF]).
-    # At this coarser mesh we measured XOSB 3.31 % (paper) / 3.33 % (energy) vs OSBPD 9.59 %;
-    # at 4 x 16 x 30 the ordering no longer holds (6.4 % vs 6.1 %), hence this size.
+    # Provenance: Liu, Chen & Skelton, XOSB, Sec. 5.1 (conventions.md#plate-with-a-hole, BC "B") --
+    # XOSBPD's ring u_y error is several times smaller than uncorrected OSBPD's (2.2 % vs 14.5 % at
+    # 7,680 particles, reference values of an independent implementation). At this coarser mesh we
+    # measured XOSB 3.31 % (paper) / 3.33 % (energy) vs OSBPD 9.59 %; at 4 x 16 x 30 the ordering no
+    # longer holds (6.4 % vs 6.1 %), hence this size.
     assert err["XOSB (paper)"][1] < err["OSBPD"][1]
     assert err["XOSB (energy)"][1] < err["OSBPD"][1]
     assert err["XOSB (paper)"][1] <= 0.04 and err["XOSB (paper)"][0] <= 0.02  # C2 bounds
-    # the FE ring ranges agree with the spec's (u_x 2.8042e-4 m, u_y 9.6945e-5 m) within 1 %
+    # the FE ring ranges agree with the 4 x 128 x 240 FE reference's (u_x 2.8042e-4 m, u_y 9.6945e-5
+    # m) within 1 %
     fe = out["u_ring"]["FE"]
     np.testing.assert_allclose(np.ptp(fe, axis=0), [2.8042e-4, 9.6945e-5], rtol=1e-2)
-    # β ≈ 90°: XOSB u_y near the FE value, OSBPD's too large (spec §11 C2, qualitatively)
+    # β ≈ 90°: XOSB u_y near the FE value, OSBPD's too large (acceptance check C2, qualitatively)
     top = out["hole_edge"][90.0]
     assert abs(top["XOSB (paper)"][1] - top["FE"][1]) < abs(top["OSBPD"][1] - top["FE"][1])
     assert (tmp_path / "ring.png").stat().st_size > 0

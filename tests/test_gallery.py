@@ -1,9 +1,9 @@
 """The built-in scene gallery: every scene runs and its [[check]] references pass.
 
-Each gallery scene declares what it verifies in ``[[check]]`` tables (closed forms, FE
-references, the full model of a symmetry-reduced one, spec tables); ``pdlin run`` prints
-one PASS/FAIL line per check.  These tests run every scene through the CLI, require every
-check to pass, and perturb the physics (or the reference) to show that the checks fail.
+Each gallery scene declares what it verifies in ``[[check]]`` tables (closed forms, FE references,
+the full model of a symmetry-reduced one, reference tables); ``pdlin run`` prints one PASS/FAIL line
+per check.  These tests run every scene through the CLI, require every check to pass, and perturb
+the physics (or the reference) to show that the checks fail.
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ import pytest
 import pdlin
 from pdlin.cli.main import main
 from pdlin.errors import SceneError
-from pdlin.io.checks import evaluate_checks, parse_checks
-from pdlin.io.scene import builtin_scene, list_builtin_scenes, scene_from_dict
+from pdlin.scene.checks import evaluate_checks, parse_checks
+from pdlin.scene.scene import builtin_scene, list_builtin_scenes, scene_from_dict
 
 #: scenes taking more than a few seconds (multi-second AMG solves in 3D, 30 nonlinear load
 #: steps of a 625-point polycrystal)
@@ -166,7 +166,8 @@ def test_perturbed_scene_fails_its_check(name, edit):
 
 
 def test_single_crystal_checks_discriminate():
-    # a rotated crystal (0.3 rad) no longer matches the theta = 0 row of spec 001 §8.1 ...
+    # a rotated crystal (0.3 rad) no longer matches the theta = 0 row of the material-point
+    # reference table ...
     data = _scene("cp_single_crystal", lambda d: d["material"].update(orientation=0.3))
     res = _checks_of(data)
     assert res[0].passed  # ... but still its own material point (same orientation)
@@ -494,7 +495,8 @@ def test_plate_with_hole_ogrid_reproduces_the_xosb_example():
 
     # ring max |u - u_FE| / range_ring(u_FE), (u_x, u_y): examples/plate_with_hole_xosb.py
     # --coarse (4 x 24 x 45) prints XOSB 1.02 % / 3.31 %, OSBPD 2.44 % / 9.59 % (paper
-    # linearization); spec 002 §9.1 at 7,680 particles: 0.95 / 2.2 and 1.4 / 14.5
+    # linearization); reference values (Liu, Chen & Skelton, XOSB, Sec. 5.1 setup) at 7,680
+    # particles: 0.95 / 2.2 and 1.4 / 14.5
     for model, expected in (("xosb", (0.0102, 0.0331)), ("lps", (0.0244, 0.0959))):
         case = plate_with_hole_ogrid(model, linearization="paper")
         u = pdlin.solve(case.problem, **case.solve_kwargs).u

@@ -1,0 +1,1 @@
+"""The ``pdlin`` command line (:func:`pdlin.cli.main.main`)."""

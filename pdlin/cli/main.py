@@ -57,8 +57,11 @@ def _plan(problem: Any, prog: Any, solver: str, steps: int, nonlinear: bool = Fa
 
 
 def _bytes_so_far(out: Path) -> int:
-    """Bytes written so far for ``out``: the file, or the writers' staging directory
-    (``.NAME.*.partial`` beside it, pdlin.io.results)."""
+    """Count the bytes written so far for ``out``.
+
+    The file, or the writers' staging directory (``.NAME.*.partial`` beside it,
+    :mod:`pdlin.io.results`).
+    """
     staged = [f for d in out.parent.glob(f".{out.name}.*.partial") for f in d.iterdir()]
     total = 0
     for f in staged or [out]:  # the old file, if any, stays until the new one replaces it
@@ -101,7 +104,7 @@ def _with_write(summary: dict[str, Any], t_write: float) -> dict[str, Any]:
 
 
 def _timings_line(summary: dict[str, Any]) -> str:
-    """The ``time (s)`` line of a run's printed summary: every stage, then the total."""
+    """Format the ``time (s)`` line of a run's printed summary: every stage, then the total."""
     return "time (s)     " + ", ".join(f"{k} {v:.3f}" for k, v in summary["timings"].items())
 
 
@@ -116,7 +119,7 @@ def _size(path: Path) -> str:
 
 
 def _load(args: argparse.Namespace) -> Any:
-    from ..io.scene import builtin_scene, load_scene, scene_from_dict
+    from ..scene.scene import builtin_scene, load_scene, scene_from_dict
 
     if getattr(args, "example", None):
         data, _ = builtin_scene(args.example)
@@ -124,7 +127,7 @@ def _load(args: argparse.Namespace) -> Any:
     if not args.scene:
         raise PdlinError("give a scene file or --example NAME")
     if Path(args.scene).suffix.lower() in (".yaml", ".yml", ".xml"):
-        from ..io.decks import read_deck  # Peridigm / PeriLab input decks
+        from ..scene.decks import read_deck  # Peridigm / PeriLab input decks
 
         return read_deck(args.scene)
     return load_scene(args.scene)
@@ -144,9 +147,11 @@ def _check_figure(path: str | Path, what: str) -> Path:
 
 
 def _homogenized_path(args: argparse.Namespace, scene: Any, out: Path) -> Path:
-    """The homogenized CSV of a nonlinear run: ``<out stem>_homogenized.csv`` beside the
-    ``-o`` result (where ``pdlin plot`` looks for it), else ``output.homogenized`` or that
-    default beside ``output.path``."""
+    """Choose the homogenized CSV of a nonlinear run.
+
+    ``<out stem>_homogenized.csv`` beside the ``-o`` result (where ``pdlin plot`` looks
+    for it), else ``output.homogenized`` or that default beside ``output.path``.
+    """
     if args.output or scene.homogenized is None:
         return out.with_name(f"{out.stem}_homogenized.csv")
     return Path(scene.homogenized)
@@ -177,7 +182,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.select:
         if not args.scene:
             raise PdlinError("--select needs a scene file with a [tradeoff] table")
-        from ..sweeps.scene import select_scene
+        from ..scene.tradeoff import select_scene
 
         if args.output:  # before the sweep; the kind of run is known after it
             _check_out(args.output, tuple({*SUPPORTED_SUFFIXES, *SERIES_SUFFIXES}), "-o/--output")
@@ -190,8 +195,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.resume and scene.nonlinear is None:
         raise PdlinError("--resume needs a nonlinear scene with solver.checkpoint")
     _check_run_outputs(args, scene)
+    scene.prepare()  # work loading deferred to the run (a [subregion] coarse solve)
     if scene.checks:
-        from ..io.checks import check_before_run
+        from ..scene.checks import check_before_run
 
         check_before_run(scene.checks, scene)
     if scene.nonlinear is not None:
@@ -293,7 +299,7 @@ def _checks(scene: Any, result: Any, summary: dict[str, Any], prog: Any) -> list
     """Evaluate the scene's [[check]] tables; add them to the summary."""
     if not scene.checks:
         return []
-    from ..io.checks import evaluate_checks
+    from ..scene.checks import evaluate_checks
 
     prog(f"checking {len(scene.checks)} reference(s)")
     res = evaluate_checks(scene.checks, scene, result)
@@ -375,7 +381,7 @@ def _run_damage(args: argparse.Namespace, scene: Any, prog: Any) -> int:
 
 
 def _stress_components(sig: np.ndarray, model: Any = None) -> str:
-    """A symmetric ``(d, d)`` stress as ``sxx 2.8 MPa, syy ..., sxy ...`` (upper triangle).
+    """Format a symmetric ``(d, d)`` stress as ``sxx 2.8 MPa, syy ..., sxy ...``.
 
     The unit is MPa for a :class:`~pdlin.CrystalPlasticity` material with its default
     (MPa) elastic constants; otherwise the stress is in the units of the given constants.
@@ -466,8 +472,8 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
     path = Path(args.mesh)
     if path.suffix in (".toml", ".yaml", ".yml", ".xml"):
-        from ..io.decks import read_deck
-        from ..io.scene import load_scene
+        from ..scene.decks import read_deck
+        from ..scene.scene import load_scene
 
         scene = load_scene(path) if path.suffix == ".toml" else read_deck(path)
         cloud = scene.cloud
@@ -552,7 +558,7 @@ def _calibration_summary(res: Any) -> dict[str, Any]:
 
 
 def _calibration_line(cal: dict[str, Any]) -> str:
-    """The summary's calibration line: where the largest tensor error is and why.
+    """Format the summary's calibration line: where the largest tensor error is and why.
 
     Examples
     --------
@@ -572,7 +578,7 @@ def _calibration_line(cal: dict[str, Any]) -> str:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    from ..io.targets import load_calibration
+    from ..scene.targets import load_calibration
 
     job = load_calibration(args.target)
     out = Path(args.output) if args.output else job.output
@@ -628,12 +634,12 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def _cmd_examples(args: argparse.Namespace) -> int:
-    from ..io.scene import builtin_scene, list_builtin_scenes
+    from ..scene.scene import builtin_scene, list_builtin_scenes
 
     if args.show:
         print(builtin_scene(args.show)[1])
         return 0
-    from ..io.checks import parse_checks
+    from ..scene.checks import parse_checks
 
     rows = []
     for name in list_builtin_scenes():
@@ -661,11 +667,11 @@ def _cmd_examples(args: argparse.Namespace) -> int:
 
 
 def _cmd_tradeoff(args: argparse.Namespace) -> int:
-    from ..sweeps.scene import load_tradeoff
+    from ..scene.tradeoff import load_tradeoff
 
     if getattr(args, "example", None):
-        from ..io.scene import builtin_scene
-        from ..sweeps.scene import tradeoff_from_dict
+        from ..scene.scene import builtin_scene
+        from ..scene.tradeoff import tradeoff_from_dict
 
         data, _ = builtin_scene(args.example)
         if "tradeoff" not in data:
@@ -719,7 +725,7 @@ def _cmd_tradeoff(args: argparse.Namespace) -> int:
 
 
 def _check_plot_outputs(args: argparse.Namespace) -> None:
-    """The library ``pdlin plot`` needs, its figure's suffix and folder, before the work."""
+    """Check the library ``pdlin plot`` needs, its figure's suffix and folder, first."""
     from ..io.output import check_folder, need_module
 
     if args.render:
@@ -821,7 +827,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
 
 def _add_run(sub: Any) -> None:
-    """The ``pdlin run`` subcommand."""
+    """Add the ``pdlin run`` subcommand."""
     r = sub.add_parser("run", help="solve a scene and write the results")
     r.add_argument(
         "scene", nargs="?", help="scene file (.toml) or Peridigm / PeriLab deck (.yaml, .xml)"
@@ -863,7 +869,7 @@ def _add_run(sub: Any) -> None:
 
 
 def _add_plot(sub: Any) -> None:
-    """The ``pdlin plot`` subcommand."""
+    """Add the ``pdlin plot`` subcommand."""
     pl = sub.add_parser(
         "plot",
         help="PNG of a result field (VTU/PVD/XDMF/NPZ/Exodus), or a scene's stiffness pattern",
@@ -904,7 +910,13 @@ def _add_plot(sub: Any) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of the ``pdlin`` command."""
+    """Build the argument parser of the ``pdlin`` command.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        With one subparser per subcommand.
+    """
     p = argparse.ArgumentParser(prog="pdlin", description="Static peridynamics on sparse operators")
     p.add_argument("-v", "--verbose", action="store_true", help="log library messages")
     sub = p.add_subparsers(dest="command", required=True)
@@ -992,12 +1004,27 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit code.
+    """Run the ``pdlin`` command.
 
     0 ok, 2 bad input (or an output that cannot be written: the message names the
     file), 3 solver failure, 4 infeasible calibration target, 5 a scene check failed
     under ``pdlin run --strict`` (without it failed checks only print FAIL), 141 stdout
     closed by its reader (``| head``).
+
+    Exit codes: 0 ok, 2 bad input (or an output that cannot be written: the message
+    names the file), 3 solver failure, 4 infeasible calibration target, 5 a scene check
+    failed under ``pdlin run --strict`` (without it failed checks only print FAIL), 141
+    stdout closed by its reader (``| head``).
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        The arguments (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit code.
     """
     parser = build_parser()
     args = parser.parse_args(argv)

@@ -18,6 +18,20 @@ def run_load_steps(args: argparse.Namespace, scene: Any, prog: Any) -> int:
     deck models are linear; Peridigm's quasi-static solver would Newton-iterate each step
     from the last).  The series goes through :func:`pdlin.io.results.write_series`
     (``.vtu`` output becomes a ``.pvd`` collection with one ``.vtu`` per step).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The ``pdlin run`` arguments (output, solver, ``--json``).
+    scene : Scene
+        A scene with ``steps``.
+    prog : callable
+        Progress printer.
+
+    Returns
+    -------
+    int
+        The exit code (0).
     """
     solver = args.solver or scene.solver
     times: list[float] = []

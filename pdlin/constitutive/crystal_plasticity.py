@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._arrays import n_orientations
 from .._repr import Raw, compact_repr, format_value
 from .._validation import check_finite, integer, positive_scalar
 from ..errors import ActiveSetWarning, InputError, InputTypeError, ShapeError
@@ -314,16 +315,6 @@ def _orientation_arrays(
         f"{name} must be rotation matrices (3, 3) / ({n}, 3, 3) or Bunge Euler angles "
         f"(3,) / ({n}, 3), got shape {o.shape}"
     )
-
-
-def _n_orientations(orientation: Any, dim: int) -> int | None:
-    """Number of points an orientation argument describes (None: broadcastable scalar)."""
-    o = np.asarray(orientation)
-    if dim == 2:
-        return None if o.ndim == 0 else int(o.shape[0])
-    if o.ndim == 0 or o.shape in ((3, 3), (3,)):
-        return None
-    return int(o.shape[0])
 
 
 # ---------------------------------------------------------------------------------------
@@ -785,7 +776,7 @@ class CrystalPlasticity:
             self.nslip * self.nslip, self.dim * self.dim
         )
         self.orientation = orientation
-        _orientation_arrays(orientation, _n_orientations(orientation, self.dim) or 1, self.dim)
+        _orientation_arrays(orientation, n_orientations(orientation, self.dim) or 1, self.dim)
 
     def __repr__(self) -> str:
         """Lattice, slip systems and options (no arrays, no memory address).
@@ -1799,7 +1790,7 @@ class CrystalPlasticity:
             R = np.asarray(state["R"], dtype=np.float64)
         else:
             o = self.orientation if orientation is None else orientation
-            R, _ = _orientation_arrays(o, _n_orientations(o, self.dim) or 1, self.dim)
+            R, _ = _orientation_arrays(o, n_orientations(o, self.dim) or 1, self.dim)
         l_s = np.asarray(np.eye(self.dim)[0] if direction is None else direction, dtype=float)
         if l_s.shape not in ((self.dim,), (R.shape[0], self.dim)):
             raise ShapeError(
@@ -1978,7 +1969,7 @@ def material_point(
     eta = float(eta)
     if isinstance(material, CrystalPlasticity):
         o = material.orientation if orientation is None else orientation
-        n = _n_orientations(o, d) or 1
+        n = n_orientations(o, d) or 1
         state = material.initial_state(n, o)
         N = material.nslip
     else:

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._arrays import VOIGT_PAIRS_2D, VOIGT_PAIRS_3D, mandel_weights, voigt_pairs
 from .._validation import check_finite
 from ..errors import InputError, InputTypeError, NonFiniteError, ShapeError
 
@@ -50,31 +51,17 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
-#: Index pairs (i, j) of the 3D Voigt components 1..6 (zero-based).
-VOIGT_PAIRS_3D: tuple[tuple[int, int], ...] = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))
-#: Index pairs (i, j) of the 2D Voigt components 1..3 (zero-based).
-VOIGT_PAIRS_2D: tuple[tuple[int, int], ...] = ((0, 0), (1, 1), (0, 1))
 
 _SHAPES = ((6, 6), (3, 3), (3, 3, 3, 3), (2, 2, 2, 2))
 _SYM_RTOL = 1e-12
 
 
-def _pairs(dim: int) -> tuple[tuple[int, int], ...]:
-    return VOIGT_PAIRS_3D if dim == 3 else VOIGT_PAIRS_2D
-
-
 def _voigt_index(dim: int) -> NDArray[np.intp]:
     """(dim, dim) array mapping a tensor index pair (i, j) to its Voigt index."""
     out = np.empty((dim, dim), dtype=np.intp)
-    for a, (i, j) in enumerate(_pairs(dim)):
+    for a, (i, j) in enumerate(voigt_pairs(dim)):
         out[i, j] = out[j, i] = a
     return out
-
-
-def _mandel_weights(dim: int) -> FloatArray:
-    n_normal = dim
-    n_shear = 3 if dim == 3 else 1
-    return np.concatenate([np.ones(n_normal), np.full(n_shear, np.sqrt(2.0))])
 
 
 def _as_array(C: Any, name: str) -> FloatArray:
@@ -164,7 +151,7 @@ def _voigt_to_tensor_unchecked(C: FloatArray) -> FloatArray:
 
 def _tensor_to_voigt_unchecked(T: FloatArray) -> FloatArray:
     dim = T.shape[0]
-    ij = np.array(_pairs(dim))
+    ij = np.array(voigt_pairs(dim))
     return np.ascontiguousarray(T[ij[:, 0, None], ij[:, 1, None], ij[None, :, 0], ij[None, :, 1]])
 
 
@@ -280,7 +267,7 @@ def voigt_to_mandel(C: ArrayLike) -> FloatArray:
     arr, dim, is_voigt = _stiffness(C, "C")
     if not is_voigt:
         raise ShapeError(f"C must be a Voigt matrix of shape (6, 6) or (3, 3), got {arr.shape}")
-    w = _mandel_weights(dim)
+    w = mandel_weights(dim)
     return arr * np.outer(w, w)
 
 
@@ -312,7 +299,7 @@ def mandel_to_voigt(M: ArrayLike) -> FloatArray:
     arr, dim, is_voigt = _stiffness(M, "M")
     if not is_voigt:
         raise ShapeError(f"M must be a Mandel matrix of shape (6, 6) or (3, 3), got {arr.shape}")
-    w = _mandel_weights(dim)
+    w = mandel_weights(dim)
     return arr / np.outer(w, w)
 
 
@@ -482,7 +469,7 @@ def frobenius_multiplicity(dim: int = 3) -> NDArray[np.int64]:
     """
     if dim not in (2, 3):
         raise InputError(f"dim must be 2 or 3, got {dim!r}")
-    p = np.array([1 if i == j else 2 for i, j in _pairs(dim)], dtype=np.int64)
+    p = np.array([1 if i == j else 2 for i, j in voigt_pairs(dim)], dtype=np.int64)
     iu = np.triu_indices(p.size)
     return np.asarray(p[iu[0]] * p[iu[1]] * np.where(iu[0] == iu[1], 1, 2), dtype=np.int64)
 
@@ -704,7 +691,7 @@ def check_stiffness(C: ArrayLike, name: str = "C") -> FloatArray:
     """
     arr, dim, is_voigt = _stiffness(C, name)
     V = arr if is_voigt else _tensor_to_voigt_unchecked(arr)
-    w = _mandel_weights(dim)
+    w = mandel_weights(dim)
     eig = np.linalg.eigvalsh(V * np.outer(w, w))
     if eig[0] <= 1e-13 * max(float(np.max(np.abs(eig))), np.finfo(float).tiny):
         raise InputError(

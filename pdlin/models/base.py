@@ -62,6 +62,7 @@ class Response:
     calls: int = 0
 
     def __getattribute__(self, name: str) -> Any:
+        """Return an attribute, evaluating a lazy ``stress`` or ``state`` once on first read."""
         value = object.__getattribute__(self, name)
         if name not in ("stress", "state") or not callable(value):
             return value
@@ -94,44 +95,132 @@ class Model(ABC):
 
     @abstractmethod
     def stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.sparray:
-        """Sparse linearized stiffness ``K`` (n*dim x n*dim)."""
+        """Return the sparse linearized stiffness ``K`` (n*dim x n*dim).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``dim``).
+        bonds : Bonds
+            Their bonds.
+
+        Returns
+        -------
+        scipy.sparse.sparray
+            ``K`` with ``internal_force(u) == -K @ u`` for the linear form.
+        """
 
     @abstractmethod
     def internal_force(
         self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, *, linear: bool = True
     ) -> np.ndarray:
-        """Nodal internal force ``(n, dim)`` for displacement ``u`` ``(n, dim)``."""
+        """Return the nodal internal force ``(n, dim)`` for displacement ``u``.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``dim``).
+        bonds : Bonds
+            Their bonds.
+        u : (n, dim) array_like
+            Nodal displacement.
+        linear : bool
+            Linearized force ``-K u`` (True) or the model's nonlinear force.
+
+        Returns
+        -------
+        (n, dim) ndarray
+            Nodal forces (force density times volume).
+        """
 
     def operator(self, cloud: PointCloud, bonds: Bonds) -> spla.LinearOperator:
-        """``K`` as a :class:`~scipy.sparse.linalg.LinearOperator`.
+        """Return ``K`` as a :class:`~scipy.sparse.linalg.LinearOperator`.
 
         The default wraps the assembled stiffness; models whose K couples
         two horizons override it with a matrix-free product.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``dim``).
+        bonds : Bonds
+            Their bonds.
+
+        Returns
+        -------
+        scipy.sparse.linalg.LinearOperator
+            ``(n*dim, n*dim)``.
         """
         return spla.aslinearoperator(self.stiffness(cloud, bonds))
 
     def surrogate_stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.sparray:
-        """Assembled one-hop matrix spectrally close to K, used to precondition
-        the matrix-free path (default: the bond-based stiffness with the
-        model's ``E`` on the same bonds)."""
-        from .bond_based import BondBased
+        """Return an assembled one-hop matrix spectrally close to ``K``.
 
-        E = getattr(self, "E", None)
-        if E is None:
-            raise ModelError(
-                f"{type(self).__name__} has no surrogate stiffness for the matrix-free path "
-                "(define surrogate_stiffness or use operator='assembled')"
-            )
-        return BondBased(E=E, plane=getattr(self, "plane", "stress")).stiffness(cloud, bonds)
+        The matrix-free path preconditions with it.  The default is the model's own
+        stiffness when ``K`` couples one horizon (``coupling_range == 1``: it is its
+        own best surrogate); models coupling two horizons override it (state-based:
+        the bond-based ``K`` of the same bonds).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points.
+        bonds : Bonds
+            Their bonds.
+
+        Returns
+        -------
+        scipy.sparse.sparray
+            ``(n*dim, n*dim)``.
+
+        Raises
+        ------
+        ModelError
+            The model couples two horizons and defines no surrogate.
+        """
+        if self.coupling_range == 1:
+            return self.stiffness(cloud, bonds)
+        raise ModelError(
+            f"{type(self).__name__} has no surrogate stiffness for the matrix-free path "
+            "(define surrogate_stiffness or use operator='assembled')"
+        )
 
     def energy(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> float:
-        """Linearized strain energy ``½ uᵀ K u`` (matrix-free where possible)."""
+        """Return the linearized strain energy ``½ uᵀ K u`` (matrix-free where possible).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``dim``).
+        bonds : Bonds
+            Their bonds.
+        u : (n, dim) array_like
+            Nodal displacement.
+
+        Returns
+        -------
+        float
+            The energy, from the linear internal force.
+        """
         f = self.internal_force(cloud, bonds, u, linear=True)
         return float(-0.5 * np.sum(f * np.asarray(u).reshape(f.shape)))
 
     # -- nonlinear interface (drivers: Newton, ADR) ---------------------------
     def initial_state(self, cloud: PointCloud, bonds: Bonds) -> dict[str, np.ndarray]:
-        """Committed state before the first load step (empty for elastic models)."""
+        """Return the committed state before the first load step (empty for elastic models).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``dim``).
+        bonds : Bonds
+            Their bonds.
+
+        Returns
+        -------
+        dict of str -> ndarray
+            The state variables (none here).
+        """
         return {}
 
     def respond(
@@ -143,12 +232,30 @@ class Model(ABC):
         *,
         tangent: bool = False,
     ) -> Response:
-        """Internal force, trial state and (optionally) tangent at ``u``.
+        """Return the internal force, trial state and (optionally) tangent at ``u``.
 
         ``state`` is the committed state of the last converged load step;
         the call is a pure function of ``(u, state)``.  The default is the
         linear model: ``f = -K u`` (matrix-free product where the model has
         one), the state unchanged and ``K_T = K``.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``dim``).
+        bonds : Bonds
+            Their bonds.
+        u : (n, dim) array_like
+            Nodal displacement.
+        state : dict of str -> ndarray
+            Committed state of the last converged load step.
+        tangent : bool
+            Whether to compute the tangent ``K_T``.
+
+        Returns
+        -------
+        Response
+            Force, trial state, tangent (None unless asked) and counters.
         """
         f = np.asarray(self.internal_force(cloud, bonds, u, linear=True))
         K = self.stiffness(cloud, bonds) if tangent else None
@@ -160,17 +267,46 @@ class Model(ABC):
         The nonlinear drivers call it after every converged load step and issue what it
         returns; trial states are not checked (their :class:`~pdlin.errors.TrialStateWarning`
         are ignored).  Models with a history-dependent material delegate to it.
+
+        Parameters
+        ----------
+        state : dict of str -> ndarray
+            A committed state.
+
+        Returns
+        -------
+        list of (type, str)
+            Warning category and message pairs (empty by default).
         """
         material = getattr(self, "material", None)
         check = getattr(material, "committed_issues", None)
         return list(check(state)) if callable(check) else []
 
     def estimate_nnz_blocks(self, cloud: PointCloud, bonds: Bonds) -> int:
-        """Number of dim x dim blocks of K, without assembling it."""
+        """Return the number of dim x dim blocks of K, without assembling it.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``dim``).
+        bonds : Bonds
+            Their bonds.
+
+        Returns
+        -------
+        int
+            Bonds plus diagonal blocks (one-hop models).
+        """
         return int(bonds.n_bonds + cloud.n)
 
     def describe(self) -> dict[str, Any]:
-        """Plain-data description of the model (for results and logs)."""
+        """Return a plain-data description of the model (for results and logs).
+
+        Returns
+        -------
+        dict
+            At least ``{'model': class name}``.
+        """
         return {"model": type(self).__name__}
 
     def _repr_items(self) -> dict[str, Any]:

@@ -19,8 +19,8 @@ from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
 from ..geometry.influence import influence_function
 from ..operators.assembly import pair_stiffness_bsr
-from ._state import uniform_nu_constants
 from .base import Model
+from .ordinary_state import uniform_nu_constants
 from .surface import (
     SurfaceFactors,
     angular_moment,
@@ -616,6 +616,30 @@ class BondBased(Model):
             Symmetric positive semi-definite stiffness with ``dim x dim`` blocks.
         """
         return pair_stiffness_bsr(bonds, self._bond_stiffness_fn(cloud, bonds))
+
+    def surrogate_stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.bsr_array:
+        """Return the one-hop matrix that preconditions the matrix-free path.
+
+        It is the stiffness of a plain ``BondBased(E, plane)`` on the same bonds: this
+        model's own options (per-bond micromoduli, surface corrections, averaging) are
+        left out, which keeps the preconditioner cheap to assemble.  Without an ``E``
+        (micromoduli given directly) it is the model's own stiffness.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points.
+        bonds : Bonds
+            Their bonds.
+
+        Returns
+        -------
+        scipy.sparse.bsr_array, shape (n * dim, n * dim)
+            The plain bond-based stiffness.
+        """
+        if self.E is None:
+            return super().surrogate_stiffness(cloud, bonds)
+        return BondBased(E=self.E, plane=self.plane).stiffness(cloud, bonds)
 
     def internal_force(
         self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, *, linear: bool = True

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from .._validation import as_bool
-from ._state import OrdinaryStateBased, analytic_weighted_volume, bulk_shear_moduli
+from .ordinary_state import OrdinaryStateBased, analytic_weighted_volume, bulk_shear_moduli
 
 __all__ = ["LPS", "bulk_shear_moduli", "analytic_weighted_volume"]
 
@@ -15,7 +15,7 @@ class LPS(OrdinaryStateBased):
 
     ``θ_i = (n_d/m_i) Σ_j ω r e V_j``, ``e^d = e - θ r / n_d`` and
     ``W_i = κθ²/2 + μ Σ_j ω^d (e^d)² V_j`` with ``ω^d = n_d(n_d+2) ω/(2 m_i)``
-    (spec 002 §3, the OSBPD baseline of XOSB).  Linearized, ``f = -K u``.
+    (Liu, Chen & Skelton, XOSB, Eqs. 9-28, the OSBPD baseline of XOSB).  Linearized, ``f = -K u``.
 
     Parameters
     ----------
@@ -39,7 +39,7 @@ class LPS(OrdinaryStateBased):
         ``weighted_volume='discrete'``.
     linearization : {'energy', 'paper'}
         ``'energy'`` (default): ``K`` is the Hessian of ``Σ V_i W_i``
-        (symmetric).  ``'paper'``: the force state of spec 002 Eq. 70.  The
+        (symmetric).  ``'paper'``: the force state of Liu, Chen & Skelton, XOSB, Eq. 70.  The
         two coincide with discrete ``m`` (then ``Σ ω^d r e^d V = 0``).
 
     Examples
@@ -94,6 +94,14 @@ class LPS(OrdinaryStateBased):
         self.peridigm = peridigm
 
     def describe(self) -> dict[str, Any]:
+        """Return a plain-data description of the model (for results and logs).
+
+        Returns
+        -------
+        dict
+            As :meth:`OrdinaryStateBased.describe`, with ``peridigm`` and
+            ``surface_correction``.
+        """
         out = super().describe()
         out["peridigm"] = self.peridigm
         out["surface_correction"] = self.surface_correction

@@ -10,13 +10,13 @@ from .._validation import as_bool, positive_scalar
 from ..errors import InputError
 from ..geometry.bonds import Bonds
 from ..geometry.cloud import PointCloud
-from ._state import OrdinaryStateBased, StateWeights
+from .ordinary_state import OrdinaryStateBased, StateWeights
 
 __all__ = ["XOSB", "StateWeights"]
 
 
 class XOSB(OrdinaryStateBased):
-    """XOSBPD: ordinary state-based PD with corrected influence weights (spec 002).
+    """XOSBPD: ordinary state-based PD with corrected influence weights (Liu, Chen & Skelton, XOSB).
 
     Per point, ``ω^h = ω_s^h + λ^h·ξ̂^h`` and ``ω^d = ω_s^d + λ^d·ξ̂^d`` solve
     small Gram systems (3x3 / 6x6 and 5x5 / 15x15) so that ``θ_i = tr ε``
@@ -24,7 +24,7 @@ class XOSB(OrdinaryStateBased):
     strain, at every point of any family (boundaries, graded meshes,
     variable horizons, crack faces).  Points whose family has some
     ``ω^h < 0`` fall back to the spherical weights in the force state
-    (spec 002 §5); θ keeps the corrected ``ω^h``.
+    (Liu, Chen & Skelton, XOSB, Sec. 3.3); θ keeps the corrected ``ω^h``.
 
     Parameters
     ----------
@@ -59,7 +59,7 @@ class XOSB(OrdinaryStateBased):
     >>> cloud = pdlin.grid((40, 20), spacing=0.025)
     >>> bonds = pdlin.find_bonds(cloud, ratio=3.01)
     >>> model = pdlin.XOSB(E=70e9, nu=0.33)
-    >>> model.fallback_points(cloud, bonds).size     # the four corners (spec 002 §5)
+    >>> model.fallback_points(cloud, bonds).size     # the four corners (Sec. 3.3)
     4
     >>> eps = np.array([[1e-3, 4e-4], [4e-4, -2e-4]])
     >>> theta = model.dilatation(cloud, bonds, cloud.points @ eps.T)
@@ -110,10 +110,34 @@ class XOSB(OrdinaryStateBased):
         )
 
     def fallback_points(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
-        """Indices of the points that use spherical weights in the force state."""
+        """Return the indices of the points that use spherical weights in the force state.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        (k,) ndarray of int
+        """
         w: StateWeights = self.weights(cloud, bonds)
         return np.flatnonzero(w.fallback)
 
     def singular_points(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
-        """Indices of the points whose λ system was singular / ill-conditioned."""
+        """Return the indices of the points whose λ system was singular / ill-conditioned.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        (k,) ndarray of int
+        """
         return np.flatnonzero(self.weights(cloud, bonds).singular)

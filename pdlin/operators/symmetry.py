@@ -33,6 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from .._arrays import with_diagonal_blocks
 from .._validation import as_float_array
 from ..constraints import check_constraints, load_vector
 from ..errors import (
@@ -512,29 +513,6 @@ def _name_modes(text: str, names: list[str]) -> str:
     return re.sub(r"\bmode (\d+)\b", name, text)
 
 
-def _with_diagonal_blocks(K: sp.bsr_array) -> sp.bsr_array:
-    """Store every diagonal block (a point on all planes has an all-zero one).
-
-    Dirichlet elimination writes its scaled identity into the stored
-    diagonal blocks, so they must exist even when they are zero.
-    """
-    r = K.blocksize[0]
-    nbr = K.shape[0] // r
-    brow = np.repeat(np.arange(nbr), np.diff(K.indptr))
-    has = np.zeros(nbr, dtype=bool)
-    has[brow[K.indices == brow]] = True
-    missing = np.flatnonzero(~has)
-    if missing.size == 0:
-        return K
-    rows = np.concatenate([brow, missing])
-    cols = np.concatenate([K.indices, missing])
-    data = np.concatenate([K.data, np.zeros((missing.size, r, r))])
-    order = np.lexsort((cols, rows))
-    indptr = np.zeros(nbr + 1, dtype=np.int64)
-    np.cumsum(np.bincount(rows, minlength=nbr), out=indptr[1:])
-    return sp.bsr_array((data[order], cols[order], indptr), shape=K.shape, blocksize=(r, r))
-
-
 @dataclass(frozen=True, eq=False)
 class SymmetryReduction:
     """A model reduced by symmetry planes: operators on the real DOFs only.
@@ -633,7 +611,7 @@ class SymmetryReduction:
         K = sp.csr_array(K)
         K.sum_duplicates()
         K.sort_indices()
-        return _with_diagonal_blocks(sp.bsr_array(K, blocksize=(d, d)))
+        return with_diagonal_blocks(sp.bsr_array(K, blocksize=(d, d)))
 
     def internal_force(self, u: Any, *, linear: bool = True) -> np.ndarray:
         """Compute the reduced internal force ``W Eᵀ f_aug(P u)``.

@@ -141,7 +141,27 @@ def available_direct_backends() -> dict[str, bool]:
 AUTO_MIN = 20_000
 
 
-def _auto_chain(symmetric: bool, n: int) -> list[str]:
+def auto_chain(symmetric: bool, n: int) -> list[str]:
+    """Return the direct backends ``backend="auto"`` tries, fastest first.
+
+    Parameters
+    ----------
+    symmetric : bool
+        Whether the matrix is symmetric (CHOLMOD applies only then).
+    n : int
+        Number of unknowns; below ``AUTO_MIN`` SuperLU alone is used (the others' set-up
+        costs more than it saves).
+
+    Returns
+    -------
+    list of str
+        Names of the installed backends in the order they are tried.
+
+    Examples
+    --------
+    >>> auto_chain(True, 10)
+    ['superlu']
+    """
     avail = available_direct_backends()
     if n < AUTO_MIN:
         return ["superlu"]
@@ -153,6 +173,10 @@ def _auto_chain(symmetric: bool, n: int) -> list[str]:
     multi = get_num_threads() > 1
     order = ["pardiso", "cholmod"] if multi else ["cholmod", "pardiso"]
     return [b for b in [*order, "mumps", "superlu"] if avail[b]]
+
+
+#: former private name, kept for code that patched or called it
+_auto_chain = auto_chain
 
 
 # -- backends ------------------------------------------------------------------------------
@@ -524,7 +548,7 @@ class DirectSolver:
                 "direct_backend='cholmod' needs a symmetric matrix (Cholesky); this one is "
                 "nonsymmetric: use 'pardiso', 'superlu' or 'auto'"
             )
-        chain = [backend] if backend != "auto" else _auto_chain(self.symmetric, A.shape[0])
+        chain = [backend] if backend != "auto" else auto_chain(self.symmetric, A.shape[0])
         factor_bytes = check_factor_memory(A, chain[0])
         self.info: dict[str, Any] = {}
         notes: list[str] = []

@@ -187,7 +187,34 @@ def _expand(grid: Mapping[str, Sequence[Any]]) -> list[dict[str, Any]]:
 # --- error metrics ------------------------------------------------------------------------
 
 
-def _metric(name: str | Callable[..., float]) -> Callable[[np.ndarray, np.ndarray], float]:
+def error_metric(
+    name: str | Callable[..., float],
+) -> Callable[[np.ndarray, np.ndarray], float]:
+    """Return the error function of a metric name (or the callable itself).
+
+    Parameters
+    ----------
+    name : {'rel-max', 'rel-l2', 'max-abs'} or callable
+        'rel-max': largest point error over the largest reference norm; 'rel-l2': l2 norm
+        of the error over that of the reference; 'max-abs': largest absolute component
+        error. A callable ``f(u, ref) -> float`` is returned unchanged.
+
+    Returns
+    -------
+    callable
+        ``f(u, ref) -> float`` on ``(n, d)`` fields.
+
+    Raises
+    ------
+    InputError
+        ``name`` is neither a known metric nor callable.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> error_metric("rel-max")(np.array([[1.0, 0.0]]), np.array([[2.0, 0.0]]))
+    0.5
+    """
     if callable(name):
         return name
 
@@ -1270,7 +1297,7 @@ def tradeoff(
     memory = _check_sweep_arguments(params, reference, memory, timeout)
     if memory == "rss":
         _warm_imports()
-    err_fn = _metric(metric)
+    err_fn = error_metric(metric)
     columns = ["key", *params, *[c for c in METRIC_COLUMNS if c not in params]]
     writer = _Writer(Path(output), columns, resume) if output is not None else None
     done = {str(r["key"]): r for r in (writer.rows if writer else [])}

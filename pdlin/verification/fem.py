@@ -598,7 +598,7 @@ def grid_fe_reference(problem: Any, *, solver: str = "auto") -> np.ndarray:
     isotropic constants (``model.E`` and ``model.nu``, the implied ν for bond-based
     models), the problem's prescribed
     displacements on the same points and its nodal external forces (body and total forces,
-    ``pdlin.operators.bc.load_vector``) as nodal loads.  The FE body is the particles'
+    ``pdlin.constraints.load_vector``) as nodal loads.  The FE body is the particles'
     hull, ``h/2`` smaller on every side than the PD body, an O(h) difference that vanishes
     with refinement; it is the ``reference = "fem"`` of scene sweeps.
 

@@ -84,7 +84,7 @@ def test_backend_validation_without_petsc():
 
 
 def test_scene_backend_keys(tmp_path):
-    from pdlin.io.scene import builtin_scene, scene_from_dict
+    from pdlin.scene.scene import builtin_scene, scene_from_dict
 
     data, _ = builtin_scene("bar")
     data = dict(data)

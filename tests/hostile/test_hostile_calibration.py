@@ -23,7 +23,7 @@ from pdlin import constitutive as cm
 from pdlin.calibration import Family, design_matrix, lattice_family, max_lower_bound
 from pdlin.cli.main import main
 from pdlin.errors import InputError, InputTypeError, NonFiniteError, SceneError, ShapeError
-from pdlin.io.targets import calibration_from_dict
+from pdlin.scene.targets import calibration_from_dict
 
 cal = pdlin.calibrate_micromoduli
 C_ISO = cm.isotropic(E=1.0, nu=0.25)  # Cauchy-isotropic (nu = 1/4): reachable exactly
@@ -319,7 +319,8 @@ def test_infeasible_target_is_reported_not_returned_wrong():
 
 
 def test_lower_bound_above_max_is_infeasible():
-    """A uniform bound above max_lower_bound (0.23870, spec 004 §4.6) has no solution."""
+    """A uniform bound above max_lower_bound (0.23870, reference value for isotropic delta = 6,
+    omega = 1) has no solution."""
     fam = lattice_family(3, 6.0)
     C = cm.material("isotropic")
     lmax = max_lower_bound(C, fam)

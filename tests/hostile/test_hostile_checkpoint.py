@@ -18,7 +18,8 @@ import pdlin.nonlinear as nl
 from pdlin.cli.main import main
 from pdlin.errors import CheckpointError, CheckpointWriteError, InputError, PdlinError
 
-#: shear velocity gradient of the small polycrystal (spec 001 §7 Ex. 1's, per unit time)
+#: shear velocity gradient of the small polycrystal (Luo, Ramazani & Sundararaghavan (2017), Eq. 25,
+#: per unit time)
 SHEAR = 0.002 * np.array([[0.0, 1.0], [1.0, 0.0]])
 #: Newton, three steps of the 8 x 8 polycrystal: ≈ 0.1 s (measured)
 KW: dict[str, Any] = {"times": [1.0, 2.0, 3.0], "method": "newton"}

@@ -10,7 +10,7 @@ from hostile_util import NAN
 
 from pdlin.cli.main import main
 from pdlin.errors import SceneError
-from pdlin.io.scene import scene_from_dict
+from pdlin.scene.scene import scene_from_dict
 
 BASE = {
     "geometry": {"type": "grid", "shape": [8, 4], "spacing": 0.1},
@@ -464,7 +464,7 @@ def test_cli_reports_one_line(tmp_path, capsys, argv, text, pattern):
 
 def test_check_box_refuses_nan_and_inverted_corners():
     import pdlin
-    from pdlin.io.checks import Check, _region
+    from pdlin.scene.checks import Check, _region
 
     cloud = pdlin.grid((8, 4), 0.1)
 
@@ -480,7 +480,7 @@ def test_check_box_refuses_nan_and_inverted_corners():
 
 
 def test_tradeoff_measure_box_refuses_nan():
-    from pdlin.sweeps.scene import tradeoff_from_dict
+    from pdlin.scene.tradeoff import tradeoff_from_dict
 
     data = copy.deepcopy(BASE)
     data["tradeoff"] = {"sweep": {"m": [2.0]}, "measure": [[NAN, 0.0], [1.0, 1.0]]}

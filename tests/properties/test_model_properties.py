@@ -149,7 +149,7 @@ def test_rigid_body_modes_in_null_space(case):
 def test_positive_energy_on_non_rigid_fields(case, rng):
     model, cloud, bonds, K = case
     if not getattr(model, "symmetric", True):
-        pytest.skip("a nonsymmetric K (e.g. XOSB 'paper', spec 002 §6) is not an energy Hessian")
+        pytest.skip("a nonsymmetric K (e.g. XOSB 'paper', Eq. 70) is not an energy Hessian")
     B = pdlin.rigid_body_modes(cloud, orthonormal=True)
     for _ in range(5):
         u = rng.normal(size=cloud.ndof)

@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 import pdlin
 from pdlin import constitutive as cst
 from pdlin.models import Model
-from pdlin.models._state import OrdinaryStateBased
+from pdlin.models.ordinary_state import OrdinaryStateBased
 
 #: the reprs' length budget (issue 34: "under e.g. 300 characters for a 10^4-point problem")
 LIMIT = 300

@@ -1,9 +1,9 @@
 """The model property table, rows for the ordinary state-based models LPS and XOSB.
 
-The model-independent checks are imported from ``test_model_properties`` and run on the
-``case`` fixture defined here (they skip the energy and symmetry checks for the
-nonsymmetric paper linearization ``K_p``, spec 002 §6, and test affine fields
-``coupling_range`` horizons inside the body).
+The model-independent checks are imported from ``test_model_properties`` and run on the ``case``
+fixture defined here (they skip the energy and symmetry checks for the nonsymmetric paper
+linearization ``K_p``, Liu, Chen & Skelton, XOSB, Eq. 70, and test affine fields ``coupling_range``
+horizons inside the body).
 """
 
 from __future__ import annotations

@@ -121,8 +121,8 @@ def test_standard_micromoduli_closed_forms():
     from pdlin.models.bond_based import standard_micromodulus
 
     d = 0.3
-    # seed 004 Eq. / spec 004 2.6: 12E/(pi d^4) (3D), 9E/(pi t d^3) (plane stress),
-    # 48E/(5 pi t d^3) (plane strain); 1D: 2E/(A d^2)
+    # Prakash, anisotropic micromoduli, Eq. 18 with ν = 1/4 (3D); derived for 2D and 1D: 12E/(pi
+    # d^4) (3D), 9E/(pi t d^3) (plane stress), 48E/(5 pi t d^3) (plane strain); 1D: 2E/(A d^2)
     np.testing.assert_allclose(standard_micromodulus(1.0, d, 3), 12 / (np.pi * d**4))
     np.testing.assert_allclose(
         standard_micromodulus(1.0, d, 2, thickness=0.5), 9 / (np.pi * 0.5 * d**3)

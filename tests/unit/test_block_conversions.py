@@ -17,7 +17,7 @@ import scipy.sparse as sp
 import pdlin
 from pdlin import _kernels
 from pdlin._kernels import csr_to_bsr_rows, csr_to_bsr_t
-from pdlin.models import _state
+from pdlin.models import ordinary_state as _state
 
 
 @pytest.fixture(autouse=True)
@@ -257,7 +257,7 @@ def test_drop_zero_blocks_threaded_equals_serial(
     """δ = h: the nearest-neighbour blocks of Wᵀ W cancel and are dropped; the threaded
     pass (small chunks: many per thread, empty block rows included) keeps the same blocks,
     numpy chunks or numba passes, with the block sizes computed or given by the product."""
-    from pdlin.models import correspondence as corr
+    from pdlin.models.correspondence import gradient as corr
 
     cloud = pdlin.grid((9, 8, 7) if dim == 3 else (31, 23), spacing=0.1)
     bonds = pdlin.find_bonds(cloud, ratio=1.0)
@@ -309,7 +309,7 @@ def test_bsr_transpose_equals_scipy(monkeypatch: pytest.MonkeyPatch, blocksize, 
 
 def _coefficients_before(owner_b, n_gp, omega, volume_j, xi):
     """Correspondence bond coefficients ``ω V_j K⁻¹ ξ`` as computed before (2D / 3D)."""
-    from pdlin.fields import _per_point_outer
+    from pdlin._arrays import per_point_outer as _per_point_outer
 
     w = omega * volume_j
     K = _per_point_outer(owner_b, n_gp, w, xi, xi)
@@ -331,7 +331,7 @@ def _coefficients_before(owner_b, n_gp, omega, volume_j, xi):
 def test_correspondence_coefficients_and_moduli_threaded(monkeypatch, dim: int) -> None:
     """Bond coefficients and Pᵀ C P per gradient point in small chunks on 1-3 threads:
     bitwise the serial computation."""
-    from pdlin.models import correspondence as corr
+    from pdlin.models.correspondence import gradient as corr
 
     cloud = pdlin.grid((17, 15) if dim == 2 else (7, 6, 5), spacing=0.1)
     bonds = pdlin.find_bonds(cloud, ratio=2.0, influence="inverse")
@@ -353,7 +353,7 @@ def test_correspondence_coefficients_and_moduli_threaded(monkeypatch, dim: int) 
 def test_per_point_outer_threaded_equals_one_bincount(monkeypatch: pytest.MonkeyPatch) -> None:
     """Shape-tensor sums in runs of non-interleaving owners (1-3 threads): bitwise one
     bincount per entry over all bonds (the computation before)."""
-    from pdlin import fields
+    from pdlin import _arrays
 
     cloud = pdlin.grid((23, 19), spacing=0.1)
     bonds = pdlin.find_bonds(cloud, ratio=2.0)
@@ -373,12 +373,12 @@ def test_per_point_outer_threaded_equals_one_bincount(monkeypatch: pytest.Monkey
                 out[:, r, c] = np.bincount(owner, weights=w * xi[:, r] * xi[:, c], minlength=n)
         return out
 
-    monkeypatch.setattr(fields, "_CHUNK", 40)  # many runs
+    monkeypatch.setattr(_arrays, "OUTER_CHUNK", 40)  # many runs
     for owner, n in cases:
         ref = before(owner, n)
         for nt in (1, 2, 3):
             pdlin.set_num_threads(nt)
-            got = fields._per_point_outer(owner, n, w, xi, xi)
+            got = _arrays.per_point_outer(owner, n, w, xi, xi)
             assert np.array_equal(got.view(np.int64), ref.view(np.int64))
     # the stress-point halves with their runs given (point p: bonds indptr[p]:indptr[p+1],
     # owners 2p and 2p + 1), numba passes and numpy chunks
@@ -389,7 +389,7 @@ def test_per_point_outer_threaded_equals_one_bincount(monkeypatch: pytest.Monkey
         monkeypatch.setattr(_kernels, "_loaded", None if numba_on else False)
         for nt in (1, 2, 3):
             pdlin.set_num_threads(nt)
-            got = fields._per_point_outer(owner, n, w, xi, xi, runs=runs)
+            got = _arrays.per_point_outer(owner, n, w, xi, xi, runs=runs)
             assert np.array_equal(got.view(np.int64), ref.view(np.int64))
 
 
@@ -400,7 +400,7 @@ def test_gradient_blocks_fast_paths_equal_sort(monkeypatch, dim: int, control, n
     """G's blocks written in place in point chunks (1-3 threads; numba: one or two gradient
     points per point, with or without the known point structure; numpy: one per point) equal
     the sorting path's arrays bitwise (diagonals snapped to 0 on intact horizons included)."""
-    from pdlin.models import correspondence as corr
+    from pdlin.models.correspondence import gradient as corr
 
     _numba(monkeypatch, numba_on)
     cloud = pdlin.grid((21, 17) if dim == 2 else (8, 7, 6), spacing=0.1)
@@ -488,7 +488,7 @@ def test_stress_point_plan_numba_equals_numpy(monkeypatch: pytest.MonkeyPatch, d
     coefficients summed over point chunks (numba, 1-3 threads, many small chunks) equal the
     numpy path's arrays bitwise, on a lattice (two stress points inside, one at the
     surface) and on a perturbed cloud (unbalanced halves: mostly one)."""
-    from pdlin.models import correspondence as corr
+    from pdlin.models.correspondence import gradient as corr
 
     pytest.importorskip("numba")
     shape = (19, 16) if dim == 2 else (7, 6, 6)
@@ -526,7 +526,7 @@ def test_stress_point_plan_numba_equals_numpy(monkeypatch: pytest.MonkeyPatch, d
 def test_gradient_blocks_fused_declines_repeated_neighbours(monkeypatch) -> None:
     """A point bonded twice to one neighbour (periodic images) or to itself: the numba pass
     flags the layout and the sorting path, which sums the repeated pairs, builds G."""
-    from pdlin.models import correspondence as corr
+    from pdlin.models.correspondence import gradient as corr
 
     pytest.importorskip("numba")
     cloud = pdlin.grid((6, 5), spacing=1.0)
@@ -555,7 +555,7 @@ def test_fused_2d_coefficients_report_singular_shape_tensors() -> None:
     """A one-point-wide strip has collinear bonds: the fused 2D pass raises the numpy
     path's error (count and first gradient point) instead of dividing by det = 0."""
     from pdlin.errors import ModelError
-    from pdlin.models import correspondence as corr
+    from pdlin.models.correspondence import gradient as corr
 
     pytest.importorskip("numba")
     cloud = pdlin.grid((40, 1), spacing=0.1)

@@ -28,12 +28,14 @@ def _iso(c11: float = 103.2, c12: float = 34.4, c44: float = 34.4) -> np.ndarray
     return C
 
 
-# triclinic KIO3, spec 004 §3 Eq. 50 (a non-Cauchy target that discriminates weightings)
+# triclinic KIO3, Prakash, anisotropic micromoduli, Eq. 50 (a non-Cauchy target that discriminates
+# weightings)
 TRICLINIC = np.array(cst.material("triclinic"))
 
 
 def _eq29(xi, omega, volume, c, thickness=1.0):
-    """Spec 004 Eq. 29 summed directly over bonds (independent of design_matrix)."""
+    """Prakash, anisotropic micromoduli, Eq. 29 summed directly over bonds (independent of
+    design_matrix)."""
     L = np.linalg.norm(xi, axis=1)
     w = 0.5 * omega * c * volume * thickness / L**3
     return np.einsum("n,ni,nj,nk,nl->ijkl", w, xi, xi, xi, xi)
@@ -73,7 +75,7 @@ def test_frobenius_weighting_equals_81_row_least_squares(rng):
     b81 = voigt_to_tensor(TRICLINIC).ravel()
     c81 = np.linalg.lstsq(X81, b81, rcond=1e-12)[0]  # minimum-norm least squares
     np.testing.assert_allclose(res.micromoduli, c81, rtol=1e-9, atol=1e-12)
-    # and it differs from the unweighted Voigt system (spec §7: use a non-Cauchy target)
+    # and it differs from the unweighted Voigt system (a Cauchy target could not tell them apart)
     unw = calibrate_micromoduli(TRICLINIC, fam, method="min-norm", weighting="voigt")
     assert np.abs(unw.micromoduli - c81).max() > 1e-3 * np.abs(c81).max()
 
@@ -84,11 +86,12 @@ def test_merged_columns_equal_plain_pseudo_inverse():
     res = calibrate_micromoduli(TRICLINIC, fam, method="min-norm")
     X = design_matrix(fam.xi, fam.omega, fam.volume)
     b = tensor_to_voigt(voigt_to_tensor(TRICLINIC))[np.triu_indices(6)]
-    m = np.array([1, 2, 2, 4, 4, 4, 1, 2, 4, 4, 4, 1, 4, 4, 4, 4, 8, 8, 4, 8, 4])  # spec §2.1
+    # conventions.md#frobenius-norm-of-a-stiffness-tensor
+    m = np.array([1, 2, 2, 4, 4, 4, 1, 2, 4, 4, 4, 1, 4, 4, 4, 4, 8, 8, 4, 8, 4])
     c = np.linalg.pinv(X, rcond=1e-12) @ (b * np.sqrt(m))
     np.testing.assert_allclose(res.micromoduli, c, rtol=1e-10, atol=1e-12)
     assert res.n_columns == 16 and res.n_bonds == 32  # 16 +-xi pairs
-    # c(xi) = c(-xi) exactly (spec §2.3)
+    # c(xi) = c(-xi) exactly (derived, conventions.md#calibration-in-the-frobenius-norm)
     key = {tuple(v): k for k, v in enumerate(fam.xi.round(9))}
     rev = np.array([key[tuple(-v)] for v in fam.xi.round(9)])
     np.testing.assert_array_equal(res.micromoduli, res.micromoduli[rev])
@@ -96,7 +99,7 @@ def test_merged_columns_equal_plain_pseudo_inverse():
 
 def test_robust_nnls_start_gives_same_result_when_projection_is_admissible():
     fam = lattice_family(3, 6.0, influence="delta_over_r")
-    C = _iso(252, 145, 142)  # cubic spinel, spec §3 Eq. 87: needs the QP (Table 1)
+    C = _iso(252, 145, 142)  # cubic spinel, Eq. 87 (corrected C12): needs the QP (Table 1)
     a = calibrate_micromoduli(C, fam)
     b = calibrate_micromoduli(C, fam, method="robust")
     assert a.status == "qp" and b.status == "nnls-qp" and "nnls" in b.path
@@ -206,14 +209,16 @@ def test_cloud_interior_mean_rule():
     inner = res.family_of_point == 0
     assert inner.sum() == 4**3  # points >= 2 from every face of an 8^3 block
     both = inner[bonds.i] & inner[bonds.j]
-    np.testing.assert_allclose(res.micromoduli[~both], fr.c_mean)  # spec §4.7 [S]
+    # conventions.md#uniaxial-tension-of-a-cube
+    np.testing.assert_allclose(res.micromoduli[~both], fr.c_mean)
     assert set(np.round(res.micromoduli[both], 4)) <= set(np.round(fr.micromoduli, 4))
 
 
 def test_cloud_infeasible_families_carry_nan():
     cloud = pdlin.grid((7, 7, 7))
     bonds = pdlin.find_bonds(cloud, 2.0)
-    mono = np.array(  # spec 004 §3 Eq. 56: infeasible at delta = 2 (§4.2)
+    # Prakash, anisotropic micromoduli, Eq. 56: infeasible at delta = 2 (Sec. 4.2.1)
+    mono = np.array(
         [
             [135, 19, 54, 0, 0, 42],
             [19, 13, 15, 0, 0, 6],
@@ -304,7 +309,8 @@ def test_bad_lattice_family_arguments():
 
 def test_rank_deficient_2d_message():
     r = calibrate_micromoduli(_iso(), lattice_family(2, 1.0), plane="strain")
-    # spec 004 §2.7: square delta = 1 has rank 2; x^3 y, x^2 y^2, x y^3 vanish on the axes
+    # derived (pdlin's 2D extension): square delta = 1 has rank 2; x^3 y, x^2 y^2, x y^3 vanish on
+    # the axes
     assert r.rank == 2
     assert "x^3*y, x^2*y^2, x*y^3" in r.message
 
@@ -353,7 +359,8 @@ def test_bulk_boundary_rule_gives_c_of_xi_and_exact_interior():
     np.testing.assert_allclose(res.micromoduli, expect, rtol=1e-12)
     np.testing.assert_allclose(res.micromoduli, res.micromoduli[bonds.reverse], rtol=0)
     centre = int(np.ravel_multi_index((4, 4, 4), (9, 9, 9)))
-    # interior tensor = the Cauchy projection of the target (spec 004 section 2.3)
+    # interior tensor = the Cauchy projection of the target (derived,
+    # conventions.md#calibration-in-the-frobenius-norm)
     P = cst.cauchy_projection(C)
     np.testing.assert_allclose(res.tensor[centre], P, rtol=1e-9, atol=1e-12 * np.abs(P).max())
     assert res.relative_error[centre] == pytest.approx(cst.cauchy_distance(C), rel=1e-9)

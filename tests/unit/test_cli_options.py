@@ -70,7 +70,7 @@ def test_sparsity_reports_the_constrained_system(tmp_path, capsys):
     import numpy as np
 
     import pdlin
-    from pdlin.io.scene import load_scene
+    from pdlin.scene.scene import load_scene
     from tests.test_cli import SCENE
 
     scene_path = _write(tmp_path, SCENE)

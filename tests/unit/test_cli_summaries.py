@@ -12,7 +12,7 @@ import numpy as np
 
 import pdlin
 from pdlin.cli.main import _stress_components, main
-from pdlin.io.scene import load_scene
+from pdlin.scene.scene import load_scene
 
 EXAMPLES = Path(pdlin.__file__).parent / "examples"
 
@@ -49,7 +49,8 @@ def test_nonlinear_summary_labels_stress_components_with_units(tmp_path, capsys)
     (line,) = [s for s in capsys.readouterr().out.splitlines() if s.startswith("mean stress")]
     with open(tmp_path / "cp_homogenized.csv", newline="") as fh:
         last = list(csv.DictReader(fh))[-1]
-    # the scene's crystal uses CrystalPlasticity's default constants, in MPa (spec 001 §3.4)
+    # the scene's crystal uses CrystalPlasticity's default constants, in MPa (Luo, Ramazani &
+    # Sundararaghavan (2017), Sec. 4)
     for label, col in (("sxx", "sigma_11"), ("syy", "sigma_22"), ("sxy", "sigma_12")):
         m = re.search(rf"\b{label} (\S+) MPa", line)
         assert m is not None, (label, line)

@@ -1,4 +1,6 @@
-"""Unit tests of pdlin.constitutive: elasticity tensors (spec 004 §1.2-1.3, §2.1, §2.5-2.7, §3)."""
+"""Unit tests of pdlin.constitutive: elasticity tensors (Prakash, anisotropic micromoduli: Eq. 29,
+Eq. 49, Appendix A and the materials of Sec. 4.1; docs/theory/conventions.md#voigt-notation and
+conventions.md#frobenius-norm-of-a-stiffness-tensor; the 2D forms are pdlin's extension)."""
 
 from __future__ import annotations
 
@@ -31,7 +33,8 @@ def random_rotation(seed: int) -> np.ndarray:
 
 
 def bond_tensor(xi: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Spec Eq. 29 (ω = ΔV = 1): C_ijkl = ½ Σ c ξiξjξkξl/|ξ|³ — Cauchy by construction."""
+    """Prakash, anisotropic micromoduli, Eq. 29 (ω = ΔV = 1): C_ijkl = ½ Σ c ξiξjξkξl/|ξ|³ — Cauchy
+    by construction."""
     r = np.linalg.norm(xi, axis=1)
     return 0.5 * np.einsum("n,ni,nj,nk,nl->ijkl", c / r**3, xi, xi, xi, xi)
 
@@ -39,13 +42,13 @@ def bond_tensor(xi: np.ndarray, c: np.ndarray) -> np.ndarray:
 # Sample parameters per class (positive definite), in constructor order.
 PARAMS = {
     "triclinic": (random_spd(6, 0),),
-    "monoclinic": (135, 13, 269, 19, 54, 15, 14, 66, 18, 42, 6, 18, 25),  # CoTeO4, spec §3
-    "orthotropic": (143, 3, 102, 1, 37, 3, 2, 46, 1),  # Te2W, spec §3
-    "trigonal": (464, 493, 159, 141, -45, 125),  # Ta2C, spec §3
-    "tetragonal": (212, 179, 70, 58, 58, 85),  # Si, spec §3
-    "transversely_isotropic": (499, 714, 177, 235, 241),  # MoN, spec §3
-    "cubic": (252, 145, 142),  # spinel, spec §3
-    "isotropic": (86.0, 0.25),  # Pyroceram E, nu, spec §3
+    "monoclinic": (135, 13, 269, 19, 54, 15, 14, 66, 18, 42, 6, 18, 25),  # CoTeO4, Eq. 56
+    "orthotropic": (143, 3, 102, 1, 37, 3, 2, 46, 1),  # Te2W, Eq. 62
+    "trigonal": (464, 493, 159, 141, -45, 125),  # Ta2C, Eq. 69
+    "tetragonal": (212, 179, 70, 58, 58, 85),  # Si, Eq. 75
+    "transversely_isotropic": (499, 714, 177, 235, 241),  # MoN, Eq. 81
+    "cubic": (252, 145, 142),  # spinel, Eq. 87
+    "isotropic": (86.0, 0.25),  # Pyroceram E, nu, Eq. 94
 }
 
 
@@ -72,24 +75,25 @@ def test_voigt_tensor_mandel_round_trips(n):
 def test_voigt_is_plain_no_shear_factor():
     C = np.diag([1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
     T = pc.voigt_to_tensor(C)
-    # spec §1.2: 4 -> 23, 5 -> 31, 6 -> 12 and C̃44 = C2323 (no factor 2)
+    # conventions.md#voigt-notation: 4 -> 23, 5 -> 31, 6 -> 12 and C̃44 = C2323 (no factor 2)
     assert T[1, 2, 1, 2] == T[2, 1, 1, 2] == 4.0
     assert T[2, 0, 0, 2] == 5.0
     assert T[0, 1, 1, 0] == 6.0
     assert T[0, 0, 0, 0] == 1.0 and T[2, 2, 2, 2] == 3.0
     # Mandel: shear diagonal x2 (√2 on row and column)
     np.testing.assert_allclose(np.diag(pc.voigt_to_mandel(C)), [1, 2, 3, 8, 10, 12])
-    # 2D order 11, 22, 12 (spec §2.7)
+    # 2D order 11, 22, 12 (pdlin's 2D extension)
     T2 = pc.voigt_to_tensor(np.diag([1.0, 2.0, 3.0]))
     assert T2[0, 1, 1, 0] == 3.0 and T2[1, 1, 1, 1] == 2.0
 
 
 def test_frobenius_multiplicity_matches_spec():
-    # spec §2.1: m = 1 (α=β≤3), 2 (α<β≤3), 4 (α≤3<β), 4 (α=β>3), 8 (3<α<β); written out
+    # conventions.md#frobenius-norm-of-a-stiffness-tensor: m = 1 (α=β≤3), 2 (α<β≤3), 4 (α≤3<β), 4
+    # (α=β>3), 8 (3<α<β); written out
     expected = [1, 2, 2, 4, 4, 4, 1, 2, 4, 4, 4, 1, 4, 4, 4, 4, 8, 8, 4, 8, 4]
     assert pc.frobenius_multiplicity(3).tolist() == expected
     assert pc.frobenius_multiplicity(3).sum() == 81  # 3**4 components
-    assert pc.frobenius_multiplicity(2).tolist() == [1, 2, 4, 1, 4, 4]  # spec §2.7
+    assert pc.frobenius_multiplicity(2).tolist() == [1, 2, 4, 1, 4, 4]  # pdlin's 2D extension
     assert pc.frobenius_multiplicity(2).sum() == 16  # 2**4 components
     with pytest.raises(InputError, match="dim must be 2 or 3, got 4"):
         pc.frobenius_multiplicity(4)
@@ -211,7 +215,7 @@ def _invariant_dims(group: list[np.ndarray]) -> tuple[int, int]:
 @pytest.mark.parametrize("name", CLASSES)
 def test_group_invariant_dimension_matches_spec_table(name):
     d_inv, d_cauchy = _invariant_dims(pc.symmetry_group(name))
-    # spec §1.3 table: "classical -> with Cauchy"
+    # derived from Prakash, anisotropic micromoduli, Eq. 49: "classical -> with Cauchy"
     expected = {
         "triclinic": (21, 15), "monoclinic": (13, 9), "orthotropic": (9, 6),
         "trigonal": (6, 4), "tetragonal": (6, 4), "transversely_isotropic": (5, 3),
@@ -277,12 +281,14 @@ def test_materials_match_constructors_and_classes():
     for name in ["monoclinic", "orthotropic", "tetragonal", "transversely_isotropic", "cubic"]:
         np.testing.assert_array_equal(M[name][0], construct(name))
     np.testing.assert_allclose(M["isotropic"][0], pc.isotropic(E=86.0, nu=0.25), rtol=1e-14)
-    # Ta2C as printed: constructor differs only in C66 = (464 - 159)/2 = 152.5 vs 153 (spec §3)
+    # Ta2C as printed: constructor differs only in C66 = (464 - 159)/2 = 152.5 vs 153 (Eq. 69 as
+    # printed; conventions.md#errata-prakash)
     diff = M["trigonal"][0] - pc.trigonal(*PARAMS["trigonal"])
     expected = np.zeros((6, 6))
     expected[5, 5] = 0.5
     np.testing.assert_array_equal(diff, expected)
-    # spec E4: R(e1) exact, ±60° mirrors to 1.2e-3, R(e2), R(e3) change it by 35 %
+    # reference values (conventions.md#errata-prakash, Eq. 64): R(e1) exact, ±60° mirrors to 1.2e-3,
+    # R(e2), R(e3) change it by 35 %
     C = M["trigonal"][0]
     h = np.sqrt(3) / 2
     assert pc.symmetry_distance(C, pc.reflection([1, 0, 0])) < 1e-15
@@ -314,15 +320,15 @@ def test_symmetry_group_bad_name():
 
 
 def test_isotropic_from_any_two_moduli():
-    # Pyroceram (spec §3): E = 86, nu = 0.25 -> lam = mu = 34.4, K = 57.3333 (hand-computed:
-    # lam = E nu/((1+nu)(1-2nu)) = 21.5/0.625, mu = E/2.5, K = E/(3(1-2nu)) = 86/1.5)
+    # Pyroceram (Eq. 94): E = 86, nu = 0.25 -> lam = mu = 34.4, K = 57.3333 (hand-computed: lam = E
+    # nu/((1+nu)(1-2nu)) = 21.5/0.625, mu = E/2.5, K = E/(3(1-2nu)) = 86/1.5)
     ref = pc.material("isotropic")
     mod = {"E": 86.0, "nu": 0.25, "lam": 34.4, "G": 34.4, "K": 86.0 / 1.5}
     for a, b in itertools.combinations(mod, 2):
         kwargs = {a: mod[a], b: mod[b]}
         np.testing.assert_allclose(pc.isotropic(**kwargs), ref, rtol=1e-12, err_msg=str(kwargs))
     np.testing.assert_allclose(pc.isotropic(lam=34.4, mu=34.4), ref, rtol=1e-14)
-    # ν = 1/4 <=> Cauchy (spec Eq. 93: C11 = 3 C12 = 3 C44)
+    # ν = 1/4 <=> Cauchy (Prakash, anisotropic micromoduli, Eq. 93: C11 = 3 C12 = 3 C44)
     assert pc.satisfies_cauchy(ref)
     assert not pc.satisfies_cauchy(pc.isotropic(E=86.0, nu=0.3))
 
@@ -348,7 +354,7 @@ def test_isotropic_argument_errors():
 def test_cauchy_projection_pair_formula_and_unaffected_entries():
     C = random_spd(6, 11)
     P = pc.cauchy_projection(C)
-    # spec §1.3 pairs (a, b), 1-based Voigt: C_a = C_b = (C_a + 2 C_b)/3
+    # Cauchy pairs (a, b) (derived from Eq. 49), 1-based Voigt: C_a = C_b = (C_a + 2 C_b)/3
     pairs = [((1, 2), (6, 6)), ((1, 3), (5, 5)), ((2, 3), (4, 4)),
              ((1, 4), (5, 6)), ((2, 5), (4, 6)), ((3, 6), (4, 5))]  # fmt: skip
     touched = set()
@@ -357,10 +363,10 @@ def test_cauchy_projection_pair_formula_and_unaffected_entries():
         target = (C[a] + 2 * C[b]) / 3
         assert P[a] == pytest.approx(target, rel=1e-14)
         assert P[b] == pytest.approx(target, rel=1e-14)
-        # = multiplicity-weighted mean, m_a : m_b = 1 : 2 (spec §1.3 m column)
+        # = multiplicity-weighted mean, m_a : m_b = 1 : 2 (Frobenius multiplicities)
         touched |= {a, b}
     for a, b in zip(*np.triu_indices(6), strict=True):
-        if (a, b) not in touched:  # the 9 unaffected entries (spec §1.3)
+        if (a, b) not in touched:  # the 9 unaffected entries (derived)
             assert P[a, b] == C[a, b]
     assert len([1 for a, b in zip(*np.triu_indices(6), strict=True) if (a, b) not in touched]) == 9
 
@@ -368,11 +374,11 @@ def test_cauchy_projection_pair_formula_and_unaffected_entries():
 def test_cauchy_projection_2d():
     C = np.array([[5.0, 1.0, 0.5], [1.0, 4.0, 0.25], [0.5, 0.25, 2.0]])
     P = pc.cauchy_projection(C)
-    # spec §2.7: C12 = C33 -> (C12 + 2 C33)/3 = (1 + 4)/3; the rest unchanged
+    # pdlin's 2D extension: C12 = C33 -> (C12 + 2 C33)/3 = (1 + 4)/3; the rest unchanged
     expected = C.copy()
     expected[0, 1] = expected[1, 0] = expected[2, 2] = 5.0 / 3.0
     np.testing.assert_allclose(P, expected, rtol=1e-15)
-    # plane stress ν = 1/3 and plane strain ν = 1/4 isotropic satisfy Cauchy (spec §2.6)
+    # plane stress ν = 1/3 and plane strain ν = 1/4 isotropic satisfy Cauchy (derived)
     assert pc.satisfies_cauchy(pc.isotropic_2d(1.0, 1 / 3, "stress"))
     assert pc.satisfies_cauchy(pc.isotropic_2d(1.0, 0.25, "strain"))
     assert not pc.satisfies_cauchy(pc.isotropic_2d(1.0, 0.25, "stress"))
@@ -389,8 +395,9 @@ def test_cauchy_projection_is_orthogonal_projection(n):
     # totally symmetric: invariant under every permutation of the four indices
     for perm in itertools.permutations(range(4)):
         np.testing.assert_allclose(TP.transpose(perm), TP, rtol=1e-14)
-    # equals the total symmetrization (C_ijkl + C_ikjl + C_iljk)/3 of spec §2.3 and the
-    # mean over all 24 index permutations (independent of the Voigt pair formula)
+    # equals the total symmetrization (C_ijkl + C_ikjl + C_iljk)/3
+    # (conventions.md#calibration-in-the-frobenius-norm) and the mean over all 24 index permutations
+    # (independent of the Voigt pair formula)
     tot = (T + np.einsum("ikjl->ijkl", T) + np.einsum("iljk->ijkl", T)) / 3
     np.testing.assert_allclose(TP, tot, rtol=1e-14)
     mean24 = sum(T.transpose(p) for p in itertools.permutations(range(4))) / 24
@@ -416,7 +423,7 @@ def test_cauchy_projection_leaves_bond_tensors_unchanged():
     assert not pc.satisfies_cauchy(random_spd(6, 16))
 
 
-# spec §4.1 Table 1 "paper e (%)" (= §2.3 claim: e = Cauchy distance at full rank)
+# Prakash, anisotropic micromoduli, Table 1 errors (%) (derived: e = Cauchy distance at full rank)
 TABLE1 = {
     "triclinic": "3.1873", "monoclinic": "4.988", "orthotropic": "5.0958", "trigonal": "2.632",
     "tetragonal": "3.8634", "transversely_isotropic": "1.5335", "cubic": "0.8028",
@@ -428,7 +435,7 @@ def test_cauchy_distance_equals_table1_error(name):
     C = pc.material(name)
     e = 100 * pc.cauchy_distance(C)
     if name == "isotropic":
-        assert e < 1e-13  # Pyroceram satisfies Cauchy exactly (spec §3)
+        assert e < 1e-13  # Pyroceram satisfies Cauchy exactly (derived)
         return
     printed = TABLE1[name]
     digits = len(printed.split(".")[1])
@@ -449,7 +456,7 @@ def test_cauchy_distance_is_best_bond_based_fit(name):
 
 
 def test_cauchy_projection_of_materials_matches_spec_csym():
-    # spec §3 "Calibrated tensors C_PD = C_sym" (4-decimal values)
+    # calibrated tensors C_PD = C_sym (reference values, 4 decimals)
     P = {k: pc.cauchy_projection(pc.material(k)) for k in pc.MATERIALS}
     checks = [
         ("triclinic", (0, 1), 11.6667), ("triclinic", (5, 5), 11.6667),
@@ -468,7 +475,7 @@ def test_cauchy_projection_of_materials_matches_spec_csym():
     for name, idx, value in checks:
         assert round(float(P[name][idx]), 4) == value, (name, idx)
     np.testing.assert_allclose(P["isotropic"], pc.material("isotropic"), rtol=1e-15)
-    # trigonal/TI with Cauchy: C11 = 3 C12 = 3 C66 (spec §1.3) — for the class constructors
+    # trigonal/TI with Cauchy: C11 = 3 C12 = 3 C66 (derived) — for the class constructors
     for name in ["trigonal", "transversely_isotropic"]:
         Cs = pc.cauchy_projection(construct(name))
         assert Cs[0, 0] == pytest.approx(3 * Cs[0, 1], rel=1e-13)
@@ -483,9 +490,9 @@ def test_universal_anisotropy_index_printed(name):
     C, printed = pc.MATERIALS[name]
     au = pc.universal_anisotropy_index(C)
     if name == "isotropic":
-        assert abs(au) < 1e-12  # isotropic: A^U = 0 exactly (spec §2.5)
+        assert abs(au) < 1e-12  # isotropic: A^U = 0 exactly (Appendix A)
     else:
-        assert round(au, 4) == printed  # spec §3, printed to 4 decimals
+        assert round(au, 4) == printed  # A^U as printed in Sec. 4.1 (4 decimals)
     # rotation invariant, and >= 0
     assert pc.universal_anisotropy_index(pc.rotate(C, random_rotation(18))) == pytest.approx(
         au, rel=1e-10, abs=1e-12
@@ -611,7 +618,7 @@ def test_material_lookup():
     np.testing.assert_array_equal(pc.material("spinel"), pc.material("cubic"))
     C = pc.material("cubic")
     C[0, 0] = 0.0  # a copy: the registry is unchanged
-    assert pc.MATERIALS["cubic"][0][0, 0] == 252.0  # spec §3
+    assert pc.MATERIALS["cubic"][0][0, 0] == 252.0  # Eq. 87
     assert not pc.MATERIALS["cubic"][0].flags.writeable
     with pytest.raises(InputError, match="name must be one of .* got 'unobtainium'"):
         pc.material("unobtainium")

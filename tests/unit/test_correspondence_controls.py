@@ -1,8 +1,8 @@
 """Zero-energy-mode controls of the correspondence model: springs, ADS, stress points.
 
-Spec: /work/shared/spec/003_stress_points.md (§3 baseline control forces, §4 stress
-points, §5 operators, §6 critical steps, §9 verification targets V1-V13).  The 1D bar
-checks V14-V18 live in tests/verification/test_correspondence_bar.py.
+Model: Luo & Sundararaghavan (2018) (Sec. 2.2 control forces, Eqs. 6-8; Sec. 3 stress points;
+Appendix A critical steps); V1-V13 label pdlin's acceptance checks.  The 1D bar checks V14-V18 live
+in tests/verification/test_correspondence_bar.py.
 """
 
 from __future__ import annotations
@@ -39,7 +39,8 @@ def _nonuniform(dim: int, shape: tuple[int, ...], rng: np.random.Generator):
     return cloud, pdlin.find_bonds(cloud, ratio=1.0), rng.uniform(1.0, 3.0, cloud.n)
 
 
-# -- explicit force-state evaluation (spec 003 §4.3, §3), written here independently ------
+# -- explicit force-state evaluation (Luo & Sundararaghavan (2018), Secs. 2.2 and 3), written here
+# independently ------
 
 _PAIRS = {1: ((0, 0),), 2: ((0, 0), (1, 1), (0, 1)),
           3: ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))}  # fmt: skip
@@ -48,9 +49,9 @@ _PAIRS = {1: ((0, 0),), 2: ((0, 0), (1, 1), (0, 1)),
 def _force_state_loop(model, cloud, bonds, u):
     """V∘L of the correspondence force states, one vectorized pass over the bonds.
 
-    Per gradient point s of particle i (the model's bond partition only):
-    K_s = Σ ω V_j ξ⊗ξ, F_s - I = Σ ω V_j (u_j - u_i) ⊗ ξ K_s⁻¹, σ_s = C_i : ε_s;
-    per bond T = w_s ω σ_s K_s⁻¹ ξ, L_i += T V_j, L_j -= T V_i (spec 003 §4.3).
+    Per gradient point s of particle i (the model's bond partition only): K_s = Σ ω V_j ξ⊗ξ, F_s - I
+    = Σ ω V_j (u_j - u_i) ⊗ ξ K_s⁻¹, σ_s = C_i : ε_s; per bond T = w_s ω σ_s K_s⁻¹ ξ, L_i += T V_j,
+    L_j -= T V_i (stress-point weight w_s = ½, conventions.md#errata-luo-and-sundararaghavan-2018).
     """
     d, n = cloud.dim, cloud.n
     info = model.stress_points(cloud, bonds)
@@ -79,7 +80,10 @@ def _force_state_loop(model, cloud, bonds, u):
 
 
 def _control_loop(model, cloud, bonds, u):
-    """V∘L of the springs (Eq. 7) or ADS (Eq. 8) force states, spec 003 §3."""
+    """V∘L of the springs (Eq. 7) or ADS (Eq. 8) force states.
+
+    Luo & Sundararaghavan (2018), Sec. 2.2.
+    """
     c = model.control_constants(cloud, bonds)
     i, j = bonds.i, bonds.j
     om = model.bond_weights(cloud, bonds)
@@ -98,7 +102,7 @@ def _control_loop(model, cloud, bonds, u):
 @pytest.mark.parametrize("dim,shape", [(1, (13,)), (2, (7, 6)), (3, (5, 4, 4))])
 @pytest.mark.parametrize("control", ["none", "stress_points", "springs", "ads"])
 def test_force_state_loop_equals_K_spec_003_v1(dim, shape, control, rng):
-    # V1: max|V∘L + K u| / max|K u| < 1e-12, random u, non-uniform V [REF 4.5e-16]
+    # V1: max|V∘L + K u| / max|K u| < 1e-12, random u, non-uniform V [reference 4.5e-16]
     cloud, bonds, E = _nonuniform(dim, shape, rng)
     assert np.allclose(bonds.volume_j, cloud.volumes[bonds.j])
     kw = {"coefficient": 0.3} if control in ("springs", "ads") else {"seed": 5}
@@ -121,14 +125,15 @@ def test_force_state_loop_equals_K_spec_003_v1(dim, shape, control, rng):
 
 
 def _lap0(n: int) -> np.ndarray:
-    """Chain graph Laplacian with one-sided end rows (spec 003 §3)."""
+    """Chain graph Laplacian with one-sided end rows (derived from Eqs. 7-8)."""
     L = 2 * np.eye(n) - np.eye(n, k=1) - np.eye(n, k=-1)
     L[0, 0] = L[-1, -1] = 1.0
     return L
 
 
 def test_1d_normalization_of_springs_and_ads():
-    # spec 003 §3: springs add C̃ (E0 A / h) Lap0, ADS add C̃ (E0 A / h) Lap0² (A = 1 here)
+    # derived from Eqs. 7-8: springs add C̃ (E0 A / h) Lap0, ADS add C̃ (E0 A / h) Lap0² (A = 1
+    # here)
     n, h, E0, ct = 12, 0.25, 3.0, 0.7
     cloud = pdlin.grid((n,), spacing=h)
     bonds = pdlin.find_bonds(cloud, ratio=1.0)
@@ -180,8 +185,9 @@ def test_springs_ads_properties(dim, n, control, rng):
 
 def test_ads_symmetry_flag():
     # K_a = C2 diag(V) Lap_V Lap_ωV: entry (i, k) = C2 V_i V_k (Σ_common V_j - m_i ω_ik
-    # - Σ_l ω_kl V_l), m_i = Σ_j V_j: symmetric for constant ω and ANY V (spec 003 §3 says
-    # "only for uniform V"; measured 4e-16 with random V), nonsymmetric for varying ω
+    # - Σ_l ω_kl V_l), m_i = Σ_j V_j: symmetric for constant ω and ANY V (an earlier
+    # derivation said "only for uniform V"; measured 4e-16 with random V), nonsymmetric for varying
+    # ω
     rng = np.random.default_rng(3)
     cloud, bonds, _ = _nonuniform(2, (6, 5), rng)
     m = _model(2, control="ads", coefficient=10.0)
@@ -262,7 +268,7 @@ def test_stress_point_shadow_loads_are_needed(rng):
                                ms.shadow_loads(cloud, bonds, stress=sig), atol=1e-15)  # fmt: skip
 
 
-# -- spec 003 §9 verification targets ---------------------------------------------------
+# -- acceptance checks V1-V13 ---------------------------------------------------
 
 
 @pytest.mark.parametrize("dim,shape,case", [
@@ -281,7 +287,8 @@ def test_symmetric_psd_spec_003_v2(dim, shape, case):
 
 
 def _r2d(h: float) -> tuple[pdlin.PointCloud, np.ndarray]:
-    """Spec 003 §7.2 R2D: node grid on [0, 50]² mm minus [0, 10)², and its Q4 mesh."""
+    """Reconstruction R2D (conventions.md#plate-with-a-square-hole): node grid on [0, 50]² mm minus
+    [0, 10)², and its Q4 mesh."""
     n = int(round(50 / h)) + 1
     full = pdlin.grid((n, n), spacing=h, origin=[-h / 2, -h / 2])
     keep = ~np.all(full.points < 10 - 1e-9, axis=1)
@@ -293,7 +300,7 @@ def _r2d(h: float) -> tuple[pdlin.PointCloud, np.ndarray]:
 
 
 def test_stress_point_counts_spec_003_v3():
-    # V3: n_sp = 2 N_int + N_bnd: 1D 2n - 2, R2D 1,203, R3D 32,928 [REF]
+    # V3: n_sp = 2 N_int + N_bnd: 1D 2n - 2, R2D 1,203, R3D 32,928 (counts)
     m = pdlin.Correspondence(E=1.0, nu=0.3, control="stress_points")
     c1 = pdlin.grid((500,), spacing=1.0)
     assert m.stress_points(c1, pdlin.find_bonds(c1, ratio=1.0))["owner"].size == 998
@@ -329,14 +336,15 @@ def test_free_body_zero_counts_with_hole_spec_003_v5():
 
 
 def _dt_crit(K: sp.sparray, V: float, E_max: float, h: float) -> float:
-    """Δt_c = 2/√λ_max(M⁻¹K), M = ρV (ρ = 1), in units of h √(ρ/E_max) (spec 003 §6)."""
+    """Δt_c = 2/√λ_max(M⁻¹K), M = ρV (ρ = 1), in units of h √(ρ/E_max) (Luo & Sundararaghavan
+    (2018), Appendix A)."""
     lam = spla.eigsh(sp.csr_array(K) / V, k=1, which="LA", return_eigenvectors=False)[0]
     return 2.0 / np.sqrt(lam) / (h / np.sqrt(E_max))
 
 
 def test_critical_steps_1d_spec_003_v7():
-    # V7: 1D periodic 2h / h exact (1e-8), literal w 0.707; no-control bar with Dirichlet
-    # ends √3 h (1e-3), SP bar h [REF §6 table]
+    # V7: 1D periodic 2h / h exact (1e-8), literal w 0.707; no-control bar with Dirichlet ends √3 h
+    # (1e-3), SP bar h [exact critical steps, reference table]
     h = 0.5
     cloud = pdlin.grid((24,), spacing=h)
     b = periodic_lattice_bonds(cloud, 1.0)
@@ -353,9 +361,9 @@ def test_critical_steps_1d_spec_003_v7():
 
 
 @pytest.mark.parametrize("dim,n,none,uniform,rand_band,paper", [
-    # [REF] spec 003 §6 table, ν = 0.3 (plane stress in 2D), E_max = largest entry of D.
-    # 3D periodic no control 1.214 is the n = 10 lattice (sin(k h) cannot reach 1); on
-    # n = 0 mod 4 lattices it is 2/√3 = 1.155 (measured)
+    # exact critical steps (reference table of an independent implementation), ν = 0.3 (plane stress
+    # in 2D), E_max = largest entry of D. 3D periodic no control 1.214 is the n = 10 lattice (sin(k
+    # h) cannot reach 1); on n = 0 mod 4 lattices it is 2/√3 = 1.155 (measured)
     (2, 16, 1.414, 0.707, (0.707, 0.80), (1.0, 0.5)),
     (3, 10, 1.214, 0.577, (0.577, 0.70), (2 / 3, 1 / 3)),
 ])  # fmt: skip
@@ -393,7 +401,7 @@ def test_weight_invariance_spec_003_v9(rng):
 
 
 def _reaction_ratio(shape: tuple[int, ...], **kw) -> float:
-    """R/(σA) of the exact uniaxial-stress field (spec 003 V10), A = Π(n_k - 1)h."""
+    """R/(σA) of the exact uniaxial-stress field (V10), A = Π(n_k - 1)h."""
     dim, h, eps, nu = len(shape), 1.0, 1e-3, 0.3
     cloud = pdlin.grid(shape, spacing=h)
     bonds = pdlin.find_bonds(cloud, ratio=1.0)
@@ -404,7 +412,7 @@ def _reaction_ratio(shape: tuple[int, ...], **kw) -> float:
 
 
 @pytest.mark.parametrize("shape,sp_half,tol,none", [
-    ((41,), 1.000, 1e-12, 1.50),  # spec 003 V10 [REF]
+    ((41,), 1.000, 1e-12, 1.50),  # V10 reference
     ((41, 21), 1.025, 0.005, 1.575),
     ((21, 17, 13), 1.078, 0.01, 1.727),
 ])  # fmt: skip
@@ -423,13 +431,13 @@ def _lowest(K: sp.sparray, k: int, n_rigid: int = 3) -> np.ndarray:
 
 
 def test_spurious_low_modes_vs_q4_spec_003_v12_v13():
-    # V12: free R2D plate (h = 2): non-rigid eigenvalues of K_PD below the m-th non-rigid
-    # eigenvalue of Q4 on the same nodes: SP 9 / 19 / 39 for m = 10 / 20 / 40 [REF], no
-    # control >= 1.5 m.  V13: lowest non-rigid SP eigenvalue within 3 % of Q4 [8.354 vs 8.147]
+    # V12: free R2D plate (h = 2): non-rigid eigenvalues of K_PD below the m-th non-rigid eigenvalue
+    # of Q4 on the same nodes: SP 9 / 19 / 39 for m = 10 / 20 / 40 (reference), no control >= 1.5 m.
+    # V13: lowest non-rigid SP eigenvalue within 3 % of Q4 [8.354 vs 8.147]
     cloud, quads = _r2d(2.0)
     bonds = pdlin.find_bonds(cloud, ratio=1.0)
     eq = _lowest(q4_stiffness(cloud.points, quads, 1000.0, 0.3, plane="stress"), 44)
-    assert eq[0] == pytest.approx(8.147, abs=1e-3)  # [REF] Q4
+    assert eq[0] == pytest.approx(8.147, abs=1e-3)  # reference Q4 value
     sp_ev = _lowest(pdlin.assemble_stiffness(
         pdlin.Correspondence(E=1000.0, nu=0.3, control="stress_points", seed=0), cloud, bonds
     ), 46)  # fmt: skip
@@ -442,7 +450,7 @@ def test_spurious_low_modes_vs_q4_spec_003_v12_v13():
 
 
 def test_scene_model_accepts_coefficient():
-    from pdlin.io.scene import _build_model
+    from pdlin.scene.materials import _build_model
 
     cloud = pdlin.grid((4, 4), spacing=0.1)
     cfg = {"type": "correspondence", "control": "ads", "coefficient": 0.25}
@@ -467,9 +475,10 @@ def test_compare_controls_reports_resisted_rotations():
 
 
 def test_stress_points_survive_non_uniform_volumes(rng):
-    # balance of the two half families is a property of the geometry: a lattice with random
-    # volumes keeps two stress points per full-family particle (spec 003's scheme), while a
-    # jittered cloud has no balanced halves and falls back to one gradient point, with a warning
+    # balance of the two half families is a property of the geometry: a lattice with random volumes
+    # keeps two stress points per full-family particle (Luo & Sundararaghavan (2018)'s scheme),
+    # while a jittered cloud has no balanced halves and falls back to one gradient point, with a
+    # warning
     cloud, bonds, E = _nonuniform(2, (7, 6), rng)
     info = _model(2, E=E, control="stress_points", seed=5).stress_points(cloud, bonds)
     counts = np.bincount(info["owner"], minlength=cloud.n)

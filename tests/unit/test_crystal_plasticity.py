@@ -1,4 +1,5 @@
-"""Unit tests of the crystal-plasticity constitutive layer (spec 001 §3, T8, T9, tangent)."""
+"""Unit tests of the crystal-plasticity constitutive layer (Luo, Ramazani & Sundararaghavan (2017),
+Sec. 3 and Appendix; T8, T9, tangent)."""
 
 from __future__ import annotations
 
@@ -84,7 +85,8 @@ def test_slip_systems_orthonormal_and_traceless(slip, count):
 
 def test_planar_schmid_tensors_of_spec():
     S0 = CrystalPlasticity().S0
-    # spec 001 §3.1: S0¹ = [−0.4330 0.75; −0.25 0.4330], S0² = [0.4330 0.75; −0.25 −0.4330]
+    # conventions.md#crystal-plasticity-conventions (systems at ±30°): S0¹ = [−0.4330 0.75; −0.25
+    # 0.4330], S0² = [0.4330 0.75; −0.25 −0.4330]
     np.testing.assert_allclose(S0[0], [[-0.4330, 0.75], [-0.25, 0.4330]], atol=5e-5)
     np.testing.assert_allclose(S0[1], [[0.4330, 0.75], [-0.25, -0.4330]], atol=5e-5)
 
@@ -107,7 +109,7 @@ def test_hcp_families_geometry():
 
 
 def _t8_path(mat, rng, n=64, steps=15):
-    """Yield ``(state_n, F, state_new)`` along the random-increment paths of spec T8.
+    """Yield ``(state_n, F, state_new)`` along the random-increment paths of check T8.
 
     Increments of 0.002 for the planar material (D = 2000 MPa); the 3D defaults are
     30-85x stiffer and the Eq. 31 vs Fᵉ consistency gap grows as C Δγ², so their
@@ -148,8 +150,8 @@ def test_t8_return_mapping_invariants(slip, rng):
         n_pruned += int(new["pruned"].sum())
         n_react += int(new["reactivated"].sum())
         assert not np.any(new["unsettled"])
-        # spec T8: active |abs(τ) − s| ≤ 2e-3 s; inactive abs(τ) ≤ s (1 + 1e-3), every
-        # system of every lattice (re-activation passes, active_set="reactivate")
+        # check T8: active |abs(τ) − s| ≤ 2e-3 s; inactive abs(τ) ≤ s (1 + 1e-3), every system of
+        # every lattice (re-activation passes, active_set="reactivate")
         assert np.all(np.abs(tau - s)[act] <= 2e-3 * s[act])
         assert np.all(tau[~act] <= s[~act] * (1 + 1e-3) + 1e-12 * s_scale)
         detFp_n = np.linalg.det(state["Fp"])
@@ -264,7 +266,7 @@ def test_t9_objectivity(slip, rng):
 
 
 def test_double_slip_determinant_and_renormalization():
-    # spec §3.6: det of the update = 1 + 0.75 Δγ¹Δγ² (sign product) for double slip (planar)
+    # derived: det of the update = 1 + 0.75 Δγ¹Δγ² (sign product) for double slip (planar)
     mat = CrystalPlasticity()
     r = pdlin.material_point(mat, "shear", steps=8, orientation=np.radians([-45.0, 0.0]))
     st0, st1 = r.states[-2], r.states[-1]
@@ -441,7 +443,7 @@ def test_equivalent_plastic_strain_increment():
     s = r.stress[-1]
     seff = np.sqrt(
         s[:, 0, 0] ** 2 - s[:, 0, 0] * s[:, 1, 1] + s[:, 1, 1] ** 2 + 3 * s[:, 0, 1] ** 2
-    )  # spec §3.7 σ_eff (2D)
+    )  # conventions.md#crystal-plasticity-conventions: σ_eff (2D)
     expected = np.sum(np.abs(st["tau"]) * st["dgamma"], axis=1) / seff
     np.testing.assert_allclose(mat.plastic_strain_increment(st), expected, rtol=1e-14)
     assert np.all(expected > 0)
@@ -470,7 +472,7 @@ def test_rotated_crystal_frame_convention():
 
 
 def test_svk_energy_gradient(rng):
-    # spec T4 ingredient: P = ∂Ψ/∂F (central FD), and the analytic tangent = FD of P
+    # T4 ingredient: P = ∂Ψ/∂F (central FD), and the analytic tangent = FD of P
     C = pdlin.constitutive.isotropic(E=1000.0, nu=0.3)
     svk = SaintVenantKirchhoff(C)
     F = np.eye(3) + 0.05 * rng.normal(size=(5, 3, 3))
@@ -494,7 +496,7 @@ def test_voronoi_polycrystal_2d():
     grain, theta = pdlin.voronoi_polycrystal(cloud, 21, seed=3)
     assert grain.shape == (625,) and theta.shape == (625,)
     assert set(np.unique(grain)) == set(range(21))
-    # every orientation of the 12-value set used at least once (spec §7 [S])
+    # every orientation of the 12-value set used at least once (conventions.md#polycrystal)
     np.testing.assert_allclose(np.unique(theta), pdlin.constitutive.ORIENTATIONS_2D, atol=0)
     # one orientation per grain
     for g in range(21):

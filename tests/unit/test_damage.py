@@ -1,4 +1,5 @@
-"""Stretch-based damage (spec 002 §8, Eq. 88, §10 erratum on G0)."""
+"""Stretch-based damage (Liu, Chen & Skelton, XOSB, Eq. 88; G0 erratum in
+docs/theory/conventions.md#errata-liu-chen-and-skelton)."""
 
 from __future__ import annotations
 
@@ -20,7 +21,8 @@ from pdlin.models.damage import (
 # ---------------------------------------------------------------- critical stretch
 @pytest.mark.parametrize(("G0", "expected"), [(22_170.0, 6.3714e-3), (222_170.0, 2.0170e-2)])
 def test_critical_stretch_spec_values(G0, expected):
-    # spec 002 §9.3 [D]: E = 190 GPa, delta = 3.01 * 1.25 mm, plane strain (Eq. 88)
+    # derived from Liu, Chen & Skelton, XOSB, Sec. 5.3: E = 190 GPa, delta = 3.01 * 1.25 mm, plane
+    # strain (Eq. 88)
     s0 = critical_stretch(G0, 190e9, 3.7625e-3)
     assert s0 == pytest.approx(expected, rel=1e-4)
     assert critical_stretch(G0, 190e9, 3.7625e-3, plane="strain", dim=2) == s0

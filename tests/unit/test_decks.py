@@ -18,7 +18,7 @@ import pytest
 
 import pdlin
 from pdlin.errors import SceneError
-from pdlin.io.decks import deck_expression, peridigm_hourglass_penalty
+from pdlin.scene.decks import deck_expression, peridigm_hourglass_penalty
 
 yaml = pytest.importorskip("yaml")
 
@@ -775,7 +775,7 @@ def test_omit_bonds_between_blocks_all_drops_the_bonds_joining_blocks(bar_dir):
 
 
 def test_rectangular_plane_filter_is_peridigms_arithmetic():
-    from pdlin.io.decks import peridigm_bond_filters
+    from pdlin.scene.decks import peridigm_bond_filters
 
     # PrecrackedPlateTwoCracks' right filter: Bottom_Unit_Vector (1, 4, 0) is neither unit
     # nor in the plane y = 4; Peridigm uses it as given: u_a = u_b x n = (0, 0, 1) and

@@ -241,7 +241,7 @@ def test_cli_reports_backend(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     bad = scene.read_text().replace('"superlu"', '"umfpack"')
     scene.write_text(bad)
     from pdlin.errors import SceneError
-    from pdlin.io.scene import load_scene
+    from pdlin.scene.scene import load_scene
 
     with pytest.raises(SceneError, match="solver.direct_backend"):
         load_scene(scene)

@@ -210,7 +210,7 @@ def test_run_command_writes_exodus(tmp_path, capsys):
     out = tmp_path / "plate.e"
     assert main(["run", str(scene), "-o", str(out), "-q", "--json"]) == 0
     assert '"output": "' + str(out) in capsys.readouterr().out
-    res = pdlin.solve(pdlin.io.scene.load_scene(scene).problem, solver="direct")
+    res = pdlin.solve(pdlin.scene.load_scene(scene).problem, solver="direct")
     r = read_result(out)
     np.testing.assert_allclose(r.fields()["displacement"], res.u, rtol=1e-10)
     # the reaction on the loaded set balances the applied 1000 N (SCENE)

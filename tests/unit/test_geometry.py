@@ -30,10 +30,10 @@ def test_grid_points_volumes_and_faces():
     [
         # interior family sizes of cubic lattices, |xi| <= m h inclusive:
         (1, 3.015, 6),  # 2 * 3 neighbours on a line
-        (2, 3.015, 28),  # spec 002 section 7 table: 2D family size 28 at 3.01
-        (3, 3.015, 122),  # spec 002 section 7 table / issue: 122 neighbours
-        (3, 2.0, 32),  # spec 004 V4: sphere m = 2 -> 32 bonds
-        (3, 6.0, 924),  # spec 004 V4: sphere m = 6 -> 924 bonds
+        (2, 3.015, 28),  # lattice count: 2D family size 28 at 3.01
+        (3, 3.015, 122),  # lattice count: 122 neighbours
+        (3, 2.0, 32),  # lattice count: sphere m = 2 -> 32 bonds
+        (3, 6.0, 924),  # lattice count: sphere m = 6 -> 924 bonds
     ],
 )
 def test_interior_family_sizes(dim, ratio, expected):
@@ -47,9 +47,9 @@ def test_interior_family_sizes(dim, ratio, expected):
 @pytest.mark.parametrize(
     "shape, axes, expected",
     [
-        ("cube", None, 2196),  # spec 004 V4: cube |xi_k| <= 6 -> 2196 bonds
-        ("ellipsoid", (4.0, 5.0, 6.0), 490),  # spec 004 V4: ellipsoid a = (4, 5, 6) -> 490
-        ("box", (4.0, 5.0, 6.0), 1286),  # spec 004 V4: cuboid |xi| <= (4, 5, 6) -> 1286
+        ("cube", None, 2196),  # lattice count: cube |xi_k| <= 6 -> 2196 bonds
+        ("ellipsoid", (4.0, 5.0, 6.0), 490),  # lattice count: ellipsoid a = (4, 5, 6) -> 490
+        ("box", (4.0, 5.0, 6.0), 1286),  # lattice count: cuboid |xi| <= (4, 5, 6) -> 1286
     ],
 )
 def test_neighbourhood_shapes(shape, axes, expected):

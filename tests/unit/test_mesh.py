@@ -415,14 +415,15 @@ def test_ogrid_sets_sit_on_their_edges() -> None:
 def test_ogrid_spec_geometry() -> None:
     mesh = plate_with_hole_mesh()  # 4 x 32 x 60
     cloud = read_mesh(mesh, horizon_ratio=3.01)
-    assert cloud.n == 7680  # spec 002 section 9.1
+    assert cloud.n == 7680  # Liu, Chen & Skelton, XOSB, Sec. 5.1: 7,680 particles
     sa = np.sqrt(cloud.volumes)
-    # spec 002 section 9.1: sqrt(A) in [0.0039, 0.0245] m, delta in [0.0119, 0.0738] m
+    # conventions.md#plate-with-a-hole O-grid: sqrt(A) in [0.0039, 0.0245] m, delta in [0.0119,
+    # 0.0738] m
     assert (round(sa.min(), 4), round(sa.max(), 4)) == (0.0039, 0.0245)
     assert (round(cloud.horizon.min(), 4), round(cloud.horizon.max(), 4)) == (0.0119, 0.0738)
     bonds = pdlin.find_bonds(cloud, horizon=cloud.horizon)
     fs = bonds.family_size
-    # spec 002 section 9.1: family sizes 12-34, mean 30.1 (symmetric family rule)
+    # reference values: family sizes 12-34, mean 30.1 (symmetric family rule)
     assert (fs.min(), fs.max(), round(fs.mean(), 1)) == (12, 34, 30.1)
 
 
@@ -489,7 +490,8 @@ def test_example_plate_with_hole_runs(capsys: pytest.CaptureFixture) -> None:
     # u_x = u0 = 5e-4 m is prescribed on the right edge layer (the maximum)
     np.testing.assert_allclose(summary["max_abs_u"][0], 5e-4, rtol=1e-12)
     b0, b90 = summary["hole_beta_0"], summary["hole_beta_90"]
-    # spec 002 section 9.1 FEM: u_x = 3.9e-4 (beta 0) > 2.5e-4 (beta 90) > 0, u_y(90) < 0
+    # Q4 FE reference (conventions.md#plate-with-a-hole): u_x = 3.9e-4 (beta 0) > 2.5e-4 (beta
+    # 90) > 0, u_y(90) < 0
     assert 0 < b90["u_x"] < b0["u_x"] < 5e-4
     assert b90["u_y"] < 0
 
@@ -497,7 +499,7 @@ def test_example_plate_with_hole_runs(capsys: pytest.CaptureFixture) -> None:
 @pytest.mark.slow
 def test_example_plate_with_hole_full_size_matches_fem_u_x() -> None:
     summary = _load_example().main([])
-    # spec 002 section 9.1 ring values (beta = 1.4 deg): FEM u_x = 3.9021e-4 m; bond-based
-    # (nu = 1/3 instead of 0.33, pinned u_y) stays within 2 %
+    # reference ring values (beta = 1.4 deg): FEM u_x = 3.9021e-4 m; bond-based (nu = 1/3 instead of
+    # 0.33, pinned u_y) stays within 2 %
     assert summary["hole_beta_0"]["beta_deg"] == pytest.approx(1.4, abs=0.01)
     assert summary["hole_beta_0"]["u_x"] == pytest.approx(3.9021e-4, rel=0.02)

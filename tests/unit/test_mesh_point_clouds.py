@@ -103,5 +103,5 @@ def test_info_and_scene_read_point_cloud_files(tmp_path, capsys):
         '[geometry]\ntype = "mesh"\npath = "c.vtu"\nvolume = 0.01\n'
         '[material]\nE = 1.0\nnu = 0.25\nplane = "stress"\n[horizon]\nratio = 3.015\n'
     )
-    cloud = pdlin.io.scene.load_scene(scene).cloud
+    cloud = pdlin.scene.load_scene(scene).cloud
     np.testing.assert_array_equal(cloud.volumes, 0.01)  # geometry.volume above

@@ -15,12 +15,12 @@ from pdlin.constitutive import isotropic, isotropic_2d
 from pdlin.errors import InputError, InputTypeError, ModelError, ShapeError
 
 #: plane-strain isotropic stiffness used for SVK and the linear model (E = 2000 MPa, ν = 0.3:
-#: the order of spec 001 §3.4's D11)
+#: the order of D11 in Luo, Ramazani & Sundararaghavan (2017), Sec. 4)
 C_ISO = isotropic_2d(2000.0, 0.3, plane="strain")
 
-#: (control, bond ratio) pairs exercised by the tangent tests: spec 001's setting ('none',
-#: δ = h and √2 h), stress points (spec 003, δ = h), higher-order weights (δ = 2h) and the
-#: linear add-ons
+#: (control, bond ratio) pairs exercised by the tangent tests: the setting of Luo, Ramazani &
+#: Sundararaghavan (2017) ('none', δ = h and √2 h), stress points (Luo & Sundararaghavan (2018),
+#: δ = h), higher-order weights (δ = 2h) and the linear add-ons
 CASES = [
     ("none", 1.0),
     ("none", np.sqrt(2.0)),
@@ -42,7 +42,8 @@ def _cp(cloud, seed=0):
 
 
 def _plastic_u(cloud, seed=0):
-    """Shear 0.01 (5 load steps of spec 001 §4.2 in one go) plus a small random field."""
+    """Shear 0.01 (5 load steps of Luo, Ramazani & Sundararaghavan (2017), Eq. 25, in one go) plus a
+    small random field."""
     n = round(np.sqrt(cloud.n))
     F = expm(0.01 * np.array([[0.0, 1.0], [1.0, 0.0]]))
     rng = np.random.default_rng(seed)
@@ -167,7 +168,7 @@ def test_response_stress_and_calls():
 def test_response_stress_is_computed_on_first_read_only(monkeypatch):
     """ADR iterations and line-search trials never read the stress: respond defers the
     per-particle Cauchy mean to the first read of ``stress`` and keeps it."""
-    from pdlin.models import correspondence as cm
+    from pdlin.models.correspondence import model as cm
 
     cloud = _cloud(6)
     bonds = pdlin.find_bonds(cloud, ratio=1.0)
@@ -328,7 +329,8 @@ def test_linear_model_respond_unchanged():
 def test_constrained_system_drives_respond_on_a_ghost_layer_problem():
     """The driver path: StaticProblem -> ConstrainedSystem.disc.respond, affine BC in time."""
     g = pdlin.ghost_layer(_cloud(6))
-    L = np.array([[0.0, 0.002], [0.002, 0.0]])  # shear η = 0.002 (spec 001 §4.2)
+    # shear η = 0.002 (Luo, Ramazani & Sundararaghavan (2017), Eq. 25)
+    L = np.array([[0.0, 0.002], [0.002, 0.0]])
     where = np.union1d(g.ghost, g.cloud.point_set("outer_ring"))
     model = pdlin.Correspondence(material=pdlin.CrystalPlasticity())
     prob = pdlin.StaticProblem(
@@ -455,7 +457,7 @@ def test_operators_hold_no_explicit_zeros(control):
 def test_force_weights_multiplied_in_row_chunks_on_threads(monkeypatch):
     """``w V P`` of a large stress array is multiplied in row chunks on pdlin's threads
     (from ``_THREADED_MULTIPLY`` entries); the nodal force is the same bitwise."""
-    from pdlin.models import correspondence as corr
+    from pdlin.models.correspondence import model as corr
 
     cloud = _cloud(8)
     bonds = pdlin.find_bonds(cloud, ratio=2.0)

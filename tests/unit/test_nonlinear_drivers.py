@@ -203,7 +203,7 @@ def test_linear_models_newton_one_iteration_and_matches_solve():
 
 @pytest.mark.parametrize("e_l", [1e-4, 1e-6, 1e-8])
 def test_adr_error_against_linear_solve_decreases_with_e_l(e_l):
-    # spec 001 T17: elastic steps, ADR vs a linear solve: max|Δu|/max|u| <= 10 e_l
+    # elastic steps, ADR vs a linear solve: max|Δu|/max|u| <= 10 e_l
     cloud = pdlin.grid((14, 8), spacing=0.1)
     prob = pdlin.StaticProblem(
         pdlin.Correspondence(E=1.0, nu=0.3, control="penalty"),
@@ -221,8 +221,9 @@ def test_adr_error_against_linear_solve_decreases_with_e_l(e_l):
 
 
 def test_adr_explicit_density_stability_limit():
-    # spec 001 T15 on a linear chain: Λ = 1, Δt at 0.98 x 2/sqrt(λ_max) converges, at
-    # 1.02 x the update is unstable (linear forces are unbounded: the step fails)
+    # stability limit of the central-difference update on a linear chain: Λ = 1, Δt at 0.98 x
+    # 2/sqrt(λ_max) converges, at 1.02 x the update is unstable (linear forces are unbounded: the
+    # step fails)
     prob = _chain(n=31, beta=0.0)
     system = pdlin.constrained_system(prob)
     K = system.eliminate_matrix(system.assemble()).toarray()

@@ -169,7 +169,7 @@ def test_spy_and_sparsity_vs_horizon(tmp_path, capsys):
 
     scene = tmp_path / "plate.toml"
     scene.write_text(SCENE)
-    loaded = pdlin.io.scene.load_scene(scene)
+    loaded = pdlin.scene.load_scene(scene)
     spy = plotting.plot_scene_spy(scene)
     K = pdlin.assemble_stiffness(loaded.model, loaded.cloud, loaded.bonds())
     assert spy.points.tolist() == [600, K.nnz]

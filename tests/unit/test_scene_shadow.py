@@ -10,7 +10,7 @@ import pytest
 
 import pdlin
 from pdlin.errors import SceneError
-from pdlin.io.scene import scene_from_dict
+from pdlin.scene.scene import scene_from_dict
 
 # uniaxial stress along x for E = 1, nu = 0.3 (plane stress): eps_yy = -0.3 eps_xx
 F_UNI = [[1.001, 0.0], [0.0, 1.0 - 0.3e-3]]
@@ -61,7 +61,7 @@ def test_correspondence_whole_frame_keeps_the_stress_formulation():
     data["shadow"] = {"F": F_UNI}
     data["geometry"]["shape"] = [40, 16]
     sc = scene_from_dict(data)
-    assert sc.problem.model.shadow is not None  # spec 000 §7 shadow problem
+    assert sc.problem.model.shadow is not None  # shadow problem (Javaheri et al. (2022), Sec. II.D)
     assert len(sc.problem.loads) == 1  # the shadow-stress force
 
 

@@ -52,8 +52,8 @@ def _report(cloud, bonds, model=None, **kw):
 @pytest.mark.parametrize(
     ("dim", "family"),
     [
-        (2, 28),  # spec 002 section 7 table (family size at delta = 3.01 h, 2D)
-        (3, 122),  # spec 002 section 7 table / spec 004 V4 (m = 3)
+        (2, 28),  # lattice count (family size at delta = 3.01 h, 2D)
+        (3, 122),  # lattice count (sphere m = 3 of the calibration, too)
     ],
 )
 def test_interior_family_size_at_3015(dim: int, family: int) -> None:
@@ -68,7 +68,7 @@ def test_interior_family_size_at_3015(dim: int, family: int) -> None:
 
 @pytest.mark.parametrize(
     ("m", "count"),
-    # spec 004 V4: sphere bond counts on the simple cubic lattice, inclusive |xi| <= m
+    # lattice counts: sphere bond counts on the simple cubic lattice, inclusive |xi| <= m
     [(2, 32), (3, 122), (4, 256), (5, 514), (6, 924), (7, 1418)],
 )
 def test_sphere_bond_counts_3d(m: int, count: int) -> None:
@@ -85,8 +85,8 @@ def test_sphere_bond_counts_3d(m: int, count: int) -> None:
 @pytest.mark.parametrize(
     ("dim", "coupled", "nnz_row"),
     [
-        (2, 105, 210),  # spec 002 section 7: state-based pattern at delta = 3.01 h, 2D
-        (3, 829, 2487),  # spec 002 section 7: same, 3D
+        (2, 105, 210),  # derived: state-based pattern at delta = 3.01 h, 2D
+        (3, 829, 2487),  # derived: same, 3D
     ],
 )
 def test_two_hop_pattern_counts(dim: int, coupled: int, nnz_row: int) -> None:

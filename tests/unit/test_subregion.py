@@ -10,7 +10,7 @@ import pytest
 import pdlin
 from pdlin.constraints import load_vector
 from pdlin.errors import InputError, SceneError, ShapeError
-from pdlin.io.scene import scene_from_dict
+from pdlin.scene.scene import scene_from_dict
 from pdlin.submodeling import subregion
 from pdlin.sweeps.core import interpolate_field
 

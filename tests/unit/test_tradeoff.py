@@ -18,8 +18,9 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 def test_rate_in_h_recovered_on_graded_bar():
-    # spec 000 §10.A: higher-order correspondence errors fall like N^(-1/2) (ratio 1.41 per
-    # doubling, V16) because of the sqrt singularity at x = 1/2
+    # graded bar (Javaheri et al. (2022), Sec. III.A): higher-order correspondence errors fall like
+    # N^(-1/2) (ratio 1.41 per doubling, reference computation) because of the sqrt singularity at x
+    # = 1/2
     res = tradeoff(graded_bar, {"control": ["higher_order"], "m": [1, 2], "N": [100, 200, 500]},
                    memory="none")  # fmt: skip
     rates = res.rates("h")
@@ -27,7 +28,8 @@ def test_rate_in_h_recovered_on_graded_bar():
     for g in rates:
         assert g["rate"] == pytest.approx(0.5, abs=0.05)
         assert g["n"] == 3
-    # the N = 500, 2h entry of the spec 000 §10.A table: max |u - u_ex| = 1.51e-4 (± 1 %)
+    # the N = 500, 2h entry of the reference table (test_correspondence_bar.py): max |u - u_ex| =
+    # 1.51e-4 (± 1 %)
     row = next(r for r in res.table if r["m"] == 2 and r["N"] == 500)
     u_max = 1e-3 + 4e-3 * np.sqrt(2.0) * np.sqrt(0.5 - 0.5 / 500)  # max |u_ex| on the real points
     assert row["error"] * u_max == pytest.approx(1.51e-4, rel=0.01)
@@ -226,7 +228,7 @@ def test_cli_tradeoff_on_scene(tmp_path, capsys):
 
 def test_scene_sweep_errors(tmp_path):
     from pdlin.errors import SceneError
-    from pdlin.sweeps.scene import tradeoff_from_dict
+    from pdlin.scene.tradeoff import tradeoff_from_dict
 
     base = {
         "geometry": {"type": "grid", "shape": [20], "spacing": 0.05},
@@ -252,7 +254,7 @@ def test_run_select_solves_the_fastest_configuration_meeting_the_target(tmp_path
     # (or reuses its finished points) and solves the fastest configuration within the target
     from pdlin.cli.main import main
     from pdlin.errors import SceneError
-    from pdlin.sweeps.scene import select_scene
+    from pdlin.scene.tradeoff import select_scene
 
     scene = (EXAMPLES / "tradeoff_plate.toml").read_text()
     scene = scene.replace('model = ["bond_based", "lps", "xosb"]', 'model = ["bond_based", "lps"]')
@@ -308,7 +310,7 @@ def test_tradeoff_on_the_builtin_bar_scene(tmp_path, capsys):
 
 
 def test_builtin_scene_without_a_tradeoff_table(monkeypatch, capsys):
-    import pdlin.io.scene as scene_mod
+    import pdlin.scene.scene as scene_mod
     from pdlin.cli.main import main
 
     data, path = scene_mod.builtin_scene("cp_shear")
@@ -319,7 +321,7 @@ def test_builtin_scene_without_a_tradeoff_table(monkeypatch, capsys):
 
 
 def _short_cp(name, steps=4):
-    from pdlin.io.scene import builtin_scene
+    from pdlin.scene.scene import builtin_scene
 
     data, _ = builtin_scene(name)
     data["solver"].update(steps=steps, t_end=float(steps))
@@ -331,7 +333,7 @@ def test_nonlinear_scene_tradeoff_homogenized_stress_against_the_finest_run(name
     # the built-in crystal-plasticity scenes carry a [tradeoff] table (h x method, reference
     # the finest Newton run); here 4 load steps and coarser grids: each point is solved by
     # solve_nonlinear and its error is that of the homogenized stress history
-    from pdlin.sweeps.scene import tradeoff_from_dict
+    from pdlin.scene.tradeoff import tradeoff_from_dict
 
     data = _short_cp(name)
     assert data["tradeoff"]["reference"] == "finest"
@@ -344,8 +346,8 @@ def test_nonlinear_scene_tradeoff_homogenized_stress_against_the_finest_run(name
     assert ref["solver_used"] == "newton" and ref["operator_used"] == "homogenized-stress"
     same_h = rows[(0.0625, "adr")]
     assert same_h["solver_used"] == "adr" and same_h["iterations"] > 10 * ref["iterations"]
-    # ADR (e_l = 1e-6) against Newton on the same grid: a few 1e-3 at most (spec 001 T18
-    # tolerance 1e-3 per plastic step, plus the non-unique plastic fields; measured 1.3e-3)
+    # ADR (e_l = 1e-6) against Newton on the same grid: a few 1e-3 at most (test_t18's tolerance
+    # 1e-3 per plastic step, plus the non-unique plastic fields; measured 1.3e-3)
     assert 0.0 < same_h["error"] < 1e-2
     # the coarse grid discretizes the Voronoi grains differently: a larger, method-
     # independent error (measured 0.10 shear / 0.07 compression at 4 steps)
@@ -356,8 +358,8 @@ def test_nonlinear_scene_tradeoff_homogenized_stress_against_the_finest_run(name
 
 def test_nonlinear_tradeoff_rejects_linear_only_options_and_keys():
     from pdlin.errors import SceneError
+    from pdlin.scene.tradeoff import tradeoff_from_dict
     from pdlin.sweeps import tension_bar
-    from pdlin.sweeps.scene import tradeoff_from_dict
 
     data = _short_cp("cp_shear", steps=1)
     data["tradeoff"]["exact"] = {"F": [[1.0, 0.0], [0.0, 1.0]]}
@@ -378,7 +380,7 @@ def test_scene_fem_reference_q4_at_the_particles():
     # particles, the scene's own conditions and nodal forces); correspondence (penalty)
     # converges to it: errors measured 0.225 / 0.141 / 0.085 at h = 0.1 / 0.05 / 0.025
     # (rate 0.70: the O(h) hull difference and the nodal end loads), 2026-11-25
-    from pdlin.sweeps.scene import tradeoff_from_dict
+    from pdlin.scene.tradeoff import tradeoff_from_dict
 
     data = {
         "geometry": {"type": "grid", "shape": [40, 20], "spacing": 0.05},
@@ -405,7 +407,7 @@ def test_scene_fem_reference_q4_at_the_particles():
 )
 def test_scene_reference_errors(table, match):
     from pdlin.errors import SceneError
-    from pdlin.sweeps.scene import tradeoff_from_dict
+    from pdlin.scene.tradeoff import tradeoff_from_dict
 
     data = {
         "geometry": {"type": "grid", "shape": [10, 5], "spacing": 0.1},

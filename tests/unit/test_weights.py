@@ -1,8 +1,9 @@
-"""Unit tests of pdlin.models.weights (spec 000: higher-order influence weights).
+"""Unit tests of pdlin.models.weights (higher-order influence weights, Javaheri et al. (2022)).
 
-Provenance of literal values: "spec §k" is /work/shared/spec/000_higher_order_weights.md,
-section k; "paper Table k" is Javaheri et al., AIAA J. (2022), Tables 1-3, as corrected and
-extended by the spec's §6 "All horizons" table.
+Provenance of literal values: "paper Table k" is Javaheri et al. (2022), Tables 1-3; rows beyond the
+paper ("all horizons") are reference values of pdlin's generator procedure
+(docs/theory/conventions.md#higher-order-weights), checked in exact rational arithmetic; "derived"
+marks closed forms worked out for pdlin (symbols, kernels, 1D weights).
 """
 
 from __future__ import annotations
@@ -46,15 +47,15 @@ ZERO = WeightStatus.FARTHEST_WEIGHT_ZERO
 SING = WeightStatus.SINGULAR_SHAPE_TENSOR
 NONE = WeightStatus.NO_UNIQUE_SET
 
-# spec §6 "All horizons [REF]" table, row by row: (dim, s_max, order, weights by shell or None,
-# Omega or None, status, augmented).  "aug" in the spec = augmented True.
+# all-horizons table (paper Tables 1-3 plus reference rows), row by row: (dim, s_max, order, weights
+# by shell or None, Omega or None, status, augmented).  "aug" = augmented True.
 ALL_HORIZONS = [
-    # d = 1: paper Table 1 (spec §6 rows "1 | 1; 2; 3; 4")
+    # d = 1: paper Table 1 (δ = h, 2h, 3h, 4h)
     (1, 1, 2, [1], 2, VALID, False),
     (1, 4, 4, [1, R(-1, 16)], R(3, 2), VALID, False),
     (1, 9, 6, [1, R(-1, 10), R(1, 135)], R(4, 3), VALID, False),
     (1, 16, 8, [1, R(-1, 8), R(1, 63), R(-1, 896)], R(5, 4), VALID, False),
-    # d = 2: paper Table 2 plus the excluded and beyond-the-paper rows of spec §6
+    # d = 2: paper Table 2 plus the excluded and beyond-the-paper reference rows
     (2, 1, 2, [1], 2, VALID, False),
     (2, 2, 2, [1, 0], 2, ZERO, True),
     (2, 4, 4, [1, 0, R(-1, 16)], R(3, 2), VALID, False),
@@ -71,9 +72,9 @@ ALL_HORIZONS = [
         SING,
         False,
     ),
-    # spec §6: "1D 4h weights on the axis shells (s = 1, 4, 9, 16), 0 elsewhere"
+    # reference row: "1D 4h weights on the axis shells (s = 1, 4, 9, 16), 0 elsewhere"
     (2, 16, 8, [1, 0, R(-1, 8), 0, 0, R(1, 63), 0, 0, R(-1, 896)], R(5, 4), VALID, True),
-    # d = 3: paper Table 3 plus the spec §6 rows
+    # d = 3: paper Table 3 plus the reference rows
     (3, 1, 2, [1], 2, VALID, False),
     (3, 2, 2, [1, 0], 2, ZERO, True),
     (3, 3, 4, [1, R(-1, 2), R(1, 4)], 0, SING, False),
@@ -102,7 +103,7 @@ def _id(row: tuple) -> str:
 
 @pytest.mark.parametrize("row", ALL_HORIZONS, ids=_id)
 def test_every_tabulated_horizon_matches_spec_table(row):
-    """V1: weights, order, Omega, status and augmentation of every spec §6 row, exactly."""
+    """V1: weights, order, Omega, status and augmentation of every all-horizons row, exactly."""
     dim, s_max, order, weights, omega, status, augmented = row
     r = higher_order_weights(dim, math.sqrt(s_max))
     assert r.shells[-1] == s_max
@@ -157,9 +158,9 @@ def test_paper_tables_are_the_valid_rows_of_weights_table(dim, rows):
 
 
 def test_weights_table_statuses_and_default_ranges():
-    """spec §6: every horizon up to 4h (1D) and 3h (2D, 3D) with its status."""
+    """All-horizons table: every horizon up to 4h (1D) and 3h (2D, 3D) with its status."""
     expected = {
-        1: ["valid"] * 4,  # spec §6 d = 1 rows
+        1: ["valid"] * 4,  # d = 1 rows
         2: [
             "valid",
             "farthest weight zero",
@@ -167,7 +168,7 @@ def test_weights_table_statuses_and_default_ranges():
             "farthest weight zero",
             "singular shape tensor",
             "valid",
-        ],  # spec §6 d = 2 rows up to 3h
+        ],  # d = 2 rows up to 3h
         3: [
             "valid",
             "farthest weight zero",
@@ -183,12 +184,12 @@ def test_weights_table_statuses_and_default_ranges():
         table = weights_table(dim)
         assert [r.status.value for r in table] == statuses
         assert [str(r.status) for r in table] == statuses
-    # an explicit max_ratio extends the 2D table to the spec's beyond-the-paper rows
+    # an explicit max_ratio extends the 2D table to the beyond-the-paper reference rows
     assert [r.shells[-1] for r in weights_table(2, 4)] == [1, 2, 4, 5, 8, 9, 10, 13, 16]
 
 
 def test_status_vocabulary_is_the_spec_vocabulary():
-    # spec §6 steps 3-4 and the brief: exactly these four outcomes
+    # the generator's steps 3-4 (conventions.md#higher-order-weights): exactly these four outcomes
     assert {s.value for s in WeightStatus} == {
         "valid",
         "farthest weight zero",
@@ -199,18 +200,19 @@ def test_status_vocabulary_is_the_spec_vocabulary():
 
 
 def test_shells_and_multiplicities():
-    # spec §5 "Shells"
+    # shells of Javaheri et al. (2022), Sec. II.C.1 (|p|² values and multiplicities)
     assert lattice_shells(2, 3) == ((1, 2, 4, 5, 8, 9), (4, 4, 4, 8, 4, 4))
     assert lattice_shells(3, 3) == ((1, 2, 3, 4, 5, 6, 8, 9), (6, 12, 8, 6, 24, 24, 12, 30))
     assert lattice_shells(1, 4) == ((1, 4, 9, 16), (2, 2, 2, 2))
 
 
 def test_membership_tolerance_and_any_horizon():
-    # spec §2: |p|^2 <= (delta/h)^2 (1 + 1e-12); a horizon between shells takes the inner ones
+    # pdlin's horizon test: |p|^2 <= (delta/h)^2 (1 + 1e-12); a horizon between shells takes the
+    # inner ones
     assert higher_order_weights(2, 2.0 * (1 - 1e-14)).shells[-1] == 4
     assert higher_order_weights(2, 2.0 * (1 - 1e-9)).shells[-1] == 2
     assert higher_order_weights(2, 2.1).shells == higher_order_weights(2, 2).shells
-    assert higher_order_weights(2, sympy.sqrt(8)).status is SING  # spec §6, √8 row
+    assert higher_order_weights(2, sympy.sqrt(8)).status is SING  # reference row √8
     assert higher_order_weights(3, Fraction(3)).Omega == sympy.Rational(60, 89)  # paper Table 3
 
 
@@ -218,12 +220,12 @@ def test_float_access_and_offsets():
     r = higher_order_weights(3, 3)
     fw = r.float_weights
     assert fw[9] == pytest.approx(1 / 267, rel=1e-15)  # paper Table 3, omega_8
-    assert r.Omega_float == pytest.approx(60 / 89, rel=1e-15)  # spec §6
+    assert r.Omega_float == pytest.approx(60 / 89, rel=1e-15)  # Javaheri et al. (2022), Table 3
     p, w = r.offsets()
-    assert p.shape == (122, 3) and w.shape == (122,)  # spec §3: 122 neighbours for 3D 3h
-    # Omega = sum_bonds omega (xi_1/h)^2 (spec §2)
+    assert p.shape == (122, 3) and w.shape == (122,)  # 122 neighbours for 3D 3h
+    # Omega = sum_bonds omega (xi_1/h)^2 (Javaheri et al. (2022), Eq. 18)
     assert float(np.sum(w * p[:, 0] ** 2)) == pytest.approx(60 / 89, rel=1e-14)
-    # intact shape tensor K / (h^2 dV) = Omega I (spec §13 V3)
+    # intact shape tensor K / (h^2 dV) = Omega I (Javaheri et al. (2022), Eq. 17)
     np.testing.assert_allclose(np.einsum("b,bi,bj->ij", w, p, p), 60 / 89 * np.eye(3), atol=1e-14)
 
 
@@ -236,7 +238,7 @@ def test_result_is_frozen_and_read_only():
 
 
 def test_no_unique_set_has_no_weights():
-    r = higher_order_weights(3, math.sqrt(8))  # spec §6: 3D √8 "no unique set"
+    r = higher_order_weights(3, math.sqrt(8))  # reference row 3D √8: "no unique set"
     with pytest.raises(ModelError, match="no unique set"):
         _ = r.float_weights
     with pytest.raises(ModelError):
@@ -253,7 +255,8 @@ def test_results_are_cached():
 
 @pytest.mark.parametrize("m", [2, 3, 4, 5])
 def test_1d_closed_form_and_fd_coefficients(m):
-    """V6: omega_k = (-1)^(k+1)(m-1)!(m+1)!/(k^2 (m-k)!(m+k)!), Omega = (m+1)/m (spec §6)."""
+    """V6: omega_k = (-1)^(k+1)(m-1)!(m+1)!/(k^2 (m-k)!(m+k)!), Omega = (m+1)/m (derived,
+    conventions.md#higher-order-weights)."""
     r = higher_order_weights(1, m)
     f = math.factorial
     for k in range(1, m + 1):
@@ -261,7 +264,7 @@ def test_1d_closed_form_and_fd_coefficients(m):
         assert r.weights[k * k] == closed
     assert r.Omega == sympy.Rational(m + 1, m)
     a = [k * r.weights[k * k] / r.Omega for k in range(1, m + 1)]
-    # spec §6: central-FD coefficients for m = 2, 3, 4 (m = 5: closed-form weights 1, -1/7, ...)
+    # derived: central-FD coefficients for m = 2, 3, 4 (m = 5: closed-form weights 1, -1/7, ...)
     fd = {
         2: ["2/3", "-1/12"],
         3: ["3/4", "-3/20", "1/60"],
@@ -302,7 +305,7 @@ def test_moments_vanish_up_to_order(row):
 @pytest.mark.parametrize(
     ("dim", "ratio", "exponents", "value"),
     [
-        # spec §6 "First nonzero moments" (units h^k)
+        # derived first nonzero moments (units h^k)
         (1, 2, (6,), -6),
         (2, 2, (6, 0), -6),
         (3, 2, (6, 0, 0), -6),
@@ -324,7 +327,8 @@ def test_first_nonzero_moments(dim, ratio, exponents, value):
 
 
 def test_coefficient_rows_of_spec_tables():
-    """spec §5 coefficient rows (3D table, rows x^4, x^2y^2z^2, x^8) from lattice_moment."""
+    """Moment coefficient rows (Javaheri et al. (2022), Eqs. 19-26; (3D table, rows x^4, x^2y^2z^2,
+    x^8) from lattice_moment."""
     shells = (1, 2, 3, 4, 5, 6, 8, 9)
     rows = {
         (4, 0, 0): [2, 8, 8, 32, 136, 144, 128, 426],
@@ -342,7 +346,7 @@ def test_coefficient_rows_of_spec_tables():
 
 @pytest.mark.parametrize("row", [r for r in ALL_HORIZONS if r[5] in (VALID, ZERO)], ids=_id)
 def test_gradient_exactness_order_equals_order(row):
-    """spec §5 [D]: an O(h^2n) set gives the exact F for polynomials of degree <= 2n."""
+    """Derived: an O(h^2n) set gives the exact F for polynomials of degree <= 2n."""
     dim, s_max, order = row[:3]
     assert gradient_exactness_order(higher_order_weights(dim, math.sqrt(s_max))) == order
 
@@ -354,10 +358,10 @@ def test_gradient_exactness_order_detects_perturbation_and_float_sets():
     assert gradient_exactness_order(w, dim=2) == 2  # exact comparison sees 1e-12
     # Fractions are exact too: the 1D δ = 2h set of paper Table 1
     assert gradient_exactness_order({1: Fraction(1), 4: Fraction(-1, 16)}, dim=1) == 4
-    # the 'no control' set omega = 1/|xi| is only second order (spec §4, §13 V5)
+    # the 'no control' set omega = 1/|xi| is only second order (reference values)
     assert gradient_exactness_order(nocontrol_weights(2, 3), dim=2) == 2
     with pytest.raises(ModelError, match="Omega"):
-        gradient_exactness_order(higher_order_weights(2, math.sqrt(8)))  # spec §6: Omega = 0
+        gradient_exactness_order(higher_order_weights(2, math.sqrt(8)))  # reference row: Omega = 0
 
 
 def _nonlocal_gradient(p, w, h, x0, u):
@@ -369,7 +373,7 @@ def _nonlocal_gradient(p, w, h, x0, u):
 
 @pytest.mark.parametrize(("dim", "ratio"), [(1, 2), (1, 4), (2, 3), (3, 2), (3, 3)])
 def test_polynomial_exactness_in_floating_point(dim, ratio):
-    """V4 (spec §13): h = 0.1, degree <= 2n*: error < 1e-12; degree 2n* + 1: error > 1e-7."""
+    """V4: h = 0.1, degree <= 2n*: error < 1e-12; degree 2n* + 1: error > 1e-7."""
     r = higher_order_weights(dim, ratio)
     p, w = r.offsets()
     p = p.astype(float)
@@ -397,7 +401,8 @@ def test_polynomial_exactness_in_floating_point(dim, ratio):
 
 
 def test_v5_gradient_errors_2d():
-    """V5 (spec §13): 2D u = (sin x cos 0.7y, e^0.3x sin y) at (0.3, 0.2), h = 0.1, ±1 %."""
+    """V5 (reference values of an independent implementation): 2D u = (sin x cos 0.7y, e^0.3x sin y)
+    at (0.3, 0.2), h = 0.1, ±1 %."""
     x0 = np.array([0.3, 0.2])
 
     def u(x):
@@ -411,7 +416,7 @@ def test_v5_gradient_errors_2d():
             [0.3 * np.exp(0.09) * np.sin(0.2), np.exp(0.09) * np.cos(0.2)],
         ]
     )
-    expected = {  # spec §13 V5: HO h / 2h / 3h and none 2h / 3h at h = 0.1
+    expected = {  # reference values (V5): HO h / 2h / 3h and none 2h / 3h at h = 0.1
         ("ho", 1): 1.79e-3,
         ("ho", 2): 3.57e-6,
         ("ho", 3): 7.64e-9,
@@ -441,7 +446,7 @@ def _ho_extremes(dim: int, ratio: int) -> dict:
 @pytest.mark.parametrize(
     ("dim", "ratio", "min_value", "max_value"),
     [
-        # spec §4 extremes table [REF]: min |g|h (1D value in every d) and max |g|h 1D/2D/3D
+        # reference values (symbol extremes): min |g|h (1D value in every d) and max |g|h 1D/2D/3D
         (1, 1, 0.7071, 1.000),
         (2, 1, 0.7071, 1.414),
         (3, 1, 0.7071, 1.732),
@@ -458,16 +463,16 @@ def test_symbol_extremes_of_ho_sets(dim, ratio, min_value, max_value):
     r = higher_order_weights(dim, ratio)
     ext = _ho_extremes(dim, ratio)
     assert round(ext["min"], 4) == min_value
-    digits = 2 if max_value > 10 else 3  # as printed in spec §4
+    digits = 2 if max_value > 10 else 3  # as recorded in the reference table
     assert round(ext["max"], digits) == max_value
-    # spec §4: the HO minimum is attained on an axis at theta = pi/4
+    # derived: the HO minimum is attained on an axis at theta = pi/4
     axis = np.zeros(dim)
     axis[0] = np.pi / 4
     assert np.linalg.norm(gradient_symbol(r, axis)) == pytest.approx(ext["min"], abs=1e-9)
 
 
 def test_symbol_argmax_3d_3h():
-    # spec §4: max 11.86 at theta ≈ (1.217, 0.783, 0.783) pi; |g| is invariant under sign
+    # reference value: max 11.86 at theta ≈ (1.217, 0.783, 0.783) pi; |g| is invariant under sign
     # flips and permutations of theta, so compare |theta mod 2pi folded to [0, pi]|
     ext = _ho_extremes(3, 3)
     folded = np.sort(np.pi - np.abs(np.pi - np.mod(ext["argmax"], 2 * np.pi)))
@@ -479,18 +484,18 @@ def test_symbol_argmax_3d_3h():
 
 @pytest.mark.parametrize(
     ("dim", "ratio", "max_value"),
-    # spec §4 table, row "none 2h / 3h": max 0.587, 0.417 / 0.784, 0.499 / 0.838, 0.544
+    # reference values, row "none 2h / 3h": max 0.587, 0.417 / 0.784, 0.499 / 0.838, 0.544
     [(1, 2, 0.587), (1, 3, 0.417), (2, 2, 0.784), (2, 3, 0.499), (3, 2, 0.838), (3, 3, 0.544)],
 )
 def test_symbol_extremes_of_nocontrol_sets(dim, ratio, max_value):
     ext = symbol_extremes(nocontrol_weights(dim, ratio), dim=dim)
     assert round(ext["max"], 3) == max_value
-    # spec §4: min 0 in 1D, <= 0.01 in 2D/3D
+    # derived / reference: min 0 in 1D, <= 0.01 in 2D/3D
     assert ext["min"] <= (1e-9 if dim == 1 else 0.01)
 
 
 def test_nocontrol_zeros_and_near_zeros():
-    # spec §4 item 2: 1D zeros at 2π/3 (2h); π/2, 2π/3 (3h); π/2, 2π/5, 4π/5 (4h); V7: 1e-12
+    # derived: 1D zeros at 2π/3 (2h); π/2, 2π/3 (3h); π/2, 2π/5, 4π/5 (4h); V7: 1e-12
     zeros = {2: [2 / 3], 3: [1 / 2, 2 / 3], 4: [1 / 2, 2 / 5, 4 / 5]}
     for ratio, thetas in zeros.items():
         g = gradient_symbol(nocontrol_weights(1, ratio), np.array(thetas) * np.pi, dim=1)
@@ -499,7 +504,8 @@ def test_nocontrol_zeros_and_near_zeros():
     g2 = gradient_symbol(nocontrol_weights(2, 3), np.array([0.63, 0.63]) * np.pi)
     g3 = gradient_symbol(nocontrol_weights(3, 3), np.array([0.0, 1.38, 0.0]) * np.pi)
     assert np.linalg.norm(g2) <= 0.01 and np.linalg.norm(g3) <= 0.01
-    # and the HO sets have no such zeros there (spec §4 item 3)
+    # and the HO sets have no such zeros there (derived: their symbols are the central-FD
+    # wavenumbers)
     assert np.linalg.norm(gradient_symbol(higher_order_weights(2, 3), [0.63 * np.pi] * 2)) > 0.5
 
 
@@ -507,7 +513,8 @@ def test_nocontrol_zeros_and_near_zeros():
 def test_symbol_vanishes_on_checkerboard_and_matches_theta_at_long_waves(dim, ratio):
     r = higher_order_weights(dim, ratio)
     corners = np.array(list(itertools.product((0.0, np.pi), repeat=dim)))
-    # spec §4 item 1: g = 0 on {0, π}^d for every centrally symmetric set
+    # derived (conventions.md#higher-order-weights): g = 0 on {0, π}^d for every centrally symmetric
+    # set
     assert np.max(np.abs(gradient_symbol(r, corners))) < 1e-13
     theta = np.full((1, dim), 1e-3)
     np.testing.assert_allclose(gradient_symbol(r, theta), theta, rtol=1e-6)
@@ -516,7 +523,7 @@ def test_symbol_vanishes_on_checkerboard_and_matches_theta_at_long_waves(dim, ra
 @pytest.mark.parametrize(
     ("weights", "dim", "expected"),
     [
-        # spec §4 "Periodic kernels" / V8: 2^d for δ = h and HO; 1D n = 24: 4 (none 2h), 6 (3h)
+        # derived periodic kernels (V8): 2^d for δ = h and HO; 1D n = 24: 4 (none 2h), 6 (3h)
         (("ho", 1), 1, 2),
         (("ho", 4), 1, 2),
         (("ho", 1), 2, 4),
@@ -583,7 +590,7 @@ def test_as_influence_refuses_invalid_sets_and_bad_h():
     with pytest.raises(ModelError, match="status 'valid'"):
         as_influence(higher_order_weights(2, math.sqrt(8)), 1.0)
     f = as_influence(higher_order_weights(2, math.sqrt(5)), 1.0, require_valid=False)
-    assert f([math.sqrt(5)], 3.0)[0] == 0.0  # spec §6: √5 set has ω_S = 0
+    assert f([math.sqrt(5)], 3.0)[0] == 0.0  # reference row: √5 set has ω_S = 0
     with pytest.raises(ModelError, match="no unique set"):
         as_influence(higher_order_weights(3, math.sqrt(8)), 1.0, require_valid=False)
     with pytest.raises(InputError, match="h must be"):
@@ -676,7 +683,8 @@ def _lattice_family(dim, s_max):
 
 @pytest.mark.parametrize(("dim", "ratio"), [(1, 2), (1, 3), (1, 4), (2, 1), (2, 2)])
 def test_moment_weights_agree_with_exact_path_on_unique_sets(dim, ratio):
-    """Unique (non-augmented) lattice sets: numeric min-norm = exact, up to ω₁ = 1 (spec §14)."""
+    """Unique (non-augmented) lattice sets: numeric min-norm = exact, up to ω₁ = 1
+    (conventions.md#higher-order-weights)."""
     r = higher_order_weights(dim, ratio)
     p, s = _lattice_family(dim, r.shells[-1])
     h = 0.01
@@ -689,7 +697,8 @@ def test_moment_weights_agree_with_exact_path_on_unique_sets(dim, ratio):
 
 @pytest.mark.parametrize(("dim", "ratio"), [(2, 3), (3, 2), (3, 3)])
 def test_moment_weights_differ_on_augmented_sets(dim, ratio):
-    """spec §14: least-squares/minimum-norm solvers differ where step 3 applies."""
+    """conventions.md#higher-order-weights: least-squares/minimum-norm solvers differ where step 3
+    applies."""
     r = higher_order_weights(dim, ratio)
     assert r.augmented
     p, s = _lattice_family(dim, r.shells[-1])

@@ -1,9 +1,11 @@
-"""Unit and operator tests of the ordinary state-based models LPS and XOSB (spec 002 §11 A, B).
+"""Unit and operator tests of the ordinary state-based models LPS and XOSB (Liu, Chen & Skelton,
+XOSB).
 
-Tolerances and reference counts are those of spec 002 §11 (tables A and B) and §5
-(fallback census).  Poisson ratios avoid the values where the dilatation
-coupling vanishes (1/3 plane stress, 1/4 plane strain / 3D, spec 002 §7, §12),
-except where the spec's own example uses ν = 0.33 (close to, but not at, 1/3).
+Tolerances and reference counts are those of pdlin's acceptance checks A1-A9 and B1-B8 and of the
+fallback census of an independent reference implementation (the paper's Sec. 3.3 rule).  Poisson
+ratios avoid the values where the dilatation coupling vanishes (1/3 plane stress, 1/4 plane strain /
+3D; derived), except where the paper's own example (Sec. 5.1) uses ν = 0.33 (close to, but not at,
+1/3).
 """
 
 from __future__ import annotations
@@ -16,18 +18,18 @@ import scipy.sparse as sp
 
 import pdlin
 from pdlin.errors import InputError, InputTypeError, ModelError
-from pdlin.models._state import TARGET_D, TARGET_H, basis_d, basis_h, bulk_shear_moduli
+from pdlin.models.ordinary_state import TARGET_D, TARGET_H, basis_d, basis_h, bulk_shear_moduli
 
 # -- clouds ------------------------------------------------------------------
 
 
 def _rect(nx: int = 40, ny: int = 20) -> tuple[pdlin.PointCloud, pdlin.Bonds]:
     c = pdlin.grid((nx, ny), spacing=0.025)
-    return c, pdlin.find_bonds(c, ratio=3.01)  # δ = 3.01 Δ (spec 002 §2)
+    return c, pdlin.find_bonds(c, ratio=3.01)  # δ = 3.01 Δ (Liu, Chen & Skelton, XOSB, Sec. 5)
 
 
 def _jittered(dim: int, n: int, seed: int = 7) -> tuple[pdlin.PointCloud, pdlin.Bonds]:
-    """Jittered, non-uniform cloud with δ_i = 3.01 V_i^(1/d) (spec 002 §11 A)."""
+    """Jittered, non-uniform cloud with δ_i = 3.01 V_i^(1/d) (checks A1-A9)."""
     rng = np.random.default_rng(seed)
     c = pdlin.grid((n,) * dim, spacing=1.0 / n)
     pts = c.points + rng.uniform(-0.25, 0.25, c.points.shape) / n
@@ -37,7 +39,8 @@ def _jittered(dim: int, n: int, seed: int = 7) -> tuple[pdlin.PointCloud, pdlin.
 
 
 def _ogrid() -> tuple[pdlin.PointCloud, pdlin.Bonds]:
-    """The 7,680-quad O-grid of the plate with a hole (spec 002 §9.1)."""
+    """The 7,680-quad O-grid of the plate with a hole (Liu, Chen & Skelton, XOSB, Sec. 5.1;
+    conventions.md#plate-with-a-hole)."""
     cloud = pdlin.read_mesh(pdlin.plate_with_hole_mesh())
     return cloud, pdlin.find_bonds(cloud, ratio=3.01)
 
@@ -58,7 +61,7 @@ CLOUD_NAMES = ["rect", "jitter2", "ogrid", "cube", "jitter3"]
 
 
 def _random_strain(rng: np.random.Generator, d: int) -> np.ndarray:
-    """Random full symmetric strain (shear included) with ‖ε‖ = 1e-3 (spec 002 §11 A3)."""
+    """Random full symmetric strain (shear included) with ‖ε‖ = 1e-3 (check A3)."""
     a = rng.normal(size=(d, d))
     eps = a + a.T
     return 1e-3 * eps / np.linalg.norm(eps)
@@ -82,11 +85,11 @@ def test_a1_a2_constraints(clouds, name):
     s = bonds.horizon[bonds.i]
     xt = bonds.xi / s[:, None]
     sv = s * s * bonds.volume_j
-    # A1: Σ ω ξ̂(ξ) V = r, in the scaled form Σ ω s² ξ̂(ξ̃) V (tolerance 1e-10, spec §11 A1)
+    # A1: Σ ω ξ̂(ξ) V = r, in the scaled form Σ ω s² ξ̂(ξ̃) V (tolerance 1e-10, check A1)
     for om, fn, target in ((w.omega_h, basis_h, TARGET_H[d]), (w.omega_d, basis_d, TARGET_D[d])):
         got = bonds.per_point_sum(om[:, None] * fn(xt) * sv[:, None])
         assert np.abs(got - target).max() <= 1e-10
-    # A2: Σ ω^d ξ⊗ξ V / s² = ((n_d+2)/2) I (spec §11 A2, tolerance 1e-10)
+    # A2: Σ ω^d ξ⊗ξ V / s² = ((n_d+2)/2) I (check A2, tolerance 1e-10)
     m2 = np.einsum("b,bk,bl->bkl", w.omega_d * sv / (s * s), xt, xt)
     got = bonds.per_point_sum(m2 * (s * s)[:, None, None])
     np.testing.assert_allclose(
@@ -109,15 +112,15 @@ def test_a3_a4_a5_affine_exactness(clouds, name, plane, rng):
         eps = _random_strain(rng, d)
         u = _rigid_plus(cloud, eps, rng)
         tr = np.trace(eps)
-        # A3: θ_i = tr ε at every particle, fallback ones included (≤ 1e-10 ‖ε‖, spec §11 A3)
+        # A3: θ_i = tr ε at every particle, fallback ones included (≤ 1e-10 ‖ε‖, check A3)
         theta = model.dilatation(cloud, bonds, u)
         assert np.abs(theta - tr).max() <= 1e-10 * np.linalg.norm(eps)
-        # A4: W_i = W_CCM at all particles with corrected ω^d (≤ 1e-10 relative, spec §11 A4)
+        # A4: W_i = W_CCM at all particles with corrected ω^d (≤ 1e-10 relative, check A4)
         dev = eps - tr / d * np.eye(d)
         w_ccm = 0.5 * kappa * tr**2 + mu * np.sum(dev * dev)
         w_i = model.strain_energy_density(cloud, bonds, u)
         assert np.abs(w_i / w_ccm - 1).max() <= 1e-10
-        # A5: σ_i = κ tr ε I + 2μ ε^d at non-fallback particles (≤ 1e-10 ‖σ‖, spec §11 A5)
+        # A5: σ_i = κ tr ε I + 2μ ε^d at non-fallback particles (≤ 1e-10 ‖σ‖, check A5)
         sig = model.stress(cloud, bonds, u)
         ref = kappa * tr * np.eye(d) + 2 * mu * dev
         err = np.abs(sig - ref).max(axis=(1, 2)) / np.abs(ref).max()
@@ -127,8 +130,8 @@ def test_a3_a4_a5_affine_exactness(clouds, name, plane, rng):
 
 
 def test_a3_a4_exact_at_crack_faces(rng):
-    # bonds crossing a pre-crack are removed before preprocessing, so crack faces are free
-    # surfaces and θ, W stay exact there (spec 002 §2, §4, §11 A3/A4)
+    # bonds crossing a pre-crack are removed before preprocessing, so crack faces are free surfaces
+    # and θ, W stay exact there (Liu, Chen & Skelton, XOSB, Secs. 3.1-3.2; checks A3/A4)
     cloud, _ = _jittered(2, 20, seed=5)
     crack = np.array([[[0.0, 0.5], [0.5, 0.5]]])
     bonds = pdlin.find_bonds(cloud, cracks=crack)
@@ -155,12 +158,12 @@ def test_a6_corrections_off_are_the_spherical_formulas(rng):
         model = pdlin.LPS(5.0, 0.3, plane=plane)
         kappa, mu = model.moduli(2)
         u = 1e-3 * rng.normal(size=(cloud.n, 2))
-        m = np.pi * bonds.horizon[bonds.i] ** 4 / 2  # m = πδ⁴/2 (spec §3)
+        m = np.pi * bonds.horizon[bonds.i] ** 4 / 2  # m = πδ⁴/2 (derived)
         r = bonds.length
         e = np.einsum("bk,bk->b", bonds.xi / r[:, None], u[bonds.j] - u[bonds.i])
         theta = np.bincount(bonds.i, weights=2 / m * r * e * bonds.volume_j, minlength=cloud.n)
         ed = e - theta[bonds.i] * r / 2
-        # spherical 2D: t = (2κθ/m) ω r + (8μ/m) ω e^d (spec §3, Eq. 70)
+        # spherical 2D: t = (2κθ/m) ω r + (8μ/m) ω e^d (Liu, Chen & Skelton, XOSB, Eq. 70)
         t_ref = 2 * kappa * theta[bonds.i] / m * r + 8 * mu / m * ed
         t = model.force_state(cloud, bonds, u, variant="paper")
         np.testing.assert_allclose(t, t_ref, rtol=1e-12, atol=1e-12 * np.abs(t_ref).max())
@@ -169,12 +172,12 @@ def test_a6_corrections_off_are_the_spherical_formulas(rng):
     model = pdlin.LPS(5.0, 0.3)
     kappa, mu = model.moduli(3)
     u = 1e-3 * rng.normal(size=(c3.n, 3))
-    m = 4 * np.pi * b3.horizon[b3.i] ** 5 / 5  # m = 4πδ⁵/5 (spec §3)
+    m = 4 * np.pi * b3.horizon[b3.i] ** 5 / 5  # m = 4πδ⁵/5 (derived)
     r = b3.length
     e = np.einsum("bk,bk->b", b3.xi / r[:, None], u[b3.j] - u[b3.i])
     theta = np.bincount(b3.i, weights=3 / m * r * e * b3.volume_j, minlength=c3.n)
     ed = e - theta[b3.i] * r / 3
-    # spherical 3D: t = (3κθ/m) ω r + (15μ/m) ω e^d (spec §3)
+    # spherical 3D: t = (3κθ/m) ω r + (15μ/m) ω e^d (derived)
     t_ref = 3 * kappa * theta[b3.i] / m * r + 15 * mu / m * ed
     t = model.force_state(c3, b3, u, variant="paper")
     np.testing.assert_allclose(t, t_ref, rtol=1e-12, atol=1e-12 * np.abs(t_ref).max())
@@ -187,11 +190,11 @@ def test_a6_discrete_m_gives_zero_lambda_h_at_interior_lattice_points():
     reach = 3.01 * 0.025 + 0.5 * 0.025
     inner = np.all((cloud.points - lo > reach) & (hi - cloud.points > reach), axis=1)
     ib = inner[bonds.i]
-    # λ^h = 0 exactly at interior particles of a square lattice with discrete m (spec §4)
+    # λ^h = 0 exactly at interior particles of a square lattice with discrete m (derived)
     np.testing.assert_allclose(w.omega_h[ib], w.omega_h_s[ib], rtol=1e-12)
-    # ... but λ^d ≠ 0 there (spec §4): the deviatoric correction still acts
+    # ... but λ^d ≠ 0 there (derived): the deviatoric correction still acts
     assert np.abs(w.omega_d[ib] / w.omega_d_s[ib] - 1).max() > 1e-3
-    # analytic m: λ^h ≠ 0 in the interior, ω^h/ω_s^h in [0.927, 0.992] (spec §4 [REF])
+    # analytic m: λ^h ≠ 0 in the interior, ω^h/ω_s^h in [0.927, 0.992] (reference values)
     wa = pdlin.XOSB(1.0, 0.3).weights(cloud, bonds)
     ratio = wa.omega_h[ib] / wa.omega_h_s[ib]
     assert 0.92 < ratio.min() < 0.935 and 0.985 < ratio.max() < 0.995
@@ -200,11 +203,11 @@ def test_a6_discrete_m_gives_zero_lambda_h_at_interior_lattice_points():
 @pytest.mark.parametrize(
     ("shape", "expected"),
     [
-        ((40, 20), 4),  # exactly the 4 corners (spec §5 [P])
-        ((41, 23), 4),  # spec §5 [P]
-        ((7, 7, 7), 92),  # spec §5 table [REF]
-        ((8, 8, 8), 104),  # spec §5 table [REF]
-        ((10, 6, 6), 96),  # spec §5 table [REF]
+        ((40, 20), 4),  # exactly the 4 corners (Liu, Chen & Skelton, XOSB, Sec. 3.3)
+        ((41, 23), 4),  # Liu, Chen & Skelton, XOSB, Sec. 3.3
+        ((7, 7, 7), 92),  # reference census
+        ((8, 8, 8), 104),  # reference census
+        ((10, 6, 6), 96),  # reference census
     ],
 )
 def test_a7_fallback_census(shape, expected):
@@ -221,23 +224,23 @@ def test_a7_ogrid_has_no_fallback(clouds):
     cloud, bonds = clouds["ogrid"]
     model = pdlin.XOSB(70e9, 0.33)
     w = model.weights(cloud, bonds)
-    assert w.fallback.sum() == 0  # O-grid hole mesh: 0 fallback particles (spec §5 table)
+    assert w.fallback.sum() == 0  # O-grid hole mesh: 0 fallback particles (reference census)
     neg_d = np.bincount(bonds.i, weights=(w.omega_d < 0).astype(float), minlength=cloud.n) > 0
-    assert neg_d.sum() == 8  # 8 particles with some ω^d < 0 (spec §5 table [REF])
-    fs = bonds.family_size  # family sizes 12-34, mean 30.1 (spec §9.1)
+    assert neg_d.sum() == 8  # 8 particles with some ω^d < 0 (reference census)
+    fs = bonds.family_size  # family sizes 12-34, mean 30.1 (conventions.md#plate-with-a-hole)
     assert (fs.min(), fs.max(), round(fs.mean(), 1)) == (12, 34, 30.1)
 
 
 def test_a8_constants():
-    # κ_ps(70 GPa, 0.33) = 52.239 GPa, μ = 26.316 GPa (spec §9.1)
+    # κ_ps(70 GPa, 0.33) = 52.239 GPa, μ = 26.316 GPa (conventions.md#plate-with-a-hole)
     k, m = bulk_shear_moduli(70e9, 0.33, 2, "stress")
     np.testing.assert_allclose([k, m], [52.239e9, 26.316e9], rtol=1e-4)
-    # κ_3D(70 GPa, 0.33) = 68.627 GPa (spec §9.2)
+    # κ_3D(70 GPa, 0.33) = 68.627 GPa (Liu, Chen & Skelton, XOSB, Sec. 5.2)
     np.testing.assert_allclose(bulk_shear_moduli(70e9, 0.33, 3)[0], 68.627e9, rtol=1e-4)
-    # κ_pe(190 GPa, 0.25) = 152 GPa, μ = 76 GPa (spec §9.3)
+    # κ_pe(190 GPa, 0.25) = 152 GPa, μ = 76 GPa (Liu, Chen & Skelton, XOSB, Sec. 5.3)
     k, m = bulk_shear_moduli(190e9, 0.25, 2, "strain")
     np.testing.assert_allclose([k, m], [152e9, 76e9], rtol=1e-4)
-    # m = πδ⁴/2 (2D), 4πδ⁵/5 (3D) (spec §3): the analytic LPS weights
+    # m = πδ⁴/2 (2D), 4πδ⁵/5 (3D) (derived): the analytic LPS weights
     c2, b2 = _rect(8, 8)
     w2 = pdlin.LPS(1.0, 0.3).weights(c2, b2)
     np.testing.assert_allclose(w2.weighted_volume, np.pi * (3.01 * 0.025) ** 4 / 2, rtol=1e-12)
@@ -247,7 +250,7 @@ def test_a8_constants():
 
 
 def test_a8_uncorrected_theta_overestimate():
-    # Σ_j r² V_j / m = 1.0548 (2D, 28 neighbours), 1.1401 (3D, 122) (spec §3 [D])
+    # Σ_j r² V_j / m = 1.0548 (2D, 28 neighbours), 1.1401 (3D, 122) (derived)
     for shape, fam, ref in (((15, 15), 28, 1.0548), ((9, 9, 9), 122, 1.1401)):
         cloud = pdlin.grid(shape, spacing=1.0)
         bonds = pdlin.find_bonds(cloud, ratio=3.01)
@@ -261,7 +264,7 @@ def test_a8_uncorrected_theta_overestimate():
 
 
 def test_a9_singular_family_is_flagged_and_min_norm():
-    # collinear points in 2D: every Gram matrix is singular (spec §4 regularity, §11 A9)
+    # collinear points in 2D: every Gram matrix is singular (Gram-system regularity, check A9)
     x = np.linspace(0.0, 1.0, 21)
     cloud = pdlin.PointCloud(np.column_stack([x, 0 * x]), 0.05 * 0.05, horizon=0.151)
     bonds = pdlin.find_bonds(cloud)
@@ -288,7 +291,7 @@ def test_b1_momentum_nonlinear(clouds, name, lin, rng):
     f = model.internal_force(cloud, bonds, u, linear=False)
     y = cloud.points + u
     size = np.abs(f).sum() * np.ptp(cloud.points, axis=0).max()
-    # ‖Σf‖ and ‖Σ y × f‖ ≤ 1e-12 Σ|f| L (spec §11 B1)
+    # ‖Σf‖ and ‖Σ y × f‖ ≤ 1e-12 Σ|f| L (check B1)
     assert np.abs(f.sum(axis=0)).max() <= 1e-12 * size
     if cloud.dim == 2:
         mom = np.sum(y[:, 0] * f[:, 1] - y[:, 1] * f[:, 0])
@@ -301,9 +304,9 @@ def test_b1_momentum_nonlinear(clouds, name, lin, rng):
 @pytest.mark.parametrize(
     ("model_cls", "shape", "nu", "plane", "zeros"),
     [
-        (pdlin.XOSB, (10, 8), 0.45, "stress", 3),  # 3 rigid modes in 2D (spec §11 B2)
+        (pdlin.XOSB, (10, 8), 0.45, "stress", 3),  # 3 rigid modes in 2D (check B2)
         (pdlin.XOSB, (9, 7), 0.3, "strain", 3),
-        (pdlin.XOSB, (6, 5, 5), 0.3, "stress", 6),  # 6 rigid modes in 3D (spec §11 B2)
+        (pdlin.XOSB, (6, 5, 5), 0.3, "stress", 6),  # 6 rigid modes in 3D (check B2)
         pytest.param(pdlin.XOSB, (7, 7, 7), 0.3, "stress", 6, marks=pytest.mark.slow),
         (pdlin.LPS, (9, 8), 0.3, "stress", 3),
     ],
@@ -315,24 +318,24 @@ def test_b2_b6_rigid_modes_and_spectrum(model_cls, shape, nu, plane, zeros, lin)
     K = model.stiffness(cloud, bonds)
     modes = pdlin.rigid_body_modes(cloud)
     kn = sp.linalg.norm(sp.csr_array(K))
-    for k in range(modes.shape[1]):  # ‖K u_rigid‖ ≤ 1e-12 ‖K‖ ‖u‖ (spec §11 B2)
+    for k in range(modes.shape[1]):  # ‖K u_rigid‖ ≤ 1e-12 ‖K‖ ‖u‖ (check B2)
         assert np.linalg.norm(K @ modes[:, k]) <= 1e-12 * kn * np.linalg.norm(modes[:, k])
     dense = K.toarray()
     if model.symmetric:
         ev = np.linalg.eigvalsh(0.5 * (dense + dense.T))
         top = ev.max()
-        assert ev.min() >= -1e-8 * top  # λ_min(K_E) ≥ -1e-8 max (spec §11 B6)
+        assert ev.min() >= -1e-8 * top  # λ_min(K_E) ≥ -1e-8 max (check B6)
         assert int(np.sum(np.abs(ev) <= 1e-10 * top)) == zeros
     else:
         ev = np.linalg.eigvals(dense)
         top = np.abs(ev).max()
-        assert ev.real.min() >= -1e-8 * top  # no Re < -1e-8 max (spec §11 B6)
+        assert ev.real.min() >= -1e-8 * top  # no Re < -1e-8 max (check B6)
         assert int(np.sum(np.abs(ev) <= 1e-10 * top)) == zeros
 
 
 @pytest.mark.slow
 def test_b6_without_fallback_k_e_has_negative_eigenvalues():
-    # 40x20 plate without the fallback: K_E has 8 negative eigenvalues (spec §5 [REF])
+    # 40x20 plate without the fallback: K_E has 8 negative eigenvalues (reference value)
     cloud, bonds = _rect()
     K = pdlin.XOSB(1.0, 0.33, fallback=False).stiffness(cloud, bonds).toarray()
     ev = np.linalg.eigvalsh(0.5 * (K + K.T))
@@ -348,13 +351,14 @@ def test_b3_linearization(clouds, name, lin, rng):
     u = 1e-9 * float(np.median(cloud.spacing)) * rng.normal(size=(cloud.n, cloud.dim))
     ku = K @ u.ravel()
     f = model.internal_force(cloud, bonds, u, linear=False)
-    assert np.linalg.norm(f.ravel() + ku) / np.linalg.norm(ku) <= 1e-5  # spec §11 B3
+    assert np.linalg.norm(f.ravel() + ku) / np.linalg.norm(ku) <= 1e-5  # check B3
     fl = model.internal_force(cloud, bonds, u, linear=True)
     np.testing.assert_allclose(ku, -fl.ravel(), rtol=0, atol=1e-12 * np.abs(ku).max())
 
 
 def test_energy_force_is_the_gradient_of_the_energy(rng):
-    # the 'energy' force state is the exact gradient of Π = Σ V_i W_i (spec §6), also nonlinear
+    # the 'energy' force state is the exact gradient of Π = Σ V_i W_i
+    # (conventions.md#errata-liu-chen-and-skelton), also nonlinear
     cloud, bonds = _jittered(2, 10, seed=3)
     model = pdlin.XOSB(1.0, 0.45, plane="strain")
     h = float(np.median(cloud.spacing))
@@ -369,7 +373,8 @@ def test_energy_force_is_the_gradient_of_the_energy(rng):
     fd = (pi(u + step * v) - pi(u - step * v)) / (2 * step)
     f = model.internal_force(cloud, bonds, u, linear=False)
     np.testing.assert_allclose(fd, -np.sum(f * v), rtol=1e-6)
-    # the paper force state is not (Z_i ≠ 0 for non-affine states, spec §6)
+    # the paper force state is not (Z_i ≠ 0 for non-affine states;
+    # conventions.md#errata-liu-chen-and-skelton)
     fp = pdlin.XOSB(1.0, 0.45, plane="strain", linearization="paper").internal_force(
         cloud, bonds, u, linear=False
     )
@@ -381,9 +386,9 @@ def test_b4_symmetry(clouds):
     ke = sp.csr_array(pdlin.XOSB(70e9, 0.33).stiffness(cloud, bonds))
     kp = sp.csr_array(pdlin.XOSB(70e9, 0.33, linearization="paper").stiffness(cloud, bonds))
     asym = sp.linalg.norm(ke - ke.T) / sp.linalg.norm(ke)
-    assert asym <= 1e-14  # K_E symmetric to 1e-14 (spec §11 B4)
+    assert asym <= 1e-14  # K_E symmetric to 1e-14 (check B4)
     asym_p = sp.linalg.norm(kp - kp.T) / sp.linalg.norm(kp)
-    assert 1.5e-2 < asym_p < 3.5e-2  # 2.4e-2 on the 40x20 plate (spec §7 [REF])
+    assert 1.5e-2 < asym_p < 3.5e-2  # 2.4e-2 on the 40x20 plate (reference value)
 
 
 @pytest.mark.parametrize(
@@ -407,11 +412,11 @@ def test_b5_affine_agreement_without_fallback(clouds, name, nu, plane, rng):
         eps = _random_strain(rng, d)
         u = (cloud.points @ eps.T).ravel()
         a, b = ke @ u, kp @ u
-        # K_p u_aff = K_E u_aff (≤ 1e-12, spec §11 B5)
+        # K_p u_aff = K_E u_aff (≤ 1e-12, check B5)
         assert np.abs(a - b).max() <= 1e-12 * np.abs(a).max()
         dev = eps - np.trace(eps) / d * np.eye(d)
         w_ccm = 0.5 * kappa * np.trace(eps) ** 2 + mu * np.sum(dev * dev)
-        # ½ uᵀ K u = W_CCM Σ V_i (≤ 1e-12, spec §11 B5)
+        # ½ uᵀ K u = W_CCM Σ V_i (≤ 1e-12, check B5)
         np.testing.assert_allclose(0.5 * u @ a, w_ccm * cloud.volumes.sum(), rtol=1e-12)
         np.testing.assert_allclose(0.5 * u @ b, w_ccm * cloud.volumes.sum(), rtol=1e-12)
 
@@ -425,7 +430,7 @@ def test_b7_matrix_free_equals_assembled(clouds, name, lin, rng):
         op = model.operator(cloud, bonds)
         x = rng.normal(size=cloud.ndof)
         a, b = K @ x, op @ x
-        assert np.abs(a - b).max() <= 1e-13 * np.abs(a).max()  # spec §11 B7
+        assert np.abs(a - b).max() <= 1e-13 * np.abs(a).max()  # check B7
 
 
 @pytest.mark.parametrize("name", ["rect", "cube", "ogrid"])
@@ -437,7 +442,7 @@ def test_estimate_nnz_blocks_is_exact(clouds, name):
 
 
 def test_interior_nnz_per_row():
-    # interior of a uniform lattice, δ = 3.01Δ: 210 (2D) and 2,487 (3D) nnz per row (spec §7)
+    # interior of a uniform lattice, δ = 3.01Δ: 210 (2D) and 2,487 (3D) nnz per row (derived)
     for shape, ref in (((27, 27), 210), ((13, 13, 13), 2487)):
         cloud = pdlin.grid(shape, spacing=1.0)
         bonds = pdlin.find_bonds(cloud, ratio=3.01)
@@ -447,7 +452,7 @@ def test_interior_nnz_per_row():
 
 
 def test_lps_peridigm_is_variational_and_matches_paper_force():
-    # discrete m: Σ ω^d r e^d V = 0, so the paper and energy force states coincide (spec §6)
+    # discrete m: Σ ω^d r e^d V = 0, so the paper and energy force states coincide (derived)
     cloud, bonds = _jittered(2, 9, seed=11)
     u = 1e-3 * np.random.default_rng(2).normal(size=(cloud.n, 2))
     fe = pdlin.LPS(1.0, 0.3, peridigm=True).internal_force(cloud, bonds, u)
@@ -478,16 +483,18 @@ def test_static_problem_solvers_agree_with_direct(lin, solver):
 
 
 def test_b8_gmres_on_k_p_with_amg_of_k_e():
-    """Spec 002 §11 B8 on a 2x coarser O-grid hole plate (the full 7,680-cell check is in
+    """Check B8 on a 2x coarser O-grid hole plate (the full 7,680-cell check is in
     tests/verification/test_xosb_plate.py): GMRES + AMG(K_E) on K_p in ≤ 40 iterations."""
     cloud = pdlin.read_mesh(pdlin.plate_with_hole_mesh(16, 30))
     bonds = pdlin.find_bonds(cloud, ratio=3.01)
     x, y = cloud.points.T
-    left, right = np.argsort(x)[:16], np.argsort(-x)[:16]  # outermost radial layers (§9.1)
+    # outermost radial layers (conventions.md#plate-with-a-hole)
+    left, right = np.argsort(x)[:16], np.argsort(-x)[:16]
     pin = left[np.argmin(np.abs(y[left]))]
     bc = [
         pdlin.Dirichlet(left, 0.0, components="x"),
-        pdlin.Dirichlet(right, 5e-4, components="x"),  # u0 = 5e-4 m (spec 002 §9.1)
+        # u0 = 5e-4 m (Liu, Chen & Skelton, XOSB, Sec. 5.1)
+        pdlin.Dirichlet(right, 5e-4, components="x"),
         pdlin.Dirichlet([pin], 0.0, components="y"),
     ]
     model = pdlin.XOSB(70e9, 0.33, linearization="paper")
@@ -495,8 +502,8 @@ def test_b8_gmres_on_k_p_with_amg_of_k_e():
     ref = pdlin.solve(prob, solver="direct")
     res = pdlin.solve(prob, solver="amg-gmres", rtol=1e-10, preconditioner=pdlin.XOSB(70e9, 0.33))
     assert res.info["preconditioner"]["linearization"] == "energy"
-    assert res.n_iter <= 40  # spec 002 §11 B8: ≤ 40 [REF 19]
-    # both match LU to 1e-8 (spec 002 §11 B8)
+    assert res.n_iter <= 40  # check B8: ≤ 40 (reference run: 19)
+    # both match LU to 1e-8 (check B8)
     assert np.abs(res.u - ref.u).max() <= 1e-8 * np.abs(ref.u).max()
     with pytest.raises(InputTypeError, match="preconditioner must be a pdlin model"):
         pdlin.solve(prob, solver="amg-gmres", preconditioner="energy")  # type: ignore[arg-type]
@@ -553,10 +560,11 @@ def test_docs_examples():
 def test_fallback_rule_is_needed_in_a_3d_bar():
     """Uniaxial stress in a 24 x 8 x 8 bar, exact affine u on one layer at each end.
 
-    Spec 002 §5 / §9.2 [REF]: with the fallback XOSBPD errs by 6.0% (u_x) / 8.3% (u_y),
-    without it by 47% / 261%, OSBPD by 6.9% / 10.5% (their normalization; ours divides by
-    max|u| of the component with u centred on the bar, which doubles the percentages).
-    The claim tested: dropping the fallback multiplies the errors (>= 4x u_x, >= 15x u_y).
+    Reference values of an independent implementation (Liu, Chen & Skelton, XOSB, Sec. 3.3 fallback;
+    not in the paper): with the fallback XOSBPD errs by 6.0% (u_x) / 8.3% (u_y), without it by 47% /
+    261%, OSBPD by 6.9% / 10.5% (their normalization; ours divides by max|u| of the component with u
+    centred on the bar, which doubles the percentages). The claim tested: dropping the fallback
+    multiplies the errors (>= 4x u_x, >= 15x u_y).
     """
     cloud = pdlin.grid((24, 8, 8), spacing=1.0)
     bonds = pdlin.find_bonds(cloud, ratio=3.01)

@@ -1,4 +1,4 @@
-"""ADR against direct solves on linear problems (spec 003 §6 / V19, spec 001 T17)."""
+"""ADR against direct solves on linear problems (Luo & Sundararaghavan (2018), Sec. 4)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ import pdlin
 
 
 def _bar(n: int, control: str) -> pdlin.StaticProblem:
-    """Spec 003 §7.1 node bar: x_i = (i - 1)/(n - 1), u_1 = 0, u_n = u_end."""
+    """Graded bar on nodes (conventions.md#graded-bar): x_i = (i - 1)/(n - 1), u_1 = 0, u_n =
+    u_end."""
     h = 1.0 / (n - 1)
     cloud = pdlin.grid((n,), spacing=h, origin=[-0.5 * h])
     bonds = pdlin.find_bonds(cloud, ratio=1.0)
@@ -23,7 +24,8 @@ def _bar(n: int, control: str) -> pdlin.StaticProblem:
 
 
 def _critical_step(prob: pdlin.StaticProblem, mass: np.ndarray) -> float:
-    """Δt_c = 2 / sqrt(λ_max(M⁻¹ K)) on the free DOFs (spec 003 §6, exact)."""
+    """Δt_c = 2 / sqrt(λ_max(M⁻¹ K)) on the free DOFs (exact critical step of the central-difference
+    update)."""
     system = pdlin.constrained_system(prob)
     K = system.assemble().toarray()
     f = system.free
@@ -33,7 +35,8 @@ def _critical_step(prob: pdlin.StaticProblem, mass: np.ndarray) -> float:
     return 2.0 / np.sqrt(lam)
 
 
-# spec 003 §6 [REF]: ADR iterations at Δt = 0.95 Δt_c, e_l = 1e-6 (no control / SP)
+# reference values of an independent implementation: ADR iterations at Δt = 0.95 Δt_c, e_l = 1e-6
+# (no control / SP)
 ITERATIONS_REF = {100: (602, 956), 200: (1120, 1907)}
 
 
@@ -48,11 +51,11 @@ def test_v19_adr_matches_direct_and_sp_needs_more_iterations(n):
         res = pdlin.solve_nonlinear(
             prob, steps=1, method="adr", density=mass, dt=dt, e_l=1e-6, predictor="previous"
         )
-        # V19: max|u_ADR - u_dir| <= 1e-4 u_end (spec 003 §9)
+        # V19: max|u_ADR - u_dir| <= 1e-4 u_end (acceptance bound)
         assert np.abs(res.u[-1, :, 0] - direct).max() <= 1e-4 * U_END
         its[control] = int(res.iterations[0])
         ref = ITERATIONS_REF[n][control == "stress_points"]
         # measured 614 / 956 (n = 100) and 1120 / 1907 (n = 200): within 3 % of the reference
         assert abs(its[control] - ref) <= 0.03 * ref
-    # V19: SP / no-control iteration ratio 1.5-1.9 in 1D (spec 003 §6 [REF]: 1.59-1.77)
+    # V19: SP / no-control iteration ratio 1.5-1.9 in 1D (reference values 1.59-1.77)
     assert 1.5 <= its["stress_points"] / its["none"] <= 1.9

@@ -76,8 +76,9 @@ def test_bar_3d_shadow_layer_uniaxial_exact_interior():
     strain = res.strain()[real]
     np.testing.assert_allclose(strain[:, 0, 0], eps, rtol=1e-8)
     np.testing.assert_allclose(strain[:, 1, 1], -nu * eps, rtol=1e-8)
-    # virial stress = C_i : eps with the point's discrete effective tensor (seed 004 Eq. 29),
-    # which differs from the continuum C by the lattice quadrature (0.4 % at 3.015 h)
+    # virial stress = C_i : eps with the point's discrete effective tensor (Prakash, anisotropic
+    # micromoduli, Eq. 29), which differs from the continuum C by the lattice quadrature (0.4 % at
+    # 3.015 h)
     C = pdlin.BondBased(E=E).effective_tensor(cloud, res.bonds)[real]
     expected = np.einsum("nijkl,kl->nij", C, F - np.eye(3))
     stress = res.stress()[real]
@@ -87,10 +88,13 @@ def test_bar_3d_shadow_layer_uniaxial_exact_interior():
 
 @pytest.mark.slow
 def test_spec004_static_uniaxial_tension_analytical_micromodulus(spec004_tension):
-    """Spec 004 section 4.7: 24^3 cube, delta = 2, analytical c = 18K/(pi delta^4)."""
+    """Prakash, anisotropic micromoduli, Sec. 4.4: 24^3 cube, delta = 2, c = 18K/(pi delta^4).
+
+    The analytical micromodulus is the paper's Eq. 18.
+    """
     cloud = pdlin.grid((24, 24, 24), spacing=1.0, origin=(-0.5, -0.5, -0.5))
     bonds = pdlin.find_bonds(cloud, 2.0)
-    model = pdlin.BondBased(E=86e9)  # Pyroceram, nu = 1/4: c = 20.5310 GPa/m^4 (spec 004)
+    model = pdlin.BondBased(E=86e9)  # Pyroceram, nu = 1/4: c = 20.5310 GPa/m^4 (Eq. 18)
     np.testing.assert_allclose(model.bond_micromodulus(cloud, bonds)[0], 20.5310e9, rtol=1e-5)
     prob = spec004_tension(model, cloud, bonds)
     res = pdlin.solve(prob, solver="amg-cg", rtol=1e-11)
@@ -98,10 +102,11 @@ def test_spec004_static_uniaxial_tension_analytical_micromodulus(spec004_tension
     inner = np.all((p >= 2) & (p <= 21), axis=1)
     assert inner.sum() == 8000
     ezz = res.strain()[inner, 2, 2].mean()
-    np.testing.assert_allclose(ezz, 1.09325e-5, rtol=2e-4)  # spec 004 4.7 [REF] analytical c
+    np.testing.assert_allclose(ezz, 1.09325e-5, rtol=2e-4)  # reference value (analytical c)
     k = int(np.flatnonzero(np.all(p == [12, 12, 23], axis=1))[0])
-    np.testing.assert_allclose(res.u[k, 2], 2.5502e-4, rtol=2e-4)  # spec 004 4.7 [REF]
-    np.testing.assert_allclose(res.u[:, 0].min(), -5.7862e-5, rtol=2e-4)  # spec 004 4.7 [REF]
+    np.testing.assert_allclose(res.u[k, 2], 2.5502e-4, rtol=2e-4)  # reference value
+    np.testing.assert_allclose(res.u[:, 0].min(), -5.7862e-5, rtol=2e-4)  # reference value
     C = model.effective_tensor(cloud, bonds)
-    np.testing.assert_allclose(C[inner, 0, 0, 0, 0].mean() / 1e9, 106.4329, rtol=1e-5)  # [REF]
-    np.testing.assert_allclose(C[inner, 1, 2, 1, 2].mean() / 1e9, 30.3224, rtol=1e-5)  # [REF] C44
+    np.testing.assert_allclose(C[inner, 0, 0, 0, 0].mean() / 1e9, 106.4329, rtol=1e-5)  # reference
+    # reference C44
+    np.testing.assert_allclose(C[inner, 1, 2, 1, 2].mean() / 1e9, 30.3224, rtol=1e-5)

@@ -1,9 +1,10 @@
-"""Spec 003 §7.3 / §9 V22: the R3D brick, correspondence PD (no control, stress points) vs Hex8.
+"""Luo & Sundararaghavan (2018), Sec. 5.3: the R3D brick, correspondence PD (no control, stress
+points) vs Hex8.
 
-Setup (spec 003 §7.3, reconstruction R3D [S]): node grid 33 x 33 x 17 with h = 2.5 mm on the
-80 x 80 x 40 mm brick, E = 1000 MPa, ν = 0.3, nearest-neighbour bonds (ω = 1, V = h³), the
-four side faces fully prescribed ``u = (ε0 (x - 40), ε0 (y - 40), 0)`` with ε0 = 0.01, top
-and bottom free.  Reference: Hex8 FEM with its nodes at the particles
+Setup (reconstruction R3D, docs/theory/conventions.md#brick): node grid 33 x 33 x 17 with h = 2.5 mm
+on the 80 x 80 x 40 mm brick, E = 1000 MPa, ν = 0.3, nearest-neighbour bonds (ω = 1, V = h³), the
+four side faces fully prescribed ``u = (ε0 (x - 40), ε0 (y - 40), 0)`` with ε0 = 0.01, top and
+bottom free.  Reference: Hex8 FEM with its nodes at the particles
 (:func:`pdlin.verification.fem.solve_hex8`, AMG-CG to 1e-12).  Stress points use seed 0.
 
 The full size takes ~30 s on 2 cores (mostly the no-control AMG-CG solve), so it is marked
@@ -33,8 +34,8 @@ import pytest
 import pdlin
 from pdlin.verification.fem import solve_hex8
 
-E, NU = 1000.0, 0.3  # MPa; spec 003 §7.3 [P]
-EPS0 = 0.01  # ε0 = Δ/d = 0.4 mm / 40 mm, spec 003 §7.3 R3D [S]
+E, NU = 1000.0, 0.3  # MPa; Luo & Sundararaghavan (2018), Sec. 5.3
+EPS0 = 0.01  # ε0 = Δ/d = 0.4 mm / 40 mm (Sec. 5.3's increment Δ; conventions.md#brick)
 AMG = {"strength": ("symmetric", {"theta": 0.0})}
 SEED = 1  # numpy global random state for pyamg's setup (see the module docstring)
 
@@ -87,7 +88,8 @@ def _r3d(n_xy: int, n_z: int, solver: str) -> dict:
     """Solve the R3D brick on an n_xy x n_xy x n_z node grid: FE and both PD controls."""
     cloud, side, ub = _dirichlet_problem(n_xy, n_z)
     p = cloud.points
-    bonds = pdlin.find_bonds(cloud, ratio=1.0)  # nearest neighbours (spec 003 §2)
+    # nearest neighbours (Luo & Sundararaghavan (2018), Sec. 2)
+    bonds = pdlin.find_bonds(cloud, ratio=1.0)
     fixed = (3 * side[:, None] + np.arange(3)).ravel()
     u_fe = solve_hex8(p, _node_grid_hexes((n_xy, n_xy, n_z)), E, NU, fixed, ub[side].ravel(),
                       solver="amg")  # fmt: skip
@@ -128,12 +130,12 @@ def test_r3d_coarse_brick(r3d_small):
     s = r3d_small
     fe, none, sp = s["fe"], s["none"].u, s["stress_points"].u
     mid = s["line"][np.isclose(s["cloud"].points[s["line"], 1], 40)][0]
-    # FE w(40, 40, 0) = 0.1850 mm at h = 2.5 (spec 003 §7.3 [REF]); measured 0.18601 at h = 5
-    # (2026-11-21): the coarse Hex8 is within 1%
+    # FE w(40, 40, 0) = 0.1850 mm at h = 2.5 (reference value of an independent implementation);
+    # measured 0.18601 at h = 5 (2026-11-21): the coarse Hex8 is within 1%
     assert fe[mid, 2] == pytest.approx(0.1850, rel=1e-2)
     err_none, err_sp = _rel_l2(none, fe), _rel_l2(sp, fe)
-    # measured 2026-11-21: rel-L2 SP 2.678e-2, no control 6.109e-2 (calibrated bounds; at
-    # h = 2.5 the spec 003 §7.3 [REF] values are 1.14e-2 / 3.23e-2)
+    # measured 2026-11-21: rel-L2 SP 2.678e-2, no control 6.109e-2 (calibrated bounds; at h = 2.5
+    # the reference values are 1.14e-2 / 3.23e-2)
     assert err_sp <= 3.0e-2
     assert err_none >= 5.0e-2
     assert err_sp <= 0.5 * err_none
@@ -144,16 +146,18 @@ def test_r3d_coarse_brick(r3d_small):
 
 @pytest.mark.slow
 def test_v22_r3d_brick(r3d):
-    """Spec 003 §7.3 R3D / §9 V22 at full size (33 x 33 x 17 = 18,513 particles)."""
+    """Luo & Sundararaghavan (2018), Sec. 5.3, reconstruction R3D at full size (33 x 33 x 17 =
+    18,513 particles)."""
     cloud, bonds, fe = r3d["cloud"], r3d["bonds"], r3d["fe"]
     none, sp = r3d["none"], r3d["stress_points"]
-    # V3 bookkeeping: R3D has 32,928 stress points (spec 003 §7.3 / §9 V3 [REF])
+    # V3 bookkeeping: R3D has 32,928 stress points (2 per interior particle, 1 per boundary
+    # particle)
     info = pdlin.Correspondence(E=E, nu=NU, control="stress_points", seed=0).stress_points(
         cloud, bonds
     )
     assert info["owner"].size == 32928
-    # V22: global rel-L2(u) SP ≤ 1.5e-2, no control ≥ 2.5e-2 (spec 003 §9 V22;
-    # [REF] 1.14e-2 / 3.23e-2, §7.3; measured 2026-11-21: 1.139e-2 / 3.228e-2)
+    # V22: global rel-L2(u) SP ≤ 1.5e-2, no control ≥ 2.5e-2 (acceptance bounds; reference values
+    # 1.14e-2 / 3.23e-2; measured 2026-11-21: 1.139e-2 / 3.228e-2)
     err_sp, err_none = _rel_l2(sp.u, fe), _rel_l2(none.u, fe)
     assert err_sp <= 1.5e-2
     assert err_none >= 2.5e-2
@@ -162,14 +166,14 @@ def test_v22_r3d_brick(r3d):
     line = r3d["line"]
     y = cloud.points[line, 1]
     mid = line[np.isclose(y, 40)][0]
-    # FE w(y = 40) = 0.1850 mm on x = 40, z = 0 (spec 003 §7.3 [REF]; measured 0.184994)
+    # FE w(y = 40) = 0.1850 mm on x = 40, z = 0 (reference value; measured 0.184994)
     assert fe[mid, 2] == pytest.approx(0.1850, rel=1e-2)
-    # PD w(y = 40): SP 0.1860, no control 0.1928 (spec 003 §7.3 [REF];
-    # measured 2026-11-21: 0.186035 / 0.192758); SP depends on the random cases, allow 1%
+    # PD w(y = 40): SP 0.1860, no control 0.1928 (reference values; measured 2026-11-21: 0.186035 /
+    # 0.192758); SP depends on the random cases, allow 1%
     assert sp.u[mid, 2] == pytest.approx(0.1860, rel=1e-2)
     assert none.u[mid, 2] == pytest.approx(0.1928, rel=1e-2)
-    # line max a_w for 10 < y < 70: no control 4.2e-2 vs SP 2.0e-2 (spec 003 §7.3 [REF];
-    # measured 2026-11-21: 4.197e-2 / 2.040e-2)
+    # line max a_w for 10 < y < 70: no control 4.2e-2 vs SP 2.0e-2 (reference values; measured
+    # 2026-11-21: 4.197e-2 / 2.040e-2)
     inner = line[(y > 10) & (y < 70)]
 
     def max_aw(u: np.ndarray) -> float:
@@ -177,8 +181,8 @@ def test_v22_r3d_brick(r3d):
 
     assert max_aw(none.u) == pytest.approx(4.2e-2, rel=0.1)
     assert max_aw(sp.u) == pytest.approx(2.0e-2, rel=0.1)
-    # the no-control sawtooth at the first line particle y = 2.5: FE 0.0681, SP 0.0562, no
-    # control 0.0411 (spec 003 §7.3 [REF]; measured 2026-11-21: 0.06806 / 0.05622 / 0.04107)
+    # the no-control sawtooth at the first line particle y = 2.5: FE 0.0681, SP 0.0562, no control
+    # 0.0411 (reference values; measured 2026-11-21: 0.06806 / 0.05622 / 0.04107)
     first = line[np.isclose(y, 2.5)][0]
     assert fe[first, 2] == pytest.approx(0.0681, rel=1e-2)
     assert none.u[first, 2] == pytest.approx(0.0411, rel=2e-2)
@@ -187,8 +191,8 @@ def test_v22_r3d_brick(r3d):
 
 @pytest.mark.slow
 def test_v22_no_control_amg_iterations(r3d):
-    # spec 003 §9 V22: AMG-CG converges in ≤ 150 iterations for both controls
-    # (measured 2026-11-21 to 1e-10: no control 124, stress points 34; spec REF 48 / 75)
+    # V22 (acceptance criterion): AMG-CG converges in ≤ 150 iterations for both controls (measured
+    # 2026-11-21 to 1e-10: no control 124, stress points 34; reference implementation 48 / 75)
     assert r3d["none"].n_iter <= 150
     assert r3d["stress_points"].n_iter <= 150
 
@@ -202,8 +206,8 @@ def test_amg_cg_does_not_depend_on_the_global_random_state():
     for seed in range(4):
         with _global_random_state(seed):
             iters.append(pdlin.solve(problem, solver="amg-cg", rtol=1e-10).n_iter)
-    # every random state gives the same convergent solve (spec 003 V22: ≤ 150 iterations;
-    # measured 2026-11-21: 26 with the assembled operator)
+    # every random state gives the same convergent solve (V22: ≤ 150 iterations; measured
+    # 2026-11-21: 26 with the assembled operator)
     assert len(set(iters)) == 1 and iters[0] <= 150
     for seed in range(2):  # the matrix-free path (bond-based + Laplacian surrogate) too
         with _global_random_state(seed):

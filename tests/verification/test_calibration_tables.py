@@ -1,8 +1,9 @@
-"""Spec 004 (anisotropic micromodulus calibration): tables and parametric studies.
+"""Prakash, anisotropic micromoduli: tables and parametric studies of the micromodulus calibration.
 
-Every literal number comes from /work/shared/spec/004_micromodulus_calibration.md;
-the comment next to it names the section / table ([P] paper, [REF] reference
-implementation, [D] derived).
+Every literal number is printed in the paper (the comment names its section, equation or table), a
+reference value computed by an independent implementation of the calibration ("reference"; not in
+the paper), or derived (docs/theory/conventions.md#calibration-in-the-frobenius-norm).  V1-V25
+label the acceptance checks.
 """
 
 from __future__ import annotations
@@ -35,7 +36,8 @@ def _cubic(c11: float, c12: float, c44: float) -> np.ndarray:
     return C
 
 
-# spec 004 §3, material data in GPa (Eqs. 50, 56, 62, 69, 75, 81, 87, 94)
+# Prakash, anisotropic micromoduli, Sec. 4.1, material data in GPa (Eqs. 50, 56, 62, 69, 75, 81, 87,
+# 94)
 MATERIALS = {
     "triclinic": _voigt(
         "43 11 13 1 -2 2; 11 35 12 3 -1 3; 13 12 43 2 -2 1; 1 3 2 13 0 0; -2 -1 -2 0 13 1;"
@@ -65,7 +67,8 @@ MATERIALS = {
 }
 NAMES = list(MATERIALS)
 
-# spec 004 §4.1 Table 1 [REF]: e (%), unweighted e (%), path, min c, max c, mean c, |c|_2
+# Table 1 (e), reference values for the rest: e (%), unweighted e (%), path, min c, max c, mean c,
+# |c|_2
 TABLE1 = {
     "triclinic": (3.1873, 3.3806, "step1", 0.02352, 0.1120, 0.07059, 2.2285),
     "monoclinic": (4.9880, 5.2906, "qp", 0.0, 1.6565, 0.2187, 14.2128),
@@ -79,7 +82,8 @@ TABLE1 = {
 
 
 def _sym(C: np.ndarray) -> np.ndarray:
-    """Total symmetrization (spec 004 §2.3), computed independently of the library."""
+    """Total symmetrization (derived, conventions.md#calibration-in-the-frobenius-norm), computed
+    independently of the library."""
     T = voigt_to_tensor(C)
     S = (T + T.transpose(0, 2, 1, 3) + T.transpose(0, 3, 2, 1)) / 3.0
     return tensor_to_voigt(S)
@@ -92,7 +96,8 @@ def _rotate(C: np.ndarray, Q: np.ndarray) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def fam6():
-    # spec 004 §4 default: simple cubic, sphere delta = 6, omega = delta/|xi|
+    # Prakash, anisotropic micromoduli, Sec. 4 default: simple cubic, sphere delta = 6, omega =
+    # delta/|xi|
     return lattice_family(3, 6.0, influence="delta_over_r")
 
 
@@ -101,14 +106,14 @@ def table1(fam6):
     return {k: calibrate_micromoduli(C, fam6) for k, C in MATERIALS.items()}
 
 
-# --- §4.1 Table 1 ------------------------------------------------------------------
+# --- Sec. 4.1, Table 1 ------------------------------------------------------------------
 @pytest.mark.parametrize("name", NAMES)
 def test_table1_errors_and_micromoduli(name, table1, fam6):
-    assert fam6.n_bonds == 924  # spec 004 §4 [REF] / V4
+    assert fam6.n_bonds == 924  # reference bond count / V4
     e, _, path, cmin, cmax, cmean, cnorm = TABLE1[name]
     r = table1[name]
     assert r.status == path  # Table 1 "path" column
-    assert r.rank == 15  # spec §2.3 rank 15 for delta >= 3
+    assert r.rank == 15  # derived: rank 15 for delta >= 3
     np.testing.assert_allclose(100 * r.relative_error, e, atol=1e-3)  # V7 tolerance 1e-3 %
     np.testing.assert_allclose(r.c_norm, cnorm, rtol=1e-4)  # V9
     np.testing.assert_allclose(r.c_max, cmax, atol=5e-5)  # V9 (printed to 4 decimals)
@@ -125,13 +130,13 @@ def test_table1_isotropic_error_vanishes(table1):
 def test_table1_unweighted_voigt_system_does_not_reproduce_paper(name, fam6):
     r = calibrate_micromoduli(MATERIALS[name], fam6, weighting="voigt")
     np.testing.assert_allclose(100 * r.relative_error, TABLE1[name][1], atol=1e-3)  # Table 1
-    if name != "isotropic":  # Cauchy inputs are blind to the weighting (spec §7)
+    if name != "isotropic":  # Cauchy inputs are blind to the weighting (so they cannot test it)
         assert abs(100 * r.relative_error - TABLE1[name][0]) > 0.04
 
 
 @pytest.mark.parametrize(
     "name, most_negative",
-    # spec 004 §4.1 [REF] most negative step-1 entries; V10 pattern
+    # reference values: most negative step-1 entries; V10 pattern
     [("monoclinic", -0.249), ("orthotropic", -0.137), ("trigonal", -0.221), ("cubic", -0.404)],
 )
 def test_step1_negative_entries(name, most_negative, fam6):
@@ -145,14 +150,15 @@ def test_result_is_cauchy_projection(name, table1):
     # V8: C_PD = C_sym (feasible, rank 15), interior-point + polish: 1e-9 relative
     Cs = _sym(MATERIALS[name])
     np.testing.assert_allclose(table1[name].tensor, Cs, rtol=0, atol=1e-9 * np.abs(Cs).max())
-    # the error is the Frobenius distance from the Cauchy subspace (spec §2.3)
+    # the error is the Frobenius distance from the Cauchy subspace (derived)
     T = voigt_to_tensor(MATERIALS[name])
     dist = np.linalg.norm(T - voigt_to_tensor(Cs)) / np.linalg.norm(T)
     np.testing.assert_allclose(table1[name].relative_error, dist, rtol=1e-9, atol=1e-14)
 
 
 def test_printed_calibrated_tensors(table1):
-    # spec 004 §3 "Calibrated tensors C_PD = C_sym (paper Eqs. 51-88, corrected)"
+    # calibrated tensors C_PD = C_sym (paper Eqs. 51-88, corrected per
+    # conventions.md#errata-prakash)
     t = {k: r.tensor for k, r in table1.items()}
     checks = [
         ("triclinic", (0, 1), 11.6667), ("triclinic", (5, 5), 11.6667),
@@ -191,7 +197,8 @@ def test_isotropic_range_and_collinear_equality(table1, fam6):
 
 
 def test_qp_backends_agree_and_satisfy_kkt(fam6):
-    # spec §7: assert more than e; the three backends must give the same min-norm c
+    # an error check alone cannot tell the solutions apart: assert more than e; the three backends
+    # must give the same min-norm c
     C = MATERIALS["cubic"]
     rs = [calibrate_micromoduli(C, fam6, qp_solver=s) for s in ("clarabel", "osqp", "cvxpy")]
     for r in rs:
@@ -202,11 +209,11 @@ def test_qp_backends_agree_and_satisfy_kkt(fam6):
         np.testing.assert_allclose(r.micromoduli, rs[0].micromoduli, atol=1e-6 * rs[0].c_max)
 
 
-# --- symmetry inheritance §4.1 / V13 ------------------------------------------------
+# --- symmetry inheritance, Sec. 4.1 / V13 ------------------------------------------------
 @pytest.mark.parametrize(
     "name, invariant",
     [
-        # spec 004 §4.1 [REF] micromodulus symmetry (True = invariant under R(e_k), k = x, y, z)
+        # reference: micromodulus symmetry (True = invariant under R(e_k), k = x, y, z)
         ("monoclinic", (False, False, True)),
         ("orthotropic", (True, True, True)),
         ("tetragonal", (True, True, True)),
@@ -225,11 +232,12 @@ def test_micromodulus_mirror_symmetry(name, invariant, fam6, table1):
     if name == "monoclinic":
         r = calibrate_micromoduli(MATERIALS[name], fam6.rotated(reflection([1, 0, 0])))
         d = np.abs(r.micromoduli - r0.micromoduli).max() / r0.c_max
-        np.testing.assert_allclose(d, 0.89, atol=5e-3)  # §4.1: max difference 0.89 c_max
+        np.testing.assert_allclose(d, 0.89, atol=5e-3)  # reference: max difference 0.89 c_max
 
 
-# --- §4.2 horizon ratio ---------------------------------------------------------------
-# spec 004 §4.2 [REF]: errors (%) at m = 2 and 3; None = infeasible (NNLS error in NNLS2/3)
+# --- Sec. 4.2.1 horizon ratio ---------------------------------------------------------------
+# reference values (Sec. 4.2.1): errors (%) at m = 2 and 3; None = infeasible (NNLS error in
+# NNLS2/3)
 HORIZON = {
     "triclinic": (3.9036, 3.1873),
     "monoclinic": (None, None),
@@ -240,10 +248,10 @@ HORIZON = {
     "cubic": (0.8028, 0.8028),
     "isotropic": (0.0, 0.0),
 }
-NNLS_MONO = {2: 16.0628, 3: 5.5853}  # spec 004 §4.2 [REF] monoclinic NNLS errors
+NNLS_MONO = {2: 16.0628, 3: 5.5853}  # reference monoclinic NNLS errors
 
 
-@pytest.mark.parametrize("m, bonds, rank", [(2, 32, 12), (3, 122, 15)])  # §4.2 / V4 / V5
+@pytest.mark.parametrize("m, bonds, rank", [(2, 32, 12), (3, 122, 15)])  # Sec. 4.2.1 / V4 / V5
 @pytest.mark.parametrize("name", NAMES)
 def test_horizon_ratio_small(m, bonds, rank, name):
     fam = lattice_family(3, float(m), influence="delta_over_r")
@@ -264,7 +272,7 @@ def test_horizon_ratio_small(m, bonds, rank, name):
         np.testing.assert_allclose(100 * r.relative_error, expected, atol=1e-3)
 
 
-@pytest.mark.parametrize("m, bonds", [(4, 256), (5, 514), (7, 1418)])  # §4.2 / V4
+@pytest.mark.parametrize("m, bonds", [(4, 256), (5, 514), (7, 1418)])  # Sec. 4.2.1 / V4
 def test_horizon_ratio_large_reproduces_table1(m, bonds):
     fam = lattice_family(3, float(m), influence="delta_over_r")
     assert fam.n_bonds == bonds
@@ -276,7 +284,7 @@ def test_horizon_ratio_large_reproduces_table1(m, bonds):
 
 @pytest.mark.parametrize(
     "m, lo, hi",
-    # spec 004 §4.2 [REF] isotropic c range per horizon ratio
+    # reference isotropic c range per horizon ratio
     [(2, 12.8295, 19.0328), (3, 2.4756, 3.4054), (5, 0.3843, 0.4282), (7, 0.1029, 0.1056)],
 )
 def test_horizon_ratio_isotropic_range(m, lo, hi):
@@ -287,28 +295,28 @@ def test_horizon_ratio_isotropic_range(m, lo, hi):
 
 def test_rank_12_message_names_unreachable_quartics():
     r = calibrate_micromoduli(MATERIALS["isotropic"], lattice_family(3, 2.0))
-    assert r.rank == 12 and r.n_directions == 13  # spec §2.3: 13 directions, rank 12
-    # spec §2.3: xy(x^2-y^2), yz(y^2-z^2), zx(z^2-x^2) are unreachable
+    assert r.rank == 12 and r.n_directions == 13  # derived: 13 directions, rank 12
+    # derived: xy(x^2-y^2), yz(y^2-z^2), zx(z^2-x^2) are unreachable
     assert "rank 12 < 15" in r.message
     for q in ("x^3*y - x*y^3", "x^3*z - x*z^3", "y^3*z - y*z^3"):
         assert q in r.message
 
 
 def test_delta2_family_values():
-    # V18: spec 004 §4.7 calibrated delta = 2, omega = 1 values by bond length
+    # V18: reference calibrated delta = 2, omega = 1 values by bond length
     r = calibrate_micromoduli(MATERIALS["isotropic"], lattice_family(3, 2.0))
     assert r.status == "step1" and r.relative_error < 1e-12
     fam = lattice_family(3, 2.0)
     for length, val in [(1.0, 10.9333), (np.sqrt(2), 19.9876), (np.sqrt(3), 26.3272), (2, 21.8667)]:
         sel = np.isclose(fam.length, length)
         np.testing.assert_allclose(r.micromoduli[sel], val, atol=1e-3)
-    np.testing.assert_allclose(r.c_mean, 20.2271, atol=1e-4)  # §4.7 mean of the 32 values
+    np.testing.assert_allclose(r.c_mean, 20.2271, atol=1e-4)  # reference mean of the 32 values
 
 
-# --- §4.3 shapes and §4.4 influence functions -----------------------------------------
+# --- Sec. 4.3 shapes and Sec. 4.3.1 influence functions -----------------------------------------
 @pytest.mark.parametrize(
     "shape, axes, bonds",
-    # spec 004 §4.3 [REF] bond counts
+    # reference bond counts (shapes of Sec. 4.3)
     [("cube", None, 2196), ("box", (4.0, 5.0, 6.0), 1286), ("ellipsoid", (4.0, 5.0, 6.0), 490)],
 )
 def test_neighbourhood_shapes(shape, axes, bonds):
@@ -316,7 +324,7 @@ def test_neighbourhood_shapes(shape, axes, bonds):
     assert fam.n_bonds == bonds
     for name, C in MATERIALS.items():
         r = calibrate_micromoduli(C, fam)
-        assert r.rank == 15 and r.status in ("step1", "qp")  # §4.3: all feasible
+        assert r.rank == 15 and r.status in ("step1", "qp")  # reference: all feasible
         np.testing.assert_allclose(100 * r.relative_error, TABLE1[name][0], atol=1e-3)  # V15
 
 
@@ -334,22 +342,22 @@ def _pow_c(r, d):
 
 @pytest.mark.parametrize("influence", ["constant", "hat", _pow_a, _pow_b, _pow_c])
 def test_influence_functions(influence):
-    # spec 004 §4.4 [REF]: every candidate reproduces all 8 Table-1 errors
+    # reference: every candidate reproduces all 8 Table-1 errors
     fam = lattice_family(3, 6.0, influence=influence)
     for name, C in MATERIALS.items():
         r = calibrate_micromoduli(C, fam)
         np.testing.assert_allclose(100 * r.relative_error, TABLE1[name][0], atol=1e-3)
         if influence in ("hat", _pow_a, _pow_b):
-            # omega(delta) = 0: the 30 bonds at |xi| = 6 get c = 0 (§4.4)
+            # omega(delta) = 0: the 30 bonds at |xi| = 6 get c = 0 (derived)
             edge = np.isclose(fam.length, 6.0)
             assert edge.sum() == 30
             np.testing.assert_array_equal(r.micromoduli[edge], 0.0)
 
 
-# --- §4.5 rotation ----------------------------------------------------------------------
+# --- Sec. 4.3.2 rotation ----------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def cube3():
-    # spec 004 §4.5: cube semi-edge 3, 342 bonds, omega = 3/|xi|
+    # pdlin's setup for Sec. 4.3.2: cube semi-edge 3, 342 bonds, omega = 3/|xi|
     fam = lattice_family(3, 3.0, shape="cube", influence="delta_over_r")
     assert fam.n_bonds == 342
     return fam
@@ -361,12 +369,12 @@ def _rz(t: float) -> np.ndarray:
 
 
 TRIG_FIXED = MATERIALS["trigonal"].copy()
-TRIG_FIXED[5, 5] = 152.5  # spec §4.5: exactly trigonal with C66 = (C11 - C12)/2
+TRIG_FIXED[5, 5] = 152.5  # exactly trigonal with C66 = (C11 - C12)/2
 
 
 @pytest.mark.parametrize(
     "name, Q, max_rel_change, err",
-    # spec 004 §4.5 [REF] max|c~ - c|/c_max and error (%)
+    # reference max|c~ - c|/c_max and error (%)
     [
         ("triclinic", reflection([1, 0, 0]), 0.29, 3.1873),
         ("triclinic", reflection([0, 1, 0]), 0.35, 3.1873),
@@ -388,7 +396,7 @@ def test_rotation_condition_1_and_2(name, Q, max_rel_change, err, cube3):
         assert d < 1e-8  # V16: in-group <= 1e-8 c_max
     else:
         np.testing.assert_allclose(d, max_rel_change, rtol=0.06)  # 2 printed digits
-    # equivalence (spec §2.4): rotated bonds vs Q^T * C on the unrotated lattice
+    # equivalence (Eqs. 95-103): rotated bonds vs Q^T * C on the unrotated lattice
     r2 = calibrate_micromoduli(_rotate(C, Q.T), cube3)
     np.testing.assert_allclose(r.micromoduli, r2.micromoduli, atol=1e-9 * r0.c_max)
 
@@ -397,7 +405,7 @@ def test_rotation_exact_trigonal_symmetry_gives_identical_c(cube3):
     r0 = calibrate_micromoduli(TRIG_FIXED, cube3)
     r = calibrate_micromoduli(TRIG_FIXED, cube3.rotated(_rz(2 * np.pi / 3)))
     d = np.abs(r.micromoduli - r0.micromoduli).max() / r0.c_max
-    assert d < 1e-8  # spec §4.5: 6.6e-13 with C66 = 152.5; V16 in-group bound
+    assert d < 1e-8  # reference 6.6e-13 with C66 = 152.5; V16 in-group bound
 
 
 @pytest.mark.parametrize("k", range(1, 7))
@@ -405,30 +413,32 @@ def test_rotation_isotropic_invariant(k, cube3):
     C = MATERIALS["isotropic"]
     r0 = calibrate_micromoduli(C, cube3)
     r = calibrate_micromoduli(C, cube3.rotated(equiangle_rotation(k * np.pi / 6)))
-    assert np.abs(r.micromoduli - r0.micromoduli).max() / r0.c_max < 1e-12  # §4.5: <= 4e-15
-    assert r.relative_error < 1e-10  # §4.5 error 0
+    assert np.abs(r.micromoduli - r0.micromoduli).max() / r0.c_max < 1e-12  # reference: <= 4e-15
+    assert r.relative_error < 1e-10  # reference: error 0
 
 
-# --- §4.6 lower bound -------------------------------------------------------------------
+# --- Sec. 4.1.8 lower bound (Fig. 10)
+# -------------------------------------------------------------------
 def test_lower_bound_study():
-    fam = lattice_family(3, 6.0)  # omega = 1 (spec §4.6)
+    fam = lattice_family(3, 6.0)  # omega = 1 (Sec. 4.1.8)
     C = MATERIALS["isotropic"]
     r = calibrate_micromoduli(C, fam)
     np.testing.assert_allclose([r.c_min, r.c_max, r.c_mean], [0.06286, 0.37713, 0.23139], atol=1e-5)
     r23 = calibrate_micromoduli(C, fam, lower_bound=0.23)
     assert r23.status == "qp" and r23.relative_error < 1e-12
-    np.testing.assert_allclose(r23.c_mean, 0.24350, atol=1e-4)  # V17
-    np.testing.assert_allclose(r23.c_max, 0.38666, atol=1e-4)  # §4.6 [REF]
-    assert 0.68 <= r23.n_zero / r23.n_bonds <= 0.70  # §4.6: 68-70 % at the bound
+    np.testing.assert_allclose(r23.c_mean, 0.24350, atol=1e-4)  # V17; Sec. 4.1.8 prints 0.2435
+    np.testing.assert_allclose(r23.c_max, 0.38666, atol=1e-4)  # reference
+    assert 0.68 <= r23.n_zero / r23.n_bonds <= 0.70  # reference: 68-70 % at the bound
     assert r23.c_min >= 0.23
     r24 = calibrate_micromoduli(C, fam, lower_bound=0.24)
     assert r24.status == "infeasible"  # V17
     np.testing.assert_allclose(max_lower_bound(C, fam), 0.23870, atol=1e-4)  # V17
     fam_r = lattice_family(3, 6.0, influence="delta_over_r")
-    np.testing.assert_allclose(max_lower_bound(C, fam_r), 0.18232, atol=1e-4)  # §4.6 [REF]
+    np.testing.assert_allclose(max_lower_bound(C, fam_r), 0.18232, atol=1e-4)  # reference
 
 
-# --- §2.7 2D ---------------------------------------------------------------------------
+# --- pdlin's 2D extension (not in the paper)
+# ---------------------------------------------------------------------------
 def _iso3d(E: float, nu: float) -> np.ndarray:
     lam = E * nu / ((1 + nu) * (1 - 2 * nu))
     mu = E / (2 * (1 + nu))
@@ -437,7 +447,7 @@ def _iso3d(E: float, nu: float) -> np.ndarray:
 
 @pytest.mark.parametrize(
     "lattice, delta, bonds, rank",
-    # spec 004 §2.7 [REF] lattice ranks
+    # reference lattice ranks
     [
         ("square", 1.0, 4, 2), ("square", np.sqrt(2), 8, 4), ("square", 2.0, 12, 4),
         ("square", np.sqrt(5), 20, 5), ("square", 3.0, 28, 5),
@@ -456,7 +466,7 @@ def test_2d_lattice_ranks(lattice, delta, bonds, rank):
 @pytest.mark.parametrize("lattice, delta", [("square", np.sqrt(5)), ("triangular", np.sqrt(3))])
 def test_2d_isotropic_limits(lattice, delta):
     fam = lattice_family(2, delta, lattice=lattice)
-    # plane stress: the Cauchy-compatible isotropic target has nu = 1/3 (spec §2.6/2.7)
+    # plane stress: the Cauchy-compatible isotropic target has nu = 1/3 (derived)
     r = calibrate_micromoduli(_iso3d(86.0, 1.0 / 3.0), fam, plane="stress")
     assert r.relative_error < 1e-10
     T = r.tensor
@@ -467,7 +477,7 @@ def test_2d_isotropic_limits(lattice, delta):
     assert r.relative_error < 1e-10
     Cp = MATERIALS["isotropic"][np.ix_([0, 1, 5], [0, 1, 5])]
     np.testing.assert_allclose(r.tensor, Cp, rtol=0, atol=1e-12 * Cp.max())
-    # a non-Cauchy isotropic target lands on C11 = 3 C12 = 3 C66 (spec §2.7)
+    # a non-Cauchy isotropic target lands on C11 = 3 C12 = 3 C66 (derived)
     r = calibrate_micromoduli(_iso3d(86.0, 0.3), fam, plane="stress")
     T = r.tensor
     np.testing.assert_allclose([T[0, 1], T[2, 2]], [T[0, 0] / 3] * 2, rtol=1e-10)
@@ -475,7 +485,7 @@ def test_2d_isotropic_limits(lattice, delta):
 
 
 def test_triangular_nearest_neighbour_constant_c():
-    # spec 004 §2.7: C11 = 3 C12 = 3 C66 = 0.974279 c (h = Delta = 1), C16 = C26 = 0
+    # derived: C11 = 3 C12 = 3 C66 = 0.974279 c (h = Delta = 1), C16 = C26 = 0
     fam = lattice_family(2, 1.0, lattice="triangular")
     from pdlin.calibration import design_matrix
 
@@ -489,18 +499,18 @@ def test_triangular_nearest_neighbour_constant_c():
     np.testing.assert_allclose(r.micromoduli, 1.0, rtol=1e-6)
 
 
-# --- §4.7 static uniaxial tension --------------------------------------------------------
+# --- Sec. 4.4 static uniaxial tension --------------------------------------------------------
 @pytest.mark.slow
 def test_spec004_static_uniaxial_tension_calibrated(spec004_tension):
     cloud = pdlin.grid((24, 24, 24), spacing=1.0, origin=(-0.5, -0.5, -0.5))
-    bonds = pdlin.find_bonds(cloud, 2.0)  # omega = 1 (spec §4.7)
+    bonds = pdlin.find_bonds(cloud, 2.0)  # omega = 1 (Sec. 4.4)
     C = MATERIALS["isotropic"] * 1e9  # Pa
     cal = calibrate_micromoduli(C, bonds, boundary="interior-mean")
-    assert cal.families[0].rank == 12 and cal.families[0].status == "step1"  # §4.7 [REF]
+    assert cal.families[0].rank == 12 and cal.families[0].status == "step1"  # reference
     assert int(np.sum(cal.family_of_point == 0)) == 8000  # inner 20^3 full families
     np.testing.assert_allclose(
         np.unique(np.round(cal.micromoduli / 1e9, 4)),
-        [10.9333, 19.9876, 20.2271, 21.8667, 26.3272],  # §4.7 [REF] values and their mean
+        [10.9333, 19.9876, 20.2271, 21.8667, 26.3272],  # reference values and their mean
     )
     model = pdlin.BondBased(micromodulus=cal.micromoduli)
     prob = spec004_tension(model, cloud, bonds)
@@ -511,22 +521,23 @@ def test_spec004_static_uniaxial_tension_calibrated(spec004_tension):
     assert inner.sum() == 8000 and core.sum() == 4096
     eps = res.strain()
     ezz = eps[inner, 2, 2].mean()
-    np.testing.assert_allclose(ezz, 1.16277e-5, rtol=2e-4)  # §4.7 [REF]
+    np.testing.assert_allclose(ezz, 1.16277e-5, rtol=2e-4)  # reference
     np.testing.assert_allclose(ezz, 1e6 / 86e9, rtol=1e-2)  # V20: within 1 % of sigma/E
-    np.testing.assert_allclose(eps[core, 2, 2].mean(), 1.16472e-5, rtol=2e-4)  # §4.7 [REF]
-    np.testing.assert_allclose(eps[:, 2, 2].mean(), 1.18619e-5, rtol=2e-4)  # §4.7 [REF]
-    np.testing.assert_allclose(-eps[inner, 0, 0].mean() / ezz, 0.2388, atol=1e-4)  # [REF]
+    np.testing.assert_allclose(eps[core, 2, 2].mean(), 1.16472e-5, rtol=2e-4)  # reference
+    np.testing.assert_allclose(eps[:, 2, 2].mean(), 1.18619e-5, rtol=2e-4)  # reference
+    np.testing.assert_allclose(-eps[inner, 0, 0].mean() / ezz, 0.2388, atol=1e-4)  # reference
     k = int(np.flatnonzero(np.all(p == [12, 12, 23], axis=1))[0])
-    np.testing.assert_allclose(res.u[k, 2], 2.7118e-4, rtol=2e-4)  # §4.7 [REF]
-    np.testing.assert_allclose(res.u[k, 2], 2.7137e-4, rtol=2e-2)  # V21: paper within 2 %
-    np.testing.assert_allclose(res.u[:, 2].max(), 2.7960e-4, rtol=2e-4)  # [REF] corner
-    np.testing.assert_allclose(res.u[:, 0].min(), -6.5294e-5, rtol=2e-4)  # §4.7 [REF]
+    np.testing.assert_allclose(res.u[k, 2], 2.7118e-4, rtol=2e-4)  # reference
+    # V21: paper (Sec. 4.4) within 2 %
+    np.testing.assert_allclose(res.u[k, 2], 2.7137e-4, rtol=2e-2)
+    np.testing.assert_allclose(res.u[:, 2].max(), 2.7960e-4, rtol=2e-4)  # reference, corner
+    np.testing.assert_allclose(res.u[:, 0].min(), -6.5294e-5, rtol=2e-4)  # reference
     np.testing.assert_allclose(res.u[:, 1].min(), -6.5294e-5, rtol=2e-4)  # min u_x = min u_y
     T = model.effective_tensor(cloud, bonds) / 1e9
     for mask, c11, c44 in [
-        (inner, 102.7001, 33.7468),  # §4.7 [REF] mean over 8000 inner particles
-        (core, 103.2000, 34.4000),  # §4.7 [REF] 4096 core
-        (np.ones(cloud.n, bool), 95.1946, 29.0816),  # §4.7 [REF] all 13,824
+        (inner, 102.7001, 33.7468),  # reference: mean over 8000 inner particles
+        (core, 103.2000, 34.4000),  # reference: 4096 core
+        (np.ones(cloud.n, bool), 95.1946, 29.0816),  # reference: all 13,824
     ]:
         np.testing.assert_allclose(T[mask, 0, 0, 0, 0].mean(), c11, rtol=1e-5)  # V19 1e-4
         np.testing.assert_allclose(T[mask, 1, 2, 1, 2].mean(), c44, rtol=1e-5)
@@ -544,9 +555,9 @@ def test_all_index_permutations_of_achieved_tensor(table1):
 def test_library_materials_and_cauchy_projection_agree(name, table1):
     from pdlin.constitutive import cauchy_distance, cauchy_projection, material
 
-    # the spec §3 matrices typed above equal pdlin.constitutive's copies
+    # the Sec. 4.1 matrices typed above equal pdlin.constitutive's copies
     np.testing.assert_array_equal(material(name), MATERIALS[name])
-    # the calibrated tensor is pdlin.constitutive.cauchy_projection (spec §2.3)
+    # the calibrated tensor is pdlin.constitutive.cauchy_projection (derived)
     P = cauchy_projection(MATERIALS[name])
     np.testing.assert_allclose(table1[name].tensor, P, rtol=0, atol=1e-9 * np.abs(P).max())
     np.testing.assert_allclose(
@@ -556,8 +567,8 @@ def test_library_materials_and_cauchy_projection_agree(name, table1):
 
 @pytest.mark.parametrize("name", ["cubic", "transversely_isotropic", "trigonal", "monoclinic"])
 def test_random_rotations_condition_1_when_feasible(name, cube3):
-    # spec §4.5: condition 1 (same tensor, same error) holds whenever the QP is feasible;
-    # random orientations of strongly anisotropic inputs may be infeasible, never wrong
+    # Sec. 4.3.2: condition 1 (same tensor, same error) holds whenever the QP is feasible; random
+    # orientations of strongly anisotropic inputs may be infeasible, never wrong
     from scipy.spatial.transform import Rotation
 
     C = MATERIALS[name]

@@ -1,10 +1,10 @@
-"""1D graded-modulus bar with the correspondence model (spec 000 §10.A, spec 003 §7.1).
+"""1D graded-modulus bar with the correspondence model (Javaheri et al. (2022), Sec. III.A; Luo &
+Sundararaghavan (2018), Sec. 5.1; docs/theory/conventions.md#graded-bar).
 
-Bar of length 1, E = E₀ on x ≤ ½ and E₀[1 + 2√2 (x - ½)^{-½}]⁻¹ beyond,
-u(0) = 0, u(1) = 0.005; exact u = αx + βH(x - ½)√(x - ½), σ ≡ 1e-3.
-Spec 003 §9 targets covered here: V14 (SP closed form), V15 (SP linearity, a_u
-table and a_u/√h), V16 (no-control oscillation), V17 (jump strains), V18
-(springs / ADS controls).
+Bar of length 1, E = E₀ on x ≤ ½ and E₀[1 + 2√2 (x - ½)^{-½}]⁻¹ beyond, u(0) = 0, u(1) = 0.005;
+exact u = αx + βH(x - ½)√(x - ½), σ ≡ 1e-3. Checks covered here: V14 (SP closed form), V15 (SP
+linearity, a_u table and a_u/√h), V16 (no-control oscillation), V17 (jump strains), V18 (springs /
+ADS controls).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import pytest
 
 import pdlin
 
-ALPHA = 1e-3  # spec 000 §10.A / spec 003 §7.1
+ALPHA = 1e-3  # Javaheri et al. (2022), Eqs. 27-28; Luo & Sundararaghavan (2018), Eqs. 18-19
 BETA = 4e-3 * np.sqrt(2.0)
 U_END = 0.005
 SIGMA = 1e-3
@@ -37,7 +37,7 @@ def eps_exact(x: np.ndarray) -> np.ndarray:
 
 
 def shadow_bar(N: int, m: int, control: str, influence: str = "constant") -> float:
-    """Spec 000 §10.A defaults: x_i = (i - ½)/N, outward shadow layer of m = δ/h
+    """pdlin's layout (conventions.md#graded-bar): x_i = (i - ½)/N, outward shadow layer of m = δ/h
     particles per end with exact u and σ = 1e-3; returns max |u - u_ex| (real)."""
     cloud = pdlin.grid((N + 2 * m,), spacing=1.0 / N, origin=[-m / N])
     bonds = pdlin.find_bonds(cloud, ratio=float(m), influence=influence)
@@ -57,7 +57,8 @@ def shadow_bar(N: int, m: int, control: str, influence: str = "constant") -> flo
     return float(np.abs(res.u[real, 0] - u_exact(x[real])).max())
 
 
-# spec 000 §10.A error table [REF], N = 500 (S = singular K_RR: not listed)
+# max |u - u_ex| (reference values of an independent implementation, not in the paper), N = 500 (S =
+# singular K_RR: not listed)
 TABLE_500 = {
     (1, "higher_order", "constant"): 1.96e-4,
     (2, "higher_order", "constant"): 1.51e-4,
@@ -83,8 +84,9 @@ def test_spec_000_bar_no_control_is_worse_than_ho():
 
 @pytest.mark.slow
 def test_spec_000_bar_ho_rates():
-    # spec 000 §10.A: HO errors monotone in δ and ∝ N^{-1/2} (ratio 1.41 ± 0.05 per doubling, V16)
-    table = {  # [REF] rows N = 250, 1000, 2000 for δ = h, HO 2h, 3h, 4h
+    # reference computation: HO errors monotone in δ and ∝ N^{-1/2} (ratio 1.41 ± 0.05 per doubling,
+    # V16)
+    table = {  # reference rows N = 250, 1000, 2000 for δ = h, HO 2h, 3h, 4h
         250: (2.77e-4, 2.13e-4, 1.86e-4, 1.72e-4),
         1000: (1.39e-4, 1.06e-4, 9.30e-5, 8.55e-5),
         2000: (9.80e-5, 7.53e-5, 6.58e-5, 6.04e-5),
@@ -99,7 +101,8 @@ def test_spec_000_bar_ho_rates():
 
 
 def node_bar(n: int, control: str, **kw: Any) -> tuple[np.ndarray, np.ndarray, Any, Any]:
-    """Spec 003 §7.1: node layout x_i = (i - 1)/(n - 1), u_1 = 0, u_n = u_end."""
+    """pdlin's node layout (conventions.md#graded-bar): x_i = (i - 1)/(n - 1), u_1 = 0, u_n =
+    u_end."""
     h = 1.0 / (n - 1)
     cloud = pdlin.grid((n,), spacing=h, origin=[-0.5 * h])
     bonds = pdlin.find_bonds(cloud, ratio=1.0)
@@ -115,9 +118,9 @@ def node_bar(n: int, control: str, **kw: Any) -> tuple[np.ndarray, np.ndarray, A
     return x, res.u[:, 0], res, (model, cloud, bonds)
 
 
-# spec 003 §7.1 reference table [REF]: SP a_u (x <= ½), SP rel-L2, no-control rel-L2,
-# no-control a_u at x_2, no-control sublattice means of u/u_ex on 0.05 < x < 0.45,
-# no-control max|Δ²(u - u_ex)|/u_end on x <= ½
+# reference values of an independent implementation, not in the paper: SP a_u (x <= ½), SP rel-L2,
+# no-control rel-L2, no-control a_u at x_2, no-control sublattice means of u/u_ex on 0.05 < x <
+# 0.45, no-control max|Δ²(u - u_ex)|/u_end on x <= ½
 SP_TABLE = {
     100: (8.491e-2, 4.537e-2, 3.524e-2, 0.509, (0.953, 1.103), 2.54e-2),
     200: (5.891e-2, 3.164e-2, 2.466e-2, 0.506, (1.069, 0.974), 1.72e-2),
@@ -143,13 +146,14 @@ def test_spec_003_bar_table(n):
     assert a_u.mean() == pytest.approx(au_sp, rel=0.01)  # V15: table ± 1 %
     assert 0.75 <= a_u.mean() / np.sqrt(1.0 / (n - 1)) <= 0.9  # V15: a_u/√h [0.82-0.84]
     assert np.linalg.norm(u - ue) / np.linalg.norm(ue) == pytest.approx(l2_sp, rel=0.01)
-    # reactions with w = ½: R = σ_num A, σ_num/σ_ex = 1 + a_u (spec 003 §7.1)
+    # reactions with w = ½: R = σ_num A, σ_num/σ_ex = 1 + a_u (derived)
     assert res.reactions[-1, 0] == pytest.approx(SIGMA * (1 + au_sp), rel=0.01)
     assert res.reactions[0, 0] == pytest.approx(-res.reactions[-1, 0], rel=1e-10)
     x, u0, _, _ = node_bar(n, "none")
     assert np.linalg.norm(u0 - ue) / np.linalg.norm(ue) == pytest.approx(l2_none, rel=0.01)
     assert abs((u0[1] - ue[1]) / ue[1]) == pytest.approx(au2_none, rel=0.01)
-    # spec 003 §10: SP does NOT have the smaller L2 error here; its benefit is no oscillation
+    # reference computation: SP does NOT have the smaller L2 error here; its benefit is no
+    # oscillation
     osc = np.abs(np.diff((u0 - ue)[x <= 0.5], 2)).max() / U_END
     assert osc > 5e-3  # V16 oscillation
     assert osc == pytest.approx(osc_none, rel=0.01)  # table, 3 digits
@@ -169,9 +173,11 @@ def test_spec_003_jump_strains_n500():
     np.testing.assert_allclose(ratios, [1.544, 0.393], rtol=0.01)
 
 
-# --- spec 000 §10.C, 2D analogue: soft disk in a Mg matrix (not a bar, same verification set) ---
+# --- Javaheri et al. (2022), Sec. III.C, 2D analogue: soft disk in a Mg matrix (not a bar, same
+# verification set) ---
 
-# [REF] spec 000 §10.C "2D analogue": u_x raw / u_x filt / u_y filt in µm, row y = index 24
+# reference values (conventions.md#soft-precipitate, 2D analogue): u_x raw / u_x filt / u_y filt in
+# µm, row y = index 24
 PRECIPITATE_2D = {
     (1, "higher_order", "constant"): (26.3, 2.60, 0.218),
     (2, "higher_order", "constant"): (23.8, 2.17, 0.275),
@@ -184,7 +190,8 @@ PRECIPITATE_2D = {
 def _precipitate_2d(m: int, control: str, influence: str) -> tuple[float, float, float]:
     from pdlin.constitutive import plane_strain, transversely_isotropic
 
-    # spec 000 §8 Mg matrix (GPa, c ∥ z), precipitate r_c = 0.1; 48², 3 mm, disk d = 0.875 mm
+    # Mg matrix of Javaheri et al. (2022), Sec. III.C (GPa, c ∥ z), precipitate r_c = 0.1; 48², 3
+    # mm, disk d = 0.875 mm
     Cm = plane_strain(transversely_isotropic(C11=59.3, C33=61.5, C12=25.7, C13=21.4, C44=16.4))
     n, h = 48, 3.0 / 48
     cloud = pdlin.grid((n, n), spacing=h)
@@ -217,8 +224,9 @@ def test_spec_000_precipitate_2d():
 
 @pytest.mark.slow
 def test_spec_000_precipitate_3d_symmetry():
-    # spec 000 §10.C / V19: 24³, δ = h, the mean of the 8 particles around X_c equals
-    # H X_c = (30, -15, -15) µm for every r_c (symmetry argument; measured ~20 s per solve)
+    # derived (conventions.md#errata-javaheri-et-al-2022, Fig. 20): 24³, δ = h, the mean of the 8
+    # particles around X_c equals H X_c = (30, -15, -15) µm for every r_c (symmetry argument;
+    # measured ~20 s per solve)
     from pdlin.constitutive import transversely_isotropic
 
     C = transversely_isotropic(C11=59.3, C33=61.5, C12=25.7, C13=21.4, C44=16.4)
@@ -237,19 +245,21 @@ def test_spec_000_precipitate_3d_symmetry():
         np.testing.assert_allclose(mean, [30.0, -15.0, -15.0], atol=1e-8 * 30.0)
 
 
-# --- spec 003 §7.1 / V18: springs and ADS control forces on the n = 500 bar ---
+# --- Luo & Sundararaghavan (2018), Sec. 2.2 controls: springs and ADS control forces on the n = 500
+# bar ---
 
 
 def _osc_l2(u: np.ndarray, x: np.ndarray) -> tuple[float, float]:
-    """osc = max|Δ²(u - u_ex)|/u_end over the stencils inside 0.02 < x < 0.48 (all three
-    points: this reading reproduces every §7.1 value), and rel-L2(u)."""
+    """osc = max|Δ²(u - u_ex)|/u_end over the stencils inside 0.02 < x < 0.48 (all three points:
+    this reading reproduces every reference value), and rel-L2(u)."""
     ue = u_exact(x)
     win = (x > 0.02) & (x < 0.48)
     osc = float(np.abs(np.diff((u - ue)[win], 2)).max() / U_END)
     return osc, float(np.linalg.norm(u - ue) / np.linalg.norm(ue))
 
 
-# spec 003 §7.1 [REF], n = 500: (control, C̃) -> (osc, rel-L2); None: not given
+# reference values of an independent implementation, not in the paper, n = 500: (control, C̃) ->
+# (osc, rel-L2); None: not given
 CONTROLS_500 = {
     ("springs", 0.0): (1.0e-2, 1.5e-2),
     ("springs", 1e-3): (4.3e-3, 1.6e-2),

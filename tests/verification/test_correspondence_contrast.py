@@ -1,13 +1,13 @@
 """Correspondence models with a soft inclusion down to a stiffness ratio of 1e-5 (issue 5).
 
-A transversely isotropic Mg matrix (spec 000 §8 constants, GPa, plane strain) with a soft disk
-of ``r_c C`` (r_c = 1e-1, 1e-3, 1e-5), pulled by a shadow layer carrying the affine field of
-``F = I + 0.02 diag(1, -0.5)`` (the spec 000 §10.C setup on a 32² grid).  Claims tested for
-every stabilized control: the constrained operator is symmetric positive definite on the real
-DOFs (smallest eigenvalue of the Jacobi-scaled K_ff > 0; its smallest eigenvalue is expected to
-fall with r_c, not to vanish), and the AMG-CG solve (true residual checked by ``pdlin.solve``)
-agrees with the direct solve to 1e-7 of max |u|, even at r_c = 1e-5 where the diagonal of K
-spans five decades.
+A transversely isotropic Mg matrix (Javaheri et al. (2022), Sec. III.C, GPa, plane strain) with a
+soft disk of ``r_c C`` (r_c = 1e-1, 1e-3, 1e-5), pulled by a shadow layer carrying the affine field
+of ``F = I + 0.02 diag(1, -0.5)`` (docs/theory/conventions.md#soft-precipitate, on a 32² grid).
+Claims tested for every stabilized control: the constrained operator is symmetric positive definite
+on the real DOFs (smallest eigenvalue of the Jacobi-scaled K_ff > 0; its smallest eigenvalue is
+expected to fall with r_c, not to vanish), and the AMG-CG solve (true residual checked by
+``pdlin.solve``) agrees with the direct solve to 1e-7 of max |u|, even at r_c = 1e-5 where the
+diagonal of K spans five decades.
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ import pdlin
 from pdlin.constitutive import plane_strain, transversely_isotropic
 from pdlin.constraints import resolve_dirichlet
 
-# spec 000 §8: Mg single-crystal constants (GPa), c axis along z (plane strain in x-y)
+# Javaheri et al. (2022), Sec. III.C: Mg single-crystal constants (GPa), c axis along z (plane
+# strain in x-y)
 CM = plane_strain(transversely_isotropic(C11=59.3, C33=61.5, C12=25.7, C13=21.4, C44=16.4))
 
 

@@ -1,9 +1,11 @@
-"""Spec 001 §1-2 and §10 (T1-T6, T21): the finite-strain correspondence operator.
+"""Luo, Ramazani & Sundararaghavan (2017), Secs. 2.1 and 2.3: the finite-strain correspondence
+operator (T1-T6, T21).
 
-``pdlin.Correspondence(material=...)`` on the paper's pixel grid (ω = 1, V = h², δ = h
-or √2 h, control 'none'): the deformation gradient F = I + G u (Eq. 16), the force
-f = -Gᵀ vec(V P) = V L (§2.1), the tangent Gᵀ blockdiag(V dP/dF) G, and the boundary
-defect of truncated families vs the ghost layer (§2.4).
+``pdlin.Correspondence(material=...)`` on the paper's pixel grid (ω = 1, V = h², δ = h or √2 h,
+control 'none'): the deformation gradient F = I + G u (Eq. 16), the force f = -Gᵀ vec(V P) = V L
+(Eq. 15, derived matrix form), the tangent Gᵀ blockdiag(V dP/dF) G, and the boundary defect of
+truncated families vs the ghost layer (derived,
+docs/theory/conventions.md#crystal-plasticity-conventions).
 """
 
 from __future__ import annotations
@@ -16,12 +18,14 @@ from scipy.linalg import expm
 import pdlin
 from pdlin.constitutive import isotropic_2d
 
-#: the two horizons of spec 001 §1 (δ = l_e and δ = √2 l_e)
+#: the two horizons of Luo, Ramazani & Sundararaghavan (2017), Sec. 4.1 and Fig. 8c (δ = l_e and δ =
+#: √2 l_e)
 RATIOS = (1.0, np.sqrt(2.0))
 
 
 def _grid(n: int) -> pdlin.PointCloud:
-    """Spec 001 §1: unit square, n x n pixels, particle at each pixel centre, h = 1/n."""
+    """Luo, Ramazani & Sundararaghavan (2017), Sec. 4 and Fig. 4: unit square, n x n pixels,
+    particle at each pixel centre, h = 1/n."""
     return pdlin.grid((n, n), spacing=1.0 / n)
 
 
@@ -32,7 +36,8 @@ def _lattice_ij(cloud: pdlin.PointCloud, h: float) -> np.ndarray:
 
 
 def _svk() -> pdlin.SaintVenantKirchhoff:
-    # plane-strain isotropic SVK (E = 2000 MPa, ν = 0.3: order of spec 001 §3.4's D11)
+    # plane-strain isotropic SVK (E = 2000 MPa, ν = 0.3: order of D11 in Luo, Ramazani &
+    # Sundararaghavan (2017), Sec. 4)
     return pdlin.SaintVenantKirchhoff(isotropic_2d(2000.0, 0.3, plane="strain"))
 
 
@@ -40,7 +45,7 @@ def _svk() -> pdlin.SaintVenantKirchhoff:
 # T1: F patch test
 
 
-@pytest.mark.parametrize("n", [5, 15])  # spec 001 §10 T1: n = 5, 15
+@pytest.mark.parametrize("n", [5, 15])  # T1: n = 5, 15
 @pytest.mark.parametrize("ratio", RATIOS)
 @pytest.mark.parametrize("control", ["none", "stress_points"])
 def test_t1_deformation_gradient_patch_test(n, ratio, control):
@@ -62,7 +67,11 @@ def test_t1_deformation_gradient_patch_test(n, ratio, control):
 
 @pytest.mark.parametrize("n", [5, 15])
 def test_t2_shape_tensors_of_the_spec_table(n):
-    """Spec 001 §1 table (ω = 1, V = h²) at interior, edge and corner particles, 1e-14 rel."""
+    """Eq. 16 shape tensors (ω = 1, V = h²) at interior, edge and corner particles, 1e-14 rel.
+
+    Closed forms: δ = h: 2h⁴ I, h⁴ diag(1, 2), h⁴ I; δ = √2 h: 6h⁴ I, h⁴ diag(3, 4), h⁴ [[2, ±1],
+    [±1, 2]] (interior, edge with normal e₁, corner).
+    """
     h = 1.0 / n
     cloud = _grid(n)
     ij = _lattice_ij(cloud, h)
@@ -102,7 +111,8 @@ def test_t2_shape_tensors_of_the_spec_table(n):
 
 
 def _pairwise_reference(points, h, delta, u, P):
-    """Independent loop over particles and neighbours: spec 001 §2 Eqs. 15-18 (ω = 1)."""
+    """Independent loop over particles and neighbours: Luo, Ramazani & Sundararaghavan (2017), Eqs.
+    15-18 (ω = 1)."""
     n = points.shape[0]
     V = h * h
     fam = []
@@ -202,15 +212,15 @@ def test_t5_uniform_stress_truncated_families():
     P = np.array([[3.0, 1.2], [0.7, -2.0]])  # a uniform, nonsymmetric P
     model = pdlin.Correspondence(material=_svk())
     L = model.nodal_force(cloud, bonds=pdlin.find_bonds(cloud, ratio=1.0), P=P) / h**2
-    free = np.all((ij > 0) & (ij < n - 1), axis=1)  # boundary ring prescribed (§1)
+    free = np.all((ij > 0) & (ij < n - 1), axis=1)  # boundary ring prescribed (Sec. 4)
     normal = np.zeros((cloud.n, 2))  # outward normals of the edges next to ring 1 (summed)
     for k in range(2):
         normal[:, k] = (ij[:, k] == n - 2).astype(float) - (ij[:, k] == 1)
-    expected = normal @ P.T / (2 * h)  # spec 001 §2.4: L = P n / (2h)
+    expected = normal @ P.T / (2 * h)  # derived: L = P n / (2h) next to an edge
     scale = np.abs(P).max() / h
     np.testing.assert_allclose(L[free], expected[free], rtol=0, atol=1e-12 * scale)
     assert np.abs(expected[free]).max() > 0.1 * scale  # the defect is there
-    # √2 h: nonzero as well (§2.4)
+    # √2 h: nonzero as well (derived)
     L2 = model.nodal_force(cloud, pdlin.find_bonds(cloud, ratio=np.sqrt(2.0)), P) / h**2
     assert np.abs(L2[free]).max() > 0.1 * scale
 
@@ -237,7 +247,7 @@ def test_t5_uniform_stress_with_ghost_layer(ratio):
     Pg[g.ghost] = 0.0  # ghosts without stress: the same force on free particles
     L0 = model.nodal_force(g.cloud, bonds, Pg) / h**2
     assert np.abs(L0[free]).max() <= 1e-12 * scale
-    # the prescribed ring now has complete families (§1 option): K = 2h⁴ I or 6h⁴ I
+    # the prescribed ring now has complete families (pdlin's ghost-layer option): K = 2h⁴ I or 6h⁴ I
     K = pdlin.shape_tensor(bonds)[g.cloud.point_set("outer_ring")]
     np.testing.assert_allclose(K, np.broadcast_to(K[0], K.shape), rtol=1e-13)
 
@@ -250,9 +260,10 @@ def _plastic_tangent(n, ratio, seed=6):
     cloud = _grid(n)
     bonds = pdlin.find_bonds(cloud, ratio=ratio)
     rng = np.random.default_rng(seed)
-    theta = rng.choice(-np.pi / 2 + np.arange(12) * np.pi / 12, cloud.n)  # §3.2 set
+    # the 12 orientations of Sec. 4
+    theta = rng.choice(-np.pi / 2 + np.arange(12) * np.pi / 12, cloud.n)
     model = pdlin.Correspondence(material=pdlin.CrystalPlasticity(orientation=theta))
-    Fbar = expm(0.006 * np.array([[0.0, 1.0], [1.0, 0.0]]))  # shear, t = 3 (§4.2): plastic
+    Fbar = expm(0.006 * np.array([[0.0, 1.0], [1.0, 0.0]]))  # shear, t = 3 (Eq. 25): plastic
     u = cloud.points @ (Fbar - np.eye(2)).T + 1e-3 / n * rng.standard_normal((cloud.n, 2))
     r = model.respond(cloud, bonds, u, model.initial_state(cloud, bonds), tangent=True)
     assert r.state["plastic"].mean() > 0.5
@@ -260,8 +271,8 @@ def _plastic_tangent(n, ratio, seed=6):
 
 
 def test_t6_red_black_decoupling():
-    """δ = h, boundary ring prescribed: max|K_T[even, odd]| on free DOFs <= 1e-10 max|K_T|
-    (spec 001 §2.2: round-off); clearly nonzero for √2 h."""
+    """δ = h, boundary ring prescribed: max|K_T[even, odd]| on free DOFs <= 1e-10 max|K_T| (derived:
+    δ = h decouples the red and black sublattices, so only round-off); clearly nonzero for √2 h."""
     n = 15
     h = 1.0 / n
     for ratio, decoupled in ((1.0, True), (np.sqrt(2.0), False)):
@@ -286,13 +297,14 @@ def test_t6_red_black_decoupling():
 @pytest.mark.parametrize("loading", ["shear", "compression"])
 def test_t21_single_crystal_with_ghost_layer_is_affine(loading):
     """Ghost layer, θ = 15° (one crystal), 30 steps of exp(η L t): the affine field is in
-    equilibrium at every free particle (1e-10 rel) and every particle's σ equals the
-    material-point value (1e-8 rel); truncated families are not (spec 001 §2.4)."""
+    equilibrium at every free particle (1e-10 rel) and every particle's σ equals the material-point
+    value (1e-8 rel); truncated families are not (derived,
+    docs/theory/conventions.md#crystal-plasticity-conventions)."""
     n = 15
     h = 1.0 / n
-    theta = np.radians(15.0)  # a §8.1 row (yield at step 3, double slip in shear)
+    theta = np.radians(15.0)  # a material-point table row (yield at step 3, double slip in shear)
     mat = pdlin.CrystalPlasticity(orientation=theta)
-    ref = pdlin.material_point(mat, loading, steps=30, eta=0.002)  # §8.1 driver
+    ref = pdlin.material_point(mat, loading, steps=30, eta=0.002)  # the material-point driver
     Lvg = {"shear": np.array([[0.0, 1.0], [1.0, 0.0]]), "compression": np.diag([1.0, -1.0])}
     g = pdlin.ghost_layer(_grid(n))
     cloud = g.cloud
@@ -303,7 +315,7 @@ def test_t21_single_crystal_with_ghost_layer_is_affine(loading):
     free[g.ghost] = False
     free[cloud.point_set("outer_ring")] = False
     for t in range(1, 31):
-        F = expm(0.002 * t * Lvg[loading])  # spec 001 §4.2
+        F = expm(0.002 * t * Lvg[loading])  # Luo, Ramazani & Sundararaghavan (2017), Eq. 25
         u = cloud.points @ (F - np.eye(2)).T  # x from the domain corner (origin)
         r = model.respond(cloud, bonds, u, state)
         scale = h * np.abs(r.stress).max()  # V |P| / h
@@ -314,7 +326,8 @@ def test_t21_single_crystal_with_ghost_layer_is_affine(loading):
             atol=1e-8 * np.abs(ref.stress[t - 1, 0]).max(),
         )  # fmt: skip
         state = r.state  # commit
-    assert ref.yield_step[0] == 3  # the history was plastic (§8.1: yield at step 3)
+    # the history was plastic (material-point reference: yield at step 3)
+    assert ref.yield_step[0] == 3
     # truncated families: the same affine field is out of balance next to the edges
     base = _grid(n)
     b0 = pdlin.find_bonds(base, ratio=1.0)
@@ -327,8 +340,9 @@ def test_t21_single_crystal_with_ghost_layer_is_affine(loading):
 
 
 def test_t21_newton_from_a_perturbed_guess_finds_the_affine_field():
-    """Elastic step 1 (unique solution): Newton with respond's K_T converges to the affine
-    field on the ghost-layer grid, quadratically; σ_xy = 8.000133 (spec 001 §8.1, T7)."""
+    """Elastic step 1 (unique solution): Newton with respond's K_T converges to the affine field on
+    the ghost-layer grid, quadratically; σ_xy = 8.000133 (material-point reference value of
+    pdlin.material_point, T7)."""
     n = 10
     g = pdlin.ghost_layer(_grid(n))
     cloud = g.cloud
@@ -358,4 +372,5 @@ def test_t21_newton_from_a_perturbed_guess_finds_the_affine_field():
     assert res[-1] < 1e-12
     assert len(res) <= 4  # elastic: quadratic convergence from a small perturbation
     assert np.abs(u - exact).max() <= 1e-10 * np.abs(exact).max()
-    np.testing.assert_allclose(r.stress[:, 0, 1], 8.000133, rtol=1e-6)  # §8.1 elastic check
+    # material-point elastic check
+    np.testing.assert_allclose(r.stress[:, 0, 1], 8.000133, rtol=1e-6)

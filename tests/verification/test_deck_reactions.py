@@ -2,7 +2,7 @@
 
 A Peridigm LPS (``Elastic``) deck in YAML and an ``Elastic Correspondence`` deck in
 XML, both on a text discretization, give the same reaction as the equivalent
-hand-written TOML scene (``pdlin.io.scene.scene_from_dict``, a grid with the same
+hand-written TOML scene (``pdlin.scene.scene_from_dict``, a grid with the same
 points) to 1e-10; the LPS deck's operator equals an independent loop implementation of
 Peridigm's linear peridynamic solid force state; and the bar's reaction is compared
 with E A strain.
@@ -19,7 +19,7 @@ from test_external_references import _peridigm_lps_force
 
 import pdlin
 from pdlin.constraints import resolve_dirichlet
-from pdlin.io.scene import scene_from_dict
+from pdlin.scene.scene import scene_from_dict
 
 yaml = pytest.importorskip("yaml")
 
@@ -118,7 +118,7 @@ def _deck(
     }
 
 
-def _toml_scene(model: dict) -> pdlin.io.scene.Scene:
+def _toml_scene(model: dict) -> pdlin.scene.Scene:
     """The equivalent hand-written scene: grid, K/G, boxes for the node sets."""
     eps = 1e-9
     return scene_from_dict(

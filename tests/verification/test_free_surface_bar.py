@@ -75,10 +75,10 @@ def test_free_surface_patch_is_exact(m, control, kw):
     got = _bar(m, control, "patch", **kw)
     assert got["patch"] < 1e-10  # affine field reproduced (closed form)
     assert abs(got["lat"]) < 1e-9  # lateral strain -ν ε exactly (closed form)
-    # reaction: σ n_y h, except stress points on the paper's nearest-neighbour families,
-    # whose boundary stress points carry w_s = ½ (spec 003 §4.3): the body is the node hull,
-    # A = (n_y - 1) h, R/(σ n_y h) - 1 = -1/n_y exactly (before the fix: also at δ = 2h, and
-    # δ = 3h failed the patch by 1.1e-2 with R -0.84 %)
+    # reaction: σ n_y h, except stress points on the paper's nearest-neighbour families, whose
+    # boundary stress points carry w_s = ½ (conventions.md#errata-luo-and-sundararaghavan-2018): the
+    # body is the node hull, A = (n_y - 1) h, R/(σ n_y h) - 1 = -1/n_y exactly (before the fix: also
+    # at δ = 2h, and δ = 3h failed the patch by 1.1e-2 with R -0.84 %)
     want = -1.0 / NY if (control == "stress_points" and m == 1) else 0.0
     assert got["R"] == pytest.approx(want, abs=1e-9)
 
@@ -91,7 +91,8 @@ def test_closed_form_elongation(m, control):
     # 3h -0.13 %; before the fix SP 2h was +10.0 % and 3h +0.68 %; HO / penalty ≤ 0.11 %)
     got = _bar(m, control, "bar")
     el, lat = got["el"], got["lat"]
-    if control == "stress_points" and m == 1:  # node-hull section (n_y - 1) h, spec 003 §4.3
+    # node-hull section (n_y - 1) h, stress-point weight ½
+    if control == "stress_points" and m == 1:
         el, lat = ((1.0 + v) * (NY - 1) / NY - 1.0 for v in (el, lat))
     assert abs(el) < 5e-3
     assert abs(lat) < 5e-3  # lateral strain -ν ε (measured ≤ 0.03 %)

@@ -153,7 +153,7 @@ def _displacement(fields: dict) -> np.ndarray:
     return np.column_stack([low[f"displacement{c}"] for c in "xyz"])
 
 
-def _run_deck(tmp_path: Path, folder: str, deck: str) -> tuple[pdlin.io.scene.Scene, np.ndarray]:
+def _run_deck(tmp_path: Path, folder: str, deck: str) -> tuple[pdlin.scene.Scene, np.ndarray]:
     """Copy the deck's folder unchanged, ``pdlin run`` it, read back its result file."""
     work = tmp_path / folder
     shutil.copytree(DATA / folder, work)
@@ -278,7 +278,7 @@ QUICKGRID = [
 
 @pytest.mark.parametrize(("folder", "deck", "gold"), QUICKGRID, ids=[q[0] for q in QUICKGRID])
 def test_quickgrid_discretization_is_peridigms(folder, deck, gold):
-    from pdlin.io import decks
+    from pdlin.scene.decks import peridigm as decks
 
     raw = decks._load_xml(DATA / folder / deck)["Peridigm"]
     cloud, extra = decks._quickgrid_cloud(raw["Discretization"])
@@ -348,7 +348,7 @@ def test_rectangular_plane_is_pdlins_crack_rectangle(folder, deck, leaks):
     # the triangles' shared diagonal (PrecrackJIntegral: points 63-165, crossing at
     # (-1.5, 0, -0.25), which round-off let pass both triangles before the edges got a
     # tolerance; `leaks` counts such bonds, none now)
-    from pdlin.io import decks
+    from pdlin.scene.decks import peridigm as decks
 
     raw = decks._load_xml(DATA / folder / deck)["Peridigm"]
     ((_, f),) = raw["Discretization"]["Bond Filters"].items()

@@ -195,7 +195,7 @@ def test_volume_correction_needs_spherical_families():
 
 
 def test_scene_key(tmp_path):
-    from pdlin.io.scene import scene_from_dict
+    from pdlin.scene.scene import scene_from_dict
 
     data = {
         "geometry": {"shape": [10, 5]},

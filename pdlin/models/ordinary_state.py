@@ -1,6 +1,6 @@
 """Shared machinery of the ordinary state-based models (LPS / OSBPD and XOSB).
 
-Notation follows spec 002 (sections 3-7).  Per ordered bond ``b = (i -> j)``:
+Notation follows Liu, Chen & Skelton, XOSB (Eqs. 9-70).  Per ordered bond ``b = (i -> j)``:
 
 - ``e_b = n_b · (u_j - u_i)`` (linearized) or ``|Y| - r`` (nonlinear);
 - ``θ_i = Σ_b a_b e_b`` with ``a_b = ω^h_b r_b V_j``;
@@ -11,7 +11,7 @@ Notation follows spec 002 (sections 3-7).  Per ordered bond ``b = (i -> j)``:
 - nodal force ``f_i = Σ_b V_i V_j (t_b + t_rev(b)) M_b``, i.e. ``f = -B(M)ᵀ (w ⊙ t)``.
 
 The linearized stiffness (``f = -K u``) is assembled with one sparse product
-``K = Xᵀ Y`` of stacked point-level operators (spec 002 §7):
+``K = Xᵀ Y`` of stacked point-level operators (derived):
 
 - energy: ``K_E = Θᵀ diag(κV + s) Θ - ΓᵀΘ - ΘᵀΓ + Bᵀ diag(w c) B`` with
   ``Γ = Pᵀ diag(w c r / n_d) B`` and ``s_i = Σ_b w c r² / n_d²``
@@ -69,7 +69,7 @@ _CHUNK = 1 << 14
 _PLANES = ("stress", "strain")
 _LINEARIZATIONS = ("energy", "paper")
 
-#: right-hand sides r of the constraint systems (spec 002 §4 table)
+#: right-hand sides r of the constraint systems (Liu, Chen & Skelton, XOSB, Eqs. 29-64)
 TARGET_H = {2: np.array([1.0, 1.0, 0.0]), 3: np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])}
 TARGET_D = {
     2: np.array([1.5, 1.5, 0.5, 0.0, 0.0]),
@@ -80,10 +80,31 @@ TARGET_D = {
 def uniform_nu_constants(
     owner: str, E: Any, nu: Any, *, K: Any, G: Any, lam: Any, mu: Any
 ) -> tuple[Any, float]:
-    """``(E, ν)`` from any two isotropic constants, with one ν for every point.
+    """Return ``(E, ν)`` from any two isotropic constants, with one ν for every point.
 
     pdlin's isotropic models take per-point ``E`` and one ``ν``; per-point
     constants that imply a varying ν raise (use a per-point Voigt ``C``).
+
+    Parameters
+    ----------
+    owner : str
+        Name of the model, for the error message.
+    E, nu : float or (n,) array_like or None
+        Young's modulus and Poisson ratio.
+    K, G, lam, mu : float or (n,) array_like or None
+        Bulk modulus, shear modulus, Lamé's first constant, shear modulus.
+
+    Returns
+    -------
+    E : float or ndarray
+        Young's modulus (per point when the constants are).
+    nu : float
+        The one Poisson ratio.
+
+    Raises
+    ------
+    InputError
+        Not two constants, or constants implying a varying ν.
     """
     E_, nu_ = isotropic_constants(E, nu, K=K, G=G, lam=lam, mu=mu)
     nu_arr = np.asarray(nu_, dtype=float)
@@ -96,11 +117,94 @@ def uniform_nu_constants(
     return E_, float(nu_arr.ravel()[0])
 
 
+def elastic_constants(
+    owner: str, E: Any, nu: Any, *, K: Any, G: Any, lam: Any, mu: Any, plane: str
+) -> tuple[np.ndarray, float, str]:
+    """Return the checked elastic constants ``(E, ν, plane)`` of a state-based model.
+
+    The one front of the isotropic constants of :class:`OrdinaryStateBased`,
+    :class:`pdlin.LPS` and :class:`pdlin.XOSB`: ``E`` and ``nu``, or any two of
+    ``K, G, lam, mu`` (converted by :func:`uniform_nu_constants`).
+
+    Parameters
+    ----------
+    owner : str
+        Name of the model, for the error messages.
+    E : float or (n,) array_like or None
+        Young's modulus (per point for graded materials).
+    nu : float or None
+        Poisson ratio in (-1, 0.5).
+    K, G, lam, mu : float or (n,) array_like or None
+        Bulk modulus, shear modulus, Lamé's first constant, shear modulus (``mu`` is
+        ``G``): any two instead of ``E, nu``.
+    plane : {'stress', 'strain'}
+        2D assumption.
+
+    Returns
+    -------
+    E : ndarray
+        Young's modulus, a 0-d or ``(n,)`` float array, positive.
+    nu : float
+        The Poisson ratio, one for every point.
+    plane : str
+        ``plane``, checked.
+
+    Raises
+    ------
+    InputError
+        Neither ``E, nu`` nor two other constants, constants implying a varying ν,
+        ``E <= 0`` or not a scalar / ``(n,)`` array, ``nu`` outside (-1, 0.5), or an
+        unknown ``plane``.
+
+    Examples
+    --------
+    >>> E, nu, plane = elastic_constants("LPS", None, None, K=5.0, G=3.0, lam=None,
+    ...                                  mu=None, plane="strain")
+    >>> round(float(E), 12), round(nu, 12), plane   # E = 9KG/(3K+G), ν = (3K-2G)/(2(3K+G))
+    (7.5, 0.25, 'strain')
+    """
+    if all(v is None for v in (K, G, lam, mu)):
+        if E is None or nu is None:
+            raise InputError(
+                f"{owner} needs E and nu (or two of K, G, lam, mu), got E = {E!r}, nu = {nu!r}"
+            )
+    else:
+        E, nu = uniform_nu_constants(owner, E, nu, K=K, G=G, lam=lam, mu=mu)
+    E_arr = as_float_array(E, "E")
+    if E_arr.ndim > 1 or np.any(E_arr <= 0):
+        raise InputError(f"E must be a positive scalar or (n,) array, got {E!r}")
+    try:
+        nu_f = float(nu)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"nu must be a number in (-1, 0.5), got {nu!r}") from exc
+    if not -1.0 < nu_f < 0.5:
+        raise InputError(f"nu must be in (-1, 0.5), got {nu_f}")
+    if plane not in _PLANES:
+        raise InputError(f"plane must be 'stress' or 'strain', got {plane!r}")
+    return E_arr, nu_f, plane
+
+
 def bulk_shear_moduli(E: Any, nu: float, dim: int, plane: str = "stress") -> tuple[Any, Any]:
-    """Bulk modulus κ and shear modulus μ of spec 002 Eq. 66.
+    """Return the bulk modulus κ and shear modulus μ (Liu, Chen & Skelton, XOSB, Eq. 66).
 
     ``κ = E/(3(1-2ν))`` (3D), ``E/(2(1+ν)(1-2ν))`` (plane strain),
     ``E/(2(1-ν))`` (plane stress); ``μ = E/(2(1+ν))``.
+
+    Parameters
+    ----------
+    E : float or (n,) array_like
+        Young's modulus.
+    nu : float
+        Poisson ratio.
+    dim : {2, 3}
+        Spatial dimension.
+    plane : {'stress', 'strain'}
+        2D assumption.
+
+    Returns
+    -------
+    kappa, mu : float or ndarray
+        Same shape as ``E``.
 
     Examples
     --------
@@ -124,9 +228,23 @@ def bulk_shear_moduli(E: Any, nu: float, dim: int, plane: str = "stress") -> tup
 
 
 def analytic_weighted_volume(horizon: Any, dim: int) -> np.ndarray:
-    """Weighted volume ``m = ∫ ω r² dV`` of a full ball with ω = 1 (spec 002 Eq. 25).
+    """Return the weighted volume ``m = ∫ ω r² dV`` of a full ball with ω = 1.
+
+    Liu, Chen & Skelton, XOSB, Eq. 25.
 
     ``πδ⁴/2`` in 2D, ``4πδ⁵/5`` in 3D.
+
+    Parameters
+    ----------
+    horizon : float or (n,) array_like
+        Horizon δ.
+    dim : {2, 3}
+        Spatial dimension.
+
+    Returns
+    -------
+    ndarray of float
+        Same shape as ``horizon``.
 
     Examples
     --------
@@ -183,7 +301,19 @@ def _basis_d_t(x: np.ndarray) -> np.ndarray:
 
 
 def basis_h(x: np.ndarray) -> np.ndarray:
-    """Hydrostatic basis ξ̂^h (spec 002 §4), ``(m, 3)`` in 2D, ``(m, 6)`` in 3D.
+    """Return the hydrostatic basis ξ̂^h per bond.
+
+    Liu, Chen & Skelton, XOSB, Eqs. 30-44.
+
+    Parameters
+    ----------
+    x : (m, d) ndarray of float
+        Bond vectors ξ.
+
+    Returns
+    -------
+    (m, 3) or (m, 6) ndarray of float
+        2D or 3D.
 
     Examples
     --------
@@ -194,7 +324,19 @@ def basis_h(x: np.ndarray) -> np.ndarray:
 
 
 def basis_d(x: np.ndarray) -> np.ndarray:
-    """Deviatoric basis ξ̂^d (spec 002 §4), ``(m, 5)`` in 2D, ``(m, 15)`` in 3D.
+    """Return the deviatoric basis ξ̂^d per bond.
+
+    Liu, Chen & Skelton, XOSB, Eqs. 45-64.
+
+    Parameters
+    ----------
+    x : (m, d) ndarray of float
+        Bond vectors ξ.
+
+    Returns
+    -------
+    (m, 5) or (m, 15) ndarray of float
+        2D or 3D.
 
     Examples
     --------
@@ -205,7 +347,7 @@ def basis_d(x: np.ndarray) -> np.ndarray:
 
 
 def _buffer(store: dict[int, np.ndarray], shape: tuple[int, int]) -> np.ndarray:
-    """A reusable (rows, cols) work array (grown when a larger chunk needs it)."""
+    """Return a reusable (rows, cols) work array (grown when a larger chunk needs it)."""
     buf = store.get(shape[0])
     if buf is None or buf.shape[1] < shape[1]:
         buf = np.empty((shape[0], max(shape[1], _CHUNK)))
@@ -214,7 +356,7 @@ def _buffer(store: dict[int, np.ndarray], shape: tuple[int, int]) -> np.ndarray:
 
 
 def _segment_sum(x: np.ndarray, ptr: np.ndarray) -> np.ndarray:
-    """Sums of ``x[:, ptr[r]:ptr[r+1]]`` over contiguous segments: ``(k, rows)``."""
+    """Return the sums of ``x[:, ptr[r]:ptr[r+1]]`` over contiguous segments: ``(k, rows)``."""
     rows = ptr.size - 1
     out = np.zeros((x.shape[0], rows))
     nonempty = ptr[1:] > ptr[:-1]
@@ -236,7 +378,7 @@ class StateWeights:
     omega_h_force, omega_d_force : (nb,) ndarray
         Weights ω̃ used in the force state (spherical at fallback points).
     fallback : (n,) ndarray of bool
-        Points whose family has some ω^h < 0 (spec 002 §5).
+        Points whose family has some ω^h < 0 (Liu, Chen & Skelton, XOSB, Sec. 3.3).
     singular : (n,) ndarray of bool
         Points whose λ system was singular or ill-conditioned (min-norm λ used).
     cond_h, cond_d : (n,) ndarray
@@ -323,11 +465,35 @@ def compute_weights(
     fallback: bool = True,
     max_cond: float = 1e10,
 ) -> StateWeights:
-    """Spherical and (optionally) corrected influence weights (spec 002 §3-5).
+    """Return the spherical and (optionally) corrected influence weights.
+
+    Liu, Chen & Skelton, XOSB, Eqs. 9-64 and Sec. 3.3.
 
     Vectorized and chunked over owner rows: Gram entries are accumulated by
     segment sums over the owner-sorted bonds per chunk, the small systems are solved
     in batches, and no ``nb x k x k`` array is formed.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+        The points (``n`` of them, dimension ``d``).
+    bonds : Bonds
+        Their bonds (``nb`` ordered bonds).
+    corrections : bool
+        Solve for the corrected weights ω^h, ω^d (XOSB); else spherical only.
+    weighted_volume : {'analytic', 'discrete'}
+        ``m_i`` of the spherical weights.
+    unit_influence : bool
+        Ignore the bonds' ω (use 1, Peridigm's convention).
+    fallback : bool
+        Apply the fallback rule at points with some ω^h < 0.
+    max_cond : float
+        Scaled condition number above which a point's system is solved by minimum norm
+        and flagged singular.
+
+    Returns
+    -------
+    StateWeights
     """
     d = cloud.dim
     n = cloud.n
@@ -558,7 +724,7 @@ def _bond_operator(bonds: Bonds, unit: np.ndarray, n: int, d: int) -> sp.csr_arr
 
 
 def _scale_rows(data: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """``data`` of ``B`` (``2·d`` entries per row) times ``w`` per row, in chunks on threads."""
+    """Return ``data`` of ``B`` (``2·d`` entries per row) times ``w`` per row, on threads."""
     k = data.size // max(w.size, 1)
     src = data.reshape(w.size, k)
     out = np.empty_like(src)
@@ -603,32 +769,15 @@ class OrdinaryStateBased(Model):
     ) -> None:
         self.surface_correction = check_surface_correction(surface_correction, type(self).__name__)
         self._surface_cache: tuple[PointCloud, Bonds, SurfaceFactors] | None = None
-        if all(v is None for v in (K, G, lam, mu)):
-            if E is None or nu is None:
-                raise InputError(
-                    f"{type(self).__name__} needs E and nu (or two of K, G, lam, mu), got "
-                    f"E = {E!r}, nu = {nu!r}"
-                )
-        else:
-            E, nu = uniform_nu_constants(type(self).__name__, E, nu, K=K, G=G, lam=lam, mu=mu)
-        self.E = as_float_array(E, "E")
-        if self.E.ndim > 1 or np.any(self.E <= 0):
-            raise InputError(f"E must be a positive scalar or (n,) array, got {E!r}")
-        try:
-            self.nu = float(nu)
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"nu must be a number in (-1, 0.5), got {nu!r}") from exc
-        if not -1.0 < self.nu < 0.5:
-            raise InputError(f"nu must be in (-1, 0.5), got {self.nu}")
-        if plane not in _PLANES:
-            raise InputError(f"plane must be 'stress' or 'strain', got {plane!r}")
+        self.E, self.nu, self.plane = elastic_constants(
+            type(self).__name__, E, nu, K=K, G=G, lam=lam, mu=mu, plane=plane
+        )
         if linearization not in _LINEARIZATIONS:
             raise InputError(f"linearization must be 'energy' or 'paper', got {linearization!r}")
         if weighted_volume not in ("analytic", "discrete"):
             raise InputError(
                 f"weighted_volume must be 'analytic' or 'discrete', got {weighted_volume!r}"
             )
-        self.plane = plane
         self.linearization = linearization
         self.weighted_volume = weighted_volume
         self.fallback = bool(fallback)
@@ -639,11 +788,39 @@ class OrdinaryStateBased(Model):
 
     # -- material ------------------------------------------------------------
     def moduli(self, dim: int) -> tuple[Any, Any]:
-        """Bulk and shear moduli ``(κ, μ)`` (scalars or per point) for ``dim``."""
+        """Return the bulk and shear moduli ``(κ, μ)`` for ``dim``.
+
+        Parameters
+        ----------
+        dim : {2, 3}
+            Spatial dimension.
+
+        Returns
+        -------
+        kappa, mu : float or ndarray
+            Scalars or per point.
+        """
         return bulk_shear_moduli(self.E, self.nu, dim, self.plane)
 
     def weights(self, cloud: PointCloud, bonds: Bonds) -> StateWeights:
-        """Influence weights of this model on ``bonds`` (cached for the last pair)."""
+        """Return the influence weights of this model on ``bonds`` (cached for the last pair).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        StateWeights
+
+        Raises
+        ------
+        ModelError, ShapeError
+            A 1D cloud, or bonds of another cloud.
+        """
         if cloud.dim not in (2, 3):
             raise ModelError(f"{type(self).__name__} needs a 2D or 3D cloud, got dim {cloud.dim}")
         if bonds.n_points != cloud.n or bonds.dim != cloud.dim:
@@ -716,11 +893,22 @@ class OrdinaryStateBased(Model):
         return co
 
     def surface_factors(self, cloud: PointCloud, bonds: Bonds) -> SurfaceFactors | None:
-        """Surface-correction factors on ``bonds`` (None without correction).
+        """Return the surface-correction factors on ``bonds`` (None without correction).
 
         ``dilatation`` (per point) multiplies κ, ``bond`` (per directed bond,
         symmetric over the pair) multiplies the deviatoric modulus ``2μω^d``
         (``docs/state_based.md``).  Cached for the last ``(cloud, bonds)`` pair.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        SurfaceFactors or None
         """
         method = self.surface_correction
         if method is None:
@@ -815,7 +1003,23 @@ class OrdinaryStateBased(Model):
     def dilatation(
         self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, *, linear: bool = True
     ) -> np.ndarray:
-        """Dilatation ``θ_i = Σ_j ω^h r e V_j`` (corrected ω^h), ``(n,)``."""
+        """Return the dilatation ``θ_i = Σ_j ω^h r e V_j`` (corrected ω^h).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+        u : (n, d) array_like
+            Nodal displacement.
+        linear : bool
+            Linearized extension (True) or ``|ξ+η| - |ξ|``.
+
+        Returns
+        -------
+        (n,) ndarray of float
+        """
         e, _ = self._extension(cloud, bonds, u, linear)
         w = self.weights(cloud, bonds)
         return np.bincount(
@@ -831,10 +1035,29 @@ class OrdinaryStateBased(Model):
         linear: bool = True,
         force_weights: bool = False,
     ) -> np.ndarray:
-        """``W_i = κθ²/2 + μ Σ_j ω^d (e^d)² V_j`` (spec 002 Eq. 22), ``(n,)``.
+        """Return the strain energy density ``W_i = κθ²/2 + μ Σ_j ω^d (e^d)² V_j``.
+
+        Liu, Chen & Skelton, XOSB, Eq. 22.
 
         ``force_weights=True`` uses ω̃^d (spherical at fallback points), the
         energy whose Hessian is ``K_E``.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+        u : (n, d) array_like
+            Nodal displacement.
+        linear : bool
+            Linearized extension (True) or ``|ξ+η| - |ξ|``.
+        force_weights : bool
+            Use the force-state weights ω̃^d.
+
+        Returns
+        -------
+        (n,) ndarray of float
         """
         d = cloud.dim
         e, _ = self._extension(cloud, bonds, u, linear)
@@ -861,7 +1084,25 @@ class OrdinaryStateBased(Model):
         linear: bool = True,
         variant: str | None = None,
     ) -> np.ndarray:
-        """Scalar force state ``t_b`` per ordered bond (``paper`` or ``energy``)."""
+        """Return the scalar force state ``t_b`` per ordered bond (``paper`` or ``energy``).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+        u : (n, d) array_like
+            Nodal displacement.
+        linear : bool
+            Linearized extension (True) or ``|ξ+η| - |ξ|``.
+        variant : {'paper', 'energy'}, optional
+            Default: the model's ``linearization``.
+
+        Returns
+        -------
+        (nb,) ndarray of float
+        """
         t, _, _ = self._force_state(cloud, bonds, u, linear, variant or self.linearization)
         return t
 
@@ -885,12 +1126,27 @@ class OrdinaryStateBased(Model):
     def internal_force(
         self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, *, linear: bool = True
     ) -> np.ndarray:
-        """Nodal internal force ``f_i = Σ_j V_iV_j (t_ij + t_ji) M_ij``, ``(n, dim)``.
+        """Return the nodal internal force ``f_i = Σ_j V_iV_j (t_ij + t_ji) M_ij``.
 
         ``linear=True`` uses ``e = n·η`` along the reference direction, so
         ``f == -K u``; ``linear=False`` uses ``e = |ξ+η| - |ξ|`` and the
         deformed direction ``M``.  The force state is the paper's (Eq. 70)
         or the energy-consistent one, per ``linearization``.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+        u : (n, d) array_like
+            Nodal displacement.
+        linear : bool
+            Reference direction and linearized extension (True) or the deformed ones.
+
+        Returns
+        -------
+        (n, d) ndarray of float
         """
         t, unit, co = self._force_state(cloud, bonds, u, linear, self.linearization)
         d = cloud.dim
@@ -902,10 +1158,23 @@ class OrdinaryStateBased(Model):
         return f
 
     def stress(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
-        """Per-point stress ``σ_i = Σ_j t_ij n_ij ⊗ ξ_ij V_j`` (paper t), ``(n, d, d)``.
+        """Return the per-point stress ``σ_i = Σ_j t_ij n_ij ⊗ ξ_ij V_j`` (paper t).
 
         Equals ``κ tr ε I + 2μ ε^d`` for affine ``u`` at non-fallback XOSB
-        points (spec 002 §4, stress consistency).
+        points (Liu, Chen & Skelton, XOSB, Eq. 29, stress consistency).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+        u : (n, d) array_like
+            Nodal displacement.
+
+        Returns
+        -------
+        (n, d, d) ndarray of float
         """
         t, unit, _ = self._force_state(cloud, bonds, u, True, "paper")
         d = cloud.dim
@@ -920,11 +1189,23 @@ class OrdinaryStateBased(Model):
 
     # -- operators -----------------------------------------------------------
     def stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.bsr_array:
-        """Assembled linearized stiffness (BSR, blocksize dim), ``f = -K u``.
+        """Return the assembled linearized stiffness, ``f = -K u``.
 
         One sparse product ``Xᵀ Y`` of stacked point-level operators (see the
         module docstring); ``K_E`` for ``linearization='energy'``, ``K_p`` for
         ``'paper'``.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        scipy.sparse.bsr_array
+            ``(n*d, n*d)``, blocks ``(d, d)``.
         """
         d, n = cloud.dim, cloud.n
         co = self._coefficients(cloud, bonds)
@@ -999,11 +1280,23 @@ class OrdinaryStateBased(Model):
         return Kb
 
     def operator(self, cloud: PointCloud, bonds: Bonds) -> spla.LinearOperator:
-        """Matrix-free ``K`` as a :class:`~scipy.sparse.linalg.LinearOperator`.
+        """Return the matrix-free ``K`` as a :class:`~scipy.sparse.linalg.LinearOperator`.
 
         Products use the factors ``B`` (nb x n·dim, 2·dim entries per row)
         and per-bond coefficients only: ``K u = Bᵀ (w ⊙ t(Bu))``; memory is
         O(nb) instead of the O(two-hop) of the assembled matrix.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        scipy.sparse.linalg.LinearOperator
+            ``(n*d, n*d)``.
         """
         d, n = cloud.dim, cloud.n
         co = self._coefficients(cloud, bonds)
@@ -1030,7 +1323,19 @@ class OrdinaryStateBased(Model):
         return spla.LinearOperator((n * d, n * d), matvec=matvec, dtype=float)
 
     def estimate_nnz_blocks(self, cloud: PointCloud, bonds: Bonds) -> int:
-        """Blocks of K without assembling it: nnz of the pattern of (A + I)²."""
+        """Return the blocks of K without assembling it: nnz of the pattern of (A + I)².
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+
+        Returns
+        -------
+        int
+        """
         n = cloud.n
         adj = sp.csr_array(
             (np.ones(bonds.n_bonds, dtype=np.float32), bonds.j, bonds.indptr), shape=(n, n)
@@ -1040,7 +1345,36 @@ class OrdinaryStateBased(Model):
             total += int((adj[r0:r1] @ adj).nnz)
         return total
 
+    def surrogate_stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.sparray:
+        """Return the one-hop matrix that preconditions the matrix-free path.
+
+        It is the stiffness of :class:`pdlin.BondBased` with this model's ``E`` and
+        ``plane`` on the same bonds, spectrally close to the state-based ``K``.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points.
+        bonds : Bonds
+            Their bonds.
+
+        Returns
+        -------
+        scipy.sparse.bsr_array
+            The bond-based ``K``, ``(n*dim, n*dim)``.
+        """
+        from .bond_based import BondBased
+
+        return BondBased(E=self.E, plane=self.plane).stiffness(cloud, bonds)
+
     def describe(self) -> dict[str, Any]:
+        """Return a plain-data description of the model (for results and logs).
+
+        Returns
+        -------
+        dict
+            Model name, constants and options.
+        """
         return {
             "model": type(self).__name__,
             "E": float(self.E) if self.E.ndim == 0 else "per-point",
