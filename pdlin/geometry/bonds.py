@@ -351,12 +351,19 @@ def _segments_cross_triangle(p: np.ndarray, q: np.ndarray, tri: np.ndarray) -> n
     return ok & (u >= -tol) & (v >= -tol) & (u + v <= 1 + tol) & (t > 0) & (t < 1)
 
 
-class _MirroredCracks(NamedTuple):
-    """Crack pieces plus their mirror images (internal: :func:`pdlin.symmetry_reduction`).
+class MirroredCracks(NamedTuple):
+    """Crack pieces plus their mirror images, as symmetry reductions pass them.
 
     ``pieces`` holds ``copies`` blocks of the ``m`` original pieces (the originals first);
     piece ``k`` and its images ``k + m``, ``k + 2m``, ... count as one crack when
     :func:`find_bonds` checks that every crack cuts a bond.
+
+    Parameters
+    ----------
+    pieces : (copies * m, ...) ndarray
+        The crack pieces (segments in 2D, triangles in 3D), originals first.
+    copies : int
+        Number of blocks (1 + number of mirror images).
     """
 
     pieces: np.ndarray
@@ -366,12 +373,12 @@ class _MirroredCracks(NamedTuple):
 def _crack_mask(points: np.ndarray, i: np.ndarray, j: np.ndarray, cracks: Any) -> np.ndarray:
     """Flag the bonds that cross any crack (2D segments or 3D triangles).
 
-    A crack (with its mirror images, :class:`_MirroredCracks`) that cuts no bond raises:
+    A crack (with its mirror images, :class:`MirroredCracks`) that cuts no bond raises:
     it would leave the body intact, which can only be a misplaced crack.
     """
     dim = points.shape[1]
     copies = 1
-    if isinstance(cracks, _MirroredCracks):
+    if isinstance(cracks, MirroredCracks):
         cracks, copies = cracks.pieces, int(cracks.copies)
     cr = as_float_array(cracks, "cracks")
     if dim == 2:

@@ -45,7 +45,7 @@ from ..errors import (
     ShapeError,
 )
 from ..fields import deformation_gradient
-from ..geometry.bonds import Bonds, _MirroredCracks, find_bonds, resolve_horizon
+from ..geometry.bonds import Bonds, MirroredCracks, find_bonds, resolve_horizon
 from ..geometry.cloud import PointCloud
 from .assembly import assemble_stiffness
 from .bc import BodyForce, Dirichlet, TotalForce
@@ -929,7 +929,7 @@ def symmetry_reduction(
     mirror = mirror_cloud(cloud, planes, int(cr) * bond_reach)
     if opts.get("cracks") is not None:
         # the images count with their crack when find_bonds checks that each cuts a bond
-        opts["cracks"] = _MirroredCracks(
+        opts["cracks"] = MirroredCracks(
             mirror.mirror_cracks(opts["cracks"]), 2 ** len(mirror.planes)
         )
     bonds = find_bonds(mirror.cloud, hor[mirror.source], allow_isolated=True, method="tree", **opts)
