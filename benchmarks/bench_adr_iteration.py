@@ -1,6 +1,6 @@
 """Cost of one ADR iteration on the crystal-plasticity polycrystal, and what BLAS threads do to it.
 
-ADR iterations of ``pdlin.solvers.nonlinear.adr_step`` on the 21-grain polycrystal of
+ADR iterations of ``pdlin.solvers.adr.adr_step`` on the 21-grain polycrystal of
 ``bench_nonlinear.problem`` (planar-2 crystal plasticity, δ = h, n x n grid, pure shear,
 optionally a control) from the affine state at shear γ = ``--gamma`` over the initial
 state: milliseconds per iteration and of them in the material's stress, for pdlin's

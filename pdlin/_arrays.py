@@ -235,9 +235,9 @@ def per_point_outer(
         out = np.empty((n, d, d))
         fill(out, 0, n, 0, nb)
         return out
-    from ._kernels import _kernels
+    from ._kernels import compiled_kernels
 
-    mod = _kernels()
+    mod = compiled_kernels()
     if mod is not None:  # one nogil pass per run (np.bincount holds the GIL): same sums
         kern = mod.outer_sums_fill
         own_c = np.ascontiguousarray(owner, dtype=np.int64)

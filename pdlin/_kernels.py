@@ -105,7 +105,17 @@ if hasattr(os, "register_at_fork"):
 _MIN_WORK = 1 << 20
 
 
-def _kernels() -> ModuleType | None:
+def compiled_kernels() -> ModuleType | None:
+    """Return pdlin's numba kernel module, importing it on first use, or None.
+
+    None when numba is not installed or ``PDLIN_NUMBA=0``.  Callers also check the size
+    of their operation against ``_MIN_WORK`` (:func:`use_numba`).
+
+    Returns
+    -------
+    module or None
+        ``pdlin._numba_kernels`` when the compiled kernels may be used.
+    """
     global _loaded
     if _loaded is None:
         if os.environ.get("PDLIN_NUMBA", "").strip() == "0":
@@ -128,6 +138,10 @@ def _kernels() -> ModuleType | None:
     return _loaded if isinstance(_loaded, ModuleType) else None
 
 
+#: former name, kept for code that imported it
+_kernels = compiled_kernels
+
+
 def numba_enabled() -> bool:
     """Whether the numba kernels are in use (numba installed and not ``PDLIN_NUMBA=0``).
 
@@ -137,7 +151,7 @@ def numba_enabled() -> bool:
     >>> numba_enabled() in (True, False)
     True
     """
-    return _kernels() is not None
+    return compiled_kernels() is not None
 
 
 def use_numba(work: int) -> bool:
@@ -210,7 +224,7 @@ def bsr_matmul(A: Any, B: Any, *, block_sizes: bool = False) -> Any:
     if A.shape[1] != B.shape[0] or N != N2:
         raise ValueError(f"bsr_matmul: blocks {A.blocksize} x {B.blocksize} do not chain")
     real = A.dtype == np.float64 and B.dtype == np.float64
-    mod = _kernels() if real and use_numba(A.nnz * S) else None
+    mod = compiled_kernels() if real and use_numba(A.nnz * S) else None
     if mod is None:
         prod = sp.bsr_array(A @ B, blocksize=(R, S))
         return (prod, None) if block_sizes else prod
@@ -286,7 +300,7 @@ def _csr_arrays(X: sp.csr_array) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def _numba_for(parts: list[sp.csr_array]) -> ModuleType | None:
     real = all(x.dtype == np.float64 for x in parts)
-    return _kernels() if real and use_numba(sum(x.nnz for x in parts)) else None
+    return compiled_kernels() if real and use_numba(sum(x.nnz for x in parts)) else None
 
 
 def csr_to_bsr_t(X: Any, d: int) -> sp.bsr_array:
@@ -422,7 +436,7 @@ def bsr_transpose(A: Any) -> sp.bsr_array:
     """
     A = sp.bsr_array(A)
     R, C = A.blocksize
-    mod = _kernels() if A.dtype == np.float64 and use_numba(A.nnz) else None
+    mod = compiled_kernels() if A.dtype == np.float64 and use_numba(A.nnz) else None
     if mod is None:
         return sp.bsr_array(A.T)
     ptr = np.asarray(A.indptr, dtype=np.int64)

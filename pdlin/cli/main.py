@@ -47,10 +47,9 @@ def _plan(problem: Any, prog: Any, solver: str, steps: int, nonlinear: bool = Fa
 
     plan = plan_memory(problem, solver, history_steps=steps)
     if nonlinear:  # the material kernels' compile replaces the linear models' one
-        from .._kernels import numba_enabled
-        from ..constitutive.crystal_plasticity import _NUMBA_MIN_POINTS
+        from ..constitutive.crystal_plasticity import compiles_kernels
 
-        compiles = problem.cloud.n >= _NUMBA_MIN_POINTS and numba_enabled()  # no import below
+        compiles = compiles_kernels(problem.cloud.n)  # imports no numba
         plan.base = current_rss() + LATE_IMPORTS + (NONLINEAR_LATE_IMPORTS if compiles else 0)
     prog(plan.summary())
     check_memory("this run", plan.need, lambda: memory_hints(plan))

@@ -255,6 +255,32 @@ _UPDATE_CHUNK = 8192
 _NUMBA_MIN_POINTS = _UPDATE_CHUNK
 
 
+def compiles_kernels(n_points: int) -> bool:
+    """Return whether an update of ``n_points`` points may use (and compile) numba kernels.
+
+    True from one full update chunk of points on, when numba is installed and not
+    switched off (``PDLIN_NUMBA=0``); the command line uses it to plan memory.
+
+    Parameters
+    ----------
+    n_points : int
+        Number of material points updated together.
+
+    Returns
+    -------
+    bool
+        Whether the compiled path applies.
+
+    Examples
+    --------
+    >>> compiles_kernels(100)
+    False
+    """
+    from .._kernels import numba_enabled
+
+    return n_points >= _NUMBA_MIN_POINTS and numba_enabled()
+
+
 def _rows_of(state: Mapping[str, Any], idx: NDArray[np.intp], n: int) -> dict[str, Any]:
     """Return the rows ``idx`` of every per-point array of ``state`` (others as they are)."""
     return {
@@ -1432,10 +1458,10 @@ class CrystalPlasticity:
         path.  Equal to :meth:`_update_points` to round-off (its 4-term products and
         2 x 2 solves run through BLAS / LAPACK).
         """
-        from .._kernels import _kernels
+        from .._kernels import compiled_kernels
         from .._threads import even_chunks, thread_map
 
-        mod = _kernels()
+        mod = compiled_kernels()
         assert mod is not None
         n = f.shape[0]
         ins, consts = self._numba_inputs(f, state_n)
@@ -1541,10 +1567,10 @@ class CrystalPlasticity:
         self._check_state(state_n, n)
         if not (n >= _NUMBA_MIN_POINTS and self._numba_ok(False)):
             return self.update(f, state_n)[0]
-        from .._kernels import _kernels
+        from .._kernels import compiled_kernels
         from .._threads import even_chunks, thread_map
 
-        mod = _kernels()
+        mod = compiled_kernels()
         assert mod is not None
         ins, consts = self._numba_inputs(f, state_n)
         N = self.nslip

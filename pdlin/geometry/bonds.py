@@ -482,7 +482,7 @@ def _cell_candidates(
     clouds, on one thread in 1D / 2D (where scipy's tree is as fast) or when the cell grid
     would not fit in int64 keys.
     """
-    from .._kernels import _kernels, use_numba
+    from .._kernels import compiled_kernels, use_numba
     from .._threads import even_chunks, get_num_threads, thread_map
 
     n, d = pts.shape
@@ -490,7 +490,7 @@ def _cell_candidates(
         # one thread in 1D / 2D: scipy's tree is as fast (401², δ = 2h: 0.17 s against
         # 0.22 s; 3D 64,000 points, δ = 3.015h: 0.84 s against 0.43 s)
         return None
-    mod = _kernels() if use_numba(n * 64) else None
+    mod = compiled_kernels() if use_numba(n * 64) else None
     if mod is None or not (reach > 0 and np.isfinite(reach)):
         return None
     r = reach * (1.0 + 1e-9)

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from .._kernels import _kernels, use_numba
+from .._kernels import compiled_kernels, use_numba
 from .._threads import ptr_chunks, thread_map
 from ..errors import InputTypeError, ShapeError
 from ..geometry.bonds import Bonds
@@ -128,7 +128,7 @@ def pair_stiffness_bsr(
     # with numba: one fused pass per chunk writes each block once (the numpy path below
     # makes component-major temporaries and a strided copy: ~3x the memory traffic, and
     # one thread already saturates the write bandwidth, docs/large_problems.md)
-    mod = _kernels() if use_numba(nb * d * d) else None
+    mod = compiled_kernels() if use_numba(nb * d * d) else None
     fused: Callable[[tuple[int, int]], None] | None = None
     if mod is not None:
         fill = mod.pair_blocks_fill

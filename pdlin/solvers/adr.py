@@ -333,9 +333,9 @@ _ADR_CHUNK = 1 << 16
 
 def _adr_kernels(ndof: int) -> Any:
     """Return the compiled kernels for an ADR loop over ``ndof`` DOFs, or None (numpy)."""
-    from .._kernels import _kernels, use_numba
+    from .._kernels import compiled_kernels, use_numba
 
-    return _kernels() if use_numba(ndof) else None
+    return compiled_kernels() if use_numba(ndof) else None
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> float:

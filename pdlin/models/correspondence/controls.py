@@ -27,7 +27,7 @@ import scipy.sparse as sp
 import pdlin.models.correspondence.gradient as _gradient
 
 from ..._arrays import per_point_outer
-from ..._kernels import _kernels, use_numba
+from ..._kernels import compiled_kernels, use_numba
 from ..._threads import even_chunks, ptr_chunks, thread_map
 from ...errors import InputError, ModelError
 from ...geometry.bonds import Bonds
@@ -102,7 +102,7 @@ def _sides(bonds: Bonds, cases: np.ndarray) -> np.ndarray:
     With numba: bond chunks on the threads.
     """
     xi = bonds.xi
-    mod = _kernels() if use_numba(xi.size * cases.shape[0]) else None
+    mod = compiled_kernels() if use_numba(xi.size * cases.shape[0]) else None
     if mod is None:
         return np.stack([_half_space(xi, s) for s in cases])
     d = xi.shape[1]
@@ -175,7 +175,7 @@ def _halves_well_conditioned(
     error on a free-surface 2D bar at δ = 3h).
     """
     geo = omega_v if omega is None else omega
-    mod = _kernels() if use_numba(bonds.xi.size * sides.shape[0]) else None
+    mod = compiled_kernels() if use_numba(bonds.xi.size * sides.shape[0]) else None
     if mod is not None and bonds.dim == 2 and bonds.n_points == n:
         # one nogil pass per point chunk on the threads (the same tensors; the decisions
         # compare with tolerances far above round-off)
@@ -307,7 +307,7 @@ def gradient_points(
     n_sp = np.where(full, 2, 1)
     base = np.zeros(n, dtype=np.intp)
     np.cumsum(n_sp[:-1], out=base[1:])
-    mod = _kernels() if use_numba(bonds.n_bonds) else None
+    mod = compiled_kernels() if use_numba(bonds.n_bonds) else None
     if mod is not None:  # point chunks on the threads
         gp_of_bond = np.empty(bonds.n_bonds, dtype=np.intp)
         bptr = np.asarray(bonds.indptr, dtype=np.int64)

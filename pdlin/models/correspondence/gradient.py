@@ -20,7 +20,7 @@ from ..._arrays import (
     per_point_outer,
     with_diagonal_blocks,
 )
-from ..._kernels import _kernels, use_numba
+from ..._kernels import compiled_kernels, use_numba
 from ..._threads import even_chunks, ptr_chunks, thread_map
 from ..._validation import as_float_array
 from ...errors import InputError, ModelError, ShapeError
@@ -130,7 +130,7 @@ def _coefficients(
     """
     d = xi.shape[1]
     w = omega * volume_j
-    mod = _kernels() if ptrs is not None and use_numba(xi.size) else None
+    mod = compiled_kernels() if ptrs is not None and use_numba(xi.size) else None
     if mod is not None and ptrs is not None and d == 2 and override_rows is None:
         return _coefficients_2d_fused(mod, ptrs, owner_b, n_gp, w, xi)
     K = per_point_outer(owner_b, n_gp, w, xi, xi, runs=ptrs)  # pdlin.fields' shape tensor
@@ -158,7 +158,7 @@ def _coefficients(
         Kinv[override_rows] = override_kinv
     Kinv = np.ascontiguousarray(Kinv, dtype=np.float64)
     out = np.empty_like(xi)
-    mod = _kernels() if use_numba(xi.size) else None
+    mod = compiled_kernels() if use_numba(xi.size) else None
     if mod is not None:  # one nogil pass per bond chunk, the numpy path's arithmetic
         kern = mod.bond_coefficients_fill
         own_c = np.ascontiguousarray(owner_b, dtype=np.int64)
@@ -281,7 +281,7 @@ def _fused_blocks(
     the same arrays bitwise.
     """
     n_gp, nb, d = gp_owner.size, j.size, c.shape[1]
-    mod = _kernels() if use_numba(nb * d) else None
+    mod = compiled_kernels() if use_numba(nb * d) else None
     if mod is None or n_gp == 0:
         return None
     if ptrs is not None:  # the structure is known (see _coefficients)
@@ -582,7 +582,7 @@ def _drop_zero_blocks(
     """
     nrow = K.shape[0] // K.blocksize[0]
     ptr = np.asarray(K.indptr, dtype=np.int64)
-    mod = _kernels() if use_numba(K.data.size) else None
+    mod = compiled_kernels() if use_numba(K.data.size) else None
     if mod is not None:
         return _drop_zero_blocks_fused(K, mod, sizes)
     flat = K.data.reshape(K.data.shape[0], -1)
@@ -699,7 +699,7 @@ def _with_diagonal_blocks(K: sp.sparray, d: int) -> sp.bsr_array:
     with numba.
     """
     Kb = sp.bsr_array(K, blocksize=(d, d))
-    mod = _kernels() if use_numba(Kb.indices.size) else None
+    mod = compiled_kernels() if use_numba(Kb.indices.size) else None
     if mod is None:
         return with_diagonal_blocks(Kb)
     has = np.empty(Kb.shape[0] // d, dtype=bool)
