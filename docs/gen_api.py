@@ -129,7 +129,10 @@ def _constant_doc(module: str, name: str) -> list[str]:
     path = Path(mod.__file__ or "")
     files = sorted(path.parent.rglob("*.py")) if path.name == "__init__.py" else [path]
     pattern = re.compile(rf"((?:^[ \t]*#:.*\n)+)^{re.escape(name)}\b[^=\n]*=", re.M)
-    for file in files:
+    # a constant re-exported from pdlin's internal modules (e.g. pdlin._arrays) is
+    # documented where it is defined
+    internal = sorted(Path(importlib.import_module("pdlin").__file__ or "").parent.glob("_*.py"))
+    for file in [*files, *internal]:
         match = pattern.search(file.read_text(encoding="utf-8"))
         if match:
             return [re.sub(r"^\s*#: ?", "", line).rstrip() for line in match.group(1).splitlines()]
