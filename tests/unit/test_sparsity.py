@@ -12,7 +12,7 @@ import scipy.sparse as sp
 import pdlin
 from pdlin.errors import InputError, InputTypeError, ShapeError
 from pdlin.models.base import Model
-from pdlin.operators.sparsity import SparsityReport, coupling_pattern, rcm_permutation
+from pdlin.analysis.sparsity import SparsityReport, coupling_pattern, rcm_permutation
 
 
 class _TwoHopPattern(Model):
