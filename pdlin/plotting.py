@@ -94,10 +94,31 @@ def _unit_system(units: str | dict[str, str] | None) -> dict[str, str]:
 
 
 def field_unit(key: str, dim: int, units: str | dict[str, str] | None = None) -> str:
-    """Unit of a field in a unit system (``""`` for counts and unknown fields).
+    """Name the unit of a field in a unit system (``""`` for counts and unknown fields).
 
     Without ``units`` the unit is named by its quantity (``length``, ``force``,
     ``stress``): pdlin's results are in the consistent units of the input.
+
+    Parameters
+    ----------
+    key : str
+        API field name (``displacement``, ``stress``, ``volume``, ...).
+    dim : int
+        Dimension of the result (1, 2 or 3): a cell volume is a length, area or volume.
+    units : str or dict, optional
+        A name of :data:`UNIT_SYSTEMS` or a dict of ``length``, ``force`` and ``stress``
+        unit names; None names the quantity instead.
+
+    Returns
+    -------
+    str
+        The unit (``"m"``, ``"MPa"``, ``"m²"``), ``"-"`` for dimensionless fields,
+        ``""`` for counts and fields without a known quantity.
+
+    Raises
+    ------
+    InputError
+        ``units`` is neither a known system name nor such a dict.
 
     Examples
     --------
@@ -126,6 +147,7 @@ class Plot:
     Attributes
     ----------
     figure : matplotlib Figure
+        The figure drawn (an (h, w, 3) image array for :func:`render_result`).
     values : ndarray
         The plotted values (colour of each marker, or the curve's y values).
     points : ndarray
@@ -158,8 +180,23 @@ def _plt() -> Any:
 
 
 def field_components(arr: np.ndarray, dim: int, key: str = "") -> list[str]:
-    """Component names of a field: ``[]`` for scalars, vectors ``magnitude, x, y(, z)``,
-    ``dim x dim`` tensors ``xx, xy, ...``, other widths ``0, 1, ...``.
+    """List the component names of a field (what ``component=`` accepts).
+
+    Parameters
+    ----------
+    arr : (n,) or (n, ...) array_like
+        The field's values per point.
+    dim : int
+        Dimension of the result.
+    key : str
+        API field name; tensors (``stress``, ``strain``, ...) are told apart from
+        vectors of the same width by it.
+
+    Returns
+    -------
+    list of str
+        ``[]`` for scalars, vectors ``magnitude, x, y(, z)``, ``dim x dim`` tensors
+        ``xx, xy, ...``, other widths ``0, 1, ...``.
 
     Examples
     --------
@@ -236,8 +273,11 @@ def _spacing(r: ResultFile, fields: dict[str, np.ndarray]) -> float:
 def _step_field(
     r: ResultFile, step: int, field: str, component: str | None, scale: float
 ) -> tuple[int, dict[str, np.ndarray], np.ndarray, str, np.ndarray]:
-    """Step index, fields, plotted values and label of ``field`` and the points moved by
-    ``scale`` x displacement (``(n, dim)``), with the checks both plotters share."""
+    """Pick a step's field for the plotters (the checks both share).
+
+    Returns the step index, the step's fields, the plotted values, their label and the
+    points moved by ``scale`` x displacement (``(n, dim)``).
+    """
     k = r.step_index(step)
     fields = r.steps[k]
     if field not in fields:
@@ -280,6 +320,7 @@ def plot_result(
     Parameters
     ----------
     result : path or ResultFile
+        A result file (any format :func:`pdlin.io.read_result` reads) or one read already.
     field : str
         API key (``displacement``, ``reaction``, ``strain``, ``stress``, ...).
     component : str, optional
@@ -292,6 +333,7 @@ def plot_result(
     slice : str or (axis, value), optional
         Plane of a 3D result, e.g. ``"z=0.5"``; the title names it.
     ax : matplotlib Axes, optional
+        Axes to draw into (default: a new figure sized to the body's aspect).
     units : str or dict, optional
         Unit system of the result for the axis and colour-bar labels: a name of
         :data:`UNIT_SYSTEMS` (``"SI"``, ``"mm-N-MPa"``, ...) or a dict of ``length``,
@@ -400,6 +442,17 @@ def plot_homogenized(
     stress axis as in :func:`plot_result` (default ``[stress]``); the strain is
     dimensionless.
 
+    Parameters
+    ----------
+    path : str or Path
+        The ``<stem>_homogenized.csv`` of a nonlinear run (columns ``sigma_ij``, ``F_ij``).
+    component : str, optional
+        ``"11"``, ``"12"``, ... (default: largest magnitude at the last step).
+    ax : matplotlib Axes, optional
+        Axes to draw into (default: a new figure).
+    units : str or dict, optional
+        Unit system of the stress label, as in :func:`plot_result`.
+
     Returns
     -------
     Plot
@@ -444,10 +497,27 @@ def plot_homogenized(
 
 
 def plot_convergence(result: str | Path | ResultFile, *, ax: Any = None) -> Plot:
-    """Relative residual vs iteration of the linear solve stored in a result.
+    """Plot the relative residual vs iteration of the linear solve stored in a result.
 
     Only NPZ results of :func:`pdlin.io.write_result` store the history
     (``residual_history``); other files raise an error saying so.
+
+    Parameters
+    ----------
+    result : path or ResultFile
+        An ``.npz`` result written by :func:`pdlin.io.write_result`.
+    ax : matplotlib Axes, optional
+        Axes to draw into (default: a new figure).
+
+    Returns
+    -------
+    Plot
+        ``values`` = the relative residuals, ``points`` = the iteration numbers.
+
+    Raises
+    ------
+    InputError
+        The result stores no residual history.
     """
     plt = _plt()
     r = result if isinstance(result, ResultFile) else read_result(result)
@@ -472,6 +542,15 @@ def plot_convergence(result: str | Path | ResultFile, *, ax: Any = None) -> Plot
 
 def plot_scene_spy(scene: Any, *, order: str = "rcm", ax: Any = None) -> Plot:
     """Spy plot of a scene's assembled stiffness (``pdlin plot --spy SCENE``).
+
+    Parameters
+    ----------
+    scene : Scene or path
+        A loaded scene or a scene file (its constrained system is assembled).
+    order : {'rcm', 'natural'}
+        Row/column ordering drawn (see :func:`plot_spy`).
+    ax : matplotlib Axes, optional
+        Axes to draw into (default: a new figure).
 
     Returns
     -------
@@ -500,6 +579,15 @@ def plot_sparsity_vs_horizon(
     Each ratio rebuilds the bonds of the scene's cloud (``find_bonds(cloud,
     ratio=m)``) and counts the pattern with :func:`pdlin.analysis.sparsity_report`
     (``K`` is not assembled).
+
+    Parameters
+    ----------
+    scene : Scene or path
+        A loaded scene or a scene file (its cloud and model are used).
+    ratios : sequence of float
+        Horizon ratios δ/h to count (> 0).
+    ax : matplotlib Axes, optional
+        Axes to draw into (default: a new figure).
 
     Returns
     -------
@@ -548,6 +636,17 @@ def render_result(
     The points are drawn as spheres coloured by the field component (no
     slice needed); needs ``pip install "pdlin[render]"`` (pyvista).
 
+    Parameters
+    ----------
+    result : path or ResultFile
+        The result to draw.
+    output : str or Path
+        The PNG (or other image format pyvista writes) to write.
+    field, component, step, scale
+        As in :func:`plot_result`.
+    window_size : (int, int)
+        Image width and height in pixels.
+
     Returns
     -------
     Plot
@@ -583,7 +682,22 @@ def render_result(
 
 
 def save_figure(fig: Any, path: str | Path, *, dpi: int = 120) -> Path:
-    """Save a figure atomically (written beside the target, then renamed)."""
+    """Save a figure atomically (written beside the target, then renamed).
+
+    Parameters
+    ----------
+    fig : matplotlib Figure
+        The figure to save.
+    path : str or Path
+        Target file; the suffix picks the format.
+    dpi : int
+        Resolution of raster formats.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     from .io.output import staging
 
     p = Path(path)
@@ -593,8 +707,30 @@ def save_figure(fig: Any, path: str | Path, *, dpi: int = 120) -> Path:
 
 
 def check_figure(path: str | Path, what: str = "figure") -> Path:
-    """Check a figure path before the work: matplotlib installed, a format it
-    writes (``.png``, ``.pdf``, ``.svg``, ...), writable folder."""
+    """Check a figure path before the work is done.
+
+    matplotlib must be installed, the suffix a format it writes (``.png``, ``.pdf``,
+    ``.svg``, ...) and the folder writable.
+
+    Parameters
+    ----------
+    path : str or Path
+        The figure file to be written.
+    what : str
+        What the path is, for the error messages (``"--plot"``, ``"output.plot"``).
+
+    Returns
+    -------
+    Path
+        ``path`` as a Path.
+
+    Raises
+    ------
+    MissingDependencyError
+        matplotlib is not installed.
+    InputError
+        The suffix is not a format matplotlib writes.
+    """
     from .io.output import check_output, need_module
 
     need_module("matplotlib", "plotting", f"{what} ({str(path)!r})")
@@ -629,7 +765,7 @@ def close_figures() -> None:
 
 
 def _pyplot(message: str) -> Any:
-    """``matplotlib.pyplot`` in the current backend, or an ImportError with ``message``."""
+    """Import ``matplotlib.pyplot`` (current backend) or raise an ImportError with ``message``."""
     try:
         import matplotlib.pyplot as plt
     except ImportError as exc:  # pragma: no cover - depends on the environment
@@ -650,9 +786,12 @@ def plot_spy(
 ) -> Any:
     """Spy plot of the pattern of ``K`` (needs matplotlib: ``pip install pdlin[plotting]``).
 
+    The pattern comes from :func:`pdlin.analysis.spy_pattern`.
+
     Parameters
     ----------
     K : (n, n) sparse array or ndarray
+        The matrix whose stored entries are drawn.
     ax : matplotlib Axes, optional
         Axes to draw into (default: a new figure).
     order : {'natural', 'rcm'} or (n,) array_like of int
@@ -673,6 +812,7 @@ def plot_spy(
     Returns
     -------
     matplotlib.axes.Axes
+        The axes drawn into, titled with the size, nnz and ordering.
 
     Examples
     --------
@@ -726,12 +866,14 @@ def plot_micromoduli(
     ax : matplotlib Axes, optional
         A polar (2D) or 3D axes; created when omitted.
     cmap : str
+        matplotlib colour map name.
     size : float
         Marker size.
 
     Returns
     -------
     matplotlib Axes
+        The polar (2D) or 3D axes drawn into.
 
     Examples
     --------

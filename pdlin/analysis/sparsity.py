@@ -216,11 +216,23 @@ class SparsityReport:
     )
 
     def pattern_dict(self) -> dict[str, Any]:
-        """The pattern-only quantities (see ``PATTERN_FIELDS``) as a dict."""
+        """Return the pattern-only quantities (see ``PATTERN_FIELDS``) as a dict.
+
+        Returns
+        -------
+        dict of str to int, float or None
+            Field name -> value for each name of ``PATTERN_FIELDS`` (equal for a matrix
+            and the model it was assembled from).
+        """
         return {k: getattr(self, k) for k in self.PATTERN_FIELDS}
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-serializable dict of every field (``notes`` as a list).
+        """Return a JSON-serializable dict of every field (``notes`` as a list).
+
+        Returns
+        -------
+        dict of str to object
+            Field name -> value; ``notes`` a list of str, ``timings`` a dict.
 
         Examples
         --------
@@ -239,7 +251,24 @@ class SparsityReport:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> SparsityReport:
-        """Rebuild a report from :meth:`to_dict` output (e.g. read back from JSON)."""
+        """Rebuild a report from :meth:`to_dict` output (e.g. read back from JSON).
+
+        Parameters
+        ----------
+        data : mapping of str to object
+            Field name -> value, as written by :meth:`to_dict`; missing optional fields
+            take their defaults.
+
+        Returns
+        -------
+        SparsityReport
+            The report (equal to the one that was written, ``timings`` aside).
+
+        Raises
+        ------
+        InputError
+            ``data`` holds a key that is not a field.
+        """
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(data) - names)
         if unknown:
@@ -252,6 +281,8 @@ class SparsityReport:
         return cls(**kw)
 
     def __str__(self) -> str:
+        """Format the report as a two-column table of quantities and values."""
+
         def num(v: Any) -> str:
             if v is None:
                 return "-"
@@ -777,7 +808,7 @@ def _model_pattern(
     numeric: bool,
     timings: dict[str, float],
 ) -> _Pattern:
-    """The pattern of a model's ``K`` from its bonds (``K`` assembled only when ``numeric``)."""
+    """Build the pattern of a model's ``K`` from its bonds (``K`` assembled if ``numeric``)."""
     if cloud is None or bonds is None:
         raise InputError(
             "model needs cloud= and bonds= as well, got "
@@ -843,7 +874,7 @@ def _model_pattern(
 
 
 def _matrix_pattern(K: Any, pts: np.ndarray | None, block_size: int | None) -> _Pattern:
-    """The stored pattern of an assembled ``K`` (explicit zeros of BSR blocks included)."""
+    """Read the stored pattern of an assembled ``K`` (explicit zeros of BSR blocks included)."""
     Kmat = _as_sparse(K)
     if Kmat.ndim != 2 or Kmat.shape[0] != Kmat.shape[1]:
         raise ShapeError(f"K must be square, got shape {Kmat.shape}")
@@ -910,7 +941,7 @@ def _matrix_pattern(K: Any, pts: np.ndarray | None, block_size: int | None) -> _
 
 
 def _free_rows(pat: _Pattern, free: np.ndarray | None) -> np.ndarray | None:
-    """Stored entries per row of ``K_ff`` (None without fixed DOFs)."""
+    """Count the stored entries per row of ``K_ff`` (None without fixed DOFs)."""
     if free is None:
         return None
     if pat.dof_pattern is None:  # full blocks: a free DOF's row holds its block row's free DOFs

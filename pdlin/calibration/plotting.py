@@ -1,5 +1,7 @@
-"""Deprecated: plots of calibrated micromoduli moved to :mod:`pdlin.plotting`
-(this module re-exports :func:`~pdlin.plotting.plot_micromoduli` for one release)."""
+"""Deprecated: plots of calibrated micromoduli moved to :mod:`pdlin.plotting`.
+
+This module re-exports :func:`~pdlin.plotting.plot_micromoduli` for one release.
+"""
 
 import warnings
 

@@ -1,5 +1,8 @@
-"""Deprecated: sparsity reports moved to :mod:`pdlin.analysis.sparsity`, spy plots to
-:mod:`pdlin.plotting` (this module re-exports them for one release)."""
+"""Deprecated: sparsity reports moved to :mod:`pdlin.analysis.sparsity`, spy plots to plotting.
+
+This module re-exports them from :mod:`pdlin.analysis.sparsity` and :mod:`pdlin.plotting`
+for one release.
+"""
 
 import warnings
 
