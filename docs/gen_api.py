@@ -13,12 +13,17 @@ import inspect
 import re
 from pathlib import Path
 
+#: the sections of docs/api.md: the front door (``pdlin``), then the subpackages and
+#: modules where every other public name lives
 MODULES = [
     "pdlin",
     "pdlin.geometry",
     "pdlin.models",
     "pdlin.operators",
+    "pdlin.system",
     "pdlin.solvers",
+    "pdlin.fracture",
+    "pdlin.submodeling",
     "pdlin.fields",
     "pdlin.constitutive",
     "pdlin.calibration",
@@ -93,15 +98,19 @@ TITLES = {
     "pdlin.geometry": "Geometry: point clouds and bonds",
     "pdlin.models": "Material models, weights and damage",
     "pdlin.operators": "Operators and boundary conditions",
+    "pdlin.system": "The constrained system",
     "pdlin.solvers": "Linear and nonlinear solvers",
+    "pdlin.fracture": "Damage solves",
+    "pdlin.submodeling": "Submodeling",
     "pdlin.fields": "Fields: strain and deformation gradient",
     "pdlin.constitutive": "Constitutive tensors and crystal plasticity",
     "pdlin.calibration": "Micromodulus calibration",
-    "pdlin.analysis": "Zero-energy-mode analysis",
+    "pdlin.analysis": "Analysis: sparsity reports and zero-energy modes",
     "pdlin.verification": "Finite-element references",
     "pdlin.io": "Scene files and result files",
     "pdlin.sweeps": "Trade-off sweeps",
     "pdlin.errors": "Exceptions and warnings",
+    "pdlin.plotting": "Figures",
 }
 
 
