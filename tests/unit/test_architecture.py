@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import ast
 import os
+import shutil
 import subprocess
 import sys
 import warnings
@@ -413,6 +414,20 @@ def test_public_functions_have_numpydoc_sections() -> None:
     assert not problems, f"{len(problems)} public functions lack numpydoc sections:\n" + "\n".join(
         sorted(problems)
     )
+
+
+def test_docstrings_follow_the_numpy_convention() -> None:
+    """ruff's pydocstyle rules (numpy convention, pyproject.toml) on the library code."""
+    ruff = shutil.which("ruff")
+    if ruff is None:
+        pytest.skip("ruff is not installed (pip install 'pdlin[dev]')")
+    run = subprocess.run(
+        [ruff, "check", "--select", "D", "--output-format", "concise", "--no-cache", "pdlin"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
+    assert run.returncode == 0, "ruff pydocstyle (numpy convention):\n" + run.stdout[-20000:]
 
 
 # -- private names across packages ---------------------------------------------------------
