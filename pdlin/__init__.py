@@ -27,14 +27,11 @@ from . import operators as operators
 from . import sweeps as sweeps
 from ._lazy import moved_attribute as _moved_attribute
 
-# isort: off  (the front door in pipeline order, which is the order of __all__)
+# the front door, in pipeline order (the order of __all__); isort keeps it as written
+# isort: off
 # threads
 from ._threads import get_num_threads as get_num_threads
 from ._threads import set_num_threads as set_num_threads
-from .calibration import calibrate_micromoduli as calibrate_micromoduli
-from .constitutive import CrystalPlasticity as CrystalPlasticity
-from .constitutive import SaintVenantKirchhoff as SaintVenantKirchhoff
-from .fracture import solve_damage as solve_damage
 
 # points and bonds (and the readers that make them)
 from .geometry import Bonds as Bonds
@@ -51,8 +48,9 @@ from .models import LPS as LPS
 from .models import XOSB as XOSB
 from .models import BondBased as BondBased
 from .models import Correspondence as Correspondence
-from .nonlinear import NonlinearResult as NonlinearResult
-from .nonlinear import solve_nonlinear as solve_nonlinear
+from .constitutive import CrystalPlasticity as CrystalPlasticity
+from .constitutive import SaintVenantKirchhoff as SaintVenantKirchhoff
+from .calibration import calibrate_micromoduli as calibrate_micromoduli
 
 # conditions
 from .operators import BodyForce as BodyForce
@@ -65,9 +63,11 @@ from .operators import shadow_layer as shadow_layer
 from .problem import StaticProblem as StaticProblem
 from .problem import StaticResult as StaticResult
 from .problem import solve as solve
+from .nonlinear import NonlinearResult as NonlinearResult
+from .nonlinear import solve_nonlinear as solve_nonlinear
+from .fracture import solve_damage as solve_damage
 from .submodeling import subregion as subregion
 from .sweeps import tradeoff as tradeoff
-
 # isort: on
 
 __version__ = "0.1.0"
