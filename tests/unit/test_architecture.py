@@ -289,6 +289,58 @@ def test_names_that_left_the_front_door_still_resolve_with_a_warning() -> None:
         pdlin.no_such_name  # noqa: B018
 
 
+@pytest.mark.parametrize(
+    ("old", "name", "home"),
+    [
+        ("pdlin.operators", "sparsity_report", "pdlin.analysis"),
+        ("pdlin.operators", "SparsityReport", "pdlin.analysis"),
+        ("pdlin.operators", "coupling_pattern", "pdlin.analysis"),
+        ("pdlin.operators", "plot_spy", "pdlin.plotting"),
+        ("pdlin.calibration", "plot_micromoduli", "pdlin.plotting"),
+        ("pdlin.io.output", "check_figure", "pdlin.plotting"),
+    ],
+)
+def test_names_moved_out_of_subpackages_warn(old: str, name: str, home: str) -> None:
+    import importlib
+
+    with pytest.warns(DeprecationWarning, match=rf"from {home} import {name}"):
+        obj = getattr(importlib.import_module(old), name)
+    assert obj is getattr(importlib.import_module(home), name)
+
+
+@pytest.mark.parametrize(
+    ("shim", "names"),
+    [
+        (
+            "pdlin.operators.sparsity",
+            [
+                "sparsity_report",
+                "SparsityReport",
+                "coupling_pattern",
+                "rcm_permutation",
+                "plot_spy",
+            ],
+        ),
+        ("pdlin.calibration.plotting", ["plot_micromoduli"]),
+    ],
+)
+def test_moved_modules_leave_a_warning_shim(shim: str, names: list[str]) -> None:
+    """The shim warns on import (in a fresh interpreter) and re-exports the moved names."""
+    code = (
+        "import warnings\n"
+        "with warnings.catch_warnings(record=True) as w:\n"
+        "    warnings.simplefilter('always')\n"
+        f"    import {shim} as m\n"
+        "print(sum(x.category is DeprecationWarning for x in w))\n"
+        f"print(all(hasattr(m, n) for n in {names!r}))\n"
+    )
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *sys.path])}
+    run = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
+    )
+    assert run.stdout.split() == ["1", "True"], run.stdout + run.stderr
+
+
 def test_import_pdlin_imports_no_sympy_matplotlib_numba() -> None:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *sys.path])}
     run = subprocess.run(
