@@ -310,7 +310,7 @@ def plot_result(
     ax: Any = None,
     units: str | dict[str, str] | None = None,
 ) -> Plot:
-    """Colour map of one field of a result file (or of a :class:`ResultFile`).
+    """Colour map of one field of a result file (or of a :class:`~pdlin.io.ResultFile`).
 
     2D results: the points coloured by the value, equal aspect; 3D results:
     the points within ``h/2`` of a plane (``slice="z=0.5"``, ``h`` the
