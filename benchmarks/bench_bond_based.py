@@ -59,8 +59,8 @@ from _context import header as context_header  # noqa: E402
 from _context import timed  # noqa: E402
 
 import pdlin  # noqa: E402
+from pdlin.constraints import eliminate_dirichlet, load_vector, resolve_dirichlet  # noqa: E402
 from pdlin.operators.assembly import estimate_bond_operator_bytes  # noqa: E402
-from pdlin.operators.bc import eliminate_dirichlet, load_vector, resolve_dirichlet  # noqa: E402
 from pdlin.operators.rigid import rigid_body_modes  # noqa: E402
 from pdlin.solvers import solve_linear  # noqa: E402
 

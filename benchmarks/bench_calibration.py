@@ -1,8 +1,8 @@
-"""Performance of the micromodulus calibration (spec 004).
+"""Performance of the micromodulus calibration (Prakash, anisotropic micromoduli).
 
 Table 1, single families: 3D simple cubic spheres (delta = 3, 6, 9, omega =
 delta/|xi|) and 2D square / triangular disks (delta = 3, 6, 12), calibrated
-against a target that needs the QP (cubic spinel, spec 004 §3; in 2D its
+against a target that needs the QP (cubic spinel MgAl2O4, the paper's Eq. 87; in 2D its
 plane-strain part) and against one where step 1 suffices (triclinic KIO3 /
 plane stress).  Columns are the wall time per solver path, best of
 ``--repeat`` runs:

@@ -1,6 +1,7 @@
 """Zero-energy-mode controls on the crystal-plasticity polycrystal (issue 11, 10⁵ stall).
 
-Spec 001's polycrystal (``bench_nonlinear.problem``: n x n grid, δ = h, 21 Voronoi grains,
+The polycrystal of Luo, Ramazani & Sundararaghavan (2017), Sec. 4 (``bench_nonlinear.problem``:
+n x n grid, δ = h, 21 Voronoi grains,
 planar-2 crystal plasticity, boundary ring under ``Dirichlet.velocity_gradient``, 30 load
 steps) solved with ``Correspondence(material=..., control=C)`` for each control C.  Prints
 one row per control: wall time, iterations, largest iterations of a step, cut-backs, ADR

@@ -5,7 +5,8 @@ through a few load steps so that most of them are plastic, then times the next u
 (best of ``--repeat``).  Prints a Markdown table; "re-activated" is the share of the
 points that needed at least one re-activation pass of the active-set search, "max
 viol." the largest ``|τ|/s − 1`` over the inactive systems after the update.
-``--active-set prune`` times spec 001 §3.6 as written (no re-activation).
+``--active-set prune`` times the return mapping of Luo, Ramazani & Sundararaghavan (2017),
+Appendix, with systems of Δγ <= 0 dropped and never re-activated.
 """
 
 from __future__ import annotations

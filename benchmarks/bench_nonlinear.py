@@ -1,15 +1,17 @@
-"""Nonlinear static solves of the crystal-plasticity polycrystal (spec 001 B1, B2, T20).
+"""Nonlinear static solves of the crystal-plasticity polycrystal (cost, accuracy, damping).
 
-``pdlin.solve_nonlinear`` on the 21-grain Voronoi polycrystal of spec 001 §7
-(``voronoi_polycrystal(cloud, 21, seed=1)``, planar-2 crystal plasticity,
+``pdlin.solve_nonlinear`` on the 21-grain Voronoi polycrystal of Luo, Ramazani &
+Sundararaghavan (2017), Sec. 4 (the paper's grains are not given: a seeded map
+``voronoi_polycrystal(cloud, 21, seed=1)``, planar-2 crystal plasticity,
 ``Correspondence(material=...)``, δ = h, n x n pixel grid, boundary ring prescribed by
 ``Dirichlet.velocity_gradient``, η = 0.002, 30 load steps of Δt = 1). Tables (wall-clock
 seconds on a shared machine, one BLAS thread; nothing is asserted):
 
-1. **B1 cost**: per size, load (pure shear, Y-compression) and method: wall time of load
-   steps 1-7 and 8-30, iterations (Newton iterations or ADR iterations), constitutive calls,
+1. **B1 cost** (the timing split of the paper's Fig. 7): per size, load (pure shear,
+   Y-compression) and method: wall time of load steps 1-7 and 8-30, iterations (Newton
+   iterations or ADR iterations), constitutive calls,
    cut-backs, ADR fallbacks (``auto``), peak RSS of the run's child process and the plastic
-   fraction. Methods: ``newton``; ``adr-spec`` (spec 001's Λ = 1: ``density=h²``,
+   fraction. Methods: ``newton``; ``adr-spec`` (the paper's Λ = 1, Eq. 12: ``density=h²``,
    ``dt=h sqrt(1/2000)``, pdlin forces are nodal V·L); ``adr`` (default Gershgorin
    density); ``auto`` (Newton, ADR fallback). A run that exceeds ``--budget`` seconds is
    stopped after its current step and the remaining steps are extrapolated from the mean
@@ -21,10 +23,13 @@ seconds on a shared machine, one BLAS thread; nothing is asserted):
 3. **10⁵ particles** (316 x 316): ``--big-method`` (Newton by default; ``auto`` for the
    end-to-end run) for the first ``--big-steps`` load steps, optionally with a checkpoint
    that a later run resumes (``--big-checkpoint PATH``: a killed run loses no committed step).
-4. **B2 accuracy-cost**: ADR with e_l in ``--e-l`` from the committed state of a tight
-   Newton reference (rtol 1e-12, ``checkpoint=`` + ``resume=True``), homogenized-stress error
-   against Newton's next step (spec 001 §6: never pointwise), for an elastic and a plastic step.
-5. **T20**: adaptive ADR damping vs constant c = 200, 500, 2000 on 25 x 25 shear steps 1-12:
+4. **B2 accuracy-cost** (ADR tolerance against error): ADR with e_l in ``--e-l`` from the
+   committed state of a tight Newton reference (rtol 1e-12, ``checkpoint=`` +
+   ``resume=True``), homogenized-stress error
+   against Newton's next step (never pointwise: plastic equilibria of this nearly perfectly
+   plastic crystal are not unique), for an elastic and a plastic step.
+5. **T20** (the paper's Fig. 6 comparison with c = 500): adaptive ADR damping vs constant
+   c = 200, 500, 2000 on 25 x 25 shear steps 1-12:
    iterations per step, max damping in the first and last 10 % of each step's iterations.
 6. **Predictors** (``--sections predictors``, only on request): ``method='auto'`` with each
    of ``--predictors``: time, Newton iterations, cut-backs, ADR fallbacks and the largest
@@ -78,7 +83,7 @@ import pdlin  # noqa: E402
 ETA = 0.002
 LOADS = {"shear": [[0.0, 1.0], [1.0, 0.0]], "compression": [[1.0, 0.0], [0.0, -1.0]]}
 METHODS = ("newton", "adr-spec", "adr", "auto")
-SPLIT = 7  # steps 1-7 / 8-30 (spec 001 Fig. 7)
+SPLIT = 7  # steps 1-7 / 8-30 (Luo, Ramazani & Sundararaghavan 2017, Fig. 7)
 
 
 class _Stop(Exception):
@@ -94,8 +99,11 @@ def correspondence(material: Any, control: str = "none") -> Any:
 
 
 def problem(n: int, load: str, control: str = "none") -> tuple[Any, float]:
-    """The seed polycrystal on n x n particles; ``control`` a spec of :func:`correspondence`
-    (default: none, spec 001's setting)."""
+    """Build the 21-grain polycrystal on n x n particles.
+
+    ``control`` is a spec of :func:`correspondence` (default: none, as in Luo, Ramazani &
+    Sundararaghavan 2017).
+    """
     h = 1.0 / n
     cloud = pdlin.grid((n, n), spacing=h)
     bonds = pdlin.find_bonds(cloud, ratio=1.0, influence="constant")
@@ -336,8 +344,8 @@ def table_predictors(
     """Newton's predictors (``method='auto'``): cost, and the homogenized stress against a
     fine path (``sub`` equal Newton increments per load step, the committed-state tangent
     predictor); the fine path with the default predictor gives the floor of that error
-    (spec 001 §6: plastic equilibria are not unique, the path of a path-dependent material
-    depends on its increments)."""
+    (plastic equilibria are not unique, and the path of a path-dependent material depends
+    on its increments)."""
     print(
         f"\n## Predictors: method='auto', {steps} load steps; homogenized σ against a fine "
         f"path ({sub} increments per step)\n"
@@ -600,7 +608,7 @@ def _t20(n: int, steps: int, total: int, damping: float | None) -> dict[str, Any
 
 
 def table_t20(n: int, steps: int) -> None:
-    print(f"\n## T20: ADR damping, {n}x{n} shear, steps 1-{steps} (spec density)\n")
+    print(f"\n## T20: ADR damping, {n}x{n} shear, steps 1-{steps} (the paper's density, Λ = 1)\n")
     runs = {}
     for c in (None, 200.0, 500.0, 2000.0):
         r = forked(_t20, n, steps, 30, c)
@@ -691,8 +699,8 @@ def _damping_base(n: int, load: str, control: str, k: int, path: str) -> float:
 
 def table_damping(n: int, load: str, control: str, k: int, m: int, values: list[float]) -> None:
     """ADR steps ``k+1 .. k+m`` from ADR's committed step ``k``: the adaptive damping of
-    spec 001 Eq. 13 and constant ``c`` (Δt = 1, Gershgorin density), with ``c`` relative to
-    the elastic lowest mode's critical damping."""
+    Luo, Ramazani & Sundararaghavan (2017), Eq. 13, and constant ``c`` (Δt = 1, Gershgorin
+    density), with ``c`` relative to the elastic lowest mode's critical damping."""
     print(
         f"\n## ADR damping in plastic steps: {n}x{n} {load}, control {control}, steps "
         f"{k + 1}-{k + m} from ADR's committed step {k}\n"
@@ -759,7 +767,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--big-control",
         default="none",
-        help="zero-energy-mode control of the 10⁵ run: none (spec 001), stress_points, "
+        help="zero-energy-mode control of the 10⁵ run: none (the paper's), stress_points, "
         "penalty or penalty:C (coefficient C; the end-to-end run uses penalty:0.1)",
     )
     ap.add_argument("--b2-size", type=int, default=25)

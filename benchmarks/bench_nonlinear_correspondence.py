@@ -1,8 +1,9 @@
-"""Time ``Correspondence(material=CrystalPlasticity).respond`` (spec 001 setting).
+"""Time ``Correspondence(material=CrystalPlasticity).respond`` (Luo et al. 2017 setting).
 
 Run ``python benchmarks/bench_nonlinear_correspondence.py``.  Pixel grid n x n, δ = h,
-ω = 1, random orientations from the 12-value set (spec 001 §3.2), u = the shear of load
-step 3 (§4.2, mostly plastic) plus a small random field, from the initial state.  Best of
+ω = 1, random orientations from the 12 values -π/2 + kπ/12 (Luo, Ramazani &
+Sundararaghavan 2017, Sec. 4), u = the shear of load step 3 (Eq. 25, mostly plastic)
+plus a small random field, from the initial state.  Best of
 ``--repeat``; prints a Markdown table with the constitutive share and the K_T assembly
 (wall seconds, CPU seconds of the same run in brackets) after the context header.
 """

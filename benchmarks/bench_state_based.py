@@ -1,4 +1,4 @@
-"""Performance of the ordinary state-based models (LPS, XOSB; spec 002).
+"""Performance of the ordinary state-based models (LPS, XOSB of Liu, Chen & Skelton).
 
 Rows (each in a forked child process, so ``peak`` is that configuration's own peak RSS):
 
@@ -6,13 +6,14 @@ Rows (each in a forked child process, so ``peak`` is that configuration's own pe
   Gram systems, fallback flags), million directed bonds per second;
 * ``asm``: assembly of ``K`` (energy ``K_E`` / paper ``K_p``) by one sparse product of
   stacked point-level operators, time and ``nnz/row`` (uniform interior at δ = 3.01 Δ:
-  210 in 2D, 2,487 in 3D, spec 002 §7);
+  210 in 2D, 2,487 in 3D: counted from the two-hop lattice stencil);
 * solves of a plate / cube clamped on x- and pulled (u_x prescribed) on x+, relative
   residual 1e-8: SuperLU (``direct``), AMG-CG on ``K_E``, AMG-GMRES on ``K_p``
   (iterations in brackets);
 * ``mf-cg``: matrix-free CG on the :meth:`operator` of ``K_E`` (products from ``B`` and
   per-bond coefficients, O(bonds) memory), preconditioned by smoothed-aggregation AMG of
-  the one-hop bond-based stiffness (a surrogate, spec 002 §7 suggestion).
+  the one-hop bond-based stiffness (a surrogate: the linearized bond-based matrix the
+  paper uses for ADR's mass, Liu, Chen & Skelton, XOSB, Sec. 4.3).
 
 ``--anchor N`` runs the Peridigm anchor problem of the issue: a cell-centred N³ cube,
 δ = 3.015 h, ``LPS(peridigm=True)``, x- face clamped, x+ face pulled (u_x prescribed),
@@ -48,7 +49,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _context import header  # noqa: E402
 
 import pdlin  # noqa: E402
-from pdlin.operators.bc import eliminate_dirichlet, resolve_dirichlet  # noqa: E402
+from pdlin.constraints import eliminate_dirichlet, resolve_dirichlet  # noqa: E402
 from pdlin.solvers.linear import amg_hierarchy  # noqa: E402
 
 
@@ -213,7 +214,9 @@ def _large(shape: tuple[int, ...], paper: bool) -> dict[str, Any]:
 
 
 def _block3d(n_ang: int, n_rad: int, layers: int, model_name: str) -> dict[str, Any]:
-    """The seed's 3D block with a hole (spec 002 §9.2): extruded O-grid, matrix-free solve.
+    """Solve the 3D block with a hole of Liu, Chen & Skelton, XOSB, Sec. 5.2, matrix-free.
+
+    The paper's 173,944-cell mesh is not given: an extruded O-grid stands in.
 
     L = 1 m, r = 0.1 m, depth 0.3 m, E = 70 GPa, ν = 0.33, δ_i = 3.01 Δ_i; the outermost
     radial layer of the left block clamped, that of the right block pulled by u0 = 5e-4 m in
@@ -284,7 +287,8 @@ def main(argv: list[str] | None = None) -> None:
         type=int,
         default=0,
         metavar="LAYERS",
-        help="the seed's 3D block with a hole: 4 x 32 x 60 O-grid x LAYERS (23: 176,640 cells)",
+        help="the XOSB paper's 3D block with a hole: 4 x 32 x 60 O-grid x LAYERS "
+        "(23: 176,640 cells)",
     )
     args = p.parse_args(argv)
     header()

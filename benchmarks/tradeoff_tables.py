@@ -50,7 +50,8 @@ SWEEPS: list[tuple[str, Any, dict[str, list[Any]], float, str]] = [
             "m": [2.0, 3.015],
         },
         0.03,
-        "square plate with a hole (spec 002 §9.1), edges held at the Q4 solution; Q4 reference",
+        "square plate with a hole (Liu, Chen & Skelton, XOSB, Sec. 5.1), edges held at the Q4 "
+        "solution; Q4 reference",
     ),
     (
         "graded_bar_1d",
@@ -61,7 +62,8 @@ SWEEPS: list[tuple[str, Any, dict[str, list[Any]], float, str]] = [
             "N": [100, 200, 400],
         },
         0.05,
-        "1D graded bar (spec 000 §10.A), correspondence; closed form (sqrt singularity)",
+        "1D graded bar (Javaheri et al. 2022, Sec. III.A), correspondence; closed form "
+        "(sqrt singularity)",
     ),
     (
         "affine_patch_solvers",

@@ -20,7 +20,7 @@ END = "<!-- END GENERATED -->"
 
 _LABEL = {1: "1D line", 2: "2D square lattice", 3: "3D cubic lattice"}
 _PAPER_TABLE = {1: "Table 1", 2: "Table 2", 3: "Table 3"}
-#: horizons beyond the paper's range that the doc also lists (2D: spec 000 §6)
+#: horizons beyond the paper's range that the doc also lists (2D up to 4h, 1D up to 5h)
 _EXTRA_MAX_RATIO = {1: 5.0, 2: 4.0, 3: 3.0}
 
 
@@ -36,7 +36,7 @@ def _weights(r: HigherOrderWeights) -> str:
 
 
 def all_horizons_table(dim: int, max_ratio: float) -> str:
-    """Every lattice horizon up to ``max_ratio`` with its status."""
+    """Return every lattice horizon up to ``max_ratio`` with its status, as a table."""
     lines = [
         "| δ/h | shells s | order | ω by shell | Ω | augmented | status |",
         "|---|---|---|---|---|---|---|",
@@ -51,7 +51,7 @@ def all_horizons_table(dim: int, max_ratio: float) -> str:
 
 
 def paper_table(dim: int) -> str:
-    """The valid sets in the layout of the paper's Tables 1-3 (paper range only)."""
+    """Return the valid sets in the layout of the paper's Tables 1-3 (paper range only)."""
     valid = [r for r in weights_table(dim) if r.is_valid]
     shells = valid[-1].shells
     head = " | ".join(f"ω{k + 1} (s={s})" for k, s in enumerate(shells))
@@ -64,7 +64,7 @@ def paper_table(dim: int) -> str:
 
 
 def render() -> str:
-    """The generated block of docs/weights.md, markers included."""
+    """Return the generated block of docs/weights.md, markers included."""
     parts = [BEGIN, ""]
     for dim in (1, 2, 3):
         parts += [

@@ -1,9 +1,10 @@
 """Tutorial: calibrate a transversely isotropic material, plot it, then solve with it.
 
 1. Calibrate nonnegative minimum-norm bond micromoduli to the transversely
-   isotropic target of spec 004 §3 (axis e3) on the 3D lattice family with
-   delta = 3 h and ``omega = delta/|xi|``; the achieved tensor is the target's
-   Cauchy projection (bond-based PD obeys the Cauchy relations).
+   isotropic target MoN of Prakash, anisotropic micromoduli, Eq. 81 (axis e3),
+   on the 3D lattice family with delta = 3 h and ``omega = delta/|xi|``; the
+   achieved tensor is the target's Cauchy projection (bond-based PD obeys the
+   Cauchy relations).
 2. Plot the micromoduli on the direction sphere (plotting extra; skipped
    without matplotlib).
 3. Static solve: a block whose inward shadow layer carries the uniaxial-stress
@@ -27,7 +28,8 @@ from pdlin.plotting import plot_micromoduli
 
 
 def calibrate(horizon: float = 3.0) -> tuple[np.ndarray, object, object]:
-    C = cst.material("transversely_isotropic")  # GPa, spec 004 §3
+    # GPa: MoN, Prakash, anisotropic micromoduli, Eq. 81
+    C = cst.material("transversely_isotropic")
     fam = lattice_family(3, horizon, influence="delta_over_r")
     res = pdlin.calibrate_micromoduli(C, fam)
     return C, fam, res
@@ -35,7 +37,7 @@ def calibrate(horizon: float = 3.0) -> tuple[np.ndarray, object, object]:
 
 def uniaxial_block(C_target: np.ndarray, axis: int, sigma: float = 0.1, n: int = 14) -> dict:
     """Block with a shadow layer carrying the uniaxial-stress field along ``axis``."""
-    cloud = pdlin.grid((n, n, n), spacing=1.0)  # lattice spacing 1, as in spec 004
+    cloud = pdlin.grid((n, n, n), spacing=1.0)  # lattice spacing 1, as in Prakash's examples
     bonds = pdlin.find_bonds(cloud, 3.0, influence="delta_over_r")
     res = pdlin.calibrate_micromoduli(C_target, bonds, boundary="bulk")
     model = pdlin.BondBased(micromodulus=res.micromoduli)

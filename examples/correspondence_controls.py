@@ -1,27 +1,29 @@
-"""Zero-energy-mode controls of the correspondence model compared (spec 003 §7.1 and §7.2).
+"""Zero-energy-mode controls of the correspondence model compared (Luo & Sundararaghavan 2018).
 
 Tutorial for docs/tutorial_controls.md.  Two problems, both on nearest-neighbour node
 lattices where the plain correspondence (NOSB) model has zero-energy modes:
 
-1. **1D graded bar** (spec 003 §7.1): x_i = (i - 1)/(n - 1), n = 500, u(0) = 0,
-   u(1) = u_end = 0.005, E = E0 = 1 on x <= 1/2 and E0 [1 + (β/2α)(x - 1/2)^(-1/2)]^(-1)
-   beyond (α = 0.001, β = 0.004 sqrt 2); exact u = αx + β sqrt(x - 1/2) H(x - 1/2) and
-   σ = 1e-3 everywhere.  Every control of :class:`pdlin.Correspondence` is solved and
-   compared by
+1. **1D graded bar** (Luo & Sundararaghavan 2018, Sec. 5.1, Eqs. 18-21):
+   x_i = (i - 1)/(n - 1), n = 500, u(0) = 0, u(1) = u_end = 0.005, E = E0 = 1 on x <= 1/2
+   and E0 [1 + (β/2α)(x - 1/2)^(-1/2)]^(-1) beyond (α = 0.001, β = 0.004 sqrt 2); exact
+   u = αx + β sqrt(x - 1/2) H(x - 1/2) and σ = 1e-3 everywhere.  Every control of
+   :class:`pdlin.Correspondence` is solved and compared by
 
    * ``rel_l2_u`` = ||u - u_ex|| / ||u_ex|| over all particles,
    * ``rel_l2_eps`` = ||ε - ε_ex|| / ||ε_ex|| on x <= 0.48 (the exact strain is singular
      at x = 1/2+, so a global strain norm only measures the two particles next to it),
    * ``osc`` = ``max |Δ²(u - u_ex)| / u_end`` over the stencils inside 0.02 < x < 0.48 (Δ² the
-     second difference along the bar; spec 003 §7.1): the odd-even (zero-energy) oscillation
+     second difference along the bar): the odd-even (zero-energy) oscillation
      amplitude.
      The exact solution is linear there, so a smooth numerical error gives osc ≈ 0.
 
-2. **R2D plate with a square hole** (spec 003 §7.2 reconstruction): [0, 50]² mm minus
+2. **Plate with a square hole** (Luo & Sundararaghavan 2018, Sec. 5.2, which gives neither
+   dimensions nor load; reconstructed as in docs/theory/conventions.md): [0, 50]² mm minus
    [0, 10)², node grid h = 2 mm (651 particles), E = 1000 MPa, ν = 0.3, plane stress;
    u_x = 0 on x = 0, u_y = 0 on y = 0, u_x = 0.5 mm on x = 50, u_y = 0.5 mm on y = 50,
    tangential components free.  Reference: Q4 FEM with its nodes at the particles
-   (:func:`pdlin.verification.solve_q4`).  Metrics (spec 003 §7.2):
+   (:func:`pdlin.verification.solve_q4`).  Metrics (norms over the plate; the paper's Eq. 22
+   is a pointwise relative error):
 
    * rel-L2 of u and of σ = [σ_xx, σ_yy, σ_xy] over all particles; the PD particle
      stress is :meth:`pdlin.Correspondence.stress` (the mean over the particle's stress
@@ -47,22 +49,22 @@ from typing import Any
 import numpy as np
 
 import pdlin
+from pdlin.constraints import resolve_dirichlet
 from pdlin.models.correspondence import CONTROLS
-from pdlin.operators.bc import resolve_dirichlet
 from pdlin.verification.fem import solve_q4
 
-# --- spec 003 §7.1: 1D graded bar [P] ------------------------------------------------------
+# --- 1D graded bar: Luo & Sundararaghavan (2018), Sec. 5.1 ---------------------------------
 ALPHA = 1e-3
 BETA = 4e-3 * np.sqrt(2.0)
 U_END = 0.005
 
-# --- spec 003 §7.2: R2D plate with a square hole [S] ----------------------------------------
-E_PLATE, NU_PLATE = 1000.0, 0.3  # MPa, [P]
+# --- plate with a square hole: Sec. 5.2, reconstructed (docs/theory/conventions.md) --------
+E_PLATE, NU_PLATE = 1000.0, 0.3  # MPa, as in the paper
 SIDE, HOLE, U_LOAD = 50.0, 10.0, 0.5  # mm
 
 
 def modulus(x: np.ndarray) -> np.ndarray:
-    """Graded modulus E(x) of spec 003 Eq. (18) (E0 = 1)."""
+    """Graded modulus E(x) of Luo & Sundararaghavan (2018), Eq. 18 (E0 = 1)."""
     r = np.clip(x - 0.5, 1e-300, None)
     return np.where(x <= 0.5, 1.0, 1.0 / (1.0 + BETA / (2 * ALPHA) / np.sqrt(r)))
 
@@ -81,7 +83,8 @@ def eps_exact(x: np.ndarray) -> np.ndarray:
 def bar_cases() -> list[dict[str, Any]]:
     """The bar runs: label, control, δ/h, influence and extra model keywords.
 
-    ``'springs'`` and ``'ads'`` (spec 003 §3) are included when this pdlin has them.
+    ``'springs'`` and ``'ads'`` (Luo & Sundararaghavan 2018, Sec. 2.2) are included when this
+    pdlin has them.
     """
     cases: list[dict[str, Any]] = [
         {"label": "none", "control": "none", "m": 1},
@@ -111,7 +114,7 @@ def solve_bar(
     influence: str = "constant",
     kw: dict[str, Any] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Node-layout bar of spec 003 §7.1: returns x, u and the particle strain ε.
+    """Node-layout bar of Luo & Sundararaghavan (2018), Sec. 5.1: return x, u and the strain ε.
 
     δ = m h; for m > 1 the exact u is prescribed on the m particles at each end (a
     boundary layer one horizon thick), otherwise the far particles of a δ > h no-control
@@ -237,7 +240,7 @@ def plate_pd(
     cloud: pdlin.PointCloud, control: str, **kw: Any
 ) -> tuple[np.ndarray, np.ndarray, pdlin.Correspondence, pdlin.Bonds]:
     """Correspondence solve on the plate: u ``(n, 2)``, particle stress ``(n, 3)``."""
-    bonds = pdlin.find_bonds(cloud, ratio=1.0)  # nearest neighbours (spec 003 §2)
+    bonds = pdlin.find_bonds(cloud, ratio=1.0)  # nearest neighbours, as in the paper's Sec. 2
     model = pdlin.Correspondence(E=E_PLATE, nu=NU_PLATE, plane="stress", control=control, **kw)
     problem = pdlin.StaticProblem(model, cloud, bonds, dirichlet=plate_dirichlet(cloud))
     u = pdlin.solve(problem, solver="direct").u
@@ -264,7 +267,7 @@ def plate_metrics(
     u_fe: np.ndarray,
     sig_fe: np.ndarray,
 ) -> dict[str, float]:
-    """Spec 003 §7.2 metrics of a PD solution against the FEM one."""
+    """Compute the plate metrics (rel-L2 of u and σ, checker deviation) of a PD solution vs FEM."""
     x, y = cloud.points.T
     c_pd, full = checker_amplitude(cloud, u)
     c_fe, _ = checker_amplitude(cloud, u_fe)
@@ -306,7 +309,7 @@ def run_plate(h: float = 2.0) -> dict[str, Any]:
 
 def format_bar(rows: list[dict[str, Any]], n: int) -> str:
     lines = [
-        f"1D graded bar, n = {n} (spec 003 §7.1)",
+        f"1D graded bar, n = {n} (Luo & Sundararaghavan 2018, Sec. 5.1)",
         f"{'control':<14} {'delta':>5} {'coef':>7} {'rel-L2 u':>9} {'rel-L2 eps':>10} {'osc':>9}",
     ]
     for r in rows:
@@ -320,7 +323,7 @@ def format_bar(rows: list[dict[str, Any]], n: int) -> str:
 
 def format_plate(rows: list[dict[str, Any]], h: float, n: int) -> str:
     lines = [
-        f"R2D plate with a square hole, h = {h:g} mm, {n} particles (spec 003 §7.2)",
+        f"plate with a square hole, h = {h:g} mm, {n} particles (reconstructed Sec. 5.2)",
         f"{'model':<21} {'rel-L2 u':>9} {'rel-L2 sig':>10} {'checker':>9} "
         f"{'max a_sig':>9} {'sxx(38,0)':>9}",
     ]

@@ -1,12 +1,13 @@
-"""Crystal-plasticity peridynamics on a 21-grain polycrystal: Newton and ADR (spec 001 §7).
+"""Crystal-plasticity peridynamics on a 21-grain polycrystal: Newton and ADR.
 
 Tutorial for docs/tutorial_crystal_plasticity.md; the solver options are described in
-docs/nonlinear.md.  Reproduces the setup of seed 001 (Luo, Ramazani & Sundararaghavan 2017):
+docs/nonlinear.md.  Reproduces the setup of Luo, Ramazani & Sundararaghavan (2017), Sec. 4
+(Ex. 1 and Ex. 2; docs/theory/conventions.md, "Polycrystal"):
 
 * unit square (mm), n x n particles at the pixel centres, δ = h (4 neighbours, ω = 1),
   ``pdlin.Correspondence(material=pdlin.CrystalPlasticity("planar-2"))``;
-* 21 Voronoi grains (``pdlin.voronoi_polycrystal``, seed 1; the paper's map is unknown,
-  spec 001 §11), orientations from the 12-value set, every one used at least once;
+* 21 Voronoi grains (``pdlin.voronoi_polycrystal``, seed 1; the paper's map is not
+  given), orientations from the 12-value set, every one used at least once;
 * the boundary ring follows ``u = (exp(L t) - I) x`` (``Dirichlet.velocity_gradient``),
   30 load steps t = 1..30, η = 0.002: **Ex. 1** pure shear ``L = η [[0, 1], [1, 0]]`` and
   **Ex. 2** Y-compression ``L = η diag(1, -1)``; strain ηt = 0.06 at the last step.
@@ -16,7 +17,7 @@ Newton, and ADR from the step's committed state on a step Newton fails), in
 segments that leave a checkpoint at every compared step.  The other driver (ADR for a
 Newton history) then solves the compared steps **from the same committed state**
 (checkpoint copy + ``resume="branch"``), and the two homogenized (volume-averaged Cauchy)
-stresses are compared: plastic equilibria are not unique (spec 001 §6), so only the
+stresses are compared: plastic equilibria are not unique (docs/theory/conventions.md), so only the
 homogenized stress of one step from one shared state is a fair comparison, never pointwise
 fields (expected ≲ 1e-3 relative).
 
@@ -52,7 +53,8 @@ import pdlin
 from pdlin.errors import ConvergenceError
 from pdlin.io.results import write_homogenized_csv, write_nonlinear
 
-ETA = 0.002  # velocity-gradient magnitude per unit time (spec 001 §4.2)
+# velocity-gradient magnitude per unit time (Luo, Ramazani & Sundararaghavan 2017, Sec. 4)
+ETA = 0.002
 LOADS = {
     "shear": ETA * np.array([[0.0, 1.0], [1.0, 0.0]]),
     "compression": ETA * np.array([[1.0, 0.0], [0.0, -1.0]]),

@@ -1,8 +1,10 @@
-"""Print the spec 001 §8.1 material-point tables (pure shear and Y-compression).
+"""Print the material-point tables of the planar crystal (pure shear and Y-compression).
 
 Run ``python examples/crystal_plasticity_tables.py``.  Each table is one batched
 ``pdlin.material_point`` run over the 12 orientations θ_k = −90° + 15° k, 30 steps of
-η = 0.002, with the default planar-2 material of spec 001 §3.
+η = 0.002, with the default planar-2 material of Luo, Ramazani & Sundararaghavan (2017),
+Sec. 3 (conventions: docs/theory/conventions.md).  The paper prints no such tables; these
+are pdlin's reference values for its material and loading.
 """
 
 from __future__ import annotations

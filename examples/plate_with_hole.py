@@ -1,6 +1,7 @@
 """Plate with a central hole under prescribed extension (bond-based, plane stress).
 
-The XOSBPD plate example (spec 002, section 9.1) on its 7,680-cell O-grid:
+The plate example of Liu, Chen & Skelton, XOSB, Sec. 5.1, on its 7,680-cell O-grid
+(reconstructed: docs/theory/conventions.md, "Plate with a hole"):
 
 1. build the O-grid mesh with :func:`pdlin.plate_with_hole_mesh`;
 2. write it to a temporary gmsh 2.2 ``.msh`` file with meshio and read it back
@@ -16,7 +17,7 @@ The XOSBPD plate example (spec 002, section 9.1) on its 7,680-cell O-grid:
 
 Run ``python examples/plate_with_hole.py [--n-ang 32 --n-rad 60] [--plot]``.
 Bond-based PD fixes nu = 1/3 in plane stress, so the numbers differ from the
-nu = 0.33 FEM values of the spec by a little (u_x at the hole, beta = 0:
+nu = 0.33 FEM reference values by a little (u_x at the hole, beta = 0:
 3.90e-4 m in the FEM reference).
 """
 
@@ -33,9 +34,9 @@ import numpy as np
 
 import pdlin
 
-U0 = 5e-4  # m, spec 002 section 9.1
-E = 70e9  # Pa, spec 002 section 9.1
-HORIZON_RATIO = 3.01  # delta_i = 3.01 sqrt(A_i), spec 002 section 2
+U0 = 5e-4  # m, Liu, Chen & Skelton, XOSB, Sec. 5.1
+E = 70e9  # Pa, Liu, Chen & Skelton, XOSB, Sec. 5.1
+HORIZON_RATIO = 3.01  # delta_i = 3.01 sqrt(A_i), Liu, Chen & Skelton, XOSB, Sec. 4.1
 
 
 def build_cloud(n_ang: int = 32, n_rad: int = 60) -> pdlin.PointCloud:
@@ -57,7 +58,7 @@ def _nearest_to_axis(cloud: pdlin.PointCloud, name: str) -> np.ndarray:
 
 
 def solve_plate(cloud: pdlin.PointCloud) -> pdlin.StaticResult:
-    """Bond-based plane-stress solve with the spec's edge displacements."""
+    """Solve the bond-based plane-stress plate with the reconstructed edge displacements."""
     pin = np.concatenate([_nearest_to_axis(cloud, "left"), _nearest_to_axis(cloud, "right")])
     problem = pdlin.StaticProblem(
         pdlin.BondBased(E=E, plane="stress"),
@@ -77,7 +78,7 @@ def ring_values(cloud: pdlin.PointCloud, u: np.ndarray, beta_deg: float) -> dict
     ring = cloud.point_set("hole")
     beta = np.degrees(np.arctan2(cloud.points[ring, 1], cloud.points[ring, 0])) % 360.0
     signed = (beta - beta_deg + 180.0) % 360.0 - 180.0
-    # ties (two points at beta +- d) go to the smaller polar angle, as in the spec's tables
+    # ties (two points at beta +- d) go to the smaller polar angle, as in the reference tables
     best = int(np.lexsort((beta, np.round(np.abs(signed), 9)))[0])
     k = ring[best]
     return {

@@ -1,14 +1,15 @@
 """Plate with a central hole: XOSBPD vs uncorrected OSBPD vs a Q4 FE reference.
 
-Tutorial for the state-based models (docs/state_based.md), reproducing Ex. 1 of spec 002
-(section 9.1, boundary condition "B"):
+Tutorial for the state-based models (docs/state_based.md), reproducing Ex. 1 of Liu, Chen &
+Skelton, XOSB (Sec. 5.1; boundary condition "B" of the reconstruction in
+docs/theory/conventions.md, "Plate with a hole"):
 
 1. plane-stress square plate L = 1 m with a hole r = 0.1 m, E = 70 GPa, nu = 0.33;
    u_x = 0 on the left edge, u_x = u0 = 5e-4 m on the right edge, top/bottom free;
 2. FE reference: a Q4 plane-stress solve (:func:`pdlin.verification.plate_extension_q4`)
    on the same O-grid mapping, 2x finer than the PD mesh in each direction (4 x 64 x 120
-   at the default size, as in ``tests/verification/test_xosb_plate.py``; the spec's own
-   reference is 4 x 128 x 240, which differs by about 1e-4 max|u|).  FE values at the PD
+   at the default size, as in ``tests/verification/test_xosb_plate.py``; the reference
+   values quoted below use 4 x 128 x 240, which differs by about 1e-4 max|u|).  FE values at the PD
    particles are the FE field itself (:func:`pdlin.verification.evaluate_q4`); the test
    interpolates linearly on a Delaunay triangulation of the FE nodes instead, which differs
    by < 1e-5 max|u| here;
@@ -19,16 +20,17 @@ Tutorial for the state-based models (docs/state_based.md), reproducing Ex. 1 of 
 4. models: :class:`pdlin.XOSB` with the paper's force-state linearization and with the
    energy (symmetric) one, and uncorrected OSBPD = :class:`pdlin.LPS` with the analytic
    weighted volume (XOSB with the corrections off), paper linearization;
-5. metric (spec 002 section 9.1): on the ring (the first radial layer, 4 n_ang particles),
+5. metric: on the ring (the first radial layer, 4 n_ang particles),
    ``max |u_PD - u_FE| / range_ring(u_FE)``, per component.
 
-The spec's claim (section 11, C2): XOSBPD's ring u_y error is small (2.2 % at 7,680
-particles) while OSBPD's is not (14.5 %): on the graded mesh the uncorrected quadrature
+The paper's claim (Sec. 5.1, Fig. 4: XOSBPD close to FEM, OSBPD with a larger error), in
+numbers: XOSBPD's ring u_y error is small (reference value 2.2 % at 7,680 particles) while
+OSBPD's is not (14.5 %): on the graded mesh the uncorrected quadrature
 error does not vanish, and OSBPD contracts too much laterally near the hole.
 
 Run ``python examples/plate_with_hole_xosb.py [--coarse] [--plot out.png]``.  The default
 (7,680 particles, FE 4 x 64 x 120) takes 7-12 s and prints the ring errors
-XOSB 0.94 % / 2.24 %, OSBPD 1.35 % / 14.50 % (u_x / u_y; spec: 0.95 / 2.2, 1.4 / 14.5);
+XOSB 0.94 % / 2.24 %, OSBPD 1.35 % / 14.50 % (u_x / u_y; reference values: 0.95 / 2.2, 1.4 / 14.5);
 ``--coarse`` (4 x 24 x 45 = 4,320 particles) about 5 s: XOSB 1.02 % / 3.31 %, OSBPD
 2.44 % / 9.59 %.  Much coarser meshes do not show the effect: at 4 x 16 x 30 the ring (the
 first radial layer) is so thick that XOSB's u_y error (6.4 %) is no better than OSBPD's (6.1 %).
@@ -45,10 +47,10 @@ import numpy as np
 import pdlin
 from pdlin.verification.fem import evaluate_q4, plate_extension_q4
 
-E = 70e9  # Pa, spec 002 section 9.1
+E = 70e9  # Pa, Liu, Chen & Skelton, XOSB, Sec. 5.1
 NU = 0.33
 U0 = 5e-4  # m
-HORIZON_RATIO = 3.01  # delta_i = 3.01 sqrt(A_i), spec 002 section 2
+HORIZON_RATIO = 3.01  # delta_i = 3.01 sqrt(A_i), Liu, Chen & Skelton, XOSB, Sec. 4.1
 FE_REFINE = 2  # FE mesh: FE_REFINE x finer than the PD mesh in both directions
 COARSE = (24, 45)  # --coarse: 4 x 24 x 45 = 4,320 particles
 
@@ -82,7 +84,7 @@ def ring_and_strips(cloud: pdlin.PointCloud, n_ang: int) -> tuple[np.ndarray, np
 
 
 def nearest_on_ring(beta: np.ndarray, beta_deg: float) -> int:
-    """Ring index closest to polar angle beta_deg; ties go to the smaller angle (spec)."""
+    """Ring index closest to polar angle beta_deg; ties go to the smaller angle."""
     signed = (beta - beta_deg + 180.0) % 360.0 - 180.0
     return int(np.lexsort((beta, np.round(np.abs(signed), 9)))[0])
 
@@ -125,7 +127,7 @@ def main(n_ang: int = 32, n_rad: int = 60, plot: str | None = None) -> dict[str,
         f"(4 x {FE_REFINE * n_ang} x {FE_REFINE * n_rad} Q4)"
     )
     print(f"FE ring ranges: u_x {scale[0]:.4e} m, u_y {scale[1]:.4e} m")
-    print("ring max error / FE ring range (spec 002 section 9.1 metric):")
+    print("ring max error / FE ring range:")
     for name, err in errors.items():
         print(
             f"  {name:14s} u_x {100 * err[0]:6.2f} %   u_y {100 * err[1]:6.2f} %"

@@ -61,8 +61,8 @@ from .operators import shadow_layer as shadow_layer
 
 # the problem and its drivers
 from .problem import StaticProblem as StaticProblem
-from .problem import StaticResult as StaticResult
-from .problem import solve as solve
+from .system import StaticResult as StaticResult
+from .static import solve as solve
 from .nonlinear import NonlinearResult as NonlinearResult
 from .nonlinear import solve_nonlinear as solve_nonlinear
 from .fracture import solve_damage as solve_damage

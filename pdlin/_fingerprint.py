@@ -25,11 +25,14 @@ _DIAGNOSTIC = frozenset({"assembly", "symmetric"})
 
 
 def update(h: Any, obj: Any, _seen: set[int] | None = None) -> None:
-    """Feed ``obj`` into the hash ``h``: arrays by dtype, shape and bytes; numbers,
-    strings, None and enums by type and repr; sequences and mappings item by item;
-    functions by module, name, byte code, constants and captured values; other objects by
-    class name and public attributes (names without a leading underscore: caches are
-    private; ``_DIAGNOSTIC`` ones excluded).  An object met again is hashed as a marker."""
+    """Feed ``obj`` into the hash ``h``.
+
+    Arrays by dtype, shape and bytes; numbers, strings, None and enums by type and repr;
+    sequences and mappings item by item; functions by module, name, byte code, constants
+    and captured values; other objects by class name and public attributes (names without
+    a leading underscore: caches are private; ``_DIAGNOSTIC`` ones excluded).  An object
+    met again is hashed as a marker.
+    """
     seen = set() if _seen is None else _seen
     if obj is None or isinstance(obj, bool | int | float | complex | str | bytes | enum.Enum):
         h.update(f"{type(obj).__name__}:{obj!r};".encode())
@@ -87,7 +90,7 @@ def update(h: Any, obj: Any, _seen: set[int] | None = None) -> None:
 
 
 def digest(*objs: Any) -> str:
-    """The SHA-256 hex digest of ``objs`` (see :func:`update`).
+    """Return the SHA-256 hex digest of ``objs`` (see :func:`update`).
 
     Examples
     --------

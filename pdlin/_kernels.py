@@ -181,7 +181,7 @@ def bsr_matmul(
 
 
 def bsr_matmul(A: Any, B: Any, *, block_sizes: bool = False) -> Any:
-    """``A @ B`` of two BSR arrays whose block sizes chain (``R x N`` times ``N x S``).
+    """Multiply two BSR arrays whose block sizes chain (``R x N`` times ``N x S``).
 
     Parameters
     ----------
@@ -265,7 +265,7 @@ def _index_dtype(*maxvals: int) -> type[np.signedinteger[Any]]:
 
 
 def _pieces(X: Any, d: int) -> list[sp.csr_array]:
-    """The CSR pieces of a vertical stack (one array or a sequence), checked to chain."""
+    """Return the CSR pieces of a vertical stack (one array or a sequence), checked to chain."""
     parts = [sp.csr_array(x) for x in (X if isinstance(X, (list, tuple)) else [X])]
     if not parts:
         raise ValueError("csr block conversion: no array given")
@@ -352,7 +352,7 @@ def csr_to_bsr_t(X: Any, d: int) -> sp.bsr_array:
 
 
 def csr_to_bsr_rows(X: Any, d: int) -> sp.bsr_array:
-    """A CSR array ``X`` (``m x n·d``) as a BSR array in ``1 x d`` blocks.
+    """Convert a CSR array ``X`` (``m x n·d``) to a BSR array in ``1 x d`` blocks.
 
     ``X`` may be a sequence of CSR arrays, the pieces of a vertical stack (not built).
     Equal, bitwise and in block order, to scipy's

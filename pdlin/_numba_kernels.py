@@ -43,7 +43,7 @@ if _UserProvided is None:  # pragma: no cover - older numba
 
 
 def cache_dir() -> str | None:
-    """pdlin's per-user numba cache directory (created), or None where it is not writable.
+    """Return pdlin's per-user numba cache directory (created), or None where not writable.
 
     ``$XDG_CACHE_HOME/pdlin/numba``, by default ``~/.cache/pdlin/numba``.
 
@@ -166,8 +166,11 @@ def bsr_fill(a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bc
 def bsr_fill_sizes(
     a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bcol, edges, size, dsize
 ):
-    """:func:`bsr_fill` that also writes ``size[q] = max |C block q|`` and ``dsize[i]``, that
-    of row ``i``'s diagonal block (0 without one), while each row is in cache."""
+    """Run :func:`bsr_fill` and also write the block sizes while each row is in cache.
+
+    ``size[q] = max |C block q|`` and ``dsize[i]``, that of row ``i``'s diagonal block (0
+    without one).
+    """
     for c in numba.prange(edges.size - 1):
         _fill_chunk(
             a_ptr, a_ind, a_dat, b_ptr, b_ind, b_dat, c_ptr, c_ind, c_dat, n_bcol,
@@ -238,8 +241,10 @@ def _fill_chunk(
 
 @_njit(inline="always")
 def _row_block_sizes(r, k0, k1, ind, data, size, dsize):  # pragma: no cover
-    """``size[k] = max |block k|`` for the blocks ``k0:k1`` of block row ``r`` and ``dsize[r]``
-    that of its diagonal block (0 when it has none)."""
+    """Write ``size[k] = max |block k|`` for the blocks ``k0:k1`` of block row ``r``.
+
+    ``dsize[r]`` gets that of its diagonal block (0 when it has none).
+    """
     dsize[r] = 0.0
     for k in range(k0, k1):
         m = 0.0
@@ -589,9 +594,12 @@ def _ratio_ok_2d(a, b, c, min_ratio):  # pragma: no cover
 
 @_njit(nogil=True)
 def sp_halves_2d(p0, p1, bptr, xi, wv, geo, sides, min_ratio, bal_tol, ok):  # pragma: no cover
-    """Per point ``p0:p1`` (2D): in every case both half families' shape tensors are well
-    conditioned (``λ_min/λ_max >= min_ratio``) and balanced (``‖2 K_1 - K‖_F <= bal_tol
-    ‖K‖_F`` on the ``geo`` weights): ``_halves_well_conditioned`` per point chunk."""
+    """Flag the points ``p0:p1`` (2D) whose half families are usable in every case.
+
+    In every case both half families' shape tensors must be well conditioned
+    (``λ_min/λ_max >= min_ratio``) and balanced (``‖2 K_1 - K‖_F <= bal_tol ‖K‖_F`` on
+    the ``geo`` weights): ``_halves_well_conditioned`` per point chunk.
+    """
     n_cases = sides.shape[0]
     for p in range(p0, p1):
         b0 = bptr[p]
@@ -638,8 +646,10 @@ def sp_halves_2d(p0, p1, bptr, xi, wv, geo, sides, min_ratio, bal_tol, ok):  # p
 
 @_njit(nogil=True)
 def block_sizes_fill(r0, r1, ptr, ind, data, size, dsize):  # pragma: no cover
-    """``size[k] = max |block k|`` for the blocks of the rows ``r0:r1`` and ``dsize[r]`` that
-    of row ``r``'s diagonal block (0 when it has none)."""
+    """Write ``size[k] = max |block k|`` for the blocks of the block rows ``r0:r1``.
+
+    ``dsize[r]`` gets that of row ``r``'s diagonal block (0 when it has none).
+    """
     for r in range(r0, r1):
         _row_block_sizes(r, ptr[r], ptr[r + 1], ind, data, size, dsize)
 
@@ -690,8 +700,11 @@ def rows_with_diagonal(r0, r1, ptr, ind, has):  # pragma: no cover
 
 @_njit(nogil=True)
 def sp_gp_of_bond(p0, p1, bptr, base, full, chosen, first, out):  # pragma: no cover
-    """Gradient point of each bond of the points ``p0:p1``: ``base[p]``, plus 1 (stress
-    point 2) when ``p`` has two and the bond is not on side 1 of ``p``'s case."""
+    """Write the gradient point of each bond of the points ``p0:p1``.
+
+    That is ``base[p]``, plus 1 (stress point 2) when ``p`` has two and the bond is not on
+    side 1 of ``p``'s case.
+    """
     for p in range(p0, p1):
         for e in range(bptr[p], bptr[p + 1]):
             out[e] = base[p] + (1 if full[p] and not first[chosen[p], e] else 0)
@@ -699,10 +712,12 @@ def sp_gp_of_bond(p0, p1, bptr, base, full, chosen, first, out):  # pragma: no c
 
 @_njit(nogil=True)
 def coefficients_2d_fill(p0, p1, bptr, gptr, owner, w, xi, K, bad, out):  # pragma: no cover
-    """2D bond coefficients ``w_e K_g⁻¹ ξ_e`` of the points ``p0:p1`` in one pass: shape
-    tensors ``K_g`` (sums in bond order), their inverses (adjugate / det) and the
+    """Compute the 2D bond coefficients ``w_e K_g⁻¹ ξ_e`` of the points ``p0:p1`` in one pass.
+
+    Shape tensors ``K_g`` (sums in bond order), their inverses (adjugate / det) and the
     coefficients, with the arithmetic of the numpy path; ``bad[g]`` flags a singular
-    ``K_g`` (``|det| <= 1e-12 (|tr| / 2)²``), whose coefficients are left unset."""
+    ``K_g`` (``|det| <= 1e-12 (|tr| / 2)²``), whose coefficients are left unset.
+    """
     for p in range(p0, p1):
         g0 = gptr[p]
         g1 = gptr[p + 1]
@@ -766,11 +781,13 @@ def _cell_slot(ukeys, key):  # pragma: no cover
 def cell_pairs(
     p0, p1, pts, cell, dims, strides, offsets, ukeys, cell_ptr, order, r2, ptr, out, out_xi
 ):  # pragma: no cover
-    """Neighbours ``j != i`` with ``|x_j - x_i|² <= r2`` of the points ``p0:p1`` from a cell
-    list (cells of edge ``>= sqrt(r2)``, the points of occupied cell ``ukeys[c]`` are
-    ``order[cell_ptr[c]:cell_ptr[c+1]]``). With ``out`` empty only the counts are written
-    (``ptr[i]``); else each row ``out[ptr[i]:ptr[i+1]]`` gets its neighbours, sorted, and
-    ``out_xi`` their bond vectors ``x_j - x_i``."""
+    """Find the neighbours ``j != i`` with ``|x_j - x_i|² <= r2`` of the points ``p0:p1``.
+
+    From a cell list (cells of edge ``>= sqrt(r2)``, the points of occupied cell
+    ``ukeys[c]`` are ``order[cell_ptr[c]:cell_ptr[c+1]]``). With ``out`` empty only the
+    counts are written (``ptr[i]``); else each row ``out[ptr[i]:ptr[i+1]]`` gets its
+    neighbours, sorted, and ``out_xi`` their bond vectors ``x_j - x_i``.
+    """
     d = pts.shape[1]
     count_only = out.size == 0
     nbr = np.empty(d, np.int64)
@@ -842,9 +859,10 @@ def _cp_crystal_frame(R0, f, i):  # pragma: no cover
 def _cp_hardening_factor(s_n, i, be, h0, ss, expo):  # pragma: no cover
     """``h0 sgn(r)|r|^a``, ``r = 1 - s/ss``, of system ``be``.
 
-    ``a = 2`` (the seed 001 material) as ``r r``, ``pow``'s value up to its last bit:
-    ``pow`` had been a quarter of the stress-only kernel's time (6.6 → 4.9 ms per 10⁵
-    elastic points on one thread)."""
+    ``a = 2`` (the hardening of Luo, Ramazani & Sundararaghavan 2017, Eq. 24) as ``r r``,
+    ``pow``'s value up to its last bit: ``pow`` had been a quarter of the stress-only
+    kernel's time (6.6 → 4.9 ms per 10⁵ elastic points on one thread).
+    """
     rr = 1.0 - s_n[i, be] / ss[be]
     sgr = 1.0 if rr > 0.0 else (-1.0 if rr < 0.0 else 0.0)
     ar = rr * rr if expo[be] == 2.0 else abs(rr) ** expo[be]
@@ -885,7 +903,7 @@ def _cp_slip_matrix(Ce, AelM, H, sg, A):  # pragma: no cover
 
 @_njit(inline="always")
 def _cp_masked(A, act):  # pragma: no cover
-    """The 2 x 2 active-set matrix: ``A`` on active rows / columns, identity elsewhere."""
+    """Form the 2 x 2 active-set matrix: ``A`` on active rows / columns, identity elsewhere."""
     m00 = A[0, 0] if act[0] else 1.0
     m11 = A[1, 1] if act[1] else 1.0
     m01 = A[0, 1] if act[0] and act[1] else 0.0
@@ -920,7 +938,7 @@ def _dot4(a0, a1, a2, a3, M, row):  # pragma: no cover
 
 @_njit(inline="always")
 def _sum2(a, b):  # pragma: no cover
-    """``a + b`` summed from 0 (a two-term loop's order and bits)."""
+    """Sum ``a + b`` from 0 (a two-term loop's order and bits)."""
     t = 0.0
     t += a
     t += b
@@ -940,9 +958,12 @@ def cp_planar_fill(  # pragma: no cover
     P, Fp, s, gamma, dgamma, tau, dep, ep, plastic, sign, pruned, theta, R, reor, rate, bad,
     full,
 ):  # fmt: skip
-    """Planar double-slip return mapping with §3.6 pruning (``CrystalPlasticity('planar-2',
-    active_set='prune')``) of points ``p0 .. p1`` and their trial state, in the order of
-    the numpy path's operations (``_update_points``).  Sums over the 4 tensor entries or
+    """Run the planar double-slip return mapping with active-set pruning on points ``p0 .. p1``.
+
+    The return mapping of Luo, Ramazani & Sundararaghavan (2017), Appendix (Eqs. 26-34),
+    with systems of ``Δγ <= 0`` dropped and the rest re-solved
+    (``CrystalPlasticity('planar-2', active_set='prune')``), and its trial state, in the
+    order of the numpy path's operations (``_update_points``).  Sums over the 4 tensor entries or
     the 2 systems run left to right (the numpy path's small matrix products go through
     BLAS, so the two agree to round-off, not bitwise).  ``bad[i]`` marks a point whose
     2 x 2 active-set matrix is singular (numpy's pseudo-inverse path): its outputs are
@@ -955,7 +976,8 @@ def cp_planar_fill(  # pragma: no cover
     scratch array (those live on the heap, their entries go through memory), and the
     hardening matrix is formed only where a system is active or the trial state is
     written: the stress-only sweep ≈ 1.1-1.2 x faster than with scratch arrays, the same
-    bits (10⁵ points of the seed polycrystal, one thread)."""
+    bits (10⁵ points of the 21-grain benchmark polycrystal, one thread).
+    """
     for i in range(p0, p1):
         bad[i] = False
         r00, r01, r10, r11 = R0[i, 0, 0], R0[i, 0, 1], R0[i, 1, 0], R0[i, 1, 1]
@@ -992,7 +1014,7 @@ def cp_planar_fill(  # pragma: no cover
             A01 = h01 + sg0 * sg1 * _dot4(ce0, ce1, ce2, ce3, AelM, 1)
             A10 = h10 + sg1 * sg0 * _dot4(ce0, ce1, ce2, ce3, AelM, 2)
             A11 = h11 + sg1 * sg1 * _dot4(ce0, ce1, ce2, ce3, AelM, 3)
-            # §3.6 step 5: solve on the active set, drop Δγ <= 0, repeat
+            # solve on the active set, drop Δγ <= 0, repeat
             while True:
                 m00 = A00 if a0 else 1.0
                 m11 = A11 if a1 else 1.0
@@ -1017,7 +1039,7 @@ def cp_planar_fill(  # pragma: no cover
                     break
             if bad[i]:
                 continue
-        # §3.6 step 6: Fp = (I + Σ Δγ sgn S0) Fp_n, Fe = Fc Fp⁻¹, T̄ = 𝓛[½(FeᵀFe − I)]
+        # Fp = (I + Σ Δγ sgn S0) Fp_n, Fe = Fc Fp⁻¹, T̄ = 𝓛[½(FeᵀFe − I)]
         w0, w1 = dg0 * sg0, dg1 * sg1
         g0 = 1.0 + _dot2(w0, w1, S0, 0)
         g1 = _dot2(w0, w1, S0, 1)
@@ -1083,7 +1105,8 @@ def cp_planar_fill(  # pragma: no cover
         dp = work / seff if seff > 0.0 else 0.0
         dep[i] = dp
         ep[i] = ep_n[i] + dp
-        # lattice rotation: θ = θ0 + atan2(Fe21 − Fe12, Fe11 + Fe22), rate form of §3.2
+        # lattice rotation: θ = θ0 + atan2(Fe21 − Fe12, Fe11 + Fe22), the closed form of
+        # the reorientation rate θ̇ = (Ω21 − Ω12)/2 of Luo et al. (2017), Sec. 4
         phi = np.arctan2(e10 - e01, e00 + e11)
         th0 = theta0[i]
         th = th0 + phi
@@ -1104,10 +1127,13 @@ def cp_planar_tangent_fill(  # pragma: no cover
     p0, p1, f, R0, Fp_n, s_n, Fp, dgamma, sign,
     CS0, AelM, S0, Cm, Q, h0, ss, expo, renorm, D,
 ):  # fmt: skip
-    """Consistent tangent ``D[i, j, k, l] = ∂P_ij/∂F_kl`` of :func:`cp_planar_fill`'s
-    update (active set ``Δγ > 0`` and signs frozen) for points ``p0 .. p1``: the forward
-    linearization of ``CrystalPlasticity._tangent_analytic`` per point and direction
-    ``e_k ⊗ e_l``, from the committed state and the update's ``Fp``, ``dgamma``, ``sign``."""
+    """Compute the consistent tangent ``D[i, j, k, l] = ∂P_ij/∂F_kl`` for points ``p0 .. p1``.
+
+    The tangent of :func:`cp_planar_fill`'s update (active set ``Δγ > 0`` and signs
+    frozen): the forward linearization of ``CrystalPlasticity._tangent_analytic`` per
+    point and direction ``e_k ⊗ e_l``, from the committed state and the update's ``Fp``,
+    ``dgamma``, ``sign``.
+    """
     N = 2
     fac = np.empty(N)
     H = np.empty((N, N))
@@ -1248,9 +1274,11 @@ def cp_planar_tangent_fill(  # pragma: no cover
 
 @_njit(nogil=True)
 def adr_update_fill(i0, i1, r, inv_lam, u, u_prev, fixed, h2, cdt, out):  # pragma: no cover
-    """One central-difference ADR update of DOFs ``i0:i1`` (``_adr_run``'s numpy steps in
-    their order: ``((r Λ⁻¹) 2Δt² + 4u + (cΔt − 2) u⁻) / (2 + cΔt)``; prescribed DOFs keep
-    ``u``)."""
+    """Do one central-difference ADR update of the DOFs ``i0:i1``.
+
+    ``_adr_run``'s numpy steps in their order: ``((r Λ⁻¹) 2Δt² + 4u + (cΔt − 2) u⁻) /
+    (2 + cΔt)`` (Luo, Ramazani & Sundararaghavan 2017, Eq. 8); prescribed DOFs keep ``u``.
+    """
     a = cdt - 2.0
     b = 2.0 + cdt
     for i in range(i0, i1):
@@ -1266,9 +1294,11 @@ def adr_update_fill(i0, i1, r, inv_lam, u, u_prev, fixed, h2, cdt, out):  # prag
 
 @_njit(nogil=True)
 def adr_local_fill(i0, i1, r, r_new, lam, u_new, u, du, k, local):  # pragma: no cover
-    """``δu = uⁿ⁺¹ − uⁿ`` and (``local``) the diagonal local stiffness ``k = (rⁿ − rⁿ⁺¹) /
-    (Λ δu)`` of DOFs ``i0:i1``, ``Λ δu`` taken as ``∞`` where ``δu = 0`` (``_adr_run``'s
-    numpy steps in their order)."""
+    """Compute ``δu = uⁿ⁺¹ − uⁿ`` and (``local``) the diagonal local stiffness of DOFs ``i0:i1``.
+
+    ``k = (rⁿ − rⁿ⁺¹) / (Λ δu)`` (Luo, Ramazani & Sundararaghavan 2017, Eq. 14), ``Λ δu``
+    taken as ``∞`` where ``δu = 0`` (``_adr_run``'s numpy steps in their order).
+    """
     for i in range(i0, i1):
         d = u_new[i] - u[i]
         du[i] = d

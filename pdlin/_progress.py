@@ -11,8 +11,9 @@ PROGRESS_EVERY = 5.0
 
 
 class Throttle:
-    """Call ``say(message())`` at most every ``every`` seconds (the first call after
-    ``every`` seconds of the stage, then every ``every`` seconds).
+    """Call ``say(message())`` at most every ``every`` seconds.
+
+    The first call after ``every`` seconds of the stage, then every ``every`` seconds.
 
     Examples
     --------
@@ -36,8 +37,10 @@ class Throttle:
 
 
 class ResidualHistory(list[float]):
-    """A list of relative residuals that reports the iteration count and the latest
-    residual through a :class:`Throttle` as the Krylov solvers append to it."""
+    """List relative residuals and report them as the Krylov solvers append them.
+
+    The iteration count and the latest residual go through a :class:`Throttle`.
+    """
 
     def __init__(self, tick: Throttle, label: str) -> None:
         super().__init__()
@@ -50,11 +53,12 @@ class ResidualHistory(list[float]):
 
 
 def linear_progress(progress: Callable[[str], None], prefix: str) -> Callable[[str], None]:
-    """The progress of a linear solve run many times over (Newton iterations, damage
-    steps): its iteration lines (throttled by :func:`pdlin.solvers.solve_linear`)
-    and an AMG set-up that took longer than :data:`PROGRESS_EVERY` seconds, each
-    prefixed with ``prefix``; not the set-up line of every quick solve, nor the stage
-    lines of :func:`pdlin.solve` (those not indented).
+    """Filter the progress of a linear solve run many times over (Newton iterations, damage).
+
+    Passes its iteration lines (throttled by :func:`pdlin.solvers.solve_linear`) and an
+    AMG set-up that took longer than :data:`PROGRESS_EVERY` seconds, each prefixed with
+    ``prefix``; not the set-up line of every quick solve, nor the stage lines of
+    :func:`pdlin.solve` (those not indented).
 
     Examples
     --------

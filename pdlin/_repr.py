@@ -95,7 +95,7 @@ def compact_repr(name: str, items: Mapping[str, Any]) -> str:
 
 
 def html_table(title: str, rows: Iterable[tuple[str, Any]]) -> str:
-    """An HTML ``<table>`` of ``(label, value)`` rows under a caption (Jupyter display).
+    """Render ``(label, value)`` rows as an HTML ``<table>`` under a caption (Jupyter).
 
     Examples
     --------

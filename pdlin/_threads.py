@@ -55,7 +55,7 @@ _local = threading.local()
 
 
 def _after_fork_in_child() -> None:
-    """A forked child inherits the pool object but not its threads: start afresh."""
+    """Start the pool afresh in a forked child (it inherits the object, not the threads)."""
     global _lock, _pool, _pool_size
     _lock = threading.Lock()
     _pool = None
@@ -185,8 +185,9 @@ def even_chunks(n: int, size: int) -> list[tuple[int, int]]:
 
 
 def ptr_chunks(ptr: Any, size: int) -> list[tuple[int, int]]:
-    """Ranges of rows of a CSR-style row pointer holding about ``size`` entries each
-    (rows never split; empty input gives one range).
+    """Split the rows of a CSR-style row pointer into ranges of about ``size`` entries.
+
+    Rows are never split; empty input gives one range.
 
     Examples
     --------

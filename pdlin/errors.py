@@ -160,6 +160,8 @@ class AccuracyWarning(UserWarning):
 
 
 class SlowRunWarning(UserWarning):
-    """A run is estimated, before it starts, to take longer than
-    ``pdlin.resources.LONG_RUN_SECONDS`` (the message gives the estimate and its
-    sizes: points, bonds, nonzeros)."""
+    """A run is estimated, before it starts, to take longer than a long-run limit.
+
+    The limit is ``pdlin.resources.LONG_RUN_SECONDS``; the message gives the estimate
+    and its sizes (points, bonds, nonzeros).
+    """

@@ -108,7 +108,18 @@ _CHUNK = 1 << 16
 
 
 def shape_tensor(bonds: Bonds) -> np.ndarray:
-    """Shape tensors ``K_i = Σ_j ω ξ⊗ξ V_j``, ``(n, dim, dim)``."""
+    """Compute the shape tensors ``K_i = Σ_j ω ξ⊗ξ V_j``.
+
+    Parameters
+    ----------
+    bonds : Bonds
+        Bonds with influence values ``omega`` and neighbour volumes ``volume_j``.
+
+    Returns
+    -------
+    ndarray of float, shape (n, dim, dim)
+        Symmetric shape tensor per point (zero for points without bonds).
+    """
     w = bonds.omega * bonds.volume_j
     return _per_point_outer(bonds.i, bonds.n_points, w, bonds.xi, bonds.xi)
 
@@ -116,7 +127,7 @@ def shape_tensor(bonds: Bonds) -> np.ndarray:
 def deformation_gradient(
     cloud: PointCloud, bonds: Bonds, u: np.ndarray, *, n_owners: int | None = None
 ) -> np.ndarray:
-    """Nonlocal deformation gradient ``F_i = I + [Σ ω η⊗ξ V_j] K_i⁻¹``.
+    """Compute the nonlocal deformation gradient ``F_i = I + [Σ ω η⊗ξ V_j] K_i⁻¹``.
 
     Exact for affine displacement fields at every point whose shape tensor
     is invertible, boundary points included.
@@ -124,6 +135,29 @@ def deformation_gradient(
     ``n_owners`` restricts the evaluation to the first points (bonds are
     owner-sorted), e.g. the real points of a cloud extended by mirror
     images; the result then has ``n_owners`` rows.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+        The points.
+    bonds : Bonds
+        Bonds of ``cloud``.
+    u : (n, dim) or (n * dim,) array_like of float
+        Displacement per point.
+    n_owners : int, optional
+        Evaluate only the first ``n_owners`` points.
+
+    Returns
+    -------
+    ndarray of float, shape (n, dim, dim) or (n_owners, dim, dim)
+        Deformation gradient per point.
+
+    Raises
+    ------
+    ShapeError
+        If ``u`` does not hold ``n * dim`` values.
+    InputError
+        If a shape tensor is singular (a family that does not span the space).
 
     Examples
     --------
@@ -160,7 +194,18 @@ def deformation_gradient(
 
 
 def small_strain(F: np.ndarray) -> np.ndarray:
-    """Small strain ``ε = sym(F) - I`` for ``(n, d, d)`` deformation gradients."""
+    """Compute the small strain ``ε = sym(F) - I``.
+
+    Parameters
+    ----------
+    F : (..., d, d) ndarray of float
+        Deformation gradients.
+
+    Returns
+    -------
+    ndarray of float, shape of ``F``
+        Symmetric small-strain tensors.
+    """
     d = F.shape[-1]
     return 0.5 * (F + np.swapaxes(F, -1, -2)) - np.eye(d)
 
@@ -168,9 +213,30 @@ def small_strain(F: np.ndarray) -> np.ndarray:
 def isotropic_stress(
     strain: np.ndarray, E: float | np.ndarray, nu: float, *, plane: str = "stress"
 ) -> np.ndarray:
-    """Linear isotropic Cauchy stress ``(n, d, d)`` from small strain.
+    """Compute the linear isotropic Cauchy stress from small strain.
 
     2D uses plane stress or plane strain; 1D returns ``E ε``.
+
+    Parameters
+    ----------
+    strain : (..., d, d) ndarray of float
+        Small-strain tensors.
+    E : float or (n,) array_like of float
+        Young's modulus, scalar or per point (leading axis of ``strain``).
+    nu : float
+        Poisson ratio.
+    plane : {'stress', 'strain'}
+        2D assumption (ignored in 1D and 3D).
+
+    Returns
+    -------
+    ndarray of float, shape of ``strain``
+        Stress tensors (units of ``E``).
+
+    Raises
+    ------
+    InputError
+        If (2D or 3D) ``plane`` is not 'stress' or 'strain'.
     """
     d = strain.shape[-1]
     E = np.asarray(E, dtype=float)
@@ -190,7 +256,18 @@ def isotropic_stress(
 
 
 def von_mises(stress: np.ndarray) -> np.ndarray:
-    """Von Mises equivalent stress of ``(n, d, d)`` tensors (in-plane for 2D)."""
+    """Compute the von Mises equivalent stress.
+
+    Parameters
+    ----------
+    stress : (..., d, d) ndarray of float
+        Stress tensors; 2D tensors are taken with zero out-of-plane stress.
+
+    Returns
+    -------
+    ndarray of float, shape ``stress.shape[:-2]``
+        ``sqrt(3 J2)`` per tensor.
+    """
     d = stress.shape[-1]
     tr = np.einsum("...ii->...", stress)
     dev = stress - tr[..., None, None] / 3.0 * np.eye(d)

@@ -1,4 +1,6 @@
-"""Quasi-static stretch damage: load steps, bond breaking and re-solves (spec 002 §8).
+"""Quasi-static stretch damage: load steps, bond breaking and re-solves.
+
+The stretch criterion of Liu, Chen & Skelton, XOSB (§5.3, Eq. 88), used quasi-statically.
 
 :func:`solve_damage` drives a linear :class:`~pdlin.StaticProblem` through proportional
 load steps ``t_k = k / steps`` (every prescribed displacement and load scaled by ``t``).
@@ -26,7 +28,9 @@ from ._validation import integer
 from .errors import InputError, InputTypeError, SlowRunWarning
 from .geometry.bonds import Bonds
 from .models.damage import bond_stretch, break_bonds, damage_index, isolated_points
-from .problem import StaticProblem, StaticResult, solve
+from .problem import StaticProblem
+from .static import solve
+from .system import StaticResult
 
 __all__ = ["DamageResult", "solve_damage"]
 
@@ -75,20 +79,30 @@ class DamageResult:
 
     @property
     def n_steps(self) -> int:
+        """Number of load steps stored."""
         return int(self.factors.size)
 
     def __repr__(self) -> str:
-        """Steps, broken bonds and damage (no arrays, no memory address)."""
+        """Return steps, broken bonds and damage (no arrays, no memory address)."""
         items = {k: v for k, v in self.summary().items() if k != "timings"}
         return compact_repr("DamageResult", {**items, "stopped": items["stopped"] or None})
 
     def _repr_html_(self) -> str:
-        """The summary as an HTML table (Jupyter)."""
+        """Return the summary as an HTML table (Jupyter)."""
         rows = [(k.replace("_", " "), v) for k, v in self.summary().items() if k != "timings"]
         return html_table("DamageResult", rows)
 
     def summary(self) -> dict[str, Any]:
-        """Plain-data summary (for the CLI)."""
+        """Return a plain-data summary (for the CLI).
+
+        Returns
+        -------
+        dict
+            ``steps``, ``points``, ``dim``, ``critical_stretch``, ``broken_bonds`` (after
+            the last step), ``max_damage``, ``first_break_load`` (load factor of the
+            first break, or None), ``linear_solves``, ``stopped`` (reason or None) and
+            ``timings`` (seconds per phase, rounded).
+        """
         return {
             "steps": self.n_steps,
             "points": int(self.u.shape[1]),
@@ -104,8 +118,10 @@ class DamageResult:
 
 
 def _check_damage_history(n: int, dim: int, steps: int) -> None:
-    """Refuse a step count whose stored history (u and damage per step, kept twice while
-    the result arrays are built) does not fit in memory."""
+    """Refuse a step count whose stored history does not fit in memory.
+
+    The history is u and damage per step, kept twice while the result arrays are built.
+    """
     from .resources import LONG_RUN_SECONDS, available_memory, check_memory
 
     per_step = 2 * 8 * n * (dim + 1) + 64
@@ -142,7 +158,7 @@ def solve_damage(
     rtol: float = 1e-10,
     progress: Callable[[str], None] | None = None,
 ) -> DamageResult:
-    """Proportional load steps with irreversible stretch-based bond breaking.
+    """Apply proportional load steps with irreversible stretch-based bond breaking.
 
     Parameters
     ----------
@@ -166,6 +182,7 @@ def solve_damage(
     Returns
     -------
     DamageResult
+        Per-step displacements, damage, broken-bond counts and the last solve.
 
     Raises
     ------

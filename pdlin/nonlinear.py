@@ -27,6 +27,7 @@ import scipy.sparse as sp
 from ._fingerprint import digest
 from ._repr import compact_repr, html_table, time_span
 from ._validation import as_float_array, integer
+from .constraints import eliminate_dirichlet
 from .errors import (
     CheckpointError,
     CheckpointWriteError,
@@ -36,7 +37,7 @@ from .errors import (
     ShapeError,
     TrialStateWarning,
 )
-from .operators.bc import TimePath, eliminate_dirichlet
+from .operators.bc import TimePath
 from .problem import StaticProblem
 from .solvers.linear import solve_linear
 from .solvers.nonlinear import (

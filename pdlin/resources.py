@@ -121,7 +121,17 @@ SUPERLU_WORKSPACE = 2.0
 
 
 def format_bytes(n: float) -> str:
-    """Human-readable size, e.g. ``'1.35 GB'`` (decimal units).
+    """Format a size in bytes for people, e.g. ``'1.35 GB'`` (decimal units).
+
+    Parameters
+    ----------
+    n : float
+        Bytes.
+
+    Returns
+    -------
+    str
+        Two decimals and a unit from kB to PB; plain bytes below 1 kB.
 
     Examples
     --------
@@ -183,7 +193,13 @@ def _meminfo() -> dict[str, int]:
 
 
 def current_rss() -> int:
-    """Resident memory of this process in bytes (0 when unknown)."""
+    """Measure the resident memory of this process.
+
+    Returns
+    -------
+    int
+        Bytes (from ``/proc/self/statm``); 0 where that cannot be read.
+    """
     try:
         with open("/proc/self/statm") as f:
             return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
@@ -204,8 +220,10 @@ CGROUP_ROOT = "/sys/fs/cgroup"
 
 
 def _cgroup_dirs() -> list[tuple[str, str]]:
-    """(version, directory) of this process's memory cgroup, innermost first, then the
-    mount point (a container's own root)."""
+    """List this process's memory cgroup directories as ``(version, directory)`` pairs.
+
+    Innermost first, then the mount point (a container's own root); v2 before v1.
+    """
     v2: list[str] = []
     v1: list[str] = []
     try:
@@ -236,8 +254,11 @@ def _stat_value(path: str, key: str) -> int:
 
 
 def _cgroup_headroom() -> int | None:
-    """Limit minus usage of the innermost memory cgroup with a limit (reclaimable page
-    cache, ``inactive_file``, not counted as used); None without a limit."""
+    """Return the limit minus the usage of the innermost memory cgroup with a limit.
+
+    Reclaimable page cache (``inactive_file``) is not counted as used; None without a
+    limit.
+    """
     names = {
         "v2": ("memory.max", "memory.current", "inactive_file"),
         "v1": ("memory.limit_in_bytes", "memory.usage_in_bytes", "total_inactive_file"),
@@ -276,7 +297,13 @@ class MemoryBudget:
         return min(self.limits, key=self.limits.__getitem__) if self.limits else "unknown"
 
     def describe(self) -> str:
-        """``'1.20 GB (cgroup)'``."""
+        """Describe the budget and the limit that binds.
+
+        Returns
+        -------
+        str
+            E.g. ``'1.20 GB (cgroup)'``.
+        """
         return f"{format_bytes(self.bytes)} ({self.source})"
 
 
@@ -291,6 +318,7 @@ def available_memory() -> MemoryBudget:
     Returns
     -------
     MemoryBudget
+        The smallest headroom in bytes and every limit found.
 
     Examples
     --------
@@ -388,10 +416,28 @@ def _ball_volume(dim: int, r: float) -> float:
 
 
 def neighbours_per_point(dim: int, ratio: float) -> float:
-    """Neighbours of an interior point of a unit lattice within ``ratio`` spacings.
+    """Count the neighbours of an interior point of a unit lattice within ``ratio`` spacings.
 
     Exact lattice-point count (without the point itself) for ``(2 ratio + 1)^dim`` up to
     10⁷ stencil points, the ball volume beyond.
+
+    Parameters
+    ----------
+    dim : {1, 2, 3}
+        Lattice dimension.
+    ratio : float
+        Radius in lattice spacings (δ / h); points at exactly ``ratio`` count (relative
+        tolerance 1e-9).
+
+    Returns
+    -------
+    float
+        The count (an integer value), or the ball volume for very wide stencils.
+
+    Raises
+    ------
+    InputError
+        When ``dim`` is not 1, 2 or 3 or ``ratio`` is not finite and positive.
 
     Examples
     --------
@@ -432,6 +478,22 @@ def lattice_pair_count(
     stencils).  The stencil is clipped to the grid; above 2·10⁷ stencil points the interior
     count ``n x min(neighbours(hops x radius), n - 1)`` (an upper bound).
 
+    Parameters
+    ----------
+    shape : sequence of int
+        Points per axis.
+    spacing : sequence of float
+        Spacing per axis.
+    radius : float
+        Bond length limit (the horizon), same units as ``spacing``.
+    hops : int
+        1 for the bonds, 2 for the pattern of a two-hop (state-based) K.
+
+    Returns
+    -------
+    int
+        Number of directed pairs ``(i, j)``, ``i != j``.
+
     Examples
     --------
     >>> import pdlin
@@ -466,11 +528,27 @@ def lattice_pair_count(
 
 def estimate_pair_count(cloud: Any, horizon: Any = None, ratio: float | None = None, *,
                         hops: int = 1) -> int:  # fmt: skip
-    """Directed pairs at most ``hops`` bonds apart, before any search.
+    """Estimate the directed pairs at most ``hops`` bonds apart, before any search.
 
     Exact for :func:`pdlin.grid` clouds with a constant horizon; otherwise
     ``sum_i neighbours(δ_i / h_i)`` with the point's spacing ``h_i = V_i^(1/d)`` (interior
     count: an upper bound for clouds with boundaries).
+
+    Parameters
+    ----------
+    cloud : PointCloud
+        The points.
+    horizon : float or (n,) array_like, optional
+        Horizon(s); see :func:`pdlin.find_bonds`.
+    ratio : float, optional
+        Horizon as a multiple of the spacing (instead of ``horizon``).
+    hops : int
+        1 for the bonds, 2 for the pattern of a two-hop K.
+
+    Returns
+    -------
+    int
+        Estimated number of directed pairs.
     """
     from .geometry.bonds import resolve_horizon
 
@@ -493,13 +571,43 @@ def estimate_pair_count(cloud: Any, horizon: Any = None, ratio: float | None = N
 
 
 def bonds_bytes(n_bonds: float, n_points: float, dim: int) -> int:
-    """Bytes of :class:`pdlin.Bonds` with ``n_bonds`` directed bonds (matches ``Bonds.nbytes``)."""
+    """Estimate the bytes of :class:`pdlin.Bonds` (matches ``Bonds.nbytes``).
+
+    Parameters
+    ----------
+    n_bonds : float
+        Directed bonds.
+    n_points : float
+        Points.
+    dim : int
+        Dimension (``xi`` holds ``dim`` floats per bond).
+
+    Returns
+    -------
+    int
+        Bytes of the bond arrays and the row pointer.
+    """
     return int(n_bonds * (_BOND_BYTES_FIXED + 8 * dim) + 16 * (n_points + 1))
 
 
 def grid_bytes(n_points: float, dim: int) -> int:
-    """Peak bytes of building a grid cloud: coordinates, volumes, the meshgrid copies, face
-    sets (each about ``n^((d-1)/d)`` indices)."""
+    """Estimate the peak bytes of building a grid cloud.
+
+    Coordinates, volumes, the meshgrid copies and the face sets (each about
+    ``n^((d-1)/d)`` indices).
+
+    Parameters
+    ----------
+    n_points : float
+        Points of the grid.
+    dim : int
+        Dimension.
+
+    Returns
+    -------
+    int
+        Estimated peak bytes.
+    """
     faces = 2 * dim * 8 * n_points ** ((dim - 1) / dim) if dim > 1 else 16
     return int(8 * n_points * (3 * dim + 2) + faces)
 
@@ -514,6 +622,22 @@ def direct_factor_nnz(n_points: int, nnz_blocks: int, dim: int, dofs_per_point: 
     geometric series of the 3D levels), capped at the dense ``ndof² / 2``; ``c`` is
     :data:`FILL_CONSTANT` (2D: 401² correspondence, CHOLMOD nnz(L) 1.9·10⁸ against
     5.7·10⁷ for ``s² log2(N / R)``).
+
+    Parameters
+    ----------
+    n_points : int
+        Points (block rows of K).
+    nnz_blocks : int
+        Stored d x d blocks of K, diagonal included.
+    dim : int
+        Dimension of the body (1D is banded: no fill beyond K).
+    dofs_per_point : int
+        Block size.
+
+    Returns
+    -------
+    int
+        Estimated nonzeros of L, at least K's lower triangle, at most dense.
     """
     n = max(int(n_points), 1)
     ndof = n * dofs_per_point
@@ -533,9 +657,27 @@ def direct_factor_nnz(n_points: int, nnz_blocks: int, dim: int, dofs_per_point: 
 
 
 def direct_factor_bytes(nnz_l: float, backend: str, n_points: int = 0, dim: int = 2) -> int:
-    """Bytes of a factor with ``nnz_l`` (nested-dissection) nonzeros in L: 8 (value) + 4
-    (index) per entry; SuperLU holds L and U under a minimum-degree order
-    (:data:`SUPERLU_FILL_2D`, :data:`SUPERLU_FILL_3D_PER_SIDE`)."""
+    """Estimate the bytes of a direct factor with ``nnz_l`` (nested-dissection) nonzeros in L.
+
+    8 (value) + 4 (index) bytes per entry; SuperLU holds L and U under a minimum-degree
+    order (:data:`SUPERLU_FILL_2D`, :data:`SUPERLU_FILL_3D_PER_SIDE` times more).
+
+    Parameters
+    ----------
+    nnz_l : float
+        Nonzeros of L, e.g. from :func:`direct_factor_nnz`.
+    backend : str
+        ``'superlu'`` (L and U) or a Cholesky backend (``'cholmod'``, ``'pardiso'``).
+    n_points : int
+        Points (SuperLU's 3D fill grows with the side ``n^(1/3)``).
+    dim : int
+        Dimension.
+
+    Returns
+    -------
+    int
+        Estimated bytes of the factor.
+    """
     f = 1.0
     if backend == "superlu":
         if dim == 3:
@@ -589,7 +731,14 @@ class RunEstimate:
         return self.base + max(self.stages.values())
 
     def slow_warning(self) -> str | None:
-        """A warning text when the run is estimated to exceed :data:`LONG_RUN_SECONDS`."""
+        """Return a warning text when the run is estimated to exceed :data:`LONG_RUN_SECONDS`.
+
+        Returns
+        -------
+        str or None
+            The estimated minutes, the sizes and what would be faster; ``None`` for a
+            shorter run.
+        """
         if self.seconds <= LONG_RUN_SECONDS:
             return None
         return (
@@ -604,7 +753,13 @@ class RunEstimate:
         return self.peak - current_rss()
 
     def summary(self) -> str:
-        """One line for the stage printer."""
+        """Summarize the estimate in one line for the stage printer.
+
+        Returns
+        -------
+        str
+            Peak, its stage and the sizes.
+        """
         big = max(self.stages, key=self.stages.__getitem__)
         return (
             f"memory estimate: peak ~{format_bytes(self.peak)} ({big}) for "
@@ -637,6 +792,11 @@ def estimate_static_run(
         Direct backend (``'superlu'`` holds L and U).
     base : int, optional
         Resident bytes to start from (default: the current RSS plus late imports).
+
+    Returns
+    -------
+    RunEstimate
+        Peak bytes per stage above ``base`` and an order-of-magnitude run time.
 
     Examples
     --------
@@ -705,8 +865,20 @@ GENERIC_HINTS = (
 
 
 def out_of_memory_message(exc: MemoryError) -> str:
-    """One-line report of a ``MemoryError``: pdlin's refusal as it is, a raw one with the
-    available memory and :data:`GENERIC_HINTS`."""
+    """Report a ``MemoryError`` in one line.
+
+    Parameters
+    ----------
+    exc : MemoryError
+        The error; pdlin's own :class:`~pdlin.errors.InsufficientMemoryError` is
+        reported as it is.
+
+    Returns
+    -------
+    str
+        For a raw ``MemoryError``: its text, the memory available now and
+        :data:`GENERIC_HINTS`.
+    """
     if isinstance(exc, InsufficientMemoryError):
         return str(exc)
     detail = str(exc).strip()

@@ -20,8 +20,9 @@ from typing import Any
 import numpy as np
 
 from ._validation import as_float_array
+from .constraints import load_vector, resolve_dirichlet
 from .errors import InputError, ShapeError
-from .operators.bc import BodyForce, Dirichlet, load_vector, resolve_dirichlet
+from .operators.bc import BodyForce, Dirichlet
 from .problem import StaticProblem
 
 __all__ = ["SubregionProblem", "subregion", "problem_horizon"]
@@ -50,7 +51,24 @@ class SubregionProblem:
 
 
 def problem_horizon(problem: StaticProblem) -> float:
-    """Largest horizon of a problem (its bonds, ``horizon`` or ``ratio`` x spacing).
+    """Return the largest horizon of a problem (its bonds, ``horizon`` or ``ratio`` x spacing).
+
+    Parameters
+    ----------
+    problem : StaticProblem
+        The problem; its bonds, ``horizon``, the cloud's horizon or
+        ``bond_options['ratio']`` times the (lattice or median) spacing is used,
+        in that order.
+
+    Returns
+    -------
+    float
+        The largest horizon, in length units.
+
+    Raises
+    ------
+    InputError
+        If the problem has none of them.
 
     Examples
     --------
@@ -121,6 +139,7 @@ def subregion(
     Returns
     -------
     SubregionProblem
+        The sub-problem, the kept points' indices, the interior mask and the layer.
 
     Notes
     -----
@@ -256,7 +275,7 @@ def subregion(
 
 
 def _driver_arrays(driver: Any) -> tuple[np.ndarray, np.ndarray]:
-    from .problem import StaticResult
+    from .system import StaticResult
 
     if isinstance(driver, StaticResult):
         return np.asarray(driver.problem.cloud.points), np.asarray(driver.u, dtype=float)

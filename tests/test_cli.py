@@ -524,11 +524,11 @@ def _no_work(monkeypatch):
     import pdlin.io.results
     import pdlin.nonlinear
     import pdlin.plotting
-    import pdlin.problem
+    import pdlin.static
     import pdlin.sweeps.scene
     from pdlin.io.targets import CalibrationJob
 
-    monkeypatch.setattr(pdlin.problem, "solve", work)
+    monkeypatch.setattr(pdlin.static, "solve", work)
     monkeypatch.setattr(pdlin.nonlinear, "solve_nonlinear", work)
     monkeypatch.setattr(pdlin.fracture, "solve_damage", work)
     monkeypatch.setattr(pdlin.io.results, "export_system", work)

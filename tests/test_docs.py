@@ -188,3 +188,41 @@ def test_install_page_floors_are_the_ci_floors():
     rows = dict(re.findall(r"^\| ([\w-]+) \| ([\w.]+) \|", table, flags=re.M))
     rows.pop("package", None)
     assert rows == floors
+
+
+def _heading_anchors(text: str) -> set[str]:
+    """GitHub / MyST anchors of the ``#``, ``##`` and ``###`` headings of a markdown page."""
+    titles = re.findall(r"^#{1,3} (.+)$", text, flags=re.M)
+    return {re.sub(r"[^\w\- ]", "", t.strip().lower()).replace(" ", "-") for t in titles}
+
+
+def test_links_to_the_theory_pages_name_existing_sections():
+    root = DOCS.parent
+    anchors = {
+        name: _heading_anchors((DOCS / "theory" / name).read_text(encoding="utf-8"))
+        for name in ("conventions.md", "references.md")
+    }
+    files = [root / "README.md", *DOCS.rglob("*.md"), *(root / "pdlin").rglob("*.py")]
+    files += sorted((root / "examples").glob("*.py"))
+    broken = []
+    for path in files:
+        text = path.read_text(encoding="utf-8")
+        for page, anchor in re.findall(r"theory/(conventions|references)\.md#([\w-]+)", text):
+            if anchor not in anchors[f"{page}.md"]:
+                broken.append(f"{path.relative_to(root)}: {page}.md#{anchor}")
+        if path.parent == DOCS / "theory":  # links within the theory pages
+            for anchor in re.findall(r"\]\(#([\w-]+)\)", text):
+                if anchor not in anchors.get(path.name, set()):
+                    broken.append(f"{path.relative_to(root)}: #{anchor}")
+    assert not broken, broken
+
+
+def test_readme_is_for_users():
+    readme = (DOCS.parent / "README.md").read_text(encoding="utf-8")
+    assert "spec 00" not in readme.lower()
+    assert "Coming next" not in readme
+    # no diary: dated entries belong in benchmarks/README.md or CHANGELOG.md
+    assert not re.search(r"\b20\d\d-\d\d-\d\d\b", readme)
+    headings = ("## Quick start", "## Python in ten lines", "## Command line", "## Documentation")
+    for heading in headings:
+        assert heading in readme, heading

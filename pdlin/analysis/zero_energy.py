@@ -1,16 +1,18 @@
 """Zero-energy-mode analysis: near-zero eigenvalue counts and checkerboard energies.
 
-Two complementary measures (spec 000 §4, spec 003 §9–§10):
+Two complementary measures of the zero-energy modes of Javaheri, Luo, Lakshmanan &
+Sundararaghavan (2022, Sec. II.B) and Luo & Sundararaghavan (2018):
 
 * :func:`count_zero_modes` counts the eigenvalues of K below
   ``tol * λ_max`` and subtracts the rigid-body modes (dense ``eigvalsh``
   below ``dense_limit`` DOFs, shift-invert Lanczos above).  On free finite
   bodies with their own truncated shape tensors every control shows the
-  rigid modes only (spec 000 §14, spec 003 §10); the counts discriminate
+  rigid modes only (observed for every control in pdlin's reference
+  computations); the counts discriminate
   on constrained systems (``dofs=`` the real DOFs of a shadow layer).
 * :func:`checkerboard_energy_ratio` compares the Rayleigh quotient of the
-  modes ``s(x) (-1)^{θ·idx}``, ``θ ∈ {0, 1}^d \\ 0``, with that of the
-  smooth mode ``s = Π sin(π x̂_k)`` (spec 003 V11): a ratio of 1 means the
+  modes ``s(x) (-1)^{θ·idx}``, ``θ ∈ {0, 1}^d``, ``θ ≠ 0``, with that of the
+  smooth mode ``s = Π sin(π x̂_k)`` (pdlin's measure): a ratio of 1 means the
   operator cannot tell the checkerboard from the smooth field.
 """
 
@@ -62,9 +64,11 @@ class ZeroEnergyReport:
     eigenvalues : ndarray
         The smallest eigenvalues computed (ascending).
     lambda_max : float
+        Largest eigenvalue of K (the scale of ``tol``).
     method : str
         'dense' or 'shift-invert'.
     tol : float
+        Zero threshold relative to ``lambda_max``.
     """
 
     n_zero: int
@@ -103,6 +107,7 @@ def count_zero_modes(
     Parameters
     ----------
     K : sparse array or ndarray (N, N)
+        Symmetric positive semi-definite stiffness.
     dim : int, optional
         Spatial dimension; sets ``n_rigid`` for a free body (1 / 3 / 6).
     n_rigid : int, optional
@@ -110,11 +115,25 @@ def count_zero_modes(
     dofs : (m,) array_like of int, optional
         Restrict K to these DOFs (e.g. the real DOFs of a shadow layer).
     tol : float
-        Zero threshold relative to ``lambda_max`` (spec 000 §13: 1e-10).
+        Zero threshold relative to ``lambda_max`` (pdlin's default 1e-10).
     dense_limit : int
         Dense ``eigvalsh`` up to this many DOFs, shift-invert ``eigsh`` above.
     k : int, optional
         Eigenvalues computed by the sparse path (default ``n_rigid + 20``).
+
+    Returns
+    -------
+    ZeroEnergyReport
+        Zero count, expected rigid modes, spurious count, smallest eigenvalues,
+        ``lambda_max`` and the eigen-solver used.
+
+    Raises
+    ------
+    ShapeError
+        If ``K`` (restricted to ``dofs``) is not square.
+    InputError
+        If neither ``dim`` nor ``n_rigid`` is given, ``dim`` is not 1-3 or
+        ``tol <= 0``.
 
     Examples
     --------
@@ -161,13 +180,38 @@ def count_zero_modes(
 
 
 def periodic_lattice_bonds(cloud: PointCloud, ratio: float, influence: Any = "constant") -> Bonds:
-    """Bonds of a fully periodic lattice (every family intact), for symbol/kernel studies.
+    """Build the bonds of a fully periodic lattice (every family intact).
+
+    For symbol and kernel studies.
 
     ``cloud`` must be a complete :func:`pdlin.grid` with equal spacing ``h``; point ``a``
     bonds to ``a + p (mod n)`` for every integer offset ``|p| h <= ratio h`` with the
     unwrapped bond vector ``ξ = p h``.  Each axis needs more than ``2 floor(ratio)`` points
-    (no neighbour twice).  On such a lattice the kernel of K is the periodic nullity of
-    spec 000 §4 / spec 003 V4.
+    (no neighbour twice).  On such a lattice the kernel of K is spanned by the lattice
+    waves ``exp(i θ·a)`` at the zeros of the gradient symbol
+    (:func:`pdlin.models.weights.gradient_symbol`).
+
+    Parameters
+    ----------
+    cloud : PointCloud
+        A complete :func:`pdlin.grid` cloud with equal spacing on every axis.
+    ratio : float
+        Horizon over spacing, ``delta / h`` > 0.
+    influence : str or callable
+        Influence function (name or ``f(length, horizon)``), as for
+        :func:`pdlin.find_bonds`.
+
+    Returns
+    -------
+    Bonds
+        Periodic bonds in CSR order, with horizon ``ratio h`` at every point.
+
+    Raises
+    ------
+    ModelError
+        If ``cloud`` is not a complete grid with equal spacing.
+    InputError
+        If ``ratio <= 0`` or an axis has too few points.
 
     Examples
     --------
@@ -175,7 +219,8 @@ def periodic_lattice_bonds(cloud: PointCloud, ratio: float, influence: Any = "co
     >>> cloud = pdlin.grid((24,), spacing=1.0)
     >>> b = periodic_lattice_bonds(cloud, 2.0, influence="inverse")
     >>> K = pdlin.assemble_stiffness(pdlin.Correspondence(E=1.0), cloud, b)
-    >>> count_zero_modes(K, n_rigid=0).n_zero   # spec 000 §4: no control 2h, n = 24 -> 4
+    >>> # omega = 1/|xi| at 2h: g = 0 at theta = 0, pi, +-2 pi/3 -> 4 modes on 24 points
+    >>> count_zero_modes(K, n_rigid=0).n_zero
     4
     """
     from ..geometry.influence import evaluate_influence
@@ -227,12 +272,30 @@ def _lattice_index(cloud: PointCloud) -> np.ndarray:
 
 
 def checkerboard_energy_ratio(K: Any, cloud: PointCloud) -> CheckerboardReport:
-    """Energy of the ``{0, π}^d`` modes relative to the smooth mode.
+    """Compute the energy of the ``{0, π}^d`` modes relative to the smooth mode.
 
     ``s = Π_k sin(π x̂_k)`` with ``x̂`` the points mapped to ``[0, 1]`` by
-    their bounding box (so ``s = 0`` on the outermost points, as on the
-    node lattices of spec 003 V11); the mode ``v = s (-1)^{θ·idx} e_k``.
-    Returns ``R(v)/R(s e_k)`` with ``R(w) = wᵀKw / wᵀw``.
+    their bounding box (so ``s = 0`` on the outermost points); the mode
+    ``v = s (-1)^{θ·idx} e_k``.
+
+    Parameters
+    ----------
+    K : sparse array or ndarray (n d, n d)
+        Stiffness of ``cloud`` (point-major DOF order).
+    cloud : PointCloud
+        A :func:`pdlin.grid` cloud (lattice indices are needed).
+
+    Returns
+    -------
+    CheckerboardReport
+        ``R(v)/R(s e_k)`` with ``R(w) = wᵀKw / wᵀw`` per ``(θ, k)`` and the minimum.
+
+    Raises
+    ------
+    ShapeError
+        If ``K`` does not match the cloud's DOFs.
+    ModelError
+        If ``cloud`` carries no lattice metadata.
 
     Examples
     --------
@@ -240,7 +303,8 @@ def checkerboard_energy_ratio(K: Any, cloud: PointCloud) -> CheckerboardReport:
     >>> cloud = pdlin.grid((21,), spacing=0.05)
     >>> bonds = pdlin.find_bonds(cloud, ratio=1.0)
     >>> K = pdlin.assemble_stiffness(pdlin.Correspondence(E=1.0), cloud, bonds)
-    >>> round(checkerboard_energy_ratio(K, cloud).min_ratio, 12)   # no control: 1 (spec 003 V11)
+    >>> # no control at delta = h: the checkerboard costs exactly the smooth mode's energy
+    >>> round(checkerboard_energy_ratio(K, cloud).min_ratio, 12)
     1.0
     """
     d, n = cloud.dim, cloud.n
@@ -275,12 +339,31 @@ def compare_controls(
     tol: float = 1e-10,
     dense_limit: int = 3000,
 ) -> list[dict[str, Any]]:
-    """Zero-energy report of several models on one cloud (one row per model).
+    """Compare the zero-energy behaviour of several models on one cloud.
 
-    Each row: ``name``, ``n_zero``, ``n_spurious`` (free body, or on the
-    real DOFs when ``shadow`` indices are given: then every zero counts),
-    ``checkerboard_min`` (min ratio of :func:`checkerboard_energy_ratio`,
-    NaN off-lattice) and ``lambda_max``.
+    Parameters
+    ----------
+    cloud : PointCloud
+        The point cloud (a grid for the checkerboard measure).
+    bonds : Bonds
+        Bonds of ``cloud``.
+    models : mapping of str to model
+        Name -> model whose stiffness is assembled with
+        :func:`pdlin.assemble_stiffness`.
+    shadow : array_like of int, optional
+        Shadow-layer point indices: the count then runs on the real DOFs only
+        and every zero counts as spurious.
+    tol : float
+        Zero threshold relative to ``lambda_max``.
+    dense_limit : int
+        Dense eigen-solve up to this many DOFs.
+
+    Returns
+    -------
+    list of dict
+        One row per model: ``name``, ``n_zero``, ``n_spurious``,
+        ``checkerboard_min`` (min ratio of :func:`checkerboard_energy_ratio`,
+        NaN off-lattice) and ``lambda_max``.
 
     Examples
     --------

@@ -6,17 +6,21 @@
 1. partitions the points (recursive coordinate bisection, :func:`rcb_partition`;
    the same on every rank, no communication) and owns one contiguous range of
    them in the new numbering;
-2. grows its owned points by ``model.coupling_range`` horizons (a KD-tree over
-   the coordinates: the point cloud itself is O(n) on every rank) and finds
-   the bonds of that *local cloud* only;
-3. assembles the model's stiffness on the local cloud with the model's own
-   routine and keeps the block rows of its owned points (their families and
-   their neighbours' families are complete there, so those rows equal the rows
-   of the global K);
-4. eliminates the Dirichlet DOFs on its rows exactly as
-   :meth:`pdlin.system.ConstrainedSystem.eliminate` does (prescribed rows and
-   columns become ``s I`` with ``s`` the mean free diagonal of the global K, the
-   load ``b = f - K_fc u_c``), and hands its rows to PETSc in one CSR call
+2. takes the prescribed DOFs, values and load vector of the constrained system
+   (:func:`pdlin.system.point_system`: the functions of :mod:`pdlin.constraints`
+   on the same points as the scipy path, without a global bond search);
+3. grows its owned points by ``model.coupling_range`` horizons (a KD-tree over
+   the coordinates: the point cloud itself is O(n) on every rank), finds the
+   bonds of that *local cloud* only and assembles the model's stiffness there
+   with the model's own routine, keeping the block rows of its owned points
+   (their families and their neighbours' families are complete there, so those
+   rows equal the rows of the global K); with symmetry planes the local cloud is
+   mirrored and the rows are those of the reduced ``K_sym``
+   (:func:`local_rows_mirrored`);
+4. eliminates the prescribed DOFs from its own rows by the rule of
+   :func:`pdlin.constraints.eliminate_dirichlet` (prescribed rows and columns
+   become ``s I`` with ``s`` the mean free diagonal of the global K, the load
+   ``b = f - K_fc u_c``), and hands its rows to PETSc in one CSR call
    (``MatMPIAIJSetPreallocationCSR`` / ``MatMPIBAIJSetPreallocationCSR``);
 5. solves with KSP (CG + GAMG with the rigid-body near-null space, GMRES for
    nonsymmetric models, or LU through MUMPS) and checks the true residual.
@@ -37,7 +41,7 @@ import logging
 import sys
 import time
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -45,18 +49,28 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from .._validation import integer, tolerance
+from ..constraints import matrix_rows
 from ..errors import ConvergenceError, InputError, InputTypeError, NoNeighborsError
-from ..fields import small_strain
+from ..fields import deformation_gradient, small_strain
 from ..geometry.bonds import Bonds, find_bonds, resolve_horizon
 from ..geometry.cloud import PointCloud
-from ..operators.bc import check_constraints, load_vector, resolve_dirichlet
-from ..problem import StaticResult
+from ..operators.symmetry import SymmetryPlane, SymmetryReduction, symmetry_reduction
+from ..problem import StaticProblem, memory_hints, plan_memory
+from ..resources import check_memory
+from ..solvers.linear import SOLVERS, LinearSolveInfo, check_force_balance
+from ..system import (
+    ConstrainedSystem,
+    StaticResult,
+    mirror_reach,
+    point_system,
+)
 
 __all__ = [
     "PetscStaticResult",
     "solve_petsc",
     "rcb_partition",
     "local_rows",
+    "local_rows_mirrored",
     "petsc_available",
     "comm_rank_size",
     "PARTITIONS",
@@ -89,14 +103,11 @@ def _petsc() -> Any:
 
 
 def _check_rank_memory(problem: Any, solver: str, size: int, say: Callable[[str], None]) -> None:
-    """Refuse a run whose share per rank (the scipy estimate of
-    :func:`pdlin.problem.plan_memory` over ``size`` ranks) does not fit this rank's
-    memory, before the bond search and assembly."""
-    import dataclasses
+    """Refuse a run whose share per rank does not fit this rank's memory.
 
-    from ..problem import memory_hints, plan_memory
-    from ..resources import check_memory
-
+    The share is the scipy estimate of :func:`pdlin.problem.plan_memory` over ``size``
+    ranks, checked before the bond search and assembly.
+    """
     plan = plan_memory(problem, "direct" if solver == "direct" else "amg-cg")
     share = dataclasses.replace(plan, stages={k: -(-v // size) for k, v in plan.stages.items()})
     say(f"{share.summary()}, per rank of {size}")
@@ -108,7 +119,12 @@ def _check_rank_memory(problem: Any, solver: str, size: int, say: Callable[[str]
 
 
 def petsc_available() -> bool:
-    """Whether petsc4py imports (PETSc installed).
+    """Tell whether petsc4py imports (PETSc installed).
+
+    Returns
+    -------
+    bool
+        True when ``backend='petsc'`` can run.
 
     Examples
     --------
@@ -124,7 +140,15 @@ def petsc_available() -> bool:
 
 
 def comm_rank_size() -> tuple[int, int]:
-    """``(rank, size)`` of PETSc's ``COMM_WORLD`` (``(0, 1)`` without petsc4py)."""
+    """Return ``(rank, size)`` of PETSc's ``COMM_WORLD``.
+
+    Returns
+    -------
+    rank : int
+        This process's rank (0 without petsc4py).
+    size : int
+        Number of ranks (1 without petsc4py).
+    """
     if not petsc_available():
         return 0, 1
     PETSc = _petsc()
@@ -330,6 +354,32 @@ def local_rows(
     (True, True)
     """
     t0 = time.perf_counter()
+    own, hor, opts, allow_isolated, index, local = _local_part(
+        model, cloud, owned, horizon, bond_options
+    )
+    bonds = find_bonds(local, hor[index], allow_isolated=True, **opts)
+    m = own.size
+    _check_isolated(bonds.family_size[:m], own, cloud, allow_isolated)
+    t1 = time.perf_counter()
+    rows = _owned_block_rows(model.stiffness(local, bonds), index, m, cloud)
+    if timings is not None:
+        timings["bonds"] = timings.get("bonds", 0.0) + t1 - t0
+        timings["assembly"] = timings.get("assembly", 0.0) + time.perf_counter() - t1
+    return rows, index, local, bonds
+
+
+def _local_part(
+    model: Any,
+    cloud: PointCloud,
+    owned: Any,
+    horizon: Any,
+    bond_options: Mapping[str, Any] | None,
+) -> tuple[np.ndarray, np.ndarray, dict[str, Any], bool, np.ndarray, PointCloud]:
+    """Owned points grown by ``model.coupling_range`` bond reaches: the local cloud.
+
+    Returns the owned indices, the cloud's horizons, the remaining find_bonds options,
+    ``allow_isolated``, the local cloud's indices (owned first) and the local cloud.
+    """
     own = np.asarray(owned, dtype=np.int64)
     opts = dict(bond_options or {})
     hor = resolve_horizon(cloud, horizon, opts.pop("ratio", None))
@@ -338,20 +388,27 @@ def local_rows(
     hops = int(getattr(model, "coupling_range", 1))
     halo = _halo(cloud, own, hops, _reach(cloud, hor, opts))
     index = np.concatenate([own, halo])
-    local = _local_cloud(cloud, index)
-    bonds = find_bonds(local, hor[index], allow_isolated=True, **opts)
-    m = own.size
-    if not allow_isolated:
-        empty = np.flatnonzero(bonds.family_size[:m] == 0)
-        if empty.size:
-            p = int(own[empty[0]])
-            raise NoNeighborsError(
-                f"every point needs at least one bond, got {empty.size} isolated point(s), "
-                f"first index {p} at {cloud.points[p].tolist()}; increase the horizon or pass "
-                "allow_isolated=True"
-            )
-    t1 = time.perf_counter()
-    K = model.stiffness(local, bonds)
+    return own, hor, opts, allow_isolated, index, _local_cloud(cloud, index)
+
+
+def _check_isolated(
+    family_size: np.ndarray, own: np.ndarray, cloud: PointCloud, allow_isolated: bool
+) -> None:
+    """Refuse owned points without bonds (as :func:`pdlin.find_bonds` does)."""
+    if allow_isolated:
+        return
+    empty = np.flatnonzero(family_size == 0)
+    if empty.size:
+        p = int(own[empty[0]])
+        raise NoNeighborsError(
+            f"every point needs at least one bond, got {empty.size} isolated point(s), "
+            f"first index {p} at {cloud.points[p].tolist()}; increase the horizon or pass "
+            "allow_isolated=True"
+        )
+
+
+def _owned_block_rows(K: Any, index: np.ndarray, m: int, cloud: PointCloud) -> sp.bsr_array:
+    """Keep the first ``m`` block rows of a local-cloud K, columns in the cloud's numbering."""
     d = cloud.dim
     K = (
         K
@@ -360,16 +417,170 @@ def local_rows(
     )
     nnzb = int(K.indptr[m])
     # copies: the halo rows of the local K are freed with it
-    rows = sp.bsr_array(
+    return sp.bsr_array(
         (K.data[:nnzb].copy(), index[K.indices[:nnzb]], K.indptr[: m + 1].copy()),
         shape=(m * d, cloud.n * d),
         blocksize=(d, d),
     )
-    del K
+
+
+@dataclasses.dataclass
+class _LocalPart:
+    """Owned rows of this rank and what its point fields are computed on.
+
+    The fields are evaluated on ``field_cloud`` / ``field_bonds`` with the displacement
+    ``expand(u[index])`` (the local cloud itself, or its mirrored cloud with symmetry
+    planes); their first ``m`` points are the owned ones.
+    """
+
+    rows: sp.bsr_array
+    index: np.ndarray
+    bonds: Bonds
+    n_bonds: int
+    family_size: np.ndarray
+    model: Any
+    field_cloud: PointCloud
+    field_bonds: Bonds
+    expand: Callable[[np.ndarray], np.ndarray]
+
+
+def _identity(u: np.ndarray) -> np.ndarray:
+    return u
+
+
+def _plain_part(problem: Any, owned: np.ndarray) -> tuple[_LocalPart, float]:
+    """Owned rows of K without symmetry planes, and the seconds of the bond search."""
+    model, cloud = problem.model, problem.cloud
+    m = owned.size
+    if problem.bonds is not None:  # one rank, precomputed bonds: the global problem itself
+        bonds = problem.bonds
+        index, local = np.arange(cloud.n), cloud
+        rows = sp.bsr_array(model.stiffness(cloud, bonds), blocksize=(cloud.dim,) * 2)
+        t_bonds = 0.0
+    else:
+        part: dict[str, float] = {}
+        rows, index, local, bonds = local_rows(
+            model, cloud, owned, horizon=problem.horizon, bond_options=problem.bond_options,
+            timings=part,
+        )  # fmt: skip
+        t_bonds = part["bonds"]
+    fam = bonds.family_size[:m]
+    lp = _LocalPart(rows, index, bonds, int(bonds.indptr[m]), fam, model, local, bonds, _identity)
+    return lp, t_bonds
+
+
+def local_rows_mirrored(
+    model: Any,
+    cloud: PointCloud,
+    owned: Any,
+    planes: Sequence[SymmetryPlane],
+    *,
+    horizon: Any = None,
+    bond_options: Mapping[str, Any] | None = None,
+    timings: dict[str, float] | None = None,
+) -> tuple[sp.bsr_array, np.ndarray, SymmetryReduction | None, Bonds]:
+    """Rows of the symmetry-reduced stiffness ``K_sym`` for some points.
+
+    As :func:`local_rows`, on the local cloud's symmetry reduction: the local cloud (the
+    owned points grown by ``model.coupling_range`` bond reaches) is mirrored across the
+    planes that lie within the ghost layer's depth of it
+    (:func:`pdlin.system.mirror_reach`).  Every augmented point that couples to an owned
+    point is the image of a point of the local cloud (a reflection never brings two
+    points of one side closer), so the owned rows equal those of the global ``K_sym``.
+
+    Parameters
+    ----------
+    model : pdlin model
+        The problem's model.
+    cloud : PointCloud
+        The modelled part (all points on one side of each plane).
+    owned : (m,) array_like of int
+        Points whose rows are wanted.
+    planes : sequence of SymmetryPlane
+        The planes, their ``side`` resolved (``MirrorCloud.planes``).
+    horizon : float or (n,) array_like, optional
+        As for :func:`pdlin.find_bonds` (default ``cloud.horizon``).
+    bond_options : mapping, optional
+        Other :func:`pdlin.find_bonds` keyword arguments (``ratio`` included).
+    timings : dict, optional
+        Receives the seconds spent in 'bonds' (halo and bond search) and 'assembly'.
+
+    Returns
+    -------
+    rows : bsr_array of shape (m*dim, n*dim)
+        The owned block rows of ``K_sym``, columns in the cloud's numbering.
+    index : (m + h,) ndarray of int
+        The local cloud: ``owned`` then the ``h`` halo points.
+    reduction : SymmetryReduction or None
+        The local cloud's reduction (None when no plane comes near the local cloud).
+    bonds : Bonds
+        The local cloud's bonds between real points.
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin
+    >>> from pdlin.backends.petsc import local_rows_mirrored
+    >>> cloud = pdlin.grid((12, 12), spacing=0.1)
+    >>> prob = pdlin.StaticProblem(pdlin.LPS(E=1.0, nu=0.25), cloud,
+    ...     bond_options={"ratio": 3.015}, symmetry=[pdlin.SymmetryPlane("x")],
+    ...     dirichlet=[pdlin.Dirichlet("y-", 0.0)])
+    >>> from pdlin.system import point_system
+    >>> planes = point_system(prob).disc.mirror.planes
+    >>> rows, index, _, _ = local_rows_mirrored(prob.model, cloud, np.arange(30), planes,
+    ...     bond_options={"ratio": 3.015})
+    >>> K = pdlin.constrained_system(prob).assemble()
+    >>> bool(abs(rows - K.tocsr()[:60]).max() < 1e-12 * abs(K).max()), index.size < cloud.n
+    (True, True)
+    """
+    t0 = time.perf_counter()
+    own, hor, opts, allow_isolated, index, local = _local_part(
+        model, cloud, owned, horizon, bond_options
+    )
+    m = own.size
+    reach = mirror_reach(model, cloud, hor, opts) * (1.0 + 1e-9)
+    near = tuple(
+        p for p in planes if float(np.min(np.abs(p.signed_distance(local.points)))) <= reach
+    )
+    red: SymmetryReduction | None = None
+    if near:
+        red = symmetry_reduction(model, local, near, hor[index], {**opts, "allow_isolated": True})
+        bonds, family = red.real_bonds, red.family_size
+    else:
+        bonds = find_bonds(local, hor[index], allow_isolated=True, **opts)
+        family = bonds.family_size
+    _check_isolated(family[:m], own, cloud, allow_isolated)
+    t1 = time.perf_counter()
+    K = red.stiffness() if red is not None else model.stiffness(local, bonds)
+    rows = _owned_block_rows(K, index, m, cloud)
     if timings is not None:
         timings["bonds"] = timings.get("bonds", 0.0) + t1 - t0
         timings["assembly"] = timings.get("assembly", 0.0) + time.perf_counter() - t1
-    return rows, index, local, bonds
+    return rows, index, red, bonds
+
+
+def _mirrored_part(
+    problem: Any, system: ConstrainedSystem, owned: np.ndarray
+) -> tuple[_LocalPart, float]:
+    """Owned rows of ``K_sym`` with symmetry planes, and the seconds of the bond search."""
+    model, cloud = problem.model, problem.cloud
+    m = owned.size
+    part: dict[str, float] = {}
+    rows, index, red, bonds = local_rows_mirrored(
+        model, cloud, owned, system.disc.mirror.planes, horizon=problem.horizon,
+        bond_options=problem.bond_options, timings=part,
+    )  # fmt: skip
+    n_bonds = int(bonds.indptr[m])
+    if red is None:
+        lp = _LocalPart(
+            rows, index, bonds, n_bonds, bonds.family_size[:m], model, cloud.subset(index),
+            bonds, _identity,
+        )  # fmt: skip
+    else:
+        lp = _LocalPart(
+            rows, index, bonds, n_bonds, red.family_size[:m], red.model, red.mirror.cloud,
+            red.bonds, red.expand,
+        )  # fmt: skip
+    return lp, part["bonds"]
 
 
 @dataclasses.dataclass
@@ -385,18 +596,49 @@ class PetscStaticResult(StaticResult):
     point_fields: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
 
     def deformation_gradient(self) -> np.ndarray:
+        """Return the gathered nonlocal deformation gradient.
+
+        Returns
+        -------
+        (n, dim, dim) ndarray
+            ``F`` per point.
+
+        Raises
+        ------
+        InputError
+            When a rank could not compute it (singular shape tensor).
+        """
         if "deformation_gradient" not in self.point_fields:
             raise InputError("the deformation gradient was not computed (singular shape tensor)")
         d = self.u.shape[1]
         return self.point_fields["deformation_gradient"].reshape(-1, d, d)
 
     def stress(self) -> np.ndarray:
+        """Return the gathered model stress.
+
+        Returns
+        -------
+        (n, dim, dim) ndarray
+            Stress per point.
+
+        Raises
+        ------
+        InputError
+            When the model gave no stress.
+        """
         if "stress" not in self.point_fields:
             raise InputError(f"model {type(self.problem.model).__name__} gave no stress")
         d = self.u.shape[1]
         return self.point_fields["stress"].reshape(-1, d, d)
 
     def fields(self) -> dict[str, np.ndarray]:
+        """Collect the gathered point fields (as :meth:`pdlin.StaticResult.fields`).
+
+        Returns
+        -------
+        dict of str to ndarray
+            One row per point.
+        """
         out: dict[str, np.ndarray] = {
             "displacement": self.u,
             "reaction": self.reactions,
@@ -413,6 +655,13 @@ class PetscStaticResult(StaticResult):
         return out
 
     def summary(self) -> dict[str, Any]:
+        """Summarize the run as plain data, with the global bond count and the ranks.
+
+        Returns
+        -------
+        dict
+            :meth:`pdlin.StaticResult.summary` plus ``ranks``.
+        """
         s = super().summary()
         s["bonds"] = int(self.info.get("n_bonds", s["bonds"]))
         s["ranks"] = int(self.info.get("ranks", 1))
@@ -500,9 +749,9 @@ def solve_petsc(
     Parameters
     ----------
     problem : StaticProblem
-        Without symmetry planes; on several ranks with ``horizon`` /
-        ``bond_options`` (no precomputed bonds) and point-independent model
-        parameters.
+        A linear problem, with or without symmetry planes; on several ranks with
+        ``horizon`` / ``bond_options`` (no precomputed bonds) and point-independent
+        model parameters.
     solver : str
         pdlin's names: 'auto' (CG + GAMG, GMRES + GAMG for nonsymmetric
         models), 'amg-cg', 'amg-gmres', 'cg', 'jacobi-cg', 'gmres',
@@ -535,35 +784,17 @@ def solve_petsc(
     ImportError
         When petsc4py is not installed.
     InputError
-        For unsupported options (symmetry planes, ...).
+        For invalid arguments, a nonlinear model, ``mat_type='baij'`` with GAMG, or
+        precomputed bonds / per-point model parameters on several ranks.
+    FloatingBodyError
+        When the conditions leave a rigid motion free.
     ConvergenceError
         When KSP diverges or the true residual misses ``10 rtol`` (1e-8 for 'direct').
     """
-    from ..problem import StaticProblem, _check_force_balance
-    from ..solvers.linear import SOLVERS, LinearSolveInfo
-
     if not isinstance(problem, StaticProblem):
         raise InputTypeError(f"problem must be a StaticProblem, got {type(problem).__name__}")
-    if solver not in SOLVERS:
-        raise InputError(f"solver must be one of {SOLVERS}, got {solver!r}")
-    rtol = tolerance(rtol, "rtol")
-    maxiter = 10_000 if maxiter is None else integer(maxiter, "maxiter", minimum=1)
-    if partition not in PARTITIONS:
-        raise InputError(f"partition must be one of {PARTITIONS}, got {partition!r}")
-    if mat_type not in MAT_TYPES:
-        raise InputError(f"mat_type must be one of {MAT_TYPES}, got {mat_type!r}")
-    if petsc_options is not None and not isinstance(petsc_options, Mapping):
-        raise InputTypeError(
-            f"petsc_options must be a mapping of PETSc option names to values, got "
-            f"{type(petsc_options).__name__}"
-        )
-    if problem.symmetry:
-        raise InputError("backend='petsc' does not support symmetry planes; use backend='scipy'")
-    if getattr(problem.model, "nonlinear", False):
-        raise InputError(
-            f"backend='petsc' solves linear problems; model {type(problem.model).__name__} is "
-            "nonlinear (use pdlin.solve_nonlinear)"
-        )
+    rtol, maxiter = _check_arguments(problem, solver, rtol, maxiter, partition, mat_type,
+                                     petsc_options)  # fmt: skip
     PETSc = _petsc()
     comm = PETSc.COMM_WORLD
     rank, size = int(comm.getRank()), int(comm.getSize())
@@ -581,51 +812,162 @@ def solve_petsc(
     timings: dict[str, float] = {}
     t_start = time.perf_counter()
 
-    # -- ownership, conditions and loads (O(n) point data on every rank) ---------------
+    # -- ownership and the constrained system's point data (O(n) on every rank) ---------
     say(f"bonds ({size} rank(s), {partition} partition)")
     t0 = time.perf_counter()
     layout = _layout(cloud, rank, size, partition)
-    dofs, vals = resolve_dirichlet(cloud, problem.dirichlet)
-    f_ext = np.asarray(load_vector(cloud, problem.loads, prescribed=dofs), dtype=float)
-    check_constraints(cloud, problem.bonds, dofs)
+    system = point_system(problem)
     owned = layout.owned
     m = owned.size
-    if problem.bonds is not None:  # one rank, precomputed bonds: the global problem itself
-        bonds = problem.bonds
-        index, local = np.arange(n), cloud
-        K_loc = model.stiffness(cloud, bonds)
-        K_loc = sp.bsr_array(K_loc, blocksize=(d, d))
-        rows = K_loc
-    else:
-        rows, index, local, bonds = None, None, None, None  # set below
     timings["bonds"] = time.perf_counter() - t0
 
     say("bonds and assembly of the owned rows")
     t0 = time.perf_counter()
-    part: dict[str, float] = {}
-    if rows is None:
-        rows, index, local, bonds = local_rows(
-            model,
-            cloud,
-            owned,
-            horizon=problem.horizon,
-            bond_options=problem.bond_options,
-            timings=part,
+    if problem.symmetry:
+        lp, t_bonds = _mirrored_part(problem, system, owned)
+    else:
+        lp, t_bonds = _plain_part(problem, owned)
+    timings["bonds"] += t_bonds
+    t0 += t_bonds
+    elim = _eliminate_owned(PETSc, lp.rows, owned, system)
+    A = _petsc_matrix(PETSc, elim.data, elim.cols, elim.indptr, layout, mat_type)
+    n_bonds_local = lp.n_bonds
+    nnz_local = int(elim.indptr[-1]) * d * d
+    del elim.data, lp.rows  # PETSc holds its copy
+    timings["assembly"] = time.perf_counter() - t0
+
+    ks = _ksp_solve(PETSc, A, elim.b_loc, cloud.points[owned], solver, model, rtol, maxiter,
+                    mat_type, petsc_options, size, say)  # fmt: skip
+    timings["setup"] = ks.setup_time
+    timings["solve"] = ks.solve_time
+
+    # -- gather to every rank (old numbering) ---------------------------------------------
+    gather = _Gather(PETSc, layout, d)
+    xg = gather.gather_vec(ks.x).reshape(-1)
+    bg = gather.gather_vec(ks.b).reshape(-1)
+    u = system.expand(xg)
+    flat = u.reshape(-1)
+    reac_loc = np.zeros(m * d)
+    pres = elim.pres_rows
+    reac_loc[pres] = elim.K_pres @ flat - system.f_ext[elim.row_dofs[pres]]
+    reac = gather(reac_loc).reshape(n, d)
+    point_fields = _point_fields(lp, u[lp.index], m, gather)
+    n_bonds = int(round(_global_sum(PETSc, float(n_bonds_local))))
+    rows_per_rank = gather_counts(PETSc, m * d, size)
+    gather.destroy()
+    ks.destroy()
+    A.destroy()
+
+    lin = LinearSolveInfo(
+        xg, ks.name, ks.its, ks.residuals, ks.rr, ks.setup_time, ks.solve_time, ks.info
+    )
+    if ks.reason <= 0 or not np.isfinite(ks.rr) or ks.rr > ks.tol:
+        raise ConvergenceError(
+            f"{ks.name} ({ks.info['ksp_type']} + {ks.info['pc_type']}): no convergence to "
+            f"rtol={rtol:.1e} after {ks.its} iterations (true relative residual {ks.rr:.3e}, "
+            f"KSP reason {ks.reason})"
         )
-        timings["bonds"] += part["bonds"]
-        t0 += part["bonds"]
-    assert index is not None and local is not None and bonds is not None
+    with warnings.catch_warnings():
+        if rank != 0:
+            warnings.simplefilter("ignore")
+        check_force_balance(lin, bg, reac, system.f_ext)
+    timings["total"] = time.perf_counter() - t_start
+    info = {
+        "solver": ks.name,
+        "backend": "petsc",
+        **ks.info,
+        "ranks": size,
+        "partition": partition,
+        "mat_type": mat_type,
+        "local_rows": m * d,
+        "rows_per_rank": rows_per_rank,
+        "local_points_with_halo": int(lp.index.size),
+        "local_nnz": nnz_local,
+        "n_bonds": n_bonds,
+        "model": model.describe(),
+        "operator": "assembled",
+        "operator_reason": "the PETSc backend assembles K",
+    }
+    return PetscStaticResult(
+        problem=problem,
+        bonds=lp.bonds,
+        u=u,
+        converged=True,
+        n_iter=ks.its,
+        residuals=ks.residuals,
+        relative_residual=ks.rr,
+        timings=timings,
+        reactions=reac,
+        prescribed_dofs=system.dofs,
+        info=info,
+        point_fields=point_fields,
+    )
+
+
+def _check_arguments(
+    problem: StaticProblem,
+    solver: str,
+    rtol: float,
+    maxiter: int | None,
+    partition: str,
+    mat_type: str,
+    petsc_options: Any,
+) -> tuple[float, int]:
+    """Validate :func:`solve_petsc`'s arguments; return ``rtol`` and ``maxiter``."""
+    if solver not in SOLVERS:
+        raise InputError(f"solver must be one of {SOLVERS}, got {solver!r}")
+    rtol = tolerance(rtol, "rtol")
+    maxiter = 10_000 if maxiter is None else integer(maxiter, "maxiter", minimum=1)
+    if partition not in PARTITIONS:
+        raise InputError(f"partition must be one of {PARTITIONS}, got {partition!r}")
+    if mat_type not in MAT_TYPES:
+        raise InputError(f"mat_type must be one of {MAT_TYPES}, got {mat_type!r}")
+    if petsc_options is not None and not isinstance(petsc_options, Mapping):
+        raise InputTypeError(
+            f"petsc_options must be a mapping of PETSc option names to values, got "
+            f"{type(petsc_options).__name__}"
+        )
+    if getattr(problem.model, "nonlinear", False):
+        raise InputError(
+            f"backend='petsc' solves linear problems; model {type(problem.model).__name__} is "
+            "nonlinear (use pdlin.solve_nonlinear)"
+        )
+    return rtol, maxiter
+
+
+@dataclasses.dataclass
+class _Eliminated:
+    """Eliminated block rows of this rank (new column numbering not yet applied)."""
+
+    data: np.ndarray  # (nnzb, d, d) eliminated blocks
+    cols: np.ndarray  # (nnzb,) block columns, the cloud's numbering
+    indptr: np.ndarray  # (m + 1,)
+    b_loc: np.ndarray  # (m*d,) right-hand side of the owned rows
+    row_dofs: np.ndarray  # (m*d,) global DOFs of the owned rows
+    pres_rows: np.ndarray  # owned rows that are prescribed
+    K_pres: sp.csr_array  # K's prescribed owned rows, kept for the reactions
+
+
+def _eliminate_owned(
+    PETSc: Any, rows: sp.bsr_array, owned: np.ndarray, system: ConstrainedSystem
+) -> _Eliminated:
+    """Eliminate the system's prescribed DOFs from this rank's block rows of K.
+
+    The rule of :func:`pdlin.constraints.eliminate_dirichlet`: prescribed rows and columns
+    become ``s I`` with ``s`` the mean |diagonal| of the free DOFs over all ranks, the load
+    ``b = f - K_fc u_c`` (0 on the prescribed rows, as
+    :meth:`~pdlin.system.ConstrainedSystem.eliminate` sets it).
+    """
+    d = system.dim
     rows = sp.bsr_array(rows)
     rows.sort_indices()
-    # -- Dirichlet elimination on the owned rows (ConstrainedSystem.eliminate) -----------
-    free = np.ones(n * d, dtype=bool)
-    free[dofs] = False
-    uc = np.zeros(n * d)
-    uc[dofs] = vals
+    m = owned.size
+    free = system.free
+    uc = system.prescribed()
     row_dofs = (owned[:, None] * d + np.arange(d)).reshape(-1)
-    b_loc = f_ext[row_dofs] - rows @ uc
+    b_loc = system.f_ext[row_dofs] - rows @ uc
     pres_rows = np.flatnonzero(~free[row_dofs])
-    K_pres = _scalar_rows(rows, pres_rows)  # prescribed rows, kept for the reactions
+    K_pres = matrix_rows(rows, pres_rows)  # prescribed rows, kept for the reactions
     brow = np.repeat(np.arange(m), np.diff(rows.indptr))
     cols = rows.indices.astype(np.int64)
     isdiag = owned[brow] == cols
@@ -644,11 +986,25 @@ def solve_petsc(
         fixed = ~free[owned[brow[pos]] * d + k]
         data[pos[fixed], k, k] = s
     b_loc[pres_rows] = 0.0
-    # -- PETSc matrix: owned block rows in the new numbering, one CSR call ------------------
+    return _Eliminated(data, cols, rows.indptr, b_loc, row_dofs, pres_rows, K_pres)
+
+
+def _petsc_matrix(
+    PETSc: Any,
+    data: np.ndarray,
+    cols: np.ndarray,
+    indptr: np.ndarray,
+    layout: _Layout,
+    mat_type: str,
+) -> Any:
+    """Create the distributed matrix: owned block rows in the new numbering, one CSR call."""
+    m = layout.hi - layout.lo
+    d = data.shape[1]
+    N = layout.perm.size * d
+    comm = PETSc.COMM_WORLD
     new_cols = layout.new_of_old[cols]
-    A_loc = sp.bsr_array((data, new_cols, rows.indptr), shape=(m * d, n * d), blocksize=(d, d))
+    A_loc = sp.bsr_array((data, new_cols, indptr), shape=(m * d, N), blocksize=(d, d))
     A_loc.sort_indices()
-    N = n * d
     if mat_type == "baij":
         A = PETSc.Mat().createBAIJ(
             size=((m * d, N), (m * d, N)),
@@ -671,12 +1027,48 @@ def solve_petsc(
         )
         del C
     A.assemble()
-    n_bonds_local = int(bonds.indptr[m])
-    nnz_local = int(A_loc.indptr[-1]) * d * d
-    del data, A_loc, rows  # PETSc holds its copy
-    timings["assembly"] = time.perf_counter() - t0
+    return A
 
-    # -- KSP -------------------------------------------------------------------------------
+
+@dataclasses.dataclass
+class _KspSolve:
+    """A KSP solve of :func:`solve_petsc`: the PETSc objects and what it reports."""
+
+    name: str
+    x: Any
+    b: Any
+    its: int
+    reason: int
+    rr: float
+    residuals: list[float]
+    info: dict[str, Any]
+    tol: float
+    setup_time: float
+    solve_time: float
+    objects: list[Any]
+
+    def destroy(self) -> None:
+        """Free the PETSc objects (KSP, vectors, near-null space)."""
+        for obj in self.objects:
+            obj.destroy()
+
+
+def _ksp_solve(
+    PETSc: Any,
+    A: Any,
+    b_loc: np.ndarray,
+    points: np.ndarray,
+    solver: str,
+    model: Any,
+    rtol: float,
+    maxiter: int,
+    mat_type: str,
+    petsc_options: Mapping[str, Any] | None,
+    size: int,
+    say: Callable[[str], None],
+) -> _KspSolve:
+    """Set up KSP on ``A`` (pdlin's defaults, then the options) and solve for ``b_loc``."""
+    comm = PETSc.COMM_WORLD
     symmetric = bool(getattr(model, "symmetric", True))
     name = solver
     if name == "auto":
@@ -707,12 +1099,56 @@ def solve_petsc(
         if ksp_type == "gmres":
             ksp.setGMRESRestart(min(100, maxiter))
         if pc_type == "gamg":
-            coords = PETSc.Vec().createMPI((m * d, N), bsize=d, comm=comm)
-            coords.setArray(np.ascontiguousarray(cloud.points[owned]).reshape(-1))
+            d = points.shape[1]
+            m = points.shape[0]
+            coords = PETSc.Vec().createMPI((m * d, A.getSize()[0]), bsize=d, comm=comm)
+            coords.setArray(np.ascontiguousarray(points).reshape(-1))
             ns = PETSc.NullSpace().createRigidBody(coords)
             A.setNearNullSpace(ns)
             coords.destroy()
     ksp.setConvergenceHistory()
+    bvec, x = _ksp_setup(PETSc, ksp, A, b_loc, ksp_type, pc_type, petsc_options)
+    t1 = time.perf_counter()
+    nb = bvec.norm()
+    if nb > 0:
+        try:
+            ksp.solve(bvec, x)
+        except PETSc.Error as exc:
+            raise ConvergenceError(
+                f"petsc-{name} ({ksp.getType()} + {ksp.getPC().getType()}) failed: {exc}"
+            ) from exc
+    t2 = time.perf_counter()
+    reason = int(ksp.getConvergedReason()) if nb > 0 else 1
+    its = int(ksp.getIterationNumber()) if nb > 0 else 0
+    r = bvec.duplicate()
+    A.mult(x, r)
+    r.aypx(-1.0, bvec)  # r = b - A x
+    rr = float(r.norm() / nb) if nb > 0 else 0.0
+    hist = np.asarray(ksp.getConvergenceHistory(), dtype=float) if nb > 0 else np.zeros(0)
+    residuals = (hist / nb).tolist() if nb > 0 and hist.size else [rr]
+    info_ksp = {
+        "ksp_type": ksp.getType(),
+        "pc_type": ksp.getPC().getType(),
+        "converged_reason": reason,
+    }
+    if factor is not None:
+        info_ksp["factor_package"] = ksp.getPC().getFactorSolverType()
+    tol = 1e-8 if pc_type == "lu" else 10.0 * rtol
+    objects = [ksp, bvec, x, r] + ([ns] if ns is not None else [])
+    return _KspSolve(f"petsc-{name}", x, bvec, its, reason, rr, residuals, info_ksp, tol,
+                     t1 - t0, t2 - t1, objects)  # fmt: skip
+
+
+def _ksp_setup(
+    PETSc: Any,
+    ksp: Any,
+    A: Any,
+    b_loc: np.ndarray,
+    ksp_type: str,
+    pc_type: str,
+    petsc_options: Mapping[str, Any] | None,
+) -> tuple[Any, Any]:
+    """Apply the options, make the vectors and set KSP up; return ``(b, x)``."""
     opts = PETSc.Options()
     given = {}
     for key, val in dict(petsc_options or {}).items():
@@ -742,120 +1178,26 @@ def solve_petsc(
     finally:
         for key in given:
             opts.delValue(key)
-    t1 = time.perf_counter()
-    nb = bvec.norm()
-    if nb > 0:
-        try:
-            ksp.solve(bvec, x)
-        except PETSc.Error as exc:
-            raise ConvergenceError(
-                f"petsc-{name} ({ksp.getType()} + {ksp.getPC().getType()}) failed: {exc}"
-            ) from exc
-    t2 = time.perf_counter()
-    reason = int(ksp.getConvergedReason()) if nb > 0 else 1
-    its = int(ksp.getIterationNumber()) if nb > 0 else 0
-    r = bvec.duplicate()
-    A.mult(x, r)
-    r.aypx(-1.0, bvec)  # r = b - A x
-    rr = float(r.norm() / nb) if nb > 0 else 0.0
-    hist = np.asarray(ksp.getConvergenceHistory(), dtype=float) if nb > 0 else np.zeros(0)
-    residuals = (hist / nb).tolist() if nb > 0 and hist.size else [rr]
-    info_ksp = {
-        "ksp_type": ksp.getType(),
-        "pc_type": ksp.getPC().getType(),
-        "converged_reason": reason,
-    }
-    if factor is not None:
-        info_ksp["factor_package"] = ksp.getPC().getFactorSolverType()
-    timings["setup"] = t1 - t0
-    timings["solve"] = t2 - t1
-
-    # -- gather to every rank (old numbering) ---------------------------------------------
-    gather = _Gather(PETSc, layout, d)
-    xg = gather.gather_vec(x).reshape(-1)
-    bg = gather.gather_vec(bvec).reshape(-1)
-    u = xg.copy()
-    u[dofs] = vals
-    reac_loc = np.zeros(m * d)
-    reac_loc[pres_rows] = K_pres @ u - f_ext[row_dofs[pres_rows]]
-    reac = gather(reac_loc).reshape(n, d)
-    u = u.reshape(n, d)
-    point_fields = _point_fields(model, local, bonds, u[index], m, gather)
-    n_bonds = int(round(_global_sum(PETSc, float(n_bonds_local))))
-    rows_per_rank = gather_counts(PETSc, m * d, size)
-    gather.destroy()
-    for obj in (ksp, A, bvec, x, r):
-        obj.destroy()
-    if ns is not None:
-        ns.destroy()
-
-    tol = 1e-8 if pc_type == "lu" else 10.0 * rtol
-    lin = LinearSolveInfo(
-        xg, f"petsc-{name}", its, residuals, rr, timings["setup"], timings["solve"], info_ksp
-    )
-    if reason <= 0 or not np.isfinite(rr) or rr > tol:
-        raise ConvergenceError(
-            f"petsc-{name} ({info_ksp['ksp_type']} + {info_ksp['pc_type']}): no convergence to "
-            f"rtol={rtol:.1e} after {its} iterations (true relative residual {rr:.3e}, KSP "
-            f"reason {reason})"
-        )
-    with warnings.catch_warnings():
-        if rank != 0:
-            warnings.simplefilter("ignore")
-        _check_force_balance(lin, bg, reac, f_ext)
-    timings["total"] = time.perf_counter() - t_start
-    info = {
-        "solver": f"petsc-{name}",
-        "backend": "petsc",
-        **info_ksp,
-        "ranks": size,
-        "partition": partition,
-        "mat_type": mat_type,
-        "local_rows": m * d,
-        "rows_per_rank": rows_per_rank,
-        "local_points_with_halo": int(index.size),
-        "local_nnz": nnz_local,
-        "n_bonds": n_bonds,
-        "model": model.describe(),
-        "operator": "assembled",
-        "operator_reason": "the PETSc backend assembles K",
-    }
-    return PetscStaticResult(
-        problem=problem,
-        bonds=bonds,
-        u=u,
-        converged=True,
-        n_iter=its,
-        residuals=residuals,
-        relative_residual=rr,
-        timings=timings,
-        reactions=reac,
-        prescribed_dofs=dofs,
-        info=info,
-        point_fields=point_fields,
-    )
-
-
-def _scalar_rows(A: sp.bsr_array, rows: np.ndarray) -> sp.csr_array:
-    """Scalar rows ``rows`` of a BSR array as CSR, converting only their block rows."""
-    r = A.blocksize[0]
-    brows = np.unique(rows // r)
-    counts = np.diff(A.indptr)[brows]
-    total = int(counts.sum())
-    starts = np.repeat(A.indptr[brows] - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts)
-    take = starts + np.arange(total)
-    indptr = np.concatenate([[0], np.cumsum(counts)])
-    sub = sp.bsr_array(
-        (A.data[take], A.indices[take], indptr),
-        shape=(brows.size * r, A.shape[1]),
-        blocksize=A.blocksize,
-    ).tocsr()
-    local = np.searchsorted(brows, rows // r) * r + rows % r
-    return sp.csr_array(sub[local])
+    return bvec, x
 
 
 def gather_counts(PETSc: Any, value: int, size: int) -> list[int]:
-    """One integer per rank, gathered to every rank."""
+    """Gather one integer per rank to every rank (collective).
+
+    Parameters
+    ----------
+    PETSc : module
+        ``petsc4py.PETSc``.
+    value : int
+        This rank's integer.
+    size : int
+        Number of ranks.
+
+    Returns
+    -------
+    list of int
+        The ``size`` integers in rank order.
+    """
     v = PETSc.Vec().createMPI((1, size), comm=PETSc.COMM_WORLD)
     v.setArray(np.array([float(value)]))
     sc, full = PETSc.Scatter.toAll(v)
@@ -867,16 +1209,19 @@ def gather_counts(PETSc: Any, value: int, size: int) -> list[int]:
 
 
 def _point_fields(
-    model: Any, local: PointCloud, bonds: Bonds, u_local: np.ndarray, m: int, gather: _Gather
+    lp: _LocalPart, u_local: np.ndarray, m: int, gather: _Gather
 ) -> dict[str, np.ndarray]:
-    """Family size, F and stress of the owned points, gathered (collective)."""
-    from ..fields import deformation_gradient
+    """Family size, F and stress of the owned points, gathered (collective).
 
+    Computed on the local part's field cloud (the local cloud, or its mirrored cloud with
+    symmetry planes, whose first ``m`` points are the owned ones).
+    """
     PETSc = gather.PETSc
-    d = local.dim
+    d = lp.field_cloud.dim
     out: dict[str, np.ndarray] = {}
-    fam = np.asarray(bonds.family_size[:m], dtype=float)
+    fam = np.asarray(lp.family_size, dtype=float)
     out["family_size"] = _gather_width(PETSc, gather.layout, fam[:, None]).reshape(-1)
+    u_field = lp.expand(u_local)
 
     def collective(name: str, what: str, compute: Any) -> None:
         # every rank computes its owned rows; written only when no rank failed
@@ -892,10 +1237,12 @@ def _point_fields(
     collective(
         "deformation_gradient",
         "strain",
-        lambda: deformation_gradient(local, bonds, u_local, n_owners=m),
+        lambda: deformation_gradient(lp.field_cloud, lp.field_bonds, u_field, n_owners=m),
     )
-    if hasattr(model, "stress"):
-        collective("stress", "stress", lambda: model.stress(local, bonds, u_local))
+    if hasattr(lp.model, "stress"):
+        collective(
+            "stress", "stress", lambda: lp.model.stress(lp.field_cloud, lp.field_bonds, u_field)
+        )
     return out
 
 

@@ -1,4 +1,4 @@
-"""Micromodulus calibration for anisotropic bond-based peridynamics (spec 004).
+"""Micromodulus calibration for anisotropic bond-based PD (Prakash, anisotropic micromoduli).
 
 :func:`~pdlin.calibrate_micromoduli` fits one micromodulus per bond so that a bond
 family (or every family of a cloud) reproduces a target stiffness tensor in

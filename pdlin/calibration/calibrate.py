@@ -1,9 +1,12 @@
-"""Calibration of anisotropic bond micromoduli (spec 004).
+"""Calibration of anisotropic bond micromoduli (Prakash, anisotropic micromoduli).
 
 The effective tensor of a bond family is linear in the micromoduli,
-``C_PD = X c`` (spec 004 Eq. 29/32).  :func:`~pdlin.calibrate_micromoduli` finds the
-minimum-norm nonnegative ``c`` whose tensor is closest to a target ``C`` in
-the Frobenius norm of the full fourth-order tensor (spec §2.1-2.2).
+``C_PD = X c`` (the paper's Eqs. 29 and 32).  :func:`~pdlin.calibrate_micromoduli` finds
+the minimum-norm nonnegative ``c`` whose tensor is closest to a target ``C`` in the
+Frobenius norm of the full fourth-order tensor: the paper's two-step method (§3,
+Eqs. 36-43) with its least squares weighted by the multiplicity of each Voigt entry
+(derived: the printed unweighted Eq. 34 does not reproduce the paper's Table 1, the
+weighted one does).  The 2D forms are pdlin's extension; the paper is 3D only.
 """
 
 from __future__ import annotations
@@ -42,7 +45,7 @@ _WEIGHTINGS = ("frobenius", "voigt")
 _PAIR_RULES = ("mean", "owner")
 _BOUNDARY_RULES = ("calibrate", "interior-mean", "bulk")
 
-# Voigt index -> tensor index pair (spec 004 §1.2 / §2.7)
+# Voigt index -> tensor index pair (3D: the paper's Voigt map; 2D: 11, 22, 12)
 _VOIGT = {3: ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)), 2: ((0, 0), (1, 1), (0, 1))}
 _CAUCHY_DIM = {3: 15, 2: 5}
 
@@ -56,7 +59,7 @@ def _upper(nv: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _multiplicity(dim: int) -> np.ndarray:
-    """Multiplicity of each upper-triangle Voigt entry in the full tensor (spec §2.1)."""
+    """Return the multiplicity of each upper-triangle Voigt entry in the full tensor."""
     from ..constitutive import frobenius_multiplicity
 
     return frobenius_multiplicity(dim).astype(float)
@@ -117,14 +120,40 @@ def _finite_scalar(value: Any, name: str) -> float:
 def design_matrix(
     xi: Any, omega: Any, volume: Any, thickness: float = 1.0, *, weighting: str = "frobenius"
 ) -> np.ndarray:
-    """Matrix ``X`` with ``C_PD = X c`` over upper-triangle Voigt entries.
+    """Return the design matrix ``X`` with ``C_PD = X c`` over upper-triangle Voigt entries.
 
-    ``X[(a, b), N] = ½ ω_N ζ_a ζ_b V_N t / |ξ_N|³`` (spec 004 Eq. 32, 2D
-    §2.7), rows ordered ``C11, C12, ..., C16, C22, ..., C66`` (21 rows in
-    3D, 6 in 2D).  ``weighting='frobenius'`` multiplies row ``(a, b)`` by
-    ``sqrt(m_ab)``, the multiplicity of that component in the full tensor,
-    so the Euclidean norm of the rows is the Frobenius norm of the tensor
-    (spec §2.1).
+    ``X[(a, b), N] = ½ ω_N ζ_a ζ_b V_N t / |ξ_N|³`` (Prakash, anisotropic
+    micromoduli, Eq. 32; in 2D the same sum over in-plane components times
+    the thickness ``t``), rows ordered ``C11, C12, ..., C16, C22, ..., C66``
+    (21 rows in 3D, 6 in 2D).  ``weighting='frobenius'`` multiplies row
+    ``(a, b)`` by ``sqrt(m_ab)``, the multiplicity of that component in the
+    full tensor, so the Euclidean norm of the rows is the Frobenius norm of
+    the tensor (see :func:`pdlin.constitutive.frobenius_multiplicity`).
+
+    Parameters
+    ----------
+    xi : (M, dim) array_like of float
+        Bond vectors of one family, ``dim`` 2 or 3, all nonzero.
+    omega : float or (M,) array_like of float
+        Influence value of each bond.
+    volume : float or (M,) array_like of float
+        Neighbour volume of each bond (area in 2D).
+    thickness : float
+        Out-of-plane thickness (2D); use 1.0 in 3D.
+    weighting : {'frobenius', 'voigt'}
+        Row weighting by ``sqrt(m_ab)`` or none (the printed Eq. 34).
+
+    Returns
+    -------
+    ndarray of float, shape (21, M) or (6, M)
+        C-contiguous design matrix.
+
+    Raises
+    ------
+    InputError
+        If ``weighting`` is unknown or a bond vector is zero.
+    ShapeError
+        If ``xi`` is not of shape (M, 2) or (M, 3).
 
     Examples
     --------
@@ -177,8 +206,8 @@ class CalibrationResult:
     target : (nv, nv) ndarray
         Voigt target actually fitted (after plane stress/strain reduction).
     relative_error : float or (n,) ndarray
-        ``|C - C_PD|_F / |C|_F`` over the full tensor (spec §2.1; with
-        ``weighting='voigt'`` still the full-tensor Frobenius norm).
+        ``|C - C_PD|_F / |C|_F`` over the full tensor (the paper's relative
+        error; with ``weighting='voigt'`` still the full-tensor Frobenius norm).
     status : str
         'step1' (minimum-norm least squares already >= lower bound), 'qp'
         (bound active, step 2), 'nnls-qp' (robust variant: NNLS start, then
@@ -208,10 +237,13 @@ class CalibrationResult:
     n_zero : int
         Micromoduli within ``zero_threshold`` of the lower bound.
     zero_threshold : float
+        Absolute distance from the bound below which a micromodulus counts as zero.
     lower_bound : float
+        The bound ``l`` of ``c >= l`` used.
     c_min, c_max, c_mean, c_norm : float
         Min, max, mean and Euclidean norm of ``micromoduli``.
     weighting, method : str
+        The ``weighting`` and ``method`` arguments used.
     time : float
         Wall time in seconds.
     families : tuple of CalibrationResult
@@ -277,7 +309,14 @@ class CalibrationResult:
         return self.status not in ("infeasible", "failed", "negative")
 
     def summary(self) -> str:
-        """One line per key figure (for logs and the CLI)."""
+        """Return the key figures on one line (for logs and the CLI).
+
+        Returns
+        -------
+        str
+            Status and path, rank, bond count, largest relative error (in %),
+            micromodulus range, mean and norm, and the count at the bound.
+        """
         err = self.relative_error
         e = f"{100 * float(np.max(err)):.6g} %" if np.size(err) else "n/a"
         return (
@@ -484,22 +523,34 @@ def _directions_mod_sign(xi: np.ndarray, active: np.ndarray) -> np.ndarray:
     return u[np.sort(idx)]
 
 
-def _solve_family(
-    target: np.ndarray,
-    fam: Family,
-    *,
-    weighting: str,
-    lower_bound: float,
-    method: str,
-    qp_solver: str,
-    rcond: float,
-    zero_tol: float,
-    raise_on_infeasible: bool,
-) -> CalibrationResult:
-    t0 = time.perf_counter()
-    dim = fam.dim
-    nv = len(_VOIGT[dim])
-    m = _multiplicity(dim)
+@dataclass(frozen=True)
+class _ReducedSystem:
+    """The weighted least-squares system of one family, merged and factorized.
+
+    ``A t ≈ bw`` in the merged unknowns ``t = sqrt(k) c`` (``k`` identical
+    columns merged into one); ``Vr`` holds the leading ``rank`` right
+    singular vectors and ``t_ls`` the minimum-norm least-squares solution.
+    """
+
+    X: np.ndarray  # (nv(nv+1)/2, M) unweighted design matrix
+    b: np.ndarray  # upper-triangle Voigt entries of the target
+    m: np.ndarray  # Frobenius multiplicity of each entry
+    Xw: np.ndarray  # weighted design matrix
+    bw: np.ndarray  # weighted target
+    first: np.ndarray  # first bond of each merged column
+    inv: np.ndarray  # merged column of each bond
+    sk: np.ndarray  # sqrt of each merged column's count
+    A: np.ndarray  # merged, scaled design matrix (zero columns cleared)
+    nonzero: np.ndarray  # merged columns that carry stiffness
+    s: np.ndarray  # singular values of A
+    Vr: np.ndarray  # (rank, n_columns) leading right singular vectors
+    rank: int
+    t_ls: np.ndarray  # minimum-norm least-squares t (0 on zero columns)
+
+
+def _reduce_family(fam: Family, target: np.ndarray, weighting: str, rcond: float) -> _ReducedSystem:
+    """Build, merge and factorize the weighted system of ``fam`` for ``target``."""
+    m = _multiplicity(fam.dim)
     sqm = np.sqrt(m)
     X = design_matrix(fam.xi, fam.omega, fam.volume, fam.thickness, weighting="voigt")
     b = _voigt_vector(target)
@@ -515,7 +566,6 @@ def _solve_family(
     U, s, Vt = np.linalg.svd(A, full_matrices=False)
     smax = float(s[0]) if s.size else 0.0
     rank = int(np.sum(s > rcond * smax)) if smax > 0 else 0
-    cauchy_dim = _CAUCHY_DIM[dim]
     if rank == 0:
         raise InputError(
             "bonds must carry stiffness, got a family whose design matrix is zero (all omega == 0?)"
@@ -523,91 +573,109 @@ def _solve_family(
     Ur, sr, Vr = U[:, :rank], s[:rank], Vt[:rank]
     t_ls = Vr.T @ ((Ur.T @ bw) / sr)
     t_ls[~nonzero] = 0.0
-    lt = lower_bound * sk
-    dirs = _directions_mod_sign(fam.xi, np.abs(Xw).max(axis=0) > 0)
-    msgs: list[str] = []
-    if rank < cauchy_dim:
-        quart = _unreachable_quartics(dirs, dim)
-        msgs.append(
-            f"rank {rank} < {cauchy_dim}: the quartics {', '.join(quart)} vanish on all "
-            f"{dirs.shape[0]} bond directions (modulo sign) of the family "
-            f"({fam.description or f'{fam.n_bonds} bonds'}), so no micromoduli reach them"
-        )
-    path: list[str] = ["min-norm"]
-    status = "step1"
-    solver_status = ""
+    return _ReducedSystem(X, b, m, Xw, bw, first, inv, sk, A, nonzero, s, Vr, rank, t_ls)
+
+
+@dataclass
+class _Step:
+    """Outcome of the admissibility step (step 2) of one family."""
+
+    t: np.ndarray
+    status: str
+    path: list[str]
+    solver_status: str
+    kkt: dict
+    messages: list[str]
+
+
+def _admissible_step(
+    sys_: _ReducedSystem, *, method: str, lower_bound: float, qp_solver: str
+) -> _Step:
+    """Keep the least-squares solution or move it into ``t >= lower_bound * sqrt(k)``.
+
+    'min-norm' only reports values below the bound (status 'negative');
+    'two-step' and 'robust' (NNLS start) solve the QP that keeps the fitted
+    tensor, statuses 'qp' / 'nnls-qp', or 'infeasible' / 'failed' with NaN.
+    """
+    A, bw, t_ls, sk = sys_.A, sys_.bw, sys_.t_ls, sys_.sk
     kkt = {"equality": 0.0, "bound": 0.0, "stationarity": 0.0, "dual": 0.0}
-    t = t_ls
-    c_ls = (t_ls / sk)[inv]
-    if c_ls[nonzero[inv]].min() < lower_bound:
-        if method == "min-norm":
-            status = "negative"
-            msgs.append(
-                f"minimum-norm least squares has {int(np.sum(c_ls < lower_bound))} micromoduli "
-                f"below the bound {lower_bound:g} (min {c_ls.min():.6g}); use method='two-step' "
-                "or 'robust' for admissible values"
+    step = _Step(t_ls, "step1", ["min-norm"], "", kkt, [])
+    c_ls = (t_ls / sk)[sys_.inv]
+    if not c_ls[sys_.nonzero[sys_.inv]].min() < lower_bound:
+        return step
+    if method == "min-norm":
+        step.status = "negative"
+        step.messages.append(
+            f"minimum-norm least squares has {int(np.sum(c_ls < lower_bound))} micromoduli "
+            f"below the bound {lower_bound:g} (min {c_ls.min():.6g}); use method='two-step' "
+            "or 'robust' for admissible values"
+        )
+        return step
+    lt = lower_bound * sk
+    start = t_ls
+    if method == "robust":
+        from scipy.optimize import nnls
+
+        tp, _ = nnls(A, bw - A @ lt, maxiter=50 * A.shape[1])
+        start = lt + tp
+        step.path.append("nnls")
+    Q = sys_.Vr
+    d = Q @ start
+    scale = max(float(np.abs(start).max()), float(np.abs(lt).max()), 1e-300)
+    out = _run_qp(Q, d / scale, lt / scale, qp_solver)
+    step.path.append(f"qp:{out.solver}")
+    step.solver_status = out.status
+    if out.x is None:
+        infeasible = "nfeasible" in out.status
+        step.status = "infeasible" if infeasible else "failed"
+        step.t = np.full_like(t_ls, np.nan)
+        e_ls = float(np.linalg.norm(bw - A @ t_ls)) / float(np.linalg.norm(bw))
+        if infeasible:
+            step.messages.append(
+                f"infeasible: no micromoduli >= {lower_bound:g} reproduce the "
+                f"least-squares tensor (error {100 * e_ls:.6g} %); the cone "
+                "{X c : c >= bound} misses it. method='robust' gives the nearest "
+                "admissible fit (NNLS) instead"
             )
         else:
-            start = t_ls
-            if method == "robust":
-                from scipy.optimize import nnls
+            step.messages.append(f"the QP solver failed ({out.status}); no solution returned")
+        return step
+    x, ok = _active_set_polish(out.x, Q, d / scale, lt / scale, 1e-9)
+    if ok:
+        step.path.append("active-set")
+    step.status = "nnls-qp" if method == "robust" else "qp"
+    step.t = np.maximum(x * scale, lt)
+    step.kkt = _kkt(step.t, Q, d, lt, scale)
+    return step
 
-                tp, _ = nnls(A, bw - A @ lt, maxiter=50 * A.shape[1])
-                start = lt + tp
-                path.append("nnls")
-            Q = Vr
-            d = Q @ start
-            scale = max(float(np.abs(start).max()), float(np.abs(lt).max()), 1e-300)
-            out = _run_qp(Q, d / scale, lt / scale, qp_solver)
-            path.append(f"qp:{out.solver}")
-            solver_status = out.status
-            if out.x is None:
-                infeasible = "nfeasible" in out.status
-                status = "infeasible" if infeasible else "failed"
-                t = np.full_like(t_ls, np.nan)
-                e_ls = float(np.linalg.norm(bw - A @ t_ls)) / float(np.linalg.norm(bw))
-                if infeasible:
-                    msgs.append(
-                        f"infeasible: no micromoduli >= {lower_bound:g} reproduce the "
-                        f"least-squares tensor (error {100 * e_ls:.6g} %); the cone "
-                        "{X c : c >= bound} misses it. method='robust' gives the nearest "
-                        "admissible fit (NNLS) instead"
-                    )
-                else:
-                    msgs.append(f"the QP solver failed ({out.status}); no solution returned")
-            else:
-                x, ok = _active_set_polish(out.x, Q, d / scale, lt / scale, 1e-9)
-                if ok:
-                    path.append("active-set")
-                t = x * scale
-                status = "nnls-qp" if method == "robust" else "qp"
-                t = np.maximum(t, lt)
-                kkt = _kkt(t, Q, d, lt, scale)
-    c_red = t / sk
-    if status in ("qp", "nnls-qp"):
+
+def _bond_micromoduli(sys_: _ReducedSystem, step: _Step, lower_bound: float) -> np.ndarray:
+    """Expand the merged unknowns ``t`` of ``step`` to one micromodulus per bond."""
+    c_red = step.t / sys_.sk
+    if step.status in ("qp", "nnls-qp"):
         c_red = np.maximum(c_red, lower_bound)  # remove round-off below the bound
-    c_red[~nonzero] = max(lower_bound, 0.0) if status != "negative" else 0.0
-    c = c_red[inv]
-    if status in ("infeasible", "failed") and raise_on_infeasible:
-        raise InputError("calibration " + status + ": " + "; ".join(msgs))
-    valid = np.all(np.isfinite(c))
-    ach = X @ c if valid else np.full(b.shape, np.nan)
-    res_vec = bw - Xw @ c
-    residual = float(np.linalg.norm(res_vec)) if valid else float("nan")
-    e_full = (
-        float(np.sqrt(np.sum(m * (b - ach) ** 2)) / np.sqrt(np.sum(m * b**2)))
-        if valid
-        else float("nan")
-    )
-    if status == "nnls-qp" and valid:
-        e_ls = float(np.sqrt(np.sum(m * (b - X @ c_ls) ** 2)) / np.sqrt(np.sum(m * b**2)))
-        if e_full > e_ls * (1 + 1e-8) + 1e-14:
-            msgs.append(
-                f"the least-squares tensor is outside the cone of admissible micromoduli; "
-                f"NNLS fit error {100 * e_full:.6g} % vs unconstrained {100 * e_ls:.6g} %"
-            )
-    zthr = zero_tol * (float(np.nanmax(np.abs(c))) if valid and c.size else 1.0)
-    n_zero = int(np.sum(np.abs(c - lower_bound) <= zthr)) if valid else 0
+    c_red[~sys_.nonzero] = max(lower_bound, 0.0) if step.status != "negative" else 0.0
+    return c_red[sys_.inv]
+
+
+def _relative_frobenius(sys_: _ReducedSystem, c: np.ndarray) -> float:
+    """``|C - X c|_F / |C|_F`` over the full tensor."""
+    m, b = sys_.m, sys_.b
+    return float(np.sqrt(np.sum(m * (b - sys_.X @ c) ** 2)) / np.sqrt(np.sum(m * b**2)))
+
+
+def _summary_messages(
+    sys_: _ReducedSystem,
+    step: _Step,
+    *,
+    cauchy_dim: int,
+    lower_bound: float,
+    n_zero: int,
+    weighting: str,
+) -> list[str]:
+    """Return the closing notes of a family: full rank first, then what step 1 or 2 did."""
+    msgs = list(step.messages)
+    rank, status = sys_.rank, step.status
     if rank == cauchy_dim:
         msgs.insert(0, f"rank {rank} (full)")
     if status == "step1":
@@ -621,20 +689,76 @@ def _solve_family(
         )
     if status in ("step1", "qp") and rank == cauchy_dim and weighting == "frobenius":
         msgs.append("the achieved tensor is the Cauchy projection of C")
+    return msgs
+
+
+def _solve_family(
+    target: np.ndarray,
+    fam: Family,
+    *,
+    weighting: str,
+    lower_bound: float,
+    method: str,
+    qp_solver: str,
+    rcond: float,
+    zero_tol: float,
+    raise_on_infeasible: bool,
+) -> CalibrationResult:
+    """Calibrate one family: least squares, then the admissibility step, then the report."""
+    t0 = time.perf_counter()
+    dim = fam.dim
+    sys_ = _reduce_family(fam, target, weighting, rcond)
+    cauchy_dim = _CAUCHY_DIM[dim]
+    rank = sys_.rank
+    dirs = _directions_mod_sign(fam.xi, np.abs(sys_.Xw).max(axis=0) > 0)
+    step = _admissible_step(sys_, method=method, lower_bound=lower_bound, qp_solver=qp_solver)
+    if rank < cauchy_dim:
+        quart = _unreachable_quartics(dirs, dim)
+        step.messages.insert(
+            0,
+            f"rank {rank} < {cauchy_dim}: the quartics {', '.join(quart)} vanish on all "
+            f"{dirs.shape[0]} bond directions (modulo sign) of the family "
+            f"({fam.description or f'{fam.n_bonds} bonds'}), so no micromoduli reach them",
+        )
+    c = _bond_micromoduli(sys_, step, lower_bound)
+    if step.status in ("infeasible", "failed") and raise_on_infeasible:
+        raise InputError("calibration " + step.status + ": " + "; ".join(step.messages))
+    valid = np.all(np.isfinite(c))
+    ach = sys_.X @ c if valid else np.full(sys_.b.shape, np.nan)
+    residual = float(np.linalg.norm(sys_.bw - sys_.Xw @ c)) if valid else float("nan")
+    e_full = _relative_frobenius(sys_, c) if valid else float("nan")
+    if step.status == "nnls-qp" and valid:
+        c_ls = (sys_.t_ls / sys_.sk)[sys_.inv]
+        e_ls = _relative_frobenius(sys_, c_ls)
+        if e_full > e_ls * (1 + 1e-8) + 1e-14:
+            step.messages.append(
+                f"the least-squares tensor is outside the cone of admissible micromoduli; "
+                f"NNLS fit error {100 * e_full:.6g} % vs unconstrained {100 * e_ls:.6g} %"
+            )
+    zthr = zero_tol * (float(np.nanmax(np.abs(c))) if valid and c.size else 1.0)
+    n_zero = int(np.sum(np.abs(c - lower_bound) <= zthr)) if valid else 0
+    msgs = _summary_messages(
+        sys_,
+        step,
+        cauchy_dim=cauchy_dim,
+        lower_bound=lower_bound,
+        n_zero=n_zero,
+        weighting=weighting,
+    )
     return CalibrationResult(
         micromoduli=c,
-        tensor=_voigt_matrix(ach, nv),
+        tensor=_voigt_matrix(ach, len(_VOIGT[dim])),
         target=target,
         relative_error=e_full,
-        status=status,
+        status=step.status,
         message="; ".join(msgs),
-        path=tuple(path),
-        solver_status=solver_status,
+        path=tuple(step.path),
+        solver_status=step.solver_status,
         residual=residual,
-        kkt=kkt,
+        kkt=step.kkt,
         rank=rank,
         n_bonds=fam.n_bonds,
-        n_columns=int(first.size),
+        n_columns=int(sys_.first.size),
         n_directions=int(dirs.shape[0]),
         n_zero=n_zero,
         zero_threshold=zthr,
@@ -646,7 +770,7 @@ def _solve_family(
         weighting=weighting,
         method=method,
         time=time.perf_counter() - t0,
-        extra={"family": fam, "singular_values": s},
+        extra={"family": fam, "singular_values": sys_.s},
     )
 
 
@@ -704,7 +828,8 @@ def calibrate_micromoduli(
 ) -> CalibrationResult:
     """Calibrate bond micromoduli so a bond family reproduces a stiffness tensor.
 
-    Solves spec 004 §2.2: among all minimizers of the Frobenius-norm misfit
+    The two-step method of Prakash, anisotropic micromoduli (§3, Eqs. 36-43),
+    in the Frobenius norm: among all minimizers of the misfit
     ``|C - X c|_F`` (full fourth-order tensor) the one with minimum
     ``|c|_2`` subject to ``c >= lower_bound``.  When the target's Cauchy
     projection (total symmetrization) is reachable, the achieved tensor is
@@ -713,8 +838,8 @@ def calibrate_micromoduli(
     Parameters
     ----------
     C : (6, 6), (3, 3), (3, 3, 3, 3) or (2, 2, 2, 2) array_like
-        Target stiffness: plain Voigt (no factor 2 on shear entries, spec
-        §1.2) or the full tensor.  Must be symmetric, finite and positive
+        Target stiffness: plain Voigt (no factor 2 on shear entries, as
+        in the paper) or the full tensor.  Must be symmetric, finite and positive
         definite.  A 3D target for a 2D family is reduced by ``plane``.
     bonds : Bonds, Family or (M, dim) array_like
         * :class:`pdlin.Bonds` of a whole cloud: every distinct family is
@@ -736,7 +861,7 @@ def calibrate_micromoduli(
         square root of their multiplicity: the least squares is then in the
         Frobenius norm of the full tensor, which reproduces the paper.
         'voigt' is the printed unweighted system (Eq. 34); it does **not**
-        reproduce the paper's numbers (spec §2.1, E1).
+        reproduce the paper's numbers.
     lower_bound : float
         Bound ``l`` with ``c >= l`` (default 0: energy positivity).
     method : {'two-step', 'robust', 'min-norm'}
@@ -748,7 +873,8 @@ def calibrate_micromoduli(
         'min-norm': step 1 only, may return values below the bound (status
         'negative').
     plane : {'stress', 'strain'}
-        Reduction of a 3D target for a 2D family (spec §2.7).
+        Reduction of a 3D target for a 2D family
+        (:func:`pdlin.constitutive.plane_stress`, :func:`pdlin.constitutive.plane_strain`).
     qp_solver : {'clarabel', 'osqp', 'cvxpy'}
         Step-2 backend: Clarabel interior point (default; falls back to
         OSQP), OSQP (eps 1e-10, polishing; falls back to Clarabel), or
@@ -764,7 +890,8 @@ def calibrate_micromoduli(
         Cloud input: 'calibrate' calibrates every distinct (also truncated)
         family; 'interior-mean' calibrates only the complete family (the
         largest one) and gives every bond touching a point with another
-        family the mean complete-family value (spec 004 §4.7 [S]); 'bulk'
+        family the mean complete-family value (pdlin's reading of the
+        "average" the paper's §4.4 example gives to boundary bonds); 'bulk'
         calibrates only the complete family and gives every bond the value
         of its bond vector there (a homogeneous material, ``c = c(ξ)``;
         interior points reproduce the target exactly, truncated families
@@ -780,10 +907,24 @@ def calibrate_micromoduli(
     Returns
     -------
     CalibrationResult
+        Micromoduli, achieved tensor(s), error, status and diagnostics.
+
+    Raises
+    ------
+    InputError
+        If an option is unknown or out of range, the target is not symmetric
+        positive definite, the family carries no stiffness, or (with
+        ``raise_on_infeasible``) no admissible solution exists.
+    ShapeError
+        If ``C`` or the bond vectors have the wrong shape.
+    InputTypeError
+        If ``bonds`` is of an unsupported type.
 
     Examples
     --------
-    Spec 004 §4.1, isotropic Pyroceram on the 924-bond sphere (δ = 6):
+    Prakash, anisotropic micromoduli, §4.1.8: isotropic Pyroceram 9608 on the
+    924-bond sphere (δ = 6); the range of ``c`` is this implementation's
+    output (the paper shows it as a figure only):
 
     >>> import numpy as np
     >>> from pdlin.calibration import lattice_family, calibrate_micromoduli
@@ -861,10 +1002,35 @@ def calibrate_micromoduli(
 def max_lower_bound(
     C: Any, family: Family, *, weighting: str = "frobenius", plane: str = "stress"
 ) -> float:
-    """Largest uniform bound ``l`` for which the two-step QP is feasible (spec 004 §4.6).
+    """Return the largest uniform bound ``l`` for which the two-step QP is feasible.
 
     Linear program: maximize ``l`` s.t. ``Xw x = Xw c0`` and ``x >= l``
-    (``c0`` the minimum-norm least-squares solution).
+    (``c0`` the minimum-norm least-squares solution).  Prakash, anisotropic
+    micromoduli (§4.1.8) chose ``l = 0.23`` "after some numerical
+    experimentation"; this gives the limit directly.
+
+    Parameters
+    ----------
+    C : (6, 6), (3, 3), (3, 3, 3, 3) or (2, 2, 2, 2) array_like
+        Target stiffness, as for :func:`calibrate_micromoduli`.
+    family : Family
+        One bond family.
+    weighting : {'frobenius', 'voigt'}
+        Row weighting of the least squares.
+    plane : {'stress', 'strain'}
+        Reduction of a 3D target for a 2D family.
+
+    Returns
+    -------
+    float
+        The largest ``l`` (units of the micromoduli) with an admissible solution.
+
+    Raises
+    ------
+    InputTypeError
+        If ``family`` is not a :class:`~pdlin.calibration.Family`.
+    InputError
+        If the target is invalid or the linear program does not solve.
 
     Examples
     --------
@@ -872,7 +1038,7 @@ def max_lower_bound(
     >>> from pdlin.calibration import lattice_family
     >>> C = np.zeros((6, 6)); C[:3, :3] = 34.4
     >>> C[[0, 1, 2], [0, 1, 2]] = 103.2; C[[3, 4, 5], [3, 4, 5]] = 34.4
-    >>> round(max_lower_bound(C, lattice_family(3, 6.0)), 4)   # spec 004 §4.6: 0.23870
+    >>> round(max_lower_bound(C, lattice_family(3, 6.0)), 4)   # omega = 1: above the paper's 0.23
     0.2387
     """
     from scipy.optimize import linprog

@@ -54,6 +54,16 @@ def group_families(
     Two families are identical when they hold the same multiset of bonds
     ``(xi, omega, volume_j)`` (within a relative tolerance ``rel``).
 
+    Parameters
+    ----------
+    bonds : Bonds
+        Bonds of the whole cloud (CSR by owner point).
+    rel : float
+        Relative tolerance, of the largest magnitude of each quantity, under
+        which two bond vectors, influence values or volumes count as equal.
+    return_types : bool
+        Also return the bond type of every bond and one bond per type.
+
     Returns
     -------
     family_of_point : (n,) ndarray of int
@@ -66,6 +76,11 @@ def group_families(
     bond_type, type_first : (nb,), (ntype,) ndarray of int
         Only with ``return_types``: type id of each bond (same ``xi``,
         ``omega``, ``volume_j``) and one bond per type.
+
+    Raises
+    ------
+    InputError
+        If the grouping fails its exact verification (a 128-bit hash collision).
 
     Examples
     --------
@@ -125,36 +140,25 @@ def group_families(
     return family_of_point, representative, order
 
 
-def calibrate_bonds(
+def _family_bonds(bonds: Bonds, order: np.ndarray, p: int) -> np.ndarray:
+    """Bond indices of point ``p``'s family, sorted by bond type."""
+    return order[bonds.indptr[p] : bonds.indptr[p + 1]]
+
+
+def _calibrate_groups(
     target: np.ndarray,
     bonds: Bonds,
-    *,
+    todo: list[int],
+    reps: np.ndarray,
+    order: np.ndarray,
     thickness: float,
-    pair_rule: str,
-    boundary: str,
-    **opts: Any,
-) -> CalibrationResult:
-    """Calibrate every distinct family of ``bonds`` (see :func:`~pdlin.calibrate_micromoduli`)."""
-    t0 = time.perf_counter()
-    dim = bonds.dim
-    nv = len(_VOIGT[dim])
-    fam_of_pt, reps, order, btype, tfirst = group_families(bonds, return_types=True)
-    ng = reps.size
-    size = np.diff(bonds.indptr)
-    if ng == 0:
-        raise InputError("bonds must hold at least one bond, got an empty family for every point")
-    if boundary in ("interior-mean", "bulk"):
-        full_size = size[reps]
-        counts = np.bincount(fam_of_pt[fam_of_pt >= 0], minlength=ng)
-        # the complete family: largest bond count (ties: the most frequent)
-        g_full = int(np.lexsort((counts, full_size))[-1])
-        todo = [g_full]
-    else:
-        todo = list(range(ng))
+    opts: dict[str, Any],
+) -> dict[int, CalibrationResult]:
+    """Calibrate the representative family of each group in ``todo``."""
     results: dict[int, CalibrationResult] = {}
     for g in todo:  # loop over distinct families (few), vectorized within
         p = int(reps[g])
-        sel = order[bonds.indptr[p] : bonds.indptr[p + 1]]
+        sel = _family_bonds(bonds, order, p)
         fam = Family(
             bonds.xi[sel],
             bonds.omega[sel],
@@ -163,50 +167,89 @@ def calibrate_bonds(
             f"family of point {p} ({sel.size} bonds)",
         )
         results[g] = _solve_family(target, fam, **opts)
-    pos = np.arange(bonds.n_bonds) - bonds.indptr[bonds.i]
-    if boundary == "bulk":
-        # every bond takes the bulk family's value of its bond type (c as a function of xi)
-        g_full = todo[0]
-        p = int(reps[g_full])
-        sel = order[bonds.indptr[p] : bonds.indptr[p + 1]]
-        lut = np.full(tfirst.size, np.nan)
-        lut[btype[sel]] = results[g_full].micromoduli
-        c = lut[btype]
-        missing = ~np.isfinite(c) & np.isfinite(lut).any()
-        if np.any(missing):
-            k = int(np.flatnonzero(missing)[0])
-            raise InputError(
-                f"boundary='bulk' needs every bond to occur in the complete family, got "
-                f"{int(missing.sum())} bond(s) without a match (first: bond {k}, "
-                f"xi = {bonds.xi[k].tolist()}); use boundary='calibrate'"
-            )
-        c = 0.5 * (c + c[bonds.reverse])
-        c_owner = c
-        fam_results: tuple[CalibrationResult, ...] = (results[g_full],)
-        fam_index = np.where(fam_of_pt == g_full, 0, -1)
-    elif boundary == "interior-mean":
-        g_full = todo[0]
-        cf = results[g_full].micromoduli
-        c_owner = np.empty(bonds.n_bonds)
-        inner_bond = fam_of_pt[bonds.i] == g_full
-        c_owner[order[inner_bond[order]]] = cf[pos[inner_bond[order]]]
-        c = np.full(bonds.n_bonds, float(np.mean(cf)))
-        both = inner_bond & (fam_of_pt[bonds.j] == g_full)
-        c[both] = c_owner[both]
-        fam_results = (results[g_full],)
-        fam_index = np.where(fam_of_pt == g_full, 0, -1)
-    else:
-        offs = np.zeros(ng + 1, dtype=np.int64)
-        np.cumsum([results[g].n_bonds for g in range(ng)], out=offs[1:])
-        allc = np.concatenate([results[g].micromoduli for g in range(ng)])
-        c_owner = np.empty(bonds.n_bonds)
-        # bond order[b] sits at position pos[b] of its (sorted) family
-        c_owner[order] = allc[offs[fam_of_pt[bonds.i]] + pos]
-        c = 0.5 * (c_owner + c_owner[bonds.reverse]) if pair_rule == "mean" else c_owner
-        fam_results = tuple(results[g] for g in range(ng))
-        fam_index = fam_of_pt
-    # achieved per-point tensors with the final micromoduli: (n x ntype) sparse sums of c
-    # times the design column of each bond type (no (21 x nb) intermediate)
+    return results
+
+
+def _scatter_bulk(
+    bonds: Bonds, res: CalibrationResult, sel: np.ndarray, btype: np.ndarray, ntype: int
+) -> np.ndarray:
+    """Give every bond the complete family's value of its bond type, symmetrized."""
+    lut = np.full(ntype, np.nan)
+    lut[btype[sel]] = res.micromoduli
+    c = lut[btype]
+    missing = ~np.isfinite(c) & np.isfinite(lut).any()
+    if np.any(missing):
+        k = int(np.flatnonzero(missing)[0])
+        raise InputError(
+            f"boundary='bulk' needs every bond to occur in the complete family, got "
+            f"{int(missing.sum())} bond(s) without a match (first: bond {k}, "
+            f"xi = {bonds.xi[k].tolist()}); use boundary='calibrate'"
+        )
+    return 0.5 * (c + c[bonds.reverse])
+
+
+def _scatter_interior_mean(
+    bonds: Bonds,
+    cf: np.ndarray,
+    inner_point: np.ndarray,
+    order: np.ndarray,
+    pos: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Complete-family values inside, their mean on bonds touching other families.
+
+    Returns the final micromoduli and the owners' values (``c_owner``).
+    """
+    c_owner = np.empty(bonds.n_bonds)
+    inner_bond = inner_point[bonds.i]
+    c_owner[order[inner_bond[order]]] = cf[pos[inner_bond[order]]]
+    c = np.full(bonds.n_bonds, float(np.mean(cf)))
+    both = inner_bond & inner_point[bonds.j]
+    c[both] = c_owner[both]
+    return c, c_owner
+
+
+def _scatter_calibrated(
+    bonds: Bonds,
+    results: dict[int, CalibrationResult],
+    fam_of_pt: np.ndarray,
+    order: np.ndarray,
+    pos: np.ndarray,
+    pair_rule: str,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each bond takes its owner family's value, then the pair rule.
+
+    Returns the final micromoduli and the owners' values (``c_owner``).
+    """
+    ng = len(results)
+    offs = np.zeros(ng + 1, dtype=np.int64)
+    np.cumsum([results[g].n_bonds for g in range(ng)], out=offs[1:])
+    allc = np.concatenate([results[g].micromoduli for g in range(ng)])
+    c_owner = np.empty(bonds.n_bonds)
+    # bond order[b] sits at position pos[b] of its (sorted) family
+    c_owner[order] = allc[offs[fam_of_pt[bonds.i]] + pos]
+    c = 0.5 * (c_owner + c_owner[bonds.reverse]) if pair_rule == "mean" else c_owner
+    return c, c_owner
+
+
+def _achieved_tensors(
+    target: np.ndarray,
+    bonds: Bonds,
+    c: np.ndarray,
+    c_owner: np.ndarray,
+    *,
+    btype: np.ndarray,
+    tfirst: np.ndarray,
+    thickness: float,
+    owner_differs: bool,
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Per-point achieved tensors, their relative errors and the pair rule's change.
+
+    Returns the ``(n, nv(nv+1)/2)`` upper-triangle Voigt vectors (NaN at points with a
+    NaN bond), the relative Frobenius error per point and the largest relative change
+    of a point's tensor between ``c_owner`` and ``c`` (NaN when none is finite).
+    """
+    # (n x ntype) sparse sums of c times the design column of each bond type
+    # (no (21 x nb) intermediate)
     Xt = design_matrix(
         bonds.xi[tfirst],
         bonds.omega[tfirst],
@@ -217,24 +260,37 @@ def calibrate_bonds(
     n = bonds.n_points
     finite = np.isfinite(c)
     c0 = np.where(finite, c, 0.0)
-    co = np.where(np.isfinite(c_owner), c_owner, 0.0) if boundary == "calibrate" else c0
+    co = np.where(np.isfinite(c_owner), c_owner, 0.0) if owner_differs else c0
     shape = (n, tfirst.size)
     vec = sp.csr_array((c0, (bonds.i, btype)), shape=shape) @ Xt
     owner_vec = sp.csr_array((co, (bonds.i, btype)), shape=shape) @ Xt
     bad_pt = np.bincount(bonds.i, weights=(~finite).astype(float), minlength=n) > 0
     vec[bad_pt] = np.nan
-    m = _multiplicity(dim)
+    m = _multiplicity(bonds.dim)
     b = _voigt_vector(target)
     nb_ = float(np.sqrt(np.sum(m * b**2)))
     err = np.sqrt(np.sum(m * (vec - b) ** 2, axis=1)) / nb_
     change = np.sqrt(np.sum(m * (vec - owner_vec) ** 2, axis=1)) / nb_
     fin = np.isfinite(change)
     pair_change = float(change[fin].max()) if fin.any() else float("nan")
-    worst = max(fam_results, key=lambda r: _STATUS_RANK.get(r.status, 9))
+    return vec, err, pair_change
+
+
+def _cloud_messages(
+    fam_results: tuple[CalibrationResult, ...],
+    worst: CalibrationResult,
+    *,
+    n_groups: int,
+    family_sizes: np.ndarray,
+    boundary: str,
+    pair_rule: str,
+    pair_change: float,
+) -> list[str]:
+    """Summary notes of a cloud calibration (families, failures, boundary rule)."""
     n_bad = sum(r.status in ("infeasible", "failed") for r in fam_results)
     msgs = [
-        f"{ng} distinct families ({len(fam_results)} calibrated, sizes "
-        f"{int(size[reps].min())}..{int(size[reps].max())}, ranks "
+        f"{n_groups} distinct families ({len(fam_results)} calibrated, sizes "
+        f"{int(family_sizes.min())}..{int(family_sizes.max())}, ranks "
         f"{min(r.rank for r in fam_results)}..{max(r.rank for r in fam_results)})"
     ]
     if n_bad:
@@ -254,15 +310,115 @@ def calibrate_bonds(
     else:
         msgs.append(
             f"boundary 'interior-mean': bonds touching non-complete families get the mean "
-            f"{float(np.mean(results[todo[0]].micromoduli)):.6g}"
+            f"{float(np.mean(fam_results[0].micromoduli)):.6g}"
         )
-    c_fin = c[finite]
+    return msgs
+
+
+def calibrate_bonds(
+    target: np.ndarray,
+    bonds: Bonds,
+    *,
+    thickness: float,
+    pair_rule: str,
+    boundary: str,
+    **opts: Any,
+) -> CalibrationResult:
+    """Calibrate every distinct family of ``bonds`` (see :func:`~pdlin.calibrate_micromoduli`).
+
+    Identical families (see :func:`group_families`) are calibrated once; the
+    values are scattered to every bond by ``boundary`` and ``pair_rule``.
+
+    Parameters
+    ----------
+    target : (nv, nv) ndarray
+        Validated plain-Voigt target in the dimension of ``bonds``.
+    bonds : Bonds
+        Bonds of the whole cloud.
+    thickness : float
+        Out-of-plane thickness (2D).
+    pair_rule : {'mean', 'owner'}
+        Value of bond ``i -> j``: mean of the values calibrated at ``i`` and
+        ``j``, or the owner's.
+    boundary : {'calibrate', 'interior-mean', 'bulk'}
+        Which families are calibrated and how truncated ones are served.
+    **opts
+        ``weighting``, ``lower_bound``, ``method``, ``qp_solver``, ``rcond``,
+        ``zero_tol`` and ``raise_on_infeasible``, as for
+        :func:`~pdlin.calibrate_micromoduli`.
+
+    Returns
+    -------
+    CalibrationResult
+        One micromodulus per directed bond, one achieved tensor and relative
+        error per point, the per-family results in ``families``.
+
+    Raises
+    ------
+    InputError
+        If ``bonds`` is empty, a family has no solution and
+        ``raise_on_infeasible`` is set, or with ``boundary='bulk'`` a bond
+        does not occur in the complete family.
+    """
+    t0 = time.perf_counter()
+    fam_of_pt, reps, order, btype, tfirst = group_families(bonds, return_types=True)
+    ng = reps.size
+    size = np.diff(bonds.indptr)
+    if ng == 0:
+        raise InputError("bonds must hold at least one bond, got an empty family for every point")
+    if boundary in ("interior-mean", "bulk"):
+        full_size = size[reps]
+        counts = np.bincount(fam_of_pt[fam_of_pt >= 0], minlength=ng)
+        # the complete family: largest bond count (ties: the most frequent)
+        todo = [int(np.lexsort((counts, full_size))[-1])]
+    else:
+        todo = list(range(ng))
+    results = _calibrate_groups(target, bonds, todo, reps, order, thickness, opts)
+    pos = np.arange(bonds.n_bonds) - bonds.indptr[bonds.i]
+    fam_results: tuple[CalibrationResult, ...]
+    if boundary in ("bulk", "interior-mean"):
+        g_full = todo[0]
+        fam_results = (results[g_full],)
+        fam_index = np.where(fam_of_pt == g_full, 0, -1)
+        if boundary == "bulk":
+            sel = _family_bonds(bonds, order, int(reps[g_full]))
+            c = _scatter_bulk(bonds, results[g_full], sel, btype, tfirst.size)
+            c_owner = c
+        else:
+            c, c_owner = _scatter_interior_mean(
+                bonds, results[g_full].micromoduli, fam_of_pt == g_full, order, pos
+            )
+    else:
+        c, c_owner = _scatter_calibrated(bonds, results, fam_of_pt, order, pos, pair_rule)
+        fam_results = tuple(results[g] for g in range(ng))
+        fam_index = fam_of_pt
+    vec, err, pair_change = _achieved_tensors(
+        target,
+        bonds,
+        c,
+        c_owner,
+        btype=btype,
+        tfirst=tfirst,
+        thickness=thickness,
+        owner_differs=boundary == "calibrate",
+    )
+    worst = max(fam_results, key=lambda r: _STATUS_RANK.get(r.status, 9))
+    msgs = _cloud_messages(
+        fam_results,
+        worst,
+        n_groups=ng,
+        family_sizes=size[reps],
+        boundary=boundary,
+        pair_rule=pair_rule,
+        pair_change=pair_change,
+    )
+    c_fin = c[np.isfinite(c)]
     lb = float(opts["lower_bound"])
     cmax = float(np.abs(c_fin).max()) if c_fin.size else 1.0
     zthr = float(opts["zero_tol"]) * cmax
     return CalibrationResult(
         micromoduli=c,
-        tensor=_voigt_matrix(vec, nv),
+        tensor=_voigt_matrix(vec, len(_VOIGT[bonds.dim])),
         target=target,
         relative_error=err,
         status=worst.status,

@@ -2,7 +2,7 @@
 
 A *family* is the neighbourhood of one bulk particle: bond vectors ``xi``,
 influence values ``omega`` and neighbour volumes ``volume`` (areas in 2D).
-Seed/spec 004 calibrates micromoduli on such a family; see
+Prakash, anisotropic micromoduli (§3) calibrates micromoduli on such a family; see
 :func:`pdlin.calibrate_micromoduli`.
 """
 
@@ -16,7 +16,7 @@ import numpy as np
 
 from .._validation import as_float_array, positive_scalar
 from ..errors import InputError, ShapeError
-from ..geometry.bonds import SHAPES, _shape_mask
+from ..geometry.bonds import SHAPES, shape_mask
 from ..geometry.influence import InfluenceFunction, evaluate_influence
 
 __all__ = ["Family", "LATTICES", "lattice_family", "equiangle_rotation", "reflection"]
@@ -41,6 +41,15 @@ class Family:
         Out-of-plane thickness (2D; 1 in 3D).
     description : str
         Human-readable origin, used in calibration messages.
+
+    Raises
+    ------
+    ShapeError
+        If ``xi`` is not ``(M, 2)`` or ``(M, 3)``, or ``omega`` / ``volume`` is
+        neither a scalar nor ``(M,)``.
+    InputError
+        If the family is empty, a bond vector is zero, ``omega < 0``,
+        ``volume <= 0`` or the thickness is not > 0.
     """
 
     xi: Any
@@ -50,6 +59,7 @@ class Family:
     description: str = ""
 
     def __post_init__(self) -> None:
+        """Validate the fields: nonzero bonds, omega >= 0, volume > 0, positive thickness."""
         xi = as_float_array(self.xi, "xi")
         if xi.ndim != 2 or xi.shape[1] not in (2, 3):
             raise ShapeError(f"xi must have shape (M, dim) with dim 2 or 3, got {xi.shape}")
@@ -87,9 +97,27 @@ class Family:
         return np.sqrt(np.einsum("ij,ij->i", self.xi, self.xi))
 
     def rotated(self, Q: Any) -> Family:
-        """Family with every bond rotated, ``xi_N -> Q xi_N`` (spec 004 §2.4).
+        """Return the family with every bond rotated, ``xi_N -> Q xi_N``.
 
-        Index ``N``, lengths, ``omega`` and volumes are kept.
+        Index ``N``, lengths, ``omega`` and volumes are kept, as in the
+        lattice rotation of Prakash, anisotropic micromoduli (§4.3.2).
+
+        Parameters
+        ----------
+        Q : (dim, dim) array_like of float
+            Orthogonal matrix.
+
+        Returns
+        -------
+        Family
+            A new family; its description gains ", rotated".
+
+        Raises
+        ------
+        ShapeError
+            If ``Q`` is not ``(dim, dim)``.
+        InputError
+            If ``Q`` is not orthogonal.
         """
         q = _check_rotation(Q, self.dim)
         return Family(
@@ -97,6 +125,7 @@ class Family:
         )
 
     def __repr__(self) -> str:
+        """Return bond count, dimension and description (no arrays)."""
         return f"Family(n_bonds={self.n_bonds}, dim={self.dim}, {self.description!r})"
 
 
@@ -144,11 +173,12 @@ def lattice_family(
     thickness: float = 1.0,
     rtol: float = 1e-9,
 ) -> Family:
-    """Bond family of a bulk particle of a regular lattice.
+    """Build the bond family of a bulk particle of a regular lattice.
 
     Parameters
     ----------
     dim : {2, 3}
+        Spatial dimension.
     horizon : float
         Horizon delta (absolute length); also the ``delta`` passed to the
         influence function for every shape.
@@ -163,11 +193,11 @@ def lattice_family(
     axes : (dim,) sequence of float, optional
         Semi-axes / half-widths for 'ellipsoid' / 'box'.
     influence : str or callable
-        Influence function name or ``f(length, horizon) -> omega``; spec
-        004 uses ``'delta_over_r'``.
+        Influence function name or ``f(length, horizon) -> omega``; the
+        paper's examples use ``'delta_over_r'``.
     rotation : (dim, dim) array_like, optional
-        Rotate every bond after the neighbourhood is selected (spec 004
-        §2.4: index, length, omega and volume are kept).
+        Rotate every bond after the neighbourhood is selected (index,
+        length, omega and volume are kept, see :meth:`Family.rotated`).
     thickness : float
         Out-of-plane thickness (2D).
     rtol : float
@@ -176,11 +206,18 @@ def lattice_family(
     Returns
     -------
     Family
+        Bond vectors, influence values, neighbour volumes and thickness.
+
+    Raises
+    ------
+    InputError
+        If ``dim``, ``lattice``, ``shape`` or ``axes`` is invalid, or the
+        horizon selects no neighbour.
 
     Examples
     --------
     >>> fam = lattice_family(3, 6.0, influence="delta_over_r")
-    >>> fam.n_bonds   # spec 004 §4 default neighbourhood
+    >>> fam.n_bonds   # the paper's default neighbourhood (sphere, delta = 6)
     924
     >>> lattice_family(3, 2.0).n_bonds, lattice_family(2, 1.0, lattice="triangular").n_bonds
     (32, 6)
@@ -214,7 +251,7 @@ def lattice_family(
     offs = offs[np.any(offs != 0, axis=1)]
     vec = offs @ basis
     length = np.sqrt(np.einsum("ij,ij->i", vec, vec))
-    keep = _shape_mask(vec, length, np.full(length.size, hor), shape, ax, rtol)
+    keep = shape_mask(vec, length, np.full(length.size, hor), shape, ax, rtol)
     vec, length = vec[keep], length[keep]
     if vec.shape[0] == 0:
         raise InputError(
@@ -233,10 +270,21 @@ def lattice_family(
 
 
 def equiangle_rotation(theta: float) -> np.ndarray:
-    """Spec 004 Eq. 103 rotation ``R = R_x R_y R_z``, equal angle about each axis.
+    """Return the equal-angle rotation ``R = R_x R_y R_z`` of Prakash, anisotropic micromoduli.
 
-    ``R_y`` is the transpose of the usual convention (kept for
-    reproduction of the paper).
+    The rotation of the paper's lattice-rotation study (Eq. 103), the same
+    angle about each axis.  ``R_y`` is the transpose of the usual
+    convention (kept for reproduction of the paper).
+
+    Parameters
+    ----------
+    theta : float
+        Angle about each axis, in radians.
+
+    Returns
+    -------
+    ndarray of float, shape (3, 3)
+        Proper orthogonal matrix.
 
     Examples
     --------
@@ -254,7 +302,22 @@ def equiangle_rotation(theta: float) -> np.ndarray:
 
 
 def reflection(normal: Sequence[float]) -> np.ndarray:
-    """Mirror ``R(n) = I - 2 n n^T`` for a (normalised) normal ``n``.
+    """Return the mirror ``R(n) = I - 2 n n^T`` for the normalised normal ``n``.
+
+    Parameters
+    ----------
+    normal : (d,) sequence of float
+        Plane normal, any nonzero length.
+
+    Returns
+    -------
+    ndarray of float, shape (d, d)
+        Symmetric orthogonal matrix.
+
+    Raises
+    ------
+    InputError
+        If ``normal`` is zero.
 
     Examples
     --------

@@ -169,7 +169,7 @@ def _check_run_outputs(args: argparse.Namespace, scene: Any) -> None:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from ..io.results import SERIES_SUFFIXES, SUPPORTED_SUFFIXES, write_result
-    from ..problem import solve
+    from ..static import solve
 
     prog = _Progress(args.quiet)
     prog("reading scene")
@@ -504,7 +504,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 def _cmd_sparsity(args: argparse.Namespace) -> int:
     from ..analysis.sparsity import sparsity_report
-    from ..operators.bc import resolve_dirichlet
+    from ..constraints import resolve_dirichlet
 
     scene = _load(args)
     bonds = scene.bonds()

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from ..io.results import write_series
-from ..problem import solve
+from ..static import solve
 
 
 def run_load_steps(args: argparse.Namespace, scene: Any, prog: Any) -> int:

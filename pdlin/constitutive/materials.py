@@ -1,9 +1,10 @@
-"""Reference elasticity tensors of spec 004 §3 (Prakash, anisotropic bond-based PD).
+"""Reference elasticity tensors of Prakash, anisotropic micromoduli (§4.1, Eqs. 50-94).
 
 One material per symmetry class, 6×6 plain-Voigt matrices in GPa in the material frame
-of the paper, with the universal anisotropy index ``A^U`` printed in the spec.  The
-matrices are stored **as printed** (after the spec's OCR corrections): in particular
-Ta₂C is not exactly trigonal (``C66 = 153`` against ``(C11 - C12)/2 = 152.5``).
+of the paper, with the universal anisotropy index ``A^U`` of the paper's Table 1.  The
+matrices are stored **as printed**, with the OCR's obvious misreadings corrected (the
+isotropic off-diagonal entries read "0.4" for 34.4): in particular Ta₂C is not exactly
+trigonal (``C66 = 153`` against ``(C11 - C12)/2 = 152.5``).
 """
 
 from __future__ import annotations
@@ -34,9 +35,9 @@ def _iso_like(c11: float, c12: float, c44: float) -> list[list[float]]:
     ]
 
 
-#: Class name → (C in GPa, 6×6 plain Voigt, read-only; A^U as printed in spec §3).
+#: Class name → (C in GPa, 6×6 plain Voigt, read-only; A^U as printed in the paper's Table 1).
 MATERIALS: dict[str, tuple[NDArray[np.float64], float]] = {
-    # KIO3, paper Eq. (50); spec §3 row "triclinic"; A^U = 0.1965
+    # KIO3, paper Eq. (50); A^U = 0.1965
     "triclinic": (
         _frozen(
             [
@@ -50,7 +51,7 @@ MATERIALS: dict[str, tuple[NDArray[np.float64], float]] = {
         ),
         0.1965,
     ),
-    # CoTeO4, paper Eq. (56); spec §3 row "monoclinic" (mirror z = 0); A^U = 28.3169
+    # CoTeO4, paper Eq. (56) (mirror z = 0); A^U = 28.3169
     "monoclinic": (
         _frozen(
             [
@@ -64,7 +65,7 @@ MATERIALS: dict[str, tuple[NDArray[np.float64], float]] = {
         ),
         28.3169,
     ),
-    # Te2W, paper Eq. (62); spec §3 row "orthotropic"; A^U = 54.0623
+    # Te2W, paper Eq. (62); A^U = 54.0623
     "orthotropic": (
         _frozen(
             [
@@ -78,7 +79,7 @@ MATERIALS: dict[str, tuple[NDArray[np.float64], float]] = {
         ),
         54.0623,
     ),
-    # Ta2C, paper Eq. (69); spec §3 row "trigonal", as printed (C66 = 153, not 152.5);
+    # Ta2C, paper Eq. (69), as printed (C66 = 153, not 152.5);
     # A^U = 0.5875
     "trigonal": (
         _frozen(
@@ -93,7 +94,7 @@ MATERIALS: dict[str, tuple[NDArray[np.float64], float]] = {
         ),
         0.5875,
     ),
-    # Si, paper Eq. (75); spec §3 row "tetragonal"; A^U = 0.1231
+    # Si, paper Eq. (75); A^U = 0.1231
     "tetragonal": (
         _frozen(
             [
@@ -107,7 +108,7 @@ MATERIALS: dict[str, tuple[NDArray[np.float64], float]] = {
         ),
         0.1231,
     ),
-    # MoN, paper Eq. (81); spec §3 row "trans. isotropic" (axis e3); A^U = 0.2551
+    # MoN, paper Eq. (81) (axis e3); A^U = 0.2551
     "transversely_isotropic": (
         _frozen(
             [
@@ -121,9 +122,9 @@ MATERIALS: dict[str, tuple[NDArray[np.float64], float]] = {
         ),
         0.2551,
     ),
-    # spinel MgAl2O4 (paper prints "MgAl2O2", erratum E3), Eq. (87); spec §3; A^U = 1.2372
+    # spinel MgAl2O4 (the paper prints "MgAl2O2"), Eq. (87); A^U = 1.2372
     "cubic": (_frozen(_iso_like(252.0, 145.0, 142.0)), 1.2372),
-    # Pyroceram 9608, Eq. (94) (OCR "0.4" = 34.4, spec §3 [C]); E = 86, nu = 0.25; A^U = 0
+    # Pyroceram 9608, Eq. (94) (the OCR's "0.4" read as 34.4); E = 86, nu = 0.25; A^U = 0
     "isotropic": (_frozen(_iso_like(103.2, 34.4, 34.4)), 0.0),
 }
 
@@ -144,13 +145,26 @@ _ALIASES.update({"spinel": "cubic", "pyroceram": "isotropic"})
 
 
 def material(name: str) -> NDArray[np.float64]:
-    """Writable copy of a reference stiffness of spec §3 (6×6 Voigt, GPa).
+    """Return a writable copy of one of the paper's reference stiffnesses.
+
+    The eight materials of Prakash, anisotropic micromoduli (§4.1), one per
+    symmetry class, see :data:`MATERIALS`.
 
     Parameters
     ----------
     name : str
         A symmetry class (key of :data:`MATERIALS`, e.g. ``"trigonal"``) or the material
         name (``"Ta2C"``, ``"KIO3"``, ``"spinel"``, ``"Pyroceram"``, ...; case-insensitive).
+
+    Returns
+    -------
+    ndarray of float, shape (6, 6)
+        Plain-Voigt stiffness (no factor 2 on shear entries) in GPa, a fresh copy.
+
+    Raises
+    ------
+    InputError
+        If ``name`` is not a str or names no known class or material.
 
     Examples
     --------

@@ -1,13 +1,15 @@
 """The eight elastic symmetry classes: constructors, symmetry groups, invariance tests.
 
-Constructors return 6×6 plain-Voigt matrices in the material frame of spec 004 §1.3:
-monoclinic mirror plane z = 0; orthotropic, tetragonal and cubic axes along e₁, e₂, e₃;
-trigonal, tetragonal and transversely isotropic axis e₃; trigonal mirror normal e₁
-(spec erratum E4: normals e₁ and ½e₁ ± (√3/2)e₂, sign pattern ``C14 = -C24 = C56``).
-Every constructor checks that the result is positive definite.
+Constructors return 6×6 plain-Voigt matrices in the material frame of Prakash,
+anisotropic micromoduli (§4.1): monoclinic mirror plane z = 0; orthotropic, tetragonal
+and cubic axes along e₁, e₂, e₃; trigonal, tetragonal and transversely isotropic axis
+e₃; trigonal mirror normal e₁.  For the trigonal class pdlin uses the mirror normals e₁
+and ½e₁ ± (√3/2)e₂ with the sign pattern ``C14 = -C24 = C56`` (derived: these leave the
+paper's Ta₂C matrix, Eq. 69, invariant; the normals (√3/2)e₁ ± ½e₂ printed in its Eq. 64
+do not).  Every constructor checks that the result is positive definite.
 
 =======================  ====================================  =========  ===========
-class                    group generators (spec §1.3)          constants  with Cauchy
+class                    group generators                      constants  with Cauchy
 =======================  ====================================  =========  ===========
 triclinic                I, -I                                 21         15
 monoclinic               I, -I, R(e₃)                          13         9
@@ -70,7 +72,26 @@ def _build(name: str, **entries: Any) -> FloatArray:
 
 
 def triclinic(C: ArrayLike) -> FloatArray:
-    """Triclinic stiffness: any symmetric positive definite 6×6 Voigt matrix (21 constants).
+    """Return a triclinic stiffness: any symmetric positive definite 6×6 Voigt matrix.
+
+    The triclinic class has 21 independent constants (no symmetry beyond ``±I``).
+
+    Parameters
+    ----------
+    C : (6, 6) array_like of float
+        Symmetric positive definite plain-Voigt matrix.
+
+    Returns
+    -------
+    ndarray of float, shape (6, 6)
+        A float64 copy of ``C``.
+
+    Raises
+    ------
+    ShapeError
+        If ``C`` is not 6×6.
+    InputError
+        If ``C`` is not finite, symmetric and positive definite.
 
     Examples
     --------
@@ -91,13 +112,28 @@ def monoclinic(
     C11: float, C22: float, C33: float, C12: float, C13: float, C23: float,
     C44: float, C55: float, C66: float, C16: float, C26: float, C36: float, C45: float,
 ) -> FloatArray:  # fmt: skip
-    """Monoclinic stiffness, mirror plane z = 0 (13 constants).
+    """Build a monoclinic stiffness with mirror plane z = 0 (13 constants).
 
     Entries with an odd number of indices 3 vanish (C14, C15, C24, C25, C34, C35, C46, C56).
 
+    Parameters
+    ----------
+    C11, C22, C33, C12, C13, C23, C44, C55, C66, C16, C26, C36, C45 : float
+        The 13 independent plain-Voigt entries (1-based indices).
+
+    Returns
+    -------
+    ndarray of float, shape (6, 6)
+        Plain-Voigt stiffness (no factor 2 on shear entries), in the units of the input.
+
+    Raises
+    ------
+    InputError
+        If a constant is not a finite real number or the matrix is not positive definite.
+
     Examples
     --------
-    >>> C = monoclinic(135, 13, 269, 19, 54, 15, 14, 66, 18, 42, 6, 18, 25)  # CoTeO4, spec §3
+    >>> C = monoclinic(135, 13, 269, 19, 54, 15, 14, 66, 18, 42, 6, 18, 25)  # CoTeO4, Eq. 56
     >>> float(C[0, 5]), float(C[3, 4]), float(C[0, 3])
     (42.0, 25.0, 0.0)
     """
@@ -111,11 +147,26 @@ def orthotropic(
     C11: float, C22: float, C33: float, C12: float, C13: float, C23: float,
     C44: float, C55: float, C66: float,
 ) -> FloatArray:  # fmt: skip
-    """Orthotropic stiffness, mirror planes normal to e₁, e₂, e₃ (9 constants).
+    """Build an orthotropic stiffness with mirror planes normal to e₁, e₂, e₃ (9 constants).
+
+    Parameters
+    ----------
+    C11, C22, C33, C12, C13, C23, C44, C55, C66 : float
+        The 9 independent plain-Voigt entries; all others are zero.
+
+    Returns
+    -------
+    ndarray of float, shape (6, 6)
+        Plain-Voigt stiffness (no factor 2 on shear entries), in the units of the input.
+
+    Raises
+    ------
+    InputError
+        If a constant is not a finite real number or the matrix is not positive definite.
 
     Examples
     --------
-    >>> orthotropic(143, 3, 102, 1, 37, 3, 2, 46, 1)[:3, :3].tolist()   # Te2W, spec §3
+    >>> orthotropic(143, 3, 102, 1, 37, 3, 2, 46, 1)[:3, :3].tolist()   # Te2W, Eq. 62
     [[143.0, 1.0, 37.0], [1.0, 3.0, 3.0], [37.0, 3.0, 102.0]]
     """
     return _build(
@@ -125,14 +176,30 @@ def orthotropic(
 
 
 def trigonal(C11: float, C33: float, C12: float, C13: float, C14: float, C44: float) -> FloatArray:
-    """Trigonal stiffness, 3-fold axis e₃, mirror normal e₁ (6 constants).
+    """Build a trigonal stiffness with 3-fold axis e₃ and mirror normal e₁ (6 constants).
 
     ``C22 = C11``, ``C23 = C13``, ``C55 = C44``, ``C24 = -C14``, ``C56 = C14``,
-    ``C66 = (C11 - C12)/2`` (spec Eq. 65 as corrected, erratum E4).
+    ``C66 = (C11 - C12)/2``: the class constraints of Prakash, anisotropic micromoduli,
+    Eq. 65, read with ``C14 = -C24 = C56`` (the OCR prints "C14 = C56 = -C14").
+
+    Parameters
+    ----------
+    C11, C33, C12, C13, C14, C44 : float
+        The 6 independent plain-Voigt entries.
+
+    Returns
+    -------
+    ndarray of float, shape (6, 6)
+        Plain-Voigt stiffness (no factor 2 on shear entries), in the units of the input.
+
+    Raises
+    ------
+    InputError
+        If a constant is not a finite real number or the matrix is not positive definite.
 
     Examples
     --------
-    >>> C = trigonal(464, 493, 159, 141, -45, 125)       # Ta2C, spec §3 (C66 152.5, not 153)
+    >>> C = trigonal(464, 493, 159, 141, -45, 125)       # Ta2C, Eq. 69 (C66 152.5, not 153)
     >>> float(C[0, 3]), float(C[1, 3]), float(C[4, 5]), float(C[5, 5])
     (-45.0, 45.0, -45.0, 152.5)
     """
@@ -146,11 +213,29 @@ def trigonal(C11: float, C33: float, C12: float, C13: float, C14: float, C44: fl
 def tetragonal(
     C11: float, C33: float, C12: float, C13: float, C44: float, C66: float
 ) -> FloatArray:
-    """Tetragonal stiffness, 4-fold axis e₃, mirrors e₁, e₂, e₃, (e₁ ± e₂)/√2 (6 constants).
+    """Build a tetragonal stiffness with 4-fold axis e₃ (6 constants).
+
+    Mirror normals e₁, e₂, e₃ and (e₁ ± e₂)/√2; ``C22 = C11``, ``C23 = C13``,
+    ``C55 = C44``.
+
+    Parameters
+    ----------
+    C11, C33, C12, C13, C44, C66 : float
+        The 6 independent plain-Voigt entries.
+
+    Returns
+    -------
+    ndarray of float, shape (6, 6)
+        Plain-Voigt stiffness (no factor 2 on shear entries), in the units of the input.
+
+    Raises
+    ------
+    InputError
+        If a constant is not a finite real number or the matrix is not positive definite.
 
     Examples
     --------
-    >>> C = tetragonal(212, 179, 70, 58, 58, 85)          # Si, spec §3
+    >>> C = tetragonal(212, 179, 70, 58, 58, 85)          # Si, Eq. 75
     >>> float(C[1, 1]), float(C[1, 2]), float(C[4, 4]), float(C[5, 5])
     (212.0, 58.0, 58.0, 85.0)
     """
@@ -163,11 +248,28 @@ def tetragonal(
 def transversely_isotropic(
     C11: float, C33: float, C12: float, C13: float, C44: float
 ) -> FloatArray:
-    """Transversely isotropic stiffness, axis e₃ (5 constants; ``C66 = (C11 - C12)/2``).
+    """Build a transversely isotropic stiffness with axis e₃ (5 constants).
+
+    ``C22 = C11``, ``C23 = C13``, ``C55 = C44`` and ``C66 = (C11 - C12)/2``.
+
+    Parameters
+    ----------
+    C11, C33, C12, C13, C44 : float
+        The 5 independent plain-Voigt entries.
+
+    Returns
+    -------
+    ndarray of float, shape (6, 6)
+        Plain-Voigt stiffness (no factor 2 on shear entries), in the units of the input.
+
+    Raises
+    ------
+    InputError
+        If a constant is not a finite real number or the matrix is not positive definite.
 
     Examples
     --------
-    >>> float(transversely_isotropic(499, 714, 177, 235, 241)[5, 5])   # MoN, spec §3
+    >>> float(transversely_isotropic(499, 714, 177, 235, 241)[5, 5])   # MoN, Eq. 81
     161.0
     """
     return _build(
@@ -178,11 +280,26 @@ def transversely_isotropic(
 
 
 def cubic(C11: float, C12: float, C44: float) -> FloatArray:
-    """Cubic stiffness, axes e₁, e₂, e₃ (3 constants).
+    """Build a cubic stiffness with axes e₁, e₂, e₃ (3 constants).
+
+    Parameters
+    ----------
+    C11, C12, C44 : float
+        Axial, off-diagonal axial and shear plain-Voigt entries.
+
+    Returns
+    -------
+    ndarray of float, shape (6, 6)
+        Plain-Voigt stiffness (no factor 2 on shear entries), in the units of the input.
+
+    Raises
+    ------
+    InputError
+        If a constant is not a finite real number or the matrix is not positive definite.
 
     Examples
     --------
-    >>> C = cubic(252, 145, 142)                                      # spinel, spec §3
+    >>> C = cubic(252, 145, 142)                                      # spinel, Eq. 87
     >>> float(C[2, 2]), float(C[0, 2]), float(C[3, 3])
     (252.0, 145.0, 142.0)
     """
@@ -201,9 +318,27 @@ def isotropic(
     K: float | None = None,
     G: float | None = None,
 ) -> FloatArray:
-    """Isotropic stiffness from exactly two of E, ν, λ, μ (= G), K.
+    """Build an isotropic stiffness from exactly two of E, ν, λ, μ (= G), K.
 
     ``C11 = λ + 2μ``, ``C12 = λ``, ``C44 = μ``.
+
+    Parameters
+    ----------
+    E : float, optional
+        Young's modulus.
+    nu : float, optional
+        Poisson ratio, in (-1, 1/2).
+    lam, mu : float, optional
+        Lamé's first constant and the shear modulus.
+    K : float, optional
+        Bulk modulus.
+    G : float, optional
+        Shear modulus (the same constant as ``mu``; give one of them).
+
+    Returns
+    -------
+    ndarray of float, shape (6, 6)
+        Plain-Voigt stiffness in the units of the moduli.
 
     Raises
     ------
@@ -214,7 +349,7 @@ def isotropic(
     Examples
     --------
     >>> import numpy as np
-    >>> C = isotropic(E=86.0, nu=0.25)                   # Pyroceram 9608, spec §3
+    >>> C = isotropic(E=86.0, nu=0.25)                   # Pyroceram 9608, Eq. 94
     >>> round(float(C[0, 0]), 6), round(float(C[0, 1]), 6), round(float(C[3, 3]), 6)
     (103.2, 34.4, 34.4)
     >>> bool(np.allclose(isotropic(K=57.3333333333333, G=34.4), C))
@@ -289,7 +424,7 @@ def isotropic_constants(
     mu: Any = None,
     rtol: float = 1e-9,
 ) -> tuple[Any, Any]:
-    """Young's modulus and Poisson ratio ``(E, ν)`` from any two isotropic constants.
+    """Convert any two isotropic constants to Young's modulus and Poisson ratio ``(E, ν)``.
 
     Accepts two (or more, if consistent) of ``E``, ``nu``, ``K`` (bulk
     modulus), ``G`` or ``mu`` (shear modulus, the same constant) and ``lam``
@@ -301,6 +436,8 @@ def isotropic_constants(
     Parameters
     ----------
     E, nu, K, G, lam, mu : float or (n,) array_like, optional
+        Young's modulus, Poisson ratio, bulk modulus, shear modulus, Lamé's first
+        constant and the shear modulus again (``mu`` and ``G`` must agree if both given).
     rtol : float
         Relative tolerance when more than two constants are given: every
         extra one must agree with the pair ``E, nu, K, G, lam`` (first two
@@ -308,7 +445,9 @@ def isotropic_constants(
 
     Returns
     -------
-    (E, nu) : floats, or arrays when an input is an array
+    E, nu : float or ndarray
+        Young's modulus (units of the inputs) and Poisson ratio; ``(n,)`` arrays when an
+        input is an array.
 
     Raises
     ------
@@ -375,7 +514,7 @@ def isotropic_constants(
 
 
 def _check_nu(nu: Any) -> None:
-    """A given Poisson ratio must lie in (-1, 1/2) (positive definite isotropic tensor)."""
+    """Check that a given Poisson ratio lies in (-1, 1/2) (positive definite isotropic tensor)."""
     if nu is None:
         return
     arr = np.asarray(nu, dtype=float)
@@ -403,7 +542,7 @@ def _show(value: Any) -> str:
     return f"[{float(arr.min()):.6g} ... {float(arr.max()):.6g}] ({arr.size} values)"
 
 
-#: Class name → constructor, from most to least anisotropic (spec §1.3).
+#: Class name → constructor, from most to least anisotropic.
 SYMMETRY_CLASSES: dict[str, Callable[..., FloatArray]] = {
     "triclinic": triclinic,
     "monoclinic": monoclinic,
@@ -415,13 +554,13 @@ SYMMETRY_CLASSES: dict[str, Callable[..., FloatArray]] = {
     "isotropic": isotropic,
 }
 
-#: Independent elastic constants per class (spec §1.3, "classical").
+#: Independent elastic constants per class (Prakash, anisotropic micromoduli, Table 1).
 N_CONSTANTS: dict[str, int] = {
     "triclinic": 21, "monoclinic": 13, "orthotropic": 9, "trigonal": 6, "tetragonal": 6,
     "transversely_isotropic": 5, "cubic": 3, "isotropic": 2,
 }  # fmt: skip
 
-#: Independent constants once the Cauchy relations are imposed (spec §1.3).
+#: Independent constants once the Cauchy relations are imposed (the paper's Table 1).
 N_CONSTANTS_CAUCHY: dict[str, int] = {
     "triclinic": 15, "monoclinic": 9, "orthotropic": 6, "trigonal": 4, "tetragonal": 4,
     "transversely_isotropic": 3, "cubic": 2, "isotropic": 1,
@@ -451,12 +590,12 @@ def _frame(n_axis: ArrayLike) -> FloatArray:
 
 
 def symmetry_group(name: str, n_axis: ArrayLike = (0, 0, 1)) -> list[FloatArray]:
-    """Orthogonal 3×3 matrices generating the symmetry group of a class (spec §1.3).
+    """Return orthogonal 3×3 matrices generating the symmetry group of a class.
 
     The reflections ``R(n) = I - 2 n⊗n`` (and, for trigonal, the 2π/3 turns about e₃) of
-    the spec table, for the material frame of the constructors.  Continuous groups
-    (transversely isotropic, isotropic) are represented by generators at generic angles
-    whose closure is dense in the group, so invariance under the returned list is
+    the table in this module's docstring, for the material frame of the constructors.
+    Continuous groups (transversely isotropic, isotropic) are represented by generators at
+    generic angles whose closure is dense in the group, so invariance under the returned list is
     invariance under the whole group.  With ``n_axis``, the material axis e₃ is turned
     onto ``n_axis`` by the smallest rotation ``R`` and every element is conjugated,
     ``R Q Rᵀ``: the group of ``rotate(C, R)``.
@@ -472,6 +611,14 @@ def symmetry_group(name: str, n_axis: ArrayLike = (0, 0, 1)) -> list[FloatArray]
     Returns
     -------
     list of (3, 3) ndarray
+        Orthogonal matrices (reflections, inversions and rotations) generating the group.
+
+    Raises
+    ------
+    InputError
+        If ``name`` is not a symmetry class or ``n_axis`` is zero or not finite.
+    ShapeError
+        If ``n_axis`` does not have shape (3,).
 
     Examples
     --------
@@ -527,13 +674,31 @@ def symmetry_group(name: str, n_axis: ArrayLike = (0, 0, 1)) -> list[FloatArray]
 
 
 def symmetry_distance(C: ArrayLike, Q: ArrayLike) -> float:
-    """Relative change ``‖Q∗C - C‖_F / ‖C‖_F`` (full-tensor Frobenius norm).
+    """Return the relative change ``‖Q∗C - C‖_F / ‖C‖_F`` of a stiffness under ``Q``.
+
+    Parameters
+    ----------
+    C : (6, 6), (3, 3), (3, 3, 3, 3) or (2, 2, 2, 2) array_like of float
+        Stiffness as plain Voigt or full tensor.
+    Q : (d, d) array_like of float
+        Orthogonal matrix (rotation or reflection) in the dimension of ``C``.
+
+    Returns
+    -------
+    float
+        Relative change in the Frobenius norm of the full fourth-order tensor.
+
+    Raises
+    ------
+    InputError
+        If ``C`` is zero.
 
     Examples
     --------
     >>> import numpy as np
     >>> from pdlin.constitutive import material
-    >>> round(symmetry_distance(material("trigonal"), reflection([0, 1, 0])), 2)  # spec E4
+    >>> # Ta2C is not invariant under the mirror y -> -y (the paper's Eq. 64 normals)
+    >>> round(symmetry_distance(material("trigonal"), reflection([0, 1, 0])), 2)
     0.35
     """
     T, _, _ = _to_tensor(C, "C")
@@ -544,7 +709,21 @@ def symmetry_distance(C: ArrayLike, Q: ArrayLike) -> float:
 
 
 def is_symmetric_under(C: ArrayLike, Q: ArrayLike, rtol: float = 1e-10) -> bool:
-    """Whether ``Q`` is a symmetry of ``C``: ``symmetry_distance(C, Q) <= rtol``.
+    """Test whether ``Q`` is a symmetry of ``C``: ``symmetry_distance(C, Q) <= rtol``.
+
+    Parameters
+    ----------
+    C : (6, 6), (3, 3), (3, 3, 3, 3) or (2, 2, 2, 2) array_like of float
+        Stiffness as plain Voigt or full tensor.
+    Q : (d, d) array_like of float
+        Orthogonal matrix in the dimension of ``C``.
+    rtol : float
+        Largest relative Frobenius change counted as invariant.
+
+    Returns
+    -------
+    bool
+        True when ``Q∗C`` equals ``C`` to ``rtol``.
 
     Examples
     --------

@@ -1,7 +1,7 @@
 """Fourth-order elasticity tensors: Voigt/Mandel/full formats, rotations, norms, checks.
 
-Conventions (spec 004 §1.2, §2.1, §2.7)
----------------------------------------
+Conventions (Prakash, anisotropic micromoduli, §2 and Eq. 29; the 2D forms are pdlin's)
+----------------------------------------------------------------------------------------
 * **Voigt order** 3D: 1→11, 2→22, 3→33, 4→23, 5→31, 6→12; 2D: 1→11, 2→22, 3→12.
 * **Plain Voigt** (stiffness convention): ``C̃_αβ`` *is* the tensor component, with no
   factor 2 or √2 on shear entries (``C̃44 = C2323``).
@@ -136,7 +136,7 @@ def _check_tensor_symmetries(arr: FloatArray, name: str, rtol: float) -> None:
 
 
 def _stiffness(C: Any, name: str, rtol: float = _SYM_RTOL) -> tuple[FloatArray, int, bool]:
-    """Validated (array, dim, is_voigt) of a symmetric stiffness in either format."""
+    """Validate a symmetric stiffness in either format; return (array, dim, is_voigt)."""
     arr = _as_array(C, name)
     is_voigt = arr.ndim == 2
     if is_voigt:
@@ -177,7 +177,7 @@ def _same_format(V: FloatArray, is_voigt: bool) -> FloatArray:
 
 
 def voigt_to_tensor(C: ArrayLike) -> FloatArray:
-    """Full fourth-order tensor of a plain-Voigt stiffness matrix.
+    """Return the full fourth-order tensor of a plain-Voigt stiffness matrix.
 
     Parameters
     ----------
@@ -210,7 +210,7 @@ def voigt_to_tensor(C: ArrayLike) -> FloatArray:
 
 
 def tensor_to_voigt(T: ArrayLike, *, rtol: float = _SYM_RTOL) -> FloatArray:
-    """Plain-Voigt matrix of a full fourth-order stiffness tensor.
+    """Return the plain-Voigt matrix of a full fourth-order stiffness tensor.
 
     Parameters
     ----------
@@ -223,6 +223,7 @@ def tensor_to_voigt(T: ArrayLike, *, rtol: float = _SYM_RTOL) -> FloatArray:
     Returns
     -------
     C : (6, 6) or (3, 3) ndarray
+        Plain-Voigt matrix (no factor 2 on shear entries).
 
     Raises
     ------
@@ -252,7 +253,22 @@ def tensor_to_voigt(T: ArrayLike, *, rtol: float = _SYM_RTOL) -> FloatArray:
 
 
 def voigt_to_mandel(C: ArrayLike) -> FloatArray:
-    """Mandel matrix (shear rows and columns × √2) of a plain-Voigt stiffness.
+    """Return the Mandel matrix (shear rows and columns × √2) of a plain-Voigt stiffness.
+
+    Parameters
+    ----------
+    C : (6, 6) or (3, 3) array_like of float
+        Symmetric plain-Voigt stiffness.
+
+    Returns
+    -------
+    ndarray of float, same shape as ``C``
+        Mandel form: entry ``(α, β)`` times ``w_α w_β`` with ``w = √2`` on shear rows.
+
+    Raises
+    ------
+    ShapeError
+        If ``C`` is a full tensor or has another shape.
 
     Examples
     --------
@@ -269,7 +285,22 @@ def voigt_to_mandel(C: ArrayLike) -> FloatArray:
 
 
 def mandel_to_voigt(M: ArrayLike) -> FloatArray:
-    """Plain-Voigt matrix of a Mandel stiffness (inverse of :func:`voigt_to_mandel`).
+    """Return the plain-Voigt matrix of a Mandel stiffness (inverse of :func:`voigt_to_mandel`).
+
+    Parameters
+    ----------
+    M : (6, 6) or (3, 3) array_like of float
+        Symmetric Mandel stiffness.
+
+    Returns
+    -------
+    ndarray of float, same shape as ``M``
+        Plain-Voigt form (shear rows and columns divided by √2).
+
+    Raises
+    ------
+    ShapeError
+        If ``M`` is a full tensor or has another shape.
 
     Examples
     --------
@@ -290,7 +321,24 @@ def mandel_to_voigt(M: ArrayLike) -> FloatArray:
 
 
 def reflection(n: ArrayLike) -> FloatArray:
-    """Reflection ``R(n) = I - 2 n⊗n / |n|²`` across the plane with normal ``n``.
+    """Return the reflection ``R(n) = I - 2 n⊗n / |n|²`` across the plane with normal ``n``.
+
+    Parameters
+    ----------
+    n : (2,) or (3,) array_like of float
+        Plane normal, any nonzero length.
+
+    Returns
+    -------
+    ndarray of float, shape (d, d)
+        Symmetric orthogonal matrix with determinant -1.
+
+    Raises
+    ------
+    ShapeError
+        If ``n`` is not of shape (2,) or (3,).
+    InputError
+        If ``n`` is zero or not finite.
 
     Examples
     --------
@@ -308,7 +356,26 @@ def reflection(n: ArrayLike) -> FloatArray:
 
 
 def rotation_matrix(axis: ArrayLike, angle: float) -> FloatArray:
-    """Right-handed rotation by ``angle`` (radians) about ``axis`` (Rodrigues).
+    """Return the right-handed rotation by ``angle`` about ``axis`` (Rodrigues' formula).
+
+    Parameters
+    ----------
+    axis : (3,) array_like of float
+        Rotation axis, any nonzero length.
+    angle : float
+        Rotation angle in radians.
+
+    Returns
+    -------
+    ndarray of float, shape (3, 3)
+        Proper orthogonal matrix.
+
+    Raises
+    ------
+    ShapeError
+        If ``axis`` is not of shape (3,).
+    InputError
+        If ``axis`` is zero or not finite.
 
     Examples
     --------
@@ -342,8 +409,8 @@ def _check_orthogonal(Q: Any, dim: int, atol: float) -> FloatArray:
 def rotate(C: ArrayLike, Q: ArrayLike, *, atol: float = 1e-10) -> FloatArray:
     """Transform a stiffness by an orthogonal map: ``C'_pqrs = Q_pi Q_qj Q_rk Q_sl C_ijkl``.
 
-    (spec Eq. 44).  A material described by ``C`` in its own frame, turned by ``Q``, has
-    stiffness ``rotate(C, Q)`` in the global frame.
+    Prakash, anisotropic micromoduli, Eq. 44.  A material described by ``C`` in its own
+    frame, turned by ``Q``, has stiffness ``rotate(C, Q)`` in the global frame.
 
     Parameters
     ----------
@@ -382,11 +449,29 @@ def rotate(C: ArrayLike, Q: ArrayLike, *, atol: float = 1e-10) -> FloatArray:
 
 
 def frobenius_multiplicity(dim: int = 3) -> NDArray[np.int64]:
-    """Multiplicities of the upper-triangle Voigt entries in the full tensor.
+    """Return the multiplicities of the upper-triangle Voigt entries in the full tensor.
 
     Entry ``(α, β)``, ``α ≤ β``, row-major, stands for ``m`` components of the full
     tensor: 3D ``m = 1`` (α = β ≤ 3), 2 (α < β ≤ 3), 4 (α ≤ 3 < β), 4 (α = β > 3),
-    8 (3 < α < β), ``Σ m = 81``; 2D ``m = (1, 2, 4, 1, 4, 4)``, ``Σ m = 16`` (spec §2.1, §2.7).
+    8 (3 < α < β), ``Σ m = 81``; 2D ``m = (1, 2, 4, 1, 4, 4)``, ``Σ m = 16``.  Weighting
+    the least squares of Prakash, anisotropic micromoduli (Eqs. 32-35) by ``√m`` makes it a
+    fit in the full-tensor Frobenius norm, which reproduces the paper's Table 1 (derived:
+    the printed unweighted system does not).
+
+    Parameters
+    ----------
+    dim : {2, 3}
+        Spatial dimension.
+
+    Returns
+    -------
+    ndarray of int64, shape (21,) or (6,)
+        Multiplicity of each upper-triangle entry, row-major.
+
+    Raises
+    ------
+    InputError
+        If ``dim`` is not 2 or 3.
 
     Examples
     --------
@@ -403,10 +488,20 @@ def frobenius_multiplicity(dim: int = 3) -> NDArray[np.int64]:
 
 
 def voigt_upper(C: ArrayLike) -> FloatArray:
-    """Upper-triangle Voigt entries, row-major: 21 (3D) or 6 (2D) values.
+    """Return the upper-triangle Voigt entries, row-major: 21 (3D) or 6 (2D) values.
 
     Order ``C11, C12, ..., C16, C22, ..., C66`` (2D: ``C11, C12, C13, C22, C23, C33``), the
     order of :func:`frobenius_multiplicity`.
+
+    Parameters
+    ----------
+    C : (6, 6), (3, 3), (3, 3, 3, 3) or (2, 2, 2, 2) array_like of float
+        Symmetric stiffness.
+
+    Returns
+    -------
+    ndarray of float, shape (21,) or (6,)
+        The upper-triangle plain-Voigt entries.
 
     Examples
     --------
@@ -419,7 +514,17 @@ def voigt_upper(C: ArrayLike) -> FloatArray:
 
 
 def frobenius_norm(C: ArrayLike) -> float:
-    """Frobenius norm of the full tensor (81 or 16 components), from Voigt or full input.
+    """Return the Frobenius norm of the full tensor (81 or 16 components).
+
+    Parameters
+    ----------
+    C : (6, 6), (3, 3), (3, 3, 3, 3) or (2, 2, 2, 2) array_like of float
+        Symmetric stiffness, plain Voigt or full tensor.
+
+    Returns
+    -------
+    float
+        ``sqrt(Σ C_ijkl²)`` over all components of the full tensor.
 
     Examples
     --------
@@ -441,7 +546,8 @@ def _frobenius_voigt(V: FloatArray) -> float:
 # Cauchy relations
 
 
-#: Cauchy pairs (a, b) of zero-based Voigt index pairs, spec §1.3 (3D) and §2.7 (2D).
+#: Cauchy pairs (a, b) of zero-based Voigt index pairs (3D: Prakash, anisotropic
+#: micromoduli, Eq. 49; 2D: derived, C1122 = C1212).
 #: Total symmetrization sets both to (C_a + 2 C_b)/3 (C_b has twice the multiplicity).
 _CAUCHY_PAIRS: dict[int, tuple[tuple[tuple[int, int], tuple[int, int]], ...]] = {
     3: (
@@ -457,12 +563,12 @@ _CAUCHY_PAIRS: dict[int, tuple[tuple[tuple[int, int], tuple[int, int]], ...]] = 
 
 
 def cauchy_projection(C: ArrayLike) -> FloatArray:
-    """Orthogonal projection onto totally symmetric tensors (the Cauchy subspace).
+    """Project orthogonally onto totally symmetric tensors (the Cauchy subspace).
 
     ``C_sym,ijkl = (C_ijkl + C_ikjl + C_iljk) / 3``: for a tensor with minor and major
     symmetry this is the average over all 24 index permutations, hence idempotent, the
     orthogonal (full-tensor Frobenius) projection onto the Cauchy subspace, and
-    commuting with rotations.  Per Cauchy pair (a, b) of spec §1.3 (``C12``/``C66``,
+    commuting with rotations.  Per Cauchy pair (a, b) (``C12``/``C66``,
     ``C13``/``C55``, ``C23``/``C44``, ``C14``/``C56``, ``C25``/``C46``, ``C36``/``C45``;
     2D ``C12``/``C33``) both entries become ``(C_a + 2 C_b)/3`` — the multiplicity-weighted
     mean ``(m_a C_a + m_b C_b)/(m_a + m_b)`` with ``m_b = 2 m_a``; the other entries are
@@ -471,6 +577,7 @@ def cauchy_projection(C: ArrayLike) -> FloatArray:
     Parameters
     ----------
     C : (6, 6), (3, 3), (3, 3, 3, 3) or (2, 2, 2, 2) array_like of float
+        Symmetric stiffness, plain Voigt or full tensor.
 
     Returns
     -------
@@ -492,16 +599,33 @@ def cauchy_projection(C: ArrayLike) -> FloatArray:
 
 
 def cauchy_distance(C: ArrayLike) -> float:
-    """Relative distance ``‖C - proj(C)‖_F / ‖C‖_F`` from the Cauchy subspace.
+    """Return the relative distance ``‖C - proj(C)‖_F / ‖C‖_F`` from the Cauchy subspace.
 
     Full-tensor Frobenius norm.  This is the smallest relative error any bond-based
-    (Cauchy-satisfying) model can reach, and the calibration error of spec §2.3.
+    (Cauchy-satisfying) model can reach, and so the error of a feasible full-rank
+    calibration (:func:`pdlin.calibrate_micromoduli`).
+
+    Parameters
+    ----------
+    C : (6, 6), (3, 3), (3, 3, 3, 3) or (2, 2, 2, 2) array_like of float
+        Symmetric stiffness, plain Voigt or full tensor.
+
+    Returns
+    -------
+    float
+        Relative distance, 0 for a tensor that satisfies the Cauchy relations.
+
+    Raises
+    ------
+    InputError
+        If ``C`` is zero.
 
     Examples
     --------
     >>> import numpy as np
     >>> from pdlin.constitutive import cubic
-    >>> round(100 * cauchy_distance(cubic(252.0, 145.0, 142.0)), 4)   # spinel, spec Table 1
+    >>> # spinel: the paper's Table 1 error of the calibrated tensor, in %
+    >>> round(100 * cauchy_distance(cubic(252.0, 145.0, 142.0)), 4)
     0.8028
     """
     V, _, _ = _to_voigt(C, "C")
@@ -512,7 +636,19 @@ def cauchy_distance(C: ArrayLike) -> float:
 
 
 def satisfies_cauchy(C: ArrayLike, rtol: float = 1e-10) -> bool:
-    """Whether ``C`` satisfies the Cauchy relations to ``cauchy_distance(C) <= rtol``.
+    """Test whether ``C`` satisfies the Cauchy relations: ``cauchy_distance(C) <= rtol``.
+
+    Parameters
+    ----------
+    C : (6, 6), (3, 3), (3, 3, 3, 3) or (2, 2, 2, 2) array_like of float
+        Symmetric nonzero stiffness.
+    rtol : float
+        Largest relative distance from the Cauchy subspace counted as satisfying.
+
+    Returns
+    -------
+    bool
+        True when ``C`` is totally symmetric to ``rtol``.
 
     Examples
     --------
@@ -535,10 +671,28 @@ def check_stiffness(C: ArrayLike, name: str = "C") -> FloatArray:
     and positive definiteness of the Mandel form (smallest eigenvalue greater than
     ``1e-13`` times the largest in magnitude).
 
+    Parameters
+    ----------
+    C : (6, 6), (3, 3), (3, 3, 3, 3) or (2, 2, 2, 2) array_like of float
+        Candidate stiffness.
+    name : str
+        Name used in error messages.
+
+    Returns
+    -------
+    ndarray of float
+        ``C`` as a float64 array of the same shape.
+
     Raises
     ------
-    ShapeError, NonFiniteError, InputError
-        With a message naming ``name``.
+    InputTypeError
+        If ``C`` is not numeric.
+    ShapeError
+        If the shape is not one of the four accepted.
+    NonFiniteError
+        If an entry is NaN or infinite.
+    InputError
+        If ``C`` is not symmetric or not positive definite (message names ``name``).
 
     Examples
     --------
@@ -560,20 +714,33 @@ def check_stiffness(C: ArrayLike, name: str = "C") -> FloatArray:
 
 
 def universal_anisotropy_index(C: ArrayLike) -> float:
-    """Universal anisotropy index ``A^U = 5 G_V/G_R + K_V/K_R - 6`` (spec §2.5).
+    """Return the universal anisotropy index ``A^U = 5 G_V/G_R + K_V/K_R - 6``.
 
     Voigt (``K_V``, ``G_V``) and Reuss (``K_R``, ``G_R``) bounds from ``C`` and the
-    compliance ``s = C⁻¹`` (Voigt).  ``A^U ≥ 0``, zero exactly for isotropic ``C``.
+    compliance ``s = C⁻¹`` (Voigt), as in Prakash, anisotropic micromoduli, App. A.
+    ``A^U ≥ 0``, zero exactly for isotropic ``C``.
 
     Parameters
     ----------
     C : (6, 6) or (3, 3, 3, 3) array_like of float
         Positive definite 3D stiffness.
 
+    Returns
+    -------
+    float
+        The index ``A^U`` (dimensionless).
+
+    Raises
+    ------
+    ShapeError
+        If ``C`` is a 2D stiffness.
+    InputError
+        If ``C`` is not symmetric positive definite.
+
     Examples
     --------
     >>> from pdlin.constitutive import cubic
-    >>> round(universal_anisotropy_index(cubic(252.0, 145.0, 142.0)), 4)   # spec §3: 1.2372
+    >>> round(universal_anisotropy_index(cubic(252.0, 145.0, 142.0)), 4)   # paper: 1.2372
     1.2372
     """
     arr = check_stiffness(C, "C")
@@ -606,9 +773,24 @@ def _as_3d(C: Any) -> tuple[FloatArray, bool]:
 
 
 def plane_strain(C: ArrayLike) -> FloatArray:
-    """In-plane (x–y) stiffness under plane strain: Voigt rows/columns (11, 22, 12).
+    """Return the in-plane (x–y) stiffness under plane strain: Voigt rows/columns (11, 22, 12).
 
-    Returns (3, 3) Voigt for a (6, 6) input, (2, 2, 2, 2) for a full tensor (spec §2.7).
+    The in-plane part of the 3D tensor (pdlin's 2D reduction).
+
+    Parameters
+    ----------
+    C : (6, 6) or (3, 3, 3, 3) array_like of float
+        Symmetric 3D stiffness.
+
+    Returns
+    -------
+    ndarray of float
+        (3, 3) Voigt for a (6, 6) input, (2, 2, 2, 2) for a full tensor.
+
+    Raises
+    ------
+    ShapeError
+        If ``C`` is not a 3D stiffness.
 
     Examples
     --------
@@ -621,11 +803,27 @@ def plane_strain(C: ArrayLike) -> FloatArray:
 
 
 def plane_stress(C: ArrayLike) -> FloatArray:
-    """In-plane stiffness under plane stress, ``Q = C_pp - C_po C_oo⁻¹ C_op``.
+    """Return the in-plane stiffness under plane stress, ``Q = C_pp - C_po C_oo⁻¹ C_op``.
 
-    ``p = {1, 2, 6}`` and ``o = {3, 4, 5}`` in Voigt numbering (spec §2.7): the
-    out-of-plane stresses σ33, σ23, σ31 vanish.  ``C`` must be positive definite.
-    Returns (3, 3) Voigt, or (2, 2, 2, 2) for a full-tensor input.
+    ``p = {1, 2, 6}`` and ``o = {3, 4, 5}`` in Voigt numbering: the out-of-plane
+    stresses σ33, σ23, σ31 vanish.
+
+    Parameters
+    ----------
+    C : (6, 6) or (3, 3, 3, 3) array_like of float
+        Symmetric positive definite 3D stiffness.
+
+    Returns
+    -------
+    ndarray of float
+        (3, 3) Voigt, or (2, 2, 2, 2) for a full-tensor input.
+
+    Raises
+    ------
+    ShapeError
+        If ``C`` is not a 3D stiffness.
+    InputError
+        If ``C`` is not positive definite.
 
     Examples
     --------
@@ -644,10 +842,31 @@ def plane_stress(C: ArrayLike) -> FloatArray:
 
 
 def isotropic_2d(E: float, nu: float, plane: str = "stress") -> FloatArray:
-    """2D isotropic Voigt stiffness (11, 22, 12) for plane stress or plane strain.
+    """Return the 2D isotropic Voigt stiffness (11, 22, 12) for plane stress or strain.
 
     Plane stress ``E/(1-ν²) [[1, ν, 0], [ν, 1, 0], [0, 0, (1-ν)/2]]``; plane strain
     ``E/((1+ν)(1-2ν)) [[1-ν, ν, 0], [ν, 1-ν, 0], [0, 0, (1-2ν)/2]]``.
+
+    Parameters
+    ----------
+    E : float
+        Young's modulus, > 0.
+    nu : float
+        Poisson ratio, in (-1, 1) for plane stress, (-1, 1/2) for plane strain.
+    plane : {'stress', 'strain'}
+        The 2D reduction.
+
+    Returns
+    -------
+    ndarray of float, shape (3, 3)
+        Plain-Voigt stiffness in the units of ``E``.
+
+    Raises
+    ------
+    InputError
+        If ``E <= 0``, ``nu`` is out of range or ``plane`` is unknown.
+    NonFiniteError
+        If ``E`` or ``nu`` is not finite.
 
     Examples
     --------

@@ -35,6 +35,7 @@ class Bonds:
     Attributes
     ----------
     n_points : int
+        Number of points of the cloud.
     i, j : (nb,) ndarray of int
         Owner and neighbor of each bond.
     xi : (nb, dim) ndarray
@@ -101,14 +102,33 @@ class Bonds:
         return np.asarray(t.data)
 
     def adjacency(self) -> sp.csr_array:
-        """Boolean point adjacency matrix (n_points x n_points)."""
+        """Return the boolean point adjacency matrix.
+
+        Returns
+        -------
+        scipy.sparse.csr_array of bool, shape (n_points, n_points)
+            True at ``(i, j)`` for every bond ``i -> j``.
+        """
         data = np.ones(self.n_bonds, dtype=bool)
         return sp.csr_array((data, self.j, self.indptr), shape=(self.n_points,) * 2)
 
     def per_point_sum(self, values: np.ndarray) -> np.ndarray:
         """Sum bond values over each family: ``out[p] = sum_{b in p} values[b]``.
 
-        ``values`` may have trailing dimensions.
+        Parameters
+        ----------
+        values : (n_bonds, ...) array_like
+            One value (or array) per bond; trailing dimensions are kept.
+
+        Returns
+        -------
+        ndarray of float, shape (n_points, ...)
+            Per-point sums (0 for points without bonds).
+
+        Raises
+        ------
+        ShapeError
+            If ``values`` does not have ``n_bonds`` rows.
         """
         vals = np.asarray(values)
         if vals.shape[0] != self.n_bonds:
@@ -122,7 +142,23 @@ class Bonds:
         return out.reshape((self.n_points,) + vals.shape[1:])
 
     def keep(self, mask: np.ndarray) -> Bonds:
-        """Return the bonds where ``mask`` is True (keep masks symmetric)."""
+        """Return the bonds where ``mask`` is True (keep masks symmetric).
+
+        Parameters
+        ----------
+        mask : (n_bonds,) array_like of bool
+            Bonds to keep; drop ``i -> j`` and ``j -> i`` together.
+
+        Returns
+        -------
+        Bonds
+            The kept bonds, in CSR order, with the same points and horizon.
+
+        Raises
+        ------
+        ShapeError
+            If ``mask`` does not have shape ``(n_bonds,)``.
+        """
         m = np.asarray(mask, dtype=bool)
         if m.shape != (self.n_bonds,):
             raise ShapeError(f"mask must have shape ({self.n_bonds},), got {m.shape}")
@@ -144,7 +180,13 @@ class Bonds:
         )
 
     def nbytes(self) -> int:
-        """Memory held by the bond arrays in bytes."""
+        """Return the memory held by the bond arrays.
+
+        Returns
+        -------
+        int
+            Bytes of ``i``, ``j``, ``xi``, ``length``, ``omega``, ``volume_j`` and ``indptr``.
+        """
         return int(
             sum(
                 a.nbytes
@@ -161,6 +203,7 @@ class Bonds:
         )
 
     def __repr__(self) -> str:
+        """Return point and bond counts, family-size range and shape (no arrays)."""
         fs = self.family_size
         return (
             f"Bonds(n_points={self.n_points}, n_bonds={self.n_bonds}, family size "
@@ -171,7 +214,30 @@ class Bonds:
 def resolve_horizon(
     cloud: PointCloud, horizon: float | Sequence[float] | np.ndarray | None, ratio: float | None
 ) -> np.ndarray:
-    """Per-point horizon from an absolute value, a ratio to the spacing, or the cloud."""
+    """Return the per-point horizon from an absolute value, a ratio to the spacing, or the cloud.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+        The points (their lattice spacing, spacing or stored horizon is used).
+    horizon : float or (n,) array_like of float or None
+        Absolute horizon, scalar or per point.
+    ratio : float or None
+        Horizon over spacing: times the largest lattice spacing of a grid cloud,
+        otherwise times each point's ``spacing``.
+
+    Returns
+    -------
+    ndarray of float, shape (n,)
+        Horizon per point, all > 0.
+
+    Raises
+    ------
+    InputError
+        If both or (with no ``cloud.horizon``) neither are given, or a value is not > 0.
+    ShapeError
+        If a per-point ``horizon`` has the wrong length.
+    """
     if horizon is not None and ratio is not None:
         raise InputError("pass either horizon or ratio, not both")
     if ratio is not None:
@@ -200,7 +266,7 @@ def resolve_horizon(
     return h
 
 
-def _shape_mask(
+def shape_mask(
     xi: np.ndarray,
     length: np.ndarray,
     hor: np.ndarray,
@@ -208,6 +274,28 @@ def _shape_mask(
     axes: np.ndarray | None,
     rtol: float,
 ) -> np.ndarray:
+    """Flag the bond vectors inside a neighbourhood shape (inclusive membership).
+
+    Parameters
+    ----------
+    xi : (m, dim) ndarray of float
+        Bond vectors.
+    length : (m,) ndarray of float
+        Their lengths ``|xi|``.
+    hor : (m,) ndarray of float
+        Horizon of each bond (sphere radius, cube half-width).
+    shape : {'sphere', 'cube', 'ellipsoid', 'box'}
+        Neighbourhood shape (see :data:`SHAPES`).
+    axes : (dim,) ndarray of float or None
+        Semi-axes ('ellipsoid') or half-widths ('box'); unused otherwise.
+    rtol : float
+        Relative tolerance of the membership test.
+
+    Returns
+    -------
+    ndarray of bool, shape (m,)
+        True for bonds inside the shape.
+    """
     if shape == "sphere":
         return length <= hor * (1.0 + rtol)
     if shape == "cube":
@@ -241,8 +329,11 @@ _EDGE_TOL = 1e-12
 
 
 def _segments_cross_triangle(p: np.ndarray, q: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """Vectorized segment p-q / triangle intersection (Moller-Trumbore), edges included up to
-    :data:`_EDGE_TOL` (so a crack made of several triangles has no seams)."""
+    """Test segments p-q against a triangle (vectorized Moller-Trumbore).
+
+    Edges count as hits up to :data:`_EDGE_TOL` (so a crack made of several triangles
+    has no seams).
+    """
     v0, v1, v2 = tri
     e1 = v1 - v0
     e2 = v2 - v0
@@ -273,7 +364,7 @@ class _MirroredCracks(NamedTuple):
 
 
 def _crack_mask(points: np.ndarray, i: np.ndarray, j: np.ndarray, cracks: Any) -> np.ndarray:
-    """True for bonds that cross any crack (2D segments or 3D triangles).
+    """Flag the bonds that cross any crack (2D segments or 3D triangles).
 
     A crack (with its mirror images, :class:`_MirroredCracks`) that cuts no bond raises:
     it would leave the body intact, which can only be a misplaced crack.
@@ -335,7 +426,7 @@ def _lattice_pairs(
     offs = offs[np.any(offs != 0, axis=1)]
     vec = offs * h
     length = np.sqrt(np.sum(vec**2, axis=1))
-    keep = _shape_mask(vec, length, np.full(length.size, hor), shape, axes, rtol)
+    keep = shape_mask(vec, length, np.full(length.size, hor), shape, axes, rtol)
     offs, vec, length = offs[keep], vec[keep], length[keep]
     shp = np.array(lat.shape)
     strides = np.array([int(np.prod(shp[k + 1 :])) for k in range(dim)], dtype=np.int64)
@@ -377,10 +468,13 @@ _CELL_CHUNK = 1 << 13
 def _cell_candidates(
     pts: np.ndarray, reach: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Directed candidate bonds ``(i, j, ξ = x_j - x_i)`` with ``|ξ| <= reach (1 + 1e-9)``,
-    CSR sorted, from a cell list searched in point chunks on the threads (numba); None
-    without numba, for small clouds, on one thread in 1D / 2D (where scipy's tree is as
-    fast) or when the cell grid would not fit in int64 keys."""
+    """Find directed candidate bonds with a threaded cell list (numba).
+
+    Returns ``(i, j, ξ = x_j - x_i)`` with ``|ξ| <= reach (1 + 1e-9)``, CSR sorted, from a
+    cell list searched in point chunks on the threads; None without numba, for small
+    clouds, on one thread in 1D / 2D (where scipy's tree is as fast) or when the cell grid
+    would not fit in int64 keys.
+    """
     from .._kernels import _kernels, use_numba
     from .._threads import even_chunks, get_num_threads, thread_map
 
@@ -425,8 +519,11 @@ def _cell_candidates(
 def _lengths_of_distinct(
     pts: np.ndarray, a: np.ndarray, b: np.ndarray, xi: np.ndarray
 ) -> np.ndarray:
-    """Bond lengths ``|ξ|``; raises for a pair of coincident points (``|ξ| <= 1e-12`` of the
-    cloud's extent), naming the first pair."""
+    """Return the bond lengths ``|ξ|``.
+
+    Raises for a pair of coincident points (``|ξ| <= 1e-12`` of the cloud's extent),
+    naming the first pair.
+    """
     length = np.sqrt(np.einsum("ij,ij->i", xi, xi))
     scale = float(np.max(np.ptp(pts, axis=0))) if pts.shape[0] > 1 else 1.0
     dup = length <= 1e-12 * max(scale, 1e-300)
@@ -444,8 +541,10 @@ def _lengths_of_distinct(
 def _tree_pairs(
     cloud: PointCloud, hor: np.ndarray, shape: str, axes: np.ndarray | None, rtol: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Directed bonds from a cKDTree radius search (or, with numba, a threaded cell-list
-    search), sorted into CSR order."""
+    """Find the directed bonds, sorted into CSR order.
+
+    A cKDTree radius search, or with numba a threaded cell-list search.
+    """
     pts = cloud.points
     n = cloud.n
     if shape in ("sphere", "cube"):
@@ -460,7 +559,7 @@ def _tree_pairs(
         i, j, xi = cand
         length = _lengths_of_distinct(pts, i, j, xi)
         hij = np.full(1, hor[0]) if bool(np.all(hor == hor[0])) else np.maximum(hor[i], hor[j])
-        keep = _shape_mask(xi, length, hij, shape, axes, rtol)
+        keep = shape_mask(xi, length, hij, shape, axes, rtol)
         if keep.all():  # spheres: the candidates' margin rarely holds a bond
             return i, j, xi, length
         return i[keep], j[keep], xi[keep], length[keep]
@@ -482,7 +581,7 @@ def _tree_pairs(
     xi = pts[b] - pts[a]
     length = _lengths_of_distinct(pts, a, b, xi)
     hij = np.maximum(hor[a], hor[b])
-    keep = _shape_mask(xi, length, hij, shape, axes, rtol)
+    keep = shape_mask(xi, length, hij, shape, axes, rtol)
     a, b, xi, length = a[keep], b[keep], xi[keep], length[keep]
     nb = 2 * a.size
     ii = np.concatenate([a, b])
@@ -496,8 +595,11 @@ def _tree_pairs(
 
 
 def _check_bond_memory(cloud: PointCloud, hor: np.ndarray, shape: str) -> None:
-    """Refuse a bond search whose bonds do not fit, from the neighbour count of a lattice
-    ball of the horizon ratio (exact pair count on grid clouds)."""
+    """Refuse a bond search whose bonds do not fit in memory.
+
+    The estimate is the neighbour count of a lattice ball of the horizon ratio (exact
+    pair count on grid clouds).
+    """
     from ..resources import (
         BOND_SEARCH_TRANSIENT,
         bonds_bytes,
@@ -546,6 +648,7 @@ def find_bonds(
     Parameters
     ----------
     cloud : PointCloud
+        The points (their lattice metadata enables the integer-stencil search).
     horizon : float or (n,) array_like, optional
         Constant or per-point horizon delta_i.  ``j`` is in the family of
         ``i`` when ``|x_j - x_i| <= max(delta_i, delta_j)`` (the symmetric
@@ -584,6 +687,17 @@ def find_bonds(
     Returns
     -------
     Bonds
+        Directed bonds in CSR order (both directions stored).
+
+    Raises
+    ------
+    InputError
+        If an option is invalid (``shape``, ``rtol``, ``method``, ``axes``), a non-sphere
+        shape has a per-point horizon, or ``cloud`` is not a PointCloud.
+    ShapeError
+        If ``exclude`` returns a mask of the wrong shape.
+    NoNeighborsError
+        If a point has no bond and ``allow_isolated`` is False.
 
     Examples
     --------

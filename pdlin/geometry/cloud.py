@@ -85,6 +85,14 @@ class PointCloud:
     lattice : Lattice, optional
         Regular-lattice metadata, enabling the stencil bond search.
 
+    Raises
+    ------
+    ShapeError
+        If ``points``, ``volumes``, ``horizon`` or ``material`` has the wrong shape.
+    InputError
+        If there is no point, a volume or horizon is not > 0, ``material`` is not
+        integer, or a set name is not a string.
+
     Examples
     --------
     >>> import numpy as np
@@ -106,6 +114,7 @@ class PointCloud:
     lattice: Lattice | None = None
 
     def __post_init__(self) -> None:
+        """Validate the fields; make points and volumes read-only float arrays."""
         pts = as_float_array(self.points, "points")
         if pts.ndim == 1:
             pts = pts[:, None]
@@ -194,6 +203,21 @@ class PointCloud:
         ``'all'`` (every point) and ``'boundary'`` (the union of the face sets
         ``'x-'``, ``'x+'``, ... the cloud has, e.g. the outermost ring of a
         :func:`pdlin.grid`).
+
+        Parameters
+        ----------
+        name : str
+            A key of :attr:`sets`, ``'all'`` or ``'boundary'``.
+
+        Returns
+        -------
+        ndarray of int
+            Point indices of the set.
+
+        Raises
+        ------
+        InputError
+            If no set of that name exists (the message lists the known ones).
 
         Examples
         --------
@@ -286,13 +310,37 @@ class PointCloud:
         return _as_index_array(where, "point selection", self.n)
 
     def with_sets(self, **sets: Any) -> PointCloud:
-        """Return a copy with extra named point sets."""
+        """Return a copy with extra named point sets.
+
+        Parameters
+        ----------
+        **sets : array_like of int
+            New sets by name (an existing name is replaced).
+
+        Returns
+        -------
+        PointCloud
+            A validated copy; the lattice metadata is kept.
+        """
         merged = dict(self.sets)
         merged.update(sets)
         return self.replace(sets=merged)
 
     def replace(self, **changes: Any) -> PointCloud:
-        """Return a copy with some fields replaced (validated again)."""
+        """Return a copy with some fields replaced (validated again).
+
+        Parameters
+        ----------
+        **changes
+            New values for ``points``, ``volumes``, ``horizon``, ``material``, ``sets``,
+            ``thickness`` or ``lattice``.  New ``points`` drop the lattice metadata unless
+            ``lattice`` is given too.
+
+        Returns
+        -------
+        PointCloud
+            The new cloud.
+        """
         data: dict[str, Any] = {
             "points": self.points,
             "volumes": self.volumes,
@@ -308,7 +356,23 @@ class PointCloud:
         return PointCloud(**data)
 
     def subset(self, index: Sequence[int] | np.ndarray) -> PointCloud:
-        """Return the cloud restricted to ``index`` (sets are re-indexed)."""
+        """Return the cloud restricted to ``index`` (sets are re-indexed).
+
+        Parameters
+        ----------
+        index : array_like of int
+            Points to keep, in the order of the new cloud.
+
+        Returns
+        -------
+        PointCloud
+            The subset, without lattice metadata; sets keep their surviving points.
+
+        Raises
+        ------
+        InputError
+            If an index is out of range or not an integer.
+        """
         idx = _as_index_array(index, "index", self.n)
         new_of_old = np.full(self.n, -1, dtype=np.intp)
         new_of_old[idx] = np.arange(idx.size)
@@ -326,6 +390,7 @@ class PointCloud:
         )
 
     def __repr__(self) -> str:
+        """Return size, dimension, total volume and set names (no arrays)."""
         return (
             f"PointCloud(n={self.n}, dim={self.dim}, volume={self.volumes.sum():.6g}, "
             f"sets={sorted(self.sets)})"
@@ -336,7 +401,7 @@ _AXES = "xyz"
 
 
 def _face_sets(points: np.ndarray, lo: np.ndarray, hi: np.ndarray, h: np.ndarray) -> dict:
-    """Sets 'x-', 'x+', ... holding the outermost layer of a box of points."""
+    """Return the sets 'x-', 'x+', ... holding the outermost layer of a box of points."""
     sets: dict[str, np.ndarray] = {}
     for k in range(points.shape[1]):
         tol = 0.5 * h[k]
@@ -371,7 +436,7 @@ def grid(
     horizon: float | None = None,
     thickness: float = 1.0,
 ) -> PointCloud:
-    """Cell-centred uniform grid of points in 1D, 2D or 3D.
+    """Build a cell-centred uniform grid of points in 1D, 2D or 3D.
 
     Parameters
     ----------
@@ -392,6 +457,13 @@ def grid(
     PointCloud
         Points in C order (last axis fastest) with volumes ``prod(h)`` and
         the face sets ``'x-'``, ``'x+'``, ``'y-'``, ... (outermost layer).
+
+    Raises
+    ------
+    InputError
+        If ``shape`` is not integer, an entry is < 1, or a spacing is not > 0.
+    ShapeError
+        If ``shape`` has not 1-3 entries, or ``spacing`` / ``origin`` has the wrong length.
 
     Examples
     --------
@@ -448,7 +520,7 @@ def from_image(
     horizon: float | None = None,
     thickness: float = 1.0,
 ) -> PointCloud:
-    """Point cloud from a pixel/voxel array of phase ids (a microstructure).
+    """Build a point cloud from a pixel/voxel array of phase ids (a microstructure).
 
     Parameters
     ----------
@@ -464,6 +536,13 @@ def from_image(
     PointCloud
         One point per non-void cell, ``material`` set to the phase id and one
         named set ``'phase<k>'`` per phase, plus the box face sets.
+
+    Raises
+    ------
+    ShapeError
+        If ``image`` is empty or not 1-, 2- or 3-dimensional.
+    InputError
+        If ``image`` holds non-integer ids or only the void phase.
 
     Examples
     --------
@@ -523,15 +602,17 @@ class GhostLayer(NamedTuple):
 
 
 def ghost_layer(cloud: PointCloud, layers: int = 1) -> GhostLayer:
-    """Add ``layers`` rings of ghost points around a lattice cloud (spec 001 §1, §2.4).
+    """Add ``layers`` rings of ghost points around a lattice cloud.
 
     The ghosts fill the cells of the lattice box grown by ``layers`` cells on every side;
     prescribe their displacement by the same affine map as the boundary (e.g. with
     :meth:`pdlin.Dirichlet.velocity_gradient`) so that the original boundary particles
     have complete families.  With the correspondence model at δ = h or √2 h and the
     original outer ring prescribed, a uniform stress then gives zero force at every free
-    particle (T5) and a single crystal under affine boundary conditions deforms exactly
-    affinely (T21); with truncated families it does not (spec 001 §2.4).
+    particle and a single crystal under affine boundary conditions deforms exactly
+    affinely; with the truncated families of Luo, Ramazani & Sundararaghavan (2017)
+    it does not (derived: a uniform stress then leaves a force ``P n / (2h)`` at the free
+    particles next to an edge).  The ghost layer is pdlin's option, not the paper's.
 
     The original points keep their indices; the ghosts are appended (C order of their
     cells).  Volumes are the lattice cell volume; ``horizon`` and ``material`` are copied
@@ -550,6 +631,11 @@ def ghost_layer(cloud: PointCloud, layers: int = 1) -> GhostLayer:
     -------
     GhostLayer
         ``(cloud, ghost, source)``.
+
+    Raises
+    ------
+    InputError
+        If ``cloud`` has no lattice metadata or ``layers`` is not an integer >= 1.
 
     Examples
     --------

@@ -67,10 +67,11 @@ def plate_with_hole_mesh(
     layers: int | None = None,
     depth: float | None = None,
 ) -> Any:
-    """Square plate with a central circular hole as a :class:`meshio.Mesh`.
+    """Mesh a square plate with a central circular hole as a :class:`meshio.Mesh`.
 
     The default ``'ogrid'`` backend builds the structured O-grid of the
-    XOSBPD plate example (spec 002, section 9.1): four blocks (right, top,
+    plate example of Liu, Chen & Skelton, XOSB (§5.1; the paper gives only the
+    quad count, the layout is pdlin's reconstruction): four blocks (right, top,
     left, bottom), each spanning 90 degrees of polar angle in ``n_ang``
     equal steps and ``n_rad`` graded radial layers.  Node ``(phi, l)`` of the
     right block is ``p_in + g(l / n_rad) (p_out - p_in)`` with
@@ -99,8 +100,8 @@ def plate_with_hole_mesh(
         ``length / 50``); it is four times smaller at the hole.
     layers : int, optional
         Extrude the O-grid into ``layers`` uniform layers of hexahedra
-        through ``z in [0, depth]`` (the 3D block with a hole of spec 002,
-        section 9.2: ``layers=8, depth=0.3``).  Default: the 2D mesh.
+        through ``z in [0, depth]`` (the 3D block with a hole of the XOSB
+        paper, §5.2, is 0.3 thick: ``depth=0.3``; e.g. ``layers=8``).  Default: the 2D mesh.
         Only with ``backend='ogrid'``; needs ``depth``.
     depth : float, optional
         Thickness of the extruded block (required with ``layers``).
@@ -127,6 +128,14 @@ def plate_with_hole_mesh(
         depth``) are ``cell_sets`` on the adjacent hexahedra and gmsh
         physical groups of dimension 2 on the faces (tags 1-5, 7, 8; tag 6,
         dimension 3, is the ``block``).
+
+    Raises
+    ------
+    InputError
+        If ``radius >= length / 2``, ``backend`` is unknown, or ``layers`` and ``depth``
+        are not given together (``layers`` only with ``backend='ogrid'``).
+    ImportError
+        If meshio is not installed.
 
     Examples
     --------

@@ -14,27 +14,94 @@ InfluenceFunction = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 def constant(length: np.ndarray, horizon: np.ndarray) -> np.ndarray:
-    """omega = 1."""
+    """Return ``omega = 1`` for every bond.
+
+    Parameters
+    ----------
+    length : ndarray of float
+        Bond lengths ``|xi|``.
+    horizon : ndarray of float
+        Horizon ``delta`` of each bond's owner, same shape as ``length``.
+
+    Returns
+    -------
+    ndarray of float
+        ``omega`` per bond, same shape as ``length``.
+    """
     return np.ones_like(length)
 
 
 def inverse(length: np.ndarray, horizon: np.ndarray) -> np.ndarray:
-    """omega = 1 / |xi| (units 1/length)."""
+    """Return ``omega = 1 / |xi|`` (units 1/length).
+
+    Parameters
+    ----------
+    length : ndarray of float
+        Bond lengths ``|xi|``.
+    horizon : ndarray of float
+        Horizon ``delta`` of each bond's owner, same shape as ``length``.
+
+    Returns
+    -------
+    ndarray of float
+        ``omega`` per bond, same shape as ``length``.
+    """
     return 1.0 / length
 
 
 def delta_over_r(length: np.ndarray, horizon: np.ndarray) -> np.ndarray:
-    """omega = delta / |xi| (dimensionless; seed 004's default)."""
+    """Return ``omega = delta / |xi|`` (dimensionless).
+
+    The default of Prakash, anisotropic micromoduli (§4).
+
+    Parameters
+    ----------
+    length : ndarray of float
+        Bond lengths ``|xi|``.
+    horizon : ndarray of float
+        Horizon ``delta`` of each bond's owner, same shape as ``length``.
+
+    Returns
+    -------
+    ndarray of float
+        ``omega`` per bond, same shape as ``length``.
+    """
     return horizon / length
 
 
 def gaussian(length: np.ndarray, horizon: np.ndarray) -> np.ndarray:
-    """omega = exp(-|xi|^2 / delta^2)."""
+    """Return ``omega = exp(-|xi|^2 / delta^2)``.
+
+    Parameters
+    ----------
+    length : ndarray of float
+        Bond lengths ``|xi|``.
+    horizon : ndarray of float
+        Horizon ``delta`` of each bond's owner, same shape as ``length``.
+
+    Returns
+    -------
+    ndarray of float
+        ``omega`` per bond, same shape as ``length``.
+    """
     return np.exp(-((length / horizon) ** 2))
 
 
 def hat(length: np.ndarray, horizon: np.ndarray) -> np.ndarray:
-    """omega = 1 - |xi| / delta (zero on the horizon boundary)."""
+    """Return ``omega = 1 - |xi| / delta`` (zero on the horizon boundary).
+
+    Parameters
+    ----------
+    length : ndarray of float
+        Bond lengths ``|xi|``.
+    horizon : ndarray of float
+        Horizon ``delta`` of each bond's owner, same shape as ``length``.
+
+    Returns
+    -------
+    ndarray of float
+        ``omega`` per bond, same shape as ``length``.
+    """
     return 1.0 - length / horizon
 
 
@@ -50,6 +117,24 @@ INFLUENCE_FUNCTIONS: dict[str, InfluenceFunction] = {
 
 def influence_function(spec: str | InfluenceFunction) -> InfluenceFunction:
     """Resolve a name of :data:`INFLUENCE_FUNCTIONS` or a callable.
+
+    Parameters
+    ----------
+    spec : str or callable
+        A name (``'constant'``, ``'inverse'``, ``'delta_over_r'``, ``'gaussian'``,
+        ``'hat'``) or a function ``f(length, horizon) -> omega``.
+
+    Returns
+    -------
+    callable
+        ``f(length, horizon) -> omega`` (a callable ``spec`` is returned unchanged).
+
+    Raises
+    ------
+    InputError
+        If ``spec`` is an unknown name.
+    InputTypeError
+        If ``spec`` is neither a str nor callable.
 
     Examples
     --------
@@ -82,6 +167,32 @@ def evaluate_influence(
     Non-finite values always raise.  Negative values raise unless
     ``allow_negative`` (higher-order correspondence weights are negative by
     design; for bond-based and state-based models they would be unstable).
+
+    Parameters
+    ----------
+    spec : str or callable
+        Influence function name or ``f(length, horizon) -> omega``.
+    length : ndarray of float
+        Bond lengths ``|xi|``.
+    horizon : ndarray of float
+        Horizon of each bond's owner, same shape as ``length``.
+    allow_negative : bool
+        Accept negative values (signed higher-order weights).
+
+    Returns
+    -------
+    ndarray of float
+        ``omega`` per bond, shape of ``length`` (broadcast if the function returns a
+        scalar).
+
+    Raises
+    ------
+    NonFiniteError
+        If a value is NaN or infinite.
+    InputError
+        If a value is negative and ``allow_negative`` is False, or ``spec`` is unknown.
+    InputTypeError
+        If ``spec`` is neither a str nor callable.
     """
     fn = influence_function(spec)
     omega = np.asarray(fn(length, horizon), dtype=np.float64)

@@ -157,7 +157,7 @@ def _faces_measure(x: np.ndarray, cell_type: str) -> tuple[np.ndarray, np.ndarra
 
 
 def cell_measures(points: Any, cells: Any, cell_type: str) -> tuple[np.ndarray, np.ndarray]:
-    """Signed measure and centroid of every cell of one type.
+    """Compute the signed measure and centroid of every cell of one type.
 
     Parameters
     ----------
@@ -178,6 +178,13 @@ def cell_measures(points: Any, cells: Any, cell_type: str) -> tuple[np.ndarray, 
         unoriented (always positive unless degenerate).
     centroid : (m, dim) ndarray
         True length/area/volume centroid (not the node average).
+
+    Raises
+    ------
+    InputError
+        If ``cell_type`` is not supported or a node index is out of range.
+    ShapeError
+        If ``points`` or ``cells`` has the wrong shape for the cell type.
 
     Notes
     -----
@@ -241,7 +248,7 @@ def cell_measures(points: Any, cells: Any, cell_type: str) -> tuple[np.ndarray, 
 
 
 def _quad_is_simple(x: np.ndarray, sign: np.ndarray) -> np.ndarray:
-    """True for quads that one diagonal splits into two same-signed triangles."""
+    """Flag the quads that one diagonal splits into two same-signed triangles."""
 
     def tri(a: int, b: int, c: int) -> np.ndarray:
         return _cross2(x[:, b] - x[:, a], x[:, c] - x[:, a]) * sign
@@ -381,7 +388,7 @@ def read_mesh(
     file_format: str | None = None,
     volume: float | str | None = None,
 ) -> PointCloud:
-    """Point cloud with one point per mesh cell (centroid, exact measure).
+    """Read a mesh as a point cloud with one point per cell (centroid, exact measure).
 
     A mesh of ``vertex`` cells only (or of points without cells) is a point cloud
     already, as Peridigm's and pdlin's own ``.vtu`` files are: its points are the
@@ -604,7 +611,7 @@ def _point_cloud(
     thickness: float,
     sets_from_data: bool,
 ) -> PointCloud:
-    """A mesh of ``vertex`` cells only (or without cells) as the cloud of its points."""
+    """Convert a mesh of ``vertex`` cells only (or without cells) to the cloud of its points."""
     allpts = np.asarray(mesh.points, dtype=np.float64)
     if allpts.ndim != 2 or allpts.shape[0] == 0 or not 1 <= allpts.shape[1] <= 3:
         raise InputError(f"mesh points must be an (n, 1..3) array, got shape {allpts.shape}")

@@ -1,4 +1,8 @@
-"""Seeded Voronoi polycrystals: grain ids and crystal orientations per point (spec 001 §7)."""
+"""Seeded Voronoi polycrystals: grain ids and crystal orientations per point.
+
+As in Luo, Ramazani & Sundararaghavan (2017), §4: Voronoi grains (21 in the paper,
+seeds not given) with orientations from a 12-value set.
+"""
 
 from __future__ import annotations
 
@@ -19,7 +23,7 @@ def voronoi_polycrystal(
     seed: int | np.random.Generator | None = 0,
     orientations: ArrayLike | None = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Voronoi grain map of a point cloud and one crystal orientation per point.
+    """Build a Voronoi grain map of a point cloud and one crystal orientation per point.
 
     Grain seeds are ``n_grains`` distinct points of the cloud drawn at random (so every
     grain holds at least its seed); each point joins the grain of its nearest seed
@@ -35,8 +39,9 @@ def voronoi_polycrystal(
         Random seed (reproducible maps).
     orientations : array_like, optional
         2D: the set of angles (radians) grains draw from; default the 12-value set
-        θ_k = −π/2 + kπ/12 of spec 001 §3.2.  When ``n_grains`` is at least the set size,
-        every orientation is used at least once (spec 001 §7 [S]), the rest drawn
+        θ_k = −π/2 + kπ/12 of Luo, Ramazani & Sundararaghavan (2017), §4.  When
+        ``n_grains`` is at least the set size, every orientation is used at least once
+        (pdlin's choice; the paper shows its assignment only in figures), the rest drawn
         uniformly.  3D: default uniformly random rotations
         (``scipy.spatial.transform.Rotation.random``); or a set ``(k, 3, 3)`` of rotation
         matrices drawn from in the same way.
@@ -47,6 +52,13 @@ def voronoi_polycrystal(
         Grain id of each point, ``0 .. n_grains - 1``.
     orientation : (n,) ndarray (2D angles) or (n, 3, 3) ndarray (3D, crystal → sample)
         Orientation of each point's grain, ready for ``CrystalPlasticity(orientation=...)``.
+
+    Raises
+    ------
+    InputError
+        If ``n_grains`` is not an integer in ``[1, n]`` or ``seed`` is of the wrong type.
+    ShapeError
+        If the points are not 2D or 3D, or ``orientations`` has the wrong shape or is empty.
 
     Examples
     --------

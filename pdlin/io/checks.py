@@ -521,7 +521,7 @@ def _case_reference(check: Check, out: _Outcome) -> CheckResult:
 
 
 def _other_scene(check: Check, out: _Outcome) -> CheckResult:
-    from ..problem import solve
+    from ..static import solve
     from .scene import builtin_scene, list_builtin_scenes, load_scene, scene_from_dict
 
     name = check.options["scene"]

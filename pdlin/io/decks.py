@@ -53,9 +53,10 @@ from typing import Any
 
 import numpy as np
 
+from ..constraints import load_vector, resolve_dirichlet
 from ..errors import InputError, PdlinError, SceneError
 from ..geometry.cloud import PointCloud
-from ..operators.bc import BodyForce, Dirichlet, load_vector, resolve_dirichlet
+from ..operators.bc import BodyForce, Dirichlet
 from ..problem import StaticProblem
 from .exodus import entity_ids
 from .exodus import entity_names as _exodus_names

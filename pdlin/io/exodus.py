@@ -38,12 +38,34 @@ _SYM_IDX = (0, 4, 8, 1, 2, 5)  # their positions in the row-major 3 x 3
 
 
 def need_netcdf4() -> Any:
-    """Import netCDF4 or raise MissingDependencyError naming the extra to install."""
+    """Import netCDF4 or raise MissingDependencyError naming the extra to install.
+
+    Returns
+    -------
+    module
+        The imported ``netCDF4`` module.
+
+    Raises
+    ------
+    MissingDependencyError
+        When netCDF4 is not installed (install ``pdlin[exodus]``).
+    """
     return need_module("netCDF4", "exodus", "Exodus II (.e / .exo) files")
 
 
 def is_symmetric(arr: np.ndarray) -> bool:
-    """True if the (n, 9) rows are exactly symmetric 3 x 3 tensors."""
+    """Test whether the rows are exactly symmetric 3 x 3 tensors.
+
+    Parameters
+    ----------
+    arr : (n, 9) array_like
+        Row-major 3 x 3 tensors, one per row.
+
+    Returns
+    -------
+    bool
+        True when every tensor equals its transpose bit for bit.
+    """
     t = np.asarray(arr).reshape(-1, 3, 3)
     return bool(np.array_equal(t, t.transpose(0, 2, 1)))
 
@@ -51,12 +73,26 @@ def is_symmetric(arr: np.ndarray) -> bool:
 def split_components(
     name: str, arr: np.ndarray, *, symmetric: bool = False
 ) -> list[tuple[str, np.ndarray]]:
-    """Scalar nodal variables of one (n,) / (n, k) field.
+    """Split one field into the scalar nodal variables of an Exodus file.
 
     (n, 3) -> ``nameX, nameY, nameZ``; (n, 9) -> ``nameXX ... nameZZ``
     (row-major), or with ``symmetric=True`` the six ``nameXX, nameYY,
     nameZZ, nameXY, nameXZ, nameYZ`` (ParaView shows a symmetric tensor);
     (n,) and (n, 1) -> ``name``; other widths ``name_0`` ...
+
+    Parameters
+    ----------
+    name : str
+        File name of the field (e.g. ``'Displacement'``).
+    arr : (n,) or (n, k) array
+        The field's values at the ``n`` nodes.
+    symmetric : bool
+        Write a 9-component tensor as its six symmetric components.
+
+    Returns
+    -------
+    list of (str, (n,) ndarray)
+        Variable name and column, in file order.
 
     Examples
     --------
@@ -140,16 +176,19 @@ def write_exodus_file(
     out : Path
         File to create (the caller stages it for the atomic replace).
     points : (n, dim) ndarray
+        Point coordinates (padded with zeros to ``coordx/y/z``).
     material : (n,) ndarray of int
         Phase of each point; element block ``material + 1``.
     sets : mapping of name to index arrays
         Written as node sets, in this order, with ids 1, 2, ...
     times : (k,) ndarray
+        Time of each step (``time_whole``).
     steps : k mappings of file field name -> (n,) / (n, c) arrays
         The same names and shapes in every step.
     dim : int
         Dimension of the cloud, stored as the global attribute ``pdlin_dim``.
     title : str
+        The file's ``title`` attribute.
     """
     netCDF4 = need_netcdf4()
     pts = np.zeros((points.shape[0], 3))
@@ -257,7 +296,22 @@ def write_exodus_file(
 
 
 def entity_names(ds: Any, var: str, count: int) -> list[str]:
-    """Names of an Exodus entity type (``eb_names`` / ``ns_names``), '' where blank."""
+    """Read the names of an Exodus entity type (``eb_names`` / ``ns_names``).
+
+    Parameters
+    ----------
+    ds : netCDF4.Dataset
+        The open Exodus file.
+    var : str
+        Name variable, ``'eb_names'`` or ``'ns_names'``.
+    count : int
+        Number of entities of that type.
+
+    Returns
+    -------
+    list of str
+        ``count`` names, ``''`` where blank or when the file has no (valid) names.
+    """
     if var not in ds.variables:
         return [""] * count
     raw = np.asarray(ds.variables[var][:])
@@ -273,7 +327,29 @@ def entity_names(ds: Any, var: str, count: int) -> list[str]:
 
 
 def entity_ids(ds: Any, var: str, count: int, what: str) -> np.ndarray:
-    """Entity ids (``eb_prop1`` / ``ns_prop1``); 1..count when the file has none."""
+    """Read the ids of an Exodus entity type (``eb_prop1`` / ``ns_prop1``).
+
+    Parameters
+    ----------
+    ds : netCDF4.Dataset
+        The open Exodus file.
+    var : str
+        Id variable, ``'eb_prop1'`` or ``'ns_prop1'``.
+    count : int
+        Number of entities of that type.
+    what : str
+        Entity kind for the error message (``'node set'``, ``'block'``).
+
+    Returns
+    -------
+    (count,) ndarray of int64
+        The ids; ``1..count`` when the file has none.
+
+    Raises
+    ------
+    InputError
+        When the file holds another number of ids than ``count``.
+    """
     if var not in ds.variables:
         return np.arange(1, count + 1)
     ids = np.asarray(np.ma.filled(ds.variables[var][:], -1), dtype=np.int64).ravel()
@@ -283,13 +359,31 @@ def entity_ids(ds: Any, var: str, count: int, what: str) -> np.ndarray:
 
 
 def node_sets(ds: Any, path: Any) -> tuple[list[str], list[np.ndarray | None]]:
-    """Node set names and 0-based node lists of an Exodus file, by position ``k``.
+    """Read the node set names and 0-based node lists of an Exodus file.
 
     ``node_ns<k>`` is the k-th set of ``ns_prop1`` / ``ns_names`` (file order); a set
     without a name is ``nodelist_<id>``, as in Peridigm
     (``Peridigm_ExodusDiscretization.cpp``), so blank names never collapse into one; a
-    null set (no ``node_ns<k>``) is None.  Two sets of one name raise
-    :class:`pdlin.errors.InputError`.
+    null set (no ``node_ns<k>``) is None.
+
+    Parameters
+    ----------
+    ds : netCDF4.Dataset
+        The open Exodus file.
+    path : str or path-like
+        The file's path, for error messages.
+
+    Returns
+    -------
+    names : list of str
+        Set names in file order.
+    lists : list of (m,) ndarray of int64 or None
+        0-based node indices per set; ``None`` for a null set.
+
+    Raises
+    ------
+    InputError
+        When two sets have the same name.
     """
     n_ns = len(ds.dimensions["num_node_sets"]) if "num_node_sets" in ds.dimensions else 0
     ids = entity_ids(ds, "ns_prop1", n_ns, "node set")
@@ -316,6 +410,11 @@ def _names(var: Any) -> list[str]:
 
 def read_exodus_file(path: str | Path) -> dict[str, Any]:
     """Read an Exodus II file of point results (nodal variables, node sets, blocks).
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.e`` / ``.exo`` file (pdlin's or Peridigm's particle output).
 
     Returns
     -------
@@ -374,8 +473,11 @@ def read_exodus_file(path: str | Path) -> dict[str, Any]:
 def _element_fields(
     nc: Any, conns: dict[int, np.ndarray], n: int, k: int, steps: list[dict[str, np.ndarray]]
 ) -> None:
-    """Element variables of one-node (sphere) elements as point fields, as Peridigm writes
-    ``Volume``, ``Damage``, ``Element_Id``, ... (kept only where every point has a value)."""
+    """Add element variables of one-node (sphere) elements to ``steps`` as point fields.
+
+    Peridigm writes ``Volume``, ``Damage``, ``Element_Id``, ... that way; a field is kept
+    only where every point has a value and no nodal field has its name.
+    """
     if "name_elem_var" not in nc.variables or not conns:
         return
     if any(c.shape[1] != 1 for c in conns.values()):

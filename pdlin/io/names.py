@@ -45,10 +45,20 @@ _BACK = {v: k for k, v in FILE_NAMES.items()}
 
 
 def file_name(key: str) -> str:
-    """Name under which the API field ``key`` is written to ParaView formats.
+    """Name the API field ``key`` as it is written to ParaView formats.
 
     ``state_<name>`` (state variables of nonlinear runs) becomes
     ``State_<name>``; other unknown keys are written unchanged.
+
+    Parameters
+    ----------
+    key : str
+        Field key of the API (``'displacement'``, ``'stress'``, ...).
+
+    Returns
+    -------
+    str
+        The file's field name (Peridigm's spelling where one exists).
 
     Examples
     --------
@@ -63,10 +73,20 @@ def file_name(key: str) -> str:
 
 
 def api_name(name: str) -> str:
-    """API key of a field read from a file (inverse of :func:`file_name`).
+    """Return the API key of a field read from a file (inverse of :func:`file_name`).
 
     Lowercase names of files written by earlier pdlin versions map to
     themselves, so both spellings read back to the same key.
+
+    Parameters
+    ----------
+    name : str
+        Field name in the file.
+
+    Returns
+    -------
+    str
+        The API key.
 
     Examples
     --------
@@ -84,6 +104,21 @@ def to_file_value(key: str, arr: np.ndarray, dim: int) -> np.ndarray:
     """Pad a field for a 3D viewer: vectors to (n, 3), dim x dim tensors to (n, 9).
 
     ``material`` (0-based phase ids) is written as Peridigm's 1-based ``Block_Id``.
+
+    Parameters
+    ----------
+    key : str
+        API key of the field.
+    arr : (n,) or (n, k) array_like
+        The field's values.
+    dim : {1, 2, 3}
+        Dimension of the result.
+
+    Returns
+    -------
+    ndarray
+        float64: ``(n, 3)`` for a ``dim``-vector, ``(n, 9)`` for a tensor (zero-padded,
+        row-major), ``material + 1`` for ``material``, else ``arr`` unchanged.
     """
     arr = np.asarray(arr, dtype=float)
     n = arr.shape[0]
@@ -101,10 +136,24 @@ def to_file_value(key: str, arr: np.ndarray, dim: int) -> np.ndarray:
 
 
 def from_file_value(name: str, arr: np.ndarray, dim: int) -> tuple[str, np.ndarray]:
-    """Inverse of :func:`to_file_value` for a field named ``name`` in a file of a ``dim``-D result.
+    """Undo :func:`to_file_value` for a field named ``name`` in a file of a ``dim``-D result.
 
-    Returns the API key and the array without its padding (``Block_Id`` back to
-    0-based ``material``; the lowercase ``material`` of older files is 0-based already).
+    Parameters
+    ----------
+    name : str
+        Field name in the file.
+    arr : (n,) or (n, k) array_like
+        The values read.
+    dim : {1, 2, 3}
+        Dimension of the result.
+
+    Returns
+    -------
+    key : str
+        The API key.
+    value : ndarray
+        The array without its padding (``Block_Id`` back to 0-based ``material``; the
+        lowercase ``material`` of older files is 0-based already).
     """
     key = api_name(name)
     arr = np.asarray(arr, dtype=float)

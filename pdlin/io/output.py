@@ -11,7 +11,7 @@ companion files a version tag, a hash of their data (``run.pvd.<tag>/``,
 main file always refers to one complete set of companions; the old set is
 removed after the switch.
 
-:func:`check_output` and :func:`check_figure` are what the ``pdlin`` command
+:func:`check_output` and :func:`pdlin.plotting.check_figure` are what the ``pdlin`` command
 runs before any work: the suffix, the optional library the format needs and a
 writable folder.
 """
@@ -61,6 +61,25 @@ _TAG_LEN = 8  # hex digits of a companion's version tag
 def need_module(module: str, extra: str, what: str) -> Any:
     """Import ``module`` or raise :class:`~pdlin.errors.MissingDependencyError`.
 
+    Parameters
+    ----------
+    module : str
+        Module to import (``'h5py'``, ``'netCDF4'``, ...).
+    extra : str
+        pdlin's optional extra that installs it, named in the message.
+    what : str
+        The feature that needs it, first words of the message.
+
+    Returns
+    -------
+    module
+        The imported module.
+
+    Raises
+    ------
+    MissingDependencyError
+        When the import fails (chained to the ImportError).
+
     Examples
     --------
     >>> need_module("numpy", "none", "arrays").__name__
@@ -81,7 +100,21 @@ def need_module(module: str, extra: str, what: str) -> Any:
 
 
 def write_error(target: str | Path, exc: OSError) -> WriteError:
-    """A :class:`~pdlin.errors.WriteError` naming ``target`` and the reason of ``exc``."""
+    """Build a :class:`~pdlin.errors.WriteError` naming ``target`` and the reason of ``exc``.
+
+    Parameters
+    ----------
+    target : str or Path
+        The file the caller was writing.
+    exc : OSError
+        The failure; a :class:`~pdlin.errors.WriteError` is returned unchanged.
+
+    Returns
+    -------
+    WriteError
+        ``cannot write '<target>': <reason>``, the reason naming a full disk or the
+        file-size limit where the errno (or numpy's short-write message) shows it.
+    """
     if isinstance(exc, WriteError):
         return exc
     reason = exc.strerror or str(exc) or type(exc).__name__
@@ -97,8 +130,22 @@ def write_error(target: str | Path, exc: OSError) -> WriteError:
 
 
 def check_folder(path: str | Path, what: str = "output") -> Path:
-    """Check that ``path`` can be created: not a folder, its folder (or the nearest
-    existing ancestor, the writers create the rest) a writable folder.
+    """Check that ``path`` can be created as a file in a writable folder.
+
+    Its folder, or the nearest existing ancestor (the writers create the rest), must be
+    a writable folder, and ``path`` itself must not be a folder.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to be written.
+    what : str
+        How the messages name the path.
+
+    Returns
+    -------
+    Path
+        ``path`` as a :class:`~pathlib.Path`.
 
     Raises
     ------
@@ -126,6 +173,7 @@ def check_output(path: str | Path, suffixes: Iterable[str], what: str = "output 
     Parameters
     ----------
     path : str or Path
+        The file to be written.
     suffixes : iterable of str
         Allowed suffixes (lower case, with the dot).
     what : str
@@ -134,6 +182,7 @@ def check_output(path: str | Path, suffixes: Iterable[str], what: str = "output 
     Returns
     -------
     Path
+        ``path`` as a :class:`~pathlib.Path`.
 
     Raises
     ------
@@ -186,7 +235,18 @@ class Stage:
         return self.dir / self.target.name
 
     def companion(self, ext: str = "") -> str:
-        """Versioned name of a companion file or folder: ``<target name>.<tag><ext>``."""
+        """Return the versioned name of a companion file or folder.
+
+        Parameters
+        ----------
+        ext : str
+            Suffix appended after the tag (e.g. ``'.h5'``; empty for a folder).
+
+        Returns
+        -------
+        str
+            ``<target name>.<tag><ext>`` (a name, not a path).
+        """
         return f"{self.target.name}.{self.tag}{ext}"
 
 
@@ -195,8 +255,11 @@ def _companion_re(target: Path) -> re.Pattern[str]:
 
 
 def _legacy_companions(target: Path) -> list[Path]:
-    """Unversioned companions the current ``target`` refers to (files of pdlin < 0.x):
-    ``<stem>_0001.vtu`` ... of a ``.pvd``, ``<stem>.h5`` of an ``.xdmf``."""
+    """List the unversioned companions the current ``target`` refers to.
+
+    These are the files of older pdlin versions: ``<stem>_0001.vtu`` ... of a ``.pvd``,
+    ``<stem>.h5`` of an ``.xdmf``.
+    """
     if not target.is_file():
         return []
     suffix = target.suffix.lower()
@@ -230,8 +293,18 @@ def _remove(p: Path) -> None:
 
 
 def data_tag(*parts: Any) -> str:
-    """Version tag of the data written: a hash of ``parts`` (arrays, numbers, strings,
-    and mappings / sequences of them), so the same result gets the same companion names.
+    """Hash the data written into a version tag, so one result gets one companion name.
+
+    Parameters
+    ----------
+    *parts : object
+        Arrays, numbers, strings, and mappings / sequences of them (keys, lengths,
+        dtypes and shapes are hashed too).
+
+    Returns
+    -------
+    str
+        8 hex digits (BLAKE2b).
 
     Examples
     --------
@@ -269,7 +342,7 @@ def data_tag(*parts: Any) -> str:
 
 @contextmanager
 def staging(target: str | Path, tag: str | None = None) -> Iterator[Stage]:
-    """A private folder next to ``target``; its files replace theirs only on success.
+    """Stage files in a private folder next to ``target``; they replace theirs on success.
 
     Companions are moved first, the main file (``target.name``) last; then the
     companions of earlier versions are removed.  ``tag`` names the companions
@@ -279,6 +352,23 @@ def staging(target: str | Path, tag: str | None = None) -> Iterator[Stage]:
     file-size limit, permissions) becomes a :class:`~pdlin.errors.WriteError`
     naming ``target``; the staging folder is removed and ``target`` is left as
     it was.
+
+    Parameters
+    ----------
+    target : str or Path
+        The main file to (re)write.
+    tag : str, optional
+        Version tag of the companions (default: random).
+
+    Yields
+    ------
+    Stage
+        The staging folder and the names to write into it.
+
+    Raises
+    ------
+    WriteError
+        When writing or moving a file fails.
 
     Examples
     --------

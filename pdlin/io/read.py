@@ -33,7 +33,9 @@ class ResultFile:
     Attributes
     ----------
     path : Path
+        The file read.
     points : (n, dim) ndarray
+        Point coordinates (without the zero padding of the 3D file formats).
     times : (k,) ndarray
         Step times (``[0.0]`` for a single result).
     steps : list of k dicts
@@ -53,10 +55,12 @@ class ResultFile:
 
     @property
     def dim(self) -> int:
+        """Spatial dimension of the points (1, 2 or 3)."""
         return int(self.points.shape[1])
 
     @property
     def n_steps(self) -> int:
+        """Number of stored steps."""
         return len(self.steps)
 
     def _table(self) -> list[tuple[str, Any]]:
@@ -81,11 +85,27 @@ class ResultFile:
         return compact_repr("ResultFile", items)
 
     def _repr_html_(self) -> str:
-        """The summary as an HTML table (Jupyter)."""
+        """Render the summary as an HTML table (Jupyter)."""
         return html_table("ResultFile", self._table())
 
     def step_index(self, step: int) -> int:
-        """Validated 0-based index of ``step`` (negative counts from the end)."""
+        """Validate a step number and return it as a 0-based index.
+
+        Parameters
+        ----------
+        step : int
+            Step number; negative counts from the end (``-1`` is the last).
+
+        Returns
+        -------
+        int
+            The index in ``0 .. n_steps - 1``.
+
+        Raises
+        ------
+        InputError
+            When ``step`` is not an integer in ``[-n_steps, n_steps - 1]``.
+        """
         k = self.n_steps
         if isinstance(step, bool) or not isinstance(step, int | np.integer) or not -k <= step < k:
             raise InputError(
@@ -95,7 +115,23 @@ class ResultFile:
         return int(step) % k
 
     def fields(self, step: int = -1) -> dict[str, np.ndarray]:
-        """Fields of one step (default: the last)."""
+        """Return the fields of one step.
+
+        Parameters
+        ----------
+        step : int
+            Step number (default: the last); negative counts from the end.
+
+        Returns
+        -------
+        dict
+            API key -> ``(n,)`` / ``(n, c)`` array (the stored dict, not a copy).
+
+        Raises
+        ------
+        InputError
+            When ``step`` is out of range.
+        """
         return self.steps[self.step_index(step)]
 
 
@@ -139,6 +175,13 @@ def read_result(path: str | Path) -> ResultFile:
     Returns
     -------
     ResultFile
+        Points, times, the fields of every step under their API keys, point sets.
+
+    Raises
+    ------
+    InputError
+        When the suffix is not readable, the file does not exist or cannot be read as a
+        pdlin result.
 
     Examples
     --------

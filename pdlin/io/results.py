@@ -71,7 +71,7 @@ def _xdmf_fields(pd: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 @contextmanager
 def _staging(target: Path) -> Iterator[Path]:
-    """The private folder of :func:`pdlin.io.output.staging` (files named as the target)."""
+    """Yield the private folder of :func:`pdlin.io.output.staging` (files named as the target)."""
     with staging(target) as stage:
         yield stage.dir
 
@@ -161,7 +161,9 @@ def write_points(
     Parameters
     ----------
     path : str or Path
+        Output file; its suffix picks the format.
     cloud : PointCloud
+        The ``n`` points (positions, volumes and point sets are written).
     fields : mapping of name to (n,) or (n, k) arrays
         An (n, a, b) array (a ``dim x dim`` tensor per point) is written as
         its row-major (n, a * b) rows, the layout :meth:`pdlin.StaticResult.fields`
@@ -172,7 +174,8 @@ def write_points(
 
     Returns
     -------
-    Path of the written file.
+    Path
+        The written file.
 
     Examples
     --------
@@ -234,6 +237,20 @@ def write_result(path: str | Path, result: Any, *, time: float = 0.0) -> Path:
     ``.npz`` files also store the linear solver's relative residual history
     (``residual_history``, drawn by ``pdlin plot --convergence``); ``time`` is the
     Exodus ``time_whole`` of the state (:func:`write_points`).
+
+    Parameters
+    ----------
+    path : str or Path
+        Output file (``.vtu``, ``.xdmf``, ``.vtk``, ``.e``/``.exo`` or ``.npz``).
+    result : StaticResult
+        The solve's result; ``result.fields()`` gives the fields written.
+    time : float
+        Time of the state, the Exodus ``time_whole`` of its one step.
+
+    Returns
+    -------
+    Path
+        The written file.
     """
     hist = np.asarray(result.residuals, dtype=float).reshape(-1)
     extra = {"residual_history": hist} if np.all(np.isfinite(hist)) else None
@@ -263,13 +280,29 @@ def write_series(
     Parameters
     ----------
     path : str or Path
+        ``.xdmf``, ``.pvd``, ``.vtu`` (written as ``.pvd``), ``.npz``, ``.e`` or ``.exo``.
     cloud : PointCloud
+        The ``n`` points (positions and point sets).
     times : (k,) sequence of float
+        Time of each step, increasing.
     steps : sequence of k mappings ``name -> (n,) or (n, c)`` array
+        The point fields of each step.
 
     Returns
     -------
-    Path of the main file (``.xdmf``, ``.pvd`` or ``.npz``).
+    Path
+        The main file (``.xdmf``, ``.pvd``, ``.npz`` or ``.e``/``.exo``).
+
+    Raises
+    ------
+    ShapeError
+        When ``times`` and ``steps`` differ in length (or are empty), or a field has not
+        one row per point.
+    InputError
+        When ``times`` is not increasing, the suffix is not a series format, or a field
+        is empty, unnamed or holds NaN or inf.
+    WriteError
+        When a file cannot be written.
 
     Examples
     --------
@@ -344,11 +377,31 @@ def write_series(
 
 
 def write_homogenized_csv(path: str | Path, result: Any) -> Path:
-    """CSV of the homogenized (volume-averaged) response per load step.
+    """Write the homogenized (volume-averaged) response per load step as CSV.
 
     Columns: ``step, time, factor``, the volume-averaged Cauchy stress
-    ``sigma_ij`` and deformation gradient ``F_ij`` (mean of the nonlocal F of
-    the homogenized points), the driver, iterations and cut-backs.
+    ``sigma_ij`` and deformation gradient ``F_ij`` (volume-weighted mean of the nonlocal
+    F over all points), the driver, iterations and cut-backs.  Written atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.csv`` file.
+    result : NonlinearResult
+        A :func:`pdlin.solve_nonlinear` result (stress columns are NaN when it holds
+        no homogenized stress).
+
+    Returns
+    -------
+    Path
+        The written file.
+
+    Raises
+    ------
+    InputError
+        When ``path`` does not end with ``.csv``.
+    WriteError
+        When the file cannot be written.
     """
     p = Path(path)
     if p.suffix.lower() != ".csv":
@@ -392,6 +445,19 @@ def write_nonlinear(path: str | Path, result: Any) -> Path:
     variables of the committed state (e.g. ``state_gamma``, ``state_s``,
     ``state_reorientation`` of crystal plasticity; per-point ones only) of the steps
     whose committed state the result kept (:meth:`pdlin.NonlinearResult.state_at`).
+    Exodus files hold only the fields every step has (a warning names the others).
+
+    Parameters
+    ----------
+    path : str or Path
+        Output file; its suffix picks the format.
+    result : NonlinearResult
+        A :func:`pdlin.solve_nonlinear` result.
+
+    Returns
+    -------
+    Path
+        The written main file.
     """
     cloud = result.system.cloud
     n = cloud.n
@@ -438,6 +504,28 @@ def export_system(path: str | Path, problem: Any, *, eliminated: bool = True) ->
     (same size, prescribed rows and columns ``s I``, ``rhs = 0`` there: solve
     ``A x = rhs`` and set ``x[dofs] = values``); otherwise the unconstrained
     ``K`` and the external force ``f``.  Written atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.mtx`` or ``.npz`` file.
+    problem : StaticProblem
+        The problem whose system is assembled.
+    eliminated : bool
+        Export the Dirichlet-eliminated ``A`` and its ``rhs`` (default) instead of
+        ``K`` and ``f``.
+
+    Returns
+    -------
+    Path
+        The written (main) file.
+
+    Raises
+    ------
+    InputError
+        When the suffix is not ``.mtx`` or ``.npz``, or the system holds NaN or inf.
+    WriteError
+        When a file cannot be written.
 
     Examples
     --------

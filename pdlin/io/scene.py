@@ -18,20 +18,14 @@ from typing import Any
 import numpy as np
 
 from .._validation import as_float_array
+from ..constraints import load_vector, resolve_dirichlet
 from ..errors import AccuracyWarning, InsufficientMemoryError, PdlinError, SceneError
 from ..geometry.bonds import SHAPES, Bonds, find_bonds
 from ..geometry.cloud import PointCloud, from_image, grid
 from ..geometry.influence import INFLUENCE_FUNCTIONS
 from ..models.base import Model
 from ..models.bond_based import BondBased
-from ..operators.bc import (
-    BodyForce,
-    Dirichlet,
-    TotalForce,
-    load_vector,
-    resolve_dirichlet,
-    shadow_layer,
-)
+from ..operators.bc import BodyForce, Dirichlet, TotalForce, shadow_layer
 from ..problem import StaticProblem
 from ._keys import check_keys, read_toml
 
@@ -852,7 +846,7 @@ def _subregion_scene(top: Mapping[str, Any], base: Path) -> Scene:
     import copy
     import time
 
-    from ..problem import solve
+    from ..static import solve
     from ..submodeling import subregion
     from ..sweeps.scene import rescale_grid
 

@@ -23,7 +23,7 @@ __all__ = ["write_xdmf"]
 
 
 def _writers() -> tuple[type, type]:
-    """Subclasses of meshio's XDMF writers whose HDF5 file is a ``BytesIO``."""
+    """Build subclasses of meshio's XDMF writers whose HDF5 file is a ``BytesIO``."""
     import meshio
     from meshio._common import write_xml
     from meshio.xdmf.main import XdmfWriter
@@ -76,9 +76,27 @@ def write_xdmf(
 ) -> None:
     """Write ``out`` (XDMF) and ``out.parent / h5_name`` (its HDF5 data).
 
-    ``steps``: one mapping of point data (a single mesh, as ``meshio.write``
-    does), or ``(time, point data)`` pairs (a temporal collection, as
-    ``meshio.xdmf.TimeSeriesWriter`` does).
+    Parameters
+    ----------
+    out : Path
+        The ``.xdmf`` file to write.
+    h5_name : str
+        File name of the HDF5 data, written next to ``out`` and referenced by it.
+    points : (n, 3) ndarray
+        Point coordinates (padded to 3D).
+    cells : list of (str, ndarray)
+        meshio cell blocks, e.g. ``[("vertex", (n, 1) indices)]``.
+    steps : mapping or sequence of (float, mapping)
+        One mapping of point data, field name -> ``(n,)`` / ``(n, k)`` array (a single
+        mesh, as ``meshio.write`` does), or ``(time, point data)`` pairs (a temporal
+        collection, as ``meshio.xdmf.TimeSeriesWriter`` does).
+
+    Raises
+    ------
+    MissingDependencyError
+        When meshio or h5py is not installed.
+    OSError
+        When a file cannot be written (an ordinary error, not a crash in h5py).
     """
     import meshio
 

@@ -40,10 +40,27 @@ _PLANES = ("stress", "strain")
 
 
 def implied_poisson_ratio(dim: int, plane: str = "stress") -> float:
-    """Poisson ratio fixed by bond-based PD (Cauchy relations).
+    """Return the Poisson ratio fixed by bond-based PD (Cauchy relations).
 
     1/4 in 3D and 2D plane strain, 1/3 in 2D plane stress; 1D has no
     lateral response (returns 0).
+
+    Parameters
+    ----------
+    dim : {1, 2, 3}
+        Spatial dimension.
+    plane : {'stress', 'strain'}
+        2D assumption (ignored in 1D and 3D).
+
+    Returns
+    -------
+    float
+        The implied Poisson ratio.
+
+    Raises
+    ------
+    InputError
+        If ``dim`` is not 1-3 or (2D) ``plane`` is unknown.
 
     Examples
     --------
@@ -94,13 +111,34 @@ def standard_micromodulus(
     thickness: float = 1.0,
     influence: Any = "constant",
 ) -> np.ndarray:
-    """Micromodulus matching E in the continuum limit (full spherical horizon).
+    """Return the micromodulus matching E in the continuum limit (full spherical horizon).
 
     Equates ``C_1111 = (c/2) ∫ ω ξ₁⁴/|ξ|³ dV`` with the isotropic
     ``C_1111`` of the implied Poisson ratio.  For ω = 1 this gives the
     standard constants: ``12E/(πδ⁴)`` (3D, = 18K/(πδ⁴)), ``9E/(πtδ³)``
     (plane stress), ``48E/(5πtδ³)`` (plane strain), ``2E/(Aδ²)`` (1D, A =
     cross-section passed as ``thickness``).
+
+    Parameters
+    ----------
+    E : float or ndarray of float
+        Young's modulus.
+    horizon : float or ndarray of float
+        Horizon δ (broadcast against ``E``).
+    dim : {1, 2, 3}
+        Spatial dimension.
+    plane : {'stress', 'strain'}
+        2D assumption.
+    thickness : float
+        Out-of-plane thickness (2D) or cross-section area (1D).
+    influence : str or callable
+        Influence function; non-constant ones are integrated numerically.
+
+    Returns
+    -------
+    ndarray of float
+        Micromodulus ``c``, shape of the broadcast inputs (units of ``E`` per
+        length⁴ in 3D and, with the thickness, in 2D).
 
     Examples
     --------
@@ -154,6 +192,7 @@ class BondBased(Model):
     average : {'arithmetic', 'harmonic'}
         How a bond combines the per-point moduli of its two ends.
     nu_mismatch : {'raise', 'warn'}
+        What a ``nu`` other than the implied one does (see :meth:`check`).
     kinematics : {'small', 'finite'}
         ``'finite'``: the model is the prototype microelastic (PMB) force with
         the exact stretch ``(|ξ+η| - |ξ|)/|ξ|`` along the deformed bond
@@ -167,6 +206,12 @@ class BondBased(Model):
         ``docs/bond_based.md``): a factor per bond, symmetric over the pair,
         computed once per ``(cloud, bonds)`` and used by ``stiffness``,
         ``internal_force``, ``stress`` and ``effective_tensor``.
+
+    Raises
+    ------
+    InputError
+        If an option is unknown, a modulus is not > 0, a micromodulus is negative,
+        or the elastic constants and the micromodulus are both or neither given.
 
     Examples
     --------
@@ -262,15 +307,42 @@ class BondBased(Model):
 
     # -- parameters -------------------------------------------------------
     def implied_poisson_ratio(self, dim: int) -> float:
-        """Poisson ratio of this model in ``dim`` dimensions."""
+        """Return the Poisson ratio of this model in ``dim`` dimensions.
+
+        Parameters
+        ----------
+        dim : {1, 2, 3}
+            Spatial dimension.
+
+        Returns
+        -------
+        float
+            1/4 (3D, plane strain), 1/3 (plane stress) or 0 (1D).
+        """
         return implied_poisson_ratio(dim, self.plane)
 
     def young_modulus(self, dim: int) -> np.ndarray:
-        """Young's modulus (scalar or per point) in ``dim`` dimensions.
+        """Return Young's modulus (scalar or per point) in ``dim`` dimensions.
 
         With a single ``K``, ``G`` or ``lam`` it is converted with the
         implied Poisson ratio of ``dim`` / ``plane`` (the constants are 3D
         ones, as in Peridigm decks).
+
+        Parameters
+        ----------
+        dim : {1, 2, 3}
+            Spatial dimension.
+
+        Returns
+        -------
+        ndarray of float
+            ``E``, a 0-d array or one value per point.
+
+        Raises
+        ------
+        ModelError
+            If the model has only an explicit micromodulus, or is 1D with a single
+            ``K``, ``G`` or ``lam``.
 
         Examples
         --------
@@ -295,7 +367,19 @@ class BondBased(Model):
         return np.asarray(E, dtype=float)
 
     def check(self, dim: int) -> None:
-        """Validate the requested Poisson ratio against the implied one."""
+        """Validate the requested Poisson ratio against the implied one.
+
+        Parameters
+        ----------
+        dim : {1, 2, 3}
+            Spatial dimension.
+
+        Raises
+        ------
+        ModelError
+            If ``nu`` differs from the implied value and ``nu_mismatch='raise'``
+            (with ``'warn'`` a UserWarning is issued instead).
+        """
         if self.nu is None or dim == 1:
             return
         implied = self.implied_poisson_ratio(dim)
@@ -310,7 +394,28 @@ class BondBased(Model):
             warnings.warn(msg, stacklevel=3)
 
     def bond_micromodulus(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
-        """Micromodulus per directed bond, ``(nb,)``."""
+        """Return the micromodulus per directed bond (without surface correction).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (dimension, volumes, thickness).
+        bonds : Bonds
+            Bonds of ``cloud``.
+
+        Returns
+        -------
+        ndarray of float, shape (n_bonds,)
+            The explicit micromodulus, or the one matching ``E`` (bond ends averaged by
+            ``average``) on each bond's horizon.
+
+        Raises
+        ------
+        ShapeError
+            If a per-bond micromodulus or per-point ``E`` has the wrong length.
+        ModelError
+            If the requested Poisson ratio is refused (see :meth:`check`).
+        """
         c = self._micromodulus(cloud, bonds)
         return np.full(bonds.n_bonds, c) if isinstance(c, float) else c
 
@@ -363,10 +468,22 @@ class BondBased(Model):
         return np.asarray(cb * Eb, dtype=float)
 
     def surface_factors(self, cloud: PointCloud, bonds: Bonds) -> SurfaceFactors | None:
-        """Surface-correction factors on ``bonds`` (None without correction).
+        """Return the surface-correction factors on ``bonds`` (None without correction).
 
         Cached for the last ``(cloud, bonds)`` pair.  ``bond`` multiplies the
         micromodulus of :meth:`bond_micromodulus` (which stays uncorrected).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (dimension, volumes, thickness).
+        bonds : Bonds
+            Bonds of ``cloud``.
+
+        Returns
+        -------
+        SurfaceFactors or None
+            Per-point, per-direction factors and the symmetric per-bond factor.
         """
         method = self.surface_correction
         if method is None:
@@ -406,13 +523,46 @@ class BondBased(Model):
         return out
 
     def corrected_micromodulus(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
-        """Micromodulus per directed bond times its surface-correction factor, ``(nb,)``."""
+        """Return the micromodulus per directed bond times its surface-correction factor.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (dimension, volumes, thickness).
+        bonds : Bonds
+            Bonds of ``cloud``.
+
+        Returns
+        -------
+        ndarray of float, shape (n_bonds,)
+            Corrected micromodulus (equal to :meth:`bond_micromodulus` without correction).
+        """
         c = self.bond_micromodulus(cloud, bonds)
         sf = self.surface_factors(cloud, bonds)
         return c if sf is None else c * sf.bond
 
     def bond_stiffness(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
-        """Scalar bond stiffness ``k_b = c ω V_i V_j t / |ξ|`` (nodal units, corrected c)."""
+        """Return the scalar bond stiffness ``k_b = c ω V_i V_j t / |ξ|``.
+
+        Nodal units, with the surface-corrected micromodulus.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (dimension, volumes, thickness).
+        bonds : Bonds
+            Bonds of ``cloud``.
+
+        Returns
+        -------
+        ndarray of float, shape (n_bonds,)
+            Stiffness per directed bond (force per length).
+
+        Raises
+        ------
+        ModelError
+            If a bond stiffness is negative (a signed influence weight).
+        """
         return self._bond_stiffness_fn(cloud, bonds)(0, bonds.n_bonds)
 
     def _bond_stiffness_fn(
@@ -448,22 +598,55 @@ class BondBased(Model):
 
     # -- operators ----------------------------------------------------------
     def stiffness(self, cloud: PointCloud, bonds: Bonds) -> sp.bsr_array:
-        """Assembled BSR stiffness (see class docstring).
+        """Assemble the BSR stiffness (see class docstring).
 
         The bond stiffness is computed chunk by chunk inside the threaded assembly
         (:func:`pdlin.set_num_threads`): bitwise the same for any thread count.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (dimension, volumes, thickness).
+        bonds : Bonds
+            Bonds of ``cloud``.
+
+        Returns
+        -------
+        scipy.sparse.bsr_array, shape (n * dim, n * dim)
+            Symmetric positive semi-definite stiffness with ``dim x dim`` blocks.
         """
         return pair_stiffness_bsr(bonds, self._bond_stiffness_fn(cloud, bonds))
 
     def internal_force(
         self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, *, linear: bool = True
     ) -> np.ndarray:
-        """Nodal internal force.
+        """Compute the nodal internal force.
 
         ``linear=True`` uses the linearized stretch ``n·η/|ξ|`` along the
         reference direction (so ``f == -K u``); ``linear=False`` is the
         prototype microelastic brittle (PMB) form with the exact stretch
         ``(|ξ+η| - |ξ|)/|ξ|`` along the deformed direction.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (dimension, volumes, thickness).
+        bonds : Bonds
+            Bonds of ``cloud``.
+        u : (n, dim) or (n * dim,) array_like of float
+            Displacement per point.
+        linear : bool
+            Linearized (True) or exact (False) stretch.
+
+        Returns
+        -------
+        ndarray of float, shape (n, dim)
+            Internal force per point (nodal units).
+
+        Raises
+        ------
+        InputError
+            With ``linear=False``, if ``u`` collapses a bond to zero length.
         """
         d = cloud.dim
         uu = as_displacement(u, cloud.n, d)
@@ -487,10 +670,24 @@ class BondBased(Model):
         return f
 
     def stress(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
-        """Per-point virial stress ``σ_i = ½ Σ_j c ω s (ξ⊗ξ/|ξ|) V_j``, ``(n, dim, dim)``.
+        """Compute the per-point virial stress ``σ_i = ½ Σ_j c ω s (ξ⊗ξ/|ξ|) V_j``.
 
         Equals ``C_i : ε`` for affine fields, with ``C_i`` the point's
-        effective tensor (seed 004 Eq. 29), also at truncated families.
+        effective tensor (:meth:`effective_tensor`), also at truncated families.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (dimension, volumes, thickness).
+        bonds : Bonds
+            Bonds of ``cloud``.
+        u : (n, dim) or (n * dim,) array_like of float
+            Displacement per point.
+
+        Returns
+        -------
+        ndarray of float, shape (n, dim, dim)
+            Symmetric stress per point (linearized stretch).
         """
         d = cloud.dim
         uu = as_displacement(u, cloud.n, d)
@@ -510,10 +707,22 @@ class BondBased(Model):
         return sig
 
     def effective_tensor(self, cloud: PointCloud, bonds: Bonds) -> np.ndarray:
-        """Per-point stiffness tensor ``C_ijkl = ½ Σ ω c ξ_iξ_jξ_kξ_l/|ξ|³ V_j``.
+        """Compute the per-point stiffness tensor ``C_ijkl = ½ Σ ω c ξ_iξ_jξ_kξ_l/|ξ|³ V_j``.
 
-        Shape ``(n, d, d, d, d)``; seed 004 Eq. 29 over the point's actual
-        (possibly truncated) family.
+        Prakash, anisotropic micromoduli, Eq. 29, over the point's actual
+        (possibly truncated) family, with the surface-corrected micromodulus.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (dimension, volumes, thickness).
+        bonds : Bonds
+            Bonds of ``cloud``.
+
+        Returns
+        -------
+        ndarray of float, shape (n, d, d, d, d)
+            Fully symmetric fourth-order tensor per point.
         """
         d = cloud.dim
         c = self.corrected_micromodulus(cloud, bonds)
@@ -538,10 +747,29 @@ class BondBased(Model):
         *,
         tangent: bool = False,
     ) -> Any:
-        """Force, state and tangent for the nonlinear drivers (see :meth:`pdlin.Model.respond`).
+        """Return force, state and tangent for the nonlinear drivers (:meth:`pdlin.Model.respond`).
 
         With ``kinematics='finite'`` the PMB force and its consistent tangent
         (symmetric, BSR); otherwise the linear model.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (dimension, volumes, thickness).
+        bonds : Bonds
+            Bonds of ``cloud``.
+        u : (n, dim) or (n * dim,) array_like of float
+            Displacement per point.
+        state : dict of str to ndarray
+            Committed history (bond-based PD has none; passed through).
+        tangent : bool
+            Also return the tangent stiffness.
+
+        Returns
+        -------
+        Response
+            ``force`` (``(n, dim)``), ``state``, and the tangent ``K`` (None unless
+            ``tangent``).
 
         Examples
         --------
@@ -578,6 +806,15 @@ class BondBased(Model):
         return Response(np.asarray(f), dict(state), K, None, 0)
 
     def describe(self) -> dict[str, Any]:
+        """Return the model's parameters as plain data.
+
+        Returns
+        -------
+        dict
+            ``model``, ``E`` (None if per point or absent), the single modulus if
+            given, ``plane``, ``micromodulus`` (a float, ``'per-bond'`` or None)
+            and ``surface_correction``.
+        """
         return {
             "model": "BondBased",
             "E": None if self.E is None or self.E.ndim else float(self.E),

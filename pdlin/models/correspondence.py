@@ -2443,7 +2443,7 @@ def solve_matrix_free(
     >>> bool(np.allclose(res.u, ref.u, rtol=1e-7, atol=1e-9 * np.abs(ref.u).max()))
     True
     """
-    from ..problem import solve
+    from ..static import solve
 
     solvers = {"amg": "amg-cg", "jacobi": "jacobi-cg", "none": "cg"}
     if preconditioner not in solvers:

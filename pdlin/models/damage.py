@@ -1,9 +1,9 @@
-"""Stretch-based bond breaking for the static / ADR path (spec 002 §8).
+"""Stretch-based bond breaking for the static / ADR path (Liu, Chen & Skelton, XOSB, §5.3).
 
 Only what a quasi-static solve with irreversible bond breaking needs:
 
 * :func:`critical_stretch` -- the critical stretch ``S0`` from the fracture
-  energy ``G0`` (spec Eq. 88 and the standard bond-based forms),
+  energy ``G0`` (Liu, Chen & Skelton, XOSB, Eq. 88, and the standard bond-based forms),
 * :func:`bond_stretch` -- the exact stretch ``(|xi + eta| - |xi|) / |xi|``,
 * :func:`break_bonds` -- remove every bond whose stretch exceeds ``S0`` (both
   ordered directions, irreversibly),
@@ -12,8 +12,9 @@ Only what a quasi-static solve with irreversible bond breaking needs:
   bonds, which must be dropped from static solves (their equations are empty).
 
 Breaking only removes bonds: influence weights, ``lambda`` and ``omega`` of
-the state-based models are not recomputed here (spec §8 [S]); build the model
-operators again from the returned :class:`~pdlin.geometry.bonds.Bonds`.
+the state-based models are not recomputed here (pdlin's choice; the paper does
+not say); build the model operators again from the returned
+:class:`~pdlin.geometry.bonds.Bonds`.
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ log = logging.getLogger(__name__)
 # influence function, G0 = work to break every bond crossing a unit fracture
 # surface):
 #   2D plane strain (nu = 1/4), c = 48 E / (5 pi delta^3), G0 = c s0^2 delta^4 / 4
-#       -> s0^2 = 5 pi G0 / (12 E delta)    (spec 002 Eq. 88; Ha & Bobaru 2010)
+#       -> s0^2 = 5 pi G0 / (12 E delta)    (XOSB Eq. 88; Ha & Bobaru 2010)
 #   2D plane stress (nu = 1/3), c = 9 E / (pi delta^3), G0 = c s0^2 delta^4 / 4
 #       -> s0^2 = 4 pi G0 / (9 E delta)     (Ha & Bobaru 2010)
 #   3D (nu = 1/4, kappa = 2 E / 3), c = 18 kappa / (pi delta^4),
@@ -60,7 +61,7 @@ _FACTORS = {
 def critical_stretch(
     G0: Any, E: Any, horizon: Any, *, plane: str | None = None, dim: int = 2
 ) -> Any:
-    """Critical bond stretch ``S0`` from the critical energy release rate ``G0``.
+    """Compute the critical bond stretch ``S0`` from the critical energy release rate ``G0``.
 
     Parameters
     ----------
@@ -71,7 +72,7 @@ def critical_stretch(
     horizon : float or array_like
         Horizon delta (m), > 0; a per-point array gives a per-point ``S0``.
     plane : {'strain', 'stress'} or None
-        2D assumption.  ``None`` in 2D means plane strain (spec 002 Eq. 88);
+        2D assumption.  ``None`` in 2D means plane strain (the XOSB paper's Eq. 88);
         must be ``None`` in 3D.
     dim : {2, 3}
         Spatial dimension.
@@ -90,9 +91,9 @@ def critical_stretch(
 
     Notes
     -----
-    * 2D plane strain: ``S0 = sqrt(5 pi G0 / (12 E delta))`` -- spec 002
-      Eq. 88 [P] (its reference [28] is missing); it equals the Ha & Bobaru
-      (2010) bond-based plane-strain form (nu = 1/4).
+    * 2D plane strain: ``S0 = sqrt(5 pi G0 / (12 E delta))`` -- Liu, Chen &
+      Skelton, XOSB, Eq. 88 (its reference [28] is missing); it equals the
+      Ha & Bobaru (2010) bond-based plane-strain form (nu = 1/4).
     * 2D plane stress: ``S0 = sqrt(4 pi G0 / (9 E delta))`` -- Ha & Bobaru
       (2010), bond-based with nu = 1/3.
     * 3D: ``S0 = sqrt(5 G0 / (9 kappa delta))`` -- Silling & Askari (2005),
@@ -102,13 +103,15 @@ def critical_stretch(
     All three follow from ``G0`` = energy to break every bond crossing a unit
     fracture surface with a constant micromodulus matched to ``E``
     (``c = 48E/(5 pi delta^3)``, ``9E/(pi delta^3)``, ``18 kappa/(pi delta^4)``).
-    Spec 002 §10: Kalthoff's G0 is printed as 222,170 J/m^2; the correct value
-    is 22,170 J/m^2.
+    The XOSB paper (§5.3) prints the Kalthoff-Winkler ``G0`` as 222,170 J/m^2;
+    pdlin reads it as 22,170 J/m^2, the value used for this experiment in the
+    PD literature (with the printed value no crack grows).
 
     Examples
     --------
     >>> from pdlin.models.damage import critical_stretch
-    >>> round(critical_stretch(22170.0, 190e9, 3.7625e-3), 8)   # spec §9.3, plane strain
+    >>> # Kalthoff-Winkler (XOSB §5.3): E = 190 GPa, delta = 3.01 x 1.25 mm, plane strain
+    >>> round(critical_stretch(22170.0, 190e9, 3.7625e-3), 8)
     0.0063714
     """
     if dim not in (2, 3):
@@ -154,11 +157,12 @@ def _check(cloud: PointCloud, bonds: Bonds, u: Any) -> np.ndarray:
 
 
 def bond_stretch(cloud: PointCloud, bonds: Bonds, u: Any) -> np.ndarray:
-    """Exact stretch ``(|xi + eta| - |xi|) / |xi|`` of every directed bond.
+    """Compute the exact stretch ``(|xi + eta| - |xi|) / |xi|`` of every directed bond.
 
     Parameters
     ----------
     cloud : PointCloud
+        The points.
     bonds : Bonds
         Bonds of ``cloud``.
     u : (n, dim) or (n * dim,) array_like
@@ -187,7 +191,7 @@ def bond_stretch(cloud: PointCloud, bonds: Bonds, u: Any) -> np.ndarray:
 def break_bonds(cloud: PointCloud, bonds: Bonds, u: Any, s0: Any) -> tuple[Bonds, int]:
     """Remove every bond whose stretch exceeds ``s0``, in both directions.
 
-    Breaking is irreversible (spec 002 §8): pass the returned bonds to the
+    Breaking is irreversible (as in the XOSB paper, §5.3): pass the returned bonds to the
     next step and never the intact ones.  A bond ``i -> j`` is removed
     together with ``j -> i`` when ``S > s0`` for either direction, so the
     family structure stays symmetric and the result keeps the CSR order of
@@ -196,6 +200,7 @@ def break_bonds(cloud: PointCloud, bonds: Bonds, u: Any, s0: Any) -> tuple[Bonds
     Parameters
     ----------
     cloud : PointCloud
+        The points.
     bonds : Bonds
         Current (possibly already damaged) bonds of ``cloud``.
     u : (n, dim) or (n * dim,) array_like
@@ -210,6 +215,13 @@ def break_bonds(cloud: PointCloud, bonds: Bonds, u: Any, s0: Any) -> tuple[Bonds
         The surviving bonds (``bonds`` itself when nothing breaks).
     n_broken : int
         Number of directed bonds removed (twice the number of broken pairs).
+
+    Raises
+    ------
+    ShapeError
+        If ``s0`` is neither a scalar nor one value per bond.
+    InputError
+        If ``s0`` is not > 0.
 
     Notes
     -----
@@ -250,7 +262,10 @@ def break_bonds(cloud: PointCloud, bonds: Bonds, u: Any, s0: Any) -> tuple[Bonds
 
 
 def damage_index(bonds_intact: Bonds, bonds_now: Bonds) -> np.ndarray:
-    """Damage index ``phi_i = 1 - sum_alive V_j / sum V_j`` per point (spec 002 §8 [S]).
+    """Compute the damage index ``phi_i = 1 - sum_alive V_j / sum V_j`` per point.
+
+    The volume-weighted fraction of broken bonds (pdlin's definition; the usual
+    one of bond-based PD).
 
     Parameters
     ----------
@@ -263,6 +278,15 @@ def damage_index(bonds_intact: Bonds, bonds_now: Bonds) -> np.ndarray:
     -------
     (n_points,) ndarray
         ``phi`` in [0, 1]; 0 for points that had no bonds to begin with.
+
+    Raises
+    ------
+    InputTypeError
+        If an argument is not :class:`~pdlin.geometry.bonds.Bonds`.
+    ShapeError
+        If the two bond sets have different point counts.
+    InputError
+        If ``bonds_now`` is not a subset of ``bonds_intact``.
 
     Examples
     --------
@@ -295,10 +319,10 @@ def damage_index(bonds_intact: Bonds, bonds_now: Bonds) -> np.ndarray:
 
 
 def isolated_points(bonds: Bonds) -> np.ndarray:
-    """Indices of points without any bond.
+    """Return the indices of points without any bond.
 
     Their equilibrium equations are empty (a zero block row of the
-    stiffness), so they must be dropped from static solves (spec 002 §8):
+    stiffness), so they must be dropped from static solves:
     ``cloud2, bonds2, keep = drop_isolated(cloud, bonds)``, which uses
     ``cloud.subset(keep)`` and re-indexes the surviving (damaged) bonds.
     Do not rebuild bonds with ``find_bonds`` on the subset: that would heal
@@ -307,11 +331,17 @@ def isolated_points(bonds: Bonds) -> np.ndarray:
     Parameters
     ----------
     bonds : Bonds
+        Current (possibly damaged) bonds.
 
     Returns
     -------
     ndarray of int
         Sorted point indices with ``bonds.family_size == 0``.
+
+    Raises
+    ------
+    InputTypeError
+        If ``bonds`` is not :class:`~pdlin.geometry.bonds.Bonds`.
 
     Examples
     --------
@@ -334,6 +364,7 @@ def drop_isolated(cloud: PointCloud, bonds: Bonds) -> tuple[PointCloud, Bonds, n
     Parameters
     ----------
     cloud : PointCloud
+        The points.
     bonds : Bonds
         Bonds of ``cloud`` (typically after :func:`break_bonds`).
 
@@ -345,6 +376,13 @@ def drop_isolated(cloud: PointCloud, bonds: Bonds) -> tuple[PointCloud, Bonds, n
         The same bonds, with point indices of the new cloud.
     keep : ndarray of int
         Old index of every kept point (``u_full[keep] = u_sub`` maps back).
+
+    Raises
+    ------
+    InputTypeError
+        If ``cloud`` is not a PointCloud.
+    ShapeError
+        If ``bonds`` are not the bonds of ``cloud``.
 
     Examples
     --------

@@ -81,6 +81,23 @@ class SurfaceFactors:
 def check_surface_correction(value: Any, owner: str = "model") -> str | None:
     """Validate a ``surface_correction`` argument.
 
+    Parameters
+    ----------
+    value : str or None
+        None or one of ``'volume'``, ``'energy'``, ``'force-normalization'``.
+    owner : str
+        Name of the model, used in the error message.
+
+    Returns
+    -------
+    str or None
+        ``value`` unchanged.
+
+    Raises
+    ------
+    InputError
+        If ``value`` is not None and not a known correction.
+
     Examples
     --------
     >>> check_surface_correction(None), check_surface_correction("energy")
@@ -99,7 +116,24 @@ def check_surface_correction(value: Any, owner: str = "model") -> str | None:
 
 
 def ball_volume(horizon: Any, dim: int) -> np.ndarray:
-    """Measure of the full ball of radius ``horizon``: ``2δ``, ``πδ²``, ``4πδ³/3``.
+    """Return the measure of the full ball of radius ``horizon``: ``2δ``, ``πδ²``, ``4πδ³/3``.
+
+    Parameters
+    ----------
+    horizon : float or array_like of float
+        Radius δ.
+    dim : {1, 2, 3}
+        Spatial dimension.
+
+    Returns
+    -------
+    ndarray of float
+        Length, area or volume, shape of ``horizon``.
+
+    Raises
+    ------
+    InputError
+        If ``dim`` is not 1, 2 or 3.
 
     Examples
     --------
@@ -117,7 +151,21 @@ def ball_volume(horizon: Any, dim: int) -> np.ndarray:
 
 
 def radial_moment(influence: Any, horizon: Any, p: float) -> np.ndarray:
-    """``∫₀^δ ω(r, δ) r^p dr`` for each horizon (quadrature per distinct δ).
+    """Compute ``∫₀^δ ω(r, δ) r^p dr`` for each horizon (quadrature per distinct δ).
+
+    Parameters
+    ----------
+    influence : str or callable
+        Influence function; ``'constant'`` is integrated in closed form.
+    horizon : float or array_like of float
+        Horizon δ per entry.
+    p : float
+        Power of ``r``.
+
+    Returns
+    -------
+    ndarray of float
+        The integral, shape of ``horizon``.
 
     Examples
     --------
@@ -149,7 +197,24 @@ def _check_sphere(bonds: Bonds, method: str) -> None:
 
 
 def volume_point_factors(cloud: PointCloud, bonds: Bonds) -> np.ndarray:
-    """``m_i = V_0(δ_i) / Σ_j V_j``: full-ball over neighbourhood volume, ``(n,)``.
+    """Compute ``m_i = V_0(δ_i) / Σ_j V_j``, the full-ball over the neighbourhood volume.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+        The points (dimension).
+    bonds : Bonds
+        Bonds of the cloud (CSR by owner point).
+
+    Returns
+    -------
+    ndarray of float, shape (n,)
+        Factor per point (1 for points without bonds).
+
+    Raises
+    ------
+    ModelError
+        If the bonds do not use spherical neighbourhoods.
 
     Examples
     --------
@@ -166,15 +231,40 @@ def volume_point_factors(cloud: PointCloud, bonds: Bonds) -> np.ndarray:
 
 
 def harmonic_bond_factors(m: np.ndarray, bonds: Bonds) -> np.ndarray:
-    """Bond factor ``2 / (1/m_i + 1/m_j)`` of point factors ``m``, ``(nb,)``."""
+    """Combine point factors ``m`` into the bond factor ``2 / (1/m_i + 1/m_j)``.
+
+    Parameters
+    ----------
+    m : (n,) ndarray of float
+        Factor per point, > 0.
+    bonds : Bonds
+        Bonds of the cloud (CSR by owner point).
+
+    Returns
+    -------
+    ndarray of float, shape (n_bonds,)
+        Harmonic mean of the two ends' factors, symmetric over bond pairs.
+    """
     return 2.0 / (1.0 / m[bonds.i] + 1.0 / m[bonds.j])
 
 
 def ellipsoid_bond_factors(g: np.ndarray, bonds: Bonds) -> np.ndarray:
-    """Combine directional point factors ``g`` ``(n, dim)`` per bond, ``(nb,)``.
+    """Combine directional point factors ``g`` into one factor per bond.
 
     ``g_b = (Σ_k n_k² / ḡ_k²)^(-1/2)`` with ``ḡ_k = (g_{k,i} + g_{k,j})/2``
     and ``n`` the bond direction; equal factors give ``g_b = g``.
+
+    Parameters
+    ----------
+    g : (n, dim) ndarray of float
+        Factor per point and direction, > 0.
+    bonds : Bonds
+        Bonds of the cloud (CSR by owner point).
+
+    Returns
+    -------
+    ndarray of float, shape (n_bonds,)
+        Factor per directed bond, symmetric over bond pairs.
 
     Examples
     --------
@@ -191,11 +281,23 @@ def ellipsoid_bond_factors(g: np.ndarray, bonds: Bonds) -> np.ndarray:
 
 
 def ratio_factors(target: np.ndarray, discrete: np.ndarray) -> np.ndarray:
-    """``target / discrete`` per point and direction; 1 where ``discrete`` is 0.
+    """Return ``target / discrete`` per point and direction; 1 where ``discrete`` is 0.
 
     A point has no discrete response in direction ``k`` only when all its bonds
     are normal to ``e_k``; every bond touching it then has ``n_k = 0`` and the
     value does not enter :func:`ellipsoid_bond_factors`.
+
+    Parameters
+    ----------
+    target : ndarray of float
+        Bulk (full-horizon) value, broadcast to ``discrete.shape``.
+    discrete : (n, dim) ndarray of float
+        Value of each point's actual family per direction, >= 0.
+
+    Returns
+    -------
+    ndarray of float, shape of ``discrete``
+        The correction factors.
     """
     t = np.broadcast_to(target, discrete.shape)
     ok = discrete > 1e-300
@@ -214,7 +316,24 @@ _ANGULAR = {
 
 
 def angular_moment(dim: int, p: int) -> float:
-    """``∫ |n_1|^p dΩ`` over the unit sphere of ``dim`` dimensions (p = 3 or 4).
+    """Return ``∫ |n_1|^p dΩ`` over the unit sphere of ``dim`` dimensions (p = 3 or 4).
+
+    Parameters
+    ----------
+    dim : {1, 2, 3}
+        Spatial dimension (in 1D the "sphere" is the two points ±1).
+    p : {3, 4}
+        Power of the direction component.
+
+    Returns
+    -------
+    float
+        The angular integral (closed-form table).
+
+    Raises
+    ------
+    KeyError
+        For another ``(dim, p)``.
 
     Examples
     --------

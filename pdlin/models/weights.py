@@ -1,4 +1,4 @@
-"""Higher-order influence weights for correspondence peridynamics (spec 000).
+"""Higher-order influence weights for correspondence peridynamics (Javaheri et al., 2022).
 
 Two different ways of choosing influence weights that make the nonlocal
 deformation gradient ``F = (sum w V dy (x) xi) K^-1`` more accurate:
@@ -6,18 +6,21 @@ deformation gradient ``F = (sum w V dy (x) xi) K^-1`` more accurate:
 * **Lattice-exact symbolic path** (:func:`higher_order_weights`,
   :func:`weights_table`): one weight per shell of the uniform 1D line, 2D
   square or 3D cubic lattice, solved in exact rational arithmetic (sympy)
-  by the procedure of spec 000 §6 (moment equations of increasing order,
-  augmentation with the next-order mixed-monomial equations, rejection
-  rules).  It reproduces Tables 1-3 of Javaheri et al. (2022).
+  by the procedure of Javaheri, Luo, Lakshmanan & Sundararaghavan (2022),
+  Sec. II.C (moment equations of increasing order, Eqs. 19-26; augmentation
+  with the next-order mixed-monomial equations; pdlin's rejection rules).
+  The paper gives the procedure in words; pdlin's reading of it, listed in
+  :func:`higher_order_weights`, reproduces its Tables 1-3 exactly.
 * **Numeric path for irregular families** (:func:`~pdlin.moment_weights`): the
   minimum-norm (volume-weighted) correction of base weights that makes the
   discrete moments of one family vanish, in floating point and batched over
   families.  On lattice families it agrees with the symbolic path only where
-  the symbolic set is unique without augmentation (spec 000 §14): it is a
-  *different choice*, not an approximation of the symbolic one.
+  the symbolic set is unique without augmentation (1D, 2D δ = h and 2h): it
+  is a *different choice*, not an approximation of the symbolic one.
 
 The lattice Fourier symbol :func:`~pdlin.gradient_symbol` and
-:func:`symbol_extremes` support zero-energy-mode analysis (spec 000 §4), and
+:func:`symbol_extremes` support zero-energy-mode analysis (the paper's Sec. II.B,
+Eq. 11, in Fourier form), and
 :func:`gradient_exactness_order` checks polynomial exactness exactly.
 
 Exact weights are :class:`sympy.Rational`; every result also offers float
@@ -64,18 +67,18 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: relative tolerance of the horizon membership test |p|^2 <= (delta/h)^2 (1 + tol), spec §2
+#: relative tolerance of the horizon membership test |p|^2 <= (delta/h)^2 (1 + tol)
 _MEMBERSHIP_RTOL = 1e-12
-#: default largest tabulated horizon ratio per dimension (spec 000 §6)
+#: default largest tabulated horizon ratio per dimension (the paper's Tables 1-3)
 _TABLE_MAX_RATIO = {1: 4.0, 2: 3.0, 3: 3.0}
 #: safety cap of the order loop (it always stops: see _solve_shells)
 _MAX_HALF_ORDER = 64
 
 
 class WeightStatus(str, enum.Enum):
-    """Outcome of the weight generator (spec 000 §6, steps 3-4).
+    """Outcome of the weight generator (steps 3-4 of :func:`higher_order_weights`).
 
-    The values are the spec's vocabulary; members compare equal to them
+    Members compare equal to their string values
     (``WeightStatus.VALID == "valid"``).
     """
 
@@ -89,6 +92,7 @@ class WeightStatus(str, enum.Enum):
     NO_UNIQUE_SET = "no unique set"
 
     def __str__(self) -> str:
+        """Return the plain string value."""
         return self.value
 
 
@@ -143,11 +147,12 @@ def _lattice_points(dim: int, s_max: int) -> tuple[tuple[int, ...], tuple[np.nda
 
 
 def lattice_shells(dim: int, horizon_ratio: float) -> tuple[tuple[int, ...], tuple[int, ...]]:
-    """Shells of the horizon on the 1D line, 2D square or 3D cubic lattice.
+    """Return the shells of the horizon on the 1D line, 2D square or 3D cubic lattice.
 
     Parameters
     ----------
     dim : {1, 2, 3}
+        1D line, 2D square or 3D cubic lattice.
     horizon_ratio : float
         delta / h (inclusive, relative tolerance 1e-12).
 
@@ -160,7 +165,7 @@ def lattice_shells(dim: int, horizon_ratio: float) -> tuple[tuple[int, ...], tup
 
     Examples
     --------
-    >>> lattice_shells(3, 3)      # spec 000 §5: s = 9 joins (2,2,1) and (3,0,0) points
+    >>> lattice_shells(3, 3)      # s = 9 joins (2,2,1)- and (3,0,0)-type points
     ((1, 2, 3, 4, 5, 6, 8, 9), (6, 12, 8, 6, 24, 24, 12, 30))
     """
     d = _check_dim(dim)
@@ -199,7 +204,7 @@ def _partitions(n: int, parts: int) -> list[tuple[int, ...]]:
 
 
 def _symmetric_rows(dim: int, shells_pts: tuple[np.ndarray, ...], n: int) -> list[list[int]]:
-    """Degree-2n coefficient rows of the cubic-symmetry-reduced moment equations (spec §5)."""
+    """Return the degree-2n rows of the cubic-symmetry-reduced moment equations (Eqs. 19-26)."""
     return [_monomial_row(shells_pts, tuple(2 * k for k in part)) for part in _partitions(n, dim)]
 
 
@@ -243,7 +248,7 @@ class _Solved:
 
 @cache
 def _solve_shells(dim: int, s_max: int) -> _Solved:
-    """The generator of spec 000 §6 on the shells ``s <= s_max`` (cached)."""
+    """Run the generator of :func:`higher_order_weights` on the shells ``s <= s_max`` (cached)."""
     shells, pts = _lattice_points(dim, s_max)
     n_unk = len(shells)
     rows: list[list[Any]] = [[1] + [0] * (n_unk - 1)]  # step 2: omega_1 = 1
@@ -257,7 +262,7 @@ def _solve_shells(dim: int, s_max: int) -> _Solved:
             break
         rows, rhs, n_star = rows + new, rhs + [0] * len(new), n
         n += 1
-        if n > _MAX_HALF_ORDER:  # pragma: no cover - impossible (finite support, spec §5)
+        if n > _MAX_HALF_ORDER:  # pragma: no cover - impossible (finite support)
             raise RuntimeError(f"moment equations consistent up to order {2 * n}")
     _, unique, sol = _rref(rows, rhs)
     augmented = False
@@ -284,7 +289,7 @@ def _solve_shells(dim: int, s_max: int) -> _Solved:
 
 @dataclass(frozen=True, eq=False)
 class HigherOrderWeights:
-    """Exact higher-order influence weights of one lattice horizon (spec 000 §6).
+    """Exact higher-order influence weights of one lattice horizon (Javaheri et al., 2022).
 
     Attributes
     ----------
@@ -307,7 +312,8 @@ class HigherOrderWeights:
         of degree <= order.
     Omega : sympy.Rational or None
         ``Omega = sum_bonds omega (xi_1/h)^2``; the intact shape tensor is
-        ``K = Omega h^2 dV I`` (spec 000 §2).  ``None`` without a unique set.
+        ``K = Omega h^2 dV I`` (the paper's Eqs. 17-18).  ``None`` without a
+        unique set.
     status : WeightStatus
         'valid', 'farthest weight zero', 'singular shape tensor' or
         'no unique set'.
@@ -337,7 +343,7 @@ class HigherOrderWeights:
         return {s: float(w) for s, w in self._require_weights().items()}
 
     @property
-    def Omega_float(self) -> float:  # noqa: N802 - the spec's symbol
+    def Omega_float(self) -> float:  # noqa: N802 - the paper's symbol
         """``Omega`` as a float (raises :class:`~pdlin.errors.ModelError` without a set)."""
         self._require_weights()
         return float(self.Omega)
@@ -351,7 +357,7 @@ class HigherOrderWeights:
         return self.weights
 
     def offsets(self) -> tuple[np.ndarray, np.ndarray]:
-        """Integer lattice offsets of the horizon and their float weights.
+        """Return the integer lattice offsets of the horizon and their float weights.
 
         Returns
         -------
@@ -375,7 +381,13 @@ class HigherOrderWeights:
         return p, w
 
     def describe(self) -> str:
-        """One-line summary, e.g. ``'2D delta/h=2: O(h^4), Omega=3/2, valid'``."""
+        """Return a one-line summary, e.g. ``'2D delta/h=2: O(h^4), Omega=3/2, valid'``.
+
+        Returns
+        -------
+        str
+            Dimension, horizon ratio, order of the gradient error, ``Omega`` and status.
+        """
         om = "-" if self.Omega is None else str(self.Omega)
         return (
             f"{self.dim}D delta/h={_format_ratio(self.shells[-1])}: O(h^{self.order}), "
@@ -389,12 +401,14 @@ def _format_ratio(s: int) -> str:
 
 
 def higher_order_weights(dim: int, horizon_ratio: float) -> HigherOrderWeights:
-    """Exact higher-order influence weights of a lattice horizon (spec 000 §6).
+    """Compute the exact higher-order influence weights of a lattice horizon.
 
+    Javaheri, Luo, Lakshmanan & Sundararaghavan (2022), Sec. II.C, in
+    pdlin's reading (the paper describes the steps in words).
     The unknowns are one weight per shell ``s_k = |p|^2 <= (delta/h)^2``.
     With ``omega_1 = 1``, the cubic-symmetry-reduced moment equations of
-    degree 4, 6, ... are added while the system stays consistent (order
-    ``2 n*``).  If the weights are not unique, the degree-``2 n* + 2`` rows
+    degree 4, 6, ... (the paper's Eqs. 19-26) are added while the system
+    stays consistent (order ``2 n*``).  If the weights are not unique, the degree-``2 n* + 2`` rows
     that do not contain ``omega_1`` (the mixed monomials) are added; if the
     result is inconsistent or underdetermined the status is
     ``'no unique set'``.  Sets with ``omega_S = 0`` or ``Omega = 0`` are
@@ -413,6 +427,7 @@ def higher_order_weights(dim: int, horizon_ratio: float) -> HigherOrderWeights:
     Returns
     -------
     HigherOrderWeights
+        Exact weights per shell, order, ``Omega`` and status.
 
     Raises
     ------
@@ -456,20 +471,28 @@ def higher_order_weights(dim: int, horizon_ratio: float) -> HigherOrderWeights:
 
 
 def weights_table(dim: int, max_ratio: float | None = None) -> list[HigherOrderWeights]:
-    """Weights of every distinct lattice horizon up to ``max_ratio`` (spec 000 §6 table).
+    """Compute the weights of every distinct lattice horizon up to ``max_ratio``.
 
     One entry per shell radius ``delta/h = sqrt(s)``, ``1 <= s <= max_ratio^2``,
     whatever the status (filter with :attr:`HigherOrderWeights.is_valid`).
+    The valid entries up to the default ratios are the paper's Tables 1-3.
 
     Parameters
     ----------
     dim : {1, 2, 3}
+        1D line, 2D square or 3D cubic lattice.
     max_ratio : float, optional
         Largest delta / h; default 4 in 1D and 3 in 2D/3D (the paper's tables).
 
     Returns
     -------
     list of HigherOrderWeights
+        One result per shell radius, ascending.
+
+    Raises
+    ------
+    InputError
+        If ``dim`` is not 1, 2 or 3 or ``max_ratio`` is not a finite number > 0.
 
     Examples
     --------
@@ -490,9 +513,22 @@ def weights_table(dim: int, max_ratio: float | None = None) -> list[HigherOrderW
 
 
 def nocontrol_weights(dim: int, horizon_ratio: float) -> dict[int, float]:
-    """The 'no control' set ``omega = 1/|xi|`` (units h = 1) keyed by shell ``s``.
+    """Return the 'no control' set ``omega = 1/|xi|`` (units h = 1) keyed by shell ``s``.
 
-    The LAMMPS-PD default of spec 000 §1; use it with :func:`~pdlin.gradient_symbol`.
+    The LAMMPS-PD default that Javaheri et al. (2022) compare against; use it
+    with :func:`~pdlin.gradient_symbol`.
+
+    Parameters
+    ----------
+    dim : {1, 2, 3}
+        1D line, 2D square or 3D cubic lattice.
+    horizon_ratio : float
+        delta / h >= 1.
+
+    Returns
+    -------
+    dict of int to float
+        ``{s: 1/sqrt(s)}`` for every shell ``s = |p|^2`` inside the horizon.
 
     Examples
     --------
@@ -523,6 +559,25 @@ class LatticeInfluence:
     label: str
 
     def __call__(self, length: Any, horizon: Any = None) -> np.ndarray:
+        """Return the shell weight of each bond length.
+
+        Parameters
+        ----------
+        length : array_like of float
+            Bond lengths, each ``sqrt(s) h`` for a shell ``s`` of the set.
+        horizon : array_like of float, optional
+            Ignored (the signature of an influence function).
+
+        Returns
+        -------
+        ndarray of float
+            Weight per length, same shape as ``length``.
+
+        Raises
+        ------
+        InputError
+            If a length is not a lattice bond length of the set.
+        """
         length = np.asarray(length, dtype=np.float64)
         s_est = (length / self.h) ** 2
         k = np.rint(s_est)
@@ -538,17 +593,19 @@ class LatticeInfluence:
         return self.values[idx]
 
     def __repr__(self) -> str:
+        """Return the label and spacing."""
         return f"LatticeInfluence({self.label}, h={self.h:g})"
 
 
 def as_influence(
     result: HigherOrderWeights, h: float, *, rtol: float = 1e-9, require_valid: bool = True
 ) -> LatticeInfluence:
-    """Influence function of a weight set for a lattice of spacing ``h``.
+    """Return the influence function of a weight set for a lattice of spacing ``h``.
 
     Parameters
     ----------
     result : HigherOrderWeights
+        The weight set.
     h : float
         Lattice spacing (> 0).
     rtol : float
@@ -562,12 +619,20 @@ def as_influence(
     LatticeInfluence
         ``f(length, horizon) -> omega``, vectorized.
 
+    Raises
+    ------
+    InputTypeError
+        If ``result`` is not a :class:`HigherOrderWeights`.
+    ModelError
+        If the set is not 'valid' and ``require_valid`` is True (or has no unique set).
+    InputError
+        If ``h`` is not a finite number > 0.
+
     Notes
     -----
-    Higher-order sets have negative weights (spec 000 §2).  Pass the callable
-    to a model that accepts them; an influence check that rejects negative
-    values (as :func:`pdlin.find_bonds` did when this was written) refuses
-    them.
+    Higher-order sets have negative weights (used unchanged in K, F and the
+    force state, as in the paper).  :func:`pdlin.find_bonds` accepts them with
+    ``allow_negative_influence=True``; bond-based models refuse such bonds.
 
     Examples
     --------
@@ -638,7 +703,10 @@ def _weights_and_points(
 def lattice_moment(
     weights: WeightsLike, exponents: tuple[int, ...], *, dim: int | None = None
 ) -> Any:
-    """Exact moment ``sum_p omega(|p|) prod_i p_i^e_i`` in units of h^k (spec 000 §5).
+    """Compute the exact moment ``sum_p omega(|p|) prod_i p_i^e_i`` in units of h^k.
+
+    The moments ``M^(k)`` whose vanishing gives the higher-order conditions of
+    Javaheri et al. (2022), Eqs. 19-26.
 
     Parameters
     ----------
@@ -649,11 +717,18 @@ def lattice_moment(
 
     Returns
     -------
-    sympy.Rational (or a float when the weights are floats)
+    sympy.Rational or float
+        The moment (a float when the weights are floats).
+
+    Raises
+    ------
+    InputError
+        If ``exponents`` are not ``dim`` integers >= 0.
 
     Examples
     --------
-    >>> lattice_moment(higher_order_weights(3, 3), (8, 0, 0))   # spec 000 §6: 2160/89
+    >>> # the first nonzero moment of the Table 3 set (delta = 3h; derived, not in the paper)
+    >>> lattice_moment(higher_order_weights(3, 3), (8, 0, 0))
     2160/89
     """
     d, shells = _weights_and_points(weights, dim)
@@ -669,11 +744,12 @@ def lattice_moment(
 def gradient_exactness_order(
     weights: WeightsLike, *, dim: int | None = None, max_degree: int = 40
 ) -> int:
-    """Largest degree ``k`` such that the intact-lattice gradient is exact for all
-    polynomial displacements of degree <= ``k``.
+    """Return the largest degree for which the intact-lattice gradient is exact.
 
-    The nonlocal gradient ``F_pq = (h^2 Omega)^-1 sum omega dy_p dx_q`` (spec 000
-    §2) is applied to every monomial ``x^alpha`` at the origin of the lattice
+    The largest ``k`` such that the gradient is exact for all polynomial
+    displacements of degree <= ``k``.  The nonlocal gradient
+    ``F_pq = (h^2 Omega)^-1 sum omega dy_p dx_q`` (Javaheri et al., 2022,
+    Eq. 18) is applied to every monomial ``x^alpha`` at the origin of the lattice
     (any point: translation keeps the degree) and compared with the exact
     gradient in rational arithmetic.  Monomials of degree >= 2 must give 0,
     i.e. ``sum omega p^alpha p_q = 0``; degree 1 must give the identity.
@@ -691,10 +767,16 @@ def gradient_exactness_order(
     Returns
     -------
     int
+        The largest exact degree (at most ``max_degree``).
+
+    Raises
+    ------
+    ModelError
+        If ``Omega = 0`` (the intact shape tensor is singular).
 
     Examples
     --------
-    >>> gradient_exactness_order(higher_order_weights(3, 3))   # spec 000 §5: degree <= 2n*
+    >>> gradient_exactness_order(higher_order_weights(3, 3))   # exact up to degree 2 n* = 6
     6
     """
     d, shells = _weights_and_points(weights, dim)
@@ -746,11 +828,11 @@ def _offsets_float(
 def gradient_symbol(
     weights: WeightsLike, theta: Any, *, dim: int | None = None, chunk: int = 32768
 ) -> np.ndarray:
-    """Lattice Fourier symbol ``g(theta) = Omega^-1 sum_p omega(|p|) p sin(theta·p)``.
+    """Evaluate the lattice Fourier symbol ``g(theta) = Omega^-1 sum_p omega(|p|) p sin(theta·p)``.
 
     For ``u_a = v exp(i theta . a)`` the intact-lattice gradient is
-    ``i v (x) g(theta) / h`` (spec 000 §4); the zeros of ``g`` are the
-    zero-energy modes.
+    ``i v (x) g(theta) / h`` (derived from the paper's Eq. 18); the zeros of
+    ``g`` are the zero-energy modes of its Sec. II.B.
 
     Parameters
     ----------
@@ -771,10 +853,19 @@ def gradient_symbol(
     (..., dim) ndarray
         ``g h`` (dimensionless).
 
+    Raises
+    ------
+    ShapeError
+        If ``theta`` does not end in an axis of length ``dim``.
+    ModelError
+        If ``Omega = 0``.
+
     Examples
     --------
     >>> import numpy as np
-    >>> g = gradient_symbol(higher_order_weights(1, 2), [np.pi / 4])  # spec 000 §4: 0.7761
+    >>> # 1D delta = 2h: g = (4/3) sin(theta) - (1/6) sin(2 theta), the modified
+    >>> # wavenumber of the 4th-order central difference
+    >>> g = gradient_symbol(higher_order_weights(1, 2), [np.pi / 4])
     >>> round(float(g[0, 0]), 4)
     0.7761
     """
@@ -802,7 +893,7 @@ def symbol_extremes(
     exclusion: float = math.pi / 4,
     n_grid: int | None = None,
 ) -> dict[str, Any]:
-    """Extremes of ``|g(theta)| h`` over the Brillouin zone (spec 000 §4 table).
+    """Find the extremes of ``|g(theta)| h`` over the Brillouin zone.
 
     ``min`` is taken over wave vectors at Euclidean distance >= ``exclusion``
     from every point of ``{0, pi}^dim`` (mod 2 pi): the checkerboard zeros
@@ -813,6 +904,7 @@ def symbol_extremes(
     Parameters
     ----------
     weights : HigherOrderWeights or mapping of int to number
+        A weight set or ``{s: omega}``.
     dim : int, optional
         Required when ``weights`` is a mapping.
     exclusion : float
@@ -825,9 +917,17 @@ def symbol_extremes(
     dict
         ``{'min': float, 'argmin': ndarray, 'max': float, 'argmax': ndarray}``.
 
+    Raises
+    ------
+    InputError
+        If ``weights`` is a mapping and ``dim`` is not given.
+    ModelError
+        If ``Omega = 0``.
+
     Examples
     --------
-    >>> ext = symbol_extremes(higher_order_weights(1, 3))    # spec 000 §4: 0.7842, 1.586
+    >>> # 1D delta = 3h: min at theta = pi/4, max (the high-frequency gain) near theta = 0.6 pi
+    >>> ext = symbol_extremes(higher_order_weights(1, 3))
     >>> round(ext["min"], 4), round(ext["max"], 3)
     (0.7842, 1.586)
     """
@@ -962,7 +1062,7 @@ def moment_weights(
     rcond: float = 1e-10,
     chunk: int = 2048,
 ) -> MomentWeights:
-    """Minimum-norm moment-corrected weights for arbitrary (irregular) families.
+    """Compute minimum-norm moment-corrected weights for arbitrary (irregular) families.
 
     For each family, find the weights closest to ``base`` in the
     volume-weighted norm ``sum_b V_b (omega_b - base_b)^2`` such that every
@@ -979,7 +1079,7 @@ def moment_weights(
     :func:`higher_order_weights`: on lattice families the two agree (up to
     the normalization ``omega_1 = 1``) where the symbolic set is unique
     without augmentation (1D, 2D delta = h, 2h); they differ on the augmented
-    sets (2D 3h, 3D 2h, 3D 3h, spec 000 §14), and per-bond weights need not
+    sets (2D 3h, 3D 2h, 3D 3h), and per-bond weights need not
     be constant on a shell.
 
     Parameters
@@ -1003,6 +1103,14 @@ def moment_weights(
     Returns
     -------
     MomentWeights
+        Corrected weights per bond, with per-family residual, rank and shape-tensor ratio.
+
+    Raises
+    ------
+    ShapeError
+        If ``xi``, ``volumes``, ``base`` or ``indptr`` has the wrong shape.
+    InputError
+        If a volume is not > 0 or ``order`` is not an integer >= 1.
 
     Examples
     --------

@@ -8,18 +8,9 @@ with a :class:`DeprecationWarning`.
 from typing import Any
 
 from .._lazy import moved_attribute
+from ..constraints import check_constraints, eliminate_dirichlet, load_vector, resolve_dirichlet
 from .assembly import assemble_stiffness, bond_pattern_bsr, pair_stiffness_bsr
-from .bc import (
-    BodyForce,
-    Dirichlet,
-    TimePath,
-    TotalForce,
-    check_constraints,
-    eliminate_dirichlet,
-    load_vector,
-    resolve_dirichlet,
-    shadow_layer,
-)
+from .bc import BodyForce, Dirichlet, TimePath, TotalForce, shadow_layer
 from .rigid import rigid_body_modes
 from .symmetry import (
     MirrorCloud,

@@ -33,16 +33,23 @@ def _index_dtype(n: int) -> type[np.signedinteger]:
 
 
 def bond_pattern_bsr(bonds: Bonds) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Block sparsity pattern of a one-hop operator: the bonds plus the diagonal.
+    """Build the block sparsity pattern of a one-hop operator: the bonds plus the diagonal.
 
     Bonds are already CSR-sorted with increasing ``j`` in each row, so the
     pattern is built by inserting the diagonal block in place (O(nb), no
     sort).
 
+    Parameters
+    ----------
+    bonds : Bonds
+        CSR-sorted bonds of ``n`` points (``nb`` directed bonds).
+
     Returns
     -------
     indptr : (n + 1,) ndarray
+        Block-row pointers.
     indices : (nb + n,) ndarray
+        Block-column indices, sorted in each row.
     bond_pos : (nb,) ndarray
         Position of each bond's block in the BSR data array.
     diag_pos : (n,) ndarray
@@ -82,6 +89,7 @@ def pair_stiffness_bsr(
     Parameters
     ----------
     bonds : Bonds
+        The directed bonds (both directions of each pair).
     coef : (nb,) ndarray or callable
         ``k_b`` per bond, or ``coef(b0, b1)`` returning ``k_b`` of the bonds
         ``b0:b1`` (computed chunk by chunk on the worker threads; it must be
@@ -91,7 +99,13 @@ def pair_stiffness_bsr(
 
     Returns
     -------
-    scipy.sparse.bsr_array of shape (n*dim, n*dim), blocksize (dim, dim)
+    scipy.sparse.bsr_array
+        Shape ``(n*dim, n*dim)``, blocksize ``(dim, dim)``.
+
+    Raises
+    ------
+    ShapeError
+        When an array ``coef`` does not have shape ``(nb,)``.
     """
     d = bonds.dim
     n = bonds.n_points
@@ -174,7 +188,22 @@ def pair_stiffness_bsr(
 
 
 def estimate_bond_operator_bytes(n_points: int, n_blocks: int, dim: int) -> int:
-    """Bytes of a BSR operator with ``n_blocks`` dim x dim blocks over ``n_points`` rows."""
+    """Estimate the bytes of a BSR operator of ``n_blocks`` dim x dim blocks.
+
+    Parameters
+    ----------
+    n_points : int
+        Block rows (points).
+    n_blocks : int
+        Stored blocks (e.g. bonds plus diagonal).
+    dim : int
+        Block size.
+
+    Returns
+    -------
+    int
+        float64 data plus the index arrays (int32 below 2³¹ blocks, else int64).
+    """
     idx = 4 if n_blocks < np.iinfo(np.int32).max else 8
     return int(n_blocks * (8 * dim * dim + idx) + (n_points + 1) * idx)
 
@@ -187,13 +216,25 @@ def assemble_stiffness(model: Any, cloud: PointCloud, bonds: Bonds) -> sp.sparra
 
     Parameters
     ----------
-    model : a pdlin model (e.g. :class:`pdlin.BondBased`)
+    model : Model
+        A pdlin model (anything with a ``stiffness(cloud, bonds)`` method, e.g.
+        :class:`pdlin.BondBased`).
     cloud : PointCloud
+        The ``n`` points.
     bonds : Bonds
+        Bonds built for ``cloud``.
 
     Returns
     -------
-    scipy sparse array of shape ``(n*dim, n*dim)`` (BSR, blocksize dim)
+    scipy.sparse.sparray
+        Shape ``(n*dim, n*dim)`` (BSR, blocksize dim for the bundled models).
+
+    Raises
+    ------
+    InputTypeError
+        When ``model`` has no ``stiffness`` method or ``bonds`` is not :class:`Bonds`.
+    ShapeError
+        When ``bonds`` were built for another number of points or dimension.
 
     Examples
     --------

@@ -10,7 +10,23 @@ __all__ = ["rigid_body_modes", "rigid_mode_names"]
 
 
 def rigid_mode_names(dim: int) -> list[str]:
-    """Names of the rigid-body modes returned by :func:`rigid_body_modes`."""
+    """Name the rigid-body modes returned by :func:`rigid_body_modes`, in column order.
+
+    Parameters
+    ----------
+    dim : {1, 2, 3}
+        Spatial dimension.
+
+    Returns
+    -------
+    list of str
+        ``dim`` translations, then the rotations (about z in 2D; about x, y, z in 3D).
+
+    Raises
+    ------
+    KeyError
+        When ``dim`` is not 1, 2 or 3.
+    """
     return {
         1: ["translation x"],
         2: ["translation x", "translation y", "rotation about z"],
@@ -26,7 +42,7 @@ def rigid_mode_names(dim: int) -> list[str]:
 
 
 def rigid_body_modes(cloud: PointCloud | np.ndarray, *, orthonormal: bool = False) -> np.ndarray:
-    """Infinitesimal rigid-body modes as columns, ``(n*dim, n_modes)``.
+    """Build the infinitesimal rigid-body modes as columns, ``(n*dim, n_modes)``.
 
     1 mode in 1D, 3 in 2D, 6 in 3D; rotations are taken about the centroid
     so the columns are well conditioned (this is the near-null space
@@ -35,8 +51,16 @@ def rigid_body_modes(cloud: PointCloud | np.ndarray, *, orthonormal: bool = Fals
     Parameters
     ----------
     cloud : PointCloud or (n, dim) array
+        The points (their positions only).
     orthonormal : bool
         Orthonormalize the columns (QR).
+
+    Returns
+    -------
+    (n*dim, n_modes) ndarray
+        Point-major DOF order (``dim * i + k``); columns in the order of
+        :func:`rigid_mode_names`, rotations about the centroid (not normalized unless
+        ``orthonormal``).
 
     Examples
     --------

@@ -1,4 +1,4 @@
-"""Symmetry planes: model a half, quarter or eighth of a mirror-symmetric body.
+r"""Symmetry planes: model a half, quarter or eighth of a mirror-symmetric body.
 
 Points within reach of a symmetry plane bond to *mirror images* (ghosts)
 of their neighbors; a ghost carries the volume, horizon and material of
@@ -7,7 +7,7 @@ no fictitious material is added.  The reduced operator on the real DOFs is
 
 .. math::
 
-    K_{sym} = W \\, E^T K_{aug} P ,
+    K_{sym} = W \, E^T K_{aug} P ,
 
 with ``P`` the expansion from real to augmented DOFs (identity on real
 points, the diagonal reflection ``R`` times the source displacement on
@@ -34,6 +34,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .._validation import as_float_array
+from ..constraints import check_constraints, load_vector
 from ..errors import (
     FloatingBodyError,
     InputError,
@@ -46,7 +47,7 @@ from ..fields import deformation_gradient
 from ..geometry.bonds import Bonds, _MirroredCracks, find_bonds, resolve_horizon
 from ..geometry.cloud import PointCloud
 from .assembly import assemble_stiffness
-from .bc import BodyForce, Dirichlet, TotalForce, check_constraints, load_vector
+from .bc import BodyForce, Dirichlet, TotalForce
 from .rigid import rigid_body_modes, rigid_mode_names
 
 __all__ = [
@@ -98,6 +99,7 @@ class SymmetryPlane:
     side: str | None = None
 
     def __post_init__(self) -> None:
+        """Normalize ``axis`` to 0, 1 or 2 and ``position`` to a float; check ``side``."""
         ax = self.axis
         if isinstance(ax, str):
             if ax.lower() not in _AXES:
@@ -128,11 +130,32 @@ class SymmetryPlane:
         return f"{'xyz'[int(self.axis)]} = {self.position:g}"
 
     def signed_distance(self, points: np.ndarray) -> np.ndarray:
-        """``x_axis - position`` for ``(n, dim)`` points."""
+        """Return ``x[axis] - position`` of each point.
+
+        Parameters
+        ----------
+        points : (n, dim) array_like
+            Positions.
+
+        Returns
+        -------
+        (n,) ndarray
+            Signed distance to the plane, positive on the ``+`` side.
+        """
         return np.asarray(points)[:, int(self.axis)] - self.position
 
     def reflect(self, points: np.ndarray) -> np.ndarray:
-        """Mirror images of ``(n, dim)`` points (a new array).
+        """Return the mirror images of points across the plane.
+
+        Parameters
+        ----------
+        points : (n, dim) array_like
+            Positions.
+
+        Returns
+        -------
+        (n, dim) ndarray
+            A new array, coordinate ``axis`` replaced by ``2 position - x[axis]``.
 
         Examples
         --------
@@ -249,7 +272,22 @@ class MirrorCloud:
         )
 
     def expand(self, u: Any) -> np.ndarray:
-        """Augmented displacement ``(n_aug, dim)`` from real ``u`` ``(n_real, dim)``.
+        """Expand a displacement of the real points to the augmented cloud.
+
+        Parameters
+        ----------
+        u : (n_real, dim) or (n_real*dim,) array_like
+            Displacement of the real points.
+
+        Returns
+        -------
+        (n_aug, dim) ndarray
+            Real points unchanged, each ghost the reflected displacement of its source.
+
+        Raises
+        ------
+        ShapeError
+            When ``u`` does not have ``n_real * dim`` entries.
 
         Examples
         --------
@@ -270,7 +308,23 @@ class MirrorCloud:
         return uu.reshape(self.n_real, d)[self.source] * self.signs
 
     def mirror_cracks(self, cracks: Any) -> np.ndarray:
-        """Crack segments/triangles ``(m, k, dim)`` plus their images across the planes."""
+        """Return crack segments/triangles plus their images across the planes.
+
+        Parameters
+        ----------
+        cracks : (m, k, dim) array_like
+            ``m`` segments (``k = 2``) or triangles (``k = 3``).
+
+        Returns
+        -------
+        (m * 2**n_planes, k, dim) ndarray
+            The cracks, then their images across every non-empty subset of the planes.
+
+        Raises
+        ------
+        ShapeError
+            When ``cracks`` is not ``(m, k, dim)``.
+        """
         cr = as_float_array(cracks, "cracks")
         if cr.ndim != 3 or cr.shape[2] != self.dim:
             raise ShapeError(f"cracks must have shape (m, k, {self.dim}), got {cr.shape}")
@@ -285,6 +339,7 @@ class MirrorCloud:
         return np.concatenate(out, axis=0)
 
     def __repr__(self) -> str:
+        """Summarize the real and ghost counts and the planes."""
         names = ", ".join(p.name for p in self.planes)
         return (
             f"MirrorCloud(n_real={self.n_real}, n_ghosts={self.n_ghosts}, planes=[{names}], "
@@ -315,6 +370,8 @@ def mirror_cloud(
     Returns
     -------
     MirrorCloud
+        The augmented cloud (real points first, then the ghosts), each ghost's source
+        point and reflection signs.
 
     Raises
     ------
@@ -426,7 +483,7 @@ def mirror_cloud(
 
 
 def _expand_model(model: Any, mirror: MirrorCloud) -> Any:
-    """The model with per-point parameters mapped onto the augmented cloud."""
+    """Map a model's per-point parameters onto the augmented cloud."""
     take = getattr(model, "take_points", None)
     if callable(take):
         return take(mirror.source)
@@ -488,6 +545,7 @@ class SymmetryReduction:
     Attributes
     ----------
     mirror : MirrorCloud
+        The real points and their ghosts.
     bonds : Bonds
         Bonds of the augmented cloud (real points and ghosts).
     model : Model
@@ -509,7 +567,18 @@ class SymmetryReduction:
         return self.mirror.planes
 
     def expand(self, u: Any) -> np.ndarray:
-        """Augmented displacement, see :meth:`MirrorCloud.expand`."""
+        """Expand a displacement of the real points to the augmented cloud.
+
+        Parameters
+        ----------
+        u : (n_real, dim) or (n_real*dim,) array_like
+            Displacement of the real points.
+
+        Returns
+        -------
+        (n_aug, dim) ndarray
+            See :meth:`MirrorCloud.expand`.
+        """
         return self.mirror.expand(u)
 
     @cached_property
@@ -543,9 +612,15 @@ class SymmetryReduction:
         return np.diff(self.bonds.indptr[: n + 1])
 
     def stiffness(self) -> sp.bsr_array:
-        """Reduced stiffness ``K_sym = W Eᵀ K_aug P`` (BSR, blocksize dim).
+        """Assemble the reduced stiffness ``K_sym = W Eᵀ K_aug P``.
 
         Symmetric for symmetric models (it equals ``Pᵀ K_full P / |G|``).
+
+        Returns
+        -------
+        scipy.sparse.bsr_array
+            Shape ``(n_real*dim, n_real*dim)``, blocksize ``(dim, dim)``, every diagonal
+            block stored.
         """
         m = self.mirror
         d = m.dim
@@ -561,7 +636,20 @@ class SymmetryReduction:
         return _with_diagonal_blocks(sp.bsr_array(K, blocksize=(d, d)))
 
     def internal_force(self, u: Any, *, linear: bool = True) -> np.ndarray:
-        """Reduced internal force ``W Eᵀ f_aug(P u)``, ``(n_real, dim)``."""
+        """Compute the reduced internal force ``W Eᵀ f_aug(P u)``.
+
+        Parameters
+        ----------
+        u : (n_real, dim) array_like
+            Displacement of the real points.
+        linear : bool
+            Linearized (small-displacement) force, passed to the model.
+
+        Returns
+        -------
+        (n_real, dim) ndarray
+            Nodal forces of the real points, those on a plane weighted by their share.
+        """
         m = self.mirror
         f = self.model.internal_force(m.cloud, self.bonds, self.expand(u), linear=linear)
         return np.asarray(f)[: m.n_real] * m.weight[:, None]
@@ -572,9 +660,20 @@ class SymmetryReduction:
         *,
         prescribed: np.ndarray | None = None,
     ) -> np.ndarray:
-        """Reduced external force ``(n_real*dim,)``: points on a plane carry their share only.
+        """Assemble the reduced external force; points on a plane carry their share only.
 
-        ``prescribed`` DOFs (with the planes' own): see :func:`pdlin.operators.load_vector`.
+        Parameters
+        ----------
+        loads : sequence of BodyForce or TotalForce
+            Loads on the real points.
+        prescribed : (k,) ndarray of int, optional
+            Prescribed DOFs (with the planes' own): see
+            :func:`pdlin.operators.load_vector`.
+
+        Returns
+        -------
+        (n_real*dim,) ndarray
+            Nodal forces, volumes of on-plane points scaled by their weight.
         """
         m = self.mirror
         cloud = m.real
@@ -583,7 +682,13 @@ class SymmetryReduction:
         return load_vector(cloud, loads, prescribed=prescribed)
 
     def dirichlet(self) -> list[Dirichlet]:
-        """Zero normal displacement of the points lying on each plane."""
+        """Build the zero normal displacement of the points lying on each plane.
+
+        Returns
+        -------
+        list of Dirichlet
+            One condition per plane with points on it (component ``axis``, value 0).
+        """
         out = []
         for k, p in enumerate(self.planes):
             idx = np.flatnonzero(self.mirror.on_plane[:, k])
@@ -627,11 +732,22 @@ class SymmetryReduction:
         return B[:n_loc][:, :, keep].reshape(n_loc * d, int(keep.sum())), names
 
     def check_constraints(self, dofs: np.ndarray) -> None:
-        """Raise :class:`~pdlin.FloatingBodyError` if motions compatible with the planes stay free.
+        """Check that no rigid motion compatible with the planes stays free.
 
         Connectivity counts bonds through ghosts; each connected piece is
         checked against the rigid modes its reflections leave (via
         :func:`pdlin.operators.check_constraints` with ``extra_modes``).
+
+        Parameters
+        ----------
+        dofs : (k,) ndarray of int
+            Constrained DOFs of the real points (point-major, ``dim * i + c``).
+
+        Raises
+        ------
+        FloatingBodyError
+            When a piece keeps a rigid motion the constraints do not remove; the message
+            names the motions.
         """
         m = self.mirror
         n, d = m.n_real, m.dim
@@ -664,23 +780,60 @@ class SymmetryReduction:
                 ) from exc
 
     def deformation_gradient(self, u: Any) -> np.ndarray:
-        """Nonlocal deformation gradient at real points using ghost bonds, ``(n_real, d, d)``.
+        """Compute the nonlocal deformation gradient at the real points using ghost bonds.
 
         Exact for affine fields compatible with the reflections, and equal
         to the full model's value on the shared points.
+
+        Parameters
+        ----------
+        u : (n_real, dim) array_like
+            Displacement of the real points.
+
+        Returns
+        -------
+        (n_real, dim, dim) ndarray
+            ``F`` per real point.
         """
         m = self.mirror
         return deformation_gradient(m.cloud, self.bonds, self.expand(u), n_owners=m.n_real)
 
     def stress(self, u: Any) -> np.ndarray:
-        """Model stress at the real points using ghost bonds, ``(n_real, d, d)``."""
+        """Compute the model's stress at the real points using ghost bonds.
+
+        Parameters
+        ----------
+        u : (n_real, dim) array_like
+            Displacement of the real points.
+
+        Returns
+        -------
+        (n_real, dim, dim) ndarray
+            Stress per real point, in the model's units.
+
+        Raises
+        ------
+        InputError
+            When the model defines no stress.
+        """
         if not hasattr(self.model, "stress"):
             raise InputError(f"model {type(self.model).__name__} does not define a stress")
         m = self.mirror
         return np.asarray(self.model.stress(m.cloud, self.bonds, self.expand(u)))[: m.n_real]
 
     def initial_state(self) -> dict[str, np.ndarray]:
-        """Committed state of the nonlinear drivers (elastic models only: empty)."""
+        """Return the committed state of the nonlinear drivers (empty: elastic models only).
+
+        Returns
+        -------
+        dict
+            Always ``{}``.
+
+        Raises
+        ------
+        ModelError
+            When the model is nonlinear (symmetry planes support elastic models only).
+        """
         if getattr(self.model, "nonlinear", False):
             raise ModelError(
                 f"symmetry planes do not support nonlinear models yet, got "
@@ -689,7 +842,28 @@ class SymmetryReduction:
         return {}
 
     def respond(self, u: Any, state: dict[str, np.ndarray], *, tangent: bool = False) -> Any:
-        """Linear response ``f = -K_sym u`` on the real DOFs (see :meth:`pdlin.Model.respond`)."""
+        """Compute the linear response ``f = -K_sym u`` on the real DOFs.
+
+        Parameters
+        ----------
+        u : (n_real, dim) array_like
+            Displacement of the real points.
+        state : dict
+            Committed state (empty for the elastic models supported), copied through.
+        tangent : bool
+            Also assemble the tangent ``K_sym``.
+
+        Returns
+        -------
+        Response
+            Force ``(n_real, dim)``, the state, ``K_sym`` or ``None``, as
+            :meth:`pdlin.Model.respond`.
+
+        Raises
+        ------
+        ModelError
+            When the model is nonlinear.
+        """
         from ..models.base import Response
 
         self.initial_state()  # raises for nonlinear models
@@ -697,6 +871,7 @@ class SymmetryReduction:
         return Response(f, dict(state), self.stiffness() if tangent else None, None, 0)
 
     def __repr__(self) -> str:
+        """Summarize the mirror cloud and the bond count."""
         return f"SymmetryReduction({self.mirror!r}, n_bonds={self.bonds.n_bonds})"
 
 
@@ -717,6 +892,7 @@ def symmetry_reduction(
     cloud : PointCloud
         The modelled half / quarter / eighth.
     planes : SymmetryPlane or sequence of them
+        The symmetry planes, at most one per axis.
     horizon : float or (n,) array_like, optional
         As in :func:`pdlin.find_bonds` (default ``cloud.horizon``); a per-point
         horizon is copied to the ghosts.
@@ -730,6 +906,16 @@ def symmetry_reduction(
     Returns
     -------
     SymmetryReduction
+        The mirror cloud, the bonds of the augmented cloud and the model mapped onto it.
+
+    Raises
+    ------
+    InputTypeError
+        When ``model`` is not a pdlin model or ``cloud`` not a :class:`PointCloud`.
+    ModelError
+        When ``model.coupling_range`` is not an integer >= 1.
+    NoNeighborsError
+        When a real point has no bond and ``allow_isolated`` is not set.
 
     Examples
     --------

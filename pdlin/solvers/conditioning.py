@@ -124,6 +124,20 @@ def condition_estimate(
 def warn_if_ill_conditioned(kappa: float, what: str, *, limit: float = CONDITION_WARN) -> None:
     """Issue an :class:`~pdlin.errors.AccuracyWarning` when ``kappa`` exceeds ``limit``.
 
+    Parameters
+    ----------
+    kappa : float
+        Condition-number estimate (``inf`` always warns, ``nan`` never).
+    what : str
+        The solve it belongs to, first words of the message.
+    limit : float
+        Threshold (default ``CONDITION_WARN`` = 5e8, about 8 trusted digits left).
+
+    Warns
+    -----
+    AccuracyWarning
+        With the number of significant digits that can be trusted (``16 - log10 κ``).
+
     Examples
     --------
     >>> import warnings

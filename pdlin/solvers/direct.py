@@ -78,7 +78,7 @@ class _NotPositiveDefinite(Exception):
 
 
 def _mkl_rt_path() -> str | None:
-    """The MKL runtime library of the pip ``mkl`` wheel (``<prefix>/lib/libmkl_rt.so.N``).
+    """Find the MKL runtime library of the pip ``mkl`` wheel (``<prefix>/lib/libmkl_rt.so.N``).
 
     pypardiso looks for it on every solver it creates (``find_library``, then a recursive
     glob of the environment: 0.35-0.7 s each, measured; its import creates one solver)
@@ -389,12 +389,30 @@ def _factor_hints(backend: str) -> list[str]:
 
 
 def check_factor_memory(A: Any, backend: str) -> int:
-    """Estimated bytes of the factor of ``A`` under ``backend``; raises
-    :class:`~pdlin.errors.InsufficientMemoryError` when they exceed the available memory.
+    """Estimate the bytes of the factor of ``A`` and refuse it if memory is short.
 
     The fill comes from :func:`pdlin.resources.direct_factor_nnz` (nested dissection on a
     lattice of ``A``'s size and blocks per row; a BSR ``A`` gives its block size as the
     dimension).
+
+    Parameters
+    ----------
+    A : scipy sparse matrix or array
+        The matrix to factorize, ``(N, N)``.
+    backend : {'superlu', 'cholmod', 'pardiso'}
+        The factorization; SuperLU's estimate includes its workspace expansions
+        (``SUPERLU_WORKSPACE`` times the factor).
+
+    Returns
+    -------
+    int
+        Estimated peak bytes of the factorization.
+
+    Raises
+    ------
+    InsufficientMemoryError
+        When the estimate exceeds the available memory (the message suggests an iterative
+        solver, another backend or a coarser discretization).
     """
     b = int(A.blocksize[0]) if getattr(A, "format", None) == "bsr" else 1
     n_pts = max(A.shape[0] // b, 1)
@@ -412,9 +430,11 @@ def check_factor_memory(A: Any, backend: str) -> int:
 
 
 def _as_csc(A: Any, symmetric: bool) -> sp.csc_matrix:
-    """``A`` in CSC form; a symmetric ``A`` reuses its CSR arrays (CSR of ``A`` is CSC of
-    ``Aᵀ = A``): BSR -> CSR is a block expansion, 20x cheaper than BSR -> CSC (measured
-    0.025 vs 0.49 s at 16.6 million nonzeros)."""
+    """Convert ``A`` to CSC; a symmetric ``A`` reuses its CSR arrays.
+
+    The CSR of ``A`` is the CSC of ``Aᵀ = A``: BSR -> CSR is a block expansion, 20x
+    cheaper than BSR -> CSC (measured 0.025 vs 0.49 s at 16.6 million nonzeros).
+    """
     if not symmetric or sp.issparse(A) and A.format == "csc":
         return sp.csc_matrix(A)
     R = sp.csr_matrix(A)
@@ -548,7 +568,14 @@ class DirectSolver:
         return self._impl.fill()
 
     def flops(self) -> float | None:
-        """Factorization flop count when the backend reports it (CHOLMOD, PARDISO)."""
+        """Return the factorization's flop count when the backend reports it.
+
+        Returns
+        -------
+        float or None
+            Floating-point operations of the numeric factorization (CHOLMOD, PARDISO);
+            ``None`` for SuperLU, which does not report it.
+        """
         return self._impl.flops()
 
     def refactor(self, A: Any) -> None:
@@ -557,6 +584,18 @@ class DirectSolver:
         CHOLMOD and PARDISO keep their ordering and symbolic factorization when
         the pattern of ``A`` is unchanged (e.g. successive Newton tangents);
         SuperLU factorizes from scratch.
+
+        Parameters
+        ----------
+        A : scipy sparse matrix or array
+            The new matrix, same shape (and, for reuse, same pattern) as the first.
+
+        Raises
+        ------
+        InputError
+            When ``A`` has another shape.
+        ConvergenceError
+            When a Cholesky backend finds ``A`` not positive definite.
 
         Examples
         --------
@@ -578,7 +617,23 @@ class DirectSolver:
         self.setup_time = time.perf_counter() - t0
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        """Solve for one or several right-hand sides (columns of ``b``)."""
+        """Solve for one or several right-hand sides.
+
+        Parameters
+        ----------
+        b : (N,) or (N, k) ndarray
+            Right-hand side(s), one per column.
+
+        Returns
+        -------
+        ndarray
+            The solution, same shape as ``b``.
+
+        Raises
+        ------
+        ConvergenceError
+            When the solution is not finite (a singular matrix).
+        """
         x = self._impl.solve(np.asarray(b, dtype=float))
         if not np.all(np.isfinite(x)):
             raise ConvergenceError("direct solve produced non-finite values (singular matrix?)")

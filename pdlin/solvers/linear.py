@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -19,7 +20,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .._progress import ResidualHistory, Throttle
-from ..errors import ConvergenceError, InputError, NonFiniteError
+from ..errors import AccuracyWarning, ConvergenceError, InputError, NonFiniteError
 from .conditioning import CONDITION_AUTO_MAX, condition_estimate, warn_if_ill_conditioned
 from .direct import DIRECT_BACKENDS, DirectSolver
 
@@ -33,6 +34,9 @@ __all__ = [
     "AMG_DEFAULTS",
     "solve_linear",
     "SOLVERS",
+    "safe_norm",
+    "check_force_balance",
+    "FORCE_BALANCE_TOL",
 ]
 
 log = logging.getLogger(__name__)
@@ -268,11 +272,23 @@ class AMGHierarchy:
             self._AP = L0.A @ L0.P
 
     def operator_complexity(self) -> float:
-        """Total nonzeros of all levels over those of the finest."""
+        """Compute the operator complexity of the hierarchy.
+
+        Returns
+        -------
+        float
+            Total nonzeros of all levels over those of the finest.
+        """
         return float(self.ml.operator_complexity())
 
     def grid_complexity(self) -> float:
-        """Total unknowns of all levels over those of the finest."""
+        """Compute the grid complexity of the hierarchy.
+
+        Returns
+        -------
+        float
+            Total unknowns of all levels over those of the finest.
+        """
         return float(self.ml.grid_complexity())
 
     def _cycle(self, k: int, b: np.ndarray) -> np.ndarray:
@@ -300,17 +316,39 @@ class AMGHierarchy:
         return x
 
     def apply(self, b: np.ndarray) -> np.ndarray:
-        """One cycle from a zero initial guess: an approximation of ``A⁻¹ b``."""
+        """Apply one cycle from a zero initial guess: an approximation of ``A⁻¹ b``.
+
+        Parameters
+        ----------
+        b : (n,) array_like
+            Right-hand side.
+
+        Returns
+        -------
+        (n,) ndarray
+            The cycle's approximation of ``A⁻¹ b``.
+        """
         return self._cycle(0, np.asarray(b, dtype=float).ravel())
 
     def apply_with_product(self, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """One cycle ``z ≈ A⁻¹ b`` together with ``A z``.
+        """Apply one cycle ``z ≈ A⁻¹ b`` and return ``A z`` with it.
 
         A Krylov method needs ``A z`` anyway; the cycle already forms
         ``A x`` after pre-smoothing and can update it through the coarse
         correction with the stored ``A P``, so ``A z`` costs one mat-vec
-        (of the post-smoothing correction) instead of two.  Returns the
-        same ``z`` as :meth:`apply` (up to rounding).
+        (of the post-smoothing correction) instead of two.
+
+        Parameters
+        ----------
+        b : (n,) array_like
+            Right-hand side.
+
+        Returns
+        -------
+        z : (n,) ndarray
+            The same ``z`` as :meth:`apply` (up to rounding).
+        Az : (n,) ndarray
+            ``A z``.
 
         Examples
         --------
@@ -344,7 +382,13 @@ class AMGHierarchy:
         return x, q
 
     def aspreconditioner(self) -> spla.LinearOperator:
-        """The cycle as a :class:`scipy.sparse.linalg.LinearOperator`."""
+        """Wrap the cycle as a :class:`scipy.sparse.linalg.LinearOperator`.
+
+        Returns
+        -------
+        LinearOperator of shape (n, n)
+            Applies :meth:`apply`.
+        """
         n = self.levels[0].A.shape[0]
         return spla.LinearOperator((n, n), matvec=self.apply, dtype=float)
 
@@ -498,8 +542,26 @@ def amg_hierarchy(
 MATRIX_SCALE_LIMITS = (1e-100, 1e100)
 
 
-def _safe_norm(v: np.ndarray) -> float:
-    """2-norm without overflow or underflow of the squares (scaled by max |v|)."""
+def safe_norm(v: np.ndarray) -> float:
+    """Compute the 2-norm without overflow or underflow of the squares (scaled by max |v|).
+
+    Parameters
+    ----------
+    v : ndarray
+        Any array; its entries are taken flat.
+
+    Returns
+    -------
+    float
+        ``||v||_2``; 0 for an empty or zero array, ``max |v|`` (inf or NaN) when ``v`` is
+        not finite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> safe_norm(np.array([3e200, 4e200]))
+    5e+200
+    """
     m = float(np.max(np.abs(v), initial=0.0))
     if m == 0.0 or not np.isfinite(m):
         return m
@@ -537,12 +599,61 @@ def _check_matrix_scale(M: Any, name: str) -> None:
         )
 
 
+#: out-of-balance force, relative to the transmitted forces (reactions and loads), above
+#: which a converged solve warns (``docs/solvers.md``, "Numerical extremes")
+FORCE_BALANCE_TOL = 1e-4
+
+
+def check_force_balance(
+    lin: LinearSolveInfo, b: np.ndarray, reactions: np.ndarray, f_ext: np.ndarray
+) -> None:
+    """Warn when the residual is small against ``b`` but not against the transmitted forces.
+
+    The solvers stop on ``||b - A x|| <= rtol ||b||``.  When displacements are prescribed on
+    a phase much stiffer than the one that carries the load (stiffness contrast 1e8), ``b``
+    holds the stiff phase's forces and is ``contrast`` times larger than the reactions: a
+    residual of 1e-12 ``||b||`` left 1 % of the reaction out of balance (AMG-CG, 1D bar).
+
+    Parameters
+    ----------
+    lin : LinearSolveInfo
+        The solve; its ``relative_residual`` and ``solver`` name are used.
+    b : (ndof,) ndarray
+        Right-hand side of the eliminated system that was solved.
+    reactions : (n, dim) ndarray
+        Nodal reactions on the prescribed DOFs.
+    f_ext : (ndof,) ndarray
+        External nodal forces.
+
+    Warns
+    -----
+    AccuracyWarning
+        When the out-of-balance force exceeds :data:`FORCE_BALANCE_TOL` of the reaction and
+        load forces.
+    """
+    scale = safe_norm(np.ravel(reactions)) + safe_norm(f_ext)
+    nb = safe_norm(b)
+    if scale == 0.0 or nb == 0.0:
+        return
+    imbalance = lin.relative_residual * nb / scale
+    if imbalance > FORCE_BALANCE_TOL:
+        warnings.warn(
+            f"{lin.solver}: the true residual is {lin.relative_residual:.1e} of ||b|| but "
+            f"{imbalance:.1e} of the reaction and load forces (||b|| is {nb / scale:.1e} x "
+            "larger: displacements prescribed on a much stiffer phase or region, e.g. a "
+            "stiffness contrast); the reactions and the soft part of the field are accurate "
+            "only to about that ratio. Use solver='direct' or a smaller rtol.",
+            AccuracyWarning,
+            stacklevel=3,
+        )
+
+
 def _check(A: Any, x: np.ndarray, b: np.ndarray, rtol: float, name: str, extra: str = "") -> float:
-    """True relative residual ``||b - A x|| / ||b||`` (inf when it cannot be computed)."""
-    nb = _safe_norm(b)
+    """Compute the true relative residual ``||b - A x|| / ||b||`` (inf when it cannot be)."""
+    nb = safe_norm(b)
     if not np.all(np.isfinite(x)):
         raise ConvergenceError(f"{name}: solution holds NaN or inf{extra}")
-    r = _safe_norm(b - A @ x) / (nb if nb > 0 else 1.0)
+    r = safe_norm(b - A @ x) / (nb if nb > 0 else 1.0)
     # a NaN would pass every `r > tol` test: report it as a miss
     return r if np.isfinite(r) else float("inf")
 
@@ -643,7 +754,7 @@ def solve_linear(
         solver = "direct" if n <= 5000 else ("amg-cg" if symmetric else "amg-gmres")
     if solver in ("amg-cg", "cg", "jacobi-cg") and not symmetric:
         raise InputError(f"solver {solver!r} needs a symmetric matrix; use 'amg-gmres' or 'direct'")
-    nb = _safe_norm(b)
+    nb = safe_norm(b)
     if nb == 0.0:
         return LinearSolveInfo(np.zeros(n), solver, 0, [0.0], 0.0, 0.0, 0.0)
     # solve for b scaled by a power of two to max |b| in [0.5, 1): exact in floating point, so
@@ -688,7 +799,7 @@ def _solve_scaled(
     condition: bool | str = "auto",
     progress: Callable[[str], None] | None = None,
 ) -> LinearSolveInfo:
-    """The body of :func:`solve_linear` for a right-hand side of unit magnitude."""
+    """Solve for a right-hand side of unit magnitude (the body of :func:`solve_linear`)."""
     n = A.shape[0]
     if maxiter is None:
         maxiter = max(200, min(n, 5000))
@@ -707,101 +818,15 @@ def _solve_scaled(
             "preconditioner_matrix or use 'cg' / 'gmres'"
         )
     if solver == "direct":
-        if not sp.issparse(A):
-            raise InputError("solver 'direct' needs an assembled matrix, got a LinearOperator")
-        t0 = time.perf_counter()
-        lu = None if direct_cache is None else direct_cache.get("solver")
-        reused = False
-        if (
-            isinstance(lu, DirectSolver)
-            and lu.shape == A.shape
-            and lu.symmetric == bool(symmetric)
-            and direct_backend in ("auto", lu.backend)
-        ):
-            try:
-                lu.refactor(A)
-                reused = True
-            except ConvergenceError:  # e.g. no longer positive definite: start afresh
-                lu = None
-        else:
-            lu = None
-        try:
-            if lu is None:
-                lu = DirectSolver(A, symmetric=symmetric, backend=direct_backend)
-                if direct_cache is not None:
-                    direct_cache["solver"] = lu
-        except ConvergenceError:
-            raise
-        except RuntimeError as exc:  # SuperLU: "Factor is exactly singular"
-            raise ConvergenceError(
-                f"direct solve: the matrix is exactly singular (SuperLU: {exc}); the Dirichlet "
-                "conditions or the model leave a zero-energy motion free (a mechanism such as "
-                "a one-point-wide strip, or points whose bonds do not span the dimension)"
-            ) from exc
-        t1 = time.perf_counter()
-        x = lu.solve(b)
-        t2 = time.perf_counter()
-        info["direct_backend"] = lu.backend
-        info["direct_reused"] = reused
-        info["direct_ordering"] = lu.info["ordering"]
-        if "fallback" in lu.info:
-            info["direct_fallback"] = lu.info["fallback"]
-        if lu.backend != "cholmod":  # CHOLMOD's nnz(L) needs a copy of L: on request only
-            info["fill_nnz"] = lu.fill
-        rr = _check(A, x, b, rtol, solver)
-        residuals = [1.0, rr]
-        tol = 1e-8 if check_rtol is None else check_rtol
-        if rr > tol:
-            # one step of iterative refinement before giving up
-            x = x + lu.solve(b - A @ x)
-            rr = _check(A, x, b, rtol, solver)
-            residuals.append(rr)
-        if rr > tol:
-            raise ConvergenceError(
-                f"direct solve: true relative residual {rr:.3e} exceeds {tol:.1e} "
-                "(matrix singular or badly conditioned)"
-            )
-        if condition is True or (
-            condition == "auto" and symmetric and A.shape[0] <= CONDITION_AUTO_MAX
-        ):
-            kappa = condition_estimate(A, lu.solve, symmetric=bool(symmetric))
-            info["condition_estimate"] = kappa
-            warn_if_ill_conditioned(kappa, f"direct solve ({lu.backend})")
-        return LinearSolveInfo(x, solver, 1, residuals, rr, t1 - t0, t2 - t1, info)
+        return _solve_direct(
+            A, b, rtol, symmetric, check_rtol, direct_backend, direct_cache, condition, info
+        )  # fmt: skip
 
     t0 = time.perf_counter()
     c0 = time.process_time()
-    M: Any = None
-    MA: Any = None
-    if solver in ("amg-cg", "amg-gmres"):
-        if progress is not None:
-            progress(f"  AMG set-up on {P.shape[0]:,} unknowns, {P.nnz:,} nonzeros")
-        ml = amg_hierarchy(
-            P, near_null, blocksize=blocksize, symmetric=symmetric, **(amg_options or {})
-        )
-        M = ml.apply
-        # the cycle's fused product A z is only valid when the hierarchy is built on A
-        MA = ml.apply_with_product if P is A else None
-        info["levels"] = len(ml.levels)
-        info["operator_complexity"] = ml.operator_complexity()
-        info["grid_complexity"] = ml.grid_complexity()
-        info["level_sizes"] = [int(lev.A.shape[0]) for lev in ml.levels]
-        if progress is not None:
-            progress(
-                f"  AMG hierarchy: {len(ml.levels)} levels, operator complexity "
-                f"{info['operator_complexity']:.2f}, set up in {time.perf_counter() - t0:.1f} s"
-            )
-    elif solver == "jacobi-cg":
-        d = P.diagonal()
-        if np.any(d <= 0):
-            raise InputError(
-                "A must have a positive diagonal for jacobi-cg, got a non-positive entry"
-            )
-        inv = 1.0 / d
-        M = inv.__mul__
-    elif solver == "ilu-gmres":
-        ilu = spla.spilu(sp.csc_matrix(P), drop_tol=1e-4, fill_factor=10)
-        M = ilu.solve
+    M, MA = _preconditioner(
+        A, P, solver, near_null, blocksize, symmetric, amg_options, progress, info, t0
+    )  # fmt: skip
     t1 = time.perf_counter()
     c1 = time.process_time()
     if solver.endswith("cg"):
@@ -835,6 +860,132 @@ def _solve_scaled(
             result=LinearSolveInfo(x, solver, n_iter, rel, rr, t1 - t0, t2 - t1, info),
         )
     return LinearSolveInfo(x, solver, n_iter, rel, rr, t1 - t0, t2 - t1, info)
+
+
+def _solve_direct(
+    A: Any,
+    b: np.ndarray,
+    rtol: float,
+    symmetric: bool,
+    check_rtol: float | None,
+    direct_backend: str,
+    direct_cache: dict[str, Any] | None,
+    condition: bool | str,
+    info: dict[str, Any],
+) -> LinearSolveInfo:
+    """``solver='direct'`` of :func:`_solve_scaled`: factorize (or refactorize), solve, check."""
+    if not sp.issparse(A):
+        raise InputError("solver 'direct' needs an assembled matrix, got a LinearOperator")
+    t0 = time.perf_counter()
+    lu = None if direct_cache is None else direct_cache.get("solver")
+    reused = False
+    if (
+        isinstance(lu, DirectSolver)
+        and lu.shape == A.shape
+        and lu.symmetric == bool(symmetric)
+        and direct_backend in ("auto", lu.backend)
+    ):
+        try:
+            lu.refactor(A)
+            reused = True
+        except ConvergenceError:  # e.g. no longer positive definite: start afresh
+            lu = None
+    else:
+        lu = None
+    try:
+        if lu is None:
+            lu = DirectSolver(A, symmetric=symmetric, backend=direct_backend)
+            if direct_cache is not None:
+                direct_cache["solver"] = lu
+    except ConvergenceError:
+        raise
+    except RuntimeError as exc:  # SuperLU: "Factor is exactly singular"
+        raise ConvergenceError(
+            f"direct solve: the matrix is exactly singular (SuperLU: {exc}); the Dirichlet "
+            "conditions or the model leave a zero-energy motion free (a mechanism such as "
+            "a one-point-wide strip, or points whose bonds do not span the dimension)"
+        ) from exc
+    t1 = time.perf_counter()
+    x = lu.solve(b)
+    t2 = time.perf_counter()
+    info["direct_backend"] = lu.backend
+    info["direct_reused"] = reused
+    info["direct_ordering"] = lu.info["ordering"]
+    if "fallback" in lu.info:
+        info["direct_fallback"] = lu.info["fallback"]
+    if lu.backend != "cholmod":  # CHOLMOD's nnz(L) needs a copy of L: on request only
+        info["fill_nnz"] = lu.fill
+    rr = _check(A, x, b, rtol, "direct")
+    residuals = [1.0, rr]
+    tol = 1e-8 if check_rtol is None else check_rtol
+    if rr > tol:
+        # one step of iterative refinement before giving up
+        x = x + lu.solve(b - A @ x)
+        rr = _check(A, x, b, rtol, "direct")
+        residuals.append(rr)
+    if rr > tol:
+        raise ConvergenceError(
+            f"direct solve: true relative residual {rr:.3e} exceeds {tol:.1e} "
+            "(matrix singular or badly conditioned)"
+        )
+    if condition is True or (
+        condition == "auto" and symmetric and A.shape[0] <= CONDITION_AUTO_MAX
+    ):
+        kappa = condition_estimate(A, lu.solve, symmetric=bool(symmetric))
+        info["condition_estimate"] = kappa
+        warn_if_ill_conditioned(kappa, f"direct solve ({lu.backend})")
+    return LinearSolveInfo(x, "direct", 1, residuals, rr, t1 - t0, t2 - t1, info)
+
+
+def _preconditioner(
+    A: Any,
+    P: Any,
+    solver: str,
+    near_null: np.ndarray | None,
+    blocksize: int | None,
+    symmetric: bool,
+    amg_options: dict[str, Any] | None,
+    progress: Callable[[str], None] | None,
+    info: dict[str, Any],
+    t0: float,
+) -> tuple[Any, Any]:
+    """Preconditioner ``M`` of an iterative solver built from ``P``, and AMG's fused ``M, A``.
+
+    ``MA`` (AMG only, when the hierarchy is built on ``A`` itself) applies the cycle and
+    returns ``A z`` with it; ``info`` receives the AMG levels and complexities.
+    """
+    M: Any = None
+    MA: Any = None
+    if solver in ("amg-cg", "amg-gmres"):
+        if progress is not None:
+            progress(f"  AMG set-up on {P.shape[0]:,} unknowns, {P.nnz:,} nonzeros")
+        ml = amg_hierarchy(
+            P, near_null, blocksize=blocksize, symmetric=symmetric, **(amg_options or {})
+        )
+        M = ml.apply
+        # the cycle's fused product A z is only valid when the hierarchy is built on A
+        MA = ml.apply_with_product if P is A else None
+        info["levels"] = len(ml.levels)
+        info["operator_complexity"] = ml.operator_complexity()
+        info["grid_complexity"] = ml.grid_complexity()
+        info["level_sizes"] = [int(lev.A.shape[0]) for lev in ml.levels]
+        if progress is not None:
+            progress(
+                f"  AMG hierarchy: {len(ml.levels)} levels, operator complexity "
+                f"{info['operator_complexity']:.2f}, set up in {time.perf_counter() - t0:.1f} s"
+            )
+    elif solver == "jacobi-cg":
+        d = P.diagonal()
+        if np.any(d <= 0):
+            raise InputError(
+                "A must have a positive diagonal for jacobi-cg, got a non-positive entry"
+            )
+        inv = 1.0 / d
+        M = inv.__mul__
+    elif solver == "ilu-gmres":
+        ilu = spla.spilu(sp.csc_matrix(P), drop_tol=1e-4, fill_factor=10)
+        M = ilu.solve
+    return M, MA
 
 
 def _gmres(

@@ -29,7 +29,8 @@ import numpy as np
 
 from ..errors import InputError, InputTypeError
 from ..io.output import write_error
-from ..problem import StaticProblem, solve
+from ..problem import StaticProblem
+from ..static import solve
 
 __all__ = [
     "TradeoffCase",
@@ -85,6 +86,7 @@ class TradeoffCase:
     Attributes
     ----------
     problem : StaticProblem
+        The configured problem of this point.
     solve_kwargs : dict
         Extra keyword arguments of :func:`pdlin.solve` (the swept ``solver``, ``rtol``,
         ``operator``, ``maxiter`` override them).
@@ -101,10 +103,11 @@ class TradeoffCase:
     nonlinear : dict, optional
         Solve with :func:`pdlin.solve_nonlinear` and these keyword arguments instead of
         :func:`pdlin.solve`.  The error is then that of the homogenized (volume-averaged)
-        stress history, never of the point-wise field (plastic equilibria are not unique,
-        spec 001 §6): ``exact`` and ``reference`` give the reference history
-        ``(steps, dim, dim)`` (``exact(times)``, or an array), e.g. the material-point
-        driver of a homogeneous single crystal.
+        stress history, never of the point-wise field (plastic equilibria of a nearly
+        perfectly plastic crystal are not unique, so two solvers may legitimately end in
+        different point-wise fields; see ``docs/tradeoff.md``): ``exact`` and
+        ``reference`` give the reference history ``(steps, dim, dim)`` (``exact(times)``,
+        or an array), e.g. the material-point driver of a homogeneous single crystal.
     """
 
     problem: StaticProblem
@@ -143,7 +146,18 @@ def _fmt(v: Any) -> str:
 
 
 def point_key(params: Mapping[str, Any]) -> str:
-    """Key of a sweep point: ``name=value`` pairs in the grid's order.
+    """Build the key of a sweep point: ``name=value`` pairs in the grid's order.
+
+    Parameters
+    ----------
+    params : mapping str -> value
+        The point's swept parameters, in the grid's order.
+
+    Returns
+    -------
+    str
+        ``name=value`` joined by ``;``, values in their canonical text (the key of
+        ``resume`` and of the table's ``key`` column).
 
     Examples
     --------
@@ -200,6 +214,20 @@ def interpolate_field(points: np.ndarray, values: np.ndarray, xq: np.ndarray) ->
     Identical clouds are copied; 1D uses :func:`numpy.interp`; grids (tensor-product
     point sets) use :class:`scipy.interpolate.RegularGridInterpolator` (linear, linearly
     extrapolated outside); scattered clouds use ``griddata`` (linear, nearest outside).
+
+    Parameters
+    ----------
+    points : (n, d) array
+        Positions of the known field.
+    values : (n, k) array
+        The field at ``points``.
+    xq : (q, d) array
+        Positions to interpolate at.
+
+    Returns
+    -------
+    (q, k) array
+        The interpolated field.
 
     Examples
     --------
@@ -281,7 +309,7 @@ def _run_measured(run: Callable[[], Any], memory: str, t0: float) -> tuple[Any, 
 
 
 def _solver_used(info: Mapping[str, Any]) -> str:
-    """The solver that ran, with the direct backend in brackets (``'direct (cholmod)'``).
+    """Name the solver that ran, with the direct backend in brackets (``'direct (cholmod)'``).
 
     ``direct_backend='auto'`` picks CHOLMOD or PARDISO when installed, so ``'direct'`` alone
     would hide which factorization a row timed.
@@ -417,8 +445,10 @@ def _measure_nonlinear(
 
 
 def _warm_imports() -> None:
-    """Import the lazily imported solver modules once in the parent, so that forked
-    points do not each pay (and time) their import."""
+    """Import the lazily imported solver modules once in the parent process.
+
+    Forked points then do not each pay (and time) their import.
+    """
     import importlib
 
     for name in ("pyamg", "scipy.sparse.linalg", "scipy.interpolate", "pdlin.models"):
@@ -599,7 +629,7 @@ def _typed(row: Mapping[str, Any], columns: Sequence[str]) -> dict[str, Any]:
 
 @dataclass
 class TradeoffResult:
-    """The table of a sweep and what to read from it.
+    """Hold the table of a sweep and answer what to read from it.
 
     Attributes
     ----------
@@ -630,7 +660,13 @@ class TradeoffResult:
     time: str = "t_total"
 
     def ok(self) -> list[dict[str, Any]]:
-        """Rows that finished with a finite error and time."""
+        """Return the rows that finished with a finite error and time.
+
+        Returns
+        -------
+        list of dict
+            Rows with status 'ok' (the 'reference' row of a 'finest' sweep excluded).
+        """
         return [
             r
             for r in self.table
@@ -644,6 +680,11 @@ class TradeoffResult:
 
         A row is dominated when another is at least as fast and at least as accurate,
         and strictly better in one of the two.
+
+        Returns
+        -------
+        list of dict
+            The non-dominated rows of :meth:`ok`, by increasing ``time`` column.
         """
         rows = self.ok()
         if not rows:
@@ -656,7 +697,24 @@ class TradeoffResult:
         return [rows[i] for i in keep]
 
     def best(self, target_error: float) -> dict[str, Any] | None:
-        """The fastest row whose error is at most ``target_error`` (None if no row is)."""
+        """Return the fastest row whose error is at most ``target_error``.
+
+        Parameters
+        ----------
+        target_error : float
+            Largest acceptable error, in the units of the sweep's metric (> 0).
+
+        Returns
+        -------
+        dict or None
+            The row of :meth:`ok` with the smallest ``time`` column among those meeting
+            the target; ``None`` if no row does.
+
+        Raises
+        ------
+        InputError
+            When ``target_error`` is not positive.
+        """
         if not target_error > 0:
             raise InputError(f"target_error must be > 0, got {target_error}")
         ok = [r for r in self.ok() if float(r["error"]) <= target_error]
@@ -684,6 +742,11 @@ class TradeoffResult:
         list of dict
             Per group: its fixed parameters, ``rate`` (slope of log error against
             log x), ``n`` points, ``x`` and ``error`` lists.
+
+        Raises
+        ------
+        InputError
+            When ``vary`` is not one of the swept parameters (or none can be inferred).
         """
         if vary is None:
             cands = [x] + (["N", "n"] if x == "h" else ["m", "h", "N", "n"] if x == "delta" else [])
@@ -719,11 +782,29 @@ class TradeoffResult:
         return out
 
     def columns(self) -> list[str]:
-        """Column names of the table: key, swept parameters, measurements."""
+        """Return the column names of the table.
+
+        Returns
+        -------
+        list of str
+            ``'key'``, the swept parameters, then :data:`METRIC_COLUMNS` not swept.
+        """
         return ["key", *self.params, *[c for c in METRIC_COLUMNS if c not in self.params]]
 
     def to_csv(self, path: str | os.PathLike[str]) -> Path:
-        """Write the table as CSV."""
+        """Write the table as CSV.
+
+        Parameters
+        ----------
+        path : str or path-like
+            File to write (overwritten); one header row of :meth:`columns`, one row per
+            point.
+
+        Returns
+        -------
+        pathlib.Path
+            The path written.
+        """
         p = Path(path)
         with open(p, "w", newline="") as f:
             w = csv.writer(f)
@@ -734,7 +815,19 @@ class TradeoffResult:
         return p
 
     def to_json(self, path: str | os.PathLike[str] | None = None) -> str:
-        """The table, Pareto keys and rates as JSON (written to ``path`` if given)."""
+        """Serialize the table and the Pareto keys as JSON.
+
+        Parameters
+        ----------
+        path : str or path-like, optional
+            Also write the text to this file.
+
+        Returns
+        -------
+        str
+            JSON object with ``params``, ``reference``, ``time``, ``table`` (one object
+            per row, NaN as null) and ``pareto`` (keys of the front).
+        """
         data = {
             "params": self.params,
             "reference": self.reference,
@@ -748,7 +841,21 @@ class TradeoffResult:
         return text
 
     def summary(self, *, target_error: float | None = None, width: int = 10) -> str:
-        """A printable table of the rows (Pareto rows marked ``*``), rates and the choice."""
+        """Format the rows (Pareto rows marked ``*``), the rates and the best choice.
+
+        Parameters
+        ----------
+        target_error : float, optional
+            Also name the fastest configuration meeting this error (:meth:`best`).
+        width : int
+            Width of each column, characters (longer cells are cut).
+
+        Returns
+        -------
+        str
+            Multi-line text: the reference, one line per row, the direct backends that
+            ran, the rates in ``h`` and ``delta``, and the choice.
+        """
         front = {id(r) for r in self.pareto()}
         cols = self.params + ["error", "t_total", "t_solve", "peak_mb", "nnz", "iterations"]
         head = "  " + " ".join(f"{c[:width]:>{width}}" for c in cols) + "  status"
@@ -853,6 +960,190 @@ def _check_some_succeeded(
     ) from (first[1] if first is not None else None)
 
 
+def _check_sweep_arguments(
+    params: Sequence[str],
+    reference: Any,
+    memory: str,
+    timeout: float | None,
+) -> str:
+    """Validate the arguments of :func:`tradeoff` and resolve ``memory='auto'``.
+
+    Parameters
+    ----------
+    params : sequence of str
+        Names of the swept parameters; none may clash with a measured column.
+    reference : str or callable
+        ``'auto'``, ``'closed-form'``, ``'fem'``, ``'finest'`` or a callable.
+    memory : str
+        ``'auto'``, ``'rss'``, ``'tracemalloc'`` or ``'none'``.
+    timeout : float or None
+        Seconds per point; allowed only with ``memory='rss'``.
+
+    Returns
+    -------
+    str
+        The memory mode: ``'auto'`` becomes ``'rss'`` where :func:`os.fork` exists,
+        else ``'tracemalloc'``.
+
+    Raises
+    ------
+    InputError
+        When a parameter name clashes with a table column, or ``memory``, ``timeout``
+        or ``reference`` is not one of the accepted values.
+    """
+    bad = [p for p in params if (p in METRIC_COLUMNS and p not in ("h", "delta")) or p == "key"]
+    if bad:
+        raise InputError(f"grid key {bad[0]!r} clashes with a table column; rename it")
+    if memory == "auto":
+        memory = "rss" if hasattr(os, "fork") else "tracemalloc"
+    if memory not in ("rss", "tracemalloc", "none"):
+        raise InputError(f"memory must be 'auto', 'rss', 'tracemalloc' or 'none', got {memory!r}")
+    if timeout is not None and memory != "rss":
+        raise InputError("timeout needs memory='rss' (points run in a child process)")
+    if not (callable(reference) or reference in ("auto", "closed-form", "fem", "finest")):
+        raise InputError(
+            "reference must be 'auto', 'closed-form', 'fem', 'finest' or a callable, "
+            f"got {reference!r}"
+        )
+    return memory
+
+
+@dataclass
+class _FinestReference:
+    """The sweep's 'finest' point: its key, its side file and its solution once measured."""
+
+    key: str
+    side: Path | None
+    sol: dict[str, Any] | None = None
+
+    @property
+    def label(self) -> str:
+        """Text of the ``reference`` column of rows measured against this point."""
+        return "finest: " + self.key
+
+    def store(self, X: np.ndarray, u: np.ndarray) -> None:
+        """Keep the finest solution (points ``X`` and displacements ``u``), also on disk."""
+        self.sol = {"points": X, "u": u}
+        if self.side is not None:
+            np.savez(self.side, key=self.key, points=X, u=u)
+
+    def get(self) -> dict[str, Any] | None:
+        """Return the finest solution, from memory or from the side file of a resumed sweep."""
+        if self.sol is None and self.side is not None and self.side.exists():
+            with np.load(self.side) as z:
+                if str(z["key"]) == self.key:
+                    self.sol = {"points": z["points"], "u": z["u"]}
+        return self.sol
+
+
+def _run_point(
+    run: Callable[[dict[str, Any]], dict[str, Any]], p: dict[str, Any], key: str
+) -> tuple[dict[str, Any], dict[str, Any] | None, BaseException | None]:
+    """Measure one point; a failure or time-out becomes the row's status, not an exception.
+
+    Returns the row (parameters, blank metrics, then the measured ones), the raw
+    measurement (``None`` when the point failed) and the failure (or ``None``).
+    """
+    row: dict[str, Any] = {"key": key, **p}
+    row.update({c: (float("nan") if c in _NUMERIC else "") for c in METRIC_COLUMNS if c not in p})
+    try:
+        meas = run(p)
+    except TimeoutError as exc:
+        row.update(status="timeout", message=str(exc))
+        return row, None, exc
+    except Exception as exc:  # noqa: BLE001 - a failing point is a row, not a crash
+        log.warning("point %s failed: %s", key, exc)
+        row.update(status="failed", message=str(exc)[:300])
+        return row, None, exc
+    row.update({c: v for c, v in meas["row"].items() if c not in p})
+    row["status"] = "ok"
+    return row, meas, None
+
+
+def _reference_mode(ref_mode: str, meas: Mapping[str, Any]) -> str:
+    """Resolve ``'auto'``: closed form, else the case's reference field, else the finest."""
+    if ref_mode != "auto":
+        return ref_mode
+    if meas["exact"] is not None:
+        return "closed-form"
+    return "fem" if meas["other"] is not None else "finest"
+
+
+def _record_error(
+    row: dict[str, Any],
+    meas: Mapping[str, Any],
+    p: Mapping[str, Any],
+    ref_mode: str,
+    reference: Any,
+    err_fn: Callable[[np.ndarray, np.ndarray], float],
+    fine: _FinestReference,
+    *,
+    is_finest: bool,
+) -> BaseException | None:
+    """Fill the ``error`` and ``reference`` columns of a measured row.
+
+    The finest point of a 'finest' sweep is stored and becomes the ``'reference'`` row
+    (error 0).  A point whose reference is missing gets status ``'no-reference'``; the
+    exception is returned (``None`` when the error was measured).
+    """
+    X, u = meas["points"], meas["u"]
+    sel = meas["measure"] if meas["measure"] is not None else np.arange(X.shape[0])
+    mode = _reference_mode(ref_mode, meas)
+    if len(sel) == 0 and not is_finest:
+        mode = "none"
+    if is_finest and mode == "finest":
+        fine.store(X, u)
+        # the reference itself: error 0 by definition, left out of fronts and rates
+        row.update(status="reference", error=0.0, reference=fine.label)
+        return None
+    try:
+        if mode == "none":
+            raise InputError("no points to measure the error on (measure is empty)")
+        if mode == "closed-form":
+            if meas["exact"] is None:
+                raise InputError("reference='closed-form' but the case has no exact")
+            uref = meas["exact"][sel]
+            row["reference"] = "closed-form"
+        elif mode == "fem":
+            if meas["other"] is None:
+                raise InputError("reference='fem' but the case has no reference field")
+            uref = meas["other"][sel]
+            row["reference"] = "fem"
+        elif mode == "finest":
+            uref = _finest_field(fine, meas, X[sel], u, sel)
+            row["reference"] = fine.label
+        else:
+            assert callable(reference)
+            uref = np.asarray(reference(X[sel]), dtype=float).reshape(len(sel), -1)
+            row["reference"] = "callable"
+        row["error"] = float(err_fn(u[sel], uref))
+    except Exception as exc:  # noqa: BLE001 - recorded on the row
+        row.update(status="no-reference", message=str(exc)[:300])
+        return exc
+    return None
+
+
+def _finest_field(
+    fine: _FinestReference,
+    meas: Mapping[str, Any],
+    Xs: np.ndarray,
+    u: np.ndarray,
+    sel: np.ndarray,
+) -> np.ndarray:
+    """Return the finest solution at the measured points ``Xs`` (or its stress history)."""
+    sol = fine.get()
+    if sol is None:
+        raise InputError(f"the finest point ({fine.label}) did not finish")
+    if meas.get("history"):
+        if sol["u"].shape != u.shape:
+            raise InputError(
+                "the finest run has another number of load steps or "
+                "dimension; sweep points must share the load path"
+            )
+        return np.asarray(sol["u"][sel])
+    return interpolate_field(sol["points"], sol["u"], Xs)
+
+
 def tradeoff(
     factory: Callable[..., Any],
     grid: Mapping[str, Sequence[Any]],
@@ -934,7 +1225,7 @@ def tradeoff(
     ...                memory="none")
     >>> [r["status"] for r in res.table]
     ['ok', 'ok']
-    >>> round(res.rates("h")[0]["rate"], 1)   # spec 000 §10.A: error ∝ h^(1/2)
+    >>> round(res.rates("h")[0]["rate"], 1)   # error ∝ h^(1/2): the √(x - ½) singularity
     0.5
     """
     if not callable(factory):
@@ -944,22 +1235,9 @@ def tradeoff(
         )
     points = _expand(grid)
     params = list(grid)
-    bad = [p for p in params if (p in METRIC_COLUMNS and p not in ("h", "delta")) or p == "key"]
-    if bad:
-        raise InputError(f"grid key {bad[0]!r} clashes with a table column; rename it")
-    if memory == "auto":
-        memory = "rss" if hasattr(os, "fork") else "tracemalloc"
-    if memory not in ("rss", "tracemalloc", "none"):
-        raise InputError(f"memory must be 'auto', 'rss', 'tracemalloc' or 'none', got {memory!r}")
+    memory = _check_sweep_arguments(params, reference, memory, timeout)
     if memory == "rss":
         _warm_imports()
-    if timeout is not None and memory != "rss":
-        raise InputError("timeout needs memory='rss' (points run in a child process)")
-    if not (callable(reference) or reference in ("auto", "closed-form", "fem", "finest")):
-        raise InputError(
-            "reference must be 'auto', 'closed-form', 'fem', 'finest' or a callable, "
-            f"got {reference!r}"
-        )
     err_fn = _metric(metric)
     columns = ["key", *params, *[c for c in METRIC_COLUMNS if c not in params]]
     writer = _Writer(Path(output), columns, resume) if output is not None else None
@@ -972,23 +1250,14 @@ def tradeoff(
 
     # the 'finest' reference runs first (kept in a side file next to the output)
     ref_mode = reference if isinstance(reference, str) else "callable"
-    finest_sol: dict[str, Any] | None = None
-    finest_label = ""
     k_fine = _finest_index(points, finest)
-    need_finest = ref_mode == "finest"
     order = list(range(len(points)))
-    if need_finest or ref_mode == "auto":
+    if ref_mode in ("finest", "auto"):
         order.remove(k_fine)
         order.insert(0, k_fine)
-    finest_label = "finest: " + point_key(points[k_fine])
-    side = None if output is None else Path(str(output) + ".finest.npz")
-
-    def load_finest() -> dict[str, Any] | None:
-        if side is not None and side.exists():
-            with np.load(side) as z:
-                if str(z["key"]) == point_key(points[k_fine]):
-                    return {"points": z["points"], "u": z["u"]}
-        return None
+    fine = _FinestReference(
+        point_key(points[k_fine]), None if output is None else Path(str(output) + ".finest.npz")
+    )
 
     rows: list[dict[str, Any]] = [r for r in done.values()]
     first_failure: tuple[str, BaseException] | None = None
@@ -999,81 +1268,13 @@ def tradeoff(
         key = point_key(p)
         if key in done:
             continue
-        row: dict[str, Any] = {"key": key, **p}
-        row.update(
-            {c: (float("nan") if c in _NUMERIC else "") for c in METRIC_COLUMNS if c not in p}
-        )
-        try:
-            meas = run(p)
-        except TimeoutError as exc:
-            row.update(status="timeout", message=str(exc))
-            meas = None
-            first_failure = first_failure or (key, exc)
-        except Exception as exc:  # noqa: BLE001 - a failing point is a row, not a crash
-            log.warning("point %s failed: %s", key, exc)
-            row.update(status="failed", message=str(exc)[:300])
-            meas = None
-            first_failure = first_failure or (key, exc)
+        row, meas, failure = _run_point(run, p, key)
         if meas is not None:
-            row.update({c: v for c, v in meas["row"].items() if c not in p})
-            row["status"] = "ok"
-            X, u = meas["points"], meas["u"]
-            sel = meas["measure"] if meas["measure"] is not None else np.arange(X.shape[0])
-            mode = ref_mode
-            if mode == "auto":
-                mode = (
-                    "closed-form"
-                    if meas["exact"] is not None
-                    else ("fem" if meas["other"] is not None else "finest")
-                )
-            if len(sel) == 0 and k != k_fine:
-                mode = "none"
-            if k == k_fine and mode == "finest":
-                finest_sol = {"points": X, "u": u}
-                if side is not None:
-                    np.savez(side, key=key, points=X, u=u)
-                # the reference itself: error 0 by definition, left out of fronts and rates
-                row.update(status="reference", error=0.0, reference=finest_label)
-                mode = "done"
-            try:
-                if mode == "done":
-                    pass
-                elif mode == "none":
-                    raise InputError("no points to measure the error on (measure is empty)")
-                elif mode == "closed-form":
-                    if meas["exact"] is None:
-                        raise InputError("reference='closed-form' but the case has no exact")
-                    uref = meas["exact"][sel]
-                    row["reference"] = "closed-form"
-                elif mode == "fem":
-                    if meas["other"] is None:
-                        raise InputError("reference='fem' but the case has no reference field")
-                    uref = meas["other"][sel]
-                    row["reference"] = "fem"
-                elif mode == "finest":
-                    if finest_sol is None:
-                        finest_sol = load_finest()
-                    if finest_sol is None:
-                        raise InputError(f"the finest point ({finest_label}) did not finish")
-                    if meas.get("history"):
-                        if finest_sol["u"].shape != u.shape:
-                            raise InputError(
-                                "the finest run has another number of load steps or "
-                                "dimension; sweep points must share the load path"
-                            )
-                        uref = finest_sol["u"][sel]
-                    else:
-                        uref = interpolate_field(finest_sol["points"], finest_sol["u"], X[sel])
-                    row["reference"] = finest_label
-                else:
-                    assert callable(reference)
-                    uref = np.asarray(reference(X[sel]), dtype=float).reshape(len(sel), -1)
-                    row["reference"] = "callable"
-                if mode != "done":
-                    row["error"] = float(err_fn(u[sel], uref))
-            except Exception as exc:  # noqa: BLE001 - recorded on the row
-                row.update(status="no-reference", message=str(exc)[:300])
-                first_failure = first_failure or (key, exc)
+            failure = _record_error(
+                row, meas, p, ref_mode, reference, err_fn, fine, is_finest=k == k_fine
+            )
+        if failure is not None:
+            first_failure = first_failure or (key, failure)
         if writer is not None:
             writer.append(row)
         rows.append(row)

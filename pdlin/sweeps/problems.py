@@ -7,14 +7,27 @@ reference (``reference``) and the points where the error is measured.
 =====================  ====  =====================================================
 factory                dim   reference
 =====================  ====  =====================================================
-:func:`graded_bar`     1     closed form u = αx + βH(x-½)√(x-½) (spec 000 §10.A)
+:func:`graded_bar`     1     closed form u = αx + βH(x-½)√(x-½) [1]_
 :func:`tension_bar`    2, 3  closed form: uniaxial stress, lateral faces free
 :func:`affine_patch`   2, 3  closed form: any affine field (a patch test)
 :func:`plate_with_hole` 2    Q4 finite elements (:mod:`pdlin.verification.fem`)
 :func:`anisotropic_block` 2  closed form: uniaxial stress of an orthotropic tensor
-:func:`square_hole_plate` 2  Q4 finite elements on the particles (spec 003 §7.2)
-:func:`plate_with_hole_ogrid` 2 Q4 finite elements, graded O-grid (spec 002 §9.1)
+:func:`square_hole_plate` 2  Q4 finite elements on the particles [2]_
+:func:`plate_with_hole_ogrid` 2 Q4 finite elements, graded O-grid [3]_
 =====================  ====  =====================================================
+
+References
+----------
+.. [1] Javaheri, Luo, Lakshmanan & Sundararaghavan (2022), AIAA J.: the bar of
+   Sec. III.A, Eqs. 27-28.
+.. [2] Luo & Sundararaghavan (2018), IJSS 150: the plate with a square hole of
+   Sec. 5.2 (the paper gives no dimensions or loads; pdlin's reconstruction,
+   ``docs/theory/conventions.md``, "Plate with a square hole").
+.. [3] Liu, Chen & Skelton, XOSB: the plate with a central hole of Sec. 5.1 (the mesh
+   and boundary condition are pdlin's reconstruction, ``docs/theory/conventions.md``,
+   "Plate with a hole").
+
+Each paper's full reference is in ``docs/theory/references.md``.
 """
 
 from __future__ import annotations
@@ -52,10 +65,34 @@ MODEL_NAMES = ("bb", "lps", "xosb", "correspondence")
 
 
 def make_model(name: str, E: Any, nu: float | None = None, *, plane: str = "stress") -> Model:
-    """A model from its sweep name: 'bb', 'lps', 'xosb' or 'correspondence[:control]'.
+    """Build a model from its sweep name: 'bb', 'lps', 'xosb' or 'correspondence[:control]'.
 
     Bond-based models take only ``E`` (their Poisson ratio is implied: 1/4 in 3D, 1/3 in
     plane stress); the others need ``nu``.
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`MODEL_NAMES`, also ``'bond_based'`` and ``'cor'``; a correspondence
+        model may name its control after a colon (``'correspondence:penalty'``; default
+        no control).
+    E : float or array_like
+        Young's modulus, one value or one per point (units of the problem's stresses).
+    nu : float, optional
+        Poisson ratio; ignored by the bond-based model.
+    plane : {'stress', 'strain'}
+        2D assumption, passed to the model.
+
+    Returns
+    -------
+    Model
+        A :class:`~pdlin.models.BondBased`, :class:`~pdlin.models.LPS`,
+        :class:`~pdlin.models.XOSB` or :class:`~pdlin.models.Correspondence`.
+
+    Raises
+    ------
+    InputError
+        When ``name`` is not a known model name.
 
     Examples
     --------
@@ -85,7 +122,7 @@ def _two_hop(model_name: str) -> bool:
     return not str(model_name).startswith(("bb", "bond_based"))
 
 
-# --- 1D graded bar (spec 000 §10.A) ---------------------------------------------------------
+# --- 1D graded bar (Javaheri et al. 2022, Sec. III.A) -------------------------------------
 
 _ALPHA = 1e-3
 _BETA = 4e-3 * np.sqrt(2.0)
@@ -110,7 +147,7 @@ def graded_bar(
     influence: str = "constant",
     model: str | None = None,
 ) -> TradeoffCase:
-    """The 1D graded-modulus bar of spec 000 §10.A with the correspondence model.
+    """Build the 1D graded-modulus bar of Javaheri et al. (2022), Sec. III.A.
 
     Bar ``0 <= x <= 1`` of ``N`` particles (``h = 1/N``), ``E = 1`` on ``x <= ½`` and
     ``[1 + 2√2 (x - ½)^{-½}]⁻¹`` beyond, outward shadow layers of ``m = δ/h`` particles
@@ -130,6 +167,17 @@ def graded_bar(
         Influence function name of :func:`pdlin.find_bonds`.
     model : str, optional
         'correspondence:<control>' (overrides ``control``).
+
+    Returns
+    -------
+    TradeoffCase
+        The problem (``N + 2m`` points, direct solver), its closed form ``exact``, the
+        ``N`` real points as ``measure``, ``h = 1/N`` and ``delta = m/N``.
+
+    Raises
+    ------
+    InputError
+        When ``model`` is not a correspondence model, ``N < 4`` or ``m < 1``.
 
     Examples
     --------
@@ -200,6 +248,7 @@ def tension_bar(
     model : str
         :func:`make_model` name.
     dim : {2, 3}
+        Dimension of the bar.
     h : float
         Grid spacing.
     m : float
@@ -208,6 +257,21 @@ def tension_bar(
         Influence function of :func:`pdlin.find_bonds`.
     symmetry : bool
         Model the quarter (3D) / half (2D) ``y >= 0 (, z >= 0)`` with symmetry planes.
+    length, width : float
+        Bar length along x and its side across.
+    strain : float
+        Axial strain ε of the closed form.
+
+    Returns
+    -------
+    TradeoffCase
+        The problem, the closed form ``exact(X) = X (F - I)ᵀ`` and the real (non-shadow)
+        points as ``measure``.
+
+    Raises
+    ------
+    InputError
+        When ``dim`` is not 2 or 3.
 
     Examples
     --------
@@ -264,6 +328,27 @@ def affine_patch(
     linearized model reproduces it on the real points up to the solver's tolerance,
     so the error isolates the solver (sweep ``rtol`` and ``solver``).
 
+    Parameters
+    ----------
+    model : str
+        :func:`make_model` name.
+    dim : {2, 3}
+        Dimension of the box.
+    h : float
+        Grid spacing.
+    m : float
+        Horizon ratio δ/h.
+    influence : str
+        Influence function of :func:`pdlin.find_bonds`.
+    size : float
+        Side of the box ``[0, size]^dim``.
+
+    Returns
+    -------
+    TradeoffCase
+        The problem, the affine closed form and the points inside the shadow layer (on
+        every face, ``2 δ`` deep) as ``measure``.
+
     Examples
     --------
     >>> case = affine_patch("bb", dim=2, h=0.1, m=2.0)
@@ -295,7 +380,7 @@ def affine_patch(
 
 # --- plate with a hole against Q4 ----------------------------------------------------------
 
-_PLATE_E, _PLATE_NU, _PLATE_U0 = 70e9, 0.33, 5e-4  # spec 002 §9.1
+_PLATE_E, _PLATE_NU, _PLATE_U0 = 70e9, 0.33, 5e-4  # Liu, Chen & Skelton, XOSB, Sec. 5.1
 
 
 @functools.lru_cache(maxsize=2)
@@ -320,12 +405,32 @@ def plate_with_hole(
 ) -> TradeoffCase:
     """Square plate (side 1) with a central hole (r = 0.1) pulled at its ends; Q4 reference.
 
-    Spec 002 §9.1 on a cell-centred grid of spacing ``h`` (cells whose centre lies in the
-    hole removed): plane stress, E = 70 GPa, ν = 0.33 (bond-based: ν = 1/3), the finite-
-    element displacement (:func:`pdlin.verification.plate_extension_q4` on the O-grid
-    ``4 x n_ang x n_rad`` of ``fe_mesh``, interpolated by
-    :func:`pdlin.verification.evaluate_q4`) prescribed on the points within ``2 δ`` of the
-    left and right edges.  The error is measured on the remaining points.
+    The plate of Liu, Chen & Skelton, XOSB, Sec. 5.1, on a cell-centred grid of spacing
+    ``h`` (cells whose centre lies in the hole removed): plane stress, E = 70 GPa,
+    ν = 0.33 (bond-based: ν = 1/3), the finite-element displacement
+    (:func:`pdlin.verification.plate_extension_q4` on the O-grid ``4 x n_ang x n_rad`` of
+    ``fe_mesh``, interpolated by :func:`pdlin.verification.evaluate_q4`) prescribed on the
+    points within ``2 δ`` of the left and right edges.  The error is measured on the
+    remaining points.
+
+    Parameters
+    ----------
+    model : str
+        :func:`make_model` name.
+    h : float
+        Grid spacing in m.
+    m : float
+        Horizon ratio δ/h.
+    influence : str
+        Influence function of :func:`pdlin.find_bonds`.
+    fe_mesh : (int, int)
+        ``(n_ang, n_rad)`` of the Q4 O-grid of the reference.
+
+    Returns
+    -------
+    TradeoffCase
+        The problem, the interpolated Q4 displacement ``(n, 2)`` as ``reference`` and the
+        points outside the prescribed strips as ``measure``.
 
     Examples
     --------
@@ -378,6 +483,35 @@ def anisotropic_block(
     with :func:`pdlin.calibrate_micromoduli`, ``boundary="bulk"``: interior families exact,
     truncated ones softer, like any bond-based body) or
     ``'correspondence[:control]'`` (the tensor itself).
+
+    Parameters
+    ----------
+    model : str
+        ``'bb'`` or ``'correspondence[:control]'``.
+    h : float
+        Grid spacing.
+    m : float
+        Horizon ratio δ/h.
+    anisotropy : float
+        Ratio ``C11 / C22`` of the tensor before rotation.
+    angle : float
+        Rotation of the material axes, radians.
+    influence : str
+        Influence function of :func:`pdlin.find_bonds`.
+    strain : float
+        Strain along x of the closed form (the uniaxial stress σ_xx is scaled to give it).
+
+    Returns
+    -------
+    TradeoffCase
+        The problem, the closed-form uniaxial-stress field as ``exact`` and the real
+        (non-shadow) points as ``measure``.
+
+    Raises
+    ------
+    InputError
+        When ``anisotropy`` is not a positive number, ``model`` is not ``'bb'`` or
+        ``'correspondence[:control]'``, or the micromodulus calibration fails.
 
     Examples
     --------
@@ -439,16 +573,18 @@ def plate_with_hole_ogrid(
     ratio: float = 3.01,
     linearization: str = "energy",
 ) -> TradeoffCase:
-    """The spec 002 §9.1 plate on its graded O-grid, boundary condition "B"; Q4 reference.
+    """Build the XOSB plate with a hole on its graded O-grid (boundary condition "B").
 
-    One particle per cell of :func:`pdlin.plate_with_hole_mesh` ``(n_ang, n_rad)``
+    The plate of Liu, Chen & Skelton, XOSB, Sec. 5.1 (the paper's 7,680-cell mesh is not
+    given; this O-grid and the boundary condition are pdlin's reconstruction).  One
+    particle per cell of :func:`pdlin.plate_with_hole_mesh` ``(n_ang, n_rad)``
     (``4 n_ang n_rad`` particles, horizon ``ratio · sqrt(A_i)`` per particle), plane
     stress, E = 70 GPa, ν = 0.33.  The reference is the Q4 solution
     (:func:`pdlin.verification.plate_extension_q4`: u_x = 0 / u0 = 5e-4 m on the left /
     right edge) on the same mapping ``fe_refine`` times finer, evaluated at the particles;
     it is prescribed (both components) on the outermost radial layer of the left and right
     blocks.  The error is measured on the ring (the first radial layer, ``4 n_ang``
-    particles), where the spec compares ``max |u - u_FE| / range_ring(u_FE)`` per component:
+    particles) as ``max |u - u_FE| / range_ring(u_FE)`` per component:
     XOSB ≈ 1 % / 3 %, uncorrected OSBPD (``model='lps'``) ≈ 2.4 % / 9.6 % at the default
     size (``examples/plate_with_hole_xosb.py --coarse``).
 
@@ -464,6 +600,18 @@ def plate_with_hole_ogrid(
         Horizon / sqrt(cell area).
     linearization : {'energy', 'paper'}
         Force-state linearization (``'paper'`` is nonsymmetric: solve with GMRES).
+
+    Returns
+    -------
+    TradeoffCase
+        The problem (``4 n_ang n_rad`` points), the Q4 displacement ``(n, 2)`` as
+        ``reference`` and the ``4 n_ang`` ring points as ``measure``.
+
+    Raises
+    ------
+    InputError
+        When ``model`` is not 'xosb' or 'lps', or ``n_ang < 2``, ``n_rad < 2`` or
+        ``fe_refine < 1``.
 
     Examples
     --------
@@ -505,7 +653,7 @@ def plate_with_hole_ogrid(
     )
 
 
-# --- R2D plate with a square hole (spec 003 §7.2) ------------------------------------------
+# --- R2D plate with a square hole (Luo & Sundararaghavan 2018, Sec. 5.2) ------------------
 
 _SQ_E, _SQ_NU, _SQ_SIDE, _SQ_HOLE, _SQ_U = 1000.0, 0.3, 50.0, 10.0, 0.5  # MPa, mm
 
@@ -518,7 +666,7 @@ def square_hole_plate(
 ) -> TradeoffCase:
     """Plate [0, 50]² mm minus the square hole [0, 10)² on a node lattice; Q4 reference.
 
-    The quarter model of spec 003 §7.2 (its R2D reconstruction in
+    The quarter model of Luo & Sundararaghavan (2018), Sec. 5.2, as reconstructed in
     ``examples/correspondence_controls.py``): particles at the nodes ``(i h, j h)`` with
     ``V = h²``, E = 1000 MPa, ν = 0.3, plane stress; ``u_x = 0`` on ``x = 0``,
     ``u_y = 0`` on ``y = 0``, ``u_x = 0.5`` mm on ``x = 50``, ``u_y = 0.5`` mm on
@@ -529,11 +677,24 @@ def square_hole_plate(
     Parameters
     ----------
     model : str
-        ``'correspondence:<control>'`` (default stress points, spec 003).
+        ``'correspondence:<control>'`` (default: stress points, Luo & Sundararaghavan
+        2018).
     h : float
         Lattice spacing in mm (50 / h must be an integer).
     seed : int
         Seed of the stress-point pattern.
+
+    Returns
+    -------
+    TradeoffCase
+        The problem (``(50/h + 1)² - (10/h)²`` points), the Q4 displacement ``(n, 2)`` in
+        mm as ``reference``, measured on every point.
+
+    Raises
+    ------
+    InputError
+        When ``model`` is not a correspondence model or ``h`` does not divide 50 mm into
+        at least 6 intervals.
 
     Examples
     --------
@@ -541,8 +702,8 @@ def square_hole_plate(
     >>> case.problem.cloud.n, case.reference.shape
     (117, (117, 2))
     """
+    from ..constraints import resolve_dirichlet
     from ..models.correspondence import Correspondence
-    from ..operators.bc import resolve_dirichlet
     from ..verification.fem import solve_q4
 
     base, _, control = str(model).partition(":")

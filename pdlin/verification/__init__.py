@@ -1,8 +1,10 @@
 """Verification utilities: independent reference solutions to check pdlin against.
 
 These are not peridynamic models.  They exist so that tests and examples can compare pdlin's
-results with a classical reference (Q4 and Hex8 finite-element solves: spec 002 §9.1-9.2,
-spec 003 §7.2-7.3) without each carrying its own copy of the reference solver, and the closed-form
+results with a classical reference (Q4 and Hex8 finite-element solves for the plate and block
+with a hole of Liu, Chen & Skelton, XOSB, §5.1-5.2, and the plate and brick of Luo &
+Sundararaghavan (2018), §5.2-5.3) without each carrying its own copy of the reference solver,
+and the closed-form
 surface-effect problems (tension bar, plate, shear block) of the surface corrections.
 """
 

@@ -2,12 +2,14 @@
 
 A vectorized bilinear-quadrilateral (Q4) assembly with 2 x 2 Gauss quadrature for plane
 stress or plane strain, and a direct (SuperLU) or AMG-CG solve with prescribed nodal
-displacements.  It is the FE reference of spec 002 §9.1 (plate with a central hole) used by
+displacements.  It is the FE reference for the plate with a central hole of Liu, Chen &
+Skelton, XOSB, §5.1, used by
 ``tests/verification/test_xosb_plate.py`` and ``examples/plate_with_hole_xosb.py``.
 
 Its 3D counterpart is the trilinear hexahedron (Hex8, 2 x 2 x 2 Gauss, isotropic), the
-reference of spec 003 §7.3 (R3D brick, nodes at the particles) and spec 002 §9.2 (extruded
-plate with a hole): :func:`hex8_stiffness` and :func:`solve_hex8`.
+reference for the 3D brick of Luo & Sundararaghavan (2018), §5.3 (nodes at the particles),
+and the extruded plate with a hole of the XOSB paper, §5.2: :func:`hex8_stiffness` and
+:func:`solve_hex8`.
 
 It is a verification utility, not part of pdlin's peridynamic API: a single homogeneous
 isotropic material and no checks beyond positive Jacobians.  :func:`grid_fe_reference` builds
@@ -66,7 +68,7 @@ def q4_stiffness(
     plane: str = "stress",
     thickness: float = 1.0,
 ) -> sp.csr_array:
-    """Global stiffness matrix of a Q4 mesh (2 x 2 Gauss, vectorized assembly).
+    """Assemble the global stiffness matrix of a Q4 mesh (2 x 2 Gauss, vectorized).
 
     Parameters
     ----------
@@ -86,6 +88,11 @@ def q4_stiffness(
     -------
     scipy.sparse.csr_array
         ``(2n, 2n)`` symmetric stiffness; DOF ``2 i + c`` is component ``c`` of node ``i``.
+
+    Raises
+    ------
+    ValueError
+        If ``quads`` is not ``(ne, 4)`` or an element has a zero Jacobian.
 
     Examples
     --------
@@ -143,7 +150,7 @@ def solve_q4(
     solver: str = "lu",
     rtol: float = 1e-12,
 ) -> np.ndarray:
-    """Nodal displacements of a Q4 mesh with prescribed DOFs and no external forces.
+    """Solve for the nodal displacements of a Q4 mesh with prescribed DOFs and no external forces.
 
     Parameters
     ----------
@@ -208,7 +215,7 @@ def _solve_prescribed(
     u[fixed] = vals
     if solver == "amg":
         import pdlin
-        from pdlin.operators.bc import eliminate_dirichlet
+        from pdlin.constraints import eliminate_dirichlet
         from pdlin.solvers import solve_linear
 
         a, b = eliminate_dirichlet(k.tobsr(blocksize=(dim, dim)), f.copy(), fixed, vals)
@@ -245,12 +252,13 @@ def plate_extension_q4(
     plane: str = "stress",
     solver: str = "lu",
 ) -> np.ndarray:
-    """FE reference of the spec 002 §9.1 plate: prescribed extension of a square plate.
+    """Solve the FE reference of the XOSB plate (§5.1): prescribed extension of a square plate.
 
     ``u_x = 0`` on the left edge ``x = -L/2``, ``u_x = u0`` on the right edge ``x = L/2``,
     ``u_y = 0`` at the two edge mid-nodes ``(±L/2, 0)``; top and bottom free.  For the
-    plate with a hole, mesh it with :func:`pdlin.plate_with_hole_mesh` (the spec's reference
-    is its O-grid at ``4 x 128 x 240``).
+    plate with a hole, mesh it with :func:`pdlin.plate_with_hole_mesh` (pdlin's reference
+    solution uses its O-grid at ``4 x 128 x 240``; the loading is pdlin's reading of the
+    paper, which does not state it).
 
     Parameters
     ----------
@@ -267,6 +275,11 @@ def plate_extension_q4(
     -------
     (n, 2) ndarray
         Nodal displacements.
+
+    Raises
+    ------
+    ValueError
+        If the mesh has no nodes on ``x = ±L/2`` including the mid-nodes ``(±L/2, 0)``.
 
     Examples
     --------
@@ -318,6 +331,7 @@ def evaluate_q4(points: Any, quads: Any, u: Any, xq: Any, *, candidates: int = 8
     Returns
     -------
     (m,) or (m, k) ndarray
+        The interpolated values at ``xq`` (the shape of ``u`` per point).
 
     Raises
     ------
@@ -406,7 +420,7 @@ def _lame(E: float, nu: float) -> tuple[float, float]:
 
 
 def hex8_stiffness(points: Any, hexes: Any, E: float, nu: float) -> sp.csr_array:
-    """Global stiffness matrix of a trilinear hexahedron (Hex8) mesh, 2 x 2 x 2 Gauss.
+    """Assemble the global stiffness matrix of a trilinear hexahedron (Hex8) mesh, 2 x 2 x 2 Gauss.
 
     The assembly is vectorized over elements (a loop over the 8 Gauss points only) and
     goes through a COO intermediate, like :func:`q4_stiffness`.
@@ -502,7 +516,7 @@ def solve_hex8(
     solver: str = "lu",
     rtol: float = 1e-12,
 ) -> np.ndarray:
-    """Nodal displacements of a Hex8 mesh with prescribed DOFs and no external forces.
+    """Solve for the nodal displacements of a Hex8 mesh with prescribed DOFs and no external forces.
 
     The 3D counterpart of :func:`solve_q4` (same arguments, without ``plane``).
 
@@ -555,8 +569,10 @@ def solve_hex8(
 
 
 def _lattice_cells(cloud: Any) -> tuple[np.ndarray, np.ndarray]:
-    """Q4 / Hex8 connectivity between neighbouring lattice points (cells whose corners all
-    exist), and the points' coordinates."""
+    """Return the Q4 / Hex8 connectivity between neighbouring lattice points, and their coordinates.
+
+    Cells are kept where all corners exist.
+    """
     lat = cloud.lattice
     shape = tuple(int(v) for v in lat.shape)
     flat_node = np.full(int(np.prod(shape)), -1, dtype=np.intp)
@@ -575,7 +591,7 @@ def _lattice_cells(cloud: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def grid_fe_reference(problem: Any, *, solver: str = "auto") -> np.ndarray:
-    """Finite-element counterpart of a grid problem: displacements at its points.
+    """Solve the finite-element counterpart of a grid problem: displacements at its points.
 
     Q4 (2D) or Hex8 (3D) elements join neighbouring lattice points (the particles are the
     nodes, cells with a missing corner — holes, voids — are left out), with the model's
@@ -597,6 +613,7 @@ def grid_fe_reference(problem: Any, *, solver: str = "auto") -> np.ndarray:
     Returns
     -------
     (n, dim) ndarray
+        FE displacement at each point of the problem's cloud.
 
     Raises
     ------
@@ -617,7 +634,7 @@ def grid_fe_reference(problem: Any, *, solver: str = "auto") -> np.ndarray:
     >>> bool(np.allclose(u[:, 1], -0.25 * 0.01 * y, atol=1e-14))   # uniaxial stress, exact
     True
     """
-    from ..operators.bc import load_vector, resolve_dirichlet
+    from ..constraints import load_vector, resolve_dirichlet
 
     cloud = problem.cloud
     d = cloud.dim

@@ -18,7 +18,8 @@ import numpy as np
 from ..geometry.cloud import grid
 from ..models.base import Model
 from ..operators.bc import Dirichlet, TotalForce
-from ..problem import StaticProblem, solve
+from ..problem import StaticProblem
+from ..static import solve
 
 __all__ = ["tension_bar_error", "plate_tension_errors", "shear_block_error"]
 
@@ -40,12 +41,27 @@ def _section(p: np.ndarray, axis: int, value: float, mask: Any = True) -> np.nda
 def tension_bar_error(
     model: Model, shape: tuple[int, int, int] = (20, 4, 4), ratio: float = 3.015
 ) -> float:
-    """Relative error of the elongation of a 3D bar in tension, ``ΔL / (F L/(E A)) - 1``.
+    """Compute the relative error of a 3D bar's elongation in tension, ``ΔL / (F L/(E A)) - 1``.
 
     The x- face is held in x only (plus one pinned point and one point held in y,
     which remove the rigid motions without restraining the lateral contraction), a
     total force ``F`` pulls the x+ face; ``ΔL`` is the difference of the mean
     ``u_x`` of the cross-sections 5 layers in from either end.
+
+    Parameters
+    ----------
+    model : Model
+        Isotropic model with a scalar Young's modulus ``E`` (and ``nu`` or an implied
+        Poisson ratio).
+    shape : (int, int, int)
+        Points along x, y, z (spacing 1).
+    ratio : float
+        Horizon in units of the spacing (1).
+
+    Returns
+    -------
+    float
+        Relative error (positive: too soft).
 
     Examples
     --------
@@ -84,12 +100,27 @@ def tension_bar_error(
 def plate_tension_errors(
     model: Model, shape: tuple[int, int] = (40, 20), ratio: float = 3.015
 ) -> tuple[float, float]:
-    """Relative errors of the axial and lateral strains of a plate in uniaxial tension.
+    """Compute the relative errors of a plate's axial and lateral strains in uniaxial tension.
 
     2D (the model's plane assumption), x- face held in x, one point of it in y, total
     force on x+.  Axial strain from the mean ``u_x`` of the sections 10 columns in from
     either end, lateral strain from the mean ``u_y`` of the rows a quarter of the width
     in, between those sections; closed form ``σ/E`` and ``-ν σ/E``.
+
+    Parameters
+    ----------
+    model : Model
+        Isotropic model with a scalar Young's modulus ``E`` (and ``nu`` or an implied
+        Poisson ratio).
+    shape : (int, int)
+        Points along x and y (spacing 1).
+    ratio : float
+        Horizon in units of the spacing (1).
+
+    Returns
+    -------
+    (float, float)
+        Relative errors of the axial and the lateral strain.
 
     Examples
     --------
@@ -122,13 +153,28 @@ def plate_tension_errors(
 
 
 def shear_block_error(model: Model, n: int = 30, ratio: float = 3.015) -> float:
-    """Relative error of the shear strain of a square block in pure shear, ``γ G/τ - 1``.
+    """Compute the relative error of a square block's shear strain in pure shear, ``γ G/τ - 1``.
 
     2D block of ``n x n`` points, shear tractions τ on all four faces (total forces
     ``±τ n`` tangential to each face, a self-equilibrated load), one pinned point and
     its x neighbour held in y against the rigid motions (no reactions).  ``γ`` is
     ``∂u_x/∂y + ∂u_y/∂x`` from the mean displacements of the rows / columns 5 in from
     the faces; ``G = E/(2(1+ν))``.
+
+    Parameters
+    ----------
+    model : Model
+        Isotropic model with a scalar Young's modulus ``E`` (and ``nu`` or an implied
+        Poisson ratio).
+    n : int
+        Points per side (spacing 1).
+    ratio : float
+        Horizon in units of the spacing (1).
+
+    Returns
+    -------
+    float
+        Relative error (positive: too soft).
 
     Examples
     --------

@@ -160,12 +160,6 @@ def test_petsc_options_and_errors():
         pdlin.solve(prob, "amg-cg", rtol=1e-12, backend="petsc", petsc_options={"ksp_max_it": 2})
     res = pdlin.solve(prob, "cg", backend="petsc", petsc_options={"ksp_type": "minres"})
     assert res.info["ksp_type"] == "minres"
-    sym = pdlin.StaticProblem(
-        prob.model, prob.cloud, horizon=0.13, symmetry=[pdlin.SymmetryPlane("y", 0.0)],
-        dirichlet=prob.dirichlet,
-    )  # fmt: skip
-    with pytest.raises(InputError, match="symmetry planes"):
-        pdlin.solve(sym, backend="petsc")
 
 
 @needs_petsc
@@ -258,3 +252,64 @@ def test_baij_gmres_and_nonsymmetric_paths():
     res = pdlin.solve(paper, rtol=1e-12, backend="petsc")
     assert res.info["ksp_type"] == "gmres" and res.info["pc_type"] == "gamg"
     assert _rel(res.u, ref_p.u) < 1e-8
+
+
+# --- symmetry planes: the system's prescribed DOFs and loads, rows eliminated per rank -----------
+@needs_petsc
+@pytest.mark.parametrize("name", list(cases.SYMMETRY_CASES))
+def test_symmetry_planes_one_rank_match_scipy(name):
+    prob = cases.symmetry_problem(name)
+    ref = pdlin.solve(prob, "direct")
+    for solver in ("amg-cg", "direct"):
+        res = pdlin.solve(prob, solver, rtol=1e-12, backend="petsc")
+        assert _rel(res.u, ref.u) < 1e-8, (name, solver, _rel(res.u, ref.u))
+        scale = np.abs(ref.reactions).max()
+        assert np.abs(res.reactions - ref.reactions).max() <= 1e-8 * max(scale, 1e-30)
+        assert np.array_equal(res.prescribed_dofs, ref.prescribed_dofs)
+        assert res.info["n_bonds"] == ref.bonds.n_bonds  # real-real bonds, as scipy counts
+    f_ref, f = ref.fields(), res.fields()
+    for key in ("deformation_gradient", "stress", "family_size"):
+        assert np.allclose(f[key], f_ref[key], rtol=1e-8, atol=1e-8 * np.abs(f_ref[key]).max())
+
+
+@needs_petsc
+@pytest.mark.skipif(_mpiexec() is None, reason="mpiexec not on PATH: two-rank PETSc tests skipped")
+def test_symmetry_planes_two_ranks_match_scipy(tmp_path):
+    cmd = [*_mpiexec(), sys.executable, str(HERE / "petsc_cases.py"), str(tmp_path), "--symmetry"]
+    p = subprocess.run(cmd, capture_output=True, text=True, env=_mpi_env(), timeout=600)
+    assert p.returncode == 0, p.stdout + p.stderr
+    u = np.load(tmp_path / "u.npz")
+    infos = [json.loads((tmp_path / f"rank{r}.json").read_text()) for r in (0, 1)]
+    for name in cases.SYMMETRY_CASES:
+        prob = cases.symmetry_problem(name)
+        ref = pdlin.solve(prob, "direct")
+        for solver in ("amg-cg", "direct"):
+            key = f"{name}/{solver}"
+            assert _rel(u[key.replace("/", "__")], ref.u) < 1e-8, key
+            r0, r1 = infos[0][key], infos[1][key]
+            assert r0["ranks"] == 2 and r0["local_rows"] + r1["local_rows"] == prob.cloud.ndof
+            assert max(r0["local_rows"], r1["local_rows"]) < prob.cloud.ndof
+            assert r0["n_bonds"] == ref.bonds.n_bonds
+            assert np.isclose(r0["max_abs_reaction"], np.abs(ref.reactions).max(), rtol=1e-7,
+                              atol=1e-30)  # fmt: skip
+
+
+@pytest.mark.parametrize("name", list(cases.SYMMETRY_CASES) + ["lps-2d"])
+def test_point_system_matches_the_constrained_system(name):
+    """PETSc's bond-free system has the scipy system's prescribed DOFs, values and loads."""
+    from pdlin.system import constrained_system, point_system
+
+    prob = cases.symmetry_problem(name) if name in cases.SYMMETRY_CASES else cases.problem(name)
+    full, pts = constrained_system(prob), point_system(prob)
+    assert np.array_equal(pts.dofs, full.dofs) and np.array_equal(pts.values, full.values)
+    assert np.array_equal(pts.f_ext, full.f_ext) and np.array_equal(pts.free, full.free)
+
+
+def test_point_system_names_the_motions_the_planes_leave():
+    prob = cases.symmetry_problem("sym-lps-3d")  # planes y and z: the x translation is free
+    free = pdlin.StaticProblem(prob.model, prob.cloud, bond_options=prob.bond_options,
+                               symmetry=prob.symmetry, loads=prob.loads)  # fmt: skip
+    from pdlin.system import point_system
+
+    with pytest.raises(pdlin.FloatingBodyError, match="translation x"):
+        point_system(free)

@@ -180,7 +180,7 @@ def test_solve_refuses_the_whole_run_with_hints(monkeypatch: pytest.MonkeyPatch)
 def test_assembly_refuses_when_only_the_bonds_fit(monkeypatch: pytest.MonkeyPatch) -> None:
     prob = _bar_problem()
     monkeypatch.setattr(
-        "pdlin.problem.check_memory",
+        "pdlin.static.check_memory",
         lambda stage, need, hints=(): (
             res.check_memory(stage, need, hints, budget=MemoryBudget(1000, {"test": 1000}))
             if stage.startswith("assembly")
@@ -213,7 +213,7 @@ def test_cli_reports_an_escaped_memory_error_on_one_line(monkeypatch, capsys) ->
     def boom(*args, **kwargs):
         raise MemoryError()
 
-    monkeypatch.setattr("pdlin.problem.solve", boom)
+    monkeypatch.setattr("pdlin.static.solve", boom)
     assert main(["run", "--example", "bar", "-q"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("pdlin: error: out of memory (MemoryError)")

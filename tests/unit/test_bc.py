@@ -7,8 +7,8 @@ import pytest
 import scipy.sparse as sp
 
 import pdlin
+from pdlin.constraints import eliminate_dirichlet, load_vector, matrix_rows, resolve_dirichlet
 from pdlin.errors import FloatingBodyError, InputError, ModelError, ShapeError
-from pdlin.operators.bc import eliminate_dirichlet, load_vector, matrix_rows, resolve_dirichlet
 
 
 def test_affine_and_callable_dirichlet():
@@ -237,7 +237,7 @@ def test_collinear_points_still_detect_free_motions():
     cloud = pdlin.PointCloud(pts, volumes=1.0)
     bonds = pdlin.find_bonds(cloud, 1.5)
     with pytest.raises(FloatingBodyError, match=r"leave 4 rigid-body motion\(s\) free"):
-        pdlin.operators.bc.check_constraints(
+        pdlin.constraints.check_constraints(
             cloud, bonds, resolve_dirichlet(cloud, [pdlin.Dirichlet(np.arange(4), 0.0, "x")])[0]
         )
 

@@ -170,7 +170,7 @@ def test_yaml_deck_builds_the_lps_problem(bar_dir):
     assert scene.cloud.n == 32 and scene.cloud.dim == 3
     np.testing.assert_allclose(scene.cloud.volumes, H**3, rtol=1e-15)
     assert scene.output == bar_dir / "out.vtu"
-    dofs, vals = pdlin.operators.bc.resolve_dirichlet(scene.cloud, scene.problem.dirichlet)
+    dofs, vals = pdlin.constraints.resolve_dirichlet(scene.cloud, scene.problem.dirichlet)
     x = scene.cloud.points
     right = np.flatnonzero(x[:, 0] > 6 * H)
     # the pull is evaluated at Final Time = 2: 0.001 * 2
@@ -448,7 +448,7 @@ def test_body_force_is_a_force_density(bar_dir):
     deck["Peridigm"]["Boundary Conditions"]["Fix X"]["Node Set"] = "Full Domain"
     deck["Peridigm"]["Boundary Conditions"].pop("Pull X")
     scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
-    f = pdlin.operators.bc.load_vector(scene.cloud, scene.problem.loads).reshape(-1, 3)
+    f = pdlin.constraints.load_vector(scene.cloud, scene.problem.loads).reshape(-1, 3)
     # b V at t = Final Time = 2: -19.6 * 0.001 per point, z only
     np.testing.assert_allclose(f[:, 2], -19.6 * H**3, rtol=1e-14)
     assert np.all(f[:, :2] == 0)
@@ -935,7 +935,7 @@ def test_perilab_2d_plane_strain_deck(plate_dir):
     scene = pdlin.read_deck(write_yaml(plate_dir / "p.yaml", perilab_deck(mat)))
     assert scene.cloud.dim == 2 and scene.cloud.n == 50
     assert isinstance(scene.model, pdlin.LPS) and scene.model.plane == "strain"
-    dofs, vals = pdlin.operators.bc.resolve_dirichlet(scene.cloud, scene.problem.dirichlet)
+    dofs, vals = pdlin.constraints.resolve_dirichlet(scene.cloud, scene.problem.dirichlet)
     right = np.flatnonzero(scene.cloud.points[:, 0] > 0.7)
     # 0.5 t^2 at Final Time 0.1 (Julia ^ is the power)
     np.testing.assert_allclose(vals[np.isin(dofs, 2 * right)], 0.005, rtol=1e-14)

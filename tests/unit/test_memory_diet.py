@@ -15,8 +15,8 @@ import pytest
 import scipy.sparse as sp
 
 import pdlin
+from pdlin.constraints import eliminate_dirichlet
 from pdlin.errors import InputError, NonFiniteError
-from pdlin.operators.bc import eliminate_dirichlet
 from pdlin.solvers import linear
 
 

@@ -36,7 +36,7 @@ def test_correspondence_shadow_faces_pull_a_bar_exactly(control):
     X = sc.problem.cloud.points
     exact = X @ (np.array(F_UNI) - np.eye(2)).T
     assert np.abs(res.u - exact).max() <= 1e-10 * np.abs(exact).max()
-    dofs, _ = pdlin.operators.bc.resolve_dirichlet(sc.problem.cloud, sc.problem.dirichlet)
+    dofs, _ = pdlin.constraints.resolve_dirichlet(sc.problem.cloud, sc.problem.dirichlet)
     held = np.unique(dofs // 2)
     # 2δ = 0.2015 deep at each end: 4 columns of 16 points per end (x < 0.2015 from a face)
     assert held.size == 2 * 4 * 16
@@ -47,7 +47,7 @@ def test_lps_displacement_layer_defaults_to_two_horizons():
     data["model"] = {"type": "lps"}
     data["shadow"] = {"F": F_UNI}
     sc = scene_from_dict(data)
-    dofs, _ = pdlin.operators.bc.resolve_dirichlet(sc.problem.cloud, sc.problem.dirichlet)
+    dofs, _ = pdlin.constraints.resolve_dirichlet(sc.problem.cloud, sc.problem.dirichlet)
     # every face, 2δ = 0.2015 deep: the free core is (40 - 8) x (16 - 8) points
     assert 40 * 16 - np.unique(dofs // 2).size == 32 * 8
     res = pdlin.solve(sc.problem)

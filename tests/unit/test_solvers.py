@@ -8,8 +8,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 import pdlin
+from pdlin.constraints import eliminate_dirichlet, load_vector, resolve_dirichlet
 from pdlin.errors import ConvergenceError, InputError
-from pdlin.operators.bc import eliminate_dirichlet, load_vector, resolve_dirichlet
 from pdlin.operators.rigid import rigid_body_modes
 from pdlin.solvers import SOLVERS, DirectSolver, amg_hierarchy, solve_linear
 from pdlin.solvers import direct as direct_mod

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import pdlin
+from pdlin.constraints import load_vector
 from pdlin.errors import InputError, SceneError, ShapeError
 from pdlin.io.scene import scene_from_dict
-from pdlin.operators.bc import load_vector
 from pdlin.submodeling import subregion
 from pdlin.sweeps.core import interpolate_field
 
@@ -98,14 +98,14 @@ def test_conditions_of_the_body_win_over_the_driver_in_the_layer():
         loads=[pdlin.BodyForce("all", [1.0, 0.0])],
     )  # fmt: skip
     sub = subregion(prob, [[0.1, 0.3], [0.6, 0.7]], lambda X: np.ones_like(X))
-    dofs, vals = pdlin.operators.bc.resolve_dirichlet(sub.problem.cloud, sub.problem.dirichlet)
+    dofs, vals = pdlin.constraints.resolve_dirichlet(sub.problem.cloud, sub.problem.dirichlet)
     on_edge = np.flatnonzero(sub.problem.cloud.points[:, 0] < 0.05)
     assert on_edge.size
     u = np.full(sub.problem.cloud.n * 2, np.nan)
     u[dofs] = vals
     assert np.all(u.reshape(-1, 2)[on_edge] == 0.0)
     # the body force on the free points is kept as nodal forces (same total)
-    f_sub = pdlin.operators.bc.load_vector(sub.problem.cloud, sub.problem.loads).reshape(-1, 2)
+    f_sub = pdlin.constraints.load_vector(sub.problem.cloud, sub.problem.loads).reshape(-1, 2)
     V = sub.problem.cloud.volumes[sub.interior]
     assert f_sub[sub.interior, 0] == pytest.approx(V * prob.cloud.thickness)
 

@@ -19,7 +19,7 @@ import scipy.sparse.linalg as spla
 
 import pdlin
 from pdlin.constitutive import plane_strain, transversely_isotropic
-from pdlin.operators.bc import resolve_dirichlet
+from pdlin.constraints import resolve_dirichlet
 
 # spec 000 §8: Mg single-crystal constants (GPa), c axis along z (plane strain in x-y)
 CM = plane_strain(transversely_isotropic(C11=59.3, C33=61.5, C12=25.7, C13=21.4, C44=16.4))

@@ -18,8 +18,8 @@ from scipy.spatial import cKDTree
 from test_external_references import _peridigm_lps_force
 
 import pdlin
+from pdlin.constraints import resolve_dirichlet
 from pdlin.io.scene import scene_from_dict
-from pdlin.operators.bc import resolve_dirichlet
 
 yaml = pytest.importorskip("yaml")
 

@@ -1,0 +1,245 @@
+"""The static driver: ``solve(problem)`` on scipy, or on PETSc with ``backend='petsc'``.
+
+The layers below it: the problem's data (:mod:`pdlin.problem`), its constrained system
+(:mod:`pdlin.system`, built by :func:`~pdlin.system.constrained_system`), the linear
+solvers (:mod:`pdlin.solvers.linear`) and the PETSc backend
+(:mod:`pdlin.backends.petsc`).  ``solve`` plans the memory, builds the system, picks the
+assembled or matrix-free operator, solves and returns a :class:`~pdlin.system.StaticResult`.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+import warnings
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from ._validation import integer, tolerance
+from .backends import BACKENDS
+from .backends.petsc import solve_petsc
+from .errors import InputError, InputTypeError, SlowRunWarning
+from .models.base import Model
+from .operators.assembly import estimate_bond_operator_bytes
+from .problem import StaticProblem, choose_operator, memory_hints, plan_memory
+from .resources import ASSEMBLY_TRANSIENT, check_memory
+from .solvers.linear import SOLVERS, LinearSolveInfo, check_force_balance, solve_linear
+from .system import StaticResult, constrained_system
+
+__all__ = ["solve"]
+
+log = logging.getLogger(__name__)
+
+
+def solve(
+    problem: StaticProblem,
+    solver: str = "auto",
+    *,
+    rtol: float = 1e-8,
+    maxiter: int | None = None,
+    amg_options: Mapping[str, Any] | None = None,
+    keep_stiffness: bool = False,
+    progress: Callable[[str], None] | None = None,
+    operator: str = "auto",
+    preconditioner: Model | None = None,
+    backend: str = "scipy",
+    petsc_options: Mapping[str, Any] | None = None,
+    direct_backend: str = "auto",
+) -> StaticResult:
+    """Assemble, constrain and solve a static problem; verify the residual.
+
+    Parameters
+    ----------
+    problem : StaticProblem
+    solver : str
+        'auto' (direct up to 5,000 DOFs, then AMG-CG), 'direct', 'amg-cg',
+        'cg', 'jacobi-cg', 'amg-gmres', 'ilu-gmres', 'gmres'.
+    rtol : float
+        Relative residual tolerance of iterative solvers, in ``(0, 1)``.
+    maxiter : int, optional
+        Iteration limit of iterative solvers (an integer >= 1).
+    amg_options : mapping, optional
+        Overrides of :data:`pdlin.solvers.AMG_DEFAULTS`.
+    keep_stiffness : bool
+        Keep the (unconstrained) stiffness matrix on the result.
+    progress : callable, optional
+        Called with a message at the start of each stage.
+    operator : {'assembled', 'matrix-free', 'auto'}
+        'assembled' builds the sparse K; 'matrix-free' applies K through the
+        model's factored operator (``model.operator``) and builds the
+        preconditioner ('amg-cg', 'jacobi-cg', 'amg-gmres', ...) from the
+        model's assembled one-hop ``surrogate_stiffness``; 'auto' picks
+        matrix-free for models coupling two horizons in 3D (where the
+        assembled K has ~2,500 nonzeros per row and assembly dominates) or
+        when the assembled K would exceed 40 % of the machine's memory.
+        ``result.info['operator']`` and ``['operator_reason']`` say which
+        path ran and why.
+    preconditioner : Model, optional
+        Build the preconditioner ('amg-cg', 'amg-gmres', 'ilu-gmres',
+        'jacobi-cg') from the assembled stiffness of this model on the same
+        cloud, bonds and Dirichlet conditions instead of from the operator
+        being solved (or its surrogate).  Typical use: the nonsymmetric
+        force-state linearization ``K_p`` of :class:`~pdlin.XOSB` /
+        :class:`~pdlin.LPS` (``linearization='paper'``) solved by GMRES with
+        the AMG of the symmetric energy-consistent ``K_E`` (pdlin's check on the plate
+        with a hole of Liu, Chen & Skelton, XOSB, Sect. 5.1: GMRES on ``K_p`` with
+        it converges in under 40 iterations, as CG + AMG does on ``K_E``).
+        ``result.info['preconditioner']`` names the model used.
+    backend : {'scipy', 'petsc'}
+        'petsc' assembles and solves on PETSc through petsc4py, distributed
+        over the MPI ranks when run under ``mpiexec -n P``
+        (``pdlin.backends.petsc.solve_petsc``, ``docs/petsc.md``);
+        ``operator`` and ``preconditioner`` are scipy-only.
+    petsc_options : mapping, optional
+        PETSc options for ``backend='petsc'`` (``{"ksp_monitor": None}``).
+    direct_backend : {'auto', 'superlu', 'cholmod', 'pardiso', 'mumps'}
+        Factorization of ``solver='direct'`` (and of ``'auto'`` on small
+        problems): ``'auto'`` takes CHOLMOD's supernodal Cholesky for
+        symmetric K, PARDISO, then SuperLU, whichever is installed
+        (``pip install "pdlin[direct]"``, ``docs/large_problems.md``).
+        ``result.info['direct_backend']`` names the one that ran.
+
+    Returns
+    -------
+    StaticResult
+
+    Raises
+    ------
+    InputError
+        When ``solver``, ``rtol``, ``maxiter`` or ``amg_options`` are out of range, or the
+        problem's data (horizon, conditions, loads) are invalid.
+    FloatingBodyError
+        When the conditions leave rigid-body motions free.
+    ConvergenceError
+        When the linear solver misses its tolerance.
+    """
+    if not isinstance(problem, StaticProblem):
+        raise InputTypeError(f"problem must be a StaticProblem, got {type(problem).__name__}")
+    if solver not in SOLVERS:
+        raise InputError(f"solver must be one of {SOLVERS}, got {solver!r}")
+    if backend not in BACKENDS:
+        raise InputError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    if petsc_options is not None and backend != "petsc":
+        raise InputError(f"petsc_options needs backend='petsc', got backend={backend!r}")
+    if backend == "petsc":
+        if (
+            operator not in ("auto", "assembled")
+            or preconditioner is not None
+            or keep_stiffness
+            or amg_options is not None
+        ):
+            raise InputError(
+                "backend='petsc' assembles its own distributed K: operator, preconditioner, "
+                "amg_options and keep_stiffness are scipy-only (PETSc's GAMG takes "
+                f"petsc_options), got operator={operator!r}, preconditioner={preconditioner!r}, "
+                f"amg_options={amg_options!r}, keep_stiffness={keep_stiffness!r}"
+            )
+        return solve_petsc(
+            problem, solver, rtol=rtol, maxiter=maxiter, petsc_options=petsc_options,
+            progress=progress,
+        )  # fmt: skip
+    rtol = tolerance(rtol, "rtol")
+    if maxiter is not None:
+        maxiter = integer(maxiter, "maxiter", minimum=1)
+    if amg_options is not None and not isinstance(amg_options, Mapping):
+        raise InputTypeError(
+            f"amg_options must be a mapping of pyamg keyword arguments, got "
+            f"{type(amg_options).__name__}"
+        )
+    say = progress or (lambda msg: None)
+    timings: dict[str, float] = {}
+    t_start = time.perf_counter()
+    model = problem.model
+
+    plan = plan_memory(
+        problem, solver, operator=operator, keep_stiffness=keep_stiffness,
+        direct_backend=direct_backend,
+    )  # fmt: skip
+    say(plan.summary())
+    check_memory("this run", plan.need, lambda: memory_hints(plan))
+    slow = plan.slow_warning()
+    if slow is not None:
+        say(f"warning: {slow}")
+        warnings.warn(slow, SlowRunWarning, stacklevel=2)
+    say("bonds")
+    t0 = time.perf_counter()
+    system = constrained_system(problem)
+    timings["bonds"] = time.perf_counter() - t0
+    cloud, d = system.cloud, system.dim
+
+    nblocks = system.estimate_nnz_blocks()
+    est = estimate_bond_operator_bytes(cloud.n, nblocks, d)
+    path, reason = choose_operator(
+        operator, model, cloud, solver, est, not system.matrix_free_capable, keep_stiffness,
+        nblocks=nblocks,
+    )  # fmt: skip
+    K: Any = None
+    K_rows = None
+    precond = None
+    if path == "assembled":
+        ta = ASSEMBLY_TRANSIENT[2 if getattr(model, "coupling_range", 1) >= 2 else 1]
+        check_memory("assembly of K", est * (1 + ta), lambda: memory_hints(plan))
+        say(f"assembly (~{est / 1e9:.2f} GB for {nblocks * d * d:,} nonzeros)")
+        log.info("assembling K: %d blocks, ~%.3g GB", nblocks, est / 1e9)
+        t0 = time.perf_counter()
+        K = system.assemble()
+        timings["assembly"] = time.perf_counter() - t0
+        # the prescribed rows, kept for the reactions (elimination overwrites them)
+        K_rows = system.prescribed_rows(K)
+        A, b = system.eliminate(K, inplace=not keep_stiffness)
+    else:
+        say(f"matrix-free operator ({reason})")
+        t0 = time.perf_counter()
+        A, b, precond = system.matrix_free()
+        timings["assembly"] = time.perf_counter() - t0
+        if solver == "auto":
+            solver = "amg-cg" if system.symmetric else "amg-gmres"
+    if preconditioner is not None:
+        precond = system.preconditioner_matrix(preconditioner)
+    say(f"solve ({solver})")
+    lin: LinearSolveInfo = solve_linear(
+        A,
+        b,
+        solver,
+        rtol=rtol,
+        maxiter=maxiter,
+        near_null=system.near_null(),
+        blocksize=d,
+        symmetric=system.symmetric,
+        amg_options=dict(amg_options or {}),
+        preconditioner_matrix=precond,
+        direct_backend=direct_backend,
+        progress=progress,
+    )
+    timings["setup"] = lin.setup_time
+    timings["solve"] = lin.solve_time
+    u = system.expand(lin.x)
+    # reactions -(f_int + f_ext) on prescribed DOFs, f_int = -K u from the assembled rows
+    # when there are, else the model's matrix-free internal force
+    reac = system.reactions(u, rows=K_rows)
+    check_force_balance(lin, b, reac, system.f_ext)
+    timings["total"] = time.perf_counter() - t_start
+    info = {
+        "solver": lin.solver,
+        **lin.info,
+        "model": model.describe(),
+        "operator": path,
+        "operator_reason": reason,
+    }
+    if preconditioner is not None:
+        info["preconditioner"] = preconditioner.describe()
+    return StaticResult(
+        problem=problem,
+        bonds=system.disc.real_bonds,
+        u=u,
+        converged=True,
+        n_iter=lin.n_iter,
+        residuals=lin.residuals,
+        relative_residual=lin.relative_residual,
+        timings=timings,
+        reactions=reac,
+        prescribed_dofs=system.dofs,
+        info=info,
+        stiffness=K if keep_stiffness and K is not None else None,
+        system=system,
+    )
