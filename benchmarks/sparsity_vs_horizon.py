@@ -28,7 +28,7 @@ import sys
 import numpy as np
 
 import pdlin
-from pdlin.operators.sparsity import coupling_pattern
+from pdlin.analysis import coupling_pattern
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _context import Timing, header, timed  # noqa: E402

@@ -13,12 +13,18 @@ import inspect
 import re
 from pathlib import Path
 
+#: the sections of docs/api.md: the front door (``pdlin``), then the subpackages and
+#: modules where every other public name lives
 MODULES = [
     "pdlin",
     "pdlin.geometry",
     "pdlin.models",
     "pdlin.operators",
+    "pdlin.constraints",
+    "pdlin.system",
     "pdlin.solvers",
+    "pdlin.fracture",
+    "pdlin.submodeling",
     "pdlin.fields",
     "pdlin.constitutive",
     "pdlin.calibration",
@@ -93,15 +99,20 @@ TITLES = {
     "pdlin.geometry": "Geometry: point clouds and bonds",
     "pdlin.models": "Material models, weights and damage",
     "pdlin.operators": "Operators and boundary conditions",
+    "pdlin.constraints": "Constraints: prescribed DOFs, loads, elimination",
+    "pdlin.system": "The constrained system",
     "pdlin.solvers": "Linear and nonlinear solvers",
+    "pdlin.fracture": "Damage solves",
+    "pdlin.submodeling": "Submodeling",
     "pdlin.fields": "Fields: strain and deformation gradient",
     "pdlin.constitutive": "Constitutive tensors and crystal plasticity",
     "pdlin.calibration": "Micromodulus calibration",
-    "pdlin.analysis": "Zero-energy-mode analysis",
+    "pdlin.analysis": "Analysis: sparsity reports and zero-energy modes",
     "pdlin.verification": "Finite-element references",
     "pdlin.io": "Scene files and result files",
     "pdlin.sweeps": "Trade-off sweeps",
     "pdlin.errors": "Exceptions and warnings",
+    "pdlin.plotting": "Figures",
 }
 
 
@@ -166,6 +177,40 @@ def _entries(module: str, names: list[str]) -> list[str]:
     return out
 
 
+def _deprecated_aliases() -> list[str]:
+    """Entries of the names that left ``pdlin.__all__`` (``pdlin._MOVED``), on ``pdlin``'s page.
+
+    ``pdlin.NAME`` keeps working for one release with a DeprecationWarning; the entry says
+    where the name lives now, and gives old cross-references (``pdlin.NAME``,
+    ``pdlin.Class.method``) a target until the next release removes the alias.
+    """
+    import pdlin
+
+    moved = getattr(pdlin, "_MOVED", {})
+    if not moved:
+        return []
+    sub = "Deprecated names (removed in the next release)"
+    out = [sub, "-" * len(sub), "", ".. currentmodule:: pdlin", ""]
+    for name in sorted(moved, key=str.lower):
+        home = moved[name]
+        obj = getattr(importlib.import_module(home), name)
+        if inspect.isclass(obj):
+            kind = "exception" if issubclass(obj, BaseException) else "class"
+        elif callable(obj):
+            kind = "function"
+        else:
+            kind = "data"
+        out += [f".. py:{kind}:: {name}", ""]
+        out += [f"   Moved: ``from {home} import {name}``.", ""]
+        if inspect.isclass(obj):
+            for attr in sorted(vars(obj)):
+                if attr.startswith("_"):
+                    continue
+                role = "method" if callable(getattr(obj, attr, None)) else "attribute"
+                out += [f"   .. py:{role}:: {attr}", "", f"      See ``{home}.{name}``.", ""]
+    return out
+
+
 def reference_pages() -> dict[str, str]:
     """Sphinx pages of the API reference: ``{file name: reStructuredText}``.
 
@@ -199,6 +244,8 @@ def reference_pages() -> dict[str, str]:
                 sub = f"Only in ``{modname}``"
                 lines += [sub, "-" * len(sub), ""]
                 lines += _entries(modname, own)
+        if modname == "pdlin":
+            lines += _deprecated_aliases()
         pages[f"{modname}.rst"] = "\n".join(lines).rstrip() + "\n"
     index = [
         "API reference: the docstrings",

@@ -23,7 +23,8 @@ import numpy as np
 
 import pdlin
 from pdlin import constitutive as cst
-from pdlin.calibration import lattice_family, plot_micromoduli
+from pdlin.calibration import lattice_family
+from pdlin.plotting import plot_micromoduli
 
 
 def calibrate(horizon: float = 3.0) -> tuple[np.ndarray, object, object]:

@@ -1,172 +1,126 @@
 """pdlin: implicit/static peridynamics on scipy sparse operators.
 
 The pipeline: points -> bonds -> model -> sparse operators -> boundary
-conditions -> solver -> fields -> files.
+conditions -> constrained system -> solver -> fields -> files
+(docs/architecture.md draws it and says which folder owns each stage).
+
+The names below are the front door, in pipeline order: what a first script
+needs.  Everything else lives in its subpackage (``pdlin.geometry``,
+``pdlin.models``, ``pdlin.operators``, ``pdlin.analysis``, ``pdlin.io``,
+``pdlin.plotting``, ...).  ``__all__`` is the list of the names imported
+below (each name is written once, in its import); the names that left the
+front door are listed once in ``_MOVED`` and keep working as ``pdlin.<name>``
+for one release, with a :class:`DeprecationWarning` naming their new home.
 """
 
-from typing import TYPE_CHECKING, Any
+import typing as _typing
+from types import ModuleType as _ModuleType
 
-from . import (
-    constitutive,
-    errors,
-    sweeps,  # noqa: E402  (after problem: the harness calls pdlin.solve)
-)
-from ._lazy import lazy_attribute
-from ._threads import get_num_threads, set_num_threads
-from .calibration import CalibrationResult, calibrate_micromoduli
-from .constitutive.crystal_plasticity import (
-    CrystalPlasticity,
-    MaterialPointResult,
-    SaintVenantKirchhoff,
-    material_point,
-)
-from .errors import ConvergenceError, FloatingBodyError
-from .fields import deformation_gradient, shape_tensor, small_strain
-from .fracture import DamageResult, solve_damage
-from .geometry import Bonds, GhostLayer, PointCloud, find_bonds, from_image, ghost_layer, grid
-from .geometry.generators import plate_with_hole_mesh
-from .geometry.mesh import read_mesh
-from .geometry.polycrystal import voronoi_polycrystal
-from .scene.decks import read_deck
-from .models import LPS, XOSB, BondBased, Correspondence, Model, shadow_problem
-from .models.damage import (
-    bond_stretch,
-    break_bonds,
-    critical_stretch,
-    damage_index,
-    drop_isolated,
-    isolated_points,
-)
-from .nonlinear import NonlinearResult, solve_nonlinear
-from .operators import (
-    BodyForce,
-    Dirichlet,
-    SparsityReport,
-    SymmetryPlane,
-    TimePath,
-    TotalForce,
-    assemble_stiffness,
-    plot_spy,
-    rigid_body_modes,
-    shadow_layer,
-    sparsity_report,
-)
-from .problem import StaticProblem
-from .static import solve
-from .submodeling import SubregionProblem, subregion
-from .sweeps import TradeoffCase, TradeoffResult, tradeoff
-from .system import ConstrainedSystem, StaticResult, constrained_system
+# subpackages used as ``pdlin.<name>.X`` (modules: not in ``__all__``)
+from . import calibration as calibration
+from . import constitutive as constitutive
+from . import errors as errors
+from . import fields as fields
+from . import fracture as fracture
+from . import io as io
+from . import operators as operators
+from . import sweeps as sweeps
+from ._lazy import moved_attribute as _moved_attribute
 
-if TYPE_CHECKING:
-    from .models.weights import (
-        HigherOrderWeights,
-        WeightStatus,
-        as_influence,
-        gradient_exactness_order,
-        gradient_symbol,
-        higher_order_weights,
-        moment_weights,
-        weights_table,
-    )
+# the front door, in pipeline order (the order of __all__); isort keeps it as written
+# isort: off
+# threads
+from ._threads import get_num_threads as get_num_threads
+from ._threads import set_num_threads as set_num_threads
 
-#: public names imported on first access (``pdlin.X``, ``from pdlin import X``): the
-#: exact weights import sympy (~0.2 s), which most runs never need
-_LAZY = dict.fromkeys(
-    (
-        "HigherOrderWeights",
-        "WeightStatus",
-        "as_influence",
-        "gradient_exactness_order",
-        "gradient_symbol",
-        "higher_order_weights",
-        "moment_weights",
-        "weights_table",
-    ),
-    ".models.weights",
-)
+# points and bonds (and the readers that make them)
+from .geometry import Bonds as Bonds
+from .geometry import PointCloud as PointCloud
+from .geometry import find_bonds as find_bonds
+from .geometry import grid as grid
+from .geometry import plate_with_hole_mesh as plate_with_hole_mesh
+from .geometry import read_mesh as read_mesh
+from .geometry import voronoi_polycrystal as voronoi_polycrystal
+from .scene.decks import read_deck as read_deck
 
+# models and materials
+from .models import LPS as LPS
+from .models import XOSB as XOSB
+from .models import BondBased as BondBased
+from .models import Correspondence as Correspondence
+from .constitutive import CrystalPlasticity as CrystalPlasticity
+from .constitutive import SaintVenantKirchhoff as SaintVenantKirchhoff
+from .calibration import calibrate_micromoduli as calibrate_micromoduli
 
-def __getattr__(name: str) -> Any:
-    return lazy_attribute(__name__, _LAZY, globals(), name)
+# conditions
+from .operators import BodyForce as BodyForce
+from .operators import Dirichlet as Dirichlet
+from .operators import SymmetryPlane as SymmetryPlane
+from .operators import TotalForce as TotalForce
+from .operators import shadow_layer as shadow_layer
 
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_LAZY})
-
+# the problem and its drivers
+from .problem import StaticProblem as StaticProblem
+from .system import StaticResult as StaticResult
+from .static import solve as solve
+from .nonlinear import NonlinearResult as NonlinearResult
+from .nonlinear import solve_nonlinear as solve_nonlinear
+from .fracture import solve_damage as solve_damage
+from .submodeling import subregion as subregion
+from .sweeps import tradeoff as tradeoff
+# isort: on
 
 __version__ = "0.1.0"
 
+#: the front door: every public non-module name bound above, in pipeline order
 __all__ = [
-    "set_num_threads",
-    "get_num_threads",
-    "errors",
-    "constitutive",
-    "ConvergenceError",
-    "FloatingBodyError",
-    "PointCloud",
-    "Bonds",
-    "grid",
-    "from_image",
-    "ghost_layer",
-    "GhostLayer",
-    "read_mesh",
-    "read_deck",
-    "plate_with_hole_mesh",
-    "find_bonds",
-    "BondBased",
-    "LPS",
-    "XOSB",
-    "Correspondence",
-    "shadow_problem",
-    "Model",
-    "assemble_stiffness",
-    "rigid_body_modes",
-    "Dirichlet",
-    "TimePath",
-    "BodyForce",
-    "TotalForce",
-    "shadow_layer",
-    "SymmetryPlane",
-    "sparsity_report",
-    "SparsityReport",
-    "plot_spy",
-    "StaticProblem",
-    "StaticResult",
-    "solve",
-    "solve_nonlinear",
-    "subregion",
-    "SubregionProblem",
-    "NonlinearResult",
-    "ConstrainedSystem",
-    "constrained_system",
-    "deformation_gradient",
-    "shape_tensor",
-    "small_strain",
-    "calibrate_micromoduli",
-    "CalibrationResult",
-    "higher_order_weights",
-    "weights_table",
-    "HigherOrderWeights",
-    "WeightStatus",
-    "as_influence",
-    "moment_weights",
-    "gradient_symbol",
-    "gradient_exactness_order",
-    "critical_stretch",
-    "bond_stretch",
-    "break_bonds",
-    "damage_index",
-    "isolated_points",
-    "drop_isolated",
-    "solve_damage",
-    "DamageResult",
-    "CrystalPlasticity",
-    "SaintVenantKirchhoff",
-    "MaterialPointResult",
-    "material_point",
-    "voronoi_polycrystal",
-    "sweeps",
-    "tradeoff",
-    "TradeoffCase",
-    "TradeoffResult",
+    name
+    for name, value in globals().items()
+    if not name.startswith("_") and not isinstance(value, _ModuleType)
 ]
+
+#: names that left the front door -> the module they are imported from now; ``pdlin.<name>``
+#: keeps working for one release with a DeprecationWarning
+_MOVED = {
+    **dict.fromkeys(("ConvergenceError", "FloatingBodyError"), "pdlin.errors"),
+    **dict.fromkeys(("from_image", "ghost_layer", "GhostLayer"), "pdlin.geometry"),
+    **dict.fromkeys(("Model", "shadow_problem"), "pdlin.models"),
+    **dict.fromkeys(
+        (
+            "HigherOrderWeights",
+            "WeightStatus",
+            "as_influence",
+            "gradient_exactness_order",
+            "gradient_symbol",
+            "higher_order_weights",
+            "moment_weights",
+            "weights_table",
+        ),
+        "pdlin.models.weights",
+    ),
+    **dict.fromkeys(
+        (
+            "bond_stretch",
+            "break_bonds",
+            "critical_stretch",
+            "damage_index",
+            "drop_isolated",
+            "isolated_points",
+        ),
+        "pdlin.models.damage",
+    ),
+    **dict.fromkeys(("MaterialPointResult", "material_point"), "pdlin.constitutive"),
+    **dict.fromkeys(("assemble_stiffness", "rigid_body_modes", "TimePath"), "pdlin.operators"),
+    **dict.fromkeys(("SparsityReport", "sparsity_report"), "pdlin.analysis"),
+    "plot_spy": "pdlin.plotting",
+    **dict.fromkeys(("ConstrainedSystem", "constrained_system"), "pdlin.system"),
+    **dict.fromkeys(("deformation_gradient", "shape_tensor", "small_strain"), "pdlin.fields"),
+    "CalibrationResult": "pdlin.calibration",
+    "DamageResult": "pdlin.fracture",
+    "SubregionProblem": "pdlin.submodeling",
+    **dict.fromkeys(("TradeoffCase", "TradeoffResult"), "pdlin.sweeps"),
+}
+
+
+def __getattr__(name: str) -> _typing.Any:
+    return _moved_attribute(__name__, _MOVED, name)

@@ -2,12 +2,15 @@
 
 A package lists the names whose module is heavy to import (sympy behind the exact weights)
 and resolves them on first use, so ``import pdlin`` stays cheap while ``pdlin.X`` and
-``from pdlin import X`` keep working.
+``from pdlin import X`` keep working (:func:`lazy_attribute`).  A package also lists the
+names that moved away from it: they keep working for one release, with a
+:class:`DeprecationWarning` naming their new home (:func:`moved_attribute`).
 """
 
 from __future__ import annotations
 
 import importlib
+import warnings
 from collections.abc import Mapping
 from typing import Any
 
@@ -48,6 +51,55 @@ def lazy_attribute(
     value = getattr(importlib.import_module(module, package), name)
     namespace[name] = value
     return value
+
+
+def moved_attribute(package: str, moved: Mapping[str, str], name: str) -> Any:
+    """Resolve the deprecated alias ``package.name`` from its new home ``moved[name]``.
+
+    Warns with a :class:`DeprecationWarning` that names the new import (pointing at the
+    caller's line) and returns the object, which is not cached: every use warns.
+
+    Parameters
+    ----------
+    package : str
+        The package's ``__name__`` (the old home, named in the warning).
+    moved : mapping of str to str
+        Attribute name -> absolute name of the module that now provides it.
+    name : str
+        The attribute asked for.
+
+    Returns
+    -------
+    object
+        ``getattr(import_module(moved[name]), name)``.
+
+    Raises
+    ------
+    AttributeError
+        ``name`` is not one of ``moved``'s names (what a missing attribute raises).
+
+    Examples
+    --------
+    >>> import warnings
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     f = moved_attribute("pdlin", {"grid": "pdlin.geometry"}, "grid")
+    >>> f.__name__, caught[0].category.__name__
+    ('grid', 'DeprecationWarning')
+    >>> print(caught[0].message)  # doctest: +NORMALIZE_WHITESPACE
+    pdlin.grid is deprecated and will be removed in the next release: use pdlin.geometry.grid
+    (from pdlin.geometry import grid)
+    """
+    home = moved.get(name)
+    if home is None:
+        raise AttributeError(f"module {package!r} has no attribute {name!r}")
+    warnings.warn(
+        f"{package}.{name} is deprecated and will be removed in the next release: use "
+        f"{home}.{name} (from {home} import {name})",
+        DeprecationWarning,
+        stacklevel=3,
+    )
+    return getattr(importlib.import_module(home), name)
 
 
 def quad(*args: Any, **kwargs: Any) -> Any:

@@ -1,22 +1,33 @@
-"""Figures of results, stiffness patterns and convergence (``pdlin plot``).
+"""Every figure pdlin draws: results, stiffness patterns, convergence, micromoduli, trade-offs.
 
-matplotlib is imported lazily (extra ``plotting``) and drawn with the Agg
-backend; every function returns a :class:`Plot`: the figure plus the data it
-drew, so tests and scripts can check what is on the picture.
+This is the only module of pdlin that uses matplotlib (and pyvista for
+:func:`render_result`); both are imported lazily inside the functions (extra
+``plotting``), so ``import pdlin.plotting`` costs no matplotlib.  The result
+plots draw with the Agg backend and return a :class:`Plot`: the figure plus the
+data it drew, so tests and scripts can check what is on the picture.  The data
+of a figure comes from the analysis modules (e.g. :func:`pdlin.analysis.spy_pattern`,
+:func:`pdlin.analysis.sparsity_report`); this module only draws.
 """
 
 from __future__ import annotations
 
 import csv
+import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .errors import InputError, MissingDependencyError
 from .io.names import TENSOR_FIELDS
 from .io.read import ResultFile, read_result
+
+if TYPE_CHECKING:
+    from .calibration.calibrate import CalibrationResult
+    from .calibration.lattices import Family
+    from .sweeps.core import TradeoffResult
 
 __all__ = [
     "Plot",
@@ -30,6 +41,12 @@ __all__ = [
     "UNIT_SYSTEMS",
     "save_figure",
     "render_result",
+    "plot_spy",
+    "plot_micromoduli",
+    "plot_tradeoff",
+    "check_figure",
+    "use_agg",
+    "close_figures",
 ]
 
 _AXES = "xyz"
@@ -77,10 +94,31 @@ def _unit_system(units: str | dict[str, str] | None) -> dict[str, str]:
 
 
 def field_unit(key: str, dim: int, units: str | dict[str, str] | None = None) -> str:
-    """Unit of a field in a unit system (``""`` for counts and unknown fields).
+    """Name the unit of a field in a unit system (``""`` for counts and unknown fields).
 
     Without ``units`` the unit is named by its quantity (``length``, ``force``,
     ``stress``): pdlin's results are in the consistent units of the input.
+
+    Parameters
+    ----------
+    key : str
+        API field name (``displacement``, ``stress``, ``volume``, ...).
+    dim : int
+        Dimension of the result (1, 2 or 3): a cell volume is a length, area or volume.
+    units : str or dict, optional
+        A name of :data:`UNIT_SYSTEMS` or a dict of ``length``, ``force`` and ``stress``
+        unit names; None names the quantity instead.
+
+    Returns
+    -------
+    str
+        The unit (``"m"``, ``"MPa"``, ``"m²"``), ``"-"`` for dimensionless fields,
+        ``""`` for counts and fields without a known quantity.
+
+    Raises
+    ------
+    InputError
+        ``units`` is neither a known system name nor such a dict.
 
     Examples
     --------
@@ -109,6 +147,7 @@ class Plot:
     Attributes
     ----------
     figure : matplotlib Figure
+        The figure drawn (an (h, w, 3) image array for :func:`render_result`).
     values : ndarray
         The plotted values (colour of each marker, or the curve's y values).
     points : ndarray
@@ -141,8 +180,23 @@ def _plt() -> Any:
 
 
 def field_components(arr: np.ndarray, dim: int, key: str = "") -> list[str]:
-    """Component names of a field: ``[]`` for scalars, vectors ``magnitude, x, y(, z)``,
-    ``dim x dim`` tensors ``xx, xy, ...``, other widths ``0, 1, ...``.
+    """List the component names of a field (what ``component=`` accepts).
+
+    Parameters
+    ----------
+    arr : (n,) or (n, ...) array_like
+        The field's values per point.
+    dim : int
+        Dimension of the result.
+    key : str
+        API field name; tensors (``stress``, ``strain``, ...) are told apart from
+        vectors of the same width by it.
+
+    Returns
+    -------
+    list of str
+        ``[]`` for scalars, vectors ``magnitude, x, y(, z)``, ``dim x dim`` tensors
+        ``xx, xy, ...``, other widths ``0, 1, ...``.
 
     Examples
     --------
@@ -219,8 +273,11 @@ def _spacing(r: ResultFile, fields: dict[str, np.ndarray]) -> float:
 def _step_field(
     r: ResultFile, step: int, field: str, component: str | None, scale: float
 ) -> tuple[int, dict[str, np.ndarray], np.ndarray, str, np.ndarray]:
-    """Step index, fields, plotted values and label of ``field`` and the points moved by
-    ``scale`` x displacement (``(n, dim)``), with the checks both plotters share."""
+    """Pick a step's field for the plotters (the checks both share).
+
+    Returns the step index, the step's fields, the plotted values, their label and the
+    points moved by ``scale`` x displacement (``(n, dim)``).
+    """
     k = r.step_index(step)
     fields = r.steps[k]
     if field not in fields:
@@ -253,7 +310,7 @@ def plot_result(
     ax: Any = None,
     units: str | dict[str, str] | None = None,
 ) -> Plot:
-    """Colour map of one field of a result file (or of a :class:`ResultFile`).
+    """Colour map of one field of a result file (or of a :class:`~pdlin.io.ResultFile`).
 
     2D results: the points coloured by the value, equal aspect; 3D results:
     the points within ``h/2`` of a plane (``slice="z=0.5"``, ``h`` the
@@ -263,6 +320,7 @@ def plot_result(
     Parameters
     ----------
     result : path or ResultFile
+        A result file (any format :func:`pdlin.io.read_result` reads) or one read already.
     field : str
         API key (``displacement``, ``reaction``, ``strain``, ``stress``, ...).
     component : str, optional
@@ -275,6 +333,7 @@ def plot_result(
     slice : str or (axis, value), optional
         Plane of a 3D result, e.g. ``"z=0.5"``; the title names it.
     ax : matplotlib Axes, optional
+        Axes to draw into (default: a new figure sized to the body's aspect).
     units : str or dict, optional
         Unit system of the result for the axis and colour-bar labels: a name of
         :data:`UNIT_SYSTEMS` (``"SI"``, ``"mm-N-MPa"``, ...) or a dict of ``length``,
@@ -383,6 +442,17 @@ def plot_homogenized(
     stress axis as in :func:`plot_result` (default ``[stress]``); the strain is
     dimensionless.
 
+    Parameters
+    ----------
+    path : str or Path
+        The ``<stem>_homogenized.csv`` of a nonlinear run (columns ``sigma_ij``, ``F_ij``).
+    component : str, optional
+        ``"11"``, ``"12"``, ... (default: largest magnitude at the last step).
+    ax : matplotlib Axes, optional
+        Axes to draw into (default: a new figure).
+    units : str or dict, optional
+        Unit system of the stress label, as in :func:`plot_result`.
+
     Returns
     -------
     Plot
@@ -427,10 +497,27 @@ def plot_homogenized(
 
 
 def plot_convergence(result: str | Path | ResultFile, *, ax: Any = None) -> Plot:
-    """Relative residual vs iteration of the linear solve stored in a result.
+    """Plot the relative residual vs iteration of the linear solve stored in a result.
 
     Only NPZ results of :func:`pdlin.io.write_result` store the history
     (``residual_history``); other files raise an error saying so.
+
+    Parameters
+    ----------
+    result : path or ResultFile
+        An ``.npz`` result written by :func:`pdlin.io.write_result`.
+    ax : matplotlib Axes, optional
+        Axes to draw into (default: a new figure).
+
+    Returns
+    -------
+    Plot
+        ``values`` = the relative residuals, ``points`` = the iteration numbers.
+
+    Raises
+    ------
+    InputError
+        The result stores no residual history.
     """
     plt = _plt()
     r = result if isinstance(result, ResultFile) else read_result(result)
@@ -456,6 +543,15 @@ def plot_convergence(result: str | Path | ResultFile, *, ax: Any = None) -> Plot
 def plot_scene_spy(scene: Any, *, order: str = "rcm", ax: Any = None) -> Plot:
     """Spy plot of a scene's assembled stiffness (``pdlin plot --spy SCENE``).
 
+    Parameters
+    ----------
+    scene : Scene or path
+        A loaded scene or a scene file (its constrained system is assembled).
+    order : {'rcm', 'natural'}
+        Row/column ordering drawn (see :func:`plot_spy`).
+    ax : matplotlib Axes, optional
+        Axes to draw into (default: a new figure).
+
     Returns
     -------
     Plot
@@ -466,7 +562,6 @@ def plot_scene_spy(scene: Any, *, order: str = "rcm", ax: Any = None) -> Plot:
     import scipy.sparse as sp
 
     from .scene.scene import load_scene
-    from .operators.sparsity import plot_spy
     from .system import constrained_system
 
     sc = scene if hasattr(scene, "problem") else load_scene(scene)
@@ -482,8 +577,17 @@ def plot_sparsity_vs_horizon(
     """Mean nonzeros per row of a scene's stiffness against the horizon ratio δ/h.
 
     Each ratio rebuilds the bonds of the scene's cloud (``find_bonds(cloud,
-    ratio=m)``) and counts the pattern with :func:`pdlin.sparsity_report`
+    ratio=m)``) and counts the pattern with :func:`pdlin.analysis.sparsity_report`
     (``K`` is not assembled).
+
+    Parameters
+    ----------
+    scene : Scene or path
+        A loaded scene or a scene file (its cloud and model are used).
+    ratios : sequence of float
+        Horizon ratios δ/h to count (> 0).
+    ax : matplotlib Axes, optional
+        Axes to draw into (default: a new figure).
 
     Returns
     -------
@@ -491,9 +595,9 @@ def plot_sparsity_vs_horizon(
         ``values`` = mean nonzeros per DOF row, ``points`` = the ratios.
     """
     plt = _plt()
+    from .analysis.sparsity import sparsity_report
     from .geometry.bonds import find_bonds
     from .scene.scene import load_scene
-    from .operators.sparsity import sparsity_report
 
     sc = scene if hasattr(scene, "model") else load_scene(scene)
     m = np.asarray(ratios, dtype=float).reshape(-1)
@@ -532,6 +636,17 @@ def render_result(
     The points are drawn as spheres coloured by the field component (no
     slice needed); needs ``pip install "pdlin[render]"`` (pyvista).
 
+    Parameters
+    ----------
+    result : path or ResultFile
+        The result to draw.
+    output : str or Path
+        The PNG (or other image format pyvista writes) to write.
+    field, component, step, scale
+        As in :func:`plot_result`.
+    window_size : (int, int)
+        Image width and height in pixels.
+
     Returns
     -------
     Plot
@@ -567,10 +682,295 @@ def render_result(
 
 
 def save_figure(fig: Any, path: str | Path, *, dpi: int = 120) -> Path:
-    """Save a figure atomically (written beside the target, then renamed)."""
+    """Save a figure atomically (written beside the target, then renamed).
+
+    Parameters
+    ----------
+    fig : matplotlib Figure
+        The figure to save.
+    path : str or Path
+        Target file; the suffix picks the format.
+    dpi : int
+        Resolution of raster formats.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     from .io.output import staging
 
     p = Path(path)
     with staging(p) as st:
         fig.savefig(st.main, dpi=dpi)
     return p
+
+
+def check_figure(path: str | Path, what: str = "figure") -> Path:
+    """Check a figure path before the work is done.
+
+    matplotlib must be installed, the suffix a format it writes (``.png``, ``.pdf``,
+    ``.svg``, ...) and the folder writable.
+
+    Parameters
+    ----------
+    path : str or Path
+        The figure file to be written.
+    what : str
+        What the path is, for the error messages (``"--plot"``, ``"output.plot"``).
+
+    Returns
+    -------
+    Path
+        ``path`` as a Path.
+
+    Raises
+    ------
+    MissingDependencyError
+        matplotlib is not installed.
+    InputError
+        The suffix is not a format matplotlib writes.
+    """
+    from .io.output import check_output, need_module
+
+    need_module("matplotlib", "plotting", f"{what} ({str(path)!r})")
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    kinds = tuple(f".{k}" for k in sorted(FigureCanvasBase.get_supported_filetypes()))
+    return check_output(path, kinds, what)
+
+
+def use_agg() -> None:
+    """Switch matplotlib to the non-interactive Agg backend (figures written to files only).
+
+    Raises
+    ------
+    MissingDependencyError
+        matplotlib is not installed.
+    """
+    try:
+        import matplotlib
+    except ImportError as exc:
+        raise MissingDependencyError(
+            "plots need matplotlib: pip install 'pdlin[plotting]'"
+        ) from exc
+    matplotlib.use("Agg")
+
+
+def close_figures() -> None:
+    """Close every open matplotlib figure (frees their memory after they were saved)."""
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
+
+
+def _pyplot(message: str) -> Any:
+    """Import ``matplotlib.pyplot`` (current backend) or raise an ImportError with ``message``."""
+    try:
+        import matplotlib.pyplot as plt
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise MissingDependencyError(message) from exc
+    return plt
+
+
+def plot_spy(
+    K: Any,
+    ax: Any = None,
+    *,
+    order: str | Sequence[int] | np.ndarray = "natural",
+    block_size: int | None = None,
+    blocks: bool = False,
+    markersize: float | None = None,
+    title: str | None = None,
+    **kwargs: Any,
+) -> Any:
+    """Spy plot of the pattern of ``K`` (needs matplotlib: ``pip install pdlin[plotting]``).
+
+    The pattern comes from :func:`pdlin.analysis.spy_pattern`.
+
+    Parameters
+    ----------
+    K : (n, n) sparse array or ndarray
+        The matrix whose stored entries are drawn.
+    ax : matplotlib Axes, optional
+        Axes to draw into (default: a new figure).
+    order : {'natural', 'rcm'} or (n,) array_like of int
+        Row/column ordering: as stored, reverse Cuthill-McKee of the point
+        graph, or an explicit permutation (``perm[new] = old``, in DOFs, or
+        in points when ``blocks=True``).
+    block_size : int, optional
+        DOFs per point (default: ``K.blocksize`` for BSR, else 1).
+    blocks : bool
+        Plot the point (block) pattern instead of the DOF pattern.
+    markersize : float, optional
+        Marker size (default scales with the matrix size).
+    title : str, optional
+        Axes title (default: size and nnz).
+    **kwargs
+        Passed to :meth:`matplotlib.axes.Axes.spy`.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        The axes drawn into, titled with the size, nnz and ordering.
+
+    Examples
+    --------
+    >>> import matplotlib
+    >>> matplotlib.use("Agg")
+    >>> import pdlin
+    >>> from pdlin.operators import assemble_stiffness
+    >>> cloud = pdlin.grid((6, 6))
+    >>> K = assemble_stiffness(pdlin.BondBased(E=1.0), cloud, pdlin.find_bonds(cloud, 2.0))
+    >>> ax = plot_spy(K, order="rcm")
+    >>> ax.get_title()      # 36 points + 316 directed bonds = 352 blocks of 2 x 2
+    '72 x 72, nnz 1,408 (rcm)'
+    >>> import matplotlib.pyplot as plt; plt.close("all")
+    """
+    plt = _pyplot(
+        "plot_spy needs matplotlib, install the plotting extra: pip install pdlin[plotting]"
+    )
+    from .analysis.sparsity import spy_pattern
+
+    target, label = spy_pattern(K, order=order, block_size=block_size, blocks=blocks)
+    size = target.shape[0]
+    if ax is None:
+        _, ax = plt.subplots(figsize=(5, 5))
+    ms = markersize if markersize is not None else float(np.clip(300.0 / max(size, 1), 0.05, 4.0))
+    ax.spy(target, markersize=ms, **kwargs)
+    ax.set_title(title if title is not None else f"{size} x {size}, nnz {target.nnz:,} ({label})")
+    return ax
+
+
+def plot_micromoduli(
+    result: CalibrationResult,
+    family: Family | None = None,
+    *,
+    ax: Any = None,
+    cmap: str = "viridis",
+    size: float = 20.0,
+) -> Any:
+    """Plot micromoduli against bond direction.
+
+    2D: polar scatter of ``c`` against the bond angle (colour = bond
+    length).  3D: the unit bond directions on the sphere, coloured by
+    ``c`` (collinear bonds of different length overlap).
+
+    Parameters
+    ----------
+    result : CalibrationResult
+        A single-family result (for a cloud pass ``result.families[k]``).
+    family : Family, optional
+        The family that was calibrated; defaults to the one stored in the
+        result.
+    ax : matplotlib Axes, optional
+        A polar (2D) or 3D axes; created when omitted.
+    cmap : str
+        matplotlib colour map name.
+    size : float
+        Marker size.
+
+    Returns
+    -------
+    matplotlib Axes
+        The polar (2D) or 3D axes drawn into.
+
+    Examples
+    --------
+    >>> import numpy as np, matplotlib
+    >>> matplotlib.use("Agg")
+    >>> from pdlin.calibration import lattice_family, calibrate_micromoduli
+    >>> fam = lattice_family(2, 3.0, lattice="triangular")
+    >>> res = calibrate_micromoduli(np.diag([3.0, 2.0, 1.0]), fam, method="robust")
+    >>> plot_micromoduli(res).name
+    'polar'
+    """
+    fam = family if family is not None else result.extra.get("family")
+    if fam is None:
+        raise InputError(
+            "family must be given for a result without a stored family (cloud results: "
+            "pass result.families[k])"
+        )
+    c = np.asarray(result.micromoduli)
+    if fam.n_bonds != c.size:
+        raise InputError(
+            f"family must hold one bond per micromodulus ({c.size}), got {fam.n_bonds} bonds"
+        )
+    plt = _pyplot("plot_micromoduli needs matplotlib: pip install 'pdlin[plotting]'")
+    xi = fam.xi
+    if fam.dim == 2:
+        if ax is None:
+            _, ax = plt.subplots(subplot_kw={"projection": "polar"})
+        theta = np.arctan2(xi[:, 1], xi[:, 0])
+        sc = ax.scatter(theta, c, c=fam.length, cmap=cmap, s=size)
+        ax.figure.colorbar(sc, ax=ax, label="|xi|")
+        ax.set_title("micromodulus vs bond angle")
+        return ax
+    if ax is None:
+        fig = plt.figure()
+        ax = fig.add_subplot(projection="3d")
+    u = xi / fam.length[:, None]
+    sc = ax.scatter(u[:, 0], u[:, 1], u[:, 2], c=c, cmap=cmap, s=size)
+    ax.figure.colorbar(sc, ax=ax, label="micromodulus c")
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_zlabel("z")
+    ax.set_title("micromodulus on the direction sphere")
+    return ax
+
+
+def plot_tradeoff(result: TradeoffResult, path: str | os.PathLike[str] | None = None) -> Any:
+    """Error against time (Pareto front drawn) and error against δ/h per model.
+
+    Parameters
+    ----------
+    result : TradeoffResult
+        A sweep of :func:`pdlin.tradeoff`; its successful rows are drawn.
+    path : str or path-like, optional
+        Save the figure there (atomically, 120 dpi; the Agg backend is selected first).
+
+    Returns
+    -------
+    matplotlib Figure
+        Two panels: error vs time with the Pareto front, error vs δ/h.
+    """
+    try:
+        import matplotlib
+
+        if path is not None:
+            matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError as exc:  # pragma: no cover - optional dependency
+        raise ImportError(
+            "TradeoffResult.plot needs matplotlib: pip install 'pdlin[plotting]'"
+        ) from exc
+    rows = result.ok()
+    label_key = "model" if "model" in result.params else (result.params[0] if result.params else "")
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
+    labels = sorted({str(r.get(label_key, "")) for r in rows})
+    for lab in labels:
+        sel = [r for r in rows if str(r.get(label_key, "")) == lab]
+        ax1.loglog(
+            [r[result.time] for r in sel], [r["error"] for r in sel], "o", label=lab, alpha=0.8
+        )
+        ratio = [float(r["delta"]) / float(r["h"]) for r in sel]
+        o = np.argsort(ratio)
+        ax2.semilogy(np.array(ratio)[o], np.array([r["error"] for r in sel])[o], "o-", label=lab)
+    front = result.pareto()
+    if front:
+        ax1.step(
+            [r[result.time] for r in front], [r["error"] for r in front], "k--", where="post",
+            lw=1, label="Pareto front",
+        )  # fmt: skip
+    ax1.set_xlabel(f"time ({result.time}) [s]")
+    ax1.set_ylabel("error")
+    ax1.set_title("error vs time")
+    ax1.legend(fontsize=7)
+    ax2.set_xlabel("δ / h")
+    ax2.set_ylabel("error")
+    ax2.set_title(f"error vs δ/h per {label_key}")
+    fig.suptitle(f"reference: {result.reference}", fontsize=9)
+    fig.tight_layout()
+    if path is not None:
+        save_figure(fig, Path(path), dpi=120)
+    return fig

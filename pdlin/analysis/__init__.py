@@ -1,5 +1,13 @@
-"""Analysis tools: zero-energy modes of stiffness operators."""
+"""Analysis tools: sparsity studies and zero-energy modes of stiffness operators."""
 
+from .sparsity import (
+    FILL_ORDERINGS,
+    SparsityReport,
+    coupling_pattern,
+    rcm_permutation,
+    sparsity_report,
+    spy_pattern,
+)
 from .zero_energy import (
     CheckerboardReport,
     ZeroEnergyReport,
@@ -10,6 +18,12 @@ from .zero_energy import (
 )
 
 __all__ = [
+    "SparsityReport",
+    "sparsity_report",
+    "coupling_pattern",
+    "rcm_permutation",
+    "spy_pattern",
+    "FILL_ORDERINGS",
     "ZeroEnergyReport",
     "CheckerboardReport",
     "count_zero_modes",

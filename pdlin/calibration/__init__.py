@@ -5,6 +5,9 @@ family (or every family of a cloud) reproduces a target stiffness tensor in
 the Frobenius norm; :func:`lattice_family` builds single lattice families.
 """
 
+from typing import Any
+
+from .._lazy import moved_attribute
 from .calibrate import (
     METHODS,
     QP_SOLVERS,
@@ -14,7 +17,6 @@ from .calibrate import (
     max_lower_bound,
 )
 from .lattices import LATTICES, Family, equiangle_rotation, lattice_family, reflection
-from .plotting import plot_micromoduli
 
 __all__ = [
     "calibrate_micromoduli",
@@ -25,8 +27,11 @@ __all__ = [
     "max_lower_bound",
     "equiangle_rotation",
     "reflection",
-    "plot_micromoduli",
     "LATTICES",
     "METHODS",
     "QP_SOLVERS",
 ]
+
+
+def __getattr__(name: str) -> Any:  # plot_micromoduli moved to pdlin.plotting (deprecated here)
+    return moved_attribute(__name__, {"plot_micromoduli": "pdlin.plotting"}, name)

@@ -140,7 +140,7 @@ def _check_out(path: str | Path, suffixes: Sequence[str], what: str) -> Path:
 
 
 def _check_figure(path: str | Path, what: str) -> Path:
-    from ..io.output import check_figure
+    from ..plotting import check_figure
 
     return check_figure(path, what)
 
@@ -508,8 +508,8 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_sparsity(args: argparse.Namespace) -> int:
+    from ..analysis.sparsity import sparsity_report
     from ..constraints import resolve_dirichlet
-    from ..operators.sparsity import sparsity_report
 
     scene = _load(args)
     bonds = scene.bonds()
@@ -615,11 +615,9 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
                     )
         summary["output"] = str(out)
     if job.plot is not None and not args.no_plot:
-        import matplotlib
+        from ..plotting import plot_micromoduli, save_figure, use_agg
 
-        matplotlib.use("Agg")
-        from ..calibration import plot_micromoduli
-        from ..plotting import save_figure
+        use_agg()
 
         ax = plot_micromoduli(res, job.family)
         save_figure(ax.figure, job.plot, dpi=120)
@@ -817,9 +815,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
                     curve.figure, out.with_name(f"{out.stem}_homogenized.png"), dpi=args.dpi
                 )
             )
-    import matplotlib.pyplot as plt
-
-    plt.close("all")
+    plotting.close_figures()
     for w in written:
         print(f"wrote {w}")
     return 0

@@ -11,7 +11,7 @@ companion files a version tag, a hash of their data (``run.pvd.<tag>/``,
 main file always refers to one complete set of companions; the old set is
 removed after the switch.
 
-:func:`check_output` and :func:`check_figure` are what the ``pdlin`` command
+:func:`check_output` and :func:`pdlin.plotting.check_figure` are what the ``pdlin`` command
 runs before any work: the suffix, the optional library the format needs and a
 writable folder.
 """
@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .._lazy import moved_attribute
 from ..errors import InputError, MissingDependencyError, WriteError
 
 log = logging.getLogger(__name__)
@@ -43,7 +44,6 @@ __all__ = [
     "write_error",
     "need_module",
     "check_output",
-    "check_figure",
     "check_folder",
     "OPTIONAL_MODULES",
 ]
@@ -214,16 +214,6 @@ def check_output(path: str | Path, suffixes: Iterable[str], what: str = "output 
         module, extra = OPTIONAL_MODULES[suffix]
         need_module(module, extra, f"{suffix} output ({str(p)!r})")
     return check_folder(p, what)
-
-
-def check_figure(path: str | Path, what: str = "figure") -> Path:
-    """Check a figure path before the work: matplotlib installed, a format it
-    writes (``.png``, ``.pdf``, ``.svg``, ...), writable folder."""
-    need_module("matplotlib", "plotting", f"{what} ({str(path)!r})")
-    from matplotlib.backend_bases import FigureCanvasBase
-
-    kinds = tuple(f".{k}" for k in sorted(FigureCanvasBase.get_supported_filetypes()))
-    return check_output(path, kinds, what)
 
 
 @dataclass(frozen=True)
@@ -427,3 +417,7 @@ def staging(target: str | Path, tag: str | None = None) -> Iterator[Stage]:
     old = [f for f in t.parent.iterdir() if pattern.match(f.name) and f not in moved]
     for f in old + legacy:
         _remove(f)
+
+
+def __getattr__(name: str) -> Any:  # check_figure moved to pdlin.plotting (deprecated here)
+    return moved_attribute(__name__, {"check_figure": "pdlin.plotting"}, name)

@@ -925,53 +925,21 @@ class TradeoffResult:
     def plot(self, path: str | os.PathLike[str] | None = None) -> Any:
         """Error against time (Pareto front drawn) and error against δ/h per model.
 
-        Needs matplotlib (the ``plotting`` extra).  Returns the figure; saves it to
-        ``path`` when given.
+        Needs matplotlib (the ``plotting`` extra); drawn by :func:`pdlin.plotting.plot_tradeoff`.
+
+        Parameters
+        ----------
+        path : str or path-like, optional
+            Save the figure there (atomically, 120 dpi).
+
+        Returns
+        -------
+        matplotlib Figure
+            The figure (also saved to ``path`` when given).
         """
-        try:
-            import matplotlib
+        from ..plotting import plot_tradeoff
 
-            if path is not None:
-                matplotlib.use("Agg")
-            import matplotlib.pyplot as plt
-        except ImportError as exc:  # pragma: no cover - optional dependency
-            raise ImportError(
-                "TradeoffResult.plot needs matplotlib: pip install 'pdlin[plotting]'"
-            ) from exc
-        rows = self.ok()
-        label_key = "model" if "model" in self.params else (self.params[0] if self.params else "")
-        fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
-        labels = sorted({str(r.get(label_key, "")) for r in rows})
-        for lab in labels:
-            sel = [r for r in rows if str(r.get(label_key, "")) == lab]
-            ax1.loglog(
-                [r[self.time] for r in sel], [r["error"] for r in sel], "o", label=lab, alpha=0.8
-            )
-            ratio = [float(r["delta"]) / float(r["h"]) for r in sel]
-            o = np.argsort(ratio)
-            ax2.semilogy(
-                np.array(ratio)[o], np.array([r["error"] for r in sel])[o], "o-", label=lab
-            )
-        front = self.pareto()
-        if front:
-            ax1.step(
-                [r[self.time] for r in front], [r["error"] for r in front], "k--", where="post",
-                lw=1, label="Pareto front",
-            )  # fmt: skip
-        ax1.set_xlabel(f"time ({self.time}) [s]")
-        ax1.set_ylabel("error")
-        ax1.set_title("error vs time")
-        ax1.legend(fontsize=7)
-        ax2.set_xlabel("δ / h")
-        ax2.set_ylabel("error")
-        ax2.set_title(f"error vs δ/h per {label_key}")
-        fig.suptitle(f"reference: {self.reference}", fontsize=9)
-        fig.tight_layout()
-        if path is not None:
-            from ..plotting import save_figure
-
-            save_figure(fig, Path(path), dpi=120)
-        return fig
+        return plot_tradeoff(self, path)
 
 
 # --- the sweep ----------------------------------------------------------------------------

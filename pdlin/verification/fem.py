@@ -219,7 +219,7 @@ def _solve_prescribed(
         from pdlin.solvers import solve_linear
 
         a, b = eliminate_dirichlet(k.tobsr(blocksize=(dim, dim)), f.copy(), fixed, vals)
-        modes = pdlin.rigid_body_modes(pts)
+        modes = pdlin.operators.rigid_body_modes(pts)
         modes[fixed] = 0.0
         info = solve_linear(a, b, "amg-cg", rtol=rtol, near_null=modes, blocksize=dim)
         u = np.array(info.x, dtype=float)

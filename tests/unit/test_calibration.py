@@ -320,7 +320,7 @@ def test_plot_micromoduli(tmp_path):
     import matplotlib
 
     matplotlib.use("Agg")
-    from pdlin.calibration import plot_micromoduli
+    from pdlin.plotting import plot_micromoduli
 
     r2 = calibrate_micromoduli(_iso(), lattice_family(2, 3.0, lattice="triangular"))
     ax = plot_micromoduli(r2, lattice_family(2, 3.0, lattice="triangular"))

@@ -10,9 +10,9 @@ import pytest
 import scipy.sparse as sp
 
 import pdlin
+from pdlin.analysis.sparsity import SparsityReport, coupling_pattern, rcm_permutation
 from pdlin.errors import InputError, InputTypeError, ShapeError
 from pdlin.models.base import Model
-from pdlin.operators.sparsity import SparsityReport, coupling_pattern, rcm_permutation
 
 
 class _TwoHopPattern(Model):
