@@ -6,7 +6,7 @@ Tables (times are wall-clock seconds on a shared machine; nothing is asserted):
    ``find_bonds(..., influence="inverse")``, ``higher_order``, ``penalty``): time of the bond
    search, of ``model.gradient_matrix`` (G) and of ``model.stiffness`` (K), nnz of G and K
    and the mean nnz per DOF row of K.
-2. **Solves**: a shadow-layer patch problem (``pdlin.shadow_problem(model, cloud, bonds, F)``,
+2. **Solves**: a shadow-layer patch problem (``shadow_problem(model, cloud, bonds, F)``,
    even real counts) per control and horizon: ``pdlin.solve`` with ``direct`` (assembled,
    2D only), ``jacobi-cg`` assembled and ``jacobi-cg`` matrix-free (``operator=``), wall time
    (assembly included), iterations, solver residual and max error against the affine field.
@@ -46,6 +46,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _context import header, timed  # noqa: E402
 
 import pdlin  # noqa: E402
+from pdlin.models import shadow_problem  # noqa: E402
 
 JULIA_TOTAL = 3.1 + 19.6  # s, published Julia implementation, 160,801 points, δ = 2h
 CONTROLS = ("none", "higher_order", "penalty")
@@ -127,7 +128,7 @@ def _shadow_solve(shape: tuple[int, ...], m: int, control: str, solver: str, op:
     cloud, bonds, _ = _cloud_bonds(shape, float(m))
     d = cloud.dim
     F = np.eye(d) + 1e-3 * np.arange(1, d * d + 1).reshape(d, d) / (d * d)
-    prob = pdlin.shadow_problem(_model(d, control), cloud, bonds, F)
+    prob = shadow_problem(_model(d, control), cloud, bonds, F)
     with timed() as t:
         res = pdlin.solve(prob, solver=solver, operator=op, rtol=1e-10)
     err = float(np.abs(res.u - cloud.points @ (F - np.eye(d)).T).max())

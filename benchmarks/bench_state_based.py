@@ -89,7 +89,7 @@ def matrix_free_solve(model: Any, cloud: Any, bonds: Any, dirichlet: Any, rtol: 
     A = spla.LinearOperator((ndof, ndof), matvec=mv, dtype=float)
     sur = pdlin.BondBased(E=float(model.E)).stiffness(cloud, bonds)
     As, _ = eliminate_dirichlet(sur, np.zeros(ndof), dofs, np.zeros(dofs.size), inplace=True)
-    near = pdlin.rigid_body_modes(cloud)
+    near = pdlin.operators.rigid_body_modes(cloud)
     near[dofs] = 0.0
     t = _clock()
     ml = amg_hierarchy(As, near, blocksize=d)

@@ -1,7 +1,7 @@
 """Sparsity of the bond-based stiffness matrix versus the horizon ratio m = delta / h.
 
 Prints three tables for 2D and 3D cell-centred grids, all from
-:func:`pdlin.sparsity_report` built from the model and its bonds (the
+:func:`pdlin.analysis.sparsity_report` built from the model and its bonds (the
 pattern is the bonds plus the diagonal; ``K`` is never assembled):
 
 1. pattern and memory: nnz, nnz per DOF row (mean / max), CSR and BSR memory
@@ -28,7 +28,7 @@ import sys
 import numpy as np
 
 import pdlin
-from pdlin.analysis import coupling_pattern
+from pdlin.analysis import SparsityReport, coupling_pattern, sparsity_report
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _context import Timing, header, timed  # noqa: E402
@@ -36,11 +36,11 @@ from _context import Timing, header, timed  # noqa: E402
 MB = 1024.0**2
 
 
-def _report(dim: int, n: int, m: float, **kw: object) -> tuple[pdlin.SparsityReport, Timing]:
+def _report(dim: int, n: int, m: float, **kw: object) -> tuple[SparsityReport, Timing]:
     with timed() as t:
         cloud = pdlin.grid((n,) * dim)
         bonds = pdlin.find_bonds(cloud, float(m))
-        r = pdlin.sparsity_report(model=pdlin.BondBased(E=1.0), cloud=cloud, bonds=bonds, **kw)
+        r = sparsity_report(model=pdlin.BondBased(E=1.0), cloud=cloud, bonds=bonds, **kw)
     return r, t
 
 

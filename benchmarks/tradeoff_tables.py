@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 import pdlin
-from pdlin.sweeps import affine_patch, graded_bar, plate_with_hole, tension_bar
+from pdlin.sweeps import TradeoffResult, affine_patch, graded_bar, plate_with_hole, tension_bar
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _context import header, timed  # noqa: E402
@@ -90,7 +90,7 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
-def markdown(res: pdlin.TradeoffResult) -> str:
+def markdown(res: TradeoffResult) -> str:
     front = {id(r) for r in res.pareto()}
     cols = [p for p in res.params if len({str(r[p]) for r in res.table}) > 1]
     head = [*cols, "error", "bonds s", "assembly s", "setup s", "solve s", "total s",
@@ -108,7 +108,7 @@ def markdown(res: pdlin.TradeoffResult) -> str:
     return "\n".join(lines)
 
 
-def rates_text(res: pdlin.TradeoffResult) -> str:
+def rates_text(res: TradeoffResult) -> str:
     out = []
     for x in ("h", "delta"):
         try:

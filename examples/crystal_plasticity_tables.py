@@ -1,7 +1,7 @@
 """Print the material-point tables of the planar crystal (pure shear and Y-compression).
 
 Run ``python examples/crystal_plasticity_tables.py``.  Each table is one batched
-``pdlin.material_point`` run over the 12 orientations θ_k = −90° + 15° k, 30 steps of
+``pdlin.constitutive.material_point`` run over the 12 orientations θ_k = −90° + 15° k, 30 steps of
 η = 0.002, with the default planar-2 material of Luo, Ramazani & Sundararaghavan (2017),
 Sec. 3 (conventions: docs/theory/conventions.md).  The paper prints no such tables; these
 are pdlin's reference values for its material and loading.
@@ -12,12 +12,12 @@ from __future__ import annotations
 import numpy as np
 
 import pdlin
-from pdlin.constitutive import ORIENTATIONS_2D
+from pdlin.constitutive import ORIENTATIONS_2D, material_point
 
 
 def table(loading: str) -> list[tuple[float, ...]]:
     """Rows (θ°, yield step, σ_xx, σ_yy, σ_xy, γ¹, γ², Δθ°) at t = 30."""
-    r = pdlin.material_point(pdlin.CrystalPlasticity(), loading, orientation=ORIENTATIONS_2D)
+    r = material_point(pdlin.CrystalPlasticity(), loading, orientation=ORIENTATIONS_2D)
     s = r.stress[-1]
     return [
         (

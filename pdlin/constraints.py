@@ -7,7 +7,8 @@ the prescribed DOFs are checked to remove every rigid motion
 (:func:`check_constraints`) and eliminated from ``K u = f`` keeping K's block
 structure (:func:`eliminate_dirichlet`, :func:`matrix_rows` for the reactions).
 The PETSc backend eliminates its own rows with the same rule.  The conditions
-themselves (data) are in :mod:`pdlin.operators.bc`.
+themselves (data: :class:`~pdlin.Dirichlet`, :class:`~pdlin.BodyForce`,
+:class:`~pdlin.TotalForce`) are in :mod:`pdlin.operators`.
 """
 
 from __future__ import annotations
@@ -120,7 +121,7 @@ def resolve_dirichlet(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Collect prescribed DOFs and values; conflicting duplicates raise.
 
-    :class:`~pdlin.TimePath` values are evaluated at time ``t``.
+    :class:`~pdlin.operators.TimePath` values are evaluated at time ``t``.
 
     Parameters
     ----------
@@ -129,7 +130,7 @@ def resolve_dirichlet(
     conditions : sequence of Dirichlet
         The conditions (a DOF named twice must get the same value).
     t : float
-        Time at which :class:`~pdlin.TimePath` values are evaluated.
+        Time at which :class:`~pdlin.operators.TimePath` values are evaluated.
 
     Returns
     -------
@@ -310,7 +311,7 @@ def check_constraints(
     *,
     extra_modes: np.ndarray | None = None,
 ) -> None:
-    """Raise :class:`~pdlin.FloatingBodyError` if rigid motions remain unconstrained.
+    """Raise :class:`~pdlin.errors.FloatingBodyError` if rigid motions remain unconstrained.
 
     Each bond-connected component must have its rigid-body modes removed
     by the prescribed DOFs: the rows of the rigid-mode basis at the
@@ -540,7 +541,7 @@ def eliminate_dirichlet(
     -------
     A : sparse array of shape (ndof, ndof)
         ``K`` with the prescribed rows and columns replaced by ``s I``, ``s`` the mean
-        |diagonal| of the free DOFs (1 when none is free).
+        of ``|K_ii|`` over the free DOFs (1 when none is free).
     b : (ndof,) ndarray
         ``f - K u_c`` on the free rows, ``s u_c`` on the prescribed ones.
 

@@ -135,7 +135,7 @@ class TrialStateWarning(RuntimeWarning):
     """A material's state update is questionable at some points.
 
     The nonlinear drivers ignore it on trial iterates (Newton trials, line-search and ADR
-    states are discarded) and re-issue what :meth:`pdlin.Model.committed_issues`
+    states are discarded) and re-issue what :meth:`pdlin.models.Model.committed_issues`
     reports on each committed state.  Subclasses name the cause.
     """
 

@@ -2,11 +2,11 @@
 
 The stretch criterion of Liu, Chen & Skelton, XOSB (§5.3, Eq. 88), used quasi-statically.
 
-:func:`solve_damage` drives a linear :class:`~pdlin.StaticProblem` through proportional
+:func:`~pdlin.solve_damage` drives a linear :class:`~pdlin.StaticProblem` through proportional
 load steps ``t_k = k / steps`` (every prescribed displacement and load scaled by ``t``).
 For a fixed set of bonds the response is linear, ``u(t) = t u(1)``, so each bond set is
 solved once; at every step the bonds stretched beyond the critical stretch ``s0``
-(:func:`pdlin.break_bonds`) are removed and the step is solved again until no bond
+(:func:`pdlin.models.break_bonds`) are removed and the step is solved again until no bond
 breaks (sequentially linear analysis).  Breaking is irreversible.
 """
 
@@ -39,7 +39,7 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class DamageResult:
-    """Per-step history of :func:`solve_damage`.
+    """Per-step history of :func:`~pdlin.solve_damage`.
 
     Attributes
     ----------
@@ -48,7 +48,7 @@ class DamageResult:
     u : (k, n, dim) ndarray
         Displacement at the end of each step (after its last re-solve).
     damage : (k, n) ndarray
-        Damage index ``phi`` (:func:`pdlin.damage_index`) after each step.
+        Damage index ``phi`` (:func:`pdlin.models.damage_index`) after each step.
     broken : (k,) ndarray of int
         Cumulative number of broken directed bonds after each step.
     max_stretch : (k,) ndarray
@@ -166,7 +166,7 @@ def solve_damage(
         The problem at full load (``t = 1``); no symmetry planes (mirrored bonds would
         break differently from their images).
     s0 : float or (n_bonds,) array_like
-        Critical stretch (:func:`pdlin.critical_stretch`), per bond of the problem's
+        Critical stretch (:func:`pdlin.models.critical_stretch`), per bond of the problem's
         intact bonds or one value.
     steps : int
         Equal load steps up to ``t = 1``.

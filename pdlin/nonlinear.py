@@ -248,7 +248,7 @@ def solve_nonlinear(
     """Solve a static problem with a nonlinear or history-dependent model in load steps.
 
     Step ``k`` runs to time ``t_k`` (``times``, or ``t_end k / steps``):
-    :class:`~pdlin.TimePath` conditions (e.g. :meth:`pdlin.Dirichlet.velocity_gradient`)
+    :class:`~pdlin.operators.TimePath` conditions (e.g. :meth:`pdlin.Dirichlet.velocity_gradient`)
     are evaluated at ``t_k``, other prescribed values and loads are scaled
     by ``t_k / t_end``.  The model's state (e.g. plastic deformation and slip
     resistances of :class:`pdlin.CrystalPlasticity`) is committed only when a
@@ -257,7 +257,7 @@ def solve_nonlinear(
     Parameters
     ----------
     problem : StaticProblem
-        Any pdlin model; nonlinear ones implement :meth:`pdlin.Model.respond`
+        Any pdlin model; nonlinear ones implement :meth:`pdlin.models.Model.respond`
         (e.g. ``Correspondence(material=CrystalPlasticity(...))``).  Linear
         models are solved exactly the same way (Newton converges in one
         iteration; ADR converges to the linear solution).

@@ -22,10 +22,10 @@ The pieces:
   rows (the PETSc backend).
 * :class:`StaticResult` -- a solution of the system, with its fields.
 
-Layers: the problem's data (:mod:`pdlin.problem`) and the functions of the
+Layers: the problem's data (``pdlin.problem``) and the functions of the
 system (:mod:`pdlin.constraints`) below, the drivers (:func:`pdlin.solve` in
-:mod:`pdlin.static`, :func:`pdlin.solve_nonlinear`,
-:mod:`pdlin.backends.petsc`) on top.
+``pdlin.static``, :func:`pdlin.solve_nonlinear`, the PETSc backend
+``pdlin.backends.petsc``) on top.
 """
 
 from __future__ import annotations
@@ -135,7 +135,7 @@ class Discretization(Protocol):
         ...
 
     def check_constraints(self, dofs: np.ndarray) -> None:
-        """Raise :class:`~pdlin.FloatingBodyError` when ``dofs`` leave a rigid motion free.
+        """Raise :class:`~pdlin.errors.FloatingBodyError` when ``dofs`` leave a rigid motion free.
 
         Parameters
         ----------
@@ -425,7 +425,7 @@ class ConstrainedSystem:
     problem : StaticProblem or None
         The problem it was built from.
     paths : tuple of Dirichlet
-        Conditions whose value is a :class:`~pdlin.TimePath` (re-evaluated per time).
+        Conditions whose value is a :class:`~pdlin.operators.TimePath` (re-evaluated per time).
 
     Examples
     --------
@@ -433,7 +433,7 @@ class ConstrainedSystem:
     >>> cloud = pdlin.grid((10,), spacing=0.1)
     >>> prob = pdlin.StaticProblem(pdlin.BondBased(E=1.0), cloud, horizon=0.2,
     ...     dirichlet=[pdlin.Dirichlet("x-", 0.0)], loads=[pdlin.TotalForce("x+", [1e-3])])
-    >>> sys = pdlin.constrained_system(prob)
+    >>> sys = pdlin.system.constrained_system(prob)
     >>> A, b = sys.eliminate(sys.assemble())
     >>> u = sys.expand(np.linalg.solve(A.toarray(), b))
     >>> bool(np.abs(sys.residual(u)).max() < 1e-15), sys.reactions(u).sum().round(6)
@@ -445,7 +445,7 @@ class ConstrainedSystem:
     values: np.ndarray
     f_ext: np.ndarray
     problem: Any = None
-    #: Dirichlet conditions whose value is a :class:`~pdlin.TimePath` (re-evaluated per time)
+    #: Dirichlet conditions with a :class:`~pdlin.operators.TimePath` value (re-evaluated per time)
     paths: tuple[Dirichlet, ...] = ()
     _free: np.ndarray | None = field(default=None, repr=False)
 
@@ -526,7 +526,7 @@ class ConstrainedSystem:
     def values_at(self, t: float, factor: float) -> np.ndarray:
         """Return the prescribed values at time ``t`` of a load path.
 
-        Plain values are scaled by the load ``factor``; :class:`~pdlin.TimePath`
+        Plain values are scaled by the load ``factor``; :class:`~pdlin.operators.TimePath`
         values (e.g. :meth:`~pdlin.Dirichlet.velocity_gradient`) are evaluated
         at ``t`` instead.
 
@@ -540,7 +540,7 @@ class ConstrainedSystem:
         Returns
         -------
         (m,) ndarray
-            Values of :attr:`dofs`.
+            Values of ``dofs``.
         """
         vals = factor * self.values
         if self.paths:
@@ -723,7 +723,7 @@ class ConstrainedSystem:
         Returns
         -------
         (n, dim) ndarray
-            ``x`` with the prescribed values on :attr:`dofs`.
+            ``x`` with the prescribed values on ``dofs``.
 
         Raises
         ------
@@ -863,7 +863,7 @@ class ConstrainedSystem:
         Returns
         -------
         csr_array of shape (m, ndof)
-            The rows of :attr:`dofs` (:func:`pdlin.constraints.matrix_rows`).
+            The rows of ``dofs`` (:func:`pdlin.constraints.matrix_rows`).
         """
         return matrix_rows(K, self.dofs)
 
@@ -875,7 +875,7 @@ def discretize(problem: StaticProblem) -> Discretization:
     ----------
     problem : StaticProblem
         Without symmetry planes its bonds are ``problem.get_bonds()``; with them they are
-        found on the mirrored cloud (:func:`~pdlin.operators.symmetry.symmetry_reduction`).
+        found on the mirrored cloud (:func:`~pdlin.operators.symmetry_reduction`).
 
     Returns
     -------
@@ -1081,7 +1081,7 @@ def mirror_reach(model: Any, cloud: PointCloud, horizon: Any, bond_options: Any)
     Returns
     -------
     float
-        The ``reach`` :func:`~pdlin.operators.symmetry.symmetry_reduction` mirrors with.
+        The ``reach`` :func:`~pdlin.operators.symmetry_reduction` mirrors with.
     """
     opts = dict(bond_options or {})
     hor = resolve_horizon(cloud, horizon, opts.get("ratio"))
@@ -1141,7 +1141,7 @@ class StaticResult:
     u : (n, dim) ndarray
         Displacements.
     converged : bool
-        True (a missed tolerance raises :class:`~pdlin.ConvergenceError` instead).
+        True (a missed tolerance raises :class:`~pdlin.errors.ConvergenceError` instead).
     n_iter : int
         Iterations of the linear solver (1 for 'direct').
     residuals : list of float

@@ -140,7 +140,7 @@ def count_zero_modes(
     >>> import numpy as np, pdlin
     >>> cloud = pdlin.grid((9,), spacing=1.0)
     >>> bonds = pdlin.find_bonds(cloud, ratio=1.0)
-    >>> K = pdlin.assemble_stiffness(pdlin.Correspondence(E=1.0), cloud, bonds)
+    >>> K = pdlin.operators.assemble_stiffness(pdlin.Correspondence(E=1.0), cloud, bonds)
     >>> count_zero_modes(K, dim=1).n_spurious   # free bar: one rigid mode only
     0
     """
@@ -189,7 +189,7 @@ def periodic_lattice_bonds(cloud: PointCloud, ratio: float, influence: Any = "co
     unwrapped bond vector ``ξ = p h``.  Each axis needs more than ``2 floor(ratio)`` points
     (no neighbour twice).  On such a lattice the kernel of K is spanned by the lattice
     waves ``exp(i θ·a)`` at the zeros of the gradient symbol
-    (:func:`pdlin.models.weights.gradient_symbol`).
+    (:func:`pdlin.models.gradient_symbol`).
 
     Parameters
     ----------
@@ -218,7 +218,7 @@ def periodic_lattice_bonds(cloud: PointCloud, ratio: float, influence: Any = "co
     >>> import pdlin
     >>> cloud = pdlin.grid((24,), spacing=1.0)
     >>> b = periodic_lattice_bonds(cloud, 2.0, influence="inverse")
-    >>> K = pdlin.assemble_stiffness(pdlin.Correspondence(E=1.0), cloud, b)
+    >>> K = pdlin.operators.assemble_stiffness(pdlin.Correspondence(E=1.0), cloud, b)
     >>> # omega = 1/|xi| at 2h: g = 0 at theta = 0, pi, +-2 pi/3 -> 4 modes on 24 points
     >>> count_zero_modes(K, n_rigid=0).n_zero
     4
@@ -302,7 +302,7 @@ def checkerboard_energy_ratio(K: Any, cloud: PointCloud) -> CheckerboardReport:
     >>> import numpy as np, pdlin
     >>> cloud = pdlin.grid((21,), spacing=0.05)
     >>> bonds = pdlin.find_bonds(cloud, ratio=1.0)
-    >>> K = pdlin.assemble_stiffness(pdlin.Correspondence(E=1.0), cloud, bonds)
+    >>> K = pdlin.operators.assemble_stiffness(pdlin.Correspondence(E=1.0), cloud, bonds)
     >>> # no control at delta = h: the checkerboard costs exactly the smooth mode's energy
     >>> round(checkerboard_energy_ratio(K, cloud).min_ratio, 12)
     1.0
@@ -349,7 +349,7 @@ def compare_controls(
         Bonds of ``cloud``.
     models : mapping of str to model
         Name -> model whose stiffness is assembled with
-        :func:`pdlin.assemble_stiffness`.
+        :func:`pdlin.operators.assemble_stiffness`.
     shadow : array_like of int, optional
         Shadow-layer point indices: the count then runs on the real DOFs only
         and every zero counts as spurious.

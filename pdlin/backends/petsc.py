@@ -349,7 +349,7 @@ def local_rows(
     >>> cloud = pdlin.grid((12, 12), spacing=0.1)
     >>> model = pdlin.LPS(E=1.0, nu=0.25)
     >>> rows, index, _, _ = local_rows(model, cloud, np.arange(30), bond_options={"ratio": 3.015})
-    >>> K = pdlin.assemble_stiffness(model, cloud, pdlin.find_bonds(cloud, ratio=3.015))
+    >>> K = pdlin.operators.assemble_stiffness(model, cloud, pdlin.find_bonds(cloud, ratio=3.015))
     >>> bool(abs(rows - K.tocsr()[:60]).max() < 1e-12 * abs(K).max()), index.size < cloud.n
     (True, True)
     """
@@ -528,7 +528,7 @@ def local_rows_mirrored(
     >>> planes = point_system(prob).disc.mirror.planes
     >>> rows, index, _, _ = local_rows_mirrored(prob.model, cloud, np.arange(30), planes,
     ...     bond_options={"ratio": 3.015})
-    >>> K = pdlin.constrained_system(prob).assemble()
+    >>> K = pdlin.system.constrained_system(prob).assemble()
     >>> bool(abs(rows - K.tocsr()[:60]).max() < 1e-12 * abs(K).max()), index.size < cloud.n
     (True, True)
     """

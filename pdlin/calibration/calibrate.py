@@ -1012,7 +1012,7 @@ def max_lower_bound(
     Parameters
     ----------
     C : (6, 6), (3, 3), (3, 3, 3, 3) or (2, 2, 2, 2) array_like
-        Target stiffness, as for :func:`calibrate_micromoduli`.
+        Target stiffness, as for :func:`~pdlin.calibrate_micromoduli`.
     family : Family
         One bond family.
     weighting : {'frobenius', 'voigt'}

@@ -1298,7 +1298,7 @@ class CrystalPlasticity:
         """Report the points of a committed state whose active-set search did not settle.
 
         Called by the nonlinear drivers after each converged load step (see
-        :meth:`pdlin.Model.committed_issues`).
+        :meth:`pdlin.models.Model.committed_issues`).
 
         Parameters
         ----------

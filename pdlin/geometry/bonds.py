@@ -683,7 +683,7 @@ def find_bonds(
         Allow points without any bond (default: raise NoNeighborsError).
     allow_negative_influence : bool
         Accept negative influence values (higher-order correspondence
-        weights, :func:`pdlin.higher_order_weights`); bond-based models
+        weights, :func:`pdlin.models.higher_order_weights`); bond-based models
         refuse bonds with negative stiffness.
     rtol : float
         Relative tolerance of the inclusive membership test, in ``[0, 1)``.

@@ -207,7 +207,7 @@ class PointCloud:
         Parameters
         ----------
         name : str
-            A key of :attr:`sets`, ``'all'`` or ``'boundary'``.
+            A key of ``sets``, ``'all'`` or ``'boundary'``.
 
         Returns
         -------
@@ -623,7 +623,7 @@ def ghost_layer(cloud: PointCloud, layers: int = 1) -> GhostLayer:
     Parameters
     ----------
     cloud : PointCloud
-        A cloud with lattice metadata (:func:`~pdlin.grid`, :func:`~pdlin.from_image`).
+        A cloud with lattice metadata (:func:`~pdlin.grid`, :func:`~pdlin.geometry.from_image`).
     layers : int
         Number of ghost rings (>= 1).
 

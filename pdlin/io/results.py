@@ -500,7 +500,7 @@ def export_system(path: str | Path, problem: Any, *, eliminated: bool = True) ->
     matrix in scipy's CSR arrays (``data``, ``indices``, ``indptr``,
     ``shape``), ``rhs``, the prescribed ``dofs`` and ``values``, ``dim`` and
     ``points``.  With ``eliminated=True`` (default) the matrix is the
-    Dirichlet-eliminated ``A`` of :meth:`pdlin.ConstrainedSystem.eliminate`
+    Dirichlet-eliminated ``A`` of :meth:`pdlin.system.ConstrainedSystem.eliminate`
     (same size, prescribed rows and columns ``s I``, ``rhs = 0`` there: solve
     ``A x = rhs`` and set ``x[dofs] = values``); otherwise the unconstrained
     ``K`` and the external force ``f``.  Written atomically.

@@ -219,7 +219,7 @@ class BondBased(Model):
     >>> cloud = pdlin.grid((10,), spacing=0.1)
     >>> bonds = pdlin.find_bonds(cloud, ratio=2.0)
     >>> model = pdlin.BondBased(E=200e9)
-    >>> K = pdlin.assemble_stiffness(model, cloud, bonds)
+    >>> K = pdlin.operators.assemble_stiffness(model, cloud, bonds)
     >>> u = np.random.default_rng(0).normal(size=(10, 1))
     >>> bool(np.allclose(K @ u.ravel(), -model.internal_force(cloud, bonds, u).ravel()))
     True
@@ -771,7 +771,7 @@ class BondBased(Model):
         *,
         tangent: bool = False,
     ) -> Any:
-        """Return force, state and tangent for the nonlinear drivers (:meth:`pdlin.Model.respond`).
+        """Return force, state and tangent for the nonlinear drivers (``Model.respond``).
 
         With ``kinematics='finite'`` the PMB force and its consistent tangent
         (symmetric, BSR); otherwise the linear model.

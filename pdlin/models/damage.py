@@ -178,7 +178,7 @@ def bond_stretch(cloud: PointCloud, bonds: Bonds, u: Any) -> np.ndarray:
     >>> import numpy as np, pdlin
     >>> cloud = pdlin.grid((3, 3), spacing=1.0)
     >>> bonds = pdlin.find_bonds(cloud, 1.5)
-    >>> s = pdlin.bond_stretch(cloud, bonds, 0.01 * cloud.points)   # uniform 1 % dilation
+    >>> s = pdlin.models.bond_stretch(cloud, bonds, 0.01 * cloud.points)   # uniform 1 % dilation
     >>> bool(np.allclose(s, 0.01))
     True
     """
@@ -234,7 +234,7 @@ def break_bonds(cloud: PointCloud, bonds: Bonds, u: Any, s0: Any) -> tuple[Bonds
     >>> cloud = pdlin.grid((4, 2), spacing=1.0)
     >>> bonds = pdlin.find_bonds(cloud, 1.5)
     >>> u = np.where(cloud.points[:, :1] > 1.5, [0.1, 0.0], [0.0, 0.0])   # opening at x = 1.5
-    >>> new, n = pdlin.break_bonds(cloud, bonds, u, 1e-3)
+    >>> new, n = pdlin.models.break_bonds(cloud, bonds, u, 1e-3)
     >>> n, bonds.n_bonds - new.n_bonds
     (8, 8)
     """
@@ -294,8 +294,8 @@ def damage_index(bonds_intact: Bonds, bonds_now: Bonds) -> np.ndarray:
     >>> cloud = pdlin.grid((4, 2), spacing=1.0)
     >>> bonds = pdlin.find_bonds(cloud, 1.5)
     >>> u = np.where(cloud.points[:, :1] > 1.5, [0.1, 0.0], [0.0, 0.0])
-    >>> new, _ = pdlin.break_bonds(cloud, bonds, u, 1e-3)
-    >>> pdlin.damage_index(bonds, new).round(3)
+    >>> new, _ = pdlin.models.break_bonds(cloud, bonds, u, 1e-3)
+    >>> pdlin.models.damage_index(bonds, new).round(3)
     array([0. , 0. , 0.4, 0.4, 0.4, 0.4, 0. , 0. ])
     """
     for name, b in (("bonds_intact", bonds_intact), ("bonds_now", bonds_now)):
@@ -349,8 +349,8 @@ def isolated_points(bonds: Bonds) -> np.ndarray:
     >>> cloud = pdlin.grid((3, 1), spacing=1.0)
     >>> bonds = pdlin.find_bonds(cloud, 1.0)
     >>> u = np.array([[0.0, 0.0], [0.0, 0.0], [0.5, 0.0]])
-    >>> new, _ = pdlin.break_bonds(cloud, bonds, u, 0.1)
-    >>> pdlin.isolated_points(new)
+    >>> new, _ = pdlin.models.break_bonds(cloud, bonds, u, 0.1)
+    >>> pdlin.models.isolated_points(new)
     array([2])
     """
     if not isinstance(bonds, Bonds):
@@ -389,8 +389,8 @@ def drop_isolated(cloud: PointCloud, bonds: Bonds) -> tuple[PointCloud, Bonds, n
     >>> import numpy as np, pdlin
     >>> cloud = pdlin.grid((3, 1), spacing=1.0)
     >>> bonds = pdlin.find_bonds(cloud, 1.0)
-    >>> new, _ = pdlin.break_bonds(cloud, bonds, [[0, 0], [0, 0], [0.5, 0]], 0.1)
-    >>> c2, b2, keep = pdlin.drop_isolated(cloud, new)
+    >>> new, _ = pdlin.models.break_bonds(cloud, bonds, [[0, 0], [0, 0], [0.5, 0]], 0.1)
+    >>> c2, b2, keep = pdlin.models.drop_isolated(cloud, new)
     >>> c2.n, b2.n_bonds, keep
     (2, 2, array([0, 1]))
     """

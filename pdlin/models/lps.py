@@ -48,7 +48,7 @@ class LPS(OrdinaryStateBased):
     >>> cloud = pdlin.grid((8, 8), spacing=0.1)
     >>> bonds = pdlin.find_bonds(cloud, ratio=3.015)
     >>> model = pdlin.LPS(E=1.0, nu=0.3, plane="strain")
-    >>> K = pdlin.assemble_stiffness(model, cloud, bonds)
+    >>> K = pdlin.operators.assemble_stiffness(model, cloud, bonds)
     >>> K.shape, K.blocksize, model.coupling_range, model.symmetric
     ((128, 128), (2, 2), 2, True)
     >>> u = np.random.default_rng(0).normal(size=(cloud.n, 2))
@@ -99,7 +99,7 @@ class LPS(OrdinaryStateBased):
         Returns
         -------
         dict
-            As :meth:`OrdinaryStateBased.describe`, with ``peridigm`` and
+            As ``OrdinaryStateBased.describe``, with ``peridigm`` and
             ``surface_correction``.
         """
         out = super().describe()

@@ -11,14 +11,14 @@ deformation gradient ``F = (sum w V dy (x) xi) K^-1`` more accurate:
   with the next-order mixed-monomial equations; pdlin's rejection rules).
   The paper gives the procedure in words; pdlin's reading of it, listed in
   :func:`higher_order_weights`, reproduces its Tables 1-3 exactly.
-* **Numeric path for irregular families** (:func:`~pdlin.moment_weights`): the
+* **Numeric path for irregular families** (:func:`~pdlin.models.moment_weights`): the
   minimum-norm (volume-weighted) correction of base weights that makes the
   discrete moments of one family vanish, in floating point and batched over
   families.  On lattice families it agrees with the symbolic path only where
   the symbolic set is unique without augmentation (1D, 2D δ = h and 2h): it
   is a *different choice*, not an approximation of the symbolic one.
 
-The lattice Fourier symbol :func:`~pdlin.gradient_symbol` and
+The lattice Fourier symbol :func:`~pdlin.models.gradient_symbol` and
 :func:`symbol_extremes` support zero-energy-mode analysis (the paper's Sec. II.B,
 Eq. 11, in Fourier form), and
 :func:`gradient_exactness_order` checks polynomial exactness exactly.
@@ -516,7 +516,7 @@ def nocontrol_weights(dim: int, horizon_ratio: float) -> dict[int, float]:
     """Return the 'no control' set ``omega = 1/|xi|`` (units h = 1) keyed by shell ``s``.
 
     The LAMMPS-PD default that Javaheri et al. (2022) compare against; use it
-    with :func:`~pdlin.gradient_symbol`.
+    with :func:`~pdlin.models.gradient_symbol`.
 
     Parameters
     ----------
@@ -1009,7 +1009,7 @@ def symbol_extremes(
 
 @dataclass(frozen=True, eq=False)
 class MomentWeights:
-    """Result of :func:`~pdlin.moment_weights` (numeric, per family).
+    """Result of :func:`~pdlin.models.moment_weights` (numeric, per family).
 
     Attributes
     ----------

@@ -232,7 +232,7 @@ def assemble_stiffness(model: Any, cloud: PointCloud, bonds: Bonds) -> sp.sparra
     Raises
     ------
     InputTypeError
-        When ``model`` has no ``stiffness`` method or ``bonds`` is not :class:`Bonds`.
+        When ``model`` has no ``stiffness`` method or ``bonds`` is not :class:`~pdlin.Bonds`.
     ShapeError
         When ``bonds`` were built for another number of points or dimension.
 
@@ -241,7 +241,7 @@ def assemble_stiffness(model: Any, cloud: PointCloud, bonds: Bonds) -> sp.sparra
     >>> import pdlin
     >>> cloud = pdlin.grid((6, 6), spacing=0.1)
     >>> bonds = pdlin.find_bonds(cloud, ratio=3.015)
-    >>> K = pdlin.assemble_stiffness(pdlin.BondBased(E=1e9), cloud, bonds)
+    >>> K = pdlin.operators.assemble_stiffness(pdlin.BondBased(E=1e9), cloud, bonds)
     >>> K.shape, K.blocksize
     ((72, 72), (2, 2))
     """

@@ -122,7 +122,7 @@ class TimePath:
     """A prescribed displacement that depends on time, ``fn(points, t)``.
 
     ``fn`` receives the ``(m, dim)`` reference points and the time ``t`` and
-    returns any value form of :class:`Dirichlet`.  Linear solves evaluate it
+    returns any value form of :class:`~pdlin.Dirichlet`.  Linear solves evaluate it
     at ``t = 1``; :func:`pdlin.solve_nonlinear` at every load step's time
     (other Dirichlet values are scaled by the load factor instead).
 
@@ -139,7 +139,7 @@ class TimePath:
     fn: Callable[[np.ndarray, float], Any]
     description: str = ""
     #: velocity gradient and centre of an affine path (set by
-    #: :meth:`Dirichlet.velocity_gradient`; drivers use them for the affine predictor)
+    #: :meth:`pdlin.Dirichlet.velocity_gradient`; drivers use them for the affine predictor)
     L: Any = None
     center: Any = None
 

@@ -59,13 +59,13 @@ def rigid_body_modes(cloud: PointCloud | np.ndarray, *, orthonormal: bool = Fals
     -------
     (n*dim, n_modes) ndarray
         Point-major DOF order (``dim * i + k``); columns in the order of
-        :func:`rigid_mode_names`, rotations about the centroid (not normalized unless
+        ``rigid_mode_names``, rotations about the centroid (not normalized unless
         ``orthonormal``).
 
     Examples
     --------
     >>> import pdlin
-    >>> B = pdlin.rigid_body_modes(pdlin.grid((3, 3)))
+    >>> B = pdlin.operators.rigid_body_modes(pdlin.grid((3, 3)))
     >>> B.shape
     (18, 3)
     """

@@ -835,7 +835,7 @@ class SymmetryReduction:
         -------
         Response
             Force ``(n_real, dim)``, the state, ``K_sym`` or ``None``, as
-            :meth:`pdlin.Model.respond`.
+            :meth:`pdlin.models.Model.respond`.
 
         Raises
         ------
@@ -889,7 +889,7 @@ def symmetry_reduction(
     Raises
     ------
     InputTypeError
-        When ``model`` is not a pdlin model or ``cloud`` not a :class:`PointCloud`.
+        When ``model`` is not a pdlin model or ``cloud`` not a :class:`~pdlin.PointCloud`.
     ModelError
         When ``model.coupling_range`` is not an integer >= 1.
     NoNeighborsError

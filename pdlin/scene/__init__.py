@@ -9,15 +9,15 @@ without physics (result writers and readers) live in :mod:`pdlin.io`.
 
 Modules
 -------
-:mod:`pdlin.scene.scene`
+``pdlin.scene.scene``
     TOML scenes (:func:`load_scene`, :func:`scene_from_dict`) and the built-in examples.
-:mod:`pdlin.scene.decks`
-    Peridigm and PeriLab input decks (:func:`read_deck`).
-:mod:`pdlin.scene.checks`
+``pdlin.scene.decks``
+    Peridigm and PeriLab input decks (:func:`~pdlin.read_deck`).
+``pdlin.scene.checks``
     ``[[check]]`` tables: what a run verifies and against which reference.
-:mod:`pdlin.scene.targets`
+``pdlin.scene.targets``
     Calibration files (``pdlin calibrate``).
-:mod:`pdlin.scene.tradeoff`
+``pdlin.scene.tradeoff``
     ``[tradeoff]`` tables of scenes (``pdlin tradeoff``, ``pdlin run --select``).
 """
 

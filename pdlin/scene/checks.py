@@ -27,8 +27,8 @@ Every check names its reference (``source``) and a tolerance.  Kinds:
     the full one).
 ``material-point``
     The homogenized stress of every load step against the homogeneous crystal-plasticity
-    driver :func:`pdlin.material_point` at the same steps (the constitutive model of Luo,
-    Ramazani & Sundararaghavan 2017, Sec. 3).
+    driver :func:`pdlin.constitutive.material_point` at the same steps (the constitutive
+    model of Luo, Ramazani & Sundararaghavan 2017, Sec. 3).
 
 Quantities of ``value`` checks: a field component ``displacement_x``, ``strain_xy``,
 ``stress_yy``, ``deformation_gradient_xx`` (reduced by ``reduce``: mean, max, min, sum,
@@ -115,7 +115,7 @@ class CheckResult:
         Returns
         -------
         str
-            :func:`format_check` of this result.
+            ``format_check`` of this result.
         """
         return format_check(self)
 

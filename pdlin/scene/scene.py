@@ -148,7 +148,7 @@ class Scene:
     #: ``[subregion]`` scenes: the driving coarse solve and the cut (see
     #: :func:`pdlin.subregion`): box, layer, coarse spacing, points, seconds
     subregion: dict[str, Any] | None = None
-    #: ``[[check]]`` tables (:func:`pdlin.scene.checks.parse_checks`)
+    #: ``[[check]]`` tables (:func:`pdlin.scene.parse_checks`)
     checks: list[Any] = field(default_factory=list)
     #: ``[damage]`` options of :func:`pdlin.solve_damage` (``s0``, ``steps``, ...), or None
     damage: dict[str, Any] | None = None
@@ -398,7 +398,7 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
     Parameters
     ----------
     data : Mapping
-        The parsed scene (what :func:`tomllib.loads` gives for a scene file).
+        The parsed scene (what ``tomllib.loads`` gives for a scene file).
     base_dir : str or Path, optional
         Folder that relative paths inside the scene are resolved against (default: the
         working directory).

@@ -1,11 +1,11 @@
 """Solvers: direct, AMG-preconditioned Krylov, and the nonlinear step drivers.
 
-The linear solvers live in :mod:`~pdlin.solvers.linear` and :mod:`~pdlin.solvers.direct`;
-one load (sub)step of Newton in :mod:`~pdlin.solvers.newton` and of adaptive dynamic
-relaxation in :mod:`~pdlin.solvers.adr` (their outcome in :mod:`~pdlin.solvers.outcome`);
-the load stepping of :func:`pdlin.solve_nonlinear` in :mod:`~pdlin.solvers.stepping`,
-its options in :mod:`~pdlin.solvers.options` and its checkpoints in
-:mod:`~pdlin.solvers.checkpoint`.
+The linear solvers live in the modules ``pdlin.solvers.linear`` and
+``pdlin.solvers.direct``; one load (sub)step of Newton in ``pdlin.solvers.newton``
+and of adaptive dynamic relaxation in ``pdlin.solvers.adr`` (their outcome in
+``pdlin.solvers.outcome``); the load stepping of :func:`pdlin.solve_nonlinear` in
+``pdlin.solvers.stepping``, its options in ``pdlin.solvers.options`` and its
+checkpoints in ``pdlin.solvers.checkpoint``.
 """
 
 from .adr import adr_density, adr_step, adr_time_step

@@ -1,7 +1,7 @@
 """Newton-Raphson for one load (sub)step: consistent tangent, backtracking line search.
 
 Works on a :class:`~pdlin.system.ConstrainedSystem` and the model's
-:meth:`~pdlin.Model.respond` (force, trial state and tangent at ``u`` from the committed
+:meth:`~pdlin.models.Model.respond` (force, trial state and tangent at ``u`` from the committed
 state).  A step returns a :class:`~pdlin.solvers.outcome.StepOutcome` or raises
 :class:`~pdlin.solvers.outcome.StepFailed`, which the load stepping of
 :func:`pdlin.solve_nonlinear` turns into a cut-back or an ADR fallback.  Newton with

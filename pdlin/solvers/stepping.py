@@ -8,7 +8,7 @@ dynamic relaxation (:func:`~pdlin.solvers.adr.adr_step`) in automatic increments
 the committed state, commits the model's trial state when the step converges, records
 one :class:`StepRecord` and writes the checkpoint (:mod:`pdlin.solvers.checkpoint`).
 The driver knows no material: a model reports the warnings of its committed state
-through :meth:`pdlin.Model.committed_issues`, and trial iterates may leave a state
+through :meth:`pdlin.models.Model.committed_issues`, and trial iterates may leave a state
 questionable (:class:`~pdlin.errors.TrialStateWarning`, not issued here).
 """
 

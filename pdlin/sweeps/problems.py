@@ -86,8 +86,8 @@ def make_model(name: str, E: Any, nu: float | None = None, *, plane: str = "stre
     Returns
     -------
     Model
-        A :class:`~pdlin.models.BondBased`, :class:`~pdlin.models.LPS`,
-        :class:`~pdlin.models.XOSB` or :class:`~pdlin.models.Correspondence`.
+        A :class:`~pdlin.BondBased`, :class:`~pdlin.LPS`,
+        :class:`~pdlin.XOSB` or :class:`~pdlin.Correspondence`.
 
     Raises
     ------

@@ -440,7 +440,7 @@ def gradient_operator(
     ``G_j[a, b] = c_ab,j`` and ``G_j[a, a] = -Σ_b c_ab,j`` with
     ``c_ab = ω_ab V_b K_a⁻¹ ξ_ab`` (Javaheri et al. (2022), Eqs. 6-7, in sparse form); rows
     are ordered ``(a, i, j)`` for ``∂u_i/∂X_j`` and columns are interleaved DOFs.
-    ``G u`` equals ``pdlin.deformation_gradient(cloud, bonds, u) - I``, so it
+    ``G u`` equals ``pdlin.fields.deformation_gradient(cloud, bonds, u) - I``, so it
     is exact for affine fields wherever ``K_a`` is invertible.  Diagonals
     that vanish up to round-off (intact horizons) are stored as exact zeros.
 

@@ -169,8 +169,8 @@ class Correspondence(Model):
           LAMMPS-PD ``ω = 1/|ξ|``, or ``'constant'``).
         * ``'higher_order'``: the model re-weights the bonds of a
           :func:`pdlin.grid` cloud with
-          ``pdlin.higher_order_weights(dim, δ/h)`` (Javaheri et al. (2022), Sec. II.C.1; negative
-          weights allowed).  Build the bonds with ``find_bonds(cloud,
+          ``pdlin.models.higher_order_weights(dim, δ/h)`` (Javaheri et al.
+          (2022), Sec. II.C.1; negative weights allowed).  Build the bonds with ``find_bonds(cloud,
           ratio=m)`` (any influence: it is replaced).
         * ``'penalty'``: adds ``½ Σ_b ½ penalty k_b |z_b|²`` with
           ``z_b = u_j - u_i - ∇u_i ξ_b`` (non-affine part of bond b) and
@@ -268,7 +268,7 @@ class Correspondence(Model):
     >>> cloud = pdlin.grid((8, 8), spacing=0.1)
     >>> bonds = pdlin.find_bonds(cloud, ratio=2.0)
     >>> model = pdlin.Correspondence(E=1.0, nu=0.25, plane="strain")
-    >>> K = pdlin.assemble_stiffness(model, cloud, bonds)
+    >>> K = pdlin.operators.assemble_stiffness(model, cloud, bonds)
     >>> u = np.random.default_rng(0).normal(size=(cloud.n, 2))
     >>> bool(np.allclose(K @ u.ravel(), -model.internal_force(cloud, bonds, u).ravel()))
     True
@@ -1365,7 +1365,7 @@ class Correspondence(Model):
         Penalty, springs and ADS controls are linear add-ons: ``f -= K_c u``,
         ``K_T += K_c``.  ``state`` (from :meth:`initial_state` or a committed trial state)
         is not modified.  Without ``material=`` this is the linear model
-        (:meth:`pdlin.Model.respond`).
+        (:meth:`pdlin.models.Model.respond`).
 
         Returns
         -------

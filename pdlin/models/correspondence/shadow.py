@@ -62,7 +62,7 @@ def shadow_problem(
 
     Returns a :class:`pdlin.StaticProblem` whose model is ``model`` with
     ``shadow`` set, whose Dirichlet condition is :func:`pdlin.shadow_layer`
-    and whose load is the shadow-stress force :meth:`Correspondence.shadow_loads`
+    and whose load is the shadow-stress force :meth:`pdlin.Correspondence.shadow_loads`
     (Javaheri et al. (2022), Sec. II.D).  Odd real counts along an axis make K_RR singular
     (derived parity rule, see docs/correspondence.md) and raise unless ``allow_odd``; stress points,
     springs and ADS couple the sublattices and are exempt.
