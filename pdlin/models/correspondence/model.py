@@ -203,7 +203,7 @@ class Correspondence(Model):
         * ``'ads'``: Luo & Sundararaghavan (2018), Eq. 8, the averaged displacement state
           ``T_a,i = C2 Σ_k ω V_k (u_k - u_i)`` (one vector per particle):
           ``K_a = C2 diag(V) Lap_V Lap_ωV``.  Symmetric for constant ω
-          (the spec's ω = 1) and any V; nonsymmetric for varying ω
+          (the paper's ω = 1) and any V; nonsymmetric for varying ω
           (``model.symmetric`` is False until a plan shows constant ω).
 
         Springs and ADS use one gradient point per particle (as
@@ -1399,7 +1399,7 @@ class Correspondence(Model):
         ...                   tangent=True)
         >>> r.force.shape, r.tangent.shape, r.calls, model.symmetric
         ((36, 2), (72, 72), 36, False)
-        >>> round(float(r.stress[14, 0, 1]), 3)   # interior particle, elastic (spec §8.1: 8.000)
+        >>> round(float(r.stress[14, 0, 1]), 3)   # interior particle, elastic
         8.0
         """
         if self.material is None:
