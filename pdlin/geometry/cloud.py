@@ -651,8 +651,8 @@ def ghost_layer(cloud: PointCloud, layers: int = 1) -> GhostLayer:
     lat = cloud.lattice
     if lat is None:
         raise InputError(
-            "ghost_layer needs a lattice cloud (pdlin.grid or pdlin.from_image), got a cloud "
-            "without lattice metadata"
+            "ghost_layer needs a lattice cloud (pdlin.grid or pdlin.geometry.from_image), "
+            "got a cloud without lattice metadata"
         )
     if isinstance(layers, bool) or not isinstance(layers, int | np.integer) or layers < 1:
         raise InputError(f"layers must be an integer >= 1, got {layers!r}")

@@ -254,7 +254,7 @@ def break_bonds(cloud: PointCloud, bonds: Bonds, u: Any, s0: Any) -> tuple[Bonds
     if iso.size:
         log.warning(
             "%d point(s) left without bonds (first %d); drop them before a static solve "
-            "(pdlin.drop_isolated)",
+            "(pdlin.models.damage.drop_isolated)",
             iso.size,
             int(iso[0]),
         )

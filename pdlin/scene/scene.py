@@ -838,7 +838,7 @@ def _damage_options(
         if not isinstance(model, BondBased) or E is None or np.ndim(E) != 0:
             raise SceneError(
                 "damage.G0 needs a bond-based model with one scalar material.E (the "
-                "critical-stretch forms of pdlin.critical_stretch); give "
+                "critical-stretch forms of pdlin.models.damage.critical_stretch); give "
                 "damage.critical_stretch otherwise"
             )
         cloud = problem.cloud

@@ -317,8 +317,8 @@ class Correspondence(Model):
             if shadow is not None:
                 raise ModelError(
                     "shadow= is not supported with material= (its shadow loads are linear); "
-                    "use pdlin.ghost_layer to give the prescribed particles full families, got "
-                    "both"
+                    "use pdlin.geometry.ghost_layer to give the prescribed particles full "
+                    "families, got both"
                 )
         iso = [k for k, v in {"K": K, "G": G, "lam": lam, "mu": mu}.items() if v is not None]
         if iso and material is None:
@@ -1647,3 +1647,8 @@ def _threaded(p: _Plan, key: str, A: Any) -> Any:
 
 def _as_u(u: Any, cloud: PointCloud) -> np.ndarray:
     return as_displacement(u, cloud.n, cloud.dim)
+
+
+#: doctest collects the examples of the class's methods here (its ``__module__`` above
+#: names the package, where only the class docstring is found)
+__test__ = {"Correspondence": Correspondence}
