@@ -193,6 +193,87 @@ def test_no_module_level_import_cycle() -> None:
     assert not problems, "module-level import cycles:\n" + "\n".join(problems)
 
 
+#: the layers of docs/architecture.md, bottom (0) to top: a module imports at module level
+#: only from its own layer or below.  Keys are module names or prefixes (the longest match
+#: wins); a package's ``__init__`` re-exports its modules and sits with its highest one
+LAYERS: dict[str, int] = {
+    "pdlin.errors": 0,
+    "pdlin.resources": 0,
+    "pdlin._": 0,  # pdlin/_*.py: internal shared modules
+    "pdlin.geometry": 1,
+    "pdlin.constitutive": 1,
+    "pdlin.io": 1,
+    "pdlin.operators.assembly": 2,  # the BSR assembly the models build their K with
+    "pdlin.operators.bc": 2,  # condition data
+    "pdlin.operators.rigid": 2,
+    "pdlin.fields": 2,
+    "pdlin.models": 3,
+    "pdlin.problem": 4,
+    "pdlin.constraints": 4,
+    "pdlin.operators.symmetry": 4,  # a discretization of the constrained system
+    "pdlin.operators": 4,  # the package re-exports pdlin.constraints' functions
+    "pdlin.system": 4,
+    "pdlin.solvers": 5,
+    "pdlin.backends": 5,
+    "pdlin.static": 6,
+    "pdlin.nonlinear": 6,
+    "pdlin.fracture": 6,
+    "pdlin.submodeling": 6,
+    "pdlin.analysis": 6,
+    "pdlin.calibration": 6,
+    "pdlin.verification": 6,
+    "pdlin.sweeps": 7,
+    "pdlin.scene": 8,
+    "pdlin.cli": 9,
+    "pdlin.plotting": 9,
+    "pdlin.__main__": 9,
+    "pdlin": 9,
+}
+
+#: deprecated modules left at old paths (they re-export from above for one release)
+SHIMS = {
+    "pdlin.operators.sparsity",
+    "pdlin.calibration.plotting",
+    "pdlin.io.scene",
+    "pdlin.io.decks",
+    "pdlin.io.checks",
+    "pdlin.io.targets",
+    "pdlin.sweeps.scene",
+}
+
+
+def _layer(module: str) -> int:
+    keys = [
+        k for k in LAYERS if module == k or module.startswith(k if k.endswith("_") else k + ".")
+    ]
+    if module.startswith("pdlin._") and module != "pdlin.__main__":
+        keys.append("pdlin._")
+    return LAYERS[max(keys, key=len)]
+
+
+def test_modules_import_only_from_their_layer_or_below() -> None:
+    graph = _import_graph()
+    problems = [
+        f"  {_where(a, node)}: {a} (layer {_layer(a)}) imports {b} (layer {_layer(b)})"
+        for a, edges in sorted(graph.items())
+        if a not in SHIMS
+        for b, node in sorted(edges.items())
+        if _layer(b) > _layer(a)
+    ]
+    assert not problems, (
+        "upward imports (docs/architecture.md, 'Layers'); move the code or import inside the "
+        "function that needs it:\n" + "\n".join(problems)
+    )
+
+
+def test_every_module_has_a_layer_and_shims_exist() -> None:
+    assert SHIMS <= set(MODULES)
+    assert _layer("pdlin._arrays") == 0 and _layer("pdlin.operators.assembly") == 2
+    assert _layer("pdlin.models.correspondence.model") == 3 and _layer("pdlin.__main__") == 9
+    for module in MODULES:
+        _layer(module)  # raises on a module of no layer
+
+
 def test_cycle_finder_finds_a_cycle() -> None:
     graph: dict[str, dict[str, ast.AST]] = {"a": {"b": ast.Pass()}, "b": {"a": ast.Pass()}}
     graph["c"] = {"a": ast.Pass()}
@@ -322,6 +403,11 @@ def test_names_moved_out_of_subpackages_warn(old: str, name: str, home: str) -> 
             ],
         ),
         ("pdlin.calibration.plotting", ["plot_micromoduli"]),
+        ("pdlin.io.scene", ["load_scene", "scene_from_dict", "builtin_scene"]),
+        ("pdlin.io.decks", ["read_deck"]),
+        ("pdlin.io.checks", ["evaluate_checks"]),
+        ("pdlin.io.targets", ["load_calibration", "target_from_table"]),
+        ("pdlin.sweeps.scene", ["select_scene"]),
     ],
 )
 def test_moved_modules_leave_a_warning_shim(shim: str, names: list[str]) -> None:
