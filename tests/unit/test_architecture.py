@@ -239,6 +239,7 @@ SHIMS = {
     "pdlin.io.checks",
     "pdlin.io.targets",
     "pdlin.sweeps.scene",
+    "pdlin.solvers.nonlinear",
 }
 
 
@@ -408,6 +409,7 @@ def test_names_moved_out_of_subpackages_warn(old: str, name: str, home: str) -> 
         ("pdlin.io.checks", ["evaluate_checks"]),
         ("pdlin.io.targets", ["load_calibration", "target_from_table"]),
         ("pdlin.sweeps.scene", ["select_scene"]),
+        ("pdlin.solvers.nonlinear", ["adr_step", "adr_time_step", "newton_step", "StepOutcome"]),
     ],
 )
 def test_moved_modules_leave_a_warning_shim(shim: str, names: list[str]) -> None:
