@@ -18,8 +18,8 @@ SuperLU (scipy) is always present.  The optional backends are imported lazily:
   available.
 
 ``backend='auto'`` picks PARDISO, then CHOLMOD (CHOLMOD first when pdlin runs on
-one thread), then MUMPS, then SuperLU for symmetric
-matrices and PARDISO, then SuperLU for nonsymmetric ones (SuperLU alone below
+one thread or the matrix is 3D: a BSR matrix of 3 x 3 blocks), then MUMPS, then
+SuperLU for symmetric matrices and PARDISO, then SuperLU for nonsymmetric ones (SuperLU alone below
 :data:`~pdlin.solvers.AUTO_MIN` unknowns); a Cholesky that
 finds the matrix not positive definite falls back down the list and the
 reason is kept in :attr:`DirectSolver.info` (``'fallback'``).
@@ -141,7 +141,7 @@ def available_direct_backends() -> dict[str, bool]:
 AUTO_MIN = 20_000
 
 
-def auto_chain(symmetric: bool, n: int) -> list[str]:
+def auto_chain(symmetric: bool, n: int, dim: int | None = None) -> list[str]:
     """Return the direct backends ``backend="auto"`` tries, fastest first.
 
     Parameters
@@ -151,6 +151,9 @@ def auto_chain(symmetric: bool, n: int) -> list[str]:
     n : int
         Number of unknowns; below ``AUTO_MIN`` SuperLU alone is used (the others' set-up
         costs more than it saves).
+    dim : int, optional
+        Spatial dimension of the problem (2 or 3; :class:`DirectSolver` takes it from the
+        block size of a BSR matrix), ``None`` when unknown (then treated as 2D).
 
     Returns
     -------
@@ -167,11 +170,16 @@ def auto_chain(symmetric: bool, n: int) -> list[str]:
         return ["superlu"]
     if not symmetric:
         return [b for b in ("pardiso", "mumps", "superlu") if avail[b]]
-    # symmetric: PARDISO first when pdlin may use several threads (on 2 cores it was
-    # faster on every 401² anchor row: 9.8 vs 11.4 s unstabilized, 5.7 vs 8.3 s with stress
-    # points), CHOLMOD first on one (14.2 vs 17.2 s unstabilized; benchmarks/README.md)
-    multi = get_num_threads() > 1
-    order = ["pardiso", "cholmod"] if multi else ["cholmod", "pardiso"]
+    # symmetric (benchmarks/README.md, "CHOLMOD or PARDISO: by dimension and threads (issue
+    # 33)"; 2 cores, AMD EPYC, OpenBLAS 0.3.21 / MKL 2026.2):
+    # - one thread: CHOLMOD (2D 401² no control 14.2 vs 17.2 s; 3D 1.6-1.9 x fewer CPU s);
+    # - several threads, 3D: CHOLMOD (30³ bond-based δ = 2.015h 17-21 vs 31-34 CPU s, 20³
+    #   LPS 8-11 vs 14-16 CPU s; PARDISO's 2 threads gain little in 3D and lose most
+    #   under load);
+    # - several threads, 2D: PARDISO (quiet 2 cores, 401²: 8.6 vs 9.9 s no control, 4.4
+    #   vs 6.9 s stress points; under load the two are within the noise)
+    cholmod_first = get_num_threads() == 1 or dim == 3
+    order = ["cholmod", "pardiso"] if cholmod_first else ["pardiso", "cholmod"]
     return [b for b in [*order, "mumps", "superlu"] if avail[b]]
 
 
@@ -466,6 +474,13 @@ def _as_csc(A: Any, symmetric: bool) -> sp.csc_matrix:
     return sp.csc_matrix((R.data, R.indices, R.indptr), shape=R.shape)
 
 
+def _dim(A: Any) -> int | None:
+    """Spatial dimension of ``A``'s problem: its BSR block size when 2 or 3, else None."""
+    if getattr(A, "format", None) == "bsr" and int(A.blocksize[0]) in (2, 3):
+        return int(A.blocksize[0])
+    return None
+
+
 def _triu(A: sp.csc_matrix) -> sp.csr_matrix:
     """Upper triangle (diagonal included) of a symmetric ``A`` in CSR with sorted rows.
 
@@ -500,7 +515,8 @@ class DirectSolver:
         Whether ``A`` is symmetric (checked numerically when omitted).
     backend : {'auto', 'superlu', 'cholmod', 'pardiso', 'mumps'}
         ``'auto'``: PARDISO, then CHOLMOD (supernodal Cholesky; first when
-        :func:`pdlin.get_num_threads` is 1), MUMPS, then SuperLU for symmetric
+        :func:`pdlin.get_num_threads` is 1 or ``A`` is a BSR matrix of 3 x 3 blocks,
+        i.e. 3D), MUMPS, then SuperLU for symmetric
         ``A``; PARDISO, MUMPS, then SuperLU for nonsymmetric ``A``, skipping
         those not installed; SuperLU alone below
         :data:`~pdlin.solvers.AUTO_MIN` unknowns.  SuperLU runs in symmetric mode
@@ -548,7 +564,7 @@ class DirectSolver:
                 "direct_backend='cholmod' needs a symmetric matrix (Cholesky); this one is "
                 "nonsymmetric: use 'pardiso', 'superlu' or 'auto'"
             )
-        chain = [backend] if backend != "auto" else auto_chain(self.symmetric, A.shape[0])
+        chain = [backend] if backend != "auto" else auto_chain(self.symmetric, A.shape[0], _dim(A))
         factor_bytes = check_factor_memory(A, chain[0])
         self.info: dict[str, Any] = {}
         notes: list[str] = []

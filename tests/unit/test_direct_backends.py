@@ -116,6 +116,46 @@ def test_auto_chain_order(monkeypatch: pytest.MonkeyPatch) -> None:
     assert direct_mod._auto_chain(True, big - 1) == ["superlu"]
 
 
+def test_auto_chain_prefers_cholmod_in_3d(monkeypatch: pytest.MonkeyPatch) -> None:
+    # issue 33: on several threads CHOLMOD leads for 3D (3 x 3 blocks) symmetric K,
+    # PARDISO for 2D or unknown dimension; nonsymmetric K never gets CHOLMOD
+    every = {"superlu": True, "cholmod": True, "pardiso": True, "mumps": True}
+    monkeypatch.setattr(direct_mod, "available_direct_backends", lambda: dict(every))
+    monkeypatch.setattr(direct_mod, "get_num_threads", lambda: 2)
+    big = direct_mod.AUTO_MIN
+    assert direct_mod.auto_chain(True, big, 3) == ["cholmod", "pardiso", "mumps", "superlu"]
+    assert direct_mod.auto_chain(True, big, 2) == ["pardiso", "cholmod", "mumps", "superlu"]
+    assert direct_mod.auto_chain(True, big, None) == ["pardiso", "cholmod", "mumps", "superlu"]
+    assert direct_mod.auto_chain(False, big, 3) == ["pardiso", "mumps", "superlu"]
+    assert direct_mod.auto_chain(True, big - 1, 3) == ["superlu"]
+    monkeypatch.setattr(direct_mod, "get_num_threads", lambda: 1)
+    assert direct_mod.auto_chain(True, big, 2) == ["cholmod", "pardiso", "mumps", "superlu"]
+    # without CHOLMOD installed the 3D order keeps the rest
+    monkeypatch.setattr(direct_mod, "get_num_threads", lambda: 2)
+    monkeypatch.setattr(
+        direct_mod, "available_direct_backends", lambda: {**every, "cholmod": False}
+    )
+    assert direct_mod.auto_chain(True, big, 3) == ["pardiso", "mumps", "superlu"]
+
+
+def test_direct_solver_passes_the_block_size_as_dimension(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    seen: list[int | None] = []
+
+    def chain(symmetric: bool, n: int, dim: int | None = None) -> list[str]:
+        seen.append(dim)
+        return ["superlu"]
+
+    monkeypatch.setattr(direct_mod, "auto_chain", chain)
+    A = sp.random(12, 12, density=0.3, random_state=0)
+    A = (A @ A.T + 12 * sp.eye(12)).tocsr()
+    for blocks in (3, 2):
+        DirectSolver(sp.bsr_array(A, blocksize=(blocks, blocks)), symmetric=True)
+    DirectSolver(A, symmetric=True)
+    assert seen == [3, 2, None]
+
+
 def test_auto_falls_back_on_indefinite_matrix() -> None:
     """A symmetric indefinite matrix: CHOLMOD fails, auto goes on and says why."""
     _need("cholmod")
