@@ -342,7 +342,7 @@ def plan_memory(
     elif direct and direct_backend == "auto":
         from .solvers.direct import AUTO_MIN, auto_chain
 
-        backend = "superlu" if ndof < AUTO_MIN else auto_chain(True, ndof)[0]
+        backend = "superlu" if ndof < AUTO_MIN else auto_chain(True, ndof, d)[0]
     plan = estimate_static_run(n, nb, nblocks, d, path=path, coupling_range=rng, backend=backend)
     if history_steps:
         hist = int(history_steps) * n * (d + d * d + 2) * 8
