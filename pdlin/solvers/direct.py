@@ -27,6 +27,7 @@ reason is kept in :attr:`DirectSolver.info` (``'fallback'``).
 
 from __future__ import annotations
 
+import ctypes
 import glob
 import importlib
 import logging
@@ -34,6 +35,8 @@ import os
 import site
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -234,6 +237,51 @@ class _SuperLU:
         return self._lu.solve(b)
 
 
+def _openblas_libs() -> list[Any]:
+    """List the plain OpenBLAS libraries loaded in this process (CHOLMOD's BLAS) as ctypes handles.
+
+    Linux only (``/proc/self/maps``); numpy's own ``scipy_openblas`` exports prefixed
+    names and is not among them.
+    """
+    try:
+        with open("/proc/self/maps") as fh:
+            paths = {line.split()[-1] for line in fh if "openblas" in line.rsplit("/", 1)[-1]}
+    except OSError:
+        return []
+    libs = []
+    for path in sorted(paths):
+        try:
+            lib = ctypes.CDLL(path)
+            lib.openblas_get_num_threads.restype = ctypes.c_int
+            lib.openblas_set_num_threads.argtypes = [ctypes.c_int]
+        except (OSError, AttributeError):
+            continue
+        libs.append(lib)
+    return libs
+
+
+@contextmanager
+def _openblas_threads(n: int) -> Iterator[None]:
+    """Cap CHOLMOD's OpenBLAS at ``n`` threads for the block, then restore its count.
+
+    OpenBLAS starts as many threads as there are cores whatever pdlin's setting; with the
+    other core busy, 2 threads made CHOLMOD 2x slower than 1 (issue 33: 401² no control,
+    38.2 / 49.3 s against 19.7 / 28.1 s; benchmarks/README.md). Only ever lowers the count
+    (``OPENBLAS_NUM_THREADS`` stays an upper bound).
+    """
+    saved = []
+    for lib in _openblas_libs():
+        old = int(lib.openblas_get_num_threads())
+        if n < old:
+            lib.openblas_set_num_threads(n)
+            saved.append((lib, old))
+    try:
+        yield
+    finally:
+        for lib, old in saved:
+            lib.openblas_set_num_threads(old)
+
+
 class _Cholmod:
     name = "cholmod"
 
@@ -263,7 +311,8 @@ class _Cholmod:
         ):
             self._analyze(csc)  # the symbolic factorization holds for one pattern only
         try:
-            self._f.cholesky_inplace(csc)
+            with _openblas_threads(get_num_threads()):
+                self._f.cholesky_inplace(csc)
         except self._mod.CholmodNotPositiveDefiniteError as exc:
             raise _NotPositiveDefinite(str(exc)) from exc
 

@@ -156,6 +156,29 @@ def test_direct_solver_passes_the_block_size_as_dimension(
     assert seen == [3, 2, None]
 
 
+def test_cholmod_blas_threads_follow_pdlin(monkeypatch: pytest.MonkeyPatch) -> None:
+    # issue 33: CHOLMOD's OpenBLAS is capped at pdlin's thread count during the
+    # factorization (never raised) and restored after it
+    _need("cholmod")
+    libs = direct_mod._openblas_libs()
+    if not libs:
+        pytest.skip("CHOLMOD's BLAS here is not a plain OpenBLAS")
+    before = [lib.openblas_get_num_threads() for lib in libs]
+    seen: list[list[int]] = []
+    with direct_mod._openblas_threads(1):
+        seen.append([lib.openblas_get_num_threads() for lib in libs])
+    assert seen == [[1] * len(libs)]
+    assert [lib.openblas_get_num_threads() for lib in libs] == before
+    with direct_mod._openblas_threads(10_000):  # never raised above the current count
+        assert [lib.openblas_get_num_threads() for lib in libs] == before
+    monkeypatch.setattr(direct_mod, "get_num_threads", lambda: 1)
+    A = sp.random(60, 60, density=0.1, random_state=1)
+    A = (A @ A.T + 60 * sp.eye(60)).tocsc()
+    s = DirectSolver(A, symmetric=True, backend="cholmod")
+    assert np.allclose(A @ s.solve(np.ones(60)), 1.0)
+    assert [lib.openblas_get_num_threads() for lib in libs] == before
+
+
 def test_auto_falls_back_on_indefinite_matrix() -> None:
     """A symmetric indefinite matrix: CHOLMOD fails, auto goes on and says why."""
     _need("cholmod")
