@@ -28,8 +28,8 @@ The count is ``pdlin.set_num_threads(n)``, else the environment variable
 ``PDLIN_NUM_THREADS``, else the CPUs this process may run on (its affinity mask); numba's
 kernels use the same count (capped at numba's ``NUMBA_NUM_THREADS``).  BLAS / MKL threads
 of the direct backends follow their own variables (``OPENBLAS_NUM_THREADS``,
-``MKL_NUM_THREADS``, ``OMP_NUM_THREADS``); CHOLMOD's OpenBLAS is also capped at this count
-during its factorization.
+``MKL_NUM_THREADS``, ``OMP_NUM_THREADS``); the OpenBLAS of CHOLMOD and MUMPS is also capped
+at this count during their factorizations.
 """
 
 from __future__ import annotations

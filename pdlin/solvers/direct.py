@@ -262,7 +262,7 @@ def _openblas_libs() -> list[Any]:
 
 @contextmanager
 def _openblas_threads(n: int) -> Iterator[None]:
-    """Cap CHOLMOD's OpenBLAS at ``n`` threads for the block, then restore its count.
+    """Cap the OpenBLAS of CHOLMOD / MUMPS at ``n`` threads for the block, then restore it.
 
     OpenBLAS starts as many threads as there are cores whatever pdlin's setting; with the
     other core busy, 2 threads made CHOLMOD 2x slower than 1 (issue 33: 401² no control,
@@ -425,7 +425,8 @@ class _Mumps:
                 self._ctx.analyze(ordering=self._ordering)
                 self._pattern = (M.row.copy(), M.col.copy())
                 self.ordering = str(self._ctx.analysis_stats.ordering)
-            self._ctx.factor(M, reuse_analysis=True)
+            with _openblas_threads(get_num_threads()):  # Debian's MUMPS: the same OpenBLAS
+                self._ctx.factor(M, reuse_analysis=True)
         except self._err as exc:
             raise ConvergenceError(f"direct solve (MUMPS): {exc}") from exc
 
