@@ -40,7 +40,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ._repr import compact_repr, html_table
+from ._repr import Raw, compact_repr, html_table
 from .constraints import (
     check_constraints,
     eliminate_dirichlet,
@@ -448,6 +448,21 @@ class ConstrainedSystem:
     #: Dirichlet conditions with a :class:`~pdlin.operators.TimePath` value (re-evaluated per time)
     paths: tuple[Dirichlet, ...] = ()
     _free: np.ndarray | None = field(default=None, repr=False)
+
+    def __repr__(self) -> str:
+        """Return a one-line summary: model, sizes, prescribed and free DOFs (no arrays)."""
+        return compact_repr(
+            "ConstrainedSystem",
+            {
+                "model": Raw(repr(self.model)),
+                "points": self.n,
+                "dim": self.dim,
+                "DOFs": self.ndof,
+                "prescribed": int(self.dofs.size),
+                "discretization": type(self.disc).__name__,
+                "time_paths": len(self.paths) or None,
+            },
+        )
 
     # -- sizes and masks ----------------------------------------------------
     @property
