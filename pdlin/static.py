@@ -13,7 +13,10 @@ import logging
 import time
 import warnings
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
+
+import numpy as np
 
 from ._validation import integer, tolerance
 from .backends import BACKENDS
@@ -24,7 +27,7 @@ from .operators.assembly import estimate_bond_operator_bytes
 from .problem import StaticProblem, choose_operator, memory_hints, plan_memory
 from .resources import ASSEMBLY_TRANSIENT, check_memory
 from .solvers.linear import SOLVERS, LinearSolveInfo, check_force_balance, solve_linear
-from .system import StaticResult, constrained_system
+from .system import ConstrainedSystem, StaticResult, constrained_system
 
 __all__ = ["solve"]
 
@@ -138,6 +141,32 @@ def solve(
             problem, solver, rtol=rtol, maxiter=maxiter, petsc_options=petsc_options,
             progress=progress,
         )  # fmt: skip
+    rtol, maxiter = _check_scipy_options(rtol, maxiter, amg_options)
+    say = progress or (lambda msg: None)
+    timings: dict[str, float] = {}
+    t_start = time.perf_counter()
+    plan = _plan(problem, solver, operator, keep_stiffness, direct_backend, say)
+    say("bonds")
+    t0 = time.perf_counter()
+    system = constrained_system(problem)
+    timings["bonds"] = time.perf_counter() - t0
+    ops = _operators(system, solver, operator, keep_stiffness, plan, say, timings)
+    if preconditioner is not None:
+        ops.precond = system.preconditioner_matrix(preconditioner)
+    say(f"solve ({ops.solver})")
+    lin = solve_linear(
+        ops.A, ops.b, ops.solver, rtol=rtol, maxiter=maxiter, near_null=system.near_null(),
+        blocksize=system.dim, symmetric=system.symmetric, amg_options=dict(amg_options or {}),
+        preconditioner_matrix=ops.precond, direct_backend=direct_backend, progress=progress,
+    )  # fmt: skip
+    info = {"preconditioner": preconditioner.describe()} if preconditioner is not None else {}
+    return _result(problem, system, ops, lin, ops.b, timings, t_start, keep_stiffness, info)
+
+
+def _check_scipy_options(
+    rtol: float, maxiter: int | None, amg_options: Mapping[str, Any] | None
+) -> tuple[float, int | None]:
+    """Check ``rtol``, ``maxiter`` and ``amg_options`` of a scipy solve; return them normalized."""
     rtol = tolerance(rtol, "rtol")
     if maxiter is not None:
         maxiter = integer(maxiter, "maxiter", minimum=1)
@@ -146,11 +175,18 @@ def solve(
             f"amg_options must be a mapping of pyamg keyword arguments, got "
             f"{type(amg_options).__name__}"
         )
-    say = progress or (lambda msg: None)
-    timings: dict[str, float] = {}
-    t_start = time.perf_counter()
-    model = problem.model
+    return rtol, maxiter
 
+
+def _plan(
+    problem: StaticProblem,
+    solver: str,
+    operator: str,
+    keep_stiffness: bool,
+    direct_backend: str,
+    say: Callable[[str], None],
+) -> Any:
+    """Plan the run's memory, refuse it when it does not fit, warn when it will be slow."""
     plan = plan_memory(
         problem, solver, operator=operator, keep_stiffness=keep_stiffness,
         direct_backend=direct_backend,
@@ -160,22 +196,43 @@ def solve(
     slow = plan.slow_warning()
     if slow is not None:
         say(f"warning: {slow}")
-        warnings.warn(slow, SlowRunWarning, stacklevel=2)
-    say("bonds")
-    t0 = time.perf_counter()
-    system = constrained_system(problem)
-    timings["bonds"] = time.perf_counter() - t0
-    cloud, d = system.cloud, system.dim
+        warnings.warn(slow, SlowRunWarning, stacklevel=3)
+    return plan
 
+
+@dataclass
+class _Operators:
+    """The eliminated system of a solve: operator, right-hand side, what the reactions need."""
+
+    path: str
+    reason: str
+    solver: str
+    A: Any
+    b: np.ndarray
+    K: Any = None
+    K_rows: Any = None
+    precond: Any = None
+    cols: Any = None
+
+
+def _operators(
+    system: ConstrainedSystem,
+    solver: str,
+    operator: str,
+    keep_stiffness: bool,
+    plan: Any,
+    say: Callable[[str], None],
+    timings: dict[str, float],
+    keep_columns: bool = False,
+) -> _Operators:
+    """Pick the assembled or matrix-free operator, build it and eliminate the conditions."""
+    model, cloud, d = system.model, system.cloud, system.dim
     nblocks = system.estimate_nnz_blocks()
     est = estimate_bond_operator_bytes(cloud.n, nblocks, d)
     path, reason = choose_operator(
         operator, model, cloud, solver, est, not system.matrix_free_capable, keep_stiffness,
         nblocks=nblocks,
     )  # fmt: skip
-    K: Any = None
-    K_rows = None
-    precond = None
     if path == "assembled":
         ta = ASSEMBLY_TRANSIENT[2 if getattr(model, "coupling_range", 1) >= 2 else 1]
         check_memory("assembly of K", est * (1 + ta), lambda: memory_hints(plan))
@@ -186,48 +243,47 @@ def solve(
         timings["assembly"] = time.perf_counter() - t0
         # the prescribed rows, kept for the reactions (elimination overwrites them)
         K_rows = system.prescribed_rows(K)
+        # and its prescribed columns, for the right-hand sides of further load steps
+        cols = system.prescribed_columns(K) if keep_columns else None
         A, b = system.eliminate(K, inplace=not keep_stiffness)
-    else:
-        say(f"matrix-free operator ({reason})")
-        t0 = time.perf_counter()
-        A, b, precond = system.matrix_free()
-        timings["assembly"] = time.perf_counter() - t0
-        if solver == "auto":
-            solver = "amg-cg" if system.symmetric else "amg-gmres"
-    if preconditioner is not None:
-        precond = system.preconditioner_matrix(preconditioner)
-    say(f"solve ({solver})")
-    lin: LinearSolveInfo = solve_linear(
-        A,
-        b,
-        solver,
-        rtol=rtol,
-        maxiter=maxiter,
-        near_null=system.near_null(),
-        blocksize=d,
-        symmetric=system.symmetric,
-        amg_options=dict(amg_options or {}),
-        preconditioner_matrix=precond,
-        direct_backend=direct_backend,
-        progress=progress,
-    )
+        return _Operators(path, reason, solver, A, b, K=K, K_rows=K_rows, cols=cols)
+    say(f"matrix-free operator ({reason})")
+    t0 = time.perf_counter()
+    A, b, precond = system.matrix_free()
+    timings["assembly"] = time.perf_counter() - t0
+    if solver == "auto":
+        solver = "amg-cg" if system.symmetric else "amg-gmres"
+    return _Operators(path, reason, solver, A, b, precond=precond)
+
+
+def _result(
+    problem: StaticProblem,
+    system: ConstrainedSystem,
+    ops: _Operators,
+    lin: LinearSolveInfo,
+    b: np.ndarray,
+    timings: dict[str, float],
+    t_start: float,
+    keep_stiffness: bool,
+    extra: dict[str, Any],
+) -> StaticResult:
+    """Expand the solution, compute the reactions, check the force balance, build the result."""
     timings["setup"] = lin.setup_time
     timings["solve"] = lin.solve_time
     u = system.expand(lin.x)
     # reactions -(f_int + f_ext) on prescribed DOFs, f_int = -K u from the assembled rows
     # when there are, else the model's matrix-free internal force
-    reac = system.reactions(u, rows=K_rows)
+    reac = system.reactions(u, rows=ops.K_rows)
     check_force_balance(lin, b, reac, system.f_ext)
     timings["total"] = time.perf_counter() - t_start
     info = {
         "solver": lin.solver,
         **lin.info,
-        "model": model.describe(),
-        "operator": path,
-        "operator_reason": reason,
+        "model": problem.model.describe(),
+        "operator": ops.path,
+        "operator_reason": ops.reason,
+        **extra,
     }
-    if preconditioner is not None:
-        info["preconditioner"] = preconditioner.describe()
     return StaticResult(
         problem=problem,
         bonds=system.disc.real_bonds,
@@ -240,6 +296,6 @@ def solve(
         reactions=reac,
         prescribed_dofs=system.dofs,
         info=info,
-        stiffness=K if keep_stiffness and K is not None else None,
+        stiffness=ops.K if keep_stiffness and ops.K is not None else None,
         system=system,
     )

@@ -882,6 +882,64 @@ class ConstrainedSystem:
         """
         return matrix_rows(K, self.dofs)
 
+    def prescribed_columns(self, K: sp.sparray) -> sp.sparray:
+        """Return K with only its (block) columns holding prescribed DOFs, before elimination.
+
+        The entries keep K's format, block size and order, so ``cols @ u_c`` for a ``u_c``
+        zero on the free DOFs sums the same products in the same order as ``K @ u_c``
+        (the dropped ones are ``x * 0``): :meth:`rhs` gives bitwise the right-hand side of
+        :meth:`eliminate` for other prescribed values and loads on the same DOFs.
+
+        Parameters
+        ----------
+        K : sparse array of shape (ndof, ndof)
+            The stiffness (:meth:`assemble`); BSR or CSR keep only the needed columns,
+            another format is copied whole.
+
+        Returns
+        -------
+        sparse array of shape (ndof, ndof)
+            The prescribed columns (a new array; K may be eliminated in place afterwards).
+        """
+        if isinstance(K, sp.bsr_array | sp.bsr_matrix):
+            bfixed = ~self.free.reshape(-1, K.blocksize[1]).all(axis=1)
+        elif isinstance(K, sp.csr_array | sp.csr_matrix):
+            bfixed = ~self.free
+        else:
+            return K.copy()
+        keep = bfixed[K.indices]
+        counts = np.zeros(keep.size + 1, dtype=K.indptr.dtype)
+        np.cumsum(keep, out=counts[1:])
+        parts = (K.data[keep], K.indices[keep], counts[K.indptr])
+        if isinstance(K, sp.bsr_array | sp.bsr_matrix):
+            return sp.bsr_array(parts, shape=K.shape, blocksize=K.blocksize)
+        return sp.csr_array(parts, shape=K.shape)
+
+    def rhs(self, cols: sp.sparray, factor: float = 1.0) -> np.ndarray:
+        """Return the eliminated right-hand side from K's prescribed columns.
+
+        Bitwise the ``b`` of :meth:`eliminate` (``f_ext - K_fc u_c`` on the free rows, 0 on
+        the prescribed ones) without K itself: a load step of
+        :func:`pdlin.static.solve_steps` reuses the eliminated matrix of the first.
+
+        Parameters
+        ----------
+        cols : sparse array of shape (ndof, ndof)
+            :meth:`prescribed_columns` of the stiffness.
+        factor : float
+            Load factor of the prescribed values and the external force.
+
+        Returns
+        -------
+        (ndof,) ndarray
+            The eliminated right-hand side.
+        """
+        uc = np.zeros(self.ndof)
+        uc[self.dofs] = factor * self.values
+        b = np.array(factor * self.f_ext - cols @ uc, dtype=float)
+        b[self.dofs] = 0.0
+        return b
+
 
 def discretize(problem: StaticProblem) -> Discretization:
     """Build the discretization a problem is solved on: its cloud, or the mirrored cloud.
@@ -916,7 +974,9 @@ def discretize(problem: StaticProblem) -> Discretization:
     return disc
 
 
-def constrain(problem: StaticProblem, disc: Any) -> ConstrainedSystem:
+def constrain(
+    problem: StaticProblem, disc: Any, *, checked: np.ndarray | None = None
+) -> ConstrainedSystem:
     """Apply a problem's Dirichlet conditions and loads to a discretization.
 
     Resolves the Dirichlet conditions (plus the discretization's own, e.g. the symmetry
@@ -928,6 +988,9 @@ def constrain(problem: StaticProblem, disc: Any) -> ConstrainedSystem:
         Supplies ``dirichlet`` and ``loads``.
     disc : Discretization or PointDiscretization
         Supplies the extra conditions, the load vector and the rigid-motion check.
+    checked : (m,) ndarray of int, optional
+        Prescribed DOFs already checked on ``disc`` (another load step's): the
+        rigid-motion check is skipped when the problem prescribes exactly these.
 
     Returns
     -------
@@ -945,7 +1008,8 @@ def constrain(problem: StaticProblem, disc: Any) -> ConstrainedSystem:
     # a load on prescribed DOFs only would vanish into the support: refused here, where
     # every driver (solve, solve_nonlinear, solve_damage, the CLI, PETSc) passes
     f_ext = disc.load_vector(problem.loads, prescribed=dofs)
-    disc.check_constraints(dofs)
+    if checked is None or not np.array_equal(dofs, checked):
+        disc.check_constraints(dofs)
     paths = tuple(bc for bc in problem.dirichlet if isinstance(bc.value, TimePath))
     return ConstrainedSystem(disc, dofs, vals, np.asarray(f_ext, dtype=float), problem, paths)
 

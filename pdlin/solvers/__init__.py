@@ -21,6 +21,7 @@ from .linear import (
     SOLVERS,
     DirectSolver,
     LinearSolveInfo,
+    SolverSetup,
     amg_hierarchy,
     solve_linear,
 )
