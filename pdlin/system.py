@@ -639,7 +639,7 @@ class ConstrainedSystem:
         return A
 
     def matrix_free(
-        self, factor: float = 1.0
+        self, factor: float = 1.0, *, op: spla.LinearOperator | None = None
     ) -> tuple[spla.LinearOperator, np.ndarray, sp.sparray]:
         """Return the eliminated matrix-free system and its eliminated surrogate.
 
@@ -651,6 +651,9 @@ class ConstrainedSystem:
         ----------
         factor : float
             Load factor of the prescribed values and the external force.
+        op : LinearOperator, optional
+            The discretization's operator (``disc.operator()``) when already built (kept
+            by :func:`pdlin.static.solve_steps` for the right-hand sides, :meth:`rhs`).
 
         Returns
         -------
@@ -672,7 +675,8 @@ class ConstrainedSystem:
                 "use operator='assembled'"
             )
         ndof = self.ndof
-        op = self.disc.operator()
+        if op is None:
+            op = self.disc.operator()
         sur = self.disc.surrogate_stiffness()
         free = self.free
         diag = sur.diagonal()
@@ -915,7 +919,7 @@ class ConstrainedSystem:
             return sp.bsr_array(parts, shape=K.shape, blocksize=K.blocksize)
         return sp.csr_array(parts, shape=K.shape)
 
-    def rhs(self, cols: sp.sparray, factor: float = 1.0) -> np.ndarray:
+    def rhs(self, cols: sp.sparray | spla.LinearOperator, factor: float = 1.0) -> np.ndarray:
         """Return the eliminated right-hand side from K's prescribed columns.
 
         Bitwise the ``b`` of :meth:`eliminate` (``f_ext - K_fc u_c`` on the free rows, 0 on
@@ -924,8 +928,9 @@ class ConstrainedSystem:
 
         Parameters
         ----------
-        cols : sparse array of shape (ndof, ndof)
-            :meth:`prescribed_columns` of the stiffness.
+        cols : sparse array or LinearOperator of shape (ndof, ndof)
+            :meth:`prescribed_columns` of the stiffness, or the discretization's
+            matrix-free operator (then bitwise the ``b`` of :meth:`matrix_free`).
         factor : float
             Load factor of the prescribed values and the external force.
 
