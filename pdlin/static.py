@@ -272,7 +272,7 @@ def solve_steps(
             t0 = time.perf_counter()
             ops.b = system.rhs(ops.cols)
             timings["rhs"] = time.perf_counter() - t0
-        say(f"step {k + 1}/{len(problems)}: solve ({ops.solver})")
+        say(f"load step {k + 1}/{len(problems)}: solve ({ops.solver})")
         uses = setup.uses
         lin = solve_linear(
             ops.A, ops.b, ops.solver, rtol=rtol, maxiter=maxiter, near_null=near_null,
