@@ -906,7 +906,7 @@ class ConstrainedSystem:
             The prescribed columns (a new array; K may be eliminated in place afterwards).
         """
         if isinstance(K, sp.bsr_array | sp.bsr_matrix):
-            bfixed = ~self.free.reshape(-1, K.blocksize[1]).all(axis=1)
+            bfixed: np.ndarray = ~np.all(self.free.reshape(-1, K.blocksize[1]), axis=1)
         elif isinstance(K, sp.csr_array | sp.csr_matrix):
             bfixed = ~self.free
         else:

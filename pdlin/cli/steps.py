@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -60,7 +61,7 @@ def run_load_steps(args: argparse.Namespace, scene: Any, prog: Any) -> int:
     tick = Throttle(prog)
     fields: list[dict[str, Any]] = []
     for k, res in enumerate(results):
-        tick(lambda k=k: f"  fields of step {k + 1}/{n} (t = {times[k]:.6g})")
+        tick(partial("  fields of step {}/{} (t = {:.6g})".format, k + 1, n, times[k]))
         f = res.fields()
         if scene.fields:
             f = {name: f[name] for name in scene.fields if name in f}
