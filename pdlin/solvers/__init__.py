@@ -40,6 +40,7 @@ __all__ = [
     "SOLVERS",
     "DirectSolver",
     "LinearSolveInfo",
+    "SolverSetup",
     "amg_hierarchy",
     "solve_linear",
     "StepFailed",
