@@ -188,8 +188,11 @@ class Bonds:
         if name == "i":
             if b0 == 0 and b1 == nb:
                 return np.repeat(np.arange(self.n_points, dtype=np.int64), self.family_size)
-            ptr = np.asarray(self.indptr)
-            return np.searchsorted(ptr, np.arange(b0, b1, dtype=np.int64), side="right") - 1
+            ptr = np.asarray(self.indptr, dtype=np.int64)
+            r0 = int(np.searchsorted(ptr, b0, side="right")) - 1
+            r1 = int(np.searchsorted(ptr, b1, side="left"))
+            counts = np.diff(np.clip(ptr[r0 : r1 + 1], b0, b1))
+            return np.repeat(np.arange(r0, r1, dtype=np.int64), counts)
         if name == "volume_j":
             return c.volumes[self.j[b0:b1]]
         if name == "omega" and c.omega_const is not None:
