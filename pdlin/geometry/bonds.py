@@ -191,7 +191,7 @@ class Bonds:
             ptr = np.asarray(self.indptr, dtype=np.int64)
             r0 = int(np.searchsorted(ptr, b0, side="right")) - 1
             r1 = int(np.searchsorted(ptr, b1, side="left"))
-            counts = np.diff(np.clip(ptr[r0 : r1 + 1], b0, b1))
+            counts: np.ndarray = np.diff(np.clip(ptr[r0 : r1 + 1], b0, b1)).astype(np.int64)
             return np.repeat(np.arange(r0, r1, dtype=np.int64), counts)
         if name == "volume_j":
             return c.volumes[self.j[b0:b1]]
