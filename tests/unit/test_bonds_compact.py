@@ -92,3 +92,36 @@ def test_stiffness_and_fields_match_full_bonds(method: str) -> None:
 
     u = np.sin(7.0 * cloud.points)
     assert _same(deformation_gradient(cloud, b, u), deformation_gradient(cloud, full, u))
+
+
+def test_plan_counts_the_compact_bonds() -> None:
+    # the estimate's stages after the search count what the bonds keep: 9 B per bond on a
+    # grid, 24 + 8 d after a tree search (pdlin.resources.resident_bonds_bytes)
+    from pdlin.problem import plan_memory
+    from pdlin.resources import bonds_bytes, estimate_static_run, resident_bonds_bytes
+
+    cloud = pdlin.grid((16, 16, 16), spacing=1.0 / 16)
+    kw = dict(dirichlet=[pdlin.Dirichlet("x-", 0.0)], loads=[pdlin.TotalForce("x+", [1.0, 0, 0])])
+    prob = pdlin.StaticProblem(pdlin.BondBased(E=1e9, nu=0.25), cloud, ratio=3.015, **kw)
+    plan = plan_memory(prob, "amg-cg")
+    nb, n = plan.n_bonds, cloud.n
+    assert resident_bonds_bytes(nb, n, 3, True) == nb * 9 + 8 * (n + 1)
+    full = estimate_static_run(n, nb, plan.nnz_blocks, 3, base=plan.base)
+    lean = estimate_static_run(
+        n,
+        nb,
+        plan.nnz_blocks,
+        3,
+        base=plan.base,
+        resident_bonds=resident_bonds_bytes(nb, n, 3, True),
+    )
+    assert plan.stages == lean.stages
+    gap = bonds_bytes(nb, n, 3) - resident_bonds_bytes(nb, n, 3, True)
+    assert full.stages["solve"] - lean.stages["solve"] == gap
+    assert full.stages["bonds"] == lean.stages["bonds"]  # the search holds every array
+    tree = plan_memory(
+        pdlin.StaticProblem(pdlin.BondBased(E=1e9, nu=0.25), cloud, ratio=3.015,
+                            bond_options={"method": "tree"}, **kw),
+        "amg-cg",
+    )  # fmt: skip
+    assert tree.stages["solve"] - plan.stages["solve"] == nb * (24 + 24 - 9)
