@@ -29,7 +29,11 @@ Stages: ``grid`` (``pdlin.grid``), ``plan`` (the ``StaticProblem`` and the print
 ``bonds`` (bond search, Dirichlet and load resolution), ``assembly`` (K and its prescribed
 rows), ``elimination``, ``checks`` (``solve_linear``'s input checks: K finite and in range),
 ``AMG setup``, ``solve`` (CG, expansion, reactions), ``fields`` (``result.fields()``).
-Each cell is GB (bytes per directed bond).
+Each cell is GB (bytes per directed bond). Two more rows (``STAGE_MODELS``; ``--no-models``
+leaves them out) audit the other 3D models with their defaults: LPS at 30³ (matrix-free
+operator, AMG-CG on its surrogate) and correspondence with stress points at 20³ (δ =
+3.015 h; for them "assembly" is the operator's set-up). ``--sizes 80,100`` runs chosen
+bond-based sizes.
 ``--save-u DIR`` / ``--check-u DIR`` store / compare (bit for bit) the displacement of each
 size, to show that a memory change keeps the results identical.
 """
@@ -168,7 +172,24 @@ class _StagePeaks:
             self.estimate_line = msg
 
 
-def _stages_one(m: int, save: str | None, check: str | None) -> None:
+#: the ``--stages`` rows of the other 3D models (model, cube edge, horizon ratio): LPS with
+#: its default operator (matrix-free with AMG-CG) and correspondence with stress points
+STAGE_MODELS = (("lps", 30, 3.015), ("cor", 20, 3.015))
+
+
+def _model(kind: str) -> object:
+    import pdlin
+
+    if kind == "lps":
+        return pdlin.LPS(E=1.0e9, nu=0.25)
+    if kind == "cor":
+        return pdlin.Correspondence(E=1.0e9, nu=0.25, control="stress_points")
+    return pdlin.BondBased(E=1.0e9, nu=0.25)
+
+
+def _stages_one(
+    m: int, save: str | None, check: str | None, kind: str = "bb", ratio: float = 3.015
+) -> None:
     """One size of the ``--stages`` table, in this interpreter (prints one row)."""
     import numpy as np
 
@@ -188,7 +209,7 @@ def _stages_one(m: int, save: str | None, check: str | None) -> None:
     h = 1.0 / m
     cloud = pdlin.grid((m, m, m), spacing=h)
     prob = pdlin.StaticProblem(
-        pdlin.BondBased(E=1.0e9, nu=0.25), cloud, ratio=3.015,
+        _model(kind), cloud, ratio=ratio,
         dirichlet=[pdlin.Dirichlet("x-", 0.0)], loads=[pdlin.TotalForce("x+", [1.0e3, 0.0, 0.0])],
     )  # fmt: skip
     rec.mark("plan")
@@ -201,10 +222,11 @@ def _stages_one(m: int, save: str | None, check: str | None) -> None:
     est = _parse(rec.estimate_line + " ")[0] if rec.estimate_line else None
     u = np.ascontiguousarray(res.u)
     same = "-"
+    tag = f"{m}" if kind == "bb" else f"{kind}_{m}"
     if save:
-        np.save(Path(save) / f"u_{m}.npy", u)
-    if check:
-        ref = np.load(Path(check) / f"u_{m}.npy")
+        np.save(Path(save) / f"u_{tag}.npy", u)
+    if check and (Path(check) / f"u_{tag}.npy").exists():
+        ref = np.load(Path(check) / f"u_{tag}.npy")
         if ref.shape != u.shape or ref.tobytes() != u.tobytes():
             raise SystemExit(f"{m}^3: u differs from {check}/u_{m}.npy (max |du| "
                              f"{float(np.max(np.abs(ref - u))):.3e})")  # fmt: skip
@@ -215,12 +237,15 @@ def _stages_one(m: int, save: str | None, check: str | None) -> None:
         f"{rec.peaks.get(s, 0) / 1e9:.2f} ({rec.peaks.get(s, 0) / nb:.0f})" for s in order
     )
     peak = max(rec.peaks.values())
-    print(f"| {m}³ = {m**3:,} | {nb:,} | {cells} | {peak / 1e9:.2f} ({peak / nb:.0f}) | "
+    label = {"bb": "", "lps": "LPS ", "cor": "corr. SP "}[kind]
+    print(f"| {label}{m}³ = {m**3:,} | {nb:,} | {cells} | {peak / 1e9:.2f} ({peak / nb:.0f}) | "
           f"{(est or 0) / 1e9:.2f} | {(est or 0) / peak:.2f} | {res.n_iter} | "
           f"{sum(rec.seconds.values()):.1f} | {same} |")  # fmt: skip
 
 
-def stages(sizes: tuple[int, ...], save: str | None, check: str | None) -> None:
+def stages(
+    sizes: tuple[int, ...], save: str | None, check: str | None, models: bool = True
+) -> None:
     """Print the per-stage peak RSS table (each size in a fresh interpreter)."""
     print("peak RSS per stage, GB (bytes per directed bond); estimate = pdlin's printed "
           "'memory estimate' (GB)")  # fmt: skip
@@ -229,10 +254,13 @@ def stages(sizes: tuple[int, ...], save: str | None, check: str | None) -> None:
         "AMG setup | solve | fields | peak | estimate | estimate / peak | CG its | wall (s) |"
     )
     print("|---" * 16 + "|")
-    for m in sizes:
-        argv = [sys.executable, __file__, "--stage-one", str(m), save or "", check or ""]
+    rows = [("bb", m, 3.015) for m in sizes] + list(STAGE_MODELS if models else ())
+    for kind, m, ratio in rows:
+        argv = [sys.executable, __file__, "--stage-one", str(m), save or "", check or "", kind,
+                str(ratio)]  # fmt: skip
         r = subprocess.run(argv, capture_output=True, text=True)
-        print(r.stdout.strip() or f"| {m}³ | failed: {r.stderr.strip()[-300:]} |", flush=True)
+        print(r.stdout.strip() or f"| {kind} {m}³ | failed: {r.stderr.strip()[-300:]} |",
+              flush=True)  # fmt: skip
 
 
 def main() -> None:
@@ -248,6 +276,16 @@ def main() -> None:
     ap.add_argument("--stages", action="store_true",
                     help="per-stage peak RSS of a 3D bond-based cube (40³, 60³)")  # fmt: skip
     ap.add_argument("--big", action="store_true", help="with --stages: also 80³ and 100³")
+    ap.add_argument(
+        "--sizes",
+        default=None,
+        help="with --stages: comma-separated cube edges (bond-based rows only)",
+    )
+    ap.add_argument(
+        "--no-models",
+        action="store_true",
+        help="with --stages: without the LPS and correspondence rows",
+    )
     ap.add_argument("--save-u", default=None, help="with --stages: store u of each size here")
     ap.add_argument("--check-u", default=None,
                     help="with --stages: compare u bit for bit with the stored one")  # fmt: skip
@@ -255,7 +293,10 @@ def main() -> None:
     if args.stages:
         print(f"load average {os.getloadavg()}, {os.cpu_count()} cores, "
               f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")  # fmt: skip
-        stages(STAGE_SIZES + (STAGE_SIZES_BIG if args.big else ()), args.save_u, args.check_u)
+        sizes = STAGE_SIZES + (STAGE_SIZES_BIG if args.big else ())
+        if args.sizes:
+            sizes = tuple(int(v) for v in args.sizes.split(","))
+        stages(sizes, args.save_u, args.check_u, not args.no_models)
         return
     print(f"load average {os.getloadavg()}, {os.cpu_count()} cores, "
           f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")  # fmt: skip
@@ -289,7 +330,8 @@ def _one(name: str, tmp: str) -> None:
 if __name__ == "__main__":
     if len(sys.argv) == 4 and sys.argv[1] == "--one":
         _one(sys.argv[2], sys.argv[3])
-    elif len(sys.argv) == 5 and sys.argv[1] == "--stage-one":
-        _stages_one(int(sys.argv[2]), sys.argv[3] or None, sys.argv[4] or None)
+    elif len(sys.argv) in (5, 7) and sys.argv[1] == "--stage-one":
+        extra = (sys.argv[5], float(sys.argv[6])) if len(sys.argv) == 7 else ()
+        _stages_one(int(sys.argv[2]), sys.argv[3] or None, sys.argv[4] or None, *extra)
     else:
         main()

@@ -397,12 +397,12 @@ def pair_blocks_fill(
     """Blocks of the rows ``r0:r1`` of a pairwise operator, written once into the BSR slots.
 
     Bond ``b = (r, j)`` of row ``r`` (bonds CSR-sorted, increasing ``j``) gets the block
-    ``-k_b n nᵀ`` (``k_b = kb[b - kb0]``; ``n = vec[b]`` when ``unit_given``, else
-    ``vec[b] * (1 / length[b])``) at slot ``b + r`` (``+ 1`` past the diagonal when
-    ``j > r``); the diagonal block is the negated sum of the row's blocks in bond order
-    (``+0`` for a row without bonds). Serial (``nogil``): the caller runs disjoint row
-    chunks on its threads. The arithmetic is the numpy path's (``(n_a * -k_b) * n_c``, the
-    lower triangle copied from the upper, sums in bond order).
+    ``-k_b n nᵀ`` (``k_b = kb[b - kb0]``; ``n = vec[b - kb0]`` when ``unit_given``, else
+    ``vec[b - kb0] * (1 / length[b - kb0])``: the chunk's own arrays) at slot ``b + r``
+    (``+ 1`` past the diagonal when ``j > r``); the diagonal block is the negated sum of
+    the row's blocks in bond order (``+0`` for a row without bonds). Serial (``nogil``):
+    the caller runs disjoint row chunks on its threads. The arithmetic is the numpy path's
+    (``(n_a * -k_b) * n_c``, the lower triangle copied from the upper, sums in bond order).
     """
     d = vec.shape[1]
     acc = np.empty((d, d))
@@ -422,11 +422,11 @@ def pair_blocks_fill(
             indices[pos] = j
             if unit_given:
                 for a in range(d):
-                    n[a] = vec[b, a]
+                    n[a] = vec[b - kb0, a]
             else:
-                inv = 1.0 / length[b]
+                inv = 1.0 / length[b - kb0]
                 for a in range(d):
-                    n[a] = vec[b, a] * inv
+                    n[a] = vec[b - kb0, a] * inv
             mk = -kb[b - kb0]
             for a in range(d):
                 ka = n[a] * mk

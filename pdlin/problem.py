@@ -40,6 +40,7 @@ from .resources import (
     estimate_pair_count,
     estimate_static_run,
     format_bytes,
+    resident_bonds_bytes,
 )
 
 __all__ = ["StaticProblem", "plan_memory", "memory_hints", "choose_operator", "OPERATORS"]
@@ -343,7 +344,16 @@ def plan_memory(
         from .solvers.direct import AUTO_MIN, auto_chain
 
         backend = "superlu" if ndof < AUTO_MIN else auto_chain(True, ndof, d)[0]
-    plan = estimate_static_run(n, nb, nblocks, d, path=path, coupling_range=rng, backend=backend)
+    if problem.bonds is not None:
+        resident = problem.bonds.nbytes()
+    else:  # find_bonds' lattice search keeps j and a stencil index (compact Bonds)
+        lattice = cloud.lattice is not None and opts.get("method", "auto") != "tree"
+        lattice = lattice and np.ndim(problem.horizon) == 0
+        resident = resident_bonds_bytes(nb, n, d, lattice)
+    plan = estimate_static_run(
+        n, nb, nblocks, d, path=path, coupling_range=rng, backend=backend,
+        resident_bonds=resident,
+    )  # fmt: skip
     if history_steps:
         hist = int(history_steps) * n * (d + d * d + 2) * 8
         plan.stages = {k: v + hist for k, v in plan.stages.items()}
@@ -411,7 +421,8 @@ def memory_hints(plan: RunEstimate) -> list[str]:
         f"a coarser discretization of at most ~{coarse:,} points (spacing x {scale:.3g}, the "
         "same horizon ratio)"
     )
-    ranks = max(int(np.ceil(need / avail)), 2)
+    # (an estimate is not byte-exact: a need a few bytes over k budgets asks for k ranks)
+    ranks = max(int(np.ceil(need / avail * (1.0 - 1e-6))), 2)
     hints.append(
         f"backend='petsc' on >= {ranks} ranks with their own memory "
         f"(mpiexec -n {ranks} pdlin run ..., docs/petsc.md)"

@@ -32,6 +32,7 @@ __all__ = [
     "lattice_pair_count",
     "estimate_pair_count",
     "bonds_bytes",
+    "resident_bonds_bytes",
     "grid_bytes",
     "direct_factor_nnz",
     "direct_factor_bytes",
@@ -49,6 +50,11 @@ ENV_LIMIT = "PDLIN_MAX_MEMORY"
 #: bytes per directed bond of :class:`pdlin.Bonds`: i, j (int64), ξ (8 d), |ξ|, ω, V_j
 _BOND_BYTES_FIXED = 40
 
+#: bytes per directed bond a compact :class:`pdlin.Bonds` of a lattice search keeps through
+#: the solve: ``j`` (int64) and the stencil index (uint8); ``i``, ``ξ``, ``|ξ|``, a constant
+#: or per-stencil ``ω`` and ``V_j`` are computed on access (measured: 9.2 B at 12 x 11 x 10)
+COMPACT_BOND_BYTES = 9
+
 #: bond search: transient bytes on top of the bonds it returns, as a multiple of them
 #: (measured: 2D lattice 300,304 points, 0.47 GB of bonds, peak 0.75 GB above the start)
 BOND_SEARCH_TRANSIENT = 0.6
@@ -56,7 +62,9 @@ BOND_SEARCH_TRANSIENT = 0.6
 #: assembly transient on top of K, as a multiple of K (measured: one-hop bond-based 2D
 #: 300k points 0.75; two-hop correspondence 401² with stress points 1.0 besides the
 #: compiled kernels, TWO_HOP_KERNELS)
-ASSEMBLY_TRANSIENT = {1: 0.75, 2: 1.0}
+#: (issue 33, with compact bonds and the fused numba kernel: 3D bond-based 60³ and 80³
+#: 0.06-0.1; 0.15 kept for the numpy path; the solve stage stays the larger one)
+ASSEMBLY_TRANSIENT = {1: 0.15, 2: 1.0}
 
 #: two-hop models (LPS, XOSB, correspondence) compile their numba kernels on first use:
 #: measured RSS +130 MB over the assembly of a 12³ LPS K of 24 MB
@@ -65,6 +73,10 @@ TWO_HOP_KERNELS = 130 * 2**20
 #: smoothed-aggregation AMG hierarchy plus Krylov work vectors, as a multiple of K
 #: (measured: bond-based 2D 300k points 0.9 x K)
 AMG_FACTOR = 0.9
+
+#: the same in 3D (measured, issue 33: bond-based 60³ and 80³ cubes, δ = 3.015 h, the AMG
+#: set-up and CG peak 0.5 x K above K and the compact bonds)
+AMG_FACTOR_3D = 0.55
 
 #: matrix-free operator (per-bond coefficients, the AMG surrogate), bytes per directed bond
 #: (measured: 3D LPS 24³, δ = 3.015 h: 0.51 GB over 1.46 M bonds, 0.38 GB without the
@@ -590,6 +602,37 @@ def bonds_bytes(n_bonds: float, n_points: float, dim: int) -> int:
     return int(n_bonds * (_BOND_BYTES_FIXED + 8 * dim) + 16 * (n_points + 1))
 
 
+def resident_bonds_bytes(n_bonds: float, n_points: float, dim: int, lattice: bool) -> int:
+    """Estimate the bytes a :func:`pdlin.find_bonds` result keeps through a solve.
+
+    Parameters
+    ----------
+    n_bonds : float
+        Directed bonds.
+    n_points : float
+        Points.
+    dim : int
+        Dimension.
+    lattice : bool
+        True for the integer-stencil search of a grid cloud (``j`` and a stencil index,
+        :data:`COMPACT_BOND_BYTES`); False for a tree search, which keeps ``j``, ``ξ``,
+        ``|ξ|`` and ``ω``.
+
+    Returns
+    -------
+    int
+        Bytes of the stored per-bond arrays and the row pointer.
+
+    Examples
+    --------
+    >>> from pdlin.resources import resident_bonds_bytes
+    >>> resident_bonds_bytes(1_000_000, 10_000, 3, True)
+    9080008
+    """
+    per = COMPACT_BOND_BYTES if lattice else 24 + 8 * dim
+    return int(n_bonds * per + 8 * (n_points + 1))
+
+
 def grid_bytes(n_points: float, dim: int) -> int:
     """Estimate the peak bytes of building a grid cloud.
 
@@ -777,6 +820,7 @@ def estimate_static_run(
     coupling_range: int = 1,
     backend: str = "superlu",
     base: int | None = None,
+    resident_bonds: int | None = None,
 ) -> RunEstimate:
     """Peak-memory estimate of a linear static solve from counts known before the work.
 
@@ -792,6 +836,9 @@ def estimate_static_run(
         Direct backend (``'superlu'`` holds L and U).
     base : int, optional
         Resident bytes to start from (default: the current RSS plus late imports).
+    resident_bonds : int, optional
+        Bytes the bonds keep after their search (:func:`resident_bonds_bytes`; default:
+        all per-bond arrays, :func:`bonds_bytes`).
 
     Returns
     -------
@@ -807,9 +854,10 @@ def estimate_static_run(
     """
     from .operators.assembly import estimate_bond_operator_bytes
 
-    B = bonds_bytes(n_bonds, n_points, dim)
     K = estimate_bond_operator_bytes(n_points, nnz_blocks, dim)
-    stages = {"bonds": int(B * (1 + BOND_SEARCH_TRANSIENT))}
+    # the search holds every per-bond array; afterwards only what the Bonds store
+    stages = {"bonds": int(bonds_bytes(n_bonds, n_points, dim) * (1 + BOND_SEARCH_TRANSIENT))}
+    B = bonds_bytes(n_bonds, n_points, dim) if resident_bonds is None else int(resident_bonds)
     ta = ASSEMBLY_TRANSIENT[2 if coupling_range >= 2 else 1]
     vectors = 12 * 8 * n_points * dim
     if path == "matrix-free":
@@ -828,7 +876,8 @@ def estimate_static_run(
                 fb = int(fb * ND_FACTOR_PEAK_3D)
             stages["solve"] = int(B + 1.6 * K + fb + vectors)
         else:
-            stages["solve"] = int(B + K * (1 + AMG_FACTOR) + vectors)
+            amg = AMG_FACTOR_3D if dim == 3 else AMG_FACTOR
+            stages["solve"] = int(B + K * (1 + amg) + vectors)
     stages["output"] = int(
         B + OUTPUT_BYTES_PER_BOND * n_bonds * dim * dim / 4 + OUTPUT_BYTES_PER_POINT * n_points
     )

@@ -40,7 +40,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ._repr import compact_repr, html_table
+from ._repr import Raw, compact_repr, html_table
 from .constraints import (
     check_constraints,
     eliminate_dirichlet,
@@ -449,6 +449,21 @@ class ConstrainedSystem:
     paths: tuple[Dirichlet, ...] = ()
     _free: np.ndarray | None = field(default=None, repr=False)
 
+    def __repr__(self) -> str:
+        """Return a one-line summary: model, sizes, prescribed and free DOFs (no arrays)."""
+        return compact_repr(
+            "ConstrainedSystem",
+            {
+                "model": Raw(repr(self.model)),
+                "points": self.n,
+                "dim": self.dim,
+                "DOFs": self.ndof,
+                "prescribed": int(self.dofs.size),
+                "discretization": type(self.disc).__name__,
+                "time_paths": len(self.paths) or None,
+            },
+        )
+
     # -- sizes and masks ----------------------------------------------------
     @property
     def cloud(self) -> PointCloud:
@@ -624,7 +639,7 @@ class ConstrainedSystem:
         return A
 
     def matrix_free(
-        self, factor: float = 1.0
+        self, factor: float = 1.0, *, op: spla.LinearOperator | None = None
     ) -> tuple[spla.LinearOperator, np.ndarray, sp.sparray]:
         """Return the eliminated matrix-free system and its eliminated surrogate.
 
@@ -636,6 +651,9 @@ class ConstrainedSystem:
         ----------
         factor : float
             Load factor of the prescribed values and the external force.
+        op : LinearOperator, optional
+            The discretization's operator (``disc.operator()``) when already built (kept
+            by :func:`pdlin.static.solve_steps` for the right-hand sides, :meth:`rhs`).
 
         Returns
         -------
@@ -657,7 +675,8 @@ class ConstrainedSystem:
                 "use operator='assembled'"
             )
         ndof = self.ndof
-        op = self.disc.operator()
+        if op is None:
+            op = self.disc.operator()
         sur = self.disc.surrogate_stiffness()
         free = self.free
         diag = sur.diagonal()
@@ -867,6 +886,65 @@ class ConstrainedSystem:
         """
         return matrix_rows(K, self.dofs)
 
+    def prescribed_columns(self, K: sp.sparray) -> sp.sparray:
+        """Return K with only its (block) columns holding prescribed DOFs, before elimination.
+
+        The entries keep K's format, block size and order, so ``cols @ u_c`` for a ``u_c``
+        zero on the free DOFs sums the same products in the same order as ``K @ u_c``
+        (the dropped ones are ``x * 0``): :meth:`rhs` gives bitwise the right-hand side of
+        :meth:`eliminate` for other prescribed values and loads on the same DOFs.
+
+        Parameters
+        ----------
+        K : sparse array of shape (ndof, ndof)
+            The stiffness (:meth:`assemble`); BSR or CSR keep only the needed columns,
+            another format is copied whole.
+
+        Returns
+        -------
+        sparse array of shape (ndof, ndof)
+            The prescribed columns (a new array; K may be eliminated in place afterwards).
+        """
+        if isinstance(K, sp.bsr_array | sp.bsr_matrix):
+            bfixed: np.ndarray = ~np.all(self.free.reshape(-1, K.blocksize[1]), axis=1)
+        elif isinstance(K, sp.csr_array | sp.csr_matrix):
+            bfixed = ~self.free
+        else:
+            return K.copy()
+        keep = bfixed[K.indices]
+        counts = np.zeros(keep.size + 1, dtype=K.indptr.dtype)
+        np.cumsum(keep, out=counts[1:])
+        parts = (K.data[keep], K.indices[keep], counts[K.indptr])
+        if isinstance(K, sp.bsr_array | sp.bsr_matrix):
+            return sp.bsr_array(parts, shape=K.shape, blocksize=K.blocksize)
+        return sp.csr_array(parts, shape=K.shape)
+
+    def rhs(self, cols: sp.sparray | spla.LinearOperator, factor: float = 1.0) -> np.ndarray:
+        """Return the eliminated right-hand side from K's prescribed columns.
+
+        Bitwise the ``b`` of :meth:`eliminate` (``f_ext - K_fc u_c`` on the free rows, 0 on
+        the prescribed ones) without K itself: a load step of
+        :func:`pdlin.static.solve_steps` reuses the eliminated matrix of the first.
+
+        Parameters
+        ----------
+        cols : sparse array or LinearOperator of shape (ndof, ndof)
+            :meth:`prescribed_columns` of the stiffness, or the discretization's
+            matrix-free operator (then bitwise the ``b`` of :meth:`matrix_free`).
+        factor : float
+            Load factor of the prescribed values and the external force.
+
+        Returns
+        -------
+        (ndof,) ndarray
+            The eliminated right-hand side.
+        """
+        uc = np.zeros(self.ndof)
+        uc[self.dofs] = factor * self.values
+        b = np.array(factor * self.f_ext - cols @ uc, dtype=float)
+        b[self.dofs] = 0.0
+        return b
+
 
 def discretize(problem: StaticProblem) -> Discretization:
     """Build the discretization a problem is solved on: its cloud, or the mirrored cloud.
@@ -901,7 +979,9 @@ def discretize(problem: StaticProblem) -> Discretization:
     return disc
 
 
-def constrain(problem: StaticProblem, disc: Any) -> ConstrainedSystem:
+def constrain(
+    problem: StaticProblem, disc: Any, *, checked: np.ndarray | None = None
+) -> ConstrainedSystem:
     """Apply a problem's Dirichlet conditions and loads to a discretization.
 
     Resolves the Dirichlet conditions (plus the discretization's own, e.g. the symmetry
@@ -913,6 +993,9 @@ def constrain(problem: StaticProblem, disc: Any) -> ConstrainedSystem:
         Supplies ``dirichlet`` and ``loads``.
     disc : Discretization or PointDiscretization
         Supplies the extra conditions, the load vector and the rigid-motion check.
+    checked : (m,) ndarray of int, optional
+        Prescribed DOFs already checked on ``disc`` (another load step's): the
+        rigid-motion check is skipped when the problem prescribes exactly these.
 
     Returns
     -------
@@ -930,7 +1013,8 @@ def constrain(problem: StaticProblem, disc: Any) -> ConstrainedSystem:
     # a load on prescribed DOFs only would vanish into the support: refused here, where
     # every driver (solve, solve_nonlinear, solve_damage, the CLI, PETSc) passes
     f_ext = disc.load_vector(problem.loads, prescribed=dofs)
-    disc.check_constraints(dofs)
+    if checked is None or not np.array_equal(dofs, checked):
+        disc.check_constraints(dofs)
     paths = tuple(bc for bc in problem.dirichlet if isinstance(bc.value, TimePath))
     return ConstrainedSystem(disc, dofs, vals, np.asarray(f_ext, dtype=float), problem, paths)
 

@@ -25,6 +25,71 @@ log = logging.getLogger(__name__)
 SHAPES = ("sphere", "cube", "ellipsoid", "box")
 
 
+#: per-bond arrays a compact :class:`Bonds` computes on access
+_LAZY = ("i", "xi", "length", "omega", "volume_j")
+
+
+@dataclass(frozen=True)
+class _CompactStore:
+    """What a compact :class:`Bonds` keeps instead of its per-bond arrays.
+
+    ``stencil`` (per bond, small unsigned ints) indexes the rows of the ``tables``
+    (``xi``, ``length``, and ``omega`` unless ``omega_const``); without a stencil the
+    tables are the per-bond arrays themselves. ``volume_j`` is ``volumes[j]``.
+    """
+
+    stencil: np.ndarray | None
+    tables: dict[str, np.ndarray]
+    omega_const: float | None
+    volumes: np.ndarray
+
+    def kept(self, m: np.ndarray) -> _CompactStore:
+        """Return the store of the bonds where ``m`` is True."""
+        if self.stencil is not None:
+            return _CompactStore(self.stencil[m], self.tables, self.omega_const, self.volumes)
+        tabs = {k: v[m] for k, v in self.tables.items()}
+        return _CompactStore(None, tabs, self.omega_const, self.volumes)
+
+
+def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    """Return True when two float arrays hold the same bits (signed zeros, NaNs)."""
+    a, b = np.ascontiguousarray(a, np.float64), np.ascontiguousarray(b, np.float64)
+    return a.shape == b.shape and bool(np.array_equal(a.view(np.int64), b.view(np.int64)))
+
+
+def _compact_store(
+    stencil: np.ndarray | None,
+    xi: np.ndarray,
+    length: np.ndarray,
+    omega: np.ndarray,
+    omega_table: Callable[[], np.ndarray] | None,
+    volumes: np.ndarray,
+) -> _CompactStore:
+    """Choose the smallest exact storage of the per-bond arrays.
+
+    ``xi`` and ``length`` are the stencil tables when ``stencil`` is given, else per bond.
+    ``omega`` (per bond) becomes one constant when all its bits are equal, a stencil table
+    (``omega_table()``) when that table gathered gives the same bits, else is kept.
+    """
+    tables = {"xi": xi, "length": length}
+    const = None
+    bits = omega.view(np.int64) if omega.dtype == np.float64 else None
+    if bits is not None and omega.size and bool(np.all(bits == bits[0])):
+        const = float(omega[0])
+    elif stencil is not None and omega_table is not None:
+        tab = omega_table()
+        tables["omega"] = tab if _same_bits(tab[stencil], omega) else omega
+        if tables["omega"] is omega:  # no table: keep one value per bond
+            tables = {"xi": xi[stencil], "length": length[stencil], "omega": omega}
+            stencil = None
+    else:
+        tables["omega"] = omega
+        if stencil is not None:
+            tables = {"xi": xi[stencil], "length": length[stencil], "omega": omega}
+            stencil = None
+    return _CompactStore(stencil, tables, const, volumes)
+
+
 @dataclass(frozen=True, eq=False)
 class Bonds:
     """Directed bonds of a point cloud in CSR order (both directions stored).
@@ -55,6 +120,18 @@ class Bonds:
         Neighborhood shape used.
     influence : str or callable
         Influence function used for ``omega``.
+
+    Notes
+    -----
+    :func:`find_bonds` returns a *compact* Bonds: it keeps ``j`` and ``indptr`` and, instead
+    of ``i``, ``xi``, ``length``, ``omega`` and ``volume_j``, what they are computed from
+    (``indptr``; the stencil index of each bond and the stencil's vectors and lengths on a
+    lattice; one constant or a per-stencil table of ``omega``; the point volumes). Those
+    attributes are then computed on each access (the same values, bit for bit, as the
+    arrays the search made), so a large solve does not hold them resident (9 bytes per
+    bond on a lattice instead of 64); :meth:`values` gives a range of bonds without the
+    whole array. A Bonds built from arrays (the constructor, ``dataclasses.replace``)
+    stores them as given.
     """
 
     n_points: int
@@ -69,15 +146,91 @@ class Bonds:
     shape: str = "sphere"
     influence: Any = "constant"
 
+    def __getattr__(self, name: str) -> np.ndarray:
+        """Compute a per-bond array a compact Bonds does not store (see Notes)."""
+        # reached only for attributes missing from the instance
+        if name in _LAZY and "_compact" in self.__dict__:
+            return self.values(name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def values(self, name: str, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """Return one per-bond array for the bonds ``start:stop``.
+
+        On a compact Bonds (see Notes) only that range is computed; the values are those
+        of the full attribute's slice, bit for bit.
+
+        Parameters
+        ----------
+        name : {'i', 'j', 'xi', 'length', 'omega', 'volume_j'}
+            The attribute.
+        start, stop : int
+            Bond range (``stop`` None: to the last bond).
+
+        Returns
+        -------
+        ndarray
+            ``getattr(self, name)[start:stop]``: shape ``(stop - start,)``, or
+            ``(stop - start, dim)`` for ``xi``.
+
+        Raises
+        ------
+        InputError
+            If ``name`` is not one of the per-bond arrays.
+        """
+        if name not in _LAZY and name != "j":
+            raise InputError(f"name must be one of {('j',) + _LAZY}, got {name!r}")
+        nb = self.n_bonds
+        b1 = nb if stop is None else min(int(stop), nb)
+        b0 = min(int(start), b1)
+        c = self.__dict__.get("_compact")
+        if c is None or name == "j" or name in self.__dict__:
+            return np.asarray(getattr(self, name))[b0:b1]
+        if name == "i":
+            if b0 == 0 and b1 == nb:
+                return np.repeat(np.arange(self.n_points, dtype=np.int64), self.family_size)
+            ptr = np.asarray(self.indptr, dtype=np.int64)
+            r0 = int(np.searchsorted(ptr, b0, side="right")) - 1
+            r1 = int(np.searchsorted(ptr, b1, side="left"))
+            counts: np.ndarray = np.diff(np.clip(ptr[r0 : r1 + 1], b0, b1)).astype(np.int64)
+            return np.repeat(np.arange(r0, r1, dtype=np.int64), counts)
+        if name == "volume_j":
+            return c.volumes[self.j[b0:b1]]
+        if name == "omega" and c.omega_const is not None:
+            return np.full(b1 - b0, c.omega_const)
+        table = c.tables[name]
+        return table[b0:b1] if c.stencil is None else table[c.stencil[b0:b1]]
+
     @property
     def n_bonds(self) -> int:
         """Number of directed bonds."""
-        return int(self.i.size)
+        return int(self.j.size)
 
     @property
     def dim(self) -> int:
         """Spatial dimension."""
+        c = self.__dict__.get("_compact")
+        if c is not None and "xi" not in self.__dict__:
+            return int(c.tables["xi"].shape[1])
         return int(self.xi.shape[1])
+
+    @classmethod
+    def _from_parts(
+        cls,
+        n_points: int,
+        j: np.ndarray,
+        indptr: np.ndarray,
+        horizon: np.ndarray,
+        shape: str,
+        influence: Any,
+        store: _CompactStore,
+    ) -> Bonds:
+        """Build a compact Bonds (no ``i``, ``xi``, ``length``, ``omega``, ``volume_j``)."""
+        self = object.__new__(cls)
+        for k, v in (("n_points", n_points), ("j", j), ("indptr", indptr),
+                     ("horizon", horizon), ("shape", shape), ("influence", influence),
+                     ("_compact", store)):  # fmt: skip
+            object.__setattr__(self, k, v)
+        return self
 
     @property
     def family_size(self) -> np.ndarray:
@@ -165,6 +318,12 @@ class Bonds:
         counts = np.bincount(self.i[m], minlength=self.n_points)
         indptr = np.zeros(self.n_points + 1, dtype=np.int64)
         np.cumsum(counts, out=indptr[1:])
+        c = self.__dict__.get("_compact")
+        if c is not None:
+            return Bonds._from_parts(
+                self.n_points, self.j[m], indptr, self.horizon, self.shape, self.influence,
+                c.kept(m),
+            )  # fmt: skip
         return Bonds(
             self.n_points,
             self.i[m],
@@ -185,22 +344,17 @@ class Bonds:
         Returns
         -------
         int
-            Bytes of ``i``, ``j``, ``xi``, ``length``, ``omega``, ``volume_j`` and ``indptr``.
+            Bytes of the per-bond arrays held: ``i``, ``j``, ``xi``, ``length``, ``omega``,
+            ``volume_j`` and ``indptr`` as stored (a compact Bonds: ``j``, ``indptr``, the
+            stencil index and the small tables; the point volumes it shares with the cloud
+            are not counted).
         """
-        return int(
-            sum(
-                a.nbytes
-                for a in (
-                    self.i,
-                    self.j,
-                    self.xi,
-                    self.length,
-                    self.omega,
-                    self.volume_j,
-                    self.indptr,
-                )
-            )
-        )
+        c = self.__dict__.get("_compact")
+        held = [self.__dict__[k] for k in ("j", "indptr") + _LAZY if k in self.__dict__]
+        if c is not None:
+            held += [c.stencil] if c.stencil is not None else []
+            held += list(c.tables.values())
+        return int(sum(np.asarray(a).nbytes for a in held))
 
     def __repr__(self) -> str:
         """Return point and bond counts, family-size range and shape (no arrays)."""
@@ -416,8 +570,12 @@ def _crack_mask(points: np.ndarray, i: np.ndarray, j: np.ndarray, cracks: Any) -
 
 def _lattice_pairs(
     cloud: PointCloud, hor: float, shape: str, axes: np.ndarray | None, rtol: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Directed bonds of a regular lattice from an integer stencil (already CSR sorted)."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Directed bonds of a regular lattice from an integer stencil (already CSR sorted).
+
+    Returns ``(i, j, stencil, vectors, lengths)``: bond ``b`` has ``ξ = vectors[stencil[b]]``
+    and ``|ξ| = lengths[stencil[b]]`` (``stencil`` of the smallest unsigned int type).
+    """
     lat = cloud.lattice
     assert lat is not None
     dim = cloud.dim
@@ -465,7 +623,8 @@ def _lattice_pairs(
         j = lookup[flat_i[rows] + flat_off[cols]]
         ok = j >= 0
         rows, cols, j = rows[ok], cols[ok], j[ok]
-    return rows, j, vec[cols], length[cols]
+    sdt = np.uint8 if noff <= 1 << 8 else np.uint16 if noff <= 1 << 16 else np.int64
+    return rows, j, cols.astype(sdt), vec, length
 
 
 #: points per chunk of the threaded cell-list search
@@ -635,6 +794,36 @@ def _check_bond_memory(cloud: PointCloud, hor: np.ndarray, shape: str) -> None:
     )
 
 
+def _bond_store(
+    cloud: PointCloud,
+    j: np.ndarray,
+    indptr: np.ndarray,
+    hor: np.ndarray,
+    stencil: np.ndarray | None,
+    xi: np.ndarray,
+    length: np.ndarray,
+    influence: Any,
+    allow_negative: bool,
+) -> _CompactStore:
+    """Evaluate the influence function and choose the compact storage of the bonds."""
+    per_bond = length if stencil is None else length[stencil]
+    if bool(np.all(hor == hor[0])):
+        hij = np.full(j.size, hor[0])
+    else:
+        i = np.repeat(np.arange(cloud.n, dtype=np.int64), np.diff(indptr))
+        hij = np.maximum(hor[i], hor[j])
+        del i
+    omega = evaluate_influence(influence, per_bond, hij, allow_negative=allow_negative)
+    del hij, per_bond
+
+    def table() -> np.ndarray:
+        return evaluate_influence(
+            influence, length, np.full(length.size, hor[0]), allow_negative=allow_negative
+        )
+
+    return _compact_store(stencil, xi, length, omega, table, np.asarray(cloud.volumes))
+
+
 def find_bonds(
     cloud: PointCloud,
     horizon: float | Sequence[float] | np.ndarray | None = None,
@@ -739,8 +928,9 @@ def find_bonds(
     if method == "lattice" and not use_lattice:
         raise InputError("method='lattice' needs a grid cloud and a constant horizon")
     _check_bond_memory(cloud, hor, shape)
+    stencil: np.ndarray | None = None
     if use_lattice:
-        i, j, xi, length = _lattice_pairs(cloud, float(hor[0]), shape, ax, rtol)
+        i, j, stencil, xi, length = _lattice_pairs(cloud, float(hor[0]), shape, ax, rtol)
     else:
         i, j, xi, length = _tree_pairs(cloud, hor, shape, ax, rtol)
     drop = None
@@ -754,9 +944,12 @@ def find_bonds(
     counts = np.bincount(i, minlength=cloud.n)
     indptr = np.zeros(cloud.n + 1, dtype=np.int64)
     np.cumsum(counts, out=indptr[1:])
-    hij = np.full(i.size, hor[0]) if uniform else np.maximum(hor[i], hor[j])
-    omega = evaluate_influence(influence, length, hij, allow_negative=allow_negative_influence)
-    bonds = Bonds(cloud.n, i, j, xi, length, omega, cloud.volumes[j], indptr, hor, shape, influence)
+    del i
+    bonds = Bonds._from_parts(
+        cloud.n, j, indptr, hor, shape, influence,
+        _bond_store(cloud, j, indptr, hor, stencil, xi, length, influence,
+                    allow_negative_influence),
+    )  # fmt: skip
     if drop is not None and drop.any():
         drop = drop | drop[bonds.reverse]
         bonds = bonds.keep(~drop)

@@ -581,15 +581,16 @@ class BondBased(Model):
             cb = c if isinstance(c, float) else c[b0:b1]
             if sf is not None:
                 cb = cb * sf.bond[b0:b1]
-            k = cb * bonds.omega[b0:b1]
-            k = k * vol[bonds.i[b0:b1]]
-            k *= bonds.volume_j[b0:b1] * meas
-            k /= bonds.length[b0:b1]
+            k = cb * bonds.values("omega", b0, b1)
+            k = k * vol[bonds.values("i", b0, b1)]
+            k *= bonds.values("volume_j", b0, b1) * meas
+            k /= bonds.values("length", b0, b1)
             if k.size and k.min() < 0:
                 b = int(np.argmin(k))
                 raise ModelError(
                     f"bond stiffness c*omega must be >= 0 (energy positivity), got {k[b]:.3g} "
-                    f"at bond {b0 + b} (omega {bonds.omega[b0 + b]:.3g}); signed influence "
+                    f"at bond {b0 + b} (omega {bonds.values('omega', b0 + b, b0 + b + 1)[0]:.3g}); "
+                    "signed influence "
                     "weights belong to correspondence models"
                 )
             return k

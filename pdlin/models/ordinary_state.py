@@ -538,10 +538,11 @@ def compute_weights(
         r0, r1 = rng
         buffers: dict[int, np.ndarray] = local.__dict__.setdefault("buffers", {})
         b0, b1 = int(indptr[r0]), int(indptr[r1])
-        loc = bonds.i[b0:b1] - r0
+        own = bonds.values("i", b0, b1)
+        loc = own - r0
         ptr = indptr[r0 : r1 + 1] - b0
-        s = scale[bonds.i[b0:b1]]
-        xt = bonds.xi[b0:b1].T / s  # component-major (d, m), scaled by the owner's δ
+        s = scale[own]
+        xt = bonds.values("xi", b0, b1).T / s  # component-major (d, m), scaled by the owner's δ
         v = vj[b0:b1]
         s2 = s * s
         for phi, target, ws, out, cnd in (
@@ -713,7 +714,7 @@ def _bond_operator(bonds: Bonds, unit: np.ndarray, n: int, d: int) -> sp.csr_arr
 
     def chunk(rng: tuple[int, int]) -> None:
         b0, b1 = rng
-        cols[b0:b1, :d] = bonds.i[b0:b1, None].astype(idt) * d + ar
+        cols[b0:b1, :d] = bonds.values("i", b0, b1)[:, None].astype(idt) * d + ar
         cols[b0:b1, d:] = bonds.j[b0:b1, None].astype(idt) * d + ar
         np.negative(unit[b0:b1], out=data[b0:b1, :d])
         data[b0:b1, d:] = unit[b0:b1]
@@ -859,10 +860,9 @@ class OrdinaryStateBased(Model):
             return
         n = cloud.n
         err = np.zeros(n)
+        own, xi, vj = bonds.i, bonds.xi, bonds.volume_j
         for k in range(d):
-            theta = np.bincount(
-                bonds.i, weights=w.omega_h * bonds.xi[:, k] ** 2 * bonds.volume_j, minlength=n
-            )
+            theta = np.bincount(own, weights=w.omega_h * xi[:, k] ** 2 * vj, minlength=n)
             err = np.maximum(err, np.abs(theta - 1.0))
         bad = err > DILATATION_TOL
         if not bad.any():

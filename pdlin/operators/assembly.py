@@ -133,22 +133,29 @@ def pair_stiffness_bsr(
     if mod is not None:
         fill = mod.pair_blocks_fill
         unit_given = directions is not None
-        vec = np.ascontiguousarray(directions if unit_given else bonds.xi, dtype=np.float64)
+        bj = bonds.j
 
         def fused(rows: tuple[int, int]) -> None:
             r0, r1 = rows
             b0, b1 = int(bptr[r0]), int(bptr[r1])
             kb = coef(b0, b1) if callable(coef) else coef[b0:b1]
             kb = np.ascontiguousarray(kb, dtype=np.float64)
-            fill(r0, r1, bptr, bonds.j, vec, bonds.length, unit_given, kb, b0, indices, data)
+            # this chunk's vectors only (a compact Bonds computes them on access)
+            if unit_given:
+                vec, ln = np.asarray(directions)[b0:b1], np.ones(0)
+            else:
+                vec, ln = bonds.values("xi", b0, b1), bonds.values("length", b0, b1)
+            vec = np.ascontiguousarray(vec, dtype=np.float64)
+            fill(r0, r1, bptr, bj, vec, ln, unit_given, kb, b0, indices, data)
 
     def chunk(rows: tuple[int, int]) -> None:
         r0, r1 = rows
         b0, b1 = int(bptr[r0]), int(bptr[r1])
         jj = bonds.j[b0:b1]
-        upper = jj > bonds.i[b0:b1]
+        ii = bonds.values("i", b0, b1)
+        upper = jj > ii
         bond_pos = np.arange(b0, b1, dtype=np.int64)
-        bond_pos += bonds.i[b0:b1]
+        bond_pos += ii
         bond_pos += upper
         # rows with bonds (np.add.reduceat needs non-empty segments; empty rows sum to 0)
         full = bptr[r0 + 1 : r1 + 1] > bptr[r0:r1]
@@ -159,7 +166,8 @@ def pair_stiffness_bsr(
         indices[bond_pos] = jj
         indices[diag_pos] = np.arange(r0, r1)
         if directions is None:
-            unit_t = (bonds.xi[b0:b1] * (1.0 / bonds.length[b0:b1])[:, None]).T
+            xl = bonds.values("xi", b0, b1), bonds.values("length", b0, b1)
+            unit_t = (xl[0] * (1.0 / xl[1])[:, None]).T
         else:
             unit_t = np.asarray(directions[b0:b1]).T
         # component-major (d, d, m) blocks: contiguous inner loops; same

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 
+from .._repr import Raw, compact_repr
 from .._validation import as_float_array, integer
 from ..errors import InputError, ShapeError
 from ..geometry.cloud import PointCloud
@@ -143,6 +144,20 @@ class TimePath:
     L: Any = None
     center: Any = None
 
+    def __repr__(self) -> str:
+        """Return ``TimePath(...)``: the description, or the function's name, and ``L``."""
+        shown = self.description or _shown(self.fn)
+        return compact_repr("TimePath", {"path": shown, "L": self.L})
+
+
+def _shown(value: Any) -> Any:
+    """Return a condition's field as :func:`~pdlin._repr.compact_repr` shows it."""
+    if isinstance(value, TimePath):
+        return Raw(repr(value))
+    if callable(value):
+        return Raw(f"<function {getattr(value, '__qualname__', type(value).__name__)}>")
+    return value
+
 
 @dataclass(frozen=True)
 class Dirichlet:
@@ -184,6 +199,17 @@ class Dirichlet:
     where: Any
     value: Any = 0.0
     components: Any = None
+
+    def __repr__(self) -> str:
+        """Return ``Dirichlet(where=..., value=..., components=...)`` without whole arrays."""
+        return compact_repr(
+            "Dirichlet",
+            {
+                "where": _shown(self.where),
+                "value": _shown(self.value),
+                "components": self.components,
+            },
+        )
 
     def __post_init__(self) -> None:
         """Check the point selection, the value and the components eagerly."""
@@ -331,6 +357,12 @@ class BodyForce:
     where: Any
     density: Any
 
+    def __repr__(self) -> str:
+        """Return ``BodyForce(where=..., density=...)`` without whole arrays."""
+        return compact_repr(
+            "BodyForce", {"where": _shown(self.where), "density": _shown(self.density)}
+        )
+
     def __post_init__(self) -> None:
         """Check the point selection and the density eagerly."""
         _check_where(self.where, "where")
@@ -354,6 +386,13 @@ class TotalForce:
     where: Any
     force: Any
     weights: Any = field(default=None)
+
+    def __repr__(self) -> str:
+        """Return ``TotalForce(where=..., force=..., weights=...)`` without whole arrays."""
+        return compact_repr(
+            "TotalForce",
+            {"where": _shown(self.where), "force": self.force, "weights": self.weights},
+        )
 
     def __post_init__(self) -> None:
         """Check the point selection, the force and the weights eagerly."""

@@ -21,6 +21,7 @@ from .linear import (
     SOLVERS,
     DirectSolver,
     LinearSolveInfo,
+    SolverSetup,
     amg_hierarchy,
     solve_linear,
 )
@@ -39,6 +40,7 @@ __all__ = [
     "SOLVERS",
     "DirectSolver",
     "LinearSolveInfo",
+    "SolverSetup",
     "amg_hierarchy",
     "solve_linear",
     "StepFailed",

@@ -33,6 +33,7 @@ __all__ = [
     "amg_hierarchy",
     "AMG_DEFAULTS",
     "solve_linear",
+    "SolverSetup",
     "SOLVERS",
     "safe_norm",
     "check_force_balance",
@@ -448,6 +449,38 @@ class LinearSolveInfo:
     info: dict[str, Any] = field(default_factory=dict)
 
 
+@dataclass
+class SolverSetup:
+    """The factorization or preconditioner of one matrix, kept for further right-hand sides.
+
+    Pass an empty one as ``solve_linear(..., setup=)``: the first call fills it, later
+    calls with the same (unchanged) matrix reuse it instead of factorizing again or
+    rebuilding the AMG hierarchy, so a solve with a reused set-up is the same arithmetic
+    as a fresh one (bitwise the same solution).  The caller guarantees the matrix and
+    the preconditioner matrix are those of the first call.
+
+    Attributes
+    ----------
+    direct : DirectSolver or None
+        The factorization of ``solver='direct'``.
+    M, MA : callable or None
+        The preconditioner of an iterative solver and AMG's fused cycle-and-product.
+    info : dict
+        The set-up's entries of ``LinearSolveInfo.info`` (AMG levels, condition estimate).
+    filled : bool
+        Whether a first solve has filled it.
+    uses : int
+        Solves that reused the set-up.
+    """
+
+    direct: DirectSolver | None = None
+    M: Any = None
+    MA: Any = None
+    info: dict[str, Any] = field(default_factory=dict)
+    filled: bool = False
+    uses: int = 0
+
+
 def amg_hierarchy(
     A: sp.sparray,
     B: np.ndarray | None = None,
@@ -676,6 +709,7 @@ def solve_linear(
     direct_cache: dict[str, Any] | None = None,
     condition: bool | str = "auto",
     progress: Callable[[str], None] | None = None,
+    setup: SolverSetup | None = None,
 ) -> LinearSolveInfo:
     """Solve ``A x = b`` and verify the true residual.
 
@@ -728,6 +762,12 @@ def solve_linear(
         system: small residual, inaccurate solution).  ``'auto'``: symmetric
         systems up to :data:`~pdlin.solvers.CONDITION_AUTO_MAX`
         unknowns.
+    setup : SolverSetup, optional
+        Keeps the factorization (``'direct'``) or the preconditioner (iterative solvers)
+        of ``A``: an empty one is filled by this call, a filled one is reused as is (no
+        factorization, no AMG set-up; the caller guarantees ``A`` is unchanged).  Several
+        right-hand sides of one matrix, e.g. the load steps of
+        :func:`pdlin.static.solve_steps`; every solve still checks its own residual.
 
     Returns
     -------
@@ -766,7 +806,7 @@ def solve_linear(
             A, b * bscale, solver, rtol, maxiter, near_null, blocksize, symmetric,
             None if x0 is None else np.asarray(x0, dtype=float) * bscale, amg_options,
             check_rtol, preconditioner_matrix, direct_backend, direct_cache, condition,
-            progress,
+            progress, setup,
         )  # fmt: skip
     except ConvergenceError as exc:
         if isinstance(exc.result, LinearSolveInfo):  # the partial result, in the caller's units
@@ -798,6 +838,7 @@ def _solve_scaled(
     direct_cache: dict[str, Any] | None = None,
     condition: bool | str = "auto",
     progress: Callable[[str], None] | None = None,
+    setup: SolverSetup | None = None,
 ) -> LinearSolveInfo:
     """Solve for a right-hand side of unit magnitude (the body of :func:`solve_linear`)."""
     n = A.shape[0]
@@ -819,14 +860,22 @@ def _solve_scaled(
         )
     if solver == "direct":
         return _solve_direct(
-            A, b, rtol, symmetric, check_rtol, direct_backend, direct_cache, condition, info
+            A, b, rtol, symmetric, check_rtol, direct_backend, direct_cache, condition, info,
+            setup,
         )  # fmt: skip
 
     t0 = time.perf_counter()
     c0 = time.process_time()
-    M, MA = _preconditioner(
-        A, P, solver, near_null, blocksize, symmetric, amg_options, progress, info, t0
-    )  # fmt: skip
+    if setup is not None and setup.filled:
+        M, MA = setup.M, setup.MA
+        info.update(setup.info)
+        setup.uses += 1
+    else:
+        M, MA = _preconditioner(
+            A, P, solver, near_null, blocksize, symmetric, amg_options, progress, info, t0
+        )  # fmt: skip
+        if setup is not None:
+            setup.M, setup.MA, setup.info, setup.filled = M, MA, dict(info), True
     t1 = time.perf_counter()
     c1 = time.process_time()
     if solver.endswith("cg"):
@@ -872,6 +921,7 @@ def _solve_direct(
     direct_cache: dict[str, Any] | None,
     condition: bool | str,
     info: dict[str, Any],
+    setup: SolverSetup | None = None,
 ) -> LinearSolveInfo:
     """``solver='direct'`` of :func:`_solve_scaled`: factorize (or refactorize), solve, check."""
     if not sp.issparse(A):
@@ -879,7 +929,10 @@ def _solve_direct(
     t0 = time.perf_counter()
     lu = None if direct_cache is None else direct_cache.get("solver")
     reused = False
-    if (
+    if setup is not None and setup.filled and setup.direct is not None:
+        lu = setup.direct  # the factorization of this very matrix: solve only
+        setup.uses += 1
+    elif (
         isinstance(lu, DirectSolver)
         and lu.shape == A.shape
         and lu.symmetric == bool(symmetric)
@@ -908,6 +961,8 @@ def _solve_direct(
     t1 = time.perf_counter()
     x = lu.solve(b)
     t2 = time.perf_counter()
+    if setup is not None and not setup.filled:
+        setup.direct, setup.filled = lu, True
     info["direct_backend"] = lu.backend
     info["direct_reused"] = reused
     info["direct_ordering"] = lu.info["ordering"]
@@ -928,11 +983,15 @@ def _solve_direct(
             f"direct solve: true relative residual {rr:.3e} exceeds {tol:.1e} "
             "(matrix singular or badly conditioned)"
         )
-    if condition is True or (
+    if setup is not None and "condition_estimate" in setup.info:
+        info["condition_estimate"] = setup.info["condition_estimate"]  # A's, warned once
+    elif condition is True or (
         condition == "auto" and symmetric and A.shape[0] <= CONDITION_AUTO_MAX
     ):
         kappa = condition_estimate(A, lu.solve, symmetric=bool(symmetric))
         info["condition_estimate"] = kappa
+        if setup is not None:
+            setup.info["condition_estimate"] = kappa
         warn_if_ill_conditioned(kappa, f"direct solve ({lu.backend})")
     return LinearSolveInfo(x, "direct", 1, residuals, rr, t1 - t0, t2 - t1, info)
 

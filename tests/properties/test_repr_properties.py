@@ -261,3 +261,41 @@ def test_calibration_result_repr():
     for fact in (f"status='{res.status}'", f"n_bonds={bonds.n_bonds}", "families=1"):
         assert fact in text, (fact, text)
     assert f"relative_error={np.max(res.relative_error):.4g}" in text
+
+
+@settings(max_examples=20, deadline=None)
+@given(m=st.integers(min_value=1, max_value=N), dim=st.integers(min_value=1, max_value=3))
+def test_condition_reprs_show_sets_and_values_without_arrays(m: int, dim: int) -> None:
+    """Conditions given on m points (indices, per-point values, callables) stay one short line."""
+    from pdlin.operators import BodyForce, TimePath
+
+    idx = np.arange(m)
+    conditions = [
+        (pdlin.Dirichlet(idx, np.zeros((m, dim)), components=[0]), ["Dirichlet(", f"<{m} array>"]),
+        (pdlin.Dirichlet("x-", 0.0), ["Dirichlet(where='x-', value=0)"]),
+        (pdlin.Dirichlet("x+", lambda x: x[:, 0]), ["value=<function"]),
+        (pdlin.Dirichlet("x+", TimePath(lambda x, t: t, "ramp")), ["TimePath(path='ramp')"]),
+        (pdlin.TotalForce(idx, np.ones(dim), weights=np.ones(m)), ["TotalForce(", f"<{m} array>"]),
+        (BodyForce(None, np.ones(dim)), ["BodyForce(density="]),
+    ]
+    for cond, facts in conditions:
+        text = repr(cond)
+        _looks_clean(text)
+        for fact in facts:
+            assert fact in text, (fact, text)
+
+
+def test_constrained_system_repr_sizes_not_arrays() -> None:
+    cloud = pdlin.grid((100, 100), spacing=0.01)  # 10^4 points
+    prob = pdlin.StaticProblem(
+        pdlin.BondBased(E=1.0),
+        cloud,
+        horizon=0.0201,
+        dirichlet=[pdlin.Dirichlet("x-", 0.0)],
+        loads=[pdlin.TotalForce("x+", [1.0, 0.0])],
+    )
+    text = repr(pdlin.system.constrained_system(prob))
+    _looks_clean(text)
+    # the x- edge: 100 points x 2 components prescribed (grid((100, 100)) has 100 per edge)
+    for fact in ("ConstrainedSystem(", f"points={N}", "DOFs=20000", "prescribed=200"):
+        assert fact in text, (fact, text)

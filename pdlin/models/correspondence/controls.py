@@ -397,9 +397,10 @@ def penalty_force(
     # -Gᵀ Xᵀ(k z): per gradient point (g, i, q): Σ_b k z_i ξ_q
     ngp = p.gp_owner.size
     t = np.empty((ngp, d, d))
+    xi = bonds.xi  # once (a compact Bonds computes it on each access)
     for a in range(d):
         for q in range(d):
-            t[:, a, q] = np.bincount(p.gp_of_bond, weights=kz[:, a] * bonds.xi[:, q], minlength=ngp)
+            t[:, a, q] = np.bincount(p.gp_of_bond, weights=kz[:, a] * xi[:, q], minlength=ngp)
     return out.ravel() - np.asarray(p.G.T @ t.ravel())
 
 
@@ -446,15 +447,14 @@ def penalty_matrix(
     nb = g.size
     n_gp = blk.indptr.size - 1
     nblk = blk.col.size
-    kx = k[:, None] * bonds.xi
+    xi = bonds.xi  # once (a compact Bonds computes it on each access)
+    kx = k[:, None] * xi
     # M_g = Σ_b k_b ξ_b ξ_bᵀ; U block (g, p) = ½ M_g c_gp - Σ_{b: j_b = p} k_b ξ_b
     # (+ Σ_b k_b ξ_b on the owner's block)
     M = np.empty((n_gp, d, d))
     for q in range(d):
         for r in range(q, d):
-            M[:, q, r] = M[:, r, q] = np.bincount(
-                g, weights=kx[:, q] * bonds.xi[:, r], minlength=n_gp
-            )
+            M[:, q, r] = M[:, r, q] = np.bincount(g, weights=kx[:, q] * xi[:, r], minlength=n_gp)
     U = np.einsum("bqr,br->bq", M[blk.row], blk.val)
     U *= 0.5
     for q in range(d):
