@@ -138,7 +138,7 @@ def blas_info() -> str:
 def direct_backends_line() -> str:
     """Installed direct backends and what ``direct_backend='auto'`` picks at pdlin's threads."""
     try:
-        from pdlin.solvers.direct import AUTO_MIN, _auto_chain, available_direct_backends
+        from pdlin.solvers.direct import AUTO_MIN, auto_chain, available_direct_backends
     except ImportError as exc:
         return f"unknown ({exc})"
     avail = available_direct_backends()
@@ -146,8 +146,12 @@ def direct_backends_line() -> str:
     missing = [b for b, ok in avail.items() if not ok]
     text = f"installed {', '.join(have)}" + (f" (not: {', '.join(missing)})" if missing else "")
     try:  # the selection may change (issue 33): report it, never fail the benchmark on it
-        sym, unsym = _auto_chain(True, AUTO_MIN)[0], _auto_chain(False, AUTO_MIN)[0]
-        text += f"; 'auto' at >= {AUTO_MIN} unknowns: symmetric -> {sym}, nonsymmetric -> {unsym}"
+        sym2, sym3 = auto_chain(True, AUTO_MIN, 2)[0], auto_chain(True, AUTO_MIN, 3)[0]
+        unsym = auto_chain(False, AUTO_MIN)[0]
+        text += (
+            f"; 'auto' at >= {AUTO_MIN} unknowns: symmetric -> {sym2} (3D blocks: {sym3}), "
+            f"nonsymmetric -> {unsym}"
+        )
     except Exception as exc:  # pragma: no cover - depends on the installed pdlin
         text += f"; 'auto' selection unknown ({type(exc).__name__})"
     return text
