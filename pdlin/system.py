@@ -653,7 +653,7 @@ class ConstrainedSystem:
             Load factor of the prescribed values and the external force.
         op : LinearOperator, optional
             The discretization's operator (``disc.operator()``) when already built (kept
-            by :func:`pdlin.static.solve_steps` for the right-hand sides, :meth:`rhs`).
+            by ``pdlin.static.solve_steps`` for the right-hand sides, :meth:`rhs`).
 
         Returns
         -------
@@ -924,7 +924,7 @@ class ConstrainedSystem:
 
         Bitwise the ``b`` of :meth:`eliminate` (``f_ext - K_fc u_c`` on the free rows, 0 on
         the prescribed ones) without K itself: a load step of
-        :func:`pdlin.static.solve_steps` reuses the eliminated matrix of the first.
+        ``pdlin.static.solve_steps`` reuses the eliminated matrix of the first.
 
         Parameters
         ----------

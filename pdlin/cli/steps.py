@@ -20,7 +20,7 @@ def run_load_steps(args: argparse.Namespace, scene: Any, prog: Any) -> int:
     Each step is a linear solve at that step's prescribed values (pdlin's deck models are
     linear; Peridigm's quasi-static solver would Newton-iterate each step from the last).
     The steps share the bonds, K and its factorization or AMG hierarchy
-    (:func:`pdlin.static.solve_steps`); each checks its own residual.  The series goes
+    (``pdlin.static.solve_steps``); each checks its own residual.  The series goes
     through :func:`pdlin.io.results.write_series` (``.vtu`` output becomes a ``.pvd``
     collection with one ``.vtu`` per step).  Progress is reported per step and for the
     write; the summary's ``timings`` add up the steps' stages and include the write.

@@ -767,7 +767,7 @@ def solve_linear(
         of ``A``: an empty one is filled by this call, a filled one is reused as is (no
         factorization, no AMG set-up; the caller guarantees ``A`` is unchanged).  Several
         right-hand sides of one matrix, e.g. the load steps of
-        :func:`pdlin.static.solve_steps`; every solve still checks its own residual.
+        ``pdlin.static.solve_steps``; every solve still checks its own residual.
 
     Returns
     -------
