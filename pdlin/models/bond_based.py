@@ -673,25 +673,29 @@ class BondBased(Model):
         InputError
             With ``linear=False``, if ``u`` collapses a bond to zero length.
         """
+        # compact bonds compute these on each access: read them once
+        bi = bonds.i
+        bxi = bonds.xi
+        blen = bonds.length
         d = cloud.dim
         uu = as_displacement(u, cloud.n, d)
         k = self.bond_stiffness(cloud, bonds)
-        eta = uu[bonds.j] - uu[bonds.i]
+        eta = uu[bonds.j] - uu[bi]
         if linear:
-            unit = bonds.xi / bonds.length[:, None]
+            unit = bxi / blen[:, None]
             tb = k * np.einsum("ij,ij->i", unit, eta)
             vec = tb[:, None] * unit
         else:
-            y = bonds.xi + eta
+            y = bxi + eta
             ly = np.sqrt(np.einsum("ij,ij->i", y, y))
             if np.any(ly <= 0):
                 raise InputError("u collapses a bond to zero length; the PMB force is undefined")
-            stretch_len = ly - bonds.length  # = s |ξ|
+            stretch_len = ly - blen  # = s |ξ|
             tb = k * stretch_len
             vec = tb[:, None] * (y / ly[:, None])
         f = np.empty((cloud.n, d))
         for a in range(d):
-            f[:, a] = np.bincount(bonds.i, weights=vec[:, a], minlength=cloud.n)
+            f[:, a] = np.bincount(bi, weights=vec[:, a], minlength=cloud.n)
         return f
 
     def stress(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:

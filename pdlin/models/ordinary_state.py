@@ -935,6 +935,8 @@ class OrdinaryStateBased(Model):
         ``κ/2 + μ(n_d-1)/n_d``; force ``F_i = Σ_j |t n_k| V_j`` (paper force state) against
         its continuum value ``(n_d/m) ∫ω r^{n_d} dr ∫|κ + (n_d+2)μ(n_1² - 1/n_d)||n_1| dΩ``.
         """
+        # compact bonds compute these on each access: read them once
+        bi = bonds.i
         n, d = cloud.n, cloud.dim
         co = self._raw_coefficients(cloud, bonds)
         kappa, mu = self.moduli(d)
@@ -946,14 +948,14 @@ class OrdinaryStateBased(Model):
         disc = np.empty((n, d))
         for k in range(d):
             e = r * nabs[:, k] ** 2
-            theta = np.bincount(bonds.i, weights=co["a"] * e, minlength=n)
-            ed = e - theta[bonds.i] * r / d
+            theta = np.bincount(bi, weights=co["a"] * e, minlength=n)
+            ed = e - theta[bi] * r / d
             if method == "energy":
-                dev = np.bincount(bonds.i, weights=co["c"] * ed * ed * vj, minlength=n)
+                dev = np.bincount(bi, weights=co["c"] * ed * ed * vj, minlength=n)
                 disc[:, k] = 0.5 * kap * theta**2 + 0.5 * dev
             else:
-                t = co["kh"] * theta[bonds.i] + co["c"] * ed
-                disc[:, k] = np.bincount(bonds.i, weights=np.abs(t) * nabs[:, k] * vj, minlength=n)
+                t = co["kh"] * theta[bi] + co["c"] * ed
+                disc[:, k] = np.bincount(bi, weights=np.abs(t) * nabs[:, k] * vj, minlength=n)
         if method == "energy":
             target = 0.5 * kap + mup * (d - 1) / d
         else:
@@ -1109,18 +1111,22 @@ class OrdinaryStateBased(Model):
     def _force_state(
         self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, linear: bool, variant: str
     ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+        # compact bonds compute these on each access: read them once
+        bi = bonds.i
+        blen = bonds.length
+        bvj = bonds.volume_j
         co = self._coefficients(cloud, bonds)
         d = co["d"]
         e, unit = self._extension(cloud, bonds, u, linear)
-        theta = np.bincount(bonds.i, weights=co["a"] * e, minlength=cloud.n)
-        thb = theta[bonds.i]
-        ed = e - thb * bonds.length / d
+        theta = np.bincount(bi, weights=co["a"] * e, minlength=cloud.n)
+        thb = theta[bi]
+        ed = e - thb * blen / d
         cd = co["c"] * ed
         if variant == "paper":
             t = co["kh"] * thb + cd
         else:
-            z = np.bincount(bonds.i, weights=cd * bonds.length * bonds.volume_j, minlength=cloud.n)
-            t = (co["kth"] * thb + cd) - (co["a"] / bonds.volume_j / d) * z[bonds.i]
+            z = np.bincount(bi, weights=cd * blen * bvj, minlength=cloud.n)
+            t = (co["kth"] * thb + cd) - (co["a"] / bvj / d) * z[bi]
         return t, unit, co
 
     def internal_force(

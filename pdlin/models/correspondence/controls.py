@@ -174,8 +174,10 @@ def _halves_well_conditioned(
     surfaces; unbalanced halves of truncated families are not (measured: 1.1 % patch-test
     error on a free-surface 2D bar at δ = 3h).
     """
+    # compact bonds compute these on each access: read them once
+    bxi = bonds.xi
     geo = omega_v if omega is None else omega
-    mod = compiled_kernels() if use_numba(bonds.xi.size * sides.shape[0]) else None
+    mod = compiled_kernels() if use_numba(bxi.size * sides.shape[0]) else None
     if mod is not None and bonds.dim == 2 and bonds.n_points == n:
         # one nogil pass per point chunk on the threads (the same tensors; the decisions
         # compare with tolerances far above round-off)
@@ -183,7 +185,7 @@ def _halves_well_conditioned(
         bptr = np.asarray(bonds.indptr, dtype=np.int64)
         args = (
             bptr,
-            np.ascontiguousarray(bonds.xi, dtype=np.float64),
+            np.ascontiguousarray(bxi, dtype=np.float64),
             np.ascontiguousarray(omega_v, dtype=np.float64),
             np.ascontiguousarray(geo, dtype=np.float64),
             np.ascontiguousarray(sides),
@@ -194,14 +196,15 @@ def _halves_well_conditioned(
         kern = mod.sp_halves_2d
         thread_map(lambda r: kern(r[0], r[1], *args), ptr_chunks(bptr, _gradient._POINT_CHUNK))
         return ok2
-    full_k = per_point_outer(bonds.i, n, omega_v, bonds.xi, bonds.xi)
-    full_g = per_point_outer(bonds.i, n, geo, bonds.xi, bonds.xi)
+    bi = bonds.i
+    full_k = per_point_outer(bi, n, omega_v, bxi, bxi)
+    full_g = per_point_outer(bi, n, geo, bxi, bxi)
     scale = np.sqrt(np.einsum("nij,nij->n", full_g, full_g))
     ok = np.ones(n, dtype=bool)
     for side in sides:
-        half = per_point_outer(bonds.i, n, np.where(side, omega_v, 0.0), bonds.xi, bonds.xi)
+        half = per_point_outer(bi, n, np.where(side, omega_v, 0.0), bxi, bxi)
         other = full_k - half
-        half_g = per_point_outer(bonds.i, n, np.where(side, geo, 0.0), bonds.xi, bonds.xi)
+        half_g = per_point_outer(bi, n, np.where(side, geo, 0.0), bxi, bxi)
         diff = 2.0 * half_g - full_g
         balanced = np.sqrt(np.einsum("nij,nij->n", diff, diff)) <= SP_BALANCE_TOL * scale
         ok &= _ratio_ok(half) & _ratio_ok(other) & balanced
@@ -330,9 +333,7 @@ def gradient_points(
 def penalty_bond_stiffness(
     model: Correspondence, cloud: PointCloud, bonds: Bonds, p: _Plan
 ) -> np.ndarray:
-    """Return the penalty stiffness per bond, ``½ penalty k_b``.
-
-    Penalty stiffness per bond ``½ penalty k_b`` (0 on energy-free owners), ``(nb,)``.
+    """Return the penalty stiffness per bond, ``½ penalty k_b`` (0 on energy-free owners).
 
     Parameters
     ----------
