@@ -443,7 +443,11 @@ def choose_operator(
 ) -> tuple[str, str]:
     """Choose the assembled or matrix-free K, and say why.
 
-    In 3D a two-hop K is applied matrix-free when it averages more than 60 blocks per point
+    A two-hop K (``model.coupling_range >= 2``) is applied matrix-free when it would take
+    more than 40 % of the machine's memory: its operator and one-hop surrogate are smaller.
+    A one-hop K stays assembled at any size, since its matrix-free path preconditions with
+    the same one-hop matrix (``Model.surrogate_stiffness``) and saves nothing.
+    In 3D a two-hop K is also applied matrix-free when it averages more than 60 blocks per point
     (LPS/XOSB at δ = 3 h: 300-830, correspondence at δ = 2 h: ~185): assembling it is then
     the dominant cost (scipy's single-threaded sparse product) and the factored product is
     cheaper.  Sparse two-hop operators (nearest-neighbour correspondence: 25 blocks per
@@ -502,13 +506,17 @@ def choose_operator(
         total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
         total = 0
+    one_hop = getattr(model, "coupling_range", 1) < 2
     if total and est_bytes > 0.4 * total:
-        return "matrix-free", (
-            f"assembled K would take ~{est_bytes / 1e9:.1f} GB, over 40 % of "
-            f"{total / 1e9:.0f} GB of memory"
-        )
+        big = f"~{est_bytes / 1e9:.1f} GB, over 40 % of {total / 1e9:.0f} GB of memory"
+        if one_hop:  # its matrix-free path is preconditioned by a matrix of K's own size
+            return "assembled", (
+                f"assembled K {big}, but a one-hop model's matrix-free path would keep an "
+                "assembled preconditioning matrix of the same size"
+            )
+        return "matrix-free", f"assembled K would take {big}"
     per_point = nblocks / max(cloud.n, 1)
-    if getattr(model, "coupling_range", 1) >= 2 and cloud.dim == 3 and per_point > 60:
+    if not one_hop and cloud.dim == 3 and per_point > 60:
         return "matrix-free", (
             f"K couples points two horizons apart in 3D ({per_point:.0f} blocks per point): "
             "the factored product is cheaper than assembling it"

@@ -80,7 +80,9 @@ def solve(
         model's assembled one-hop ``surrogate_stiffness``; 'auto' picks
         matrix-free for models coupling two horizons in 3D (where the
         assembled K has ~2,500 nonzeros per row and assembly dominates) or
-        when the assembled K would exceed 40 % of the machine's memory.
+        when their assembled K would exceed 40 % of the machine's memory
+        (one-hop models such as bond-based stay assembled: their
+        matrix-free path would keep a preconditioning matrix of K's size).
         ``result.info['operator']`` and ``['operator_reason']`` say which
         path ran and why.
     preconditioner : Model, optional
