@@ -320,50 +320,55 @@ def test_model_rejects_bad_input():
 
 
 # -- Peridigm's deck and gold file ----------------------------------------------------------
-def _gold_fields(points):
+_TENSORS = ("Cauchy_Stress", "Unrotated_Cauchy_Stress", "Left_Stretch_Tensor",
+            "Rotation_Tensor", "Deformation_Gradient")  # fmt: skip
+
+
+def _gold_fields(path, points):
+    """Gold fields per step, at ``points`` (matched by position).
+
+    Element variables are stored per element block in element order; each sphere element
+    ``k`` is the node ``connect[k]`` (they are not in node order).
+    """
     netCDF4 = pytest.importorskip("netCDF4")
     from scipy.spatial import cKDTree
 
-    with netCDF4.Dataset(DECK / "ElasticCorrespondenceQSTension_gold.e") as ds:
+    with netCDF4.Dataset(path) as ds:
         nod = list(netCDF4.chartostring(ds.variables["name_nod_var"][:]))
         ele = list(netCDF4.chartostring(ds.variables["name_elem_var"][:]))
         x = np.column_stack([np.asarray(ds.variables[f"coord{c}"][:]) for c in "xyz"])
-        nblk = len(ds.variables["eb_prop1"][:])
+        blocks = range(1, len(ds.variables["eb_prop1"][:]) + 1)
+        node_of = np.concatenate(
+            [np.asarray(ds.variables[f"connect{b}"][:]).ravel() for b in blocks]
+        )
+        node_of = node_of - 1
 
         def nodal(name):
-            return np.stack(
-                [
-                    np.asarray(ds.variables[f"vals_nod_var{nod.index(name + c) + 1}"][:])
-                    for c in "XYZ"
-                ],
-                -1,
-            )
+            cols = [nod.index(name + c) + 1 for c in "XYZ"]
+            return np.stack([np.asarray(ds.variables[f"vals_nod_var{k}"][:]) for k in cols], -1)
 
         def element(name):
-            comps = [a + b for a in "XYZ" for b in "XYZ"]
-            k = [ele.index(name + c) + 1 for c in comps]
-            return np.stack(
-                [
-                    np.concatenate(
-                        [
-                            np.asarray(ds.variables[f"vals_elem_var{kk}eb{b}"][:])
-                            for b in range(1, nblk + 1)
-                        ],
-                        axis=1,
-                    )
-                    for kk in k
-                ],
-                -1,
-            ).reshape(-1, x.shape[0], 3, 3)
+            k = ele.index(name) + 1
+            v = np.concatenate(
+                [np.asarray(ds.variables[f"vals_elem_var{k}eb{b}"][:]) for b in blocks], 1
+            )
+            out = np.empty_like(v)
+            out[:, node_of] = v
+            return out
 
         out = {k: nodal(k) for k in ("Displacement", "Force", "Hourglass_Force_Density")}
-        for k in ("Cauchy_Stress", "Unrotated_Cauchy_Stress", "Left_Stretch_Tensor",
-                  "Rotation_Tensor", "Deformation_Gradient"):  # fmt: skip
+        for k in _TENSORS:
+            comps = [element(k + a + b) for a in "XYZ" for b in "XYZ"]
+            out[k] = np.stack(comps, -1).reshape(-1, x.shape[0], 3, 3)
+        for k in ("Volume", "Number_Of_Neighbors"):
             out[k] = element(k)
         out["time"] = np.asarray(ds.variables["time_whole"][:])
+        out["x"] = x
+    if points is None:
+        return out
     dist, idx = cKDTree(x).query(points)
     assert dist.max() <= 1e-12  # Peridigm's points are the element centroids pdlin computes
-    return {k: (v if k == "time" else v[:, idx]) for k, v in out.items()}
+    return {k: (v if k == "time" else v[:, idx] if k != "x" else v[idx]) for k, v in out.items()}
 
 
 def test_elastic_correspondence_deck_matches_gold_at_comp_tolerance():
@@ -380,12 +385,14 @@ def test_elastic_correspondence_deck_matches_gold_at_comp_tolerance():
     times = [t for t, _ in scene.steps][1:]  # Peridigm's load steps (t = 0 is the initial state)
     # the deck's values at Final Time = 1 scale with t (its expressions are linear in t)
     res = pdlin.solve_nonlinear(problem, times=times, t_end=1.0, method="newton", rtol=1e-12)
-    gold = _gold_fields(scene.cloud.points)
+    gold = _gold_fields(DECK / "ElasticCorrespondenceQSTension_gold.e", scene.cloud.points)
+    # the deck reader's bonds are Peridigm's neighbour lists
+    assert np.array_equal(bonds.family_size, gold["Number_Of_Neighbors"][0])
     assert np.allclose(gold["time"][1:], times, rtol=0, atol=1e-14)  # .comp: TIME STEPS 1e-14
     vol = np.asarray(scene.cloud.volumes)[:, None]
     state = model.initial_state(scene.cloud, bonds)
     for k in range(len(times)):
-        g = {key: v[k + 1] for key, v in gold.items() if key != "time"}
+        g = {key: v[k + 1] for key, v in gold.items() if key not in ("time", "x")}
         # tolerances of ElasticCorrespondenceQSTension.comp (absolute)
         assert np.abs(res.u[k] - g["Displacement"]).max() <= 1e-9  # measured 6e-15
         s = res.states[k]
@@ -401,3 +408,45 @@ def test_elastic_correspondence_deck_matches_gold_at_comp_tolerance():
         hgd = model.hourglass_force(scene.cloud, bonds, res.u[k]) / vol
         assert np.abs(hgd - g["Hourglass_Force_Density"]).max() <= 1e-3  # measured 3e-4
         state = s
+
+
+def test_fully_prescribed_deck_matches_gold_over_five_steps():
+    """``ElasticCorrespondenceFullyPrescribedTension``: a Verlet deck, every point prescribed.
+
+    Its deck prescribes ``u = (0, 0.001 y t / 1e-8, 0)`` on ``nodelist_1`` (every node), so
+    Peridigm's force, stretch, rotation and stresses at its five steps (``Fixed dt`` 2e-9,
+    velocity ``Δu/Δt`` on prescribed DOFs) are the model evaluated along that path: one
+    committed step of :meth:`respond` per Verlet step.
+    """
+    folder = DATA / "ElasticCorrespondenceFullyPrescribedTension"
+    gold = _gold_fields(folder / "ElasticCorrespondenceFullyPrescribedTension_gold.e", None)
+    root = ET.parse(folder / "ElasticCorrespondenceFullyPrescribedTension.xml").getroot()
+
+    def param(name):
+        (value,) = [e.get("value") for e in root.iter("Parameter") if e.get("name") == name]
+        return float(value)
+
+    E, nu, hg = param("Young's Modulus"), param("Poisson's Ratio"), param("Hourglass Coefficient")
+    x = gold["x"]
+    cloud = pdlin.PointCloud(x, gold["Volume"][0])
+    bonds = pdlin.find_bonds(cloud, param("Horizon"))
+    assert np.array_equal(bonds.family_size, gold["Number_Of_Neighbors"][0])
+    model = PeridigmCorrespondence(K=E / (3 * (1 - 2 * nu)), G=E / (2 * (1 + nu)), hourglass=hg)
+    state = model.initial_state(cloud, bonds)
+    times = gold["time"]
+    assert np.allclose(np.diff(times), param("Fixed dt"), rtol=1e-12, atol=0)
+    for k in range(1, times.size):
+        u = np.zeros_like(x)
+        u[:, 1] = 0.001 * x[:, 1] * times[k] / 1.0e-8  # the deck's Prescribed Displacement Y
+        assert np.abs(u - gold["Displacement"][k]).max() <= 1e-9
+        r = model.respond(cloud, bonds, u, state)
+        state = r.state
+        # tolerances of ElasticCorrespondenceFullyPrescribedTension.comp (absolute)
+        assert np.abs(r.force - gold["Force"][k]).max() <= 1e-3  # measured 1.8e-6 (of 1.6e7)
+        assert np.abs(r.stress - gold["Cauchy_Stress"][k]).max() <= 1e-2  # measured 2.2e-5
+        assert np.abs(state["S"] - gold["Unrotated_Cauchy_Stress"][k]).max() <= 1e-2
+        for key, name in (("V", "Left_Stretch_Tensor"), ("R", "Rotation_Tensor"),
+                          ("F", "Deformation_Gradient")):  # fmt: skip
+            assert np.abs(state[key] - gold[name][k]).max() <= 1e-12  # measured <= 1.6e-15
+        hgd = model.hourglass_force(cloud, bonds, u) / gold["Volume"][0][:, None]
+        assert np.abs(hgd - gold["Hourglass_Force_Density"][k]).max() <= 1e-9
