@@ -192,7 +192,15 @@ class Hypoelastic:
         F = np.asarray(F, dtype=float)
         if F.ndim != 3 or F.shape[1:] != (3, 3):
             raise ShapeError(f"F must have shape (n, 3, 3), got {F.shape}")
+        missing = [k for k in ("F", "V", "R", "S") if k not in state]
+        if missing:
+            raise InputError(
+                f"state must hold F, V, R and S (Hypoelastic.initial_state), missing {missing}"
+            )
         F0, V0, R0, S0 = (np.asarray(state[k], dtype=float) for k in ("F", "V", "R", "S"))
+        for k, a in zip("FVRS", (F0, V0, R0, S0), strict=True):
+            if a.shape != F.shape:
+                raise ShapeError(f"state[{k!r}] must have the shape of F {F.shape}, got {a.shape}")
         P, V, R, S = self._step(F, F0, V0, R0, S0)
         trial = {"F": F.copy(), "V": V, "R": R, "S": S}
         if not tangent:

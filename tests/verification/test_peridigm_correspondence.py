@@ -222,6 +222,10 @@ def test_hypoelastic_rejects_bad_input():
     mat = Hypoelastic(K=1.0, G=1.0)
     with pytest.raises(pdlin.errors.ShapeError, match=r"F must have shape \(n, 3, 3\)"):
         mat.update(np.eye(2)[None], mat.initial_state(1))
+    with pytest.raises(InputError, match=r"missing \['V', 'R'\]"):
+        mat.update(np.eye(3)[None], {"F": np.eye(3)[None], "S": np.zeros((1, 3, 3))})
+    with pytest.raises(pdlin.errors.ShapeError, match=r"state\['F'\] must have the shape of F"):
+        mat.update(np.eye(3)[None], mat.initial_state(2))
 
 
 # -- the model ----------------------------------------------------------------------------
