@@ -1056,7 +1056,7 @@ def _build_model(kind: str, K: np.ndarray, G: np.ndarray, hgs: set[float], key: 
             f"{key}: all correspondence blocks must share one Hourglass Coefficient, "
             f"got {sorted(hgs)}"
         )
-    hg = hgs.pop()
+    hg = next(iter(hgs))  # not popped: the finite-kinematics model reads the set too
     if hg == 0:
         return Correspondence(K=one(K), G=one(G), control="none")
     pen = peridigm_hourglass_penalty(hg, K, G)
