@@ -230,17 +230,16 @@ class PeridigmCorrespondence(Correspondence):
             - (zy / ny**2)[:, None, None] * yy
         )
         W = A + B
-        # Dᵀ W D: (i,i) += W, (i,j) -= W, (j,i) -= W, (j,j) += W, as 3 x 3 blocks
-        rows = np.concatenate([i, i, j, j])
-        cols = np.concatenate([i, j, i, j])
-        data = np.concatenate([W, -W, -W, W])
-        K1 = _bsr_from_blocks(data, rows, cols, n, n)
-        # Dᵀ A X: rows i (−) and j (+), columns (g = i, k, l) with entries A[m, k] ξ_l
+        rev = np.asarray(bonds.reverse)
+        # Dᵀ W D: bond b = (i → j) adds W at (i, i), (j, j) and -W at (i, j), (j, i); so
+        # the block of bond (i → j) is -(W_b + W_rev(b)), the diagonal their family sum
+        Ws = W + W[rev]
+        K1 = _bond_pattern(bonds, -Ws, np.add.reduceat(Ws, _starts(bonds), axis=0), (3, 3))
+        # Dᵀ A X (3 x 9 blocks, columns (g, k, l) of G with entries A[m, k] ξ_l): bond
+        # (i → j) adds -A X at (i, i) and +A X at (j, i), i.e. the block of bond (r → q) in
+        # row r is the reverse bond's A X, the diagonal minus the family sum
         AX = np.einsum("bmk,bl->bmkl", A, xi).reshape(nb, 3, 9)
-        H = _bsr_from_blocks(
-            np.concatenate([-AX, AX]), np.concatenate([i, j]), np.concatenate([i, i]), n, n,
-            blocksize=(3, 9),
-        )  # fmt: skip
+        H = _bond_pattern(bonds, AX[rev], -np.add.reduceat(AX, _starts(bonds), axis=0), (3, 9))
         G = self.gradient_matrix(cloud, bonds)
         return sp.csr_array(sp.csr_array(K1) - sp.csr_array(H) @ G)
 
@@ -345,24 +344,32 @@ class PeridigmCorrespondence(Correspondence):
         return {"K": self.material.K, "G": self.material.G, "hourglass": self.hourglass}
 
 
-def _bsr_from_blocks(
-    data: np.ndarray,
-    rows: np.ndarray,
-    cols: np.ndarray,
-    n_rows: int,
-    n_cols: int,
-    blocksize: tuple[int, int] = (3, 3),
+def _starts(bonds: Bonds) -> np.ndarray:
+    """First bond of each family (every point has bonds: checked by the plan)."""
+    return np.asarray(bonds.indptr[:-1], dtype=np.int64)
+
+
+def _bond_pattern(
+    bonds: Bonds, off: np.ndarray, diag: np.ndarray, blocksize: tuple[int, int]
 ) -> sp.csr_array:
-    """Sum ``(r, c)`` blocks into a CSR matrix of ``n_rows x n_cols`` blocks."""
+    """CSR of the bonds' block pattern plus the diagonal: ``off[b]`` at ``(i_b, j_b)``.
+
+    Row ``r`` holds its family's blocks, then its diagonal block ``diag[r]``; built
+    straight in BSR (no COO sort), returned as CSR for the sparse products.
+    """
+    n = bonds.n_points
+    ptr = np.asarray(bonds.indptr, dtype=np.int64)
+    nb = ptr[-1]
+    r = np.arange(n, dtype=np.int64)
+    indptr = ptr + np.arange(n + 1, dtype=np.int64)
+    indices = np.empty(nb + n, dtype=np.int64)
+    data = np.empty((nb + n, *blocksize))
+    slot = np.arange(nb, dtype=np.int64) + np.repeat(r, np.diff(ptr))
+    indices[slot] = np.asarray(bonds.j, dtype=np.int64)
+    data[slot] = off
+    indices[ptr[1:] + r] = r
+    data[ptr[1:] + r] = diag
     br, bc = blocksize
-    rr = (rows[:, None, None] * br + np.arange(br)[None, :, None]) + np.zeros(
-        (1, 1, bc), dtype=np.int64
-    )
-    cc = (cols[:, None, None] * bc + np.arange(bc)[None, None, :]) + np.zeros(
-        (1, br, 1), dtype=np.int64
-    )
-    M = sp.coo_array(
-        (data.ravel(), (rr.ravel(), cc.ravel())), shape=(n_rows * br, n_cols * bc)
-    ).tocsr()
-    M.sum_duplicates()
-    return M
+    M = sp.bsr_array((data, indices, indptr), shape=(n * br, n * bc))
+    M.sort_indices()
+    return sp.csr_array(M)
