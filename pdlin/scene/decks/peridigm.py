@@ -68,7 +68,7 @@ from ._common import (
 )
 from .expressions import deck_expression
 
-__all__ = ["peridigm_hourglass_penalty", "peridigm_bond_filters"]
+__all__ = ["peridigm_hourglass_penalty", "peridigm_bond_filters", "peridigm_correspondence_model"]
 
 
 def peridigm_hourglass_penalty(coefficient: float, K: Any, G: Any) -> Any:
@@ -1056,7 +1056,7 @@ def _build_model(kind: str, K: np.ndarray, G: np.ndarray, hgs: set[float], key: 
             f"{key}: all correspondence blocks must share one Hourglass Coefficient, "
             f"got {sorted(hgs)}"
         )
-    hg = hgs.pop()
+    hg = next(iter(hgs))  # not popped: the finite-kinematics model reads the set too
     if hg == 0:
         return Correspondence(K=one(K), G=one(G), control="none")
     pen = peridigm_hourglass_penalty(hg, K, G)
@@ -1066,6 +1066,53 @@ def _build_model(kind: str, K: np.ndarray, G: np.ndarray, hgs: set[float], key: 
             "pdlin's penalty control takes one coefficient"
         )
     return Correspondence(K=one(K), G=one(G), control="penalty", penalty=float(pen[0]))
+
+
+def peridigm_correspondence_model(K: Any, G: Any, hgs: set[float], key: str) -> Any:
+    """Return Peridigm's ``Elastic Correspondence`` with its own finite kinematics.
+
+    :class:`pdlin.models.correspondence.PeridigmCorrespondence`: Peridigm's hypoelastic
+    stress update and its hourglass force (``correspondence.cxx``), for
+    :func:`pdlin.solve_nonlinear` (one load step per Peridigm load step).  The arguments
+    are those of the linear mapping (the per-point moduli and the blocks' hourglass
+    coefficients).
+
+    Parameters
+    ----------
+    K, G : float or (n,) array_like
+        Bulk and shear modulus (one value: Peridigm's material constants).
+    hgs : set of float
+        The blocks' ``Hourglass Coefficient`` (one value).
+    key : str
+        Deck key path for messages.
+
+    Returns
+    -------
+    PeridigmCorrespondence
+
+    Raises
+    ------
+    SceneError
+        Several moduli or hourglass coefficients.
+
+    Examples
+    --------
+    >>> m = peridigm_correspondence_model(1.6e11, 7.7e10, {0.04}, "Materials")
+    >>> m.hourglass, m.nonlinear
+    (0.04, True)
+    """
+    from ...models.correspondence import PeridigmCorrespondence
+
+    k_arr, g_arr = np.atleast_1d(np.asarray(K, float)), np.atleast_1d(np.asarray(G, float))
+    if np.ptp(k_arr) or np.ptp(g_arr) or len(hgs) != 1:
+        raise SceneError(
+            f"{key}: Peridigm's finite-kinematics 'Elastic Correspondence' takes one material "
+            f"(one K, G and Hourglass Coefficient), got {np.unique(k_arr).size} K, "
+            f"{np.unique(g_arr).size} G and hourglass coefficients {sorted(hgs)}"
+        )
+    return PeridigmCorrespondence(
+        K=float(k_arr[0]), G=float(g_arr[0]), hourglass=float(next(iter(hgs)))
+    )
 
 
 def _peridigm_node_sets(
