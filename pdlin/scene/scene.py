@@ -28,7 +28,16 @@ from ..models.bond_based import BondBased
 from ..operators.bc import BodyForce, Dirichlet, TotalForce, shadow_layer
 from ..problem import StaticProblem
 from ._keys import number, read_toml, require, scene_keys
-from .materials import _MATERIAL, _MODEL, MODELS, _build_model, _calibrated_model
+from .materials import (
+    _MATERIAL,
+    _MODEL,
+    MODELS,
+    Block,
+    _block_material,
+    _build_model,
+    _calibrated_model,
+    _scene_blocks,
+)
 from .materials import per_phase as per_phase  # public here before the split
 
 if sys.version_info >= (3, 11):
@@ -63,6 +72,8 @@ _TOP = {
     "damage",  # stretch damage: load steps with bond breaking (pdlin.solve_damage)
     "about",  # description / runtime shown by `pdlin examples`
     "problem",  # a bundled problem of pdlin.sweeps.problems instead of geometry, ...
+    "block",  # [[block]]: per-block materials instead of [material]
+    "materials",  # [materials.<name>]: named materials of the [[block]] tables
 }
 #: top-level keys of a scene built from a bundled problem ([problem] factory = ...)
 _PROBLEM_TOP = {"name", "problem", "solver", "output", "check", "about"}
@@ -164,6 +175,9 @@ class Scene:
     #: Steps``): ``(time, problem)`` per step, the last being ``problem``; ``pdlin run``
     #: solves each and writes a time series.  None: one solve.
     steps: list[tuple[float, StaticProblem]] | None = None
+    #: per-block materials (``[[block]]`` tables, a deck's ``Blocks``), in the order
+    #: given; None: one ``[material]`` for every point
+    blocks: list[Block] | None = None
     #: work loading deferred to the run (a ``[subregion]`` scene's coarse solve and cut),
     #: done once by :meth:`prepare`; None when there is none left
     pending: Callable[[Scene], None] | None = field(default=None, repr=False, compare=False)
@@ -440,18 +454,22 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
     if "problem" in top:
         return _problem_scene(top, base)
     try:
-        problem, n_real, calibration = _scene_problem(top, base)
+        problem, n_real, calibration, blocks = _scene_problem(top, base)
         scfg = scene_keys(top.get("solver", {}), _SOLVER, "solver")
         ocfg = scene_keys(top.get("output", {}), _OUTPUT, "output")
     except (SceneError, InsufficientMemoryError):  # a valid scene too large for memory
         raise
     except PdlinError as exc:
         raise SceneError(f"invalid scene: {exc}") from exc
-    return _scene(top, base, problem, n_real, calibration, scfg, ocfg)
+    scene = _scene(top, base, problem, n_real, calibration, scfg, ocfg)
+    scene.blocks = blocks
+    return scene
 
 
-def _scene_problem(top: Mapping[str, Any], base: Path) -> tuple[StaticProblem, int, Any]:
-    """Build the scene's problem; also its number of real (not ghost) points, calibration."""
+def _scene_problem(
+    top: Mapping[str, Any], base: Path
+) -> tuple[StaticProblem, int, Any, list[Block] | None]:
+    """Build the scene's problem; also its real (not ghost) points, calibration, blocks."""
     gcfg = require(top, "geometry", "scene")
     cloud = _geometry(gcfg, base)
     n_real = cloud.n
@@ -462,8 +480,18 @@ def _scene_problem(top: Mapping[str, Any], base: Path) -> tuple[StaticProblem, i
         from ..geometry.cloud import ghost_layer
 
         cloud = ghost_layer(cloud, layers).cloud
-    material = scene_keys(require(top, "material", "scene"), _MATERIAL, "material")
     model_cfg = scene_keys(top.get("model", {}), _MODEL, "model")
+    blocks = None
+    if "block" in top or "materials" in top:
+        if "block" not in top:
+            raise SceneError(
+                "materials: [materials.<name>] tables need [[block]] tables using them"
+            )
+        blocks = _scene_blocks(top, cloud, _where)
+        material, kind = _block_material(blocks, cloud)
+        model_cfg["type"] = kind
+    else:
+        material = scene_keys(require(top, "material", "scene"), _MATERIAL, "material")
     horizon, bond_options = _horizon(top)
     bonds = None
     calibration = None
@@ -518,7 +546,7 @@ def _scene_problem(top: Mapping[str, Any], base: Path) -> tuple[StaticProblem, i
     with warnings.catch_warnings():  # partial losses warn once, when the scene is solved
         warnings.simplefilter("ignore", AccuracyWarning)
         load_vector(cloud, loads, prescribed=dofs, names=load_names)
-    return problem, n_real, calibration
+    return problem, n_real, calibration, blocks
 
 
 def _horizon(top: Mapping[str, Any]) -> tuple[Any, dict[str, Any]]:
