@@ -74,7 +74,10 @@ _TOP = {
     "problem",  # a bundled problem of pdlin.sweeps.problems instead of geometry, ...
     "block",  # [[block]]: per-block materials instead of [material]
     "materials",  # [materials.<name>]: named materials of the [[block]] tables
+    "deck",  # a Peridigm / PeriLab input deck instead of geometry, material, ...
 }
+#: top-level keys of a scene that runs an input deck ([deck] path = ...)
+_DECK_TOP = {"name", "deck", "solver", "output", "check", "about"}
 #: top-level keys of a scene built from a bundled problem ([problem] factory = ...)
 _PROBLEM_TOP = {"name", "problem", "solver", "output", "check", "about"}
 _DAMAGE = {"critical_stretch", "G0", "steps", "max_resolves"}
@@ -453,6 +456,8 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         return _subregion_scene(top, base)
     if "problem" in top:
         return _problem_scene(top, base)
+    if "deck" in top:
+        return _deck_scene(top, base)
     try:
         problem, n_real, calibration, blocks = _scene_problem(top, base)
         scfg = scene_keys(top.get("solver", {}), _SOLVER, "solver")
@@ -885,6 +890,45 @@ def _damage_options(
     return opts
 
 
+def _deck_scene(top: Mapping[str, Any], base: Path) -> Scene:
+    """Build a scene from a Peridigm / PeriLab input deck (``[deck] path = ...``).
+
+    The deck defines the geometry, materials, blocks, conditions and load steps
+    (:func:`pdlin.read_deck`); the scene adds its name, ``[[check]]`` tables, ``[about]``,
+    the linear solver (``[solver] name / rtol / maxiter``) and the output: ``output.path``,
+    else ``<name>.vtu`` (``.pvd`` for several load steps) in the working directory, not
+    the deck's ``Output Filename`` beside the deck.
+    """
+    from .decks import read_deck
+
+    extra = sorted(set(top) - _DECK_TOP)
+    if extra:
+        raise SceneError(
+            f"scene key {extra[0]!r} cannot be combined with [deck] (the deck defines the "
+            f"geometry, materials and conditions); allowed: {sorted(_DECK_TOP)}"
+        )
+    cfg = scene_keys(top["deck"], {"path"}, "deck")
+    path = _resolve_path(require(cfg, "path", "deck"), base, "deck.path")
+    scene = read_deck(path)
+    scfg = scene_keys(top.get("solver", {}), {"name", "rtol", "maxiter"}, "solver")
+    _solver_options(scfg)
+    ocfg = scene_keys(top.get("output", {}), {"path"}, "output")
+    out = ocfg.get("path")
+    if out is not None and not isinstance(out, str):
+        raise SceneError(f"output.path must be a path string, got {out!r}")
+    if "name" in top and not isinstance(top["name"], str):
+        raise SceneError(f"name must be a string, got {top['name']!r}")
+    scene.name = str(top.get("name", path.stem))
+    scene.output = None if out is None else (Path(out) if Path(out).is_absolute() else base / out)
+    scene.base_dir = base
+    scene.solver = str(scfg.get("name", scene.solver))
+    scene.rtol = float(scfg.get("rtol", scene.rtol))
+    scene.maxiter = None if scfg.get("maxiter") is None else int(scfg["maxiter"])
+    scene.checks = _checks(top)
+    scene.about = _about(top)
+    return scene
+
+
 def _problem_scene(top: Mapping[str, Any], base: Path) -> Scene:
     """Build a scene from a bundled problem of :mod:`pdlin.sweeps.problems`.
 
@@ -1110,8 +1154,16 @@ def builtin_scene(name: str) -> tuple[dict[str, Any], str]:
     """
     if name not in list_builtin_scenes(hidden=True):
         raise SceneError(f"unknown built-in scene {name!r}; available: {list_builtin_scenes()}")
-    text = (resources.files("pdlin") / "examples" / f"{name}.toml").read_text()
-    return tomllib.loads(text), text
+    folder = resources.files("pdlin") / "examples"
+    text = (folder / f"{name}.toml").read_text()
+    data = tomllib.loads(text)
+    deck = data.get("deck")
+    if isinstance(deck, dict) and isinstance(deck.get("path"), str):
+        # a built-in scene's deck ships beside it, in pdlin's examples folder
+        p = Path(deck["path"])
+        if not p.is_absolute():
+            deck["path"] = str(Path(str(folder)) / p)
+    return data, text
 
 
 #: the fields of every static result (:meth:`pdlin.StaticResult.fields`); ``stress`` where
