@@ -579,3 +579,23 @@ def test_plate_with_hole_ogrid_reproduces_the_xosb_example():
         np.testing.assert_allclose(err, expected, atol=6e-5)
     with pytest.raises(pdlin.errors.InputError, match="model must be 'xosb' or 'lps'"):
         plate_with_hole_ogrid("bb")
+
+
+def test_every_example_file_is_package_data():
+    # the decks' meshes, node sets and Peridigm's license must ship in the wheel too
+    import fnmatch
+    import sys
+
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+
+    root = Path(__file__).resolve().parents[1]
+    globs = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"][
+        "package-data"
+    ]["pdlin"]
+    files = [p.name for p in (root / "pdlin" / "examples").iterdir() if p.is_file()]
+    missing = [f for f in files if not any(fnmatch.fnmatch(f"examples/{f}", g) for g in globs)]
+    assert not missing, missing
+    assert {"peridigm_bar.g", "PERIDIGM_LICENSE", "peridigm_two_materials.xml"} <= set(files)
