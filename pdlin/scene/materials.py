@@ -8,7 +8,7 @@ bond micromoduli calibrated to a target tensor (``[material.calibration]``).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -315,7 +315,7 @@ def _calibrated_model(
 # --------------------------------------------------------------------------------------
 #: keys of a block's material ([materials.<name>] or an inline table)
 _BLOCK_MATERIAL = {*_ISO_KEYS, "plane", "model"}
-_BLOCK = {"set", "box", "points", "material"}
+_BLOCK = {"set", "box", "points", "material", "horizon"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -540,7 +540,10 @@ def _scene_blocks(
         sel = where(t, cloud, key)
         name = sel if isinstance(sel, str) else key
         pts = cloud.point_set(sel) if isinstance(sel, str) else np.asarray(sel)
-        blocks.append(Block(name, np.asarray(pts, dtype=np.int64), consts, str(model), key))
+        h = None if "horizon" not in t else number(t["horizon"], f"{key}.horizon", positive=True)
+        blocks.append(
+            Block(name, np.asarray(pts, dtype=np.int64), consts, str(model), key, horizon=h)
+        )
     unused = sorted(set(named) - used)
     if unused:
         raise SceneError(f"materials.{unused[0]} is not used by any [[block]]")
@@ -549,5 +552,6 @@ def _scene_blocks(
 
 def _block_material(blocks: Sequence[Block], cloud: PointCloud) -> tuple[dict[str, Any], str]:
     """Return the ``[material]`` table (per-point constants) and model type of the blocks."""
-    kind, consts, _ = blocks_per_point(blocks, cloud.n)
+    # horizons: the scene's [horizon] supplies defaults (pdlin.scene.scene._block_horizons)
+    kind, consts, _ = blocks_per_point([replace(b, horizon=None) for b in blocks], cloud.n)
     return consts, kind

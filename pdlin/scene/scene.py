@@ -10,7 +10,7 @@ from __future__ import annotations
 import sys
 import warnings
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -37,6 +37,7 @@ from .materials import (
     _build_model,
     _calibrated_model,
     _scene_blocks,
+    blocks_per_point,
 )
 from .materials import per_phase as per_phase  # public here before the split
 
@@ -497,7 +498,10 @@ def _scene_problem(
         model_cfg["type"] = kind
     else:
         material = scene_keys(require(top, "material", "scene"), _MATERIAL, "material")
-    horizon, bond_options = _horizon(top)
+    block_h = blocks is not None and any(b.horizon is not None for b in blocks)
+    horizon, bond_options = _horizon(top, block_horizons=block_h)
+    if blocks is not None and block_h:
+        horizon = _block_horizons(blocks, horizon, bond_options, cloud.n)
     bonds = None
     calibration = None
     if "calibration" in material:
@@ -554,15 +558,42 @@ def _scene_problem(
     return problem, n_real, calibration, blocks
 
 
-def _horizon(top: Mapping[str, Any]) -> tuple[Any, dict[str, Any]]:
-    """Read ``[horizon]``: the horizon value (None: by ratio) and the bond options."""
+def _block_horizons(
+    blocks: list[Block], default: Any, bond_options: Mapping[str, Any], n: int
+) -> np.ndarray:
+    """Per-point horizons of ``[[block]]`` tables that set ``horizon`` (else ``horizon.value``)."""
+    if "ratio" in bond_options:
+        raise SceneError(
+            "block horizons and horizon.ratio exclude each other: give horizon.value as the "
+            "default of blocks without a horizon, or a horizon in every block"
+        )
+    if default is not None and not isinstance(default, int | float):
+        raise SceneError("block horizons need horizon.value to be one number (the default)")
+    missing = [b.key for b in blocks if b.horizon is None]
+    if missing and default is None:
+        raise SceneError(
+            f"{missing[0]} sets no horizon while other blocks do: give it one, or "
+            "horizon.value as the default"
+        )
+    filled = [b if b.horizon is not None else replace(b, horizon=default) for b in blocks]
+    _, _, h = blocks_per_point(filled, n)
+    assert h is not None  # every block has a horizon now
+    return h
+
+
+def _horizon(top: Mapping[str, Any], *, block_horizons: bool = False) -> tuple[Any, dict[str, Any]]:
+    """Read ``[horizon]``: the horizon value (None: by ratio) and the bond options.
+
+    With ``block_horizons`` (``[[block]]`` tables setting ``horizon``) neither ``value``
+    nor ``ratio`` is required.
+    """
     hcfg = scene_keys(require(top, "horizon", "scene"), _HORIZON, "horizon")
-    if ("value" in hcfg) == ("ratio" in hcfg):
+    if ("value" in hcfg) == ("ratio" in hcfg) and not (block_horizons and "value" not in hcfg):
         given = [k for k in ("value", "ratio") if k in hcfg]
         raise SceneError(f"horizon needs exactly one of 'value' or 'ratio', got {given or 'none'}")
     if "ratio" in hcfg:
         number(hcfg["ratio"], "horizon.ratio", positive=True)
-    else:
+    elif "value" in hcfg:
         hv = hcfg["value"]
         if isinstance(hv, list):
             for k, v in enumerate(hv):

@@ -171,7 +171,10 @@ def test_blocks_on_mesh_physical_groups(tmp_path):
             lambda d: d["block"][0].update(box=None, set="nope") or d["block"][0].pop("box"),
             "block[0].set: ",
         ),
-        (lambda d: d["block"][0].update(box=[[0.0], [0.6]]), "block[1] overlaps block[0] at 20 point(s) (first: point 100)"),
+        (
+            lambda d: d["block"][0].update(box=[[0.0], [0.6]]),
+            "block[1] overlaps block[0] at 20 point(s) (first: point 100)",
+        ),
         (
             lambda d: d["block"].pop() and d["materials"].pop("soft"),
             "100 of 200 points are in no block (first: point 100)",
@@ -306,11 +309,11 @@ def test_peridigm_deck_and_toml_blocks_agree(tmp_path):
             "geometry": {"type": "grid", "shape": list(shape), "spacing": h},
             "materials": {"hard": {"K": 130.0, "G": 70.0}, "soft": {"K": 13.0, "G": 7.0}},
             "block": [
-                {"box": [[0, 0, 0], [0.6, 1, 1]], "material": "hard"},
-                {"box": [[0.6, 0, 0], [1.2, 1, 1]], "material": "soft"},
+                {"box": [[0, 0, 0], [0.6, 1, 1]], "material": "hard", "horizon": 0.2015},
+                {"box": [[0.6, 0, 0], [1.2, 1, 1]], "material": "soft", "horizon": 0.2015},
             ],
             "model": {"type": "lps", "peridigm": True},
-            "horizon": {"value": 0.2015},
+            "horizon": {},
             "dirichlet": [
                 {"box": [[0, 0, 0], [0.2, 1, 1]], "components": "x"},
                 {"box": [[1.0, 0, 0], [1.2, 1, 1]], "components": "x", "value": 0.0012},
@@ -321,7 +324,7 @@ def test_peridigm_deck_and_toml_blocks_agree(tmp_path):
     # the same structure: two blocks, same points, model type and constants
     for a, b in zip(from_deck.blocks, toml.blocks, strict=True):
         assert np.array_equal(a.points, b.points)
-        assert (a.model, dict(a.material)) == (b.model, dict(b.material))
+        assert (a.model, dict(a.material), a.horizon) == (b.model, dict(b.material), b.horizon)
     assert [b.horizon for b in from_deck.blocks] == [0.2015, 0.2015]
     ua = pdlin.solve(from_deck.problem, solver="direct").u
     ub = pdlin.solve(toml.problem, solver="direct").u
@@ -381,3 +384,32 @@ def test_perilab_blocks_with_two_materials(tmp_path):
     (tmp_path / "p.yaml").write_text(yaml.safe_dump(deck))
     with pytest.raises(SceneError, match=r"Blocks.block_2 uses model 'bond_based' but Blocks"):
         pdlin.read_deck(tmp_path / "p.yaml")
+
+
+def test_block_horizons_per_point():
+    data = bar_data()
+    data["horizon"] = {}
+    data["block"][0]["horizon"] = 3.015 * H
+    data["block"][1]["horizon"] = 4.015 * H
+    sc = scene_from_dict(data)
+    x = sc.cloud.points[:, 0]
+    # each block's own horizon on its points, as Peridigm's Blocks.<name>.Horizon
+    np.testing.assert_array_equal(sc.problem.horizon, np.where(x < 0.5, 3.015 * H, 4.015 * H))
+    assert [b.horizon for b in sc.blocks] == [3.015 * H, 4.015 * H]
+    # horizon.value is the default of blocks without one
+    del data["block"][1]["horizon"]
+    data["horizon"] = {"value": 5.015 * H}
+    sc = scene_from_dict(data)
+    np.testing.assert_array_equal(sc.problem.horizon, np.where(x < 0.5, 3.015 * H, 5.015 * H))
+    data["horizon"] = {}
+    with pytest.raises(SceneError, match=r"block\[1\] sets no horizon while other blocks do"):
+        scene_from_dict(data)
+    data["horizon"] = {"ratio": 3.015}
+    with pytest.raises(SceneError, match="block horizons and horizon.ratio exclude each other"):
+        scene_from_dict(data)
+    data["block"][0]["horizon"] = -1.0
+    with pytest.raises(SceneError, match=r"block\[0\].horizon must be > 0"):
+        scene_from_dict(data)
+    # without block horizons [horizon] still needs value or ratio
+    with pytest.raises(SceneError, match="horizon needs exactly one of 'value' or 'ratio'"):
+        scene_from_dict(bar_data(horizon={}))
