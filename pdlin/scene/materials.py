@@ -341,7 +341,13 @@ class Block:
     key : str
         Where it is defined, for messages (``block[1]``, ``Blocks.My Block``).
     horizon : float or None
-        Its horizon, when the block sets one (decks); None: the scene's.
+        Its horizon, when the block sets one; None: the scene's ``[horizon]``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> Block("block_2", np.arange(3), {"K": 1.0, "G": 0.6}, "lps", "Blocks.B", horizon=0.3)
+    Block('block_2', 3 points, lps, K=1.0, G=0.6, horizon=0.3)
     """
 
     name: str

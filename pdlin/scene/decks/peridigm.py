@@ -943,8 +943,8 @@ def _peridigm_blocks(
 ) -> tuple[Any, np.ndarray, list[Block]]:
     """Build the model, the per-point horizons and the scene's blocks from ``Blocks``.
 
-    One material family with per-point constants (:func:`pdlin.scene.materials.
-    blocks_per_point`, as for a TOML scene's ``[[block]]`` tables); ``default_h`` is
+    One material family with per-point constants (:func:`pdlin.scene.blocks_per_point`,
+    as for a TOML scene's ``[[block]]`` tables); ``default_h`` is
     ``Discretization.Horizon``, if given.
     """
     materials = _table(root["Materials"], "Materials")

@@ -209,8 +209,8 @@ def _perilab_blocks(
     """``Blocks``: per-point horizons, the model type and constants, the scene's blocks.
 
     Each block may use its own material (one model type for all: pdlin assembles one
-    stiffness matrix), mapped onto the points by :func:`pdlin.scene.materials.
-    blocks_per_point`, as a TOML scene's ``[[block]]`` tables.
+    stiffness matrix), mapped onto the points by :func:`pdlin.scene.blocks_per_point`,
+    as a TOML scene's ``[[block]]`` tables.
     """
     blocks: list[Block] = []
     for bname, b in _table(value, "Blocks").items():
