@@ -45,6 +45,7 @@ from ...io.exodus import entity_ids
 from ...io.exodus import entity_names as _exodus_names
 from ...operators.bc import BodyForce, Dirichlet
 from .._keys import NUMBER_TEXT
+from ..materials import Block, blocks_per_point
 from ..scene import Scene
 from ._common import (
     _BOOL_SPELLINGS,
@@ -866,7 +867,7 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     omit = _peridigm_discretization_keys(disc)
     cloud, extra = _peridigm_cloud(disc, base)
     blocks_pts: dict[str, np.ndarray] = extra["blocks"]
-    model, horizon = _peridigm_blocks(root, disc.get("Horizon"), blocks_pts, cloud.n)
+    model, horizon, blocks = _peridigm_blocks(root, disc.get("Horizon"), blocks_pts, cloud.n)
 
     # Peridigm runs a deck without Boundary Conditions (no constraint, no load: u = 0)
     n = cloud.n
@@ -898,6 +899,7 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         opts["exclude"] = _any_of(filters)
     scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
     scene.time = times[-1]  # Peridigm writes the final state at Final Time
+    scene.blocks = blocks
     if len(times) > 2:
         # several load steps: each is a linear solve at that step's values (Peridigm's
         # own times, its initial state included); the last is the scene's problem
@@ -938,10 +940,11 @@ def _peridigm_discretization_keys(disc: Mapping[str, Any]) -> str:
 
 def _peridigm_blocks(
     root: Mapping[str, Any], default_h: Any, blocks_pts: Mapping[str, np.ndarray], n: int
-) -> tuple[Any, np.ndarray]:
-    """Build the model and the per-point horizons from ``Materials`` and ``Blocks``.
+) -> tuple[Any, np.ndarray, list[Block]]:
+    """Build the model, the per-point horizons and the scene's blocks from ``Blocks``.
 
-    One material family with per-point constants; ``default_h`` is
+    One material family with per-point constants (:func:`pdlin.scene.blocks_per_point`,
+    as for a TOML scene's ``[[block]]`` tables); ``default_h`` is
     ``Discretization.Horizon``, if given.
     """
     materials = _table(root["Materials"], "Materials")
@@ -949,19 +952,15 @@ def _peridigm_blocks(
         mname: _peridigm_material(mname, _table(m, f"Materials.{mname}"), f"Materials.{mname}")
         for mname, m in materials.items()
     }
-    horizon = np.full(n, np.nan)
-    K = np.full(n, np.nan)
-    G = np.full(n, np.nan)
-    kinds: set[str] = set()
+    blocks: list[Block] = []
     hgs: set[float] = set()
-    default: tuple[float, dict[str, Any]] | None = None
+    default: tuple[float, str, str] | None = None
     named: set[str] = set()
 
-    def assign(idx: np.ndarray, h: float, mat: Mapping[str, Any]) -> None:
-        horizon[idx] = h
-        K[idx] = mat["K"]
-        G[idx] = np.nan if mat["G"] is None else mat["G"]
-        kinds.add(mat["kind"])
+    def assign(bn: str, h: float, mname: str, key: str) -> None:
+        mat = mats[mname]
+        consts = {"K": mat["K"]} if mat["G"] is None else {"K": mat["K"], "G": mat["G"]}
+        blocks.append(Block(bn, blocks_pts[bn], consts, mat["kind"], key, horizon=h))
         if mat["hourglass"] is not None:
             hgs.add(mat["hourglass"])
 
@@ -987,11 +986,10 @@ def _peridigm_blocks(
                 f"{key}.Horizon: expressions for the horizon are not supported; give a number"
             )
         h = _number(h, f"{key}.Horizon", positive=True)
-        mat = mats[mname]
         for bn in names.split():
             if bn in ("Default", "default", "DEFAULT"):
                 # Peridigm's initializeBlocks: the blocks no other entry names
-                default = (h, mat)
+                default = (h, mname, key)
                 continue
             if bn not in blocks_pts:
                 raise SceneError(
@@ -999,19 +997,21 @@ def _peridigm_blocks(
                     f"{sorted(blocks_pts)}; 'default' names the blocks no other entry names)"
                 )
             named.add(bn)
-            assign(blocks_pts[bn], h, mat)
+            assign(bn, h, mname, key)
     if default is not None:
-        for bn, idx in blocks_pts.items():
+        for bn in blocks_pts:
             if bn not in named:
-                assign(idx, *default)
-    missing = [bn for bn, idx in blocks_pts.items() if np.isnan(horizon[idx]).any()]
+                assign(bn, *default)
+    missing = [
+        bn for bn, idx in blocks_pts.items() if idx.size and bn not in named and default is None
+    ]
     if missing:
         raise SceneError(f"Blocks: discretization block(s) {missing} are not assigned to any block")
-    if len(kinds) != 1:
-        raise SceneError(
-            f"Blocks: all blocks must use one material model family in pdlin, got {sorted(kinds)}"
-        )
-    return _build_model(kinds.pop(), K, G, hgs, "Materials"), horizon
+    kind, consts, horizon = blocks_per_point([b for b in blocks if b.points.size], n)
+    K = np.broadcast_to(np.asarray(consts["K"], dtype=float), (n,))
+    G = np.broadcast_to(np.asarray(consts.get("G", np.nan), dtype=float), (n,))
+    assert horizon is not None  # every Peridigm block has one
+    return _build_model(kind, K, G, hgs, "Materials"), horizon, blocks
 
 
 def _peridigm_output(root: Mapping[str, Any], base: Path, name: str) -> Path | None:
