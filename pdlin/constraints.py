@@ -14,7 +14,7 @@ themselves (data: :class:`~pdlin.Dirichlet`, :class:`~pdlin.BodyForce`,
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.linalg
@@ -28,9 +28,13 @@ from .geometry.cloud import PointCloud
 from .operators.bc import BodyForce, Dirichlet, TimePath, TotalForce, parse_components
 from .operators.rigid import rigid_body_modes, rigid_mode_names
 
+if TYPE_CHECKING:
+    from .models.thermal import ThermalExpansion
+
 __all__ = [
     "resolve_dirichlet",
     "load_vector",
+    "thermal_load",
     "check_constraints",
     "eliminate_dirichlet",
     "matrix_rows",
@@ -281,6 +285,58 @@ def load_vector(
                                 f"{_describe_where(ld.where, idx)})")  # fmt: skip
         np.add.at(f, idx, part)
     return f.ravel()
+
+
+def thermal_load(
+    model: Any, cloud: PointCloud, bonds: Bonds | None, thermal: ThermalExpansion
+) -> np.ndarray:
+    """Nodal thermal load ``(n*dim,)`` of a temperature change: ``K u = f_ext + f_th``.
+
+    The eigenstrain load of :func:`pdlin.models.thermal.thermal_force` (flat), added to
+    the loads of the constrained system.
+
+    Parameters
+    ----------
+    model : Model
+        The (linear) model.
+    cloud : PointCloud
+        The points.
+    bonds : Bonds or None
+        Their bonds (None: a driver without the bonds, refused).
+    thermal : ThermalExpansion
+        Temperature change and expansion coefficient.
+
+    Returns
+    -------
+    (n*dim,) ndarray
+        Self-equilibrated nodal forces.
+
+    Raises
+    ------
+    InputError
+        Without bonds (a distributed driver that finds its own).
+    ModelError
+        For a model without thermal expansion (see :mod:`pdlin.models.thermal`).
+
+    Examples
+    --------
+    >>> import pdlin
+    >>> from pdlin.models.thermal import ThermalExpansion
+    >>> cloud = pdlin.grid((4,), spacing=1.0)
+    >>> f = thermal_load(pdlin.BondBased(E=1.0), cloud, pdlin.find_bonds(cloud, 1.5),
+    ...     ThermalExpansion(1.0, 1e-3))
+    >>> abs(float(f.sum())) < 1e-18, float(f[0]) < 0 < float(f[-1])
+    (True, True)
+    """
+    # imported here: pdlin.operators (which the models import) re-exports this module
+    from .models.thermal import thermal_force
+
+    if bonds is None:
+        raise InputError(
+            "thermal needs the bonds of the whole body; this driver has none (the PETSc "
+            "backend finds its own): solve thermal problems with pdlin.solve"
+        )
+    return np.asarray(thermal_force(model, cloud, bonds, thermal), dtype=float).ravel()
 
 
 def _check_load_support(ld: Any, part: np.ndarray, fixed: np.ndarray, label: str) -> None:
