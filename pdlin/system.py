@@ -1301,7 +1301,7 @@ class StaticResult:
         return self._mechanical(small_strain(self.deformation_gradient()))
 
     def _mechanical(self, strain: np.ndarray) -> np.ndarray:
-        """The strain less the free thermal strain of ``problem.thermal`` (if any)."""
+        """Return the strain less the free thermal strain of ``problem.thermal`` (if any)."""
         th = self.problem.thermal
         if th is None:
             return strain

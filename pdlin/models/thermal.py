@@ -210,16 +210,14 @@ def thermal_strain(model: Any, cloud: PointCloud, thermal: ThermalExpansion) -> 
     [0.000125, 0.000125]
     """
     if not isinstance(thermal, ThermalExpansion):
-        raise InputTypeError(
-            f"thermal must be a ThermalExpansion, got {type(thermal).__name__}"
-        )
+        raise InputTypeError(f"thermal must be a ThermalExpansion, got {type(thermal).__name__}")
     dT = thermal.temperature(cloud)
     alpha = _per_point(thermal.alpha, cloud.n, "thermal.alpha")
     return np.asarray(alpha * dT * _plane_factor(model, cloud), dtype=float)
 
 
 def _bond_extension(cloud: PointCloud, bonds: Bonds, eps: np.ndarray) -> np.ndarray:
-    """The free extension of each directed bond, ``(ε_i + ε_j) / 2 |ξ|``."""
+    """Return the free extension of each directed bond, ``(ε_i + ε_j) / 2 |ξ|``."""
     return 0.5 * (eps[bonds.i] + eps[bonds.j]) * bonds.length
 
 
@@ -242,13 +240,16 @@ def _bb_bond_force(model: BondBased, cloud: PointCloud, bonds: Bonds, e: np.ndar
     unit = bonds.xi / bonds.length[:, None]
     tb = k * e
     return np.stack(
-        [np.bincount(bonds.i, weights=tb * unit[:, a], minlength=cloud.n) for a in range(cloud.dim)],
+        [
+            np.bincount(bonds.i, weights=tb * unit[:, a], minlength=cloud.n)
+            for a in range(cloud.dim)
+        ],
         axis=1,
     )
 
 
 def _bb_bond_stress(model: BondBased, cloud: PointCloud, bonds: Bonds, e: np.ndarray) -> np.ndarray:
-    """The virial stress of :meth:`pdlin.BondBased.stress` for an extension state ``e``."""
+    """Return the virial stress of :meth:`pdlin.BondBased.stress` for an extension state ``e``."""
     d = cloud.dim
     c = model.corrected_micromodulus(cloud, bonds)
     meas = 1.0 if d == 3 else cloud.thickness
@@ -263,9 +264,7 @@ def _bb_bond_stress(model: BondBased, cloud: PointCloud, bonds: Bonds, e: np.nda
     return sig
 
 
-def _correspondence_stress(
-    model: Correspondence, cloud: PointCloud, eps: np.ndarray
-) -> np.ndarray:
+def _correspondence_stress(model: Correspondence, cloud: PointCloud, eps: np.ndarray) -> np.ndarray:
     """``C_i : (ε_i I)`` per point ``(n, d, d)``."""
     d = cloud.dim
     P = voigt_projector(d)
@@ -331,7 +330,7 @@ def thermal_force(
 def _gp_stress(
     model: Correspondence, cloud: PointCloud, bonds: Bonds, eps: np.ndarray
 ) -> np.ndarray:
-    """The eigenstress ``C : ε I`` of each gradient point's owner."""
+    """Return the eigenstress ``C : ε I`` of each gradient point's owner."""
     owner = model.stress_points(cloud, bonds)["owner"]
     return _correspondence_stress(model, cloud, eps)[owner]
 
@@ -430,7 +429,4 @@ def check_thermal(value: Any) -> ThermalExpansion | None:
     """
     if value is None or isinstance(value, ThermalExpansion):
         return value
-    raise InputTypeError(
-        f"thermal must be a ThermalExpansion or None, got {type(value).__name__}"
-    )
-
+    raise InputTypeError(f"thermal must be a ThermalExpansion or None, got {type(value).__name__}")

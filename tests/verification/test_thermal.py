@@ -251,7 +251,9 @@ def test_errors() -> None:
         pdlin.BondBased(E=1.0), cloud, ratio=3.015, dirichlet=[pdlin.Dirichlet("x-", 0.0)],
         thermal=ThermalExpansion(np.ones(5), 1e-5),
     )  # fmt: skip
-    with pytest.raises(ShapeError, match=r"temperature_change must be a scalar or have shape \(36,\)"):
+    with pytest.raises(
+        ShapeError, match=r"temperature_change must be a scalar or have shape \(36,\)"
+    ):
         pdlin.solve(prob)
     nl = pdlin.BondBased(E=1.0, kinematics="finite")
     with pytest.raises(ModelError, match="nonlinear"):
