@@ -1124,6 +1124,7 @@ class OrdinaryStateBased(Model):
         co = self._coefficients(cloud, bonds)
         d = co["d"]
         if extension is None:
+            assert u is not None  # a displacement, or a given extension state
             e, unit = self._extension(cloud, bonds, u, linear)
         else:  # a given extension state (thermal eigenstrain), reference directions
             e, unit = extension, bonds.xi / blen[:, None]
