@@ -230,16 +230,6 @@ def test_deck_is_the_linearization_of_peridigms_nonlinear_problem(folder, deck, 
 # decks of Peridigm's test folders outside the static subset: refused by key path
 OUTSIDE = [
     ("Body_Force", "Body_Force_Explicit.xml", r"^Solver\.Verlet: not supported"),
-    (
-        "ThermalExpansionCube",
-        "ThermalExpansionCube.xml",
-        r"^Materials\.My Elastic Material\.Thermal Expansion Coefficient: not supported",
-    ),
-    (
-        "ThermalExpansionCubeElasticCorrespondence",
-        "ThermalExpansionCubeElasticCorrespondence.xml",
-        r"^Materials\.My Elastic Material\.Thermal Expansion Coefficient: not supported",
-    ),
     ("Contact_2x1x1", "Contact_2x1x1.xml", r"^Peridigm\.Contact: not supported"),
     (
         "LinearLPSBar",
@@ -264,8 +254,8 @@ def test_outside_deck_through_pdlin_run_is_one_error_line(tmp_path, capsys):
 
 # PdQuickGrid decks (Peridigm_PdQuickGridDiscretization.cpp): the cloud and the bonds
 # against the gold file's coordinates and Weighted_Volume m_i = sum_j |xi|^2 V_j (elastic.cxx),
-# which Peridigm writes from its own bonds and volumes.  The thermal decks are refused
-# (thermal expansion) so their discretization is checked alone.
+# which Peridigm writes from its own bonds and volumes (the thermal decks' solutions:
+# tests/verification/test_thermal_decks.py).
 QUICKGRID = [
     ("Compression_QS_3x2x2", "Compression_QS_3x2x2.xml", "Compression_QS_3x2x2_gold.e"),
     ("ThermalExpansionCube", "ThermalExpansionCube.xml", "ThermalExpansionCube_gold.e"),

@@ -205,10 +205,15 @@ _PD_MATERIALS: dict[str, dict[str, str]] = {
         "Apply Shear Correction Factor": "Peridigm's elastic.cxx computes it but does not use it "
         "in the force (the scaled alpha line is commented out)",
         "Hourglass Coefficient": "not read by Peridigm's Elastic material (Interfaces deck)",
+        "Thermal Expansion Coefficient": "",
     },
     "Linear LPS": dict(_PD_MAT_COMMON),
     "Linear Elastic": dict(_PD_MAT_COMMON),
-    "Elastic Correspondence": {**_PD_MAT_COMMON, "Hourglass Coefficient": ""},
+    "Elastic Correspondence": {
+        **_PD_MAT_COMMON,
+        "Hourglass Coefficient": "",
+        "Thermal Expansion Coefficient": "",
+    },
     "Elastic Bond Based": dict(_PD_MAT_COMMON),
     # only with Disable Plasticity: true (Peridigm_ElasticPlasticMaterial.cpp then sets the
     # yield stress to DBL_MAX: elastic_plastic.cxx never yields and its force is Elastic's)
@@ -841,6 +846,12 @@ def _peridigm_material(name: str, mat: Mapping[str, Any], key: str) -> dict[str,
             K, _ = _bulk_shear(c, key)
         return {"kind": "bond_based", "K": K, "G": None, "hourglass": None}
     K, G = _bulk_shear(_constants(mat, key), key)
+    # Peridigm's ElasticMaterial / ElasticCorrespondenceMaterial: e -= α ΔT |ξ| (thermal.py)
+    alpha = None
+    if "Thermal Expansion Coefficient" in mat:
+        alpha = _number(
+            mat["Thermal Expansion Coefficient"], f"{key}.Thermal Expansion Coefficient"
+        )
     if model == "Elastic Correspondence":
         if "Hourglass Coefficient" not in mat:
             raise SceneError(
@@ -849,8 +860,8 @@ def _peridigm_material(name: str, mat: Mapping[str, Any], key: str) -> dict[str,
         hg = _number(mat["Hourglass Coefficient"], f"{key}.Hourglass Coefficient")
         if hg < 0:
             raise SceneError(f"{key}.Hourglass Coefficient must be >= 0, got {hg}")
-        return {"kind": "correspondence", "K": K, "G": G, "hourglass": hg}
-    return {"kind": "lps", "K": K, "G": G, "hourglass": None}
+        return {"kind": "correspondence", "K": K, "G": G, "hourglass": hg, "alpha": alpha}
+    return {"kind": "lps", "K": K, "G": G, "hourglass": None, "alpha": alpha}
 
 
 def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
@@ -866,7 +877,7 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     omit = _peridigm_discretization_keys(disc)
     cloud, extra = _peridigm_cloud(disc, base)
     blocks_pts: dict[str, np.ndarray] = extra["blocks"]
-    model, horizon = _peridigm_blocks(root, disc.get("Horizon"), blocks_pts, cloud.n)
+    model, horizon, alpha = _peridigm_blocks(root, disc.get("Horizon"), blocks_pts, cloud.n)
 
     # Peridigm runs a deck without Boundary Conditions (no constraint, no load: u = 0)
     n = cloud.n
@@ -898,10 +909,26 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         opts["exclude"] = _any_of(filters)
     scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
     scene.time = times[-1]  # Peridigm writes the final state at Final Time
+    # thermal strains: Thermal Expansion Coefficient and a Prescribed Temperature change
+    dT = _peridigm_temperature(bcs, sets, cloud, times[-1], len(times) == 1)
+    if (alpha is None) != (dT is None):
+        _note(
+            "Materials" if dT is None else "Boundary Conditions",
+            "Thermal Expansion Coefficient without a Prescribed Temperature (ΔT = 0)"
+            if dT is None
+            else "Prescribed Temperature without a Thermal Expansion Coefficient (no strain)",
+        )
+    scene.problem = _with_thermal(scene.problem, alpha, dT)
     if len(times) > 2:
         # several load steps: each is a linear solve at that step's values (Peridigm's
         # own times, its initial state included); the last is the scene's problem
-        steps = [(t, _problem(model, cloud, horizon, *conditions(t), opts)) for t in times[:-1]]
+        steps = [
+            (t, _with_thermal(
+                _problem(model, cloud, horizon, *conditions(t), opts), alpha,
+                _peridigm_temperature(bcs, sets, cloud, t, k == 0),
+            ))
+            for k, t in enumerate(times[:-1])
+        ]  # fmt: skip
         scene.steps = [*steps, (times[-1], scene.problem)]
     return scene
 
@@ -938,11 +965,12 @@ def _peridigm_discretization_keys(disc: Mapping[str, Any]) -> str:
 
 def _peridigm_blocks(
     root: Mapping[str, Any], default_h: Any, blocks_pts: Mapping[str, np.ndarray], n: int
-) -> tuple[Any, np.ndarray]:
-    """Build the model and the per-point horizons from ``Materials`` and ``Blocks``.
+) -> tuple[Any, np.ndarray, np.ndarray | None]:
+    """Build the model, the per-point horizons and thermal expansion coefficients.
 
     One material family with per-point constants; ``default_h`` is
-    ``Discretization.Horizon``, if given.
+    ``Discretization.Horizon``, if given.  The coefficients are None when no material has
+    a ``Thermal Expansion Coefficient`` (0 on the points of those that have none).
     """
     materials = _table(root["Materials"], "Materials")
     mats = {
@@ -952,6 +980,7 @@ def _peridigm_blocks(
     horizon = np.full(n, np.nan)
     K = np.full(n, np.nan)
     G = np.full(n, np.nan)
+    alpha = np.zeros(n)
     kinds: set[str] = set()
     hgs: set[float] = set()
     default: tuple[float, dict[str, Any]] | None = None
@@ -961,6 +990,7 @@ def _peridigm_blocks(
         horizon[idx] = h
         K[idx] = mat["K"]
         G[idx] = np.nan if mat["G"] is None else mat["G"]
+        alpha[idx] = mat.get("alpha") or 0.0
         kinds.add(mat["kind"])
         if mat["hourglass"] is not None:
             hgs.add(mat["hourglass"])
@@ -1011,7 +1041,8 @@ def _peridigm_blocks(
         raise SceneError(
             f"Blocks: all blocks must use one material model family in pdlin, got {sorted(kinds)}"
         )
-    return _build_model(kinds.pop(), K, G, hgs, "Materials"), horizon
+    thermal = any(m.get("alpha") is not None for m in mats.values())
+    return _build_model(kinds.pop(), K, G, hgs, "Materials"), horizon, alpha if thermal else None
 
 
 def _peridigm_output(root: Mapping[str, Any], base: Path, name: str) -> Path | None:
@@ -1171,11 +1202,14 @@ def _peridigm_bcs(
         bc = _table(v, key)
         _unknown(bc, _PD_BC, key, "Peridigm boundary condition")
         typ = _tidy(str(bc.get("Type", "")))
+        if typ == "PRESCRIBED_TEMPERATURE":
+            continue  # the temperature change of thermal strains: _peridigm_temperature
         if typ not in ("PRESCRIBED_DISPLACEMENT", "BODY_FORCE"):
             raise SceneError(
                 f"{key}.Type: {bc.get('Type')!r} is not supported; supported: "
-                "'Prescribed Displacement', 'Body Force' (initial conditions, velocities and "
-                "temperatures are dynamics / multiphysics)"
+                "'Prescribed Displacement', 'Body Force', 'Prescribed Temperature' (initial "
+                "conditions, velocities, initial temperatures and fluxes are dynamics / "
+                "multiphysics)"
             )
         if "Node Set" not in bc:
             raise SceneError(f"missing deck key {key}.Node Set")
@@ -1195,3 +1229,53 @@ def _peridigm_bcs(
             dens[:, c] = val
             loads.append(BodyForce(idx, dens))
     return dirichlet, loads
+
+
+def _peridigm_temperature(
+    bcs: Any, sets: Mapping[str, np.ndarray], cloud: PointCloud, t: float, initial: bool
+) -> np.ndarray | None:
+    """Return the ``Temperature_Change`` field at time ``t`` (None without a temperature BC).
+
+    Peridigm's ``Prescribed Temperature`` sets the temperature and, through a
+    ``DirichletIncrementBC`` relative to the initial value, the change
+    ``ΔT = T(t) - T(t = 0)`` on its node set (``Peridigm_BoundaryAndInitialConditionManager``
+    and ``Peridigm_BoundaryCondition.cpp``: ``timePrevious_ = 0.0``); the field is 0 on other
+    points and at the initial time (the increment is not applied when the times are equal).
+    """
+    dT: np.ndarray | None = None
+    for k, v in _table(bcs, "Boundary Conditions").items():
+        if "NODE_SET" in _tidy(k) or not isinstance(v, Mapping):
+            continue
+        if _tidy(str(v.get("Type", ""))) != "PRESCRIBED_TEMPERATURE":
+            continue
+        key = f"Boundary Conditions.{k}"
+        if "Node Set" not in v:
+            raise SceneError(f"missing deck key {key}.Node Set")
+        if "Value" not in v:
+            raise SceneError(f"missing deck key {key}.Value")
+        idx = _bc_points(v["Node Set"], sets, cloud.n, f"{key}.Node Set")
+        if dT is None:
+            dT = np.zeros(cloud.n)
+        if initial:
+            continue
+        pts = cloud.points[idx]
+        now = deck_expression(v["Value"], pts, t, f"{key}.Value", caret_power=True)
+        start = deck_expression(v["Value"], pts, 0.0, f"{key}.Value", caret_power=True)
+        dT[idx] = now - start
+    return dT
+
+
+def _with_thermal(problem: Any, alpha: np.ndarray | None, dT: np.ndarray | None) -> Any:
+    """Return the problem with its thermal eigenstrain (unchanged without alpha or change)."""
+    import dataclasses
+
+    from ...models.thermal import ThermalExpansion
+
+    if alpha is None or dT is None:
+        return problem
+    a: Any = float(alpha[0]) if np.all(alpha == alpha[0]) else alpha
+    t: Any = float(dT[0]) if np.all(dT == dT[0]) else dT
+    try:
+        return dataclasses.replace(problem, thermal=ThermalExpansion(t, a))
+    except PdlinError as exc:
+        raise SceneError(f"invalid deck (thermal expansion): {exc}") from exc
