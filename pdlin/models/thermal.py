@@ -422,6 +422,16 @@ def mechanical_strain(
 def check_thermal(value: Any) -> ThermalExpansion | None:
     """Return ``value`` checked as a :class:`ThermalExpansion` or None.
 
+    Parameters
+    ----------
+    value : Any
+        ``StaticProblem(thermal=...)``.
+
+    Returns
+    -------
+    ThermalExpansion or None
+        ``value`` itself.
+
     Raises
     ------
     InputTypeError

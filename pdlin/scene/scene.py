@@ -63,6 +63,7 @@ _TOP = {
     "damage",  # stretch damage: load steps with bond breaking (pdlin.solve_damage)
     "about",  # description / runtime shown by `pdlin examples`
     "problem",  # a bundled problem of pdlin.sweeps.problems instead of geometry, ...
+    "thermal",  # [thermal] alpha, temperature_change: the thermal eigenstrain load
 }
 #: top-level keys of a scene built from a bundled problem ([problem] factory = ...)
 _PROBLEM_TOP = {"name", "problem", "solver", "output", "check", "about"}
@@ -498,6 +499,8 @@ def _scene_problem(top: Mapping[str, Any], base: Path) -> tuple[StaticProblem, i
     extra: dict[str, Any] = {}
     if "symmetry" in top:
         extra["symmetry"] = _symmetry(top["symmetry"])
+    if "thermal" in top:
+        extra["thermal"] = _thermal(top["thermal"], cloud)
     problem = StaticProblem(
         model,
         cloud,
@@ -638,6 +641,21 @@ def _loads(
         except PdlinError as exc:
             raise SceneError(f"{key}.{vkey}: {exc}") from exc
     return loads
+
+
+def _thermal(table: Any, cloud: PointCloud) -> Any:
+    """Read ``[thermal]``: ``alpha`` and ``temperature_change`` (number or expression)."""
+    from ..models.thermal import ThermalExpansion
+    from .decks.expressions import deck_expression
+
+    cfg = scene_keys(table, {"alpha", "temperature_change"}, "thermal")
+    alpha = number(require(cfg, "alpha", "thermal"), "thermal.alpha")
+    dT = require(cfg, "temperature_change", "thermal")
+    if isinstance(dT, str):  # an expression in x, y, z (the decks' whitelisted evaluator)
+        dT = deck_expression(dT, cloud.points, 0.0, "thermal.temperature_change")
+    else:
+        dT = number(dT, "thermal.temperature_change")
+    return ThermalExpansion(dT, alpha)
 
 
 def _symmetry(tables: list[Any]) -> tuple[Any, ...]:

@@ -310,11 +310,11 @@ def test_boundary_condition_errors_name_the_key(bar_dir, edit, pattern):
             r"Plane Strain: true is not supported: pdlin reads Peridigm decks as 3D",
         ),
         ("Material", "Influence Function", "Gaussian", r"Influence Function: only 'One'"),
-        (
+        (  # supported (thermal strains) but must be a number
             "Material",
             "Thermal Expansion Coefficient",
-            1e-5,
-            r"Thermal Expansion Coefficient: not supported",
+            "hot",
+            r"Materials\.My Material\.Thermal Expansion Coefficient",
         ),
         (
             "Material",
