@@ -88,3 +88,19 @@ def test_result_repr_and_fields_without_thermal_unchanged() -> None:
     assert prob.thermal is None and "thermal" not in repr(prob)
     F = res.deformation_gradient()
     assert np.array_equal(res.strain(), 0.5 * (F + np.swapaxes(F, 1, 2)) - np.eye(2))
+
+
+def test_drivers_without_thermal_support_refuse_it() -> None:
+    cloud = pdlin.grid((8, 4), spacing=0.1)
+    prob = pdlin.StaticProblem(
+        pdlin.BondBased(E=1.0), cloud, ratio=3.015, dirichlet=[pdlin.Dirichlet("x-", 0.0)],
+        thermal=ThermalExpansion(10.0, 1e-5),
+    )  # fmt: skip
+    with pytest.raises(InputError, match="solve_nonlinear does not take thermal"):
+        pdlin.solve_nonlinear(prob, steps=1)
+    with pytest.raises(InputError, match="solve_damage does not take thermal"):
+        pdlin.solve_damage(prob, 0.01)
+    from pdlin.submodeling import subregion
+
+    with pytest.raises(InputError, match="subregion does not take thermal"):
+        subregion(prob, [[0.2, 0.0], [0.5, 0.4]], None)
