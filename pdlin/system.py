@@ -42,8 +42,10 @@ import scipy.sparse.linalg as spla
 
 from ._repr import Raw, compact_repr, html_table
 from .constraints import (
+    IsolatedPoints,
     check_constraints,
     eliminate_dirichlet,
+    hold_isolated,
     load_vector,
     matrix_rows,
     resolve_dirichlet,
@@ -975,7 +977,11 @@ def discretize(problem: StaticProblem) -> Discretization:
             model, cloud, problem.symmetry, problem.horizon, problem.bond_options
         )
     else:
-        disc = PlainDiscretization(model, cloud, problem.get_bonds())
+        bonds = problem.get_bonds()
+        if bonds.family_size.all():
+            disc = PlainDiscretization(model, cloud, bonds)
+        else:  # points without bonds (find_bonds(allow_isolated=True)): held at rest
+            disc = IsolatedPoints(model, cloud, bonds)
     if not isinstance(disc, Discretization):  # pragma: no cover - interface guard
         raise ModelError(f"{type(disc).__name__} does not implement Discretization")
     return disc
@@ -1017,6 +1023,13 @@ def constrain(
     f_ext = disc.load_vector(problem.loads, prescribed=dofs)
     if problem.thermal is not None:  # the eigenstrain load K u = f_ext + f_th
         f_ext = f_ext + thermal_load(disc.model, disc.cloud, disc.bonds, problem.thermal)
+    if isinstance(disc, IsolatedPoints):  # u = 0 on points without bonds; loaded ones raise
+        dofs, vals = hold_isolated(disc.cloud, disc.isolated, dofs, vals, f_ext)
+        if checked is None:
+            log.warning(
+                "%d point(s) without bonds held at rest (u = 0), first index %d",
+                disc.isolated.size, int(disc.isolated[0]),
+            )  # fmt: skip
     if checked is None or not np.array_equal(dofs, checked):
         disc.check_constraints(dofs)
     paths = tuple(bc for bc in problem.dirichlet if isinstance(bc.value, TimePath))

@@ -904,7 +904,9 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
         filters += peridigm_bond_filters(disc["Bond Filters"], "Discretization.Bond Filters")
     if omit == "All" and len(blocks_pts) > 1:
         filters.append(_omit_between_blocks(cloud.points, blocks_pts))
-    opts: dict[str, Any] = {}
+    # Peridigm keeps points whose horizon reaches no other point (Number_Of_Neighbors 0,
+    # its MultipleHorizons deck): pdlin.solve holds them at rest (pdlin.constraints)
+    opts: dict[str, Any] = {"allow_isolated": True}
     if filters:
         opts["exclude"] = _any_of(filters)
     scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
