@@ -318,6 +318,7 @@ _PD_QUICKGRID = {
     "Type": "",
     "NeighborhoodType": "",
     "TensorProduct3DMeshGenerator": "",
+    "TensorProductCylinderMeshGenerator": "",
     "Verbose": "cosmetic",
     "Store Exodus Mesh": "output option",
     "Construct Neighborhood Lists": "true: Peridigm's default (false -> error)",
@@ -355,11 +356,13 @@ def _quickgrid_cloud(disc: Mapping[str, Any]) -> tuple[PointCloud, dict[str, Any
         raise SceneError(
             f"{key}.Bond Filters: Peridigm does not support bond filters with PdQuickGrid"
         )
-    if "TensorProduct3DMeshGenerator" not in disc:
+    gens = [k for k in ("TensorProduct3DMeshGenerator", "TensorProductCylinderMeshGenerator")
+            if k in disc]  # fmt: skip
+    if not gens:
         other = sorted(k for k in disc if k.startswith("TensorProduct"))
         raise SceneError(
-            f"{key}: PdQuickGrid needs a TensorProduct3DMeshGenerator list (the cylinder "
-            f"generator is not supported), got {other or 'none'}"
+            f"{key}: PdQuickGrid needs a TensorProduct3DMeshGenerator or "
+            f"TensorProductCylinderMeshGenerator list, got {other or 'none'}"
         )
     _unknown(disc, _PD_QUICKGRID, key, "Peridigm PdQuickGrid discretization")
     for k, why in _PD_QUICKGRID.items():
@@ -371,6 +374,8 @@ def _quickgrid_cloud(disc: Mapping[str, Any]) -> tuple[PointCloud, dict[str, Any
             f"{key}.NeighborhoodType must be 'Spherical' (without it QuickGrid bonds a cube of "
             f"cells, which pdlin does not read), got {norm!r}"
         )
+    if gens[0] == "TensorProductCylinderMeshGenerator":  # Peridigm reads the 3D one first
+        return _quickgrid_cylinder_cloud(disc)
     gkey = f"{key}.TensorProduct3DMeshGenerator"
     gen = _table(disc["TensorProduct3DMeshGenerator"], gkey)
     allowed = {k: "" for k in (*_PD_TENSOR3D, *_PD_TENSOR3D_N)}
@@ -399,6 +404,179 @@ def _quickgrid_cloud(disc: Mapping[str, Any]) -> tuple[PointCloud, dict[str, Any
         "blocks": {"block_1": np.arange(cloud.n)},
         "node_sets": {},
         "strict_sphere": True,
+    }
+
+
+_PD_CYLINDER = {
+    "Inner Radius": "",
+    "Outer Radius": "",
+    "Cylinder Length": "",
+    "Number Points Radius": "",
+    "Ring Center x": "",
+    "Ring Center y": "",
+    "Z Origin": "",
+}
+
+
+def _cell_reach(horizon: float, cell: float, n: int) -> int:
+    """QuickGrid's one-sided cell horizon (``Spec1D::getCellNeighborhoodSize``)."""
+    ratio = horizon / cell
+    k = int(ratio)
+    if abs(ratio - k) >= 0.5:
+        k += 1
+    return min(k, n)
+
+
+def quickgrid_cylinder(
+    inner_radius: float,
+    outer_radius: float,
+    n_rings: int,
+    length: float,
+    z0: float = 0.0,
+    *,
+    n_axis: int | None = None,
+) -> dict[str, Any]:
+    """Peridigm's ``TensorProductCylinderMeshGenerator`` cells (points, volumes, indices).
+
+    ``QuickGrid.cxx`` with ``Peridigm_PdQuickGridDiscretization.cpp``: ``n_rings`` rings of
+    thickness ``dr = (r_o - r_i) / n_rings``; ``n_rays = int(2π / (dr / R)) + 1`` rays,
+    ``R = (r_i + r_o) / 2``, of ``dθ = 2π / n_rays``; ``n_axis = int(L / dr) + 1`` cells of
+    ``dz = L / n_axis`` along the axis from ``z0``.  Cell ``(i, j, k)`` (ring, ray, axial)
+    is point ``i + j n_rings + k n_rings n_rays`` at ``(r_i cos θ_j, r_i sin θ_j, z_k)`` with
+    the centres accumulated as QuickGrid does (``p = x0 + h / 2``, then ``p += h``) and
+    volume ``r_i dr dθ dz``.  Peridigm's generator places the ring about the z axis: it
+    reads ``Ring Center x / y`` but does not apply them to the points.
+
+    Parameters
+    ----------
+    inner_radius, outer_radius : float
+        Radii of the ring (``Inner Radius``, ``Outer Radius``).
+    n_rings : int
+        Cells across the wall (``Number Points Radius``).
+    length : float
+        ``Cylinder Length``.
+    z0 : float
+        ``Z Origin``.
+    n_axis : int, optional
+        Cells along the axis (default Peridigm's ``int(length / dr) + 1``).
+
+    Returns
+    -------
+    dict
+        ``points`` (n, 3), ``volumes`` (n,), ``ijk`` (n, 3) cell indices and the cell
+        sizes ``dr``, ``dtheta``, ``dz``, the counts ``n_rings``, ``n_rays``, ``n_axis`` and
+        the mean radius ``R``.
+
+    Examples
+    --------
+    >>> c = quickgrid_cylinder(1.0, 2.0, 2, 1.0)
+    >>> c["n_rays"], c["n_axis"], c["points"].shape
+    (19, 3, (114, 3))
+    >>> round(float(c["volumes"].sum()), 12) == round(float(np.pi * (4 - 1) * 1.0), 12)
+    True
+    """
+    dr = (outer_radius - inner_radius) / n_rings
+    big_r = (inner_radius + outer_radius) / 2.0
+    n_rays = int(2.0 * np.pi / (dr / big_r)) + 1
+    thickness = abs(outer_radius - inner_radius)
+    if n_axis is None:
+        n_axis = int(length / (thickness / n_rings)) + 1
+    r = _quickgrid_axis(n_rings, inner_radius, thickness)
+    theta = _quickgrid_axis(n_rays, 0.0, 2.0 * np.pi)
+    z = _quickgrid_axis(n_axis, z0, length)
+    grids = np.meshgrid(np.arange(n_axis), np.arange(n_rays), np.arange(n_rings), indexing="ij")
+    kk, jj, ii = (g.ravel() for g in grids)
+    rr, th = r[ii], theta[jj]
+    points = np.column_stack([rr * np.cos(th), rr * np.sin(th), z[kk]])
+    d_r = thickness / n_rings
+    dtheta = 2.0 * np.pi / n_rays
+    dz = length / n_axis
+    return {
+        "points": points,
+        "volumes": rr * d_r * dtheta * dz,  # QuickGrid: r*dr*cellRads*dz
+        "ijk": np.column_stack([ii, jj, kk]),
+        "dr": d_r,
+        "dtheta": dtheta,
+        "dz": dz,
+        "n_rings": n_rings,
+        "n_rays": n_rays,
+        "n_axis": n_axis,
+        "R": big_r,
+    }
+
+
+def _cylinder_window(
+    cyl: Mapping[str, Any], horizon: float, key: str, *, sphere: bool = True
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """``find_bonds`` exclude: QuickGrid's cell window of the cylinder and its sphere.
+
+    ``TensorProductCylinderMeshGenerator::computePdGridData`` tries the cells within the
+    one-sided cell horizons ``h_r = reach(δ / dr)``, ``h_z = reach(δ / dz)`` and, around
+    the ring, ``h_θ = reach(δ / (R dθ))`` at the mean radius ``R`` (periodic), then keeps
+    those with ``|ξ|² - δ² < 0``.  At radii below ``R`` the window in θ holds fewer cells
+    than the sphere: Peridigm's bonds are the window's.  ``sphere=False``: the window alone
+    (QuickGrid's ``NoOpNorm``, which Peridigm's own unit tests check).
+    """
+    from scipy.spatial import cKDTree
+
+    h_r = _cell_reach(horizon, cyl["dr"], cyl["n_rings"])
+    h_t = _cell_reach(horizon, cyl["dtheta"] * cyl["R"], cyl["n_rays"])
+    h_z = _cell_reach(horizon, cyl["dz"], cyl["n_axis"])
+    n_rays = cyl["n_rays"]
+    if 2 * h_t + 1 > n_rays:
+        raise SceneError(
+            f"{key}: the horizon {horizon} spans {2 * h_t + 1} of the ring's {n_rays} rays; "
+            "QuickGrid's ring window then visits cells twice (duplicate bonds): use a "
+            "smaller horizon or a larger ring"
+        )
+    tree = cKDTree(cyl["points"])
+    ijk = cyl["ijk"]
+    in_sphere = _strict_sphere(horizon)
+
+    def exclude(xi: np.ndarray, xj: np.ndarray) -> np.ndarray:
+        a = ijk[tree.query(xi)[1]]
+        b = ijk[tree.query(xj)[1]]
+        dj = np.abs(a[:, 1] - b[:, 1])
+        dj = np.minimum(dj, n_rays - dj)
+        outside = (np.abs(a[:, 0] - b[:, 0]) > h_r) | (dj > h_t) | (np.abs(a[:, 2] - b[:, 2]) > h_z)
+        return (outside | in_sphere(xi, xj)) if sphere else outside
+
+    return exclude
+
+
+def _quickgrid_cylinder_cloud(disc: Mapping[str, Any]) -> tuple[PointCloud, dict[str, Any]]:
+    """``PdQuickGrid`` with ``TensorProductCylinderMeshGenerator`` (:func:`quickgrid_cylinder`)."""
+    gkey = "Discretization.TensorProductCylinderMeshGenerator"
+    gen = _table(disc["TensorProductCylinderMeshGenerator"], gkey)
+    allowed = dict(_PD_CYLINDER)
+    allowed["Type"] = "cosmetic (Peridigm does not read it)"
+    _unknown(gen, allowed, gkey, "TensorProductCylinderMeshGenerator")
+    for k in _PD_CYLINDER:
+        if k not in gen:
+            raise SceneError(f"missing deck key {gkey}.{k}")
+    r_i = _number(gen["Inner Radius"], f"{gkey}.Inner Radius")
+    r_o = _number(gen["Outer Radius"], f"{gkey}.Outer Radius", positive=True)
+    if not 0.0 <= r_i < r_o:
+        raise SceneError(f"{gkey}: need 0 <= Inner Radius < Outer Radius, got {r_i} and {r_o}")
+    length = _number(gen["Cylinder Length"], f"{gkey}.Cylinder Length", positive=True)
+    z0 = _number(gen["Z Origin"], f"{gkey}.Z Origin")
+    v = gen["Number Points Radius"]
+    if isinstance(v, str) and re.fullmatch(r"\s*\d+\s*", v):
+        v = int(v)
+    if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+        raise SceneError(f"{gkey}.Number Points Radius must be an integer >= 1, got {v!r}")
+    centre = [_number(gen[f"Ring Center {c}"], f"{gkey}.Ring Center {c}") for c in "xy"]
+    if any(centre):
+        _note(
+            f"{gkey}.Ring Center x/y",
+            "read but not applied by Peridigm's generator (the ring is about the z axis)",
+        )
+    cyl = quickgrid_cylinder(r_i, r_o, v, length, z0)
+    cloud = _cloud(cyl["points"], cyl["volumes"], gkey)
+    return cloud, {
+        "blocks": {"block_1": np.arange(cloud.n)},
+        "node_sets": {},
+        "cylinder": cyl,
     }
 
 
@@ -900,6 +1078,8 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     filters: list[Callable[[np.ndarray, np.ndarray], np.ndarray]] = []
     if extra.get("strict_sphere"):
         filters.append(_strict_sphere(float(horizon[0])))
+    if "cylinder" in extra:  # QuickGrid's cylinder: its cell window and sphere
+        filters.append(_cylinder_window(extra["cylinder"], float(horizon[0]), "Blocks"))
     if "Bond Filters" in disc:
         filters += peridigm_bond_filters(disc["Bond Filters"], "Discretization.Bond Filters")
     if omit == "All" and len(blocks_pts) > 1:
