@@ -847,6 +847,41 @@ class IsolatedPoints:
         """
         return self._scatter(self.inner.stress(self._sub_u(u)))
 
+    def thermal_load(self, thermal: ThermalExpansion) -> np.ndarray:
+        """Return the thermal load ``(n*dim,)`` (see :func:`thermal_load`; 0 at isolated points).
+
+        Parameters
+        ----------
+        thermal : ThermalExpansion
+            Temperature change and coefficient of all points.
+
+        Returns
+        -------
+        (n*dim,) ndarray
+        """
+        inner = self.inner
+        th = thermal.subset(self.points, self.keep)
+        f = thermal_load(self.model, inner.points, inner.bonds, th)
+        return self._scatter(f.reshape(self.keep.size, -1)).ravel()
+
+    def thermal_stress(self, thermal: ThermalExpansion) -> np.ndarray:
+        """Return the stress of the free thermal strain per point (0 at isolated points).
+
+        Parameters
+        ----------
+        thermal : ThermalExpansion
+            Temperature change and coefficient of all points.
+
+        Returns
+        -------
+        (n, dim, dim) ndarray
+        """
+        from .models.thermal import thermal_stress
+
+        inner = self.inner
+        th = thermal.subset(self.points, self.keep)
+        return self._scatter(thermal_stress(self.model, inner.points, inner.bonds, th))
+
     def initial_state(self) -> dict[str, np.ndarray]:
         """Refuse: the nonlinear drivers do not take isolated points.
 

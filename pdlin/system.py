@@ -1022,7 +1022,10 @@ def constrain(
     # every driver (solve, solve_nonlinear, solve_damage, the CLI, PETSc) passes
     f_ext = disc.load_vector(problem.loads, prescribed=dofs)
     if problem.thermal is not None:  # the eigenstrain load K u = f_ext + f_th
-        f_ext = f_ext + thermal_load(disc.model, disc.cloud, disc.bonds, problem.thermal)
+        if isinstance(disc, IsolatedPoints):
+            f_ext = f_ext + disc.thermal_load(problem.thermal)
+        else:
+            f_ext = f_ext + thermal_load(disc.model, disc.cloud, disc.bonds, problem.thermal)
     if isinstance(disc, IsolatedPoints):  # u = 0 on points without bonds; loaded ones raise
         dofs, vals = hold_isolated(disc.cloud, disc.isolated, dofs, vals, f_ext)
         if checked is None:
@@ -1333,7 +1336,10 @@ class StaticResult:
         th = self.problem.thermal
         if th is not None:
             disc = self._disc
-            s = s - thermal_stress(disc.model, disc.cloud, disc.bonds, th)
+            if isinstance(disc, IsolatedPoints):
+                s = s - disc.thermal_stress(th)
+            else:
+                s = s - thermal_stress(disc.model, disc.cloud, disc.bonds, th)
         return s
 
     def reaction(self, where: Any) -> np.ndarray:

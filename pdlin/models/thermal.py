@@ -129,6 +129,32 @@ class ThermalExpansion:
             )
         return _per_point(value, cloud.n, "thermal.temperature_change")
 
+    def subset(self, cloud: PointCloud, keep: np.ndarray) -> ThermalExpansion:
+        """Return the temperature change and coefficient of the points ``keep`` of ``cloud``.
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            All points.
+        keep : (m,) ndarray of int
+            The points kept.
+
+        Returns
+        -------
+        ThermalExpansion
+            Per-point arrays of the ``m`` points.
+
+        Examples
+        --------
+        >>> import numpy as np, pdlin
+        >>> th = ThermalExpansion(lambda x: x[:, 0], 1e-5)
+        >>> th.subset(pdlin.grid((4,), spacing=1.0), np.array([1, 3])).temperature_change.tolist()
+        [1.5, 3.5]
+        """
+        keep = np.asarray(keep, dtype=np.intp)
+        alpha = _per_point(self.alpha, cloud.n, "thermal.alpha")[keep]
+        return ThermalExpansion(self.temperature(cloud)[keep], alpha)
+
     def _repr_items(self) -> dict[str, Any]:
         def short(v: Any) -> Any:
             if callable(v):

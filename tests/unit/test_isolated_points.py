@@ -107,3 +107,21 @@ def test_isolated_points_matrix_free_and_steps():
     res = solve_steps(steps, solver="direct")
     assert res[1].info["setup_reused"]
     assert np.array_equal(res[1].u, direct.u)
+
+
+def test_isolated_points_with_a_thermal_load():
+    """A heated body beside isolated points: the body expands freely, they stay put."""
+    from pdlin.models.thermal import ThermalExpansion
+
+    grid, cloud = _clouds()
+    x = cloud.points
+    eps = 1e-5 * 100.0
+    pins = [pdlin.Dirichlet([0], eps * x[0]), pdlin.Dirichlet([36], eps * x[36])]
+    prob = pdlin.StaticProblem(
+        pdlin.LPS(E=1.0, nu=0.25), cloud, horizon=0.3015, bond_options={"allow_isolated": True},
+        dirichlet=pins, thermal=ThermalExpansion(100.0, np.full(cloud.n, 1e-5)),
+    )  # fmt: skip
+    res = pdlin.solve(prob, solver="direct")
+    assert np.abs(res.u[: grid.n] - eps * x[: grid.n]).max() < 1e-12  # α ΔT x (closed form)
+    assert not res.u[grid.n :].any()
+    assert np.abs(res.stress()).max() < 1e-12
