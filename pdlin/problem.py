@@ -28,6 +28,7 @@ from .errors import InputError, InputTypeError, ShapeError
 from .geometry.bonds import Bonds, find_bonds
 from .geometry.cloud import PointCloud
 from .models.base import Model
+from .models.thermal import ThermalExpansion, check_thermal
 from .operators.assembly import estimate_bond_operator_bytes
 from .operators.bc import (
     BodyForce,
@@ -104,6 +105,12 @@ class StaticProblem:
         (``delta_i = ratio * h_i``): the bonds are ``find_bonds(cloud, ratio=ratio,
         **bond_options)``.  Stored as ``bond_options["ratio"]``; refused together with
         ``horizon``, ``bonds`` or ``bond_options["ratio"]``.
+    thermal : ThermalExpansion, optional
+        A temperature change and thermal expansion coefficient
+        (:class:`pdlin.models.thermal.ThermalExpansion`): the free thermal strain is an
+        eigenstrain, its load ``f_th`` joins the loads (``K u = f_ext + f_th``) and the
+        result's strain and stress are the mechanical ones (thermal part removed).
+        Not with symmetry planes.
 
     Examples
     --------
@@ -129,6 +136,7 @@ class StaticProblem:
     symmetry: Sequence[SymmetryPlane] = ()
     #: init-only: merged into ``bond_options`` (so ``dataclasses.replace`` keeps it)
     ratio: InitVar[float | None] = None
+    thermal: ThermalExpansion | None = None
 
     def __post_init__(self, ratio: float | None = None) -> None:
         """Check the data and normalize conditions, loads and planes to tuples."""
@@ -186,6 +194,11 @@ class StaticProblem:
                 "pass horizon and bond_options instead, got precomputed Bonds"
             )
         object.__setattr__(self, "symmetry", sym)
+        if check_thermal(self.thermal) is not None and sym:
+            raise InputError(
+                "thermal with symmetry planes is not supported: give the whole body, got "
+                f"{len(sym)} symmetry plane(s)"
+            )
 
     def _merge_ratio(self, ratio: Any) -> None:
         """``ratio=`` as ``bond_options["ratio"]``; conflicting arguments refused by name."""
@@ -223,6 +236,7 @@ class StaticProblem:
             "dirichlet": len(self.dirichlet),
             "loads": len(self.loads),
             "symmetry": len(self.symmetry) or None,
+            "thermal": None if self.thermal is None else _Raw(repr(self.thermal)),
         }
 
     def __repr__(self) -> str:

@@ -459,6 +459,9 @@ def _result(
         "operator_reason": ops.reason,
         **extra,
     }
+    isolated = getattr(system.disc, "isolated", None)
+    if isolated is not None:  # points without bonds, held at rest (pdlin.constraints)
+        info["isolated_points"] = isolated.tolist()
     return StaticResult(
         problem=problem,
         bonds=system.disc.real_bonds,

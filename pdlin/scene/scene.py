@@ -76,6 +76,7 @@ _TOP = {
     "block",  # [[block]]: per-block materials instead of [material]
     "materials",  # [materials.<name>]: named materials of the [[block]] tables
     "deck",  # a Peridigm / PeriLab input deck instead of geometry, material, ...
+    "thermal",  # [thermal] alpha, temperature_change: the thermal eigenstrain load
 }
 #: top-level keys of a scene that runs an input deck ([deck] path = ...)
 _DECK_TOP = {"name", "deck", "solver", "output", "check", "about"}
@@ -535,6 +536,8 @@ def _scene_problem(
     extra: dict[str, Any] = {}
     if "symmetry" in top:
         extra["symmetry"] = _symmetry(top["symmetry"])
+    if "thermal" in top:
+        extra["thermal"] = _thermal(top["thermal"], cloud)
     problem = StaticProblem(
         model,
         cloud,
@@ -702,6 +705,21 @@ def _loads(
         except PdlinError as exc:
             raise SceneError(f"{key}.{vkey}: {exc}") from exc
     return loads
+
+
+def _thermal(table: Any, cloud: PointCloud) -> Any:
+    """Read ``[thermal]``: ``alpha`` and ``temperature_change`` (number or expression)."""
+    from ..models.thermal import ThermalExpansion
+    from .decks.expressions import deck_expression
+
+    cfg = scene_keys(table, {"alpha", "temperature_change"}, "thermal")
+    alpha = number(require(cfg, "alpha", "thermal"), "thermal.alpha")
+    dT = require(cfg, "temperature_change", "thermal")
+    if isinstance(dT, str):  # an expression in x, y, z (the decks' whitelisted evaluator)
+        dT = deck_expression(dT, cloud.points, 0.0, "thermal.temperature_change")
+    else:
+        dT = number(dT, "thermal.temperature_change")
+    return ThermalExpansion(dT, alpha)
 
 
 def _symmetry(tables: list[Any]) -> tuple[Any, ...]:
