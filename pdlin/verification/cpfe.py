@@ -169,8 +169,9 @@ def pixel_mesh(cloud: PointCloud) -> CPFEMesh:
         raise InputError(f"crystal_plasticity_fem needs a 2D or 3D grid, got dim {d}")
     shape = tuple(int(s) for s in lat.shape)
     h = np.asarray(lat.spacing, dtype=float)
-    nodes = grid(tuple(s + 1 for s in shape), spacing=h, origin=np.asarray(lat.origin) - h / 2)
     nshape = tuple(s + 1 for s in shape)
+    origin = (np.asarray(lat.origin, dtype=float) - h / 2).tolist()
+    nodes = grid(nshape, spacing=h.tolist(), origin=origin)
     cells = np.indices(shape).reshape(d, -1).T  # C order = the particles' order
     offs = ((_corners(d) + 1.0) / 2.0).astype(int)  # (nen, d) in {0, 1}
     conn = np.ravel_multi_index(tuple((cells[:, None, :] + offs[None]).transpose(2, 0, 1)), nshape)
