@@ -267,8 +267,9 @@ class _FEDiscretization:
         F, F0 = self._gradients(u)
         J = np.linalg.det(F)
         J0 = np.linalg.det(F0)
-        if np.any(J <= 0.0) or np.any(J0 <= 0.0):
-            raise NonFiniteError("an element is inverted (det F <= 0)")
+        bad = int(np.count_nonzero((J <= 0.0).any(axis=1) | (J0 <= 0.0)))
+        if bad:  # the drivers cut the increment back
+            raise NonFiniteError(f"{bad} element(s) inverted (det F <= 0 at a Gauss point)")
         fbar = self.integration == "fbar"
         ratio = (J0[:, None] / J) if fbar else np.ones_like(J)  # (ne, g)
         alpha = ratio ** (1.0 / d)
@@ -281,8 +282,11 @@ class _FEDiscretization:
         fe = np.einsum("egq,egqa->ea", wP, self.G)
         force = np.zeros((self.cloud.n, d))
         np.add.at(force, m.conn, -fe.reshape(ne, nen, d))
-        sig_gp = cauchy_stress(P.reshape(-1, d, d), Fb.reshape(-1, d, d)).reshape(ne, g, d, d)
-        stress = np.einsum("eg,egij->eij", m.weights, sig_gp) / m.volumes[:, None, None]
+
+        def stress() -> np.ndarray:  # element Cauchy stress, read once per converged step
+            sig = cauchy_stress(P.reshape(-1, d, d), Fb.reshape(-1, d, d)).reshape(ne, g, d, d)
+            return np.asarray(np.einsum("eg,egij->eij", m.weights, sig) / m.volumes[:, None, None])
+
         K = None
         if tangent:
             K = self._tangent(np.asarray(D).reshape(ne, g, d * d, d * d), P, F, F0, alpha, beta)
