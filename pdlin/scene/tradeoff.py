@@ -7,7 +7,7 @@ any dotted key) and builds it again.  See ``docs/tradeoff.md``.
 .. code-block:: toml
 
     [tradeoff]
-    reference = "closed-form"      # auto | closed-form | fem | finest
+    reference = "closed-form"      # auto | closed-form | fem | finest | cpfe (nonlinear)
     metric = "rel-max"             # rel-max | rel-l2 | max-abs
     target_error = 0.05            # report the fastest configuration meeting it
     output = "bar_tradeoff.csv"    # each point appended as it finishes (.csv | .jsonl)
@@ -165,7 +165,12 @@ class SceneSweep:
                 nl["rtol"] = kw["rtol"]
             if sc.maxiter is not None:
                 nl.setdefault("maxiter", sc.maxiter)
-            return TradeoffCase(sc.problem, {}, h=h, nonlinear=nl)
+            ref_nl = None
+            if self.options.get("reference") == "cpfe":
+                ref_nl = _cpfe_reference(sc.problem, nl)
+            return TradeoffCase(sc.problem, {}, h=h, nonlinear=nl, reference=ref_nl)
+        if self.options.get("reference") == "cpfe":
+            raise SceneError("tradeoff.reference = 'cpfe' applies to nonlinear scenes only")
         reference = None
         if self.options.get("reference") == "fem":
             from ..verification.fem import grid_fe_reference
@@ -191,7 +196,26 @@ class SceneSweep:
             One row per sweep point: error, time, memory.
         """
         opts = {**self.options, **kwargs}
+        if opts.get("reference") == "cpfe":  # the cases carry the CPFE history
+            opts["reference"] = "fem"
         return tradeoff(self.factory, self.grid, **opts)
+
+
+def _cpfe_reference(problem: Any, nl: Mapping[str, Any]) -> Callable[[], np.ndarray]:
+    """Return the CPFE homogenized stress history of ``problem`` as a callable (``cpfe``).
+
+    Q4 / Hex8 F-bar elements centred on the particles (``pdlin.verification.cpfe``), the
+    scene's load steps and Newton tolerance.
+    """
+
+    def reference() -> np.ndarray:
+        from ..verification.cpfe import crystal_plasticity_fem
+
+        keys = ("steps", "t_end", "times", "rtol", "maxiter")
+        res = crystal_plasticity_fem(problem, method="auto", **{k: nl[k] for k in keys if k in nl})
+        return np.asarray(res.homogenized_stress)
+
+    return reference
 
 
 def _set(data: dict[str, Any], path: str, value: Any) -> None:
@@ -333,9 +357,9 @@ def tradeoff_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = No
         if "translation" in ex:
             sw.exact_translation = np.asarray(ex["translation"], dtype=float)
     opts["reference"] = t.get("reference", "closed-form" if exact is not None else "finest")
-    if opts["reference"] not in ("auto", "closed-form", "fem", "finest"):
+    if opts["reference"] not in ("auto", "closed-form", "fem", "finest", "cpfe"):
         raise SceneError(
-            "tradeoff.reference must be 'auto', 'closed-form', 'fem' or 'finest', got "
+            "tradeoff.reference must be 'auto', 'closed-form', 'fem', 'finest' or 'cpfe', got "
             f"{opts['reference']!r}"
         )
     if opts["reference"] == "closed-form" and exact is None:
