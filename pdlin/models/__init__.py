@@ -15,6 +15,7 @@ from .damage import (
     isolated_points,
 )
 from .lps import LPS
+from .peridigm_state import PeridigmElastic, PeridigmElasticPlastic
 from .surface import SURFACE_CORRECTIONS, SurfaceFactors
 from .xosb import XOSB
 
@@ -70,6 +71,8 @@ __all__ = [
     "implied_poisson_ratio",
     "standard_micromodulus",
     "LPS",
+    "PeridigmElastic",
+    "PeridigmElasticPlastic",
     "XOSB",
     "SURFACE_CORRECTIONS",
     "SurfaceFactors",
