@@ -210,12 +210,12 @@ _PD_MATERIALS: dict[str, dict[str, str]] = {
     "Linear Elastic": dict(_PD_MAT_COMMON),
     "Elastic Correspondence": {**_PD_MAT_COMMON, "Hourglass Coefficient": ""},
     "Elastic Bond Based": dict(_PD_MAT_COMMON),
-    # only with Disable Plasticity: true (Peridigm_ElasticPlasticMaterial.cpp then sets the
-    # yield stress to DBL_MAX: elastic_plastic.cxx never yields and its force is Elastic's)
+    # PeridigmElasticPlastic (elastic_plastic.cxx); with Disable Plasticity: true
+    # Peridigm_ElasticPlasticMaterial.cpp sets the yield stress to DBL_MAX (never yields)
     "Elastic Plastic": {
         **_PD_MAT_COMMON,
         "Disable Plasticity": "",
-        "Yield Stress": "unused: plasticity disabled",
+        "Yield Stress": "",
         "Apply Shear Correction Factor": "not read by Peridigm's Elastic Plastic material",
     },
 }
@@ -805,14 +805,8 @@ def _peridigm_material(name: str, mat: Mapping[str, Any], key: str) -> dict[str,
             f"{sorted(_PD_MATERIALS)}"
         )
     allowed = _PD_MATERIALS[model]
-    if model == "Elastic Plastic" and not _flag(
-        mat.get("Disable Plasticity", False), f"{key}.Disable Plasticity"
-    ):
-        raise SceneError(
-            f"{key}.Material Model: 'Elastic Plastic' is not supported (plasticity); only with "
-            "Disable Plasticity: true, where Peridigm's force is the Elastic one"
-        )
     _unknown(mat, allowed, key, f"Peridigm {model!r} material")
+    yield_stress = _peridigm_yield(mat, key) if model == "Elastic Plastic" else None
     for k in ("Plane Strain", "Plane Stress"):
         if k in mat and _flag(mat[k], f"{key}.{k}"):
             raise SceneError(
@@ -850,10 +844,25 @@ def _peridigm_material(name: str, mat: Mapping[str, Any], key: str) -> dict[str,
         if hg < 0:
             raise SceneError(f"{key}.Hourglass Coefficient must be >= 0, got {hg}")
         return {"kind": "correspondence", "K": K, "G": G, "hourglass": hg}
-    return {"kind": "lps", "K": K, "G": G, "hourglass": None}
+    return {"kind": "lps", "K": K, "G": G, "hourglass": None, "yield": yield_stress}
 
 
-def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
+def _peridigm_yield(mat: Mapping[str, Any], key: str) -> float | None:
+    """``Yield Stress`` of an ``Elastic Plastic`` material (None: plasticity disabled)."""
+    if "Yield Stress" not in mat:  # Peridigm_ElasticPlasticMaterial.cpp requires it
+        raise SceneError(f"missing deck key {key}.Yield Stress (required by 'Elastic Plastic')")
+    ys = _number(mat["Yield Stress"], f"{key}.Yield Stress", positive=True)
+    if _flag(mat.get("Disable Plasticity", False), f"{key}.Disable Plasticity"):
+        _note(f"{key}.Yield Stress", "unused: Disable Plasticity (never yields, the Elastic force)")
+        return None
+    return ys
+
+
+#: ``kinematics`` of :func:`pdlin.read_deck` (``pdlin run --kinematics``)
+KINEMATICS = ("auto", "finite", "linear")
+
+
+def _peridigm(deck: Mapping[str, Any], base: Path, name: str, kinematics: str = "auto") -> Scene:
     root = _table(deck, "Peridigm")
     _unknown(root, _PD_TOP, "Peridigm", "Peridigm deck")
     for k in ("Verbose", "Compute Class Parameters"):
@@ -866,7 +875,7 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     omit = _peridigm_discretization_keys(disc)
     cloud, extra = _peridigm_cloud(disc, base)
     blocks_pts: dict[str, np.ndarray] = extra["blocks"]
-    model, horizon = _peridigm_blocks(root, disc.get("Horizon"), blocks_pts, cloud.n)
+    model, horizon, finite_model = _peridigm_blocks(root, disc.get("Horizon"), blocks_pts, cloud.n)
 
     # Peridigm runs a deck without Boundary Conditions (no constraint, no load: u = 0)
     n = cloud.n
@@ -896,6 +905,11 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     opts: dict[str, Any] = {}
     if filters:
         opts["exclude"] = _any_of(filters)
+    finite = _finite_kinematics(kinematics, finite_model, len(times) - 1)
+    if finite:
+        return _finite_scene(
+            name, finite_model, cloud, horizon, bcs, sets, times, opts, base, output
+        )
     scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
     scene.time = times[-1]  # Peridigm writes the final state at Final Time
     if len(times) > 2:
@@ -938,11 +952,13 @@ def _peridigm_discretization_keys(disc: Mapping[str, Any]) -> str:
 
 def _peridigm_blocks(
     root: Mapping[str, Any], default_h: Any, blocks_pts: Mapping[str, np.ndarray], n: int
-) -> tuple[Any, np.ndarray]:
+) -> tuple[Any, np.ndarray, Any]:
     """Build the model and the per-point horizons from ``Materials`` and ``Blocks``.
 
     One material family with per-point constants; ``default_h`` is
-    ``Discretization.Horizon``, if given.
+    ``Discretization.Horizon``, if given.  Also returns the finite-kinematics model
+    (:class:`~pdlin.models.PeridigmElasticPlastic`) of ``Elastic`` / ``Elastic Plastic``
+    decks, else None.
     """
     materials = _table(root["Materials"], "Materials")
     mats = {
@@ -952,6 +968,7 @@ def _peridigm_blocks(
     horizon = np.full(n, np.nan)
     K = np.full(n, np.nan)
     G = np.full(n, np.nan)
+    yields = np.full(n, np.inf)  # Elastic and plasticity disabled: never yields
     kinds: set[str] = set()
     hgs: set[float] = set()
     default: tuple[float, dict[str, Any]] | None = None
@@ -961,6 +978,8 @@ def _peridigm_blocks(
         horizon[idx] = h
         K[idx] = mat["K"]
         G[idx] = np.nan if mat["G"] is None else mat["G"]
+        if mat.get("yield") is not None:
+            yields[idx] = mat["yield"]
         kinds.add(mat["kind"])
         if mat["hourglass"] is not None:
             hgs.add(mat["hourglass"])
@@ -1011,7 +1030,102 @@ def _peridigm_blocks(
         raise SceneError(
             f"Blocks: all blocks must use one material model family in pdlin, got {sorted(kinds)}"
         )
-    return _build_model(kinds.pop(), K, G, hgs, "Materials"), horizon
+    kind = kinds.pop()
+    model = _build_model(kind, K, G, hgs, "Materials")
+    finite = None
+    if kind == "lps":  # Peridigm's Elastic / Elastic Plastic with their own kinematics
+        from ...models.peridigm_state import PeridigmElasticPlastic
+
+        def one(a: np.ndarray) -> Any:
+            return float(a[0]) if np.all(a == a[0]) else a
+
+        finite = PeridigmElasticPlastic(
+            K=one(K), G=one(G), yield_stress=one(yields), horizon=one(horizon)
+        )
+    return model, horizon, finite
+
+
+def _finite_kinematics(kinematics: str, finite_model: Any, n_steps: int) -> bool:
+    """Whether the deck runs Peridigm's finite-kinematics material (``solve_nonlinear``).
+
+    ``'auto'``: with plasticity (a finite ``Yield Stress``) or several load steps of an
+    ``Elastic`` / ``Elastic Plastic`` deck; ``'finite'`` / ``'linear'`` as asked.
+    """
+    if kinematics not in KINEMATICS:
+        raise SceneError(f"kinematics must be one of {list(KINEMATICS)}, got {kinematics!r}")
+    plastic = finite_model is not None and bool(np.isfinite(finite_model.yield_stress).any())
+    if kinematics == "linear":
+        if plastic:
+            raise SceneError(
+                "Materials: 'Elastic Plastic' with plasticity needs kinematics 'finite' or "
+                "'auto' (pdlin runs Peridigm's plasticity with its finite kinematics); got "
+                "'linear'"
+            )
+        return False
+    if kinematics == "finite" and finite_model is None:
+        raise SceneError(
+            "kinematics 'finite' is available for Peridigm's 'Elastic' and 'Elastic Plastic' "
+            "materials; this deck's material is solved linearized (use 'auto' or 'linear')"
+        )
+    return finite_model is not None and (kinematics == "finite" or plastic or n_steps > 1)
+
+
+def _finite_scene(
+    name: str,
+    model: Any,
+    cloud: PointCloud,
+    horizon: np.ndarray,
+    bcs: Any,
+    sets: Mapping[str, np.ndarray],
+    times: list[float],
+    opts: dict[str, Any],
+    base: Path,
+    output: Path | None,
+) -> Scene:
+    """Build the scene Peridigm solves: Newton on the finite-kinematics force per step.
+
+    The prescribed displacements are evaluated at each step's time (``TimePath``); body
+    forces scale with ``t / t_end`` in :func:`pdlin.solve_nonlinear`, so a deck whose body
+    force is not proportional to ``t`` over its steps is refused.
+    """
+    from ...operators.bc import TimePath
+
+    t_end = times[-1]
+    dirichlet_end, loads = _peridigm_bcs(bcs, sets, cloud, t_end)
+    if not dirichlet_end and not loads:
+        dirichlet: list[Dirichlet] = [Dirichlet(np.arange(cloud.n), np.zeros((cloud.n, 3)))]
+    else:
+        dirichlet = []
+        cache: dict[float, list[Dirichlet]] = {t_end: dirichlet_end}
+
+        def at(t: float) -> list[Dirichlet]:
+            if t not in cache:  # every condition of a step evaluated once
+                cache[t] = _peridigm_bcs(bcs, sets, cloud, t)[0]
+            return cache[t]
+
+        for k, d in enumerate(dirichlet_end):
+
+            def path(_x: np.ndarray, t: float, k: int = k) -> np.ndarray:
+                return np.asarray(at(float(t))[k].value)
+
+            dirichlet.append(
+                Dirichlet(d.where, TimePath(path, f"deck value {k}"), components=d.components)
+            )
+    for t in times[1:-1]:
+        _, lt = _peridigm_bcs(bcs, sets, cloud, t)
+        for a, b in zip(lt, loads, strict=True):
+            if not np.allclose(a.density, (t / t_end) * np.asarray(b.density), rtol=1e-12):
+                raise SceneError(
+                    "Boundary Conditions: a Body Force that is not proportional to t over the "
+                    "load steps is not supported with finite kinematics (pdlin scales loads "
+                    f"with t / Final Time); at t = {t} it is not"
+                )
+    scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
+    scene.time = t_end
+    solve_times = [t for t in times[1:] if t > 0]
+    scene.nonlinear = {"method": "newton", "times": solve_times, "t_end": t_end}
+    scene.steps = [(t, scene.problem) for t in times]
+    return scene
 
 
 def _peridigm_output(root: Mapping[str, Any], base: Path, name: str) -> Path | None:
