@@ -96,6 +96,7 @@ def run_finite_steps(args: argparse.Namespace, scene: Any, prog: Any) -> int:
         points=n,
         dim=dim,
         times=times,
+        steps=len(times) if len(times) > 2 else 1,  # states written, as the linear path
         max_abs_u=np.abs(result.u[-1]).max(axis=0).tolist(),
         output=str(written),
     )

@@ -294,8 +294,9 @@ def test_boundary_condition_errors_name_the_key(bar_dir, edit, pattern):
             "Material",
             "Material Model",
             "Elastic Plastic",
-            r"Material Model: 'Elastic Plastic' is not supported \(plasticity\); only with "
-            r"Disable Plasticity: true",
+            # Peridigm_ElasticPlasticMaterial.cpp reads Yield Stress (required)
+            r"missing deck key Materials\.My Material\.Yield Stress "
+            r"\(required by 'Elastic Plastic'\)",
         ),
         (
             "Material",
@@ -1044,7 +1045,7 @@ def test_cli_runs_yaml_and_xml_decks(bar_dir):
     assert res.returncode == 0 and '"points": 32' in res.stdout, res.stderr
     res = _cli("run", "bad.xml", "-q", cwd=bar_dir)
     assert res.returncode == 2
-    assert "Materials.My Material.Material Model: 'Elastic Plastic' is not supported" in res.stderr
+    assert "Materials.My Material.Yield Stress (required by 'Elastic Plastic')" in res.stderr
 
 
 def test_cosmetic_keys_are_logged_not_ignored(bar_dir, caplog):
@@ -1138,7 +1139,8 @@ def test_load_steps_are_peridigms_times(bar_dir):
     # problem holds that step's prescribed values (Fix X: "0.01 * t" on the right end)
     deck = peridigm_deck(LPS_MAT, solver={"Initial Time": 0.5, "Final Time": 2.0,
                                           "QuasiStatic": {"Number of Load Steps": 3}})  # fmt: skip
-    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    # linearized: one problem per step (finite kinematics: one problem, TimePath values)
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck), kinematics="linear")
     times = [t for t, _ in scene.steps]
     assert times == [0.5, 1.0, 1.5, 2.0]  # (2.0 - 0.5) / 3 = 0.5 exactly in binary
     assert scene.steps[-1][1] is scene.problem
@@ -1146,4 +1148,4 @@ def test_load_steps_are_peridigms_times(bar_dir):
     assert np.allclose([v.max() for v in pulled], [0.001 * t for t in times], rtol=1e-15)
     # one step: no series
     deck["Peridigm"]["Solver"]["QuasiStatic"] = {"Number of Load Steps": 1}
-    assert pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck)).steps is None
+    assert pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck), kinematics="linear").steps is None

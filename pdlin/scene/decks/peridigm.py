@@ -906,6 +906,11 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str, kinematics: str = 
     if filters:
         opts["exclude"] = _any_of(filters)
     finite = _finite_kinematics(kinematics, finite_model, len(times) - 1)
+    if finite and kinematics == "auto" and _loads_not_proportional(bcs, sets, cloud, times):
+        # with plasticity _finite_scene refuses it; elastic decks stay linearized
+        finite = bool(np.isfinite(finite_model.yield_stress).any())
+        if not finite:
+            _note("Solver", "a Body Force not proportional to t over the load steps: linearized")
     if finite:
         return _finite_scene(
             name, finite_model, cloud, horizon, bcs, sets, times, opts, base, output
@@ -1070,6 +1075,21 @@ def _finite_kinematics(kinematics: str, finite_model: Any, n_steps: int) -> bool
     return finite_model is not None and (kinematics == "finite" or plastic or n_steps > 1)
 
 
+def _loads_not_proportional(
+    bcs: Any, sets: Mapping[str, np.ndarray], cloud: PointCloud, times: list[float]
+) -> bool:
+    """Whether some body force is not ``t / Final Time`` times its final value at a step.
+
+    ``solve_nonlinear`` scales loads proportionally and cannot follow such a load.
+    """
+    _, final = _peridigm_bcs(bcs, sets, cloud, times[-1])
+    for t in times[1:-1] if final else []:
+        for a, b in zip(_peridigm_bcs(bcs, sets, cloud, t)[1], final, strict=True):
+            if not np.allclose(a.density, (t / times[-1]) * np.asarray(b.density), rtol=1e-12):
+                return True
+    return False
+
+
 def _finite_scene(
     name: str,
     model: Any,
@@ -1084,9 +1104,11 @@ def _finite_scene(
 ) -> Scene:
     """Build the scene Peridigm solves: Newton on the finite-kinematics force per step.
 
-    The prescribed displacements are evaluated at each step's time (``TimePath``); body
-    forces scale with ``t / t_end`` in :func:`pdlin.solve_nonlinear`, so a deck whose body
-    force is not proportional to ``t`` over its steps is refused.
+    The prescribed displacements are evaluated at each step's time (``TimePath`` of
+    ``s = t / Final Time``, so that ``pdlin.solve(scene.problem)`` is at Final Time and
+    ``scene.nonlinear["times"]`` are the steps' ``s``); body forces scale with ``s`` in
+    :func:`pdlin.solve_nonlinear`, so a deck whose body force is not proportional to ``t``
+    over its steps is refused.
     """
     from ...operators.bc import TimePath
 
@@ -1105,8 +1127,9 @@ def _finite_scene(
 
         for k, d in enumerate(dirichlet_end):
 
-            def path(_x: np.ndarray, t: float, k: int = k) -> np.ndarray:
-                return np.asarray(at(float(t))[k].value)
+            def path(_x: np.ndarray, s: float, k: int = k) -> np.ndarray:
+                # s = t / Final Time: a linear solve of the problem (s = 1) is at Final Time
+                return np.asarray(at(t_end if s == 1.0 else float(s) * t_end)[k].value)
 
             dirichlet.append(
                 Dirichlet(d.where, TimePath(path, f"deck value {k}"), components=d.components)
@@ -1122,8 +1145,9 @@ def _finite_scene(
                 )
     scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
     scene.time = t_end
-    solve_times = [t for t in times[1:] if t > 0]
-    scene.nonlinear = {"method": "newton", "times": solve_times, "t_end": t_end}
+    # the load path in s = t / Final Time (see path above); pdlin run writes Peridigm's times
+    solve_times = [t / t_end for t in times[1:] if t > 0]
+    scene.nonlinear = {"method": "newton", "times": solve_times, "t_end": 1.0}
     scene.steps = [(t, scene.problem) for t in times]
     return scene
 
