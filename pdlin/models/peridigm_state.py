@@ -154,22 +154,27 @@ class PeridigmElasticPlastic(LPS):
         return {"edp": np.zeros(bonds.n_bonds), "lambda": np.zeros(cloud.n)}
 
     def _point_constants(self, cloud: PointCloud, bonds: Bonds) -> dict[str, np.ndarray]:
-        """``K``, ``μ``, ``m``, ``α`` and the yield value per point."""
+        """Bond arrays (each read once) and ``K``, ``μ``, ``m``, ``α``, ``ψ_0`` per point."""
         if cloud.dim != 3:
             raise ModelError(
                 f"{type(self).__name__} is Peridigm's 3D material; got a {cloud.dim}D cloud"
             )
         n = cloud.n
         k_mod, mu = (np.broadcast_to(np.asarray(a, float), (n,)) for a in self.moduli(3))
-        zeta = bonds.length
+        # compact bonds compute i, xi, length, volume_j on every access: read them once
+        i, j, xi = bonds.i, bonds.j, bonds.xi
+        zeta = np.sqrt(np.einsum("ij,ij->i", xi, xi))
         vj = np.asarray(bonds.volume_j, float)
-        m = np.bincount(bonds.i, zeta * zeta * vj, n)
+        m = np.bincount(i, zeta * zeta * vj, n)
         if np.any(m <= 0):
             bad = int(np.flatnonzero(m <= 0)[0])
             raise ModelError(f"point {bad} has no bonds (weighted volume 0)")
         horizon = bonds.horizon if self.yield_horizon is None else self.yield_horizon
         psi0 = np.broadcast_to(peridigm_yield_value(self.yield_stress, horizon), (n,))
-        return {"K": k_mod, "mu": mu, "m": m, "alpha": 15.0 * mu / m, "psi0": psi0, "vj": vj}
+        return {
+            "K": k_mod, "mu": mu, "m": m, "alpha": 15.0 * mu / m, "psi0": psi0,
+            "i": i, "j": j, "xi": xi, "zeta": zeta, "vj": vj,
+        }  # fmt: skip
 
     def force_and_state(
         self,
@@ -210,9 +215,9 @@ class PeridigmElasticPlastic(LPS):
         """
         c = self._point_constants(cloud, bonds)
         n = cloud.n
-        i, j = bonds.i, bonds.j
+        i, j = c["i"], c["j"]
         uu = as_displacement(u, n, 3)
-        y = bonds.xi + uu[j] - uu[i]
+        y = c["xi"] + uu[j] - uu[i]
         ly = np.sqrt(np.einsum("ij,ij->i", y, y))
         if not np.all(ly > 0):
             bad = int(np.flatnonzero(~(ly > 0))[0])
@@ -220,7 +225,7 @@ class PeridigmElasticPlastic(LPS):
                 f"bond {bad} ({int(i[bad])}, {int(j[bad])}) has deformed length {ly[bad]}: "
                 "its direction is undefined"
             )
-        zeta, vj = bonds.length, c["vj"]
+        zeta, vj = c["zeta"], c["vj"]
         e = ly - zeta
         m = c["m"]
         th = np.bincount(i, 3.0 * zeta * e * vj, n) / m if theta is None else np.asarray(theta)
@@ -275,8 +280,8 @@ class PeridigmElasticPlastic(LPS):
             ``(3n, 3n)``, blocksize 3.
         """
         n, nb = cloud.n, bonds.n_bonds
-        i, j = bonds.i, bonds.j
-        unit, ly, zeta, vj = out["unit"], out["ly"], bonds.length, out["vj"]
+        i, j = out["i"], out["j"]
+        unit, ly, zeta, vj = out["unit"], out["ly"], out["zeta"], out["vj"]
         w = np.asarray(cloud.volumes, float)[i] * vj
         rows = np.repeat(np.arange(nb), 6)
         cols = np.concatenate([3 * i[:, None] + np.arange(3), 3 * j[:, None] + np.arange(3)], 1)
