@@ -370,12 +370,13 @@ class PeridigmElasticPlastic(LPS):
         Returns
         -------
         dict
-            As ``LPS.describe``, with ``kinematics`` and ``yield_stress``.
+            As ``LPS.describe``, with ``kinematics`` and ``yield_stress`` (a number, or
+            ``'per-point'``).
         """
         out = super().describe()
         out["kinematics"] = "finite"
         ys = self.yield_stress
-        out["yield_stress"] = ys.tolist() if isinstance(ys, np.ndarray) else ys
+        out["yield_stress"] = "per-point" if isinstance(ys, np.ndarray) else ys
         return out
 
 
