@@ -1038,7 +1038,17 @@ def _peridigm_blocks(
     kind = kinds.pop()
     model = _build_model(kind, K, G, hgs, "Materials")
     finite = None
-    if kind == "lps":  # Peridigm's Elastic / Elastic Plastic with their own kinematics
+    # Peridigm's Elastic / Elastic Plastic with their own kinematics; PeridigmElasticPlastic
+    # has no thermal strain, so a deck with thermal expansion stays linearized
+    thermal = any(
+        isinstance(m, Mapping) and "Thermal Expansion Coefficient" in m for m in materials.values()
+    )
+    if thermal and np.isfinite(yields).any():  # Peridigm_ElasticPlasticMaterial.cpp refuses it
+        raise SceneError(
+            "Materials: 'Elastic Plastic' with plasticity does not take a Thermal Expansion "
+            "Coefficient (Peridigm refuses it too)"
+        )
+    if kind == "lps" and not thermal:
         from ...models.peridigm_state import PeridigmElasticPlastic
 
         def one(a: np.ndarray) -> Any:
