@@ -393,3 +393,13 @@ def test_bad_input_is_refused():
             PeridigmElastic(K=1.0, G=1.0).respond(
                 cloud, bonds, np.array([[0.0, 0, 0], [-1, 0, 0]]), {}
             )
+
+
+def test_kinematics_option_is_for_decks(tmp_path, capsys):
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        '[geometry]\ntype = "grid"\nshape = [4, 4]\nspacing = 0.1\n[material]\nE = 1.0\n'
+        '[[dirichlet]]\nwhere = "x-"\nvalue = 0.0\n[[dirichlet]]\nwhere = "x+"\nvalue = 0.001\n'
+    )
+    assert main(["run", str(scene), "--kinematics", "finite", "-q"]) == 2
+    assert "--kinematics applies to Peridigm decks" in capsys.readouterr().err
