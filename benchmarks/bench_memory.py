@@ -115,13 +115,15 @@ def run_case(name: str, workdir: Path) -> dict[str, object]:
     t0 = time.perf_counter()
     proc = subprocess.run(argv, cwd=workdir, capture_output=True, text=True)
     wall = time.perf_counter() - t0
+    use = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = use.ru_utime + use.ru_stime
     # this interpreter runs one case (--one): the children's maximum is that run's peak
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024  # KiB on Linux
     err = proc.stderr
     est, n, nb = _parse(err)
     return {
         "case": name, "rc": proc.returncode, "estimate": est, "peak": float(peak), "points": n,
-        "bonds": nb, "wall": wall, "stderr": err if proc.returncode else "",
+        "bonds": nb, "wall": wall, "cpu": cpu, "stderr": err if proc.returncode else "",
     }  # fmt: skip
 
 
@@ -196,6 +198,7 @@ def _stages_one(
     import pdlin
     from pdlin.system import ConstrainedSystem
 
+    cpu0 = time.process_time()  # all threads of this interpreter
     rec = _StagePeaks()
     rec.estimate_line = ""
     original = ConstrainedSystem.eliminate
@@ -240,7 +243,8 @@ def _stages_one(
     label = {"bb": "", "lps": "LPS ", "cor": "corr. SP "}[kind]
     print(f"| {label}{m}³ = {m**3:,} | {nb:,} | {cells} | {peak / 1e9:.2f} ({peak / nb:.0f}) | "
           f"{(est or 0) / 1e9:.2f} | {(est or 0) / peak:.2f} | {res.n_iter} | "
-          f"{sum(rec.seconds.values()):.1f} | {same} |")  # fmt: skip
+          f"{sum(rec.seconds.values()):.1f} | {time.process_time() - cpu0:.1f} | "
+          f"{same} |")  # fmt: skip
 
 
 def stages(
@@ -251,9 +255,10 @@ def stages(
           "'memory estimate' (GB)")  # fmt: skip
     print(
         "| points | directed bonds | grid | plan | bonds | assembly | elimination | checks | "
-        "AMG setup | solve | fields | peak | estimate | estimate / peak | CG its | wall (s) |"
+        "AMG setup | solve | fields | peak | estimate | estimate / peak | CG its | wall (s) | "
+        "CPU (s) | u |"
     )
-    print("|---" * 16 + "|")
+    print("|---" * 18 + "|")
     rows = [("bb", m, 3.015) for m in sizes] + list(STAGE_MODELS if models else ())
     for kind, m, ratio in rows:
         argv = [sys.executable, __file__, "--stage-one", str(m), save or "", check or "", kind,
@@ -301,8 +306,8 @@ def main() -> None:
     print(f"load average {os.getloadavg()}, {os.cpu_count()} cores, "
           f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")  # fmt: skip
     print("| case | points | bonds | estimate (GB) | peak RSS (GB) | estimate / peak | "
-          "peak bytes per bond | wall (s) |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|---|")
+          "peak bytes per bond | wall (s) | CPU (s) |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.cases.split(","):
             # one case at a time: RUSAGE_CHILDREN is a maximum over all children so far,
@@ -323,7 +328,8 @@ def _one(name: str, tmp: str) -> None:
     bpb = peak / max(int(r["bonds"] or 1), 1)  # type: ignore[call-overload]
     print(
         f"| {name} | {r['points']:,} | {r['bonds']:,} | {est / 1e9:.3f} | {peak / 1e9:.3f} | "
-        f"{est / peak:.2f} | {bpb:,.0f} | {float(r['wall']):.1f} |"  # type: ignore[arg-type]
+        f"{est / peak:.2f} | {bpb:,.0f} | {float(r['wall']):.1f} | "  # type: ignore[arg-type]
+        f"{float(r['cpu']):.1f} |"  # type: ignore[arg-type]
     )
 
 

@@ -17,6 +17,7 @@ from pathlib import Path
 #: modules where every other public name lives
 MODULES = [
     "pdlin",
+    "pdlin.static",
     "pdlin.geometry",
     "pdlin.models",
     "pdlin.operators",
@@ -97,6 +98,7 @@ def render() -> str:
 #: not below one of these groups (problem, system, nonlinear) are documented on ``pdlin``
 TITLES = {
     "pdlin": "Problems and solves",
+    "pdlin.static": "Static solves: one problem, or load steps sharing one factorization",
     "pdlin.geometry": "Geometry: point clouds and bonds",
     "pdlin.models": "Material models, weights and damage",
     "pdlin.operators": "Operators and boundary conditions",

@@ -14,7 +14,7 @@ themselves (data: :class:`~pdlin.Dirichlet`, :class:`~pdlin.BodyForce`,
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.linalg
@@ -22,15 +22,21 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from ._validation import as_float_array
-from .errors import FloatingBodyError, InputError, ShapeError
+from .errors import FloatingBodyError, InputError, NoNeighborsError, ShapeError
 from .geometry.bonds import Bonds
 from .geometry.cloud import PointCloud
 from .operators.bc import BodyForce, Dirichlet, TimePath, TotalForce, parse_components
 from .operators.rigid import rigid_body_modes, rigid_mode_names
 
+if TYPE_CHECKING:
+    from .models.thermal import ThermalExpansion
+
 __all__ = [
     "resolve_dirichlet",
     "load_vector",
+    "thermal_load",
+    "IsolatedPoints",
+    "hold_isolated",
     "check_constraints",
     "eliminate_dirichlet",
     "matrix_rows",
@@ -281,6 +287,58 @@ def load_vector(
                                 f"{_describe_where(ld.where, idx)})")  # fmt: skip
         np.add.at(f, idx, part)
     return f.ravel()
+
+
+def thermal_load(
+    model: Any, cloud: PointCloud, bonds: Bonds | None, thermal: ThermalExpansion
+) -> np.ndarray:
+    """Nodal thermal load ``(n*dim,)`` of a temperature change: ``K u = f_ext + f_th``.
+
+    The eigenstrain load of :func:`pdlin.models.thermal.thermal_force` (flat), added to
+    the loads of the constrained system.
+
+    Parameters
+    ----------
+    model : Model
+        The (linear) model.
+    cloud : PointCloud
+        The points.
+    bonds : Bonds or None
+        Their bonds (None: a driver without the bonds, refused).
+    thermal : ThermalExpansion
+        Temperature change and expansion coefficient.
+
+    Returns
+    -------
+    (n*dim,) ndarray
+        Self-equilibrated nodal forces.
+
+    Raises
+    ------
+    InputError
+        Without bonds (a distributed driver that finds its own).
+    ModelError
+        For a model without thermal expansion (see :mod:`pdlin.models.thermal`).
+
+    Examples
+    --------
+    >>> import pdlin
+    >>> from pdlin.models.thermal import ThermalExpansion
+    >>> cloud = pdlin.grid((4,), spacing=1.0)
+    >>> f = thermal_load(pdlin.BondBased(E=1.0), cloud, pdlin.find_bonds(cloud, 1.5),
+    ...     ThermalExpansion(1.0, 1e-3))
+    >>> abs(float(f.sum())) < 1e-18, float(f[0]) < 0 < float(f[-1])
+    (True, True)
+    """
+    # imported here: pdlin.operators (which the models import) re-exports this module
+    from .models.thermal import thermal_force
+
+    if bonds is None:
+        raise InputError(
+            "thermal needs the bonds of the whole body; this driver has none (the PETSc "
+            "backend finds its own): solve thermal problems with pdlin.solve"
+        )
+    return np.asarray(thermal_force(model, cloud, bonds, thermal), dtype=float).ravel()
 
 
 def _check_load_support(ld: Any, part: np.ndarray, fixed: np.ndarray, label: str) -> None:
@@ -589,3 +647,383 @@ def eliminate_dirichlet(
         A = sp.csr_array(A)
     b[~free] = s * uc[~free]
     return A, b
+
+
+def _embed_bsr(K_sub: sp.sparray, keep: np.ndarray, n: int, d: int) -> sp.bsr_array:
+    """Embed a BSR / CSR matrix on the kept points into the full ``(n*d, n*d)`` one.
+
+    The rows and columns of the other points are empty, their diagonal blocks stored
+    as zeros (the Dirichlet elimination writes its identity there).
+    """
+    Kb = sp.bsr_array(K_sub, blocksize=(d, d))
+    Kb.sort_indices()
+    rows = np.repeat(keep, np.diff(Kb.indptr))
+    cols = keep[Kb.indices]
+    data = Kb.data
+    others = np.setdiff1d(np.arange(n), keep)
+    rows = np.concatenate([rows, others])
+    cols = np.concatenate([cols, others])
+    data = np.concatenate([data, np.zeros((others.size, d, d))])
+    order = np.lexsort((cols, rows))
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rows, minlength=n), out=indptr[1:])
+    return sp.bsr_array((data[order], cols[order], indptr), shape=(n * d, n * d))
+
+
+class IsolatedPoints:
+    """A discretization whose points without bonds are held at rest (``u = 0``).
+
+    Peridigm keeps points whose horizon reaches no other point (its ``Number_Of_Neighbors``
+    is 0; e.g. its ``MultipleHorizons`` deck).  Their equilibrium equations are empty, so the
+    model's operators are built on the other points (``drop_isolated``) and embedded: the
+    isolated points' rows and columns of K are zero, their internal force is zero and
+    :func:`hold_isolated` prescribes their free components to 0.  A load on such a point
+    has nothing to carry it and raises.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    cloud : PointCloud
+        All points.
+    bonds : Bonds
+        Their bonds (``find_bonds(..., allow_isolated=True)``).
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin
+    >>> cloud = pdlin.PointCloud(np.array([[0.0], [1.0], [2.0], [5.0]]), np.ones(4))
+    >>> bonds = pdlin.find_bonds(cloud, 1.5, allow_isolated=True)
+    >>> disc = IsolatedPoints(pdlin.BondBased(E=1.0), cloud, bonds)
+    >>> disc.isolated.tolist(), disc.stiffness().shape
+    ([3], (4, 4))
+    """
+
+    def __init__(self, model: Any, cloud: PointCloud, bonds: Bonds) -> None:
+        from .models.damage import drop_isolated
+        from .system import PlainDiscretization
+
+        self.model = model
+        self.points = cloud
+        self.bonds = bonds
+        sub_cloud, sub_bonds, keep = drop_isolated(cloud, bonds)
+        #: point indices with bonds (the inner discretization's points, in order)
+        self.keep = keep
+        #: point indices without bonds
+        self.isolated = np.setdiff1d(np.arange(cloud.n), keep)
+        self.inner = PlainDiscretization(model, sub_cloud, sub_bonds)
+
+    # -- the Discretization protocol ---------------------------------------
+    @property
+    def cloud(self) -> PointCloud:
+        """All points."""
+        return self.points
+
+    @property
+    def real_bonds(self) -> Bonds:
+        """The bonds of all points."""
+        return self.bonds
+
+    @property
+    def family_size(self) -> np.ndarray:
+        """Bonds per point ``(n,)`` (0 at the isolated points)."""
+        return self.bonds.family_size
+
+    def _dofs(self) -> np.ndarray:
+        d = self.points.dim
+        return (d * self.keep[:, None] + np.arange(d)).ravel()
+
+    def _scatter(self, sub: np.ndarray, fill: Any = 0.0) -> np.ndarray:
+        out = np.empty((self.points.n, *np.shape(sub)[1:]))
+        out[...] = fill
+        out[self.keep] = sub
+        return out
+
+    def _sub_u(self, u: Any) -> np.ndarray:
+        d = self.points.dim
+        return np.asarray(u, dtype=float).reshape(self.points.n, d)[self.keep]
+
+    def stiffness(self) -> sp.sparray:
+        """Assemble K on the points with bonds, embedded (empty isolated rows/columns).
+
+        Returns
+        -------
+        bsr_array of shape (n*dim, n*dim)
+        """
+        d = self.points.dim
+        return _embed_bsr(self.inner.stiffness(), self.keep, self.points.n, d)
+
+    def internal_force(self, u: Any, *, linear: bool = True) -> np.ndarray:
+        """Return ``f_int(u)`` ``(n, dim)``: the model's on the points with bonds, 0 elsewhere.
+
+        Parameters
+        ----------
+        u : (n, dim) or (n*dim,) array_like
+            Displacement.
+        linear : bool
+            The linearized force.
+
+        Returns
+        -------
+        (n, dim) ndarray
+        """
+        return self._scatter(self.inner.internal_force(self._sub_u(u), linear=linear))
+
+    def load_vector(
+        self, loads: Sequence[Any], *, prescribed: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Return the external force on all points (see :func:`load_vector`).
+
+        Parameters
+        ----------
+        loads : sequence of BodyForce / TotalForce
+            The loads.
+        prescribed : (m,) ndarray of int, optional
+            Prescribed DOFs.
+
+        Returns
+        -------
+        (n*dim,) ndarray
+        """
+        return load_vector(self.points, loads, prescribed=prescribed)
+
+    def dirichlet(self) -> list[Dirichlet]:
+        """Return no extra conditions (:func:`hold_isolated` adds the isolated points').
+
+        Returns
+        -------
+        list of Dirichlet
+            Empty.
+        """
+        return []
+
+    def check_constraints(self, dofs: np.ndarray) -> None:
+        """Check the rigid motions of every bonded piece (isolated points are held).
+
+        Parameters
+        ----------
+        dofs : (m,) ndarray of int
+            Prescribed DOFs (the isolated points' included).
+
+        Raises
+        ------
+        FloatingBodyError
+            As :func:`check_constraints` on the points with bonds.
+        """
+        d = self.points.dim
+        local = np.full(self.points.n, -1, dtype=np.intp)
+        local[self.keep] = np.arange(self.keep.size)
+        pts = np.asarray(dofs, dtype=np.intp) // d
+        ok = local[pts] >= 0
+        sub_dofs = d * local[pts[ok]] + np.asarray(dofs)[ok] % d
+        self.inner.check_constraints(np.sort(sub_dofs))
+
+    def deformation_gradient(self, u: Any) -> np.ndarray:
+        """Return ``F`` per point (the identity at isolated points).
+
+        Parameters
+        ----------
+        u : (n, dim) array_like
+            Displacement.
+
+        Returns
+        -------
+        (n, dim, dim) ndarray
+        """
+        F = self.inner.deformation_gradient(self._sub_u(u))
+        return self._scatter(F, np.eye(self.points.dim))
+
+    def stress(self, u: Any) -> np.ndarray:
+        """Return the model's stress per point (0 at isolated points).
+
+        Parameters
+        ----------
+        u : (n, dim) array_like
+            Displacement.
+
+        Returns
+        -------
+        (n, dim, dim) ndarray
+        """
+        return self._scatter(self.inner.stress(self._sub_u(u)))
+
+    def thermal_load(self, thermal: ThermalExpansion) -> np.ndarray:
+        """Return the thermal load ``(n*dim,)`` (see :func:`thermal_load`; 0 at isolated points).
+
+        Parameters
+        ----------
+        thermal : ThermalExpansion
+            Temperature change and coefficient of all points.
+
+        Returns
+        -------
+        (n*dim,) ndarray
+        """
+        inner = self.inner
+        th = thermal.subset(self.points, self.keep)
+        f = thermal_load(self.model, inner.points, inner.bonds, th)
+        return self._scatter(f.reshape(self.keep.size, -1)).ravel()
+
+    def thermal_stress(self, thermal: ThermalExpansion) -> np.ndarray:
+        """Return the stress of the free thermal strain per point (0 at isolated points).
+
+        Parameters
+        ----------
+        thermal : ThermalExpansion
+            Temperature change and coefficient of all points.
+
+        Returns
+        -------
+        (n, dim, dim) ndarray
+        """
+        from .models.thermal import thermal_stress
+
+        inner = self.inner
+        th = thermal.subset(self.points, self.keep)
+        return self._scatter(thermal_stress(self.model, inner.points, inner.bonds, th))
+
+    def initial_state(self) -> dict[str, np.ndarray]:
+        """Refuse: the nonlinear drivers do not take isolated points.
+
+        Raises
+        ------
+        InputError
+            Always.
+        """
+        raise InputError(self._nonlinear_message())
+
+    def respond(self, u: Any, state: dict[str, np.ndarray], *, tangent: bool = False) -> Any:
+        """Refuse: the nonlinear drivers do not take isolated points.
+
+        Parameters
+        ----------
+        u : (n, dim) array_like
+            Displacement.
+        state : dict of str to ndarray
+            Committed state.
+        tangent : bool
+            Also the tangent.
+
+        Raises
+        ------
+        InputError
+            Always.
+        """
+        raise InputError(self._nonlinear_message())
+
+    def _nonlinear_message(self) -> str:
+        return (
+            f"points without bonds ({self.isolated.size}, first index "
+            f"{int(self.isolated[0])}) are held at rest by pdlin.solve only; the nonlinear "
+            "drivers need a bond at every point"
+        )
+
+    def operator(self) -> Any:
+        """Return the matrix-free K on all DOFs (the inner operator, embedded).
+
+        Returns
+        -------
+        LinearOperator of shape (n*dim, n*dim)
+        """
+        import scipy.sparse.linalg as spla
+
+        inner = self.inner.operator()
+        idx = self._dofs()
+        ndof = self.points.n * self.points.dim
+
+        def mv(x: np.ndarray) -> np.ndarray:
+            y = np.zeros(ndof)
+            y[idx] = inner @ np.asarray(x).ravel()[idx]
+            return y
+
+        return spla.LinearOperator((ndof, ndof), matvec=mv, dtype=float)
+
+    def surrogate_stiffness(self) -> sp.sparray:
+        """Return the inner surrogate stiffness, embedded.
+
+        Returns
+        -------
+        bsr_array of shape (n*dim, n*dim)
+        """
+        d = self.points.dim
+        return _embed_bsr(self.inner.surrogate_stiffness(), self.keep, self.points.n, d)
+
+    def estimate_nnz_blocks(self) -> int:
+        """Estimate the stored blocks of K (the inner ones and the isolated diagonals).
+
+        Returns
+        -------
+        int
+        """
+        return int(self.inner.estimate_nnz_blocks()) + int(self.isolated.size)
+
+    def with_model(self, model: Any) -> IsolatedPoints:
+        """Return the same points and bonds under another model.
+
+        Parameters
+        ----------
+        model : Model
+            The other model.
+
+        Returns
+        -------
+        IsolatedPoints
+        """
+        return IsolatedPoints(model, self.points, self.bonds)
+
+
+def hold_isolated(
+    cloud: PointCloud,
+    isolated: np.ndarray,
+    dofs: np.ndarray,
+    values: np.ndarray,
+    f_ext: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Prescribe ``u = 0`` on the free components of points without bonds.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+        The points.
+    isolated : (k,) ndarray of int
+        Points without bonds.
+    dofs, values : ndarray
+        The prescribed DOFs and values (:func:`resolve_dirichlet`).
+    f_ext : (n*dim,) ndarray
+        The external force.
+
+    Returns
+    -------
+    dofs, values : ndarray
+        Sorted, with the isolated points' free components at 0.
+
+    Raises
+    ------
+    NoNeighborsError
+        When a load acts on a free component of such a point (no bond carries it), naming
+        the points.
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin
+    >>> cloud = pdlin.grid((3,))
+    >>> hold_isolated(cloud, np.array([2]), np.array([0]), np.array([0.1]), np.zeros(3))
+    (array([0, 2]), array([0.1, 0. ]))
+    """
+    d = cloud.dim
+    cand = (d * np.asarray(isolated, dtype=np.intp)[:, None] + np.arange(d)).ravel()
+    new = np.setdiff1d(cand, dofs)
+    loaded = new[np.asarray(f_ext)[new] != 0.0]
+    if loaded.size:
+        pts = np.unique(loaded // d)
+        where = ", ".join(f"{int(p)} at {np.round(cloud.points[p], 12).tolist()}" for p in pts[:5])
+        more = f" (and {pts.size - 5} more)" if pts.size > 5 else ""
+        raise NoNeighborsError(
+            f"loads act on {pts.size} point(s) without bonds, which nothing can hold: "
+            f"{where}{more}; prescribe their displacement, remove the load there or "
+            "increase their horizon"
+        )
+    all_dofs = np.concatenate([dofs, new])
+    all_vals = np.concatenate([values, np.zeros(new.size)])
+    order = np.argsort(all_dofs, kind="stable")
+    return all_dofs[order], all_vals[order]

@@ -207,6 +207,11 @@ def solve_damage(
     """
     if not isinstance(problem, StaticProblem):
         raise InputTypeError(f"problem must be a StaticProblem, got {type(problem).__name__}")
+    if problem.thermal is not None:  # the eigenstrain load is linear (pdlin.models.thermal)
+        raise InputError(
+            "solve_damage does not take thermal loads (problem.thermal); "
+            "solve them with pdlin.solve"
+        )
     if problem.symmetry:
         raise InputError(
             "solve_damage does not support symmetry planes (bonds across a plane would "

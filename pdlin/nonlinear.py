@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from ._repr import compact_repr, html_table, time_span
-from .errors import InputTypeError
+from .errors import InputError, InputTypeError
 from .problem import StaticProblem
 from .solvers.checkpoint import problem_fingerprint
 from .solvers.options import (
@@ -443,6 +443,11 @@ def solve_nonlinear(
     """
     if not isinstance(problem, StaticProblem):
         raise InputTypeError(f"problem must be a StaticProblem, got {type(problem).__name__}")
+    if problem.thermal is not None:  # the eigenstrain load is linear (pdlin.models.thermal)
+        raise InputError(
+            "solve_nonlinear does not take thermal loads (problem.thermal); "
+            "solve them with pdlin.solve"
+        )
     kw = dict(locals())
     adr_maxiter = check_keywords(kw)
     t_start = time.perf_counter()

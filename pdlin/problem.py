@@ -28,6 +28,7 @@ from .errors import InputError, InputTypeError, ShapeError
 from .geometry.bonds import Bonds, find_bonds
 from .geometry.cloud import PointCloud
 from .models.base import Model
+from .models.thermal import ThermalExpansion, check_thermal
 from .operators.assembly import estimate_bond_operator_bytes
 from .operators.bc import (
     BodyForce,
@@ -104,6 +105,12 @@ class StaticProblem:
         (``delta_i = ratio * h_i``): the bonds are ``find_bonds(cloud, ratio=ratio,
         **bond_options)``.  Stored as ``bond_options["ratio"]``; refused together with
         ``horizon``, ``bonds`` or ``bond_options["ratio"]``.
+    thermal : ThermalExpansion, optional
+        A temperature change and thermal expansion coefficient
+        (:class:`pdlin.models.thermal.ThermalExpansion`): the free thermal strain is an
+        eigenstrain, its load ``f_th`` joins the loads (``K u = f_ext + f_th``) and the
+        result's strain and stress are the mechanical ones (thermal part removed).
+        Not with symmetry planes.
 
     Examples
     --------
@@ -129,6 +136,7 @@ class StaticProblem:
     symmetry: Sequence[SymmetryPlane] = ()
     #: init-only: merged into ``bond_options`` (so ``dataclasses.replace`` keeps it)
     ratio: InitVar[float | None] = None
+    thermal: ThermalExpansion | None = None
 
     def __post_init__(self, ratio: float | None = None) -> None:
         """Check the data and normalize conditions, loads and planes to tuples."""
@@ -186,6 +194,11 @@ class StaticProblem:
                 "pass horizon and bond_options instead, got precomputed Bonds"
             )
         object.__setattr__(self, "symmetry", sym)
+        if check_thermal(self.thermal) is not None and sym:
+            raise InputError(
+                "thermal with symmetry planes is not supported: give the whole body, got "
+                f"{len(sym)} symmetry plane(s)"
+            )
 
     def _merge_ratio(self, ratio: Any) -> None:
         """``ratio=`` as ``bond_options["ratio"]``; conflicting arguments refused by name."""
@@ -223,6 +236,7 @@ class StaticProblem:
             "dirichlet": len(self.dirichlet),
             "loads": len(self.loads),
             "symmetry": len(self.symmetry) or None,
+            "thermal": None if self.thermal is None else _Raw(repr(self.thermal)),
         }
 
     def __repr__(self) -> str:
@@ -443,7 +457,11 @@ def choose_operator(
 ) -> tuple[str, str]:
     """Choose the assembled or matrix-free K, and say why.
 
-    In 3D a two-hop K is applied matrix-free when it averages more than 60 blocks per point
+    A two-hop K (``model.coupling_range >= 2``) is applied matrix-free when it would take
+    more than 40 % of the machine's memory: its operator and one-hop surrogate are smaller.
+    A one-hop K stays assembled at any size, since its matrix-free path preconditions with
+    the same one-hop matrix (``Model.surrogate_stiffness``) and saves nothing.
+    In 3D a two-hop K is also applied matrix-free when it averages more than 60 blocks per point
     (LPS/XOSB at δ = 3 h: 300-830, correspondence at δ = 2 h: ~185): assembling it is then
     the dominant cost (scipy's single-threaded sparse product) and the factored product is
     cheaper.  Sparse two-hop operators (nearest-neighbour correspondence: 25 blocks per
@@ -502,13 +520,17 @@ def choose_operator(
         total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
         total = 0
+    one_hop = getattr(model, "coupling_range", 1) < 2
     if total and est_bytes > 0.4 * total:
-        return "matrix-free", (
-            f"assembled K would take ~{est_bytes / 1e9:.1f} GB, over 40 % of "
-            f"{total / 1e9:.0f} GB of memory"
-        )
+        big = f"~{est_bytes / 1e9:.1f} GB, over 40 % of {total / 1e9:.0f} GB of memory"
+        if one_hop:  # its matrix-free path is preconditioned by a matrix of K's own size
+            return "assembled", (
+                f"assembled K {big}, but a one-hop model's matrix-free path would keep an "
+                "assembled preconditioning matrix of the same size"
+            )
+        return "matrix-free", f"assembled K would take {big}"
     per_point = nblocks / max(cloud.n, 1)
-    if getattr(model, "coupling_range", 1) >= 2 and cloud.dim == 3 and per_point > 60:
+    if not one_hop and cloud.dim == 3 and per_point > 60:
         return "matrix-free", (
             f"K couples points two horizons apart in 3D ({per_point:.0f} blocks per point): "
             "the factored product is cheaper than assembling it"

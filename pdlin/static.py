@@ -1,9 +1,9 @@
 """The static driver: ``solve(problem)`` on scipy, or on PETSc with ``backend='petsc'``.
 
-The layers below it: the problem's data (:mod:`pdlin.problem`), its constrained system
+The layers below it: the problem's data (``pdlin.problem``), its constrained system
 (:mod:`pdlin.system`, built by :func:`~pdlin.system.constrained_system`), the linear
-solvers (:mod:`pdlin.solvers.linear`) and the PETSc backend
-(:mod:`pdlin.backends.petsc`).  ``solve`` plans the memory, builds the system, picks the
+solvers (``pdlin.solvers.linear``) and the PETSc backend
+(``pdlin.backends.petsc``).  ``solve`` plans the memory, builds the system, picks the
 assembled or matrix-free operator, solves and returns a :class:`~pdlin.system.StaticResult`.
 """
 
@@ -80,7 +80,9 @@ def solve(
         model's assembled one-hop ``surrogate_stiffness``; 'auto' picks
         matrix-free for models coupling two horizons in 3D (where the
         assembled K has ~2,500 nonzeros per row and assembly dominates) or
-        when the assembled K would exceed 40 % of the machine's memory.
+        when their assembled K would exceed 40 % of the machine's memory
+        (one-hop models such as bond-based stay assembled: their
+        matrix-free path would keep a preconditioning matrix of K's size).
         ``result.info['operator']`` and ``['operator_reason']`` say which
         path ran and why.
     preconditioner : Model, optional
@@ -189,10 +191,10 @@ def solve_steps(
     done once, for the first step; every step then builds its right-hand side
     (:meth:`~pdlin.system.ConstrainedSystem.rhs`), solves, checks its own residual and
     gets its reactions.  Each result is bitwise the one of ``solve(problem, ...)``.
-    On the matrix-free path (``operator='auto'`` of :func:`solve` picks it for LPS and
+    On the matrix-free path (``operator='auto'`` of :func:`pdlin.solve` picks it for LPS and
     correspondence models in 3D) the operator and the preconditioner built from its
     surrogate are the shared part.  Steps that differ in model, points, bonds, symmetry
-    planes or prescribed DOFs are solved independently by :func:`solve`, the reason
+    planes or prescribed DOFs are solved independently by :func:`pdlin.solve`, the reason
     logged (``logging.INFO``, logger ``pdlin.static``).
 
     Parameters
@@ -200,7 +202,7 @@ def solve_steps(
     problems : sequence of StaticProblem
         The steps, in order (at least one).
     solver, rtol, maxiter, amg_options, keep_stiffness, progress, direct_backend
-        As in :func:`solve` (for every step).
+        As in :func:`pdlin.solve` (for every step).
 
     Returns
     -------
@@ -217,7 +219,7 @@ def solve_steps(
     InputTypeError
         When a step is not a :class:`~pdlin.StaticProblem`.
     FloatingBodyError, ConvergenceError
-        As :func:`solve`.
+        As :func:`pdlin.solve`.
 
     Examples
     --------
@@ -324,7 +326,7 @@ def _steps_differ(problems: list[StaticProblem]) -> str | None:
 def _independent(
     problems: list[StaticProblem], solver: str, why: str, opts: dict[str, Any]
 ) -> list[StaticResult]:
-    """Solve every step on its own (:func:`solve`), saying why the steps share nothing."""
+    """Solve every step on its own (:func:`pdlin.solve`), saying why the steps share nothing."""
     log.info("solve_steps: %d independent solves: %s", len(problems), why)
     if opts["progress"] is not None:
         opts["progress"](f"load steps solved independently: {why}")
@@ -457,6 +459,9 @@ def _result(
         "operator_reason": ops.reason,
         **extra,
     }
+    isolated = getattr(system.disc, "isolated", None)
+    if isolated is not None:  # points without bonds, held at rest (pdlin.constraints)
+        info["isolated_points"] = isolated.tolist()
     return StaticResult(
         problem=problem,
         bonds=system.disc.real_bonds,

@@ -172,6 +172,10 @@ def subregion(
     """
     if not isinstance(problem, StaticProblem):
         raise InputError(f"problem must be a StaticProblem, got {type(problem).__name__}")
+    if problem.thermal is not None:  # the eigenstrain load is linear (pdlin.models.thermal)
+        raise InputError(
+            "subregion does not take thermal loads (problem.thermal); solve them with pdlin.solve"
+        )
     if problem.symmetry:
         raise InputError("subregion: a problem with symmetry planes is not supported")
     cloud = problem.cloud

@@ -42,17 +42,21 @@ import scipy.sparse.linalg as spla
 
 from ._repr import Raw, compact_repr, html_table
 from .constraints import (
+    IsolatedPoints,
     check_constraints,
     eliminate_dirichlet,
+    hold_isolated,
     load_vector,
     matrix_rows,
     resolve_dirichlet,
+    thermal_load,
 )
 from .errors import FloatingBodyError, InputError, InputTypeError, ModelError
 from .fields import deformation_gradient, small_strain
 from .geometry.bonds import Bonds, resolve_horizon
 from .geometry.cloud import PointCloud
 from .models.base import Model
+from .models.thermal import mechanical_strain, thermal_stress
 from .operators.assembly import assemble_stiffness
 from .operators.bc import Dirichlet, TimePath
 from .operators.rigid import rigid_body_modes
@@ -973,7 +977,11 @@ def discretize(problem: StaticProblem) -> Discretization:
             model, cloud, problem.symmetry, problem.horizon, problem.bond_options
         )
     else:
-        disc = PlainDiscretization(model, cloud, problem.get_bonds())
+        bonds = problem.get_bonds()
+        if bonds.family_size.all():
+            disc = PlainDiscretization(model, cloud, bonds)
+        else:  # points without bonds (find_bonds(allow_isolated=True)): held at rest
+            disc = IsolatedPoints(model, cloud, bonds)
     if not isinstance(disc, Discretization):  # pragma: no cover - interface guard
         raise ModelError(f"{type(disc).__name__} does not implement Discretization")
     return disc
@@ -1013,6 +1021,18 @@ def constrain(
     # a load on prescribed DOFs only would vanish into the support: refused here, where
     # every driver (solve, solve_nonlinear, solve_damage, the CLI, PETSc) passes
     f_ext = disc.load_vector(problem.loads, prescribed=dofs)
+    if problem.thermal is not None:  # the eigenstrain load K u = f_ext + f_th
+        if isinstance(disc, IsolatedPoints):
+            f_ext = f_ext + disc.thermal_load(problem.thermal)
+        else:
+            f_ext = f_ext + thermal_load(disc.model, disc.cloud, disc.bonds, problem.thermal)
+    if isinstance(disc, IsolatedPoints):  # u = 0 on points without bonds; loaded ones raise
+        dofs, vals = hold_isolated(disc.cloud, disc.isolated, dofs, vals, f_ext)
+        if checked is None:
+            log.warning(
+                "%d point(s) without bonds held at rest (u = 0), first index %d",
+                disc.isolated.size, int(disc.isolated[0]),
+            )  # fmt: skip
     if checked is None or not np.array_equal(dofs, checked):
         disc.check_constraints(dofs)
     paths = tuple(bc for bc in problem.dirichlet if isinstance(bc.value, TimePath))
@@ -1292,9 +1312,16 @@ class StaticResult:
         Returns
         -------
         (n, dim, dim) ndarray
-            The symmetric part of ``F - I``.
+            The symmetric part of ``F - I`` (less ``α ΔT I`` with ``problem.thermal``).
         """
-        return small_strain(self.deformation_gradient())
+        return self._mechanical(small_strain(self.deformation_gradient()))
+
+    def _mechanical(self, strain: np.ndarray) -> np.ndarray:
+        """Return the strain less the free thermal strain of ``problem.thermal`` (if any)."""
+        th = self.problem.thermal
+        if th is None:
+            return strain
+        return mechanical_strain(strain, self.problem.model, self.problem.cloud, th)
 
     def stress(self) -> np.ndarray:
         """Compute the model's stress per point.
@@ -1302,9 +1329,18 @@ class StaticResult:
         Returns
         -------
         (n, dim, dim) ndarray
-            Stress (virial for bond-based models).
+            Stress (virial for bond-based models); with ``problem.thermal`` the stress of
+            the mechanical strain (the free thermal strain's stress removed).
         """
-        return np.asarray(self._disc.stress(self.u))
+        s = np.asarray(self._disc.stress(self.u))
+        th = self.problem.thermal
+        if th is not None:
+            disc = self._disc
+            if isinstance(disc, IsolatedPoints):
+                s = s - disc.thermal_stress(th)
+            else:
+                s = s - thermal_stress(disc.model, disc.cloud, disc.bonds, th)
+        return s
 
     def reaction(self, where: Any) -> np.ndarray:
         """Sum the reaction forces over a point set.
@@ -1343,7 +1379,7 @@ class StaticResult:
         try:
             F = self.deformation_gradient()
             out["deformation_gradient"] = F.reshape(F.shape[0], -1)
-            out["strain"] = small_strain(F).reshape(F.shape[0], -1)
+            out["strain"] = self._mechanical(small_strain(F)).reshape(F.shape[0], -1)
         except InputError as exc:
             log.warning("strain not written: %s", exc)
         if hasattr(self.problem.model, "stress"):

@@ -127,10 +127,11 @@ def group_families(
     family_of_point[idx] = grp.ravel()
     representative = idx[rep_local]
     # sort each family by bond type and verify the grouping exactly
-    order = np.argsort(bonds.i.astype(np.int64) * max(ntype, 1) + btype, kind="stable")
+    bi = bonds.i  # read once (a compact Bonds computes it on every read)
+    order = np.argsort(bi.astype(np.int64) * max(ntype, 1) + btype, kind="stable")
     stype = btype[order]
-    pos = np.arange(nb) - bonds.indptr[bonds.i]  # bonds.i is sorted (CSR)
-    rep_of_bond = representative[family_of_point[bonds.i]]
+    pos = np.arange(nb) - bonds.indptr[bi]  # bonds.i is sorted (CSR)
+    rep_of_bond = representative[family_of_point[bi]]
     if not np.array_equal(stype, stype[bonds.indptr[rep_of_bond] + pos]):
         raise InputError(  # pragma: no cover - 128-bit hash collision
             "family grouping failed verification (hash collision); please report"
@@ -262,9 +263,10 @@ def _achieved_tensors(
     c0 = np.where(finite, c, 0.0)
     co = np.where(np.isfinite(c_owner), c_owner, 0.0) if owner_differs else c0
     shape = (n, tfirst.size)
-    vec = sp.csr_array((c0, (bonds.i, btype)), shape=shape) @ Xt
-    owner_vec = sp.csr_array((co, (bonds.i, btype)), shape=shape) @ Xt
-    bad_pt = np.bincount(bonds.i, weights=(~finite).astype(float), minlength=n) > 0
+    bi = bonds.i  # read once (a compact Bonds computes it on every read)
+    vec = sp.csr_array((c0, (bi, btype)), shape=shape) @ Xt
+    owner_vec = sp.csr_array((co, (bi, btype)), shape=shape) @ Xt
+    bad_pt = np.bincount(bi, weights=(~finite).astype(float), minlength=n) > 0
     vec[bad_pt] = np.nan
     m = _multiplicity(bonds.dim)
     b = _voigt_vector(target)

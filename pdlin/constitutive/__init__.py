@@ -15,6 +15,7 @@ from .crystal_plasticity import (
     material_point,
     slip_systems,
 )
+from .hypoelastic import Hypoelastic
 from .materials import MATERIAL_NAMES, MATERIALS, material
 from .symmetry import (
     N_CONSTANTS,
@@ -59,6 +60,7 @@ from .tensors import (
 __all__ = [
     "CrystalPlasticity",
     "SaintVenantKirchhoff",
+    "Hypoelastic",
     "MaterialPointResult",
     "material_point",
     "slip_systems",

@@ -5,7 +5,12 @@ from typing import TYPE_CHECKING, Any
 from .._lazy import lazy_attribute
 from .base import Model
 from .bond_based import BondBased, implied_poisson_ratio, standard_micromodulus
-from .correspondence import Correspondence, gradient_operator, shadow_problem
+from .correspondence import (
+    Correspondence,
+    PeridigmCorrespondence,
+    gradient_operator,
+    shadow_problem,
+)
 from .damage import (
     bond_stretch,
     break_bonds,
@@ -77,6 +82,7 @@ __all__ = [
     "SURFACE_CORRECTIONS",
     "SurfaceFactors",
     "Correspondence",
+    "PeridigmCorrespondence",
     "gradient_operator",
     "shadow_problem",
     "HigherOrderWeights",

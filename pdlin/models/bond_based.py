@@ -498,24 +498,26 @@ class BondBased(Model):
             gb = harmonic_bond_factors(m, bonds)
         else:
             c = self.bond_micromodulus(cloud, bonds) * bonds.omega
-            unit = np.abs(bonds.xi / bonds.length[:, None])
+            # each per-bond array read once (a compact Bonds computes it on every read)
+            bi, length, vol = bonds.i, bonds.length, bonds.volume_j
+            unit = np.abs(bonds.xi / length[:, None])
             infl = getattr(bonds, "influence", "constant")
             hij = bonds.horizon_ij
             if method == "energy":
                 # W_i = ¼ Σ c ω n_k⁴ r V_j under u = x_k e_k; bulk ¼ c A₄ ∫ω r^d dr
-                w = c * bonds.length * bonds.volume_j
+                w = c * length * vol
                 bulk = c * angular_moment(d, 4) * radial_moment(infl, hij, d)
                 power = 4
             else:
                 # F_i = Σ |c ω s n_k| V_j with s = n_k²; bulk c A₃ ∫ω r^(d-1) dr
-                w = c * bonds.volume_j
+                w = c * vol
                 bulk = c * angular_moment(d, 3) * radial_moment(infl, hij, d - 1)
                 power = 3
             disc = np.empty((n, d))
             for k in range(d):
-                disc[:, k] = np.bincount(bonds.i, weights=w * unit[:, k] ** power, minlength=n)
+                disc[:, k] = np.bincount(bi, weights=w * unit[:, k] ** power, minlength=n)
             count = np.maximum(np.diff(bonds.indptr), 1)
-            target = np.bincount(bonds.i, weights=bulk, minlength=n) / count
+            target = np.bincount(bi, weights=bulk, minlength=n) / count
             g = ratio_factors(target[:, None], disc)
             gb = ellipsoid_bond_factors(g, bonds)
         out = SurfaceFactors(method, g, np.ones(n), gb)
@@ -721,16 +723,16 @@ class BondBased(Model):
         d = cloud.dim
         uu = as_displacement(u, cloud.n, d)
         c = self.corrected_micromodulus(cloud, bonds)
-        eta = uu[bonds.j] - uu[bonds.i]
-        unit = bonds.xi / bonds.length[:, None]
+        # each per-bond array read once (a compact Bonds computes it on every read)
+        bi, length = bonds.i, bonds.length
+        eta = uu[bonds.j] - uu[bi]
+        unit = bonds.xi / length[:, None]
         s_len = np.einsum("ij,ij->i", unit, eta)  # s |ξ|
-        w = 0.5 * c * bonds.omega * s_len * bonds.volume_j * _measure(cloud) / bonds.length
+        w = 0.5 * c * bonds.omega * s_len * bonds.volume_j * _measure(cloud) / length
         sig = np.empty((cloud.n, d, d))
         for a in range(d):
             for b in range(a, d):
-                v = np.bincount(
-                    bonds.i, weights=w * unit[:, a] * unit[:, b] * bonds.length, minlength=cloud.n
-                )
+                v = np.bincount(bi, weights=w * unit[:, a] * unit[:, b] * length, minlength=cloud.n)
                 sig[:, a, b] = v
                 sig[:, b, a] = v
         return sig
@@ -755,8 +757,9 @@ class BondBased(Model):
         """
         d = cloud.dim
         c = self.corrected_micromodulus(cloud, bonds)
-        unit = bonds.xi / bonds.length[:, None]
-        w = 0.5 * c * bonds.omega * bonds.volume_j * _measure(cloud) * bonds.length
+        bi, length = bonds.i, bonds.length  # read once (computed on each read when compact)
+        unit = bonds.xi / length[:, None]
+        w = 0.5 * c * bonds.omega * bonds.volume_j * _measure(cloud) * length
         out = np.empty((cloud.n, d, d, d, d))
         for idx in itertools.product(range(d), repeat=4):
             srt = tuple(sorted(idx))
@@ -764,7 +767,7 @@ class BondBased(Model):
                 out[(slice(None),) + idx] = out[(slice(None),) + srt]
                 continue
             prod = w * unit[:, idx[0]] * unit[:, idx[1]] * unit[:, idx[2]] * unit[:, idx[3]]
-            out[(slice(None),) + idx] = np.bincount(bonds.i, weights=prod, minlength=cloud.n)
+            out[(slice(None),) + idx] = np.bincount(bi, weights=prod, minlength=cloud.n)
         return out
 
     def respond(

@@ -1109,7 +1109,13 @@ class OrdinaryStateBased(Model):
         return t
 
     def _force_state(
-        self, cloud: PointCloud, bonds: Bonds, u: np.ndarray, linear: bool, variant: str
+        self,
+        cloud: PointCloud,
+        bonds: Bonds,
+        u: np.ndarray | None,
+        linear: bool,
+        variant: str,
+        extension: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
         # compact bonds compute these on each access: read them once
         bi = bonds.i
@@ -1117,7 +1123,11 @@ class OrdinaryStateBased(Model):
         bvj = bonds.volume_j
         co = self._coefficients(cloud, bonds)
         d = co["d"]
-        e, unit = self._extension(cloud, bonds, u, linear)
+        if extension is None:
+            assert u is not None  # a displacement, or a given extension state
+            e, unit = self._extension(cloud, bonds, u, linear)
+        else:  # a given extension state (thermal eigenstrain), reference directions
+            e, unit = extension, bonds.xi / blen[:, None]
         theta = np.bincount(bi, weights=co["a"] * e, minlength=cloud.n)
         thb = theta[bi]
         ed = e - thb * blen / d
@@ -1162,6 +1172,51 @@ class OrdinaryStateBased(Model):
         for k in range(d):
             f[:, k] = np.bincount(bonds.i, weights=tw * unit[:, k], minlength=cloud.n)
         return f
+
+    def extension_response(
+        self, cloud: PointCloud, bonds: Bonds, extension: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Return the linear force and stress of a given bond-extension state.
+
+        :meth:`internal_force` (``linear=True``) and :meth:`stress` with the extension
+        ``e_b`` given per ordered bond instead of ``n·(u_j - u_i)`` (the thermal
+        eigenstrain of :mod:`pdlin.models.thermal`).
+
+        Parameters
+        ----------
+        cloud : PointCloud
+            The points (``n`` of them, dimension ``d``).
+        bonds : Bonds
+            Their bonds (``nb`` ordered bonds).
+        extension : (nb,) ndarray of float
+            Extension per ordered bond (length units).
+
+        Returns
+        -------
+        force : (n, d) ndarray of float
+            Nodal force (the model's ``linearization``).
+        stress : (n, d, d) ndarray of float
+            ``Σ_j t_ij n_ij ⊗ ξ_ij V_j`` with the paper's force state.
+        """
+        e = np.asarray(extension, dtype=float)
+        t, unit, co = self._force_state(cloud, bonds, None, True, self.linearization, e)
+        d = cloud.dim
+        tw = co["w"] * t
+        tw = tw + tw[bonds.reverse]
+        force = np.stack(
+            [np.bincount(bonds.i, weights=tw * unit[:, k], minlength=cloud.n) for k in range(d)],
+            axis=1,
+        )
+        tp, _, _ = self._force_state(cloud, bonds, None, True, "paper", e)
+        g = tp * bonds.volume_j
+        xi = bonds.xi
+        stress = np.empty((cloud.n, d, d))
+        for a in range(d):
+            for b in range(d):
+                stress[:, a, b] = np.bincount(
+                    bonds.i, weights=g * unit[:, a] * xi[:, b], minlength=cloud.n
+                )
+        return force, stress
 
     def stress(self, cloud: PointCloud, bonds: Bonds, u: np.ndarray) -> np.ndarray:
         """Return the per-point stress ``σ_i = Σ_j t_ij n_ij ⊗ ξ_ij V_j`` (paper t).

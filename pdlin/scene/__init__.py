@@ -23,6 +23,7 @@ Modules
 
 from .checks import Check, CheckResult, evaluate_checks, parse_checks
 from .decks import read_deck
+from .materials import Block, blocks_per_point
 from .scene import Scene, builtin_scene, list_builtin_scenes, load_scene, scene_from_dict
 from .targets import CalibrationJob, calibration_from_dict, load_calibration, target_from_table
 from .tradeoff import (
@@ -35,6 +36,8 @@ from .tradeoff import (
 
 __all__ = [
     "Scene",
+    "Block",
+    "blocks_per_point",
     "load_scene",
     "scene_from_dict",
     "builtin_scene",

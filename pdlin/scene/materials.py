@@ -7,19 +7,20 @@ bond micromoduli calibrated to a target tensor (``[material.calibration]``).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from ..errors import SceneError
+from ..errors import PdlinError, SceneError
 from ..geometry.bonds import Bonds, find_bonds
 from ..geometry.cloud import PointCloud
 from ..models.base import Model
 from ..models.bond_based import BondBased
-from ._keys import require, scene_keys
+from ._keys import number, require, scene_keys
 
-__all__ = ["MODELS", "per_phase"]
+__all__ = ["MODELS", "Block", "blocks_per_point", "per_phase"]
 
 _MATERIAL = {
     "type",
@@ -226,6 +227,8 @@ def per_phase(value: Any, cloud: PointCloud, key: str) -> Any:
         A value that is neither a number nor a table of phase ids to numbers, or a
         phase of the cloud missing from the table.
     """
+    if isinstance(value, np.ndarray):  # per point already ([[block]] tables)
+        return value
     if not isinstance(value, Mapping):
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise SceneError(
@@ -305,3 +308,256 @@ def _calibrated_model(
         raise SceneError(f"material.calibration failed ({res.status}): {res.message}")
     model = BondBased(micromodulus=res.micromoduli, plane=material.get("plane", "stress"))
     return model, bonds, res
+
+
+# --------------------------------------------------------------------------------------
+# blocks: per-block materials ([[block]] tables of scenes, Blocks of Peridigm / PeriLab decks)
+# --------------------------------------------------------------------------------------
+#: keys of a block's material ([materials.<name>] or an inline table)
+_BLOCK_MATERIAL = {*_ISO_KEYS, "plane", "model"}
+_BLOCK = {"set", "box", "points", "material", "horizon"}
+
+
+@dataclass(frozen=True, eq=False)
+class Block:
+    """One block of a scene: points with their own material (Peridigm's ``Blocks``).
+
+    TOML scenes build them from ``[[block]]`` tables, the Peridigm and PeriLab deck
+    readers from their ``Blocks`` lists; :func:`blocks_per_point` maps them onto the
+    points.  ``Scene.blocks`` lists them (``None`` for a scene with one ``[material]``).
+
+    Attributes
+    ----------
+    name : str
+        The block's point set (``"block_2"``, a mesh's physical group), or its key path
+        when the points were selected by a box or indices.
+    points : numpy.ndarray
+        Indices of its points.
+    material : Mapping
+        Its isotropic constants (two of ``E nu K G lam mu``, or one for a bond-based
+        model) and, optionally, ``plane``.
+    model : str
+        Its model type (``bond_based``, ``lps``, ``xosb``, ``correspondence``).
+    key : str
+        Where it is defined, for messages (``block[1]``, ``Blocks.My Block``).
+    horizon : float or None
+        Its horizon, when the block sets one; None: the scene's ``[horizon]``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> Block("block_2", np.arange(3), {"K": 1.0, "G": 0.6}, "lps", "Blocks.B", horizon=0.3)
+    Block('block_2', 3 points, lps, K=1.0, G=0.6, horizon=0.3)
+    """
+
+    name: str
+    points: np.ndarray
+    material: Mapping[str, Any]
+    model: str
+    key: str
+    horizon: float | None = None
+
+    def __repr__(self) -> str:
+        """Return ``Block('block_2', 108 points, lps, K=..., G=..., horizon=...)``."""
+        consts = ", ".join(f"{k}={v!r}" for k, v in self.material.items())
+        return f"Block({self.name!r}, {self.points.size} points, {self.model}, {consts}" + (
+            f", horizon={self.horizon!r})" if self.horizon is not None else ")"
+        )
+
+
+def blocks_per_point(
+    blocks: Sequence[Block], n: int
+) -> tuple[str, dict[str, Any], np.ndarray | None]:
+    """Map per-block materials onto the points: one model type, per-point constants.
+
+    Every point must lie in exactly one block, and all blocks must use one model type
+    (pdlin assembles one stiffness matrix from one model; constants vary per point).
+    Blocks giving different constants (``E, nu`` here, ``K, G`` there) are converted
+    to the bulk and shear moduli ``K`` and ``G`` (3D constants, which the models take per
+    point, as Peridigm's materials).
+
+    Parameters
+    ----------
+    blocks : sequence of Block
+        The blocks, in the order they were given.
+    n : int
+        Number of points of the scene.
+
+    Returns
+    -------
+    kind : str
+        The common model type.
+    constants : dict
+        Each constant (and ``plane`` when given): a number when all blocks agree, else
+        one value per point, shape ``(n,)``.
+    horizon : numpy.ndarray or None
+        Per-point horizons when the blocks set them, else None.
+
+    Raises
+    ------
+    SceneError
+        No block, blocks that overlap, points in no block, different model types or
+        planes, or constants that cannot be converted; the message names the block's
+        key path.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> bl = [Block("a", np.arange(2), {"E": 1.0, "nu": 0.25}, "lps", "block[0]"),
+    ...       Block("b", np.arange(2, 4), {"K": 1.0, "G": 0.6}, "lps", "block[1]")]
+    >>> kind, c, h = blocks_per_point(bl, 4)
+    >>> kind, np.round(c["K"], 4).tolist(), np.round(c["G"], 4).tolist()
+    ('lps', [0.6667, 0.6667, 1.0, 1.0], [0.4, 0.4, 0.6, 0.6])
+    >>> blocks_per_point(bl[:1], 4)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    pdlin.errors.SceneError: 2 of 4 points are in no block (first: point 2); give every ...
+    """
+    if not blocks:
+        raise SceneError("no block given: a scene with blocks needs at least one")
+    owner = np.full(n, -1, dtype=np.int64)
+    for b, blk in enumerate(blocks):  # a few blocks; vectorized over their points
+        pts = np.asarray(blk.points, dtype=np.int64)
+        if pts.size == 0:
+            raise SceneError(f"{_label(blk)} holds no points")
+        taken = owner[pts] >= 0
+        if taken.any():
+            other = blocks[int(owner[pts[taken][0]])]
+            raise SceneError(
+                f"{_label(blk)} overlaps {_label(other)} at "
+                f"{int(taken.sum())} point(s) (first: point {int(pts[taken][0])}); a point "
+                "has one material: make the blocks disjoint"
+            )
+        owner[pts] = b
+    free = np.flatnonzero(owner < 0)
+    if free.size:
+        raise SceneError(
+            f"{free.size} of {n} points are in no block (first: point {int(free[0])}); give "
+            "every point a material: add a block for them"
+        )
+    kinds = {blk.model for blk in blocks}
+    if len(kinds) > 1:
+        first = blocks[0]
+        other = next(blk for blk in blocks if blk.model != first.model)
+        raise SceneError(
+            f"{other.key} uses model {other.model!r} but {first.key} uses {first.model!r}: "
+            "pdlin assembles one stiffness matrix from one model type; blocks may differ in "
+            "their constants (E, nu, K, G, ...), not in the model"
+        )
+    planes = {str(blk.material.get("plane", "stress")) for blk in blocks}
+    if len(planes) > 1:
+        raise SceneError(
+            f"blocks give different 'plane' values {sorted(planes)}: one model has one plane"
+        )
+    consts = [{k: v for k, v in blk.material.items() if k != "plane"} for blk in blocks]
+    if len({tuple(sorted(c)) for c in consts}) > 1:
+        consts = [_to_k_g(c, blk) for c, blk in zip(consts, blocks, strict=True)]
+    out: dict[str, Any] = {}
+    for k in consts[0]:
+        vals = np.array([float(c[k]) for c in consts])
+        out[k] = float(vals[0]) if np.all(vals == vals[0]) else vals[owner]
+    if any("plane" in blk.material for blk in blocks):
+        out["plane"] = planes.pop()
+    hs = [blk.horizon for blk in blocks]
+    horizon = None
+    if any(h is not None for h in hs):
+        missing = next(blk for blk in blocks if blk.horizon is None) if None in hs else None
+        if missing is not None:
+            raise SceneError(f"{missing.key} sets no horizon while other blocks do")
+        horizon = np.asarray(hs, dtype=float)[owner]
+    return kinds.pop(), out, horizon
+
+
+def _label(blk: Block) -> str:
+    """``block[1] ('steel')``: a block's key path and, when it differs, its name."""
+    return blk.key if blk.name == blk.key else f"{blk.key} ({blk.name!r})"
+
+
+def _to_k_g(c: Mapping[str, Any], blk: Block) -> dict[str, float]:
+    """Two isotropic constants as ``K`` and ``G`` (blocks giving different constants)."""
+    from ..constitutive import isotropic_constants
+
+    if len(c) != 2:
+        raise SceneError(
+            f"{blk.key}: blocks give different constants, so each needs two of {list(_ISO_KEYS)} "
+            f"(converted to K and G), got {sorted(c) or 'none'}"
+        )
+    try:
+        E, nu = isotropic_constants(**{k: float(v) for k, v in c.items()})
+    except PdlinError as exc:
+        raise SceneError(f"{blk.key}: {exc}") from None
+    E, nu = float(E), float(nu)
+    return {"K": E / (3.0 * (1.0 - 2.0 * nu)), "G": E / (2.0 * (1.0 + nu))}
+
+
+def _scene_blocks(
+    top: Mapping[str, Any],
+    cloud: PointCloud,
+    where: Callable[[Mapping[str, Any], PointCloud, str], Any],
+) -> list[Block]:
+    """Read a scene's ``[[block]]`` tables (and the ``[materials.<name>]`` they name).
+
+    ``where`` selects a table's points (``set`` / ``box`` / ``points``, as conditions do).
+    """
+    tables = top.get("block")
+    if not isinstance(tables, list) or not tables:
+        raise SceneError(f"block must be a non-empty array of tables ([[block]]), got {tables!r}")
+    if "material" in top:
+        raise SceneError(
+            "material and block exclude each other: with [[block]] tables each block names its "
+            "material (block[k].material = '<name>' of a [materials.<name>] table, or an "
+            "inline table)"
+        )
+    named = top.get("materials", {})
+    if not isinstance(named, Mapping):
+        raise SceneError(f"materials must be a table of [materials.<name>] tables, got {named!r}")
+    used: set[str] = set()
+    blocks = []
+    default_model = str(top.get("model", {}).get("type", "bond_based"))
+    for k, table in enumerate(tables):
+        key = f"block[{k}]"
+        t = scene_keys(table, _BLOCK, key)
+        mat = require(t, "material", key)
+        mkey = f"{key}.material"
+        if isinstance(mat, str):
+            if mat not in named:
+                raise SceneError(
+                    f"{mkey}: {mat!r} is not a [materials.<name>] table (defined: "
+                    f"{sorted(named) or 'none'})"
+                )
+            used.add(mat)
+            mkey = f"materials.{mat}"
+            mat = named[mat]
+        mat = scene_keys(mat, _BLOCK_MATERIAL, mkey)
+        consts = {}
+        for c in _ISO_KEYS:
+            if c in mat:
+                consts[c] = number(mat[c], f"{mkey}.{c}")
+        if "plane" in mat:
+            consts["plane"] = mat["plane"]
+        model = mat.get("model", default_model)
+        if model not in MODELS:
+            raise SceneError(f"{mkey}.model must be one of {sorted(MODELS)}, got {model!r}")
+        if "type" in top.get("model", {}) and model != default_model:
+            raise SceneError(
+                f"{mkey}.model = {model!r} differs from model.type = {default_model!r}: pdlin "
+                "assembles one stiffness matrix from one model type"
+            )
+        sel = where(t, cloud, key)
+        name = sel if isinstance(sel, str) else key
+        pts = cloud.point_set(sel) if isinstance(sel, str) else np.asarray(sel)
+        h = None if "horizon" not in t else number(t["horizon"], f"{key}.horizon", positive=True)
+        blocks.append(
+            Block(name, np.asarray(pts, dtype=np.int64), consts, str(model), key, horizon=h)
+        )
+    unused = sorted(set(named) - used)
+    if unused:
+        raise SceneError(f"materials.{unused[0]} is not used by any [[block]]")
+    return blocks
+
+
+def _block_material(blocks: Sequence[Block], cloud: PointCloud) -> tuple[dict[str, Any], str]:
+    """Return the ``[material]`` table (per-point constants) and model type of the blocks."""
+    # horizons: the scene's [horizon] supplies defaults (pdlin.scene.scene._block_horizons)
+    kind, consts, _ = blocks_per_point([replace(b, horizon=None) for b in blocks], cloud.n)
+    return consts, kind

@@ -10,7 +10,7 @@ from __future__ import annotations
 import sys
 import warnings
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -28,7 +28,17 @@ from ..models.bond_based import BondBased
 from ..operators.bc import BodyForce, Dirichlet, TotalForce, shadow_layer
 from ..problem import StaticProblem
 from ._keys import number, read_toml, require, scene_keys
-from .materials import _MATERIAL, _MODEL, MODELS, _build_model, _calibrated_model
+from .materials import (
+    _MATERIAL,
+    _MODEL,
+    MODELS,
+    Block,
+    _block_material,
+    _build_model,
+    _calibrated_model,
+    _scene_blocks,
+    blocks_per_point,
+)
 from .materials import per_phase as per_phase  # public here before the split
 
 if sys.version_info >= (3, 11):
@@ -63,7 +73,13 @@ _TOP = {
     "damage",  # stretch damage: load steps with bond breaking (pdlin.solve_damage)
     "about",  # description / runtime shown by `pdlin examples`
     "problem",  # a bundled problem of pdlin.sweeps.problems instead of geometry, ...
+    "block",  # [[block]]: per-block materials instead of [material]
+    "materials",  # [materials.<name>]: named materials of the [[block]] tables
+    "deck",  # a Peridigm / PeriLab input deck instead of geometry, material, ...
+    "thermal",  # [thermal] alpha, temperature_change: the thermal eigenstrain load
 }
+#: top-level keys of a scene that runs an input deck ([deck] path = ...)
+_DECK_TOP = {"name", "deck", "solver", "output", "check", "about"}
 #: top-level keys of a scene built from a bundled problem ([problem] factory = ...)
 _PROBLEM_TOP = {"name", "problem", "solver", "output", "check", "about"}
 _DAMAGE = {"critical_stretch", "G0", "steps", "max_resolves"}
@@ -164,6 +180,9 @@ class Scene:
     #: Steps``): ``(time, problem)`` per step, the last being ``problem``; ``pdlin run``
     #: solves each and writes a time series.  None: one solve.
     steps: list[tuple[float, StaticProblem]] | None = None
+    #: per-block materials (``[[block]]`` tables, a deck's ``Blocks``), in the order
+    #: given; None: one ``[material]`` for every point
+    blocks: list[Block] | None = None
     #: work loading deferred to the run (a ``[subregion]`` scene's coarse solve and cut),
     #: done once by :meth:`prepare`; None when there is none left
     pending: Callable[[Scene], None] | None = field(default=None, repr=False, compare=False)
@@ -439,19 +458,25 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         return _subregion_scene(top, base)
     if "problem" in top:
         return _problem_scene(top, base)
+    if "deck" in top:
+        return _deck_scene(top, base)
     try:
-        problem, n_real, calibration = _scene_problem(top, base)
+        problem, n_real, calibration, blocks = _scene_problem(top, base)
         scfg = scene_keys(top.get("solver", {}), _SOLVER, "solver")
         ocfg = scene_keys(top.get("output", {}), _OUTPUT, "output")
     except (SceneError, InsufficientMemoryError):  # a valid scene too large for memory
         raise
     except PdlinError as exc:
         raise SceneError(f"invalid scene: {exc}") from exc
-    return _scene(top, base, problem, n_real, calibration, scfg, ocfg)
+    scene = _scene(top, base, problem, n_real, calibration, scfg, ocfg)
+    scene.blocks = blocks
+    return scene
 
 
-def _scene_problem(top: Mapping[str, Any], base: Path) -> tuple[StaticProblem, int, Any]:
-    """Build the scene's problem; also its number of real (not ghost) points, calibration."""
+def _scene_problem(
+    top: Mapping[str, Any], base: Path
+) -> tuple[StaticProblem, int, Any, list[Block] | None]:
+    """Build the scene's problem; also its real (not ghost) points, calibration, blocks."""
     gcfg = require(top, "geometry", "scene")
     cloud = _geometry(gcfg, base)
     n_real = cloud.n
@@ -462,9 +487,22 @@ def _scene_problem(top: Mapping[str, Any], base: Path) -> tuple[StaticProblem, i
         from ..geometry.cloud import ghost_layer
 
         cloud = ghost_layer(cloud, layers).cloud
-    material = scene_keys(require(top, "material", "scene"), _MATERIAL, "material")
     model_cfg = scene_keys(top.get("model", {}), _MODEL, "model")
-    horizon, bond_options = _horizon(top)
+    blocks = None
+    if "block" in top or "materials" in top:
+        if "block" not in top:
+            raise SceneError(
+                "materials: [materials.<name>] tables need [[block]] tables using them"
+            )
+        blocks = _scene_blocks(top, cloud, _where)
+        material, kind = _block_material(blocks, cloud)
+        model_cfg["type"] = kind
+    else:
+        material = scene_keys(require(top, "material", "scene"), _MATERIAL, "material")
+    block_h = blocks is not None and any(b.horizon is not None for b in blocks)
+    horizon, bond_options = _horizon(top, block_horizons=block_h)
+    if blocks is not None and block_h:
+        horizon = _block_horizons(blocks, horizon, bond_options, cloud.n)
     bonds = None
     calibration = None
     if "calibration" in material:
@@ -498,6 +536,8 @@ def _scene_problem(top: Mapping[str, Any], base: Path) -> tuple[StaticProblem, i
     extra: dict[str, Any] = {}
     if "symmetry" in top:
         extra["symmetry"] = _symmetry(top["symmetry"])
+    if "thermal" in top:
+        extra["thermal"] = _thermal(top["thermal"], cloud)
     problem = StaticProblem(
         model,
         cloud,
@@ -518,18 +558,45 @@ def _scene_problem(top: Mapping[str, Any], base: Path) -> tuple[StaticProblem, i
     with warnings.catch_warnings():  # partial losses warn once, when the scene is solved
         warnings.simplefilter("ignore", AccuracyWarning)
         load_vector(cloud, loads, prescribed=dofs, names=load_names)
-    return problem, n_real, calibration
+    return problem, n_real, calibration, blocks
 
 
-def _horizon(top: Mapping[str, Any]) -> tuple[Any, dict[str, Any]]:
-    """Read ``[horizon]``: the horizon value (None: by ratio) and the bond options."""
+def _block_horizons(
+    blocks: list[Block], default: Any, bond_options: Mapping[str, Any], n: int
+) -> np.ndarray:
+    """Per-point horizons of ``[[block]]`` tables that set ``horizon`` (else ``horizon.value``)."""
+    if "ratio" in bond_options:
+        raise SceneError(
+            "block horizons and horizon.ratio exclude each other: give horizon.value as the "
+            "default of blocks without a horizon, or a horizon in every block"
+        )
+    if default is not None and not isinstance(default, int | float):
+        raise SceneError("block horizons need horizon.value to be one number (the default)")
+    missing = [b.key for b in blocks if b.horizon is None]
+    if missing and default is None:
+        raise SceneError(
+            f"{missing[0]} sets no horizon while other blocks do: give it one, or "
+            "horizon.value as the default"
+        )
+    filled = [b if b.horizon is not None else replace(b, horizon=default) for b in blocks]
+    _, _, h = blocks_per_point(filled, n)
+    assert h is not None  # every block has a horizon now
+    return h
+
+
+def _horizon(top: Mapping[str, Any], *, block_horizons: bool = False) -> tuple[Any, dict[str, Any]]:
+    """Read ``[horizon]``: the horizon value (None: by ratio) and the bond options.
+
+    With ``block_horizons`` (``[[block]]`` tables setting ``horizon``) neither ``value``
+    nor ``ratio`` is required.
+    """
     hcfg = scene_keys(require(top, "horizon", "scene"), _HORIZON, "horizon")
-    if ("value" in hcfg) == ("ratio" in hcfg):
+    if ("value" in hcfg) == ("ratio" in hcfg) and not (block_horizons and "value" not in hcfg):
         given = [k for k in ("value", "ratio") if k in hcfg]
         raise SceneError(f"horizon needs exactly one of 'value' or 'ratio', got {given or 'none'}")
     if "ratio" in hcfg:
         number(hcfg["ratio"], "horizon.ratio", positive=True)
-    else:
+    elif "value" in hcfg:
         hv = hcfg["value"]
         if isinstance(hv, list):
             for k, v in enumerate(hv):
@@ -638,6 +705,21 @@ def _loads(
         except PdlinError as exc:
             raise SceneError(f"{key}.{vkey}: {exc}") from exc
     return loads
+
+
+def _thermal(table: Any, cloud: PointCloud) -> Any:
+    """Read ``[thermal]``: ``alpha`` and ``temperature_change`` (number or expression)."""
+    from ..models.thermal import ThermalExpansion
+    from .decks.expressions import deck_expression
+
+    cfg = scene_keys(table, {"alpha", "temperature_change"}, "thermal")
+    alpha = number(require(cfg, "alpha", "thermal"), "thermal.alpha")
+    dT = require(cfg, "temperature_change", "thermal")
+    if isinstance(dT, str):  # an expression in x, y, z (the decks' whitelisted evaluator)
+        dT = deck_expression(dT, cloud.points, 0.0, "thermal.temperature_change")
+    else:
+        dT = number(dT, "thermal.temperature_change")
+    return ThermalExpansion(dT, alpha)
 
 
 def _symmetry(tables: list[Any]) -> tuple[Any, ...]:
@@ -855,6 +937,45 @@ def _damage_options(
     if "rtol" in scfg:
         opts["rtol"] = float(scfg["rtol"])
     return opts
+
+
+def _deck_scene(top: Mapping[str, Any], base: Path) -> Scene:
+    """Build a scene from a Peridigm / PeriLab input deck (``[deck] path = ...``).
+
+    The deck defines the geometry, materials, blocks, conditions and load steps
+    (:func:`pdlin.read_deck`); the scene adds its name, ``[[check]]`` tables, ``[about]``,
+    the linear solver (``[solver] name / rtol / maxiter``) and the output: ``output.path``,
+    else ``<name>.vtu`` (``.pvd`` for several load steps) in the working directory, not
+    the deck's ``Output Filename`` beside the deck.
+    """
+    from .decks import read_deck
+
+    extra = sorted(set(top) - _DECK_TOP)
+    if extra:
+        raise SceneError(
+            f"scene key {extra[0]!r} cannot be combined with [deck] (the deck defines the "
+            f"geometry, materials and conditions); allowed: {sorted(_DECK_TOP)}"
+        )
+    cfg = scene_keys(top["deck"], {"path"}, "deck")
+    path = _resolve_path(require(cfg, "path", "deck"), base, "deck.path")
+    scene = read_deck(path)
+    scfg = scene_keys(top.get("solver", {}), {"name", "rtol", "maxiter"}, "solver")
+    _solver_options(scfg)
+    ocfg = scene_keys(top.get("output", {}), {"path"}, "output")
+    out = ocfg.get("path")
+    if out is not None and not isinstance(out, str):
+        raise SceneError(f"output.path must be a path string, got {out!r}")
+    if "name" in top and not isinstance(top["name"], str):
+        raise SceneError(f"name must be a string, got {top['name']!r}")
+    scene.name = str(top.get("name", path.stem))
+    scene.output = None if out is None else (Path(out) if Path(out).is_absolute() else base / out)
+    scene.base_dir = base
+    scene.solver = str(scfg.get("name", scene.solver))
+    scene.rtol = float(scfg.get("rtol", scene.rtol))
+    scene.maxiter = None if scfg.get("maxiter") is None else int(scfg["maxiter"])
+    scene.checks = _checks(top)
+    scene.about = _about(top)
+    return scene
 
 
 def _problem_scene(top: Mapping[str, Any], base: Path) -> Scene:
@@ -1082,8 +1203,16 @@ def builtin_scene(name: str) -> tuple[dict[str, Any], str]:
     """
     if name not in list_builtin_scenes(hidden=True):
         raise SceneError(f"unknown built-in scene {name!r}; available: {list_builtin_scenes()}")
-    text = (resources.files("pdlin") / "examples" / f"{name}.toml").read_text()
-    return tomllib.loads(text), text
+    folder = resources.files("pdlin") / "examples"
+    text = (folder / f"{name}.toml").read_text()
+    data = tomllib.loads(text)
+    deck = data.get("deck")
+    if isinstance(deck, dict) and isinstance(deck.get("path"), str):
+        # a built-in scene's deck ships beside it, in pdlin's examples folder
+        p = Path(deck["path"])
+        if not p.is_absolute():
+            deck["path"] = str(Path(str(folder)) / p)
+    return data, text
 
 
 #: the fields of every static result (:meth:`pdlin.StaticResult.fields`); ``stress`` where

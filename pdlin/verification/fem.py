@@ -644,6 +644,8 @@ def grid_fe_reference(problem: Any, *, solver: str = "auto") -> np.ndarray:
         raise InputError(f"grid_fe_reference needs a 2D or 3D problem, got {d}D")
     if getattr(problem, "symmetry", None):
         raise InputError("grid_fe_reference: symmetry planes are not supported")
+    if problem.thermal is not None:
+        raise InputError("grid_fe_reference: thermal loads (problem.thermal) are not supported")
     model = problem.model
     E = getattr(model, "E", None)
     nu = getattr(model, "nu", None)

@@ -30,10 +30,12 @@ The package's modules:
 from .controls import CONTROLS, DEFAULT_CONTROL_COEFFICIENT, SP_BALANCE_TOL, SP_MIN_RATIO
 from .gradient import gradient_operator, intact_shape_tensor, voigt_projector
 from .model import DEFAULT_MAX_BYTES, Correspondence
+from .peridigm import PeridigmCorrespondence
 from .shadow import shadow_problem, shadow_real_counts
 
 __all__ = [
     "Correspondence",
+    "PeridigmCorrespondence",
     "CONTROLS",
     "gradient_operator",
     "voigt_projector",

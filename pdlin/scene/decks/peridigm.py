@@ -45,6 +45,7 @@ from ...io.exodus import entity_ids
 from ...io.exodus import entity_names as _exodus_names
 from ...operators.bc import BodyForce, Dirichlet
 from .._keys import NUMBER_TEXT
+from ..materials import Block, blocks_per_point
 from ..scene import Scene
 from ._common import (
     _BOOL_SPELLINGS,
@@ -68,7 +69,7 @@ from ._common import (
 )
 from .expressions import deck_expression
 
-__all__ = ["peridigm_hourglass_penalty", "peridigm_bond_filters"]
+__all__ = ["peridigm_hourglass_penalty", "peridigm_bond_filters", "peridigm_correspondence_model"]
 
 
 def peridigm_hourglass_penalty(coefficient: float, K: Any, G: Any) -> Any:
@@ -205,10 +206,15 @@ _PD_MATERIALS: dict[str, dict[str, str]] = {
         "Apply Shear Correction Factor": "Peridigm's elastic.cxx computes it but does not use it "
         "in the force (the scaled alpha line is commented out)",
         "Hourglass Coefficient": "not read by Peridigm's Elastic material (Interfaces deck)",
+        "Thermal Expansion Coefficient": "",
     },
     "Linear LPS": dict(_PD_MAT_COMMON),
     "Linear Elastic": dict(_PD_MAT_COMMON),
-    "Elastic Correspondence": {**_PD_MAT_COMMON, "Hourglass Coefficient": ""},
+    "Elastic Correspondence": {
+        **_PD_MAT_COMMON,
+        "Hourglass Coefficient": "",
+        "Thermal Expansion Coefficient": "",
+    },
     "Elastic Bond Based": dict(_PD_MAT_COMMON),
     # PeridigmElasticPlastic (elastic_plastic.cxx); with Disable Plasticity: true
     # Peridigm_ElasticPlasticMaterial.cpp sets the yield stress to DBL_MAX (never yields)
@@ -313,6 +319,7 @@ _PD_QUICKGRID = {
     "Type": "",
     "NeighborhoodType": "",
     "TensorProduct3DMeshGenerator": "",
+    "TensorProductCylinderMeshGenerator": "",
     "Verbose": "cosmetic",
     "Store Exodus Mesh": "output option",
     "Construct Neighborhood Lists": "true: Peridigm's default (false -> error)",
@@ -350,11 +357,13 @@ def _quickgrid_cloud(disc: Mapping[str, Any]) -> tuple[PointCloud, dict[str, Any
         raise SceneError(
             f"{key}.Bond Filters: Peridigm does not support bond filters with PdQuickGrid"
         )
-    if "TensorProduct3DMeshGenerator" not in disc:
+    gens = [k for k in ("TensorProduct3DMeshGenerator", "TensorProductCylinderMeshGenerator")
+            if k in disc]  # fmt: skip
+    if not gens:
         other = sorted(k for k in disc if k.startswith("TensorProduct"))
         raise SceneError(
-            f"{key}: PdQuickGrid needs a TensorProduct3DMeshGenerator list (the cylinder "
-            f"generator is not supported), got {other or 'none'}"
+            f"{key}: PdQuickGrid needs a TensorProduct3DMeshGenerator or "
+            f"TensorProductCylinderMeshGenerator list, got {other or 'none'}"
         )
     _unknown(disc, _PD_QUICKGRID, key, "Peridigm PdQuickGrid discretization")
     for k, why in _PD_QUICKGRID.items():
@@ -366,6 +375,8 @@ def _quickgrid_cloud(disc: Mapping[str, Any]) -> tuple[PointCloud, dict[str, Any
             f"{key}.NeighborhoodType must be 'Spherical' (without it QuickGrid bonds a cube of "
             f"cells, which pdlin does not read), got {norm!r}"
         )
+    if gens[0] == "TensorProductCylinderMeshGenerator":  # Peridigm reads the 3D one first
+        return _quickgrid_cylinder_cloud(disc)
     gkey = f"{key}.TensorProduct3DMeshGenerator"
     gen = _table(disc["TensorProduct3DMeshGenerator"], gkey)
     allowed = {k: "" for k in (*_PD_TENSOR3D, *_PD_TENSOR3D_N)}
@@ -394,6 +405,179 @@ def _quickgrid_cloud(disc: Mapping[str, Any]) -> tuple[PointCloud, dict[str, Any
         "blocks": {"block_1": np.arange(cloud.n)},
         "node_sets": {},
         "strict_sphere": True,
+    }
+
+
+_PD_CYLINDER = {
+    "Inner Radius": "",
+    "Outer Radius": "",
+    "Cylinder Length": "",
+    "Number Points Radius": "",
+    "Ring Center x": "",
+    "Ring Center y": "",
+    "Z Origin": "",
+}
+
+
+def _cell_reach(horizon: float, cell: float, n: int) -> int:
+    """QuickGrid's one-sided cell horizon (``Spec1D::getCellNeighborhoodSize``)."""
+    ratio = horizon / cell
+    k = int(ratio)
+    if abs(ratio - k) >= 0.5:
+        k += 1
+    return min(k, n)
+
+
+def quickgrid_cylinder(
+    inner_radius: float,
+    outer_radius: float,
+    n_rings: int,
+    length: float,
+    z0: float = 0.0,
+    *,
+    n_axis: int | None = None,
+) -> dict[str, Any]:
+    """Peridigm's ``TensorProductCylinderMeshGenerator`` cells (points, volumes, indices).
+
+    ``QuickGrid.cxx`` with ``Peridigm_PdQuickGridDiscretization.cpp``: ``n_rings`` rings of
+    thickness ``dr = (r_o - r_i) / n_rings``; ``n_rays = int(2π / (dr / R)) + 1`` rays,
+    ``R = (r_i + r_o) / 2``, of ``dθ = 2π / n_rays``; ``n_axis = int(L / dr) + 1`` cells of
+    ``dz = L / n_axis`` along the axis from ``z0``.  Cell ``(i, j, k)`` (ring, ray, axial)
+    is point ``i + j n_rings + k n_rings n_rays`` at ``(r_i cos θ_j, r_i sin θ_j, z_k)`` with
+    the centres accumulated as QuickGrid does (``p = x0 + h / 2``, then ``p += h``) and
+    volume ``r_i dr dθ dz``.  Peridigm's generator places the ring about the z axis: it
+    reads ``Ring Center x / y`` but does not apply them to the points.
+
+    Parameters
+    ----------
+    inner_radius, outer_radius : float
+        Radii of the ring (``Inner Radius``, ``Outer Radius``).
+    n_rings : int
+        Cells across the wall (``Number Points Radius``).
+    length : float
+        ``Cylinder Length``.
+    z0 : float
+        ``Z Origin``.
+    n_axis : int, optional
+        Cells along the axis (default Peridigm's ``int(length / dr) + 1``).
+
+    Returns
+    -------
+    dict
+        ``points`` (n, 3), ``volumes`` (n,), ``ijk`` (n, 3) cell indices and the cell
+        sizes ``dr``, ``dtheta``, ``dz``, the counts ``n_rings``, ``n_rays``, ``n_axis`` and
+        the mean radius ``R``.
+
+    Examples
+    --------
+    >>> c = quickgrid_cylinder(1.0, 2.0, 2, 1.0)
+    >>> c["n_rays"], c["n_axis"], c["points"].shape
+    (19, 3, (114, 3))
+    >>> round(float(c["volumes"].sum()), 12) == round(float(np.pi * (4 - 1) * 1.0), 12)
+    True
+    """
+    dr = (outer_radius - inner_radius) / n_rings
+    big_r = (inner_radius + outer_radius) / 2.0
+    n_rays = int(2.0 * np.pi / (dr / big_r)) + 1
+    thickness = abs(outer_radius - inner_radius)
+    if n_axis is None:
+        n_axis = int(length / (thickness / n_rings)) + 1
+    r = _quickgrid_axis(n_rings, inner_radius, thickness)
+    theta = _quickgrid_axis(n_rays, 0.0, 2.0 * np.pi)
+    z = _quickgrid_axis(n_axis, z0, length)
+    grids = np.meshgrid(np.arange(n_axis), np.arange(n_rays), np.arange(n_rings), indexing="ij")
+    kk, jj, ii = (g.ravel() for g in grids)
+    rr, th = r[ii], theta[jj]
+    points = np.column_stack([rr * np.cos(th), rr * np.sin(th), z[kk]])
+    d_r = thickness / n_rings
+    dtheta = 2.0 * np.pi / n_rays
+    dz = length / n_axis
+    return {
+        "points": points,
+        "volumes": rr * d_r * dtheta * dz,  # QuickGrid: r*dr*cellRads*dz
+        "ijk": np.column_stack([ii, jj, kk]),
+        "dr": d_r,
+        "dtheta": dtheta,
+        "dz": dz,
+        "n_rings": n_rings,
+        "n_rays": n_rays,
+        "n_axis": n_axis,
+        "R": big_r,
+    }
+
+
+def _cylinder_window(
+    cyl: Mapping[str, Any], horizon: float, key: str, *, sphere: bool = True
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """``find_bonds`` exclude: QuickGrid's cell window of the cylinder and its sphere.
+
+    ``TensorProductCylinderMeshGenerator::computePdGridData`` tries the cells within the
+    one-sided cell horizons ``h_r = reach(δ / dr)``, ``h_z = reach(δ / dz)`` and, around
+    the ring, ``h_θ = reach(δ / (R dθ))`` at the mean radius ``R`` (periodic), then keeps
+    those with ``|ξ|² - δ² < 0``.  At radii below ``R`` the window in θ holds fewer cells
+    than the sphere: Peridigm's bonds are the window's.  ``sphere=False``: the window alone
+    (QuickGrid's ``NoOpNorm``, which Peridigm's own unit tests check).
+    """
+    from scipy.spatial import cKDTree
+
+    h_r = _cell_reach(horizon, cyl["dr"], cyl["n_rings"])
+    h_t = _cell_reach(horizon, cyl["dtheta"] * cyl["R"], cyl["n_rays"])
+    h_z = _cell_reach(horizon, cyl["dz"], cyl["n_axis"])
+    n_rays = cyl["n_rays"]
+    if 2 * h_t + 1 > n_rays:
+        raise SceneError(
+            f"{key}: the horizon {horizon} spans {2 * h_t + 1} of the ring's {n_rays} rays; "
+            "QuickGrid's ring window then visits cells twice (duplicate bonds): use a "
+            "smaller horizon or a larger ring"
+        )
+    tree = cKDTree(cyl["points"])
+    ijk = cyl["ijk"]
+    in_sphere = _strict_sphere(horizon)
+
+    def exclude(xi: np.ndarray, xj: np.ndarray) -> np.ndarray:
+        a = ijk[tree.query(xi)[1]]
+        b = ijk[tree.query(xj)[1]]
+        dj = np.abs(a[:, 1] - b[:, 1])
+        dj = np.minimum(dj, n_rays - dj)
+        outside = (np.abs(a[:, 0] - b[:, 0]) > h_r) | (dj > h_t) | (np.abs(a[:, 2] - b[:, 2]) > h_z)
+        return (outside | in_sphere(xi, xj)) if sphere else outside
+
+    return exclude
+
+
+def _quickgrid_cylinder_cloud(disc: Mapping[str, Any]) -> tuple[PointCloud, dict[str, Any]]:
+    """``PdQuickGrid`` with ``TensorProductCylinderMeshGenerator`` (:func:`quickgrid_cylinder`)."""
+    gkey = "Discretization.TensorProductCylinderMeshGenerator"
+    gen = _table(disc["TensorProductCylinderMeshGenerator"], gkey)
+    allowed = dict(_PD_CYLINDER)
+    allowed["Type"] = "cosmetic (Peridigm does not read it)"
+    _unknown(gen, allowed, gkey, "TensorProductCylinderMeshGenerator")
+    for k in _PD_CYLINDER:
+        if k not in gen:
+            raise SceneError(f"missing deck key {gkey}.{k}")
+    r_i = _number(gen["Inner Radius"], f"{gkey}.Inner Radius")
+    r_o = _number(gen["Outer Radius"], f"{gkey}.Outer Radius", positive=True)
+    if not 0.0 <= r_i < r_o:
+        raise SceneError(f"{gkey}: need 0 <= Inner Radius < Outer Radius, got {r_i} and {r_o}")
+    length = _number(gen["Cylinder Length"], f"{gkey}.Cylinder Length", positive=True)
+    z0 = _number(gen["Z Origin"], f"{gkey}.Z Origin")
+    v = gen["Number Points Radius"]
+    if isinstance(v, str) and re.fullmatch(r"\s*\d+\s*", v):
+        v = int(v)
+    if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+        raise SceneError(f"{gkey}.Number Points Radius must be an integer >= 1, got {v!r}")
+    centre = [_number(gen[f"Ring Center {c}"], f"{gkey}.Ring Center {c}") for c in "xy"]
+    if any(centre):
+        _note(
+            f"{gkey}.Ring Center x/y",
+            "read but not applied by Peridigm's generator (the ring is about the z axis)",
+        )
+    cyl = quickgrid_cylinder(r_i, r_o, v, length, z0)
+    cloud = _cloud(cyl["points"], cyl["volumes"], gkey)
+    return cloud, {
+        "blocks": {"block_1": np.arange(cloud.n)},
+        "node_sets": {},
+        "cylinder": cyl,
     }
 
 
@@ -835,6 +1019,12 @@ def _peridigm_material(name: str, mat: Mapping[str, Any], key: str) -> dict[str,
             K, _ = _bulk_shear(c, key)
         return {"kind": "bond_based", "K": K, "G": None, "hourglass": None}
     K, G = _bulk_shear(_constants(mat, key), key)
+    # Peridigm's ElasticMaterial / ElasticCorrespondenceMaterial: e -= α ΔT |ξ| (thermal.py)
+    alpha = None
+    if "Thermal Expansion Coefficient" in mat:
+        alpha = _number(
+            mat["Thermal Expansion Coefficient"], f"{key}.Thermal Expansion Coefficient"
+        )
     if model == "Elastic Correspondence":
         if "Hourglass Coefficient" not in mat:
             raise SceneError(
@@ -843,8 +1033,8 @@ def _peridigm_material(name: str, mat: Mapping[str, Any], key: str) -> dict[str,
         hg = _number(mat["Hourglass Coefficient"], f"{key}.Hourglass Coefficient")
         if hg < 0:
             raise SceneError(f"{key}.Hourglass Coefficient must be >= 0, got {hg}")
-        return {"kind": "correspondence", "K": K, "G": G, "hourglass": hg}
-    return {"kind": "lps", "K": K, "G": G, "hourglass": None, "yield": yield_stress}
+        return {"kind": "correspondence", "K": K, "G": G, "hourglass": hg, "alpha": alpha}
+    return {"kind": "lps", "K": K, "G": G, "hourglass": None, "alpha": alpha, "yield": yield_stress}
 
 
 def _peridigm_yield(mat: Mapping[str, Any], key: str) -> float | None:
@@ -875,7 +1065,9 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str, kinematics: str = 
     omit = _peridigm_discretization_keys(disc)
     cloud, extra = _peridigm_cloud(disc, base)
     blocks_pts: dict[str, np.ndarray] = extra["blocks"]
-    model, horizon, finite_model = _peridigm_blocks(root, disc.get("Horizon"), blocks_pts, cloud.n)
+    model, horizon, blocks, alpha, finite_model = _peridigm_blocks(
+        root, disc.get("Horizon"), blocks_pts, cloud.n
+    )
 
     # Peridigm runs a deck without Boundary Conditions (no constraint, no load: u = 0)
     n = cloud.n
@@ -898,29 +1090,54 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str, kinematics: str = 
     filters: list[Callable[[np.ndarray, np.ndarray], np.ndarray]] = []
     if extra.get("strict_sphere"):
         filters.append(_strict_sphere(float(horizon[0])))
+    if "cylinder" in extra:  # QuickGrid's cylinder: its cell window and sphere
+        filters.append(_cylinder_window(extra["cylinder"], float(horizon[0]), "Blocks"))
     if "Bond Filters" in disc:
         filters += peridigm_bond_filters(disc["Bond Filters"], "Discretization.Bond Filters")
     if omit == "All" and len(blocks_pts) > 1:
         filters.append(_omit_between_blocks(cloud.points, blocks_pts))
-    opts: dict[str, Any] = {}
+    # Peridigm keeps points whose horizon reaches no other point (Number_Of_Neighbors 0,
+    # its MultipleHorizons deck): pdlin.solve holds them at rest (pdlin.constraints)
+    opts: dict[str, Any] = {"allow_isolated": True}
     if filters:
         opts["exclude"] = _any_of(filters)
     finite = _finite_kinematics(kinematics, finite_model, len(times) - 1)
+    if finite and kinematics == "auto" and dirichlet is at_rest:
+        finite = False  # nothing prescribed, nothing applied: u = 0 under either kinematics
     if finite and kinematics == "auto" and _loads_not_proportional(bcs, sets, cloud, times):
         # with plasticity _finite_scene refuses it; elastic decks stay linearized
         finite = bool(np.isfinite(finite_model.yield_stress).any())
         if not finite:
             _note("Solver", "a Body Force not proportional to t over the load steps: linearized")
     if finite:
-        return _finite_scene(
+        scene = _finite_scene(
             name, finite_model, cloud, horizon, bcs, sets, times, opts, base, output
         )
+        scene.blocks = blocks
+        return scene
     scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
     scene.time = times[-1]  # Peridigm writes the final state at Final Time
+    scene.blocks = blocks
+    # thermal strains: Thermal Expansion Coefficient and a Prescribed Temperature change
+    dT = _peridigm_temperature(bcs, sets, cloud, times[-1], len(times) == 1)
+    if (alpha is None) != (dT is None):
+        _note(
+            "Materials" if dT is None else "Boundary Conditions",
+            "Thermal Expansion Coefficient without a Prescribed Temperature (ΔT = 0)"
+            if dT is None
+            else "Prescribed Temperature without a Thermal Expansion Coefficient (no strain)",
+        )
+    scene.problem = _with_thermal(scene.problem, alpha, dT)
     if len(times) > 2:
         # several load steps: each is a linear solve at that step's values (Peridigm's
         # own times, its initial state included); the last is the scene's problem
-        steps = [(t, _problem(model, cloud, horizon, *conditions(t), opts)) for t in times[:-1]]
+        steps = [
+            (t, _with_thermal(
+                _problem(model, cloud, horizon, *conditions(t), opts), alpha,
+                _peridigm_temperature(bcs, sets, cloud, t, k == 0),
+            ))
+            for k, t in enumerate(times[:-1])
+        ]  # fmt: skip
         scene.steps = [*steps, (times[-1], scene.problem)]
     return scene
 
@@ -957,35 +1174,36 @@ def _peridigm_discretization_keys(disc: Mapping[str, Any]) -> str:
 
 def _peridigm_blocks(
     root: Mapping[str, Any], default_h: Any, blocks_pts: Mapping[str, np.ndarray], n: int
-) -> tuple[Any, np.ndarray, Any]:
-    """Build the model and the per-point horizons from ``Materials`` and ``Blocks``.
+) -> tuple[Any, np.ndarray, list[Block], np.ndarray | None, Any]:
+    """Build the model, the per-point horizons, the scene's blocks and thermal coefficients.
 
-    One material family with per-point constants; ``default_h`` is
-    ``Discretization.Horizon``, if given.  Also returns the finite-kinematics model
+    One material family with per-point constants (:func:`pdlin.scene.blocks_per_point`,
+    as for a TOML scene's ``[[block]]`` tables); ``default_h`` is
+    ``Discretization.Horizon``, if given.  The thermal expansion coefficients are None
+    when no material has a ``Thermal Expansion Coefficient`` (0 on the points of those
+    that have none).  Also returns the finite-kinematics model
     (:class:`~pdlin.models.PeridigmElasticPlastic`) of ``Elastic`` / ``Elastic Plastic``
-    decks, else None.
+    decks without thermal expansion, else None.
     """
     materials = _table(root["Materials"], "Materials")
     mats = {
         mname: _peridigm_material(mname, _table(m, f"Materials.{mname}"), f"Materials.{mname}")
         for mname, m in materials.items()
     }
-    horizon = np.full(n, np.nan)
-    K = np.full(n, np.nan)
-    G = np.full(n, np.nan)
+    blocks: list[Block] = []
+    alpha = np.zeros(n)
     yields = np.full(n, np.inf)  # Elastic and plasticity disabled: never yields
-    kinds: set[str] = set()
     hgs: set[float] = set()
-    default: tuple[float, dict[str, Any]] | None = None
+    default: tuple[float, str, str] | None = None
     named: set[str] = set()
 
-    def assign(idx: np.ndarray, h: float, mat: Mapping[str, Any]) -> None:
-        horizon[idx] = h
-        K[idx] = mat["K"]
-        G[idx] = np.nan if mat["G"] is None else mat["G"]
+    def assign(bn: str, h: float, mname: str, key: str) -> None:
+        mat = mats[mname]
+        consts = {"K": mat["K"]} if mat["G"] is None else {"K": mat["K"], "G": mat["G"]}
+        blocks.append(Block(bn, blocks_pts[bn], consts, mat["kind"], key, horizon=h))
+        alpha[blocks_pts[bn]] = mat.get("alpha") or 0.0
         if mat.get("yield") is not None:
-            yields[idx] = mat["yield"]
-        kinds.add(mat["kind"])
+            yields[blocks_pts[bn]] = mat["yield"]
         if mat["hourglass"] is not None:
             hgs.add(mat["hourglass"])
 
@@ -1011,11 +1229,10 @@ def _peridigm_blocks(
                 f"{key}.Horizon: expressions for the horizon are not supported; give a number"
             )
         h = _number(h, f"{key}.Horizon", positive=True)
-        mat = mats[mname]
         for bn in names.split():
             if bn in ("Default", "default", "DEFAULT"):
                 # Peridigm's initializeBlocks: the blocks no other entry names
-                default = (h, mat)
+                default = (h, mname, key)
                 continue
             if bn not in blocks_pts:
                 raise SceneError(
@@ -1023,41 +1240,40 @@ def _peridigm_blocks(
                     f"{sorted(blocks_pts)}; 'default' names the blocks no other entry names)"
                 )
             named.add(bn)
-            assign(blocks_pts[bn], h, mat)
+            assign(bn, h, mname, key)
     if default is not None:
-        for bn, idx in blocks_pts.items():
+        for bn in blocks_pts:
             if bn not in named:
-                assign(idx, *default)
-    missing = [bn for bn, idx in blocks_pts.items() if np.isnan(horizon[idx]).any()]
+                assign(bn, *default)
+    missing = [
+        bn for bn, idx in blocks_pts.items() if idx.size and bn not in named and default is None
+    ]
     if missing:
         raise SceneError(f"Blocks: discretization block(s) {missing} are not assigned to any block")
-    if len(kinds) != 1:
-        raise SceneError(
-            f"Blocks: all blocks must use one material model family in pdlin, got {sorted(kinds)}"
-        )
-    kind = kinds.pop()
+    kind, consts, horizon = blocks_per_point([b for b in blocks if b.points.size], n)
+    K = np.broadcast_to(np.asarray(consts["K"], dtype=float), (n,))
+    G = np.broadcast_to(np.asarray(consts.get("G", np.nan), dtype=float), (n,))
+    assert horizon is not None  # every Peridigm block has one
+    thermal = any(m.get("alpha") is not None for m in mats.values())
     model = _build_model(kind, K, G, hgs, "Materials")
-    finite = None
     # Peridigm's Elastic / Elastic Plastic with their own kinematics; PeridigmElasticPlastic
     # has no thermal strain, so a deck with thermal expansion stays linearized
-    thermal = any(
-        isinstance(m, Mapping) and "Thermal Expansion Coefficient" in m for m in materials.values()
-    )
     if thermal and np.isfinite(yields).any():  # Peridigm_ElasticPlasticMaterial.cpp refuses it
         raise SceneError(
             "Materials: 'Elastic Plastic' with plasticity does not take a Thermal Expansion "
             "Coefficient (Peridigm refuses it too)"
         )
+    finite = None
     if kind == "lps" and not thermal:
         from ...models.peridigm_state import PeridigmElasticPlastic
 
         def one(a: np.ndarray) -> Any:
-            return float(a[0]) if np.all(a == a[0]) else a
+            return float(a[0]) if np.all(a == a[0]) else np.array(a)
 
         finite = PeridigmElasticPlastic(
             K=one(K), G=one(G), yield_stress=one(yields), horizon=one(horizon)
         )
-    return model, horizon, finite
+    return model, horizon, blocks, alpha if thermal else None, finite
 
 
 def _finite_kinematics(kinematics: str, finite_model: Any, n_steps: int) -> bool:
@@ -1204,7 +1420,7 @@ def _build_model(kind: str, K: np.ndarray, G: np.ndarray, hgs: set[float], key: 
             f"{key}: all correspondence blocks must share one Hourglass Coefficient, "
             f"got {sorted(hgs)}"
         )
-    hg = hgs.pop()
+    hg = next(iter(hgs))  # not popped: the finite-kinematics model reads the set too
     if hg == 0:
         return Correspondence(K=one(K), G=one(G), control="none")
     pen = peridigm_hourglass_penalty(hg, K, G)
@@ -1214,6 +1430,53 @@ def _build_model(kind: str, K: np.ndarray, G: np.ndarray, hgs: set[float], key: 
             "pdlin's penalty control takes one coefficient"
         )
     return Correspondence(K=one(K), G=one(G), control="penalty", penalty=float(pen[0]))
+
+
+def peridigm_correspondence_model(K: Any, G: Any, hgs: set[float], key: str) -> Any:
+    """Return Peridigm's ``Elastic Correspondence`` with its own finite kinematics.
+
+    :class:`pdlin.models.correspondence.PeridigmCorrespondence`: Peridigm's hypoelastic
+    stress update and its hourglass force (``correspondence.cxx``), for
+    :func:`pdlin.solve_nonlinear` (one load step per Peridigm load step).  The arguments
+    are those of the linear mapping (the per-point moduli and the blocks' hourglass
+    coefficients).
+
+    Parameters
+    ----------
+    K, G : float or (n,) array_like
+        Bulk and shear modulus (one value: Peridigm's material constants).
+    hgs : set of float
+        The blocks' ``Hourglass Coefficient`` (one value).
+    key : str
+        Deck key path for messages.
+
+    Returns
+    -------
+    PeridigmCorrespondence
+
+    Raises
+    ------
+    SceneError
+        Several moduli or hourglass coefficients.
+
+    Examples
+    --------
+    >>> m = peridigm_correspondence_model(1.6e11, 7.7e10, {0.04}, "Materials")
+    >>> m.hourglass, m.nonlinear
+    (0.04, True)
+    """
+    from ...models.correspondence import PeridigmCorrespondence
+
+    k_arr, g_arr = np.atleast_1d(np.asarray(K, float)), np.atleast_1d(np.asarray(G, float))
+    if np.ptp(k_arr) or np.ptp(g_arr) or len(hgs) != 1:
+        raise SceneError(
+            f"{key}: Peridigm's finite-kinematics 'Elastic Correspondence' takes one material "
+            f"(one K, G and Hourglass Coefficient), got {np.unique(k_arr).size} K, "
+            f"{np.unique(g_arr).size} G and hourglass coefficients {sorted(hgs)}"
+        )
+    return PeridigmCorrespondence(
+        K=float(k_arr[0]), G=float(g_arr[0]), hourglass=float(next(iter(hgs)))
+    )
 
 
 def _peridigm_node_sets(
@@ -1319,11 +1582,14 @@ def _peridigm_bcs(
         bc = _table(v, key)
         _unknown(bc, _PD_BC, key, "Peridigm boundary condition")
         typ = _tidy(str(bc.get("Type", "")))
+        if typ == "PRESCRIBED_TEMPERATURE":
+            continue  # the temperature change of thermal strains: _peridigm_temperature
         if typ not in ("PRESCRIBED_DISPLACEMENT", "BODY_FORCE"):
             raise SceneError(
                 f"{key}.Type: {bc.get('Type')!r} is not supported; supported: "
-                "'Prescribed Displacement', 'Body Force' (initial conditions, velocities and "
-                "temperatures are dynamics / multiphysics)"
+                "'Prescribed Displacement', 'Body Force', 'Prescribed Temperature' (initial "
+                "conditions, velocities, initial temperatures and fluxes are dynamics / "
+                "multiphysics)"
             )
         if "Node Set" not in bc:
             raise SceneError(f"missing deck key {key}.Node Set")
@@ -1343,3 +1609,53 @@ def _peridigm_bcs(
             dens[:, c] = val
             loads.append(BodyForce(idx, dens))
     return dirichlet, loads
+
+
+def _peridigm_temperature(
+    bcs: Any, sets: Mapping[str, np.ndarray], cloud: PointCloud, t: float, initial: bool
+) -> np.ndarray | None:
+    """Return the ``Temperature_Change`` field at time ``t`` (None without a temperature BC).
+
+    Peridigm's ``Prescribed Temperature`` sets the temperature and, through a
+    ``DirichletIncrementBC`` relative to the initial value, the change
+    ``ΔT = T(t) - T(t = 0)`` on its node set (``Peridigm_BoundaryAndInitialConditionManager``
+    and ``Peridigm_BoundaryCondition.cpp``: ``timePrevious_ = 0.0``); the field is 0 on other
+    points and at the initial time (the increment is not applied when the times are equal).
+    """
+    dT: np.ndarray | None = None
+    for k, v in _table(bcs, "Boundary Conditions").items():
+        if "NODE_SET" in _tidy(k) or not isinstance(v, Mapping):
+            continue
+        if _tidy(str(v.get("Type", ""))) != "PRESCRIBED_TEMPERATURE":
+            continue
+        key = f"Boundary Conditions.{k}"
+        if "Node Set" not in v:
+            raise SceneError(f"missing deck key {key}.Node Set")
+        if "Value" not in v:
+            raise SceneError(f"missing deck key {key}.Value")
+        idx = _bc_points(v["Node Set"], sets, cloud.n, f"{key}.Node Set")
+        if dT is None:
+            dT = np.zeros(cloud.n)
+        if initial:
+            continue
+        pts = cloud.points[idx]
+        now = deck_expression(v["Value"], pts, t, f"{key}.Value", caret_power=True)
+        start = deck_expression(v["Value"], pts, 0.0, f"{key}.Value", caret_power=True)
+        dT[idx] = now - start
+    return dT
+
+
+def _with_thermal(problem: Any, alpha: np.ndarray | None, dT: np.ndarray | None) -> Any:
+    """Return the problem with its thermal eigenstrain (unchanged without alpha or change)."""
+    import dataclasses
+
+    from ...models.thermal import ThermalExpansion
+
+    if alpha is None or dT is None:
+        return problem
+    a: Any = float(alpha[0]) if np.all(alpha == alpha[0]) else alpha
+    t: Any = float(dT[0]) if np.all(dT == dT[0]) else dT
+    try:
+        return dataclasses.replace(problem, thermal=ThermalExpansion(t, a))
+    except PdlinError as exc:
+        raise SceneError(f"invalid deck (thermal expansion): {exc}") from exc

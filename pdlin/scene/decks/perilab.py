@@ -1,6 +1,6 @@
 """PeriLab.jl input decks (YAML, static subset) read into a pdlin scene.
 
-One material for all blocks, linear elastic (``PD Solid Elastic`` as pdlin's LPS,
+A material per block (one model type), linear elastic (``PD Solid Elastic`` as pdlin's LPS,
 ``Bond-based Elastic``, ``Correspondence Elastic``), displacement conditions evaluated
 at ``Final Time``.  Sources of the format (read, not copied): PeriLab.jl
 ``examples/Dogbone/Dogbone.yaml``, ``Dogbone_plastic_corr_static.yaml``, ``Dogbone.txt``
@@ -16,14 +16,14 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import SceneError
+from ...errors import PdlinError, SceneError
 from ...geometry.cloud import PointCloud
 from ...operators.bc import Dirichlet
+from ..materials import Block, blocks_per_point
 from ..scene import Scene
 from ._common import (
     _COORD,
     _ELASTIC_CONSTANTS,
-    _bulk_shear,
     _cloud,
     _constants,
     _flag,
@@ -108,12 +108,18 @@ def _perilab(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     cloud, block_id, sets, mesh = _perilab_mesh(root["Discretization"], base)
     dim = cloud.dim
     mats = _perilab_materials(root["Models"], dim)
-    horizon, mat = _perilab_blocks(root["Blocks"], block_id, mats, mesh)
-    model = _perilab_model(mat, dim)
+    horizon, kind, consts, blocks = _perilab_blocks(root["Blocks"], block_id, mats, mesh)
+    try:
+        model = _perilab_model(kind, consts, dim)
+    except SceneError:
+        raise
+    except PdlinError as exc:
+        raise SceneError(f"Models.Material Models: {exc}") from None
     t = _perilab_solver(root["Solver"])
     dirichlet = _perilab_bcs(root["Boundary Conditions"], sets, cloud, t)
     scene = _scene(name, model, cloud, horizon, dirichlet, [], base, None)
     scene.time = t  # the state at Final Time
+    scene.blocks = blocks
     return scene
 
 
@@ -199,10 +205,14 @@ def _perilab_materials(value: Any, dim: int) -> dict[str, dict[str, Any]]:
 
 def _perilab_blocks(
     value: Any, block_id: np.ndarray, mats: Mapping[str, dict[str, Any]], mesh: Path
-) -> tuple[np.ndarray, dict[str, Any]]:
-    """``Blocks``: the horizon of every point and the one material of all blocks."""
-    horizon = np.full(block_id.shape[0], np.nan)
-    assigned: dict[str, Any] = {}
+) -> tuple[np.ndarray, str, dict[str, Any], list[Block]]:
+    """``Blocks``: per-point horizons, the model type and constants, the scene's blocks.
+
+    Each block may use its own material (one model type for all: pdlin assembles one
+    stiffness matrix), mapped onto the points by :func:`pdlin.scene.blocks_per_point`,
+    as a TOML scene's ``[[block]]`` tables.
+    """
+    blocks: list[Block] = []
     for bname, b in _table(value, "Blocks").items():
         key = f"Blocks.{bname}"
         b = _table(b, key)
@@ -221,17 +231,19 @@ def _perilab_blocks(
         pl_mat = b.get("Material Model")
         if pl_mat not in mats:
             raise SceneError(f"{key}.Material Model: {pl_mat!r} is not defined ({sorted(mats)})")
-        horizon[idx] = _number(b.get("Horizon"), f"{key}.Horizon", positive=True)
-        assigned[bname] = pl_mat
-    if np.isnan(horizon).any():
-        ids = sorted({int(v) for v in block_id[np.isnan(horizon)]})
+        h = _number(b.get("Horizon"), f"{key}.Horizon", positive=True)
+        mat = mats[str(pl_mat)]
+        consts = {**mat["consts"], "plane": mat["plane"]}
+        blocks.append(Block(bname, idx, consts, mat["kind"], key, horizon=h))
+    covered = np.zeros(block_id.shape[0], dtype=bool)
+    for blk in blocks:
+        covered[blk.points] = True
+    if not covered.all():
+        ids = sorted({int(v) for v in block_id[~covered]})
         raise SceneError(f"Blocks: block id(s) {ids} of the mesh are not assigned to a block")
-    used = {assigned[b] for b in assigned}
-    if len(used) != 1:
-        raise SceneError(
-            f"Blocks: pdlin's PeriLab reader takes one material for all blocks, got {sorted(used)}"
-        )
-    return horizon, mats[used.pop()]
+    kind, consts, horizon = blocks_per_point(blocks, block_id.shape[0])
+    assert horizon is not None  # every PeriLab block has one
+    return horizon, kind, consts, blocks
 
 
 def _perilab_solver(value: Any) -> float:
@@ -293,18 +305,21 @@ def _perilab_bcs(
     return dirichlet
 
 
-def _perilab_model(mat: Mapping[str, Any], dim: int) -> Any:
+def _perilab_model(kind: str, consts: Mapping[str, Any], dim: int) -> Any:
     from ...models import LPS, BondBased, Correspondence
 
-    c = mat["consts"]
-    plane = mat["plane"]
-    if mat["kind"] == "bond_based":
-        return (
-            BondBased(**c, plane=plane)
-            if len(c) == 1
-            else BondBased(K=_bulk_shear(c, "material")[0], plane=plane)
-        )
-    if mat["kind"] == "lps":
+    c = {k: v for k, v in consts.items() if k != "plane"}
+    plane = consts.get("plane", "stress")
+    if kind == "bond_based":
+        if len(c) == 1:
+            return BondBased(**c, plane=plane)
+        if "K" in c:
+            return BondBased(K=c["K"], plane=plane)
+        from ...constitutive import isotropic_constants  # per-point constants of blocks
+
+        E, nu = isotropic_constants(**c)
+        return BondBased(K=E / (3.0 * (1.0 - 2.0 * nu)), plane=plane)
+    if kind == "lps":
         if dim == 2:
             log.warning(
                 "PeriLab 'PD Solid Elastic' in 2D is read as pdlin's plane-%s LPS; PeriLab's 2D "
