@@ -58,7 +58,7 @@ def run_finite_steps(args: argparse.Namespace, scene: Any, prog: Any) -> int:
     try:
         result = solve_nonlinear(scene.problem, progress=prog, **opts)
     except ConvergenceError as exc:
-        plastic = bool(np.isfinite(scene.problem.model.yield_stress).any())
+        plastic = bool(np.isfinite(getattr(scene.problem.model, "yield_stress", np.inf)).any())
         if plastic or getattr(args, "kinematics", None) == "finite":
             raise
         from ..scene.decks import read_deck
@@ -78,6 +78,8 @@ def run_finite_steps(args: argparse.Namespace, scene: Any, prog: Any) -> int:
         state = result.state_at(k)
         if state is not None and "lambda" in state:
             f["state_lambda"] = np.asarray(state["lambda"], float)
+        if result.stress is not None:  # Elastic Correspondence: Cauchy stress
+            f["stress"] = result.stress[k].reshape(n, -1)
         fields.append(f)
     prog(f"writing {out}")
     t_write = time.perf_counter()

@@ -423,12 +423,16 @@ def test_bond_based_and_correspondence_decks(bar_dir):
         "Poisson's Ratio": 0.25,
         "Hourglass Coefficient": 0.02,
     }
-    model = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", peridigm_deck(co))).model
+    model = pdlin.read_deck(
+        write_yaml(bar_dir / "d.yaml", peridigm_deck(co)), kinematics="linear"
+    ).model
     assert isinstance(model, pdlin.Correspondence) and model.control == "penalty"
     # E = 2, nu = 1/4: K = E/(3(1-2nu)) = 4/3, G = E/(2(1+nu)) = 0.8
     assert model.penalty == pytest.approx(1.8 * 0.02 * (4 / 3) / (4 / 3 + 4 * 0.8 / 3), rel=1e-13)
     co["Hourglass Coefficient"] = 0.0
-    model = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", peridigm_deck(co))).model
+    model = pdlin.read_deck(
+        write_yaml(bar_dir / "d.yaml", peridigm_deck(co)), kinematics="linear"
+    ).model
     assert model.control == "none"
     del co["Hourglass Coefficient"]
     with pytest.raises(SceneError, match=r"Hourglass Coefficient is required"):

@@ -58,6 +58,9 @@ FINITE = [
     ("NOX_QS", "NOX_QS_MatrixFree_NoPrec.yaml", "NOX_QS_MatrixFree_NoPrec_gold.e", "NOX_QS.comp"),
     ("NOX_QS", "NOX_QS_Newton_AztecOOPrec.yaml", "NOX_QS_Newton_AztecOOPrec_gold.e", "NOX_QS.comp"),
     ("NOX_QS", "NOX_QS_Newton_NoPrec.yaml", "NOX_QS_Newton_NoPrec_gold.e", "NOX_QS.comp"),
+    # Elastic Correspondence: pdlin.models.correspondence.PeridigmCorrespondence
+    ("ElasticCorrespondenceQSTension", "ElasticCorrespondenceQSTension.xml",
+     "ElasticCorrespondenceQSTension_gold.e", "ElasticCorrespondenceQSTension.comp"),
 ]  # fmt: skip
 # run in the default tier (each < 2 s); the rest with -m slow (DiskFilter ~20 s)
 FAST = {
@@ -117,13 +120,14 @@ def test_comp_tolerances_are_read():
 @pytest.mark.parametrize(("folder", "deck", "gold", "comp"), _params())
 def test_finite_deck_matches_gold_at_the_comp_tolerance(folder, deck, gold, comp):
     scene = pdlin.read_deck(DATA / folder / deck, kinematics="finite")
-    assert isinstance(scene.model, PeridigmElasticPlastic)
+    assert scene.model.nonlinear
     res = pdlin.solve_nonlinear(scene.problem, **scene.nonlinear)
     t, ug = _gold(DATA / folder / gold, scene.cloud.points)
     tol = comp_displacement_tolerance(DATA / folder / comp)
     # measured max |u - u_gold| (docs/decks.md): 3e-12 (bars), 2e-14 (Body_Force),
     # 4e-13 (CentrifugalLoad), 1e-13 (Compression), 8e-15 / 4e-13 (PrecrackedPlate*),
-    # 8e-14 (DiskFilter), 1e-15 .. 2e-11 (NOX_QS); tolerances 1e-9, 1e-12 (plates, disk)
+    # 8e-14 (DiskFilter), 1e-15 .. 2e-11 (NOX_QS), 6e-15 (ElasticCorrespondenceQSTension);
+    # tolerances 1e-9, 1e-12 (plates, disk)
     assert np.abs(res.u[-1] - ug[-1]).max() <= tol
     # every load step is one of Peridigm's, and each of them matches its gold step
     assert np.allclose(res.times * t[-1], t[1:], rtol=1e-12, atol=0)
@@ -339,11 +343,15 @@ def test_deck_kinematics_choices(tmp_path):
     # plasticity cannot be linearized
     with pytest.raises(SceneError, match="needs kinematics 'finite' or 'auto'"):
         pdlin.read_deck(_plastic_deck(tmp_path, "300.0"), kinematics="linear")
-    # the correspondence deck has no finite-kinematics model here
+    # the correspondence deck (two load steps) runs Peridigm's correspondence kinematics
     corr = DATA / "ElasticCorrespondenceQSTension" / "ElasticCorrespondenceQSTension.xml"
+    assert type(pdlin.read_deck(corr).model).__name__ == "PeridigmCorrespondence"
+    assert pdlin.read_deck(corr, kinematics="linear").nonlinear is None
+    # thermal expansion: the finite models have no thermal strain, the deck stays linearized
+    cube = DATA / "ThermalExpansionCube" / "ThermalExpansionCube.xml"
+    assert pdlin.read_deck(cube).nonlinear is None
     with pytest.raises(SceneError, match="kinematics 'finite' is available for"):
-        pdlin.read_deck(corr, kinematics="finite")
-    assert pdlin.read_deck(corr).nonlinear is None
+        pdlin.read_deck(cube, kinematics="finite")
 
 
 # ---------------------------------------------------------------- the model's own checks

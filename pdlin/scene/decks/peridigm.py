@@ -1106,7 +1106,7 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str, kinematics: str = 
         finite = False  # nothing prescribed, nothing applied: u = 0 under either kinematics
     if finite and kinematics == "auto" and _loads_not_proportional(bcs, sets, cloud, times):
         # with plasticity _finite_scene refuses it; elastic decks stay linearized
-        finite = bool(np.isfinite(finite_model.yield_stress).any())
+        finite = _plastic(finite_model)
         if not finite:
             _note("Solver", "a Body Force not proportional to t over the load steps: linearized")
     if finite:
@@ -1273,7 +1273,17 @@ def _peridigm_blocks(
         finite = PeridigmElasticPlastic(
             K=one(K), G=one(G), yield_stress=one(yields), horizon=one(horizon)
         )
+    elif kind == "correspondence" and not thermal:
+        try:  # one set of moduli and one hourglass coefficient (else linearized only)
+            finite = peridigm_correspondence_model(K, G, hgs, "Materials")
+        except SceneError:
+            finite = None
     return model, horizon, blocks, alpha if thermal else None, finite
+
+
+def _plastic(model: Any) -> bool:
+    """Whether a finite-kinematics deck model can yield (a finite ``Yield Stress``)."""
+    return model is not None and bool(np.isfinite(getattr(model, "yield_stress", np.inf)).any())
 
 
 def _finite_kinematics(kinematics: str, finite_model: Any, n_steps: int) -> bool:
@@ -1284,7 +1294,7 @@ def _finite_kinematics(kinematics: str, finite_model: Any, n_steps: int) -> bool
     """
     if kinematics not in KINEMATICS:
         raise SceneError(f"kinematics must be one of {list(KINEMATICS)}, got {kinematics!r}")
-    plastic = finite_model is not None and bool(np.isfinite(finite_model.yield_stress).any())
+    plastic = _plastic(finite_model)
     if kinematics == "linear":
         if plastic:
             raise SceneError(
@@ -1295,8 +1305,9 @@ def _finite_kinematics(kinematics: str, finite_model: Any, n_steps: int) -> bool
         return False
     if kinematics == "finite" and finite_model is None:
         raise SceneError(
-            "kinematics 'finite' is available for Peridigm's 'Elastic' and 'Elastic Plastic' "
-            "materials; this deck's material is solved linearized (use 'auto' or 'linear')"
+            "kinematics 'finite' is available for Peridigm's 'Elastic', 'Elastic Plastic' and "
+            "'Elastic Correspondence' materials (one set of correspondence moduli, no thermal "
+            "expansion); this deck is solved linearized (use 'auto' or 'linear')"
         )
     return finite_model is not None and (kinematics == "finite" or plastic or n_steps > 1)
 
