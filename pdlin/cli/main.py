@@ -128,7 +128,9 @@ def _load(args: argparse.Namespace) -> Any:
     if Path(args.scene).suffix.lower() in (".yaml", ".yml", ".xml"):
         from ..scene.decks import read_deck  # Peridigm / PeriLab input decks
 
-        return read_deck(args.scene)
+        return read_deck(args.scene, kinematics=getattr(args, "kinematics", None) or "auto")
+    if getattr(args, "kinematics", None):
+        raise PdlinError("--kinematics applies to Peridigm decks (.yaml, .xml)")
     return load_scene(args.scene)
 
 
@@ -199,6 +201,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         from ..scene.checks import check_before_run
 
         check_before_run(scene.checks, scene)
+    if scene.nonlinear is not None and scene.steps:  # a deck with Peridigm's finite kinematics
+        from .finite_steps import run_finite_steps
+
+        return run_finite_steps(args, scene, prog)
     if scene.nonlinear is not None:
         return _run_nonlinear(args, scene, prog)
     if scene.damage is not None:
@@ -855,6 +861,13 @@ def _add_run(sub: Any) -> None:
         "tradeoff.target_error (the sweep's finished points are reused)",
     )
     r.add_argument("--target-error", type=float, help="override tradeoff.target_error")
+    r.add_argument(
+        "--kinematics",
+        choices=("auto", "finite", "linear"),
+        help="Peridigm decks' Elastic / Elastic Plastic materials: finite (their own "
+        "kinematics, Newton per load step), linear (linearized at u = 0) or auto (default: "
+        "finite with plasticity or several load steps)",
+    )
     r.add_argument(
         "--strict",
         action="store_true",

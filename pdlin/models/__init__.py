@@ -20,6 +20,7 @@ from .damage import (
     isolated_points,
 )
 from .lps import LPS
+from .peridigm_state import PeridigmElastic, PeridigmElasticPlastic
 from .surface import SURFACE_CORRECTIONS, SurfaceFactors
 from .xosb import XOSB
 
@@ -75,6 +76,8 @@ __all__ = [
     "implied_poisson_ratio",
     "standard_micromodulus",
     "LPS",
+    "PeridigmElastic",
+    "PeridigmElasticPlastic",
     "XOSB",
     "SURFACE_CORRECTIONS",
     "SurfaceFactors",

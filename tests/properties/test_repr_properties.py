@@ -91,6 +91,18 @@ MODELS: dict[str, tuple[type, Callable[[float, float, int], Any], Callable[..., 
         # fcc: 12 slip systems (pdlin.constitutive.SLIP_FAMILIES)
         lambda E, nu, n: ["CrystalPlasticity(", "slip='fcc'", "nslip=12", f"<{n}x3x3 array>"],
     ),
+    "PeridigmElastic": (
+        pdlin.models.PeridigmElastic,
+        lambda E, nu, n: pdlin.models.PeridigmElastic(K=E, G=E / 2),
+        lambda E, nu, n: ["PeridigmElastic(", "peridigm=True", "kinematics='finite'"],
+    ),
+    "PeridigmElasticPlastic": (
+        pdlin.models.PeridigmElasticPlastic,
+        lambda E, nu, n: pdlin.models.PeridigmElasticPlastic(
+            K=E, G=E / 2, yield_stress=np.full(n, 2.0)
+        ),
+        lambda E, nu, n: ["PeridigmElasticPlastic(", "yield_stress='per-point'"],
+    ),
     "SaintVenantKirchhoff": (
         pdlin.SaintVenantKirchhoff,
         lambda E, nu, n: pdlin.SaintVenantKirchhoff(cst.isotropic(E, nu)),

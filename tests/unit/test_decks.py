@@ -294,8 +294,9 @@ def test_boundary_condition_errors_name_the_key(bar_dir, edit, pattern):
             "Material",
             "Material Model",
             "Elastic Plastic",
-            r"Material Model: 'Elastic Plastic' is not supported \(plasticity\); only with "
-            r"Disable Plasticity: true",
+            # Peridigm_ElasticPlasticMaterial.cpp reads Yield Stress (required)
+            r"missing deck key Materials\.My Material\.Yield Stress "
+            r"\(required by 'Elastic Plastic'\)",
         ),
         (
             "Material",
@@ -422,12 +423,16 @@ def test_bond_based_and_correspondence_decks(bar_dir):
         "Poisson's Ratio": 0.25,
         "Hourglass Coefficient": 0.02,
     }
-    model = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", peridigm_deck(co))).model
+    model = pdlin.read_deck(
+        write_yaml(bar_dir / "d.yaml", peridigm_deck(co)), kinematics="linear"
+    ).model
     assert isinstance(model, pdlin.Correspondence) and model.control == "penalty"
     # E = 2, nu = 1/4: K = E/(3(1-2nu)) = 4/3, G = E/(2(1+nu)) = 0.8
     assert model.penalty == pytest.approx(1.8 * 0.02 * (4 / 3) / (4 / 3 + 4 * 0.8 / 3), rel=1e-13)
     co["Hourglass Coefficient"] = 0.0
-    model = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", peridigm_deck(co))).model
+    model = pdlin.read_deck(
+        write_yaml(bar_dir / "d.yaml", peridigm_deck(co)), kinematics="linear"
+    ).model
     assert model.control == "none"
     del co["Hourglass Coefficient"]
     with pytest.raises(SceneError, match=r"Hourglass Coefficient is required"):
@@ -1045,7 +1050,7 @@ def test_cli_runs_yaml_and_xml_decks(bar_dir):
     assert res.returncode == 0 and '"points": 32' in res.stdout, res.stderr
     res = _cli("run", "bad.xml", "-q", cwd=bar_dir)
     assert res.returncode == 2
-    assert "Materials.My Material.Material Model: 'Elastic Plastic' is not supported" in res.stderr
+    assert "Materials.My Material.Yield Stress (required by 'Elastic Plastic')" in res.stderr
 
 
 def test_cosmetic_keys_are_logged_not_ignored(bar_dir, caplog):
@@ -1139,7 +1144,8 @@ def test_load_steps_are_peridigms_times(bar_dir):
     # problem holds that step's prescribed values (Fix X: "0.01 * t" on the right end)
     deck = peridigm_deck(LPS_MAT, solver={"Initial Time": 0.5, "Final Time": 2.0,
                                           "QuasiStatic": {"Number of Load Steps": 3}})  # fmt: skip
-    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck))
+    # linearized: one problem per step (finite kinematics: one problem, TimePath values)
+    scene = pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck), kinematics="linear")
     times = [t for t, _ in scene.steps]
     assert times == [0.5, 1.0, 1.5, 2.0]  # (2.0 - 0.5) / 3 = 0.5 exactly in binary
     assert scene.steps[-1][1] is scene.problem
@@ -1147,4 +1153,4 @@ def test_load_steps_are_peridigms_times(bar_dir):
     assert np.allclose([v.max() for v in pulled], [0.001 * t for t in times], rtol=1e-15)
     # one step: no series
     deck["Peridigm"]["Solver"]["QuasiStatic"] = {"Number of Load Steps": 1}
-    assert pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck)).steps is None
+    assert pdlin.read_deck(write_yaml(bar_dir / "d.yaml", deck), kinematics="linear").steps is None

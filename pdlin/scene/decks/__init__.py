@@ -36,7 +36,7 @@ __all__ = ["read_deck", "deck_expression", "peridigm_hourglass_penalty", "peridi
 
 
 # --------------------------------------------------------------------------------------
-def read_deck(path: str | Path) -> Scene:
+def read_deck(path: str | Path, *, kinematics: str = "auto") -> Scene:
     r"""Read a Peridigm (YAML / XML) or PeriLab (YAML) input deck as a pdlin scene.
 
     The returned ``pdlin.scene.Scene`` is what ``pdlin.scene.load_scene``
@@ -49,6 +49,11 @@ def read_deck(path: str | Path) -> Scene:
     ----------
     path : str or path-like
         ``.yaml`` / ``.yml`` (needs PyYAML, ``pip install "pdlin[decks]"``) or ``.xml``.
+    kinematics : {'auto', 'finite', 'linear'}
+        Peridigm's ``Elastic`` / ``Elastic Plastic`` materials: ``'finite'`` runs their own
+        finite kinematics through :func:`pdlin.solve_nonlinear` (``scene.nonlinear``),
+        ``'linear'`` their linearization at u = 0; ``'auto'`` (default) is finite for decks
+        with plasticity or several load steps, linear otherwise (``docs/decks.md``).
 
     Returns
     -------
@@ -83,6 +88,10 @@ def read_deck(path: str | Path) -> Scene:
     >>> scene.cloud.n, scene.cloud.dim, type(scene.model).__name__
     (6, 3, 'BondBased')
     """
+    if kinematics not in ("auto", "finite", "linear"):
+        raise SceneError(
+            f"kinematics must be one of ['auto', 'finite', 'linear'], got {kinematics!r}"
+        )
     p = Path(path)
     if not p.exists():
         raise SceneError(f"deck file not found: {p}")
@@ -101,7 +110,9 @@ def read_deck(path: str | Path) -> Scene:
     ((top, body),) = data.items()
     base = p.parent
     if top == "Peridigm":
-        return _peridigm(body, base, p.stem)
+        return _peridigm(body, base, p.stem, kinematics)
     if top == "PeriLab":
+        if kinematics == "finite":
+            raise SceneError("kinematics 'finite' is for Peridigm decks; PeriLab decks are linear")
         return _perilab(body, base, p.stem)
     raise SceneError(f"{p.name}: top-level list must be 'Peridigm' or 'PeriLab', got {top!r}")

@@ -216,12 +216,12 @@ _PD_MATERIALS: dict[str, dict[str, str]] = {
         "Thermal Expansion Coefficient": "",
     },
     "Elastic Bond Based": dict(_PD_MAT_COMMON),
-    # only with Disable Plasticity: true (Peridigm_ElasticPlasticMaterial.cpp then sets the
-    # yield stress to DBL_MAX: elastic_plastic.cxx never yields and its force is Elastic's)
+    # PeridigmElasticPlastic (elastic_plastic.cxx); with Disable Plasticity: true
+    # Peridigm_ElasticPlasticMaterial.cpp sets the yield stress to DBL_MAX (never yields)
     "Elastic Plastic": {
         **_PD_MAT_COMMON,
         "Disable Plasticity": "",
-        "Yield Stress": "unused: plasticity disabled",
+        "Yield Stress": "",
         "Apply Shear Correction Factor": "not read by Peridigm's Elastic Plastic material",
     },
 }
@@ -989,14 +989,8 @@ def _peridigm_material(name: str, mat: Mapping[str, Any], key: str) -> dict[str,
             f"{sorted(_PD_MATERIALS)}"
         )
     allowed = _PD_MATERIALS[model]
-    if model == "Elastic Plastic" and not _flag(
-        mat.get("Disable Plasticity", False), f"{key}.Disable Plasticity"
-    ):
-        raise SceneError(
-            f"{key}.Material Model: 'Elastic Plastic' is not supported (plasticity); only with "
-            "Disable Plasticity: true, where Peridigm's force is the Elastic one"
-        )
     _unknown(mat, allowed, key, f"Peridigm {model!r} material")
+    yield_stress = _peridigm_yield(mat, key) if model == "Elastic Plastic" else None
     for k in ("Plane Strain", "Plane Stress"):
         if k in mat and _flag(mat[k], f"{key}.{k}"):
             raise SceneError(
@@ -1040,10 +1034,25 @@ def _peridigm_material(name: str, mat: Mapping[str, Any], key: str) -> dict[str,
         if hg < 0:
             raise SceneError(f"{key}.Hourglass Coefficient must be >= 0, got {hg}")
         return {"kind": "correspondence", "K": K, "G": G, "hourglass": hg, "alpha": alpha}
-    return {"kind": "lps", "K": K, "G": G, "hourglass": None, "alpha": alpha}
+    return {"kind": "lps", "K": K, "G": G, "hourglass": None, "alpha": alpha, "yield": yield_stress}
 
 
-def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
+def _peridigm_yield(mat: Mapping[str, Any], key: str) -> float | None:
+    """``Yield Stress`` of an ``Elastic Plastic`` material (None: plasticity disabled)."""
+    if "Yield Stress" not in mat:  # Peridigm_ElasticPlasticMaterial.cpp requires it
+        raise SceneError(f"missing deck key {key}.Yield Stress (required by 'Elastic Plastic')")
+    ys = _number(mat["Yield Stress"], f"{key}.Yield Stress", positive=True)
+    if _flag(mat.get("Disable Plasticity", False), f"{key}.Disable Plasticity"):
+        _note(f"{key}.Yield Stress", "unused: Disable Plasticity (never yields, the Elastic force)")
+        return None
+    return ys
+
+
+#: ``kinematics`` of :func:`pdlin.read_deck` (``pdlin run --kinematics``)
+KINEMATICS = ("auto", "finite", "linear")
+
+
+def _peridigm(deck: Mapping[str, Any], base: Path, name: str, kinematics: str = "auto") -> Scene:
     root = _table(deck, "Peridigm")
     _unknown(root, _PD_TOP, "Peridigm", "Peridigm deck")
     for k in ("Verbose", "Compute Class Parameters"):
@@ -1056,7 +1065,9 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     omit = _peridigm_discretization_keys(disc)
     cloud, extra = _peridigm_cloud(disc, base)
     blocks_pts: dict[str, np.ndarray] = extra["blocks"]
-    model, horizon, blocks, alpha = _peridigm_blocks(root, disc.get("Horizon"), blocks_pts, cloud.n)
+    model, horizon, blocks, alpha, finite_model = _peridigm_blocks(
+        root, disc.get("Horizon"), blocks_pts, cloud.n
+    )
 
     # Peridigm runs a deck without Boundary Conditions (no constraint, no load: u = 0)
     n = cloud.n
@@ -1090,6 +1101,20 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str) -> Scene:
     opts: dict[str, Any] = {"allow_isolated": True}
     if filters:
         opts["exclude"] = _any_of(filters)
+    finite = _finite_kinematics(kinematics, finite_model, len(times) - 1)
+    if finite and kinematics == "auto" and dirichlet is at_rest:
+        finite = False  # nothing prescribed, nothing applied: u = 0 under either kinematics
+    if finite and kinematics == "auto" and _loads_not_proportional(bcs, sets, cloud, times):
+        # with plasticity _finite_scene refuses it; elastic decks stay linearized
+        finite = _plastic(finite_model)
+        if not finite:
+            _note("Solver", "a Body Force not proportional to t over the load steps: linearized")
+    if finite:
+        scene = _finite_scene(
+            name, finite_model, cloud, horizon, bcs, sets, times, opts, base, output
+        )
+        scene.blocks = blocks
+        return scene
     scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
     scene.time = times[-1]  # Peridigm writes the final state at Final Time
     scene.blocks = blocks
@@ -1149,14 +1174,16 @@ def _peridigm_discretization_keys(disc: Mapping[str, Any]) -> str:
 
 def _peridigm_blocks(
     root: Mapping[str, Any], default_h: Any, blocks_pts: Mapping[str, np.ndarray], n: int
-) -> tuple[Any, np.ndarray, list[Block], np.ndarray | None]:
+) -> tuple[Any, np.ndarray, list[Block], np.ndarray | None, Any]:
     """Build the model, the per-point horizons, the scene's blocks and thermal coefficients.
 
     One material family with per-point constants (:func:`pdlin.scene.blocks_per_point`,
     as for a TOML scene's ``[[block]]`` tables); ``default_h`` is
     ``Discretization.Horizon``, if given.  The thermal expansion coefficients are None
     when no material has a ``Thermal Expansion Coefficient`` (0 on the points of those
-    that have none).
+    that have none).  Also returns the finite-kinematics model
+    (:class:`~pdlin.models.PeridigmElasticPlastic`) of ``Elastic`` / ``Elastic Plastic``
+    decks without thermal expansion, else None.
     """
     materials = _table(root["Materials"], "Materials")
     mats = {
@@ -1165,6 +1192,7 @@ def _peridigm_blocks(
     }
     blocks: list[Block] = []
     alpha = np.zeros(n)
+    yields = np.full(n, np.inf)  # Elastic and plasticity disabled: never yields
     hgs: set[float] = set()
     default: tuple[float, str, str] | None = None
     named: set[str] = set()
@@ -1174,6 +1202,8 @@ def _peridigm_blocks(
         consts = {"K": mat["K"]} if mat["G"] is None else {"K": mat["K"], "G": mat["G"]}
         blocks.append(Block(bn, blocks_pts[bn], consts, mat["kind"], key, horizon=h))
         alpha[blocks_pts[bn]] = mat.get("alpha") or 0.0
+        if mat.get("yield") is not None:
+            yields[blocks_pts[bn]] = mat["yield"]
         if mat["hourglass"] is not None:
             hgs.add(mat["hourglass"])
 
@@ -1226,7 +1256,137 @@ def _peridigm_blocks(
     assert horizon is not None  # every Peridigm block has one
     thermal = any(m.get("alpha") is not None for m in mats.values())
     model = _build_model(kind, K, G, hgs, "Materials")
-    return model, horizon, blocks, alpha if thermal else None
+    # Peridigm's Elastic / Elastic Plastic with their own kinematics; PeridigmElasticPlastic
+    # has no thermal strain, so a deck with thermal expansion stays linearized
+    if thermal and np.isfinite(yields).any():  # Peridigm_ElasticPlasticMaterial.cpp refuses it
+        raise SceneError(
+            "Materials: 'Elastic Plastic' with plasticity does not take a Thermal Expansion "
+            "Coefficient (Peridigm refuses it too)"
+        )
+    finite = None
+    if kind == "lps" and not thermal:
+        from ...models.peridigm_state import PeridigmElasticPlastic
+
+        def one(a: np.ndarray) -> Any:
+            return float(a[0]) if np.all(a == a[0]) else np.array(a)
+
+        finite = PeridigmElasticPlastic(
+            K=one(K), G=one(G), yield_stress=one(yields), horizon=one(horizon)
+        )
+    elif kind == "correspondence" and not thermal:
+        try:  # one set of moduli and one hourglass coefficient (else linearized only)
+            finite = peridigm_correspondence_model(K, G, hgs, "Materials")
+        except SceneError:
+            finite = None
+    return model, horizon, blocks, alpha if thermal else None, finite
+
+
+def _plastic(model: Any) -> bool:
+    """Whether a finite-kinematics deck model can yield (a finite ``Yield Stress``)."""
+    return model is not None and bool(np.isfinite(getattr(model, "yield_stress", np.inf)).any())
+
+
+def _finite_kinematics(kinematics: str, finite_model: Any, n_steps: int) -> bool:
+    """Whether the deck runs Peridigm's finite-kinematics material (``solve_nonlinear``).
+
+    ``'auto'``: with plasticity (a finite ``Yield Stress``) or several load steps of an
+    ``Elastic`` / ``Elastic Plastic`` deck; ``'finite'`` / ``'linear'`` as asked.
+    """
+    if kinematics not in KINEMATICS:
+        raise SceneError(f"kinematics must be one of {list(KINEMATICS)}, got {kinematics!r}")
+    plastic = _plastic(finite_model)
+    if kinematics == "linear":
+        if plastic:
+            raise SceneError(
+                "Materials: 'Elastic Plastic' with plasticity needs kinematics 'finite' or "
+                "'auto' (pdlin runs Peridigm's plasticity with its finite kinematics); got "
+                "'linear'"
+            )
+        return False
+    if kinematics == "finite" and finite_model is None:
+        raise SceneError(
+            "kinematics 'finite' is available for Peridigm's 'Elastic', 'Elastic Plastic' and "
+            "'Elastic Correspondence' materials (one set of correspondence moduli, no thermal "
+            "expansion); this deck is solved linearized (use 'auto' or 'linear')"
+        )
+    return finite_model is not None and (kinematics == "finite" or plastic or n_steps > 1)
+
+
+def _loads_not_proportional(
+    bcs: Any, sets: Mapping[str, np.ndarray], cloud: PointCloud, times: list[float]
+) -> bool:
+    """Whether some body force is not ``t / Final Time`` times its final value at a step.
+
+    ``solve_nonlinear`` scales loads proportionally and cannot follow such a load.
+    """
+    _, final = _peridigm_bcs(bcs, sets, cloud, times[-1])
+    for t in times[1:-1] if final else []:
+        for a, b in zip(_peridigm_bcs(bcs, sets, cloud, t)[1], final, strict=True):
+            if not np.allclose(a.density, (t / times[-1]) * np.asarray(b.density), rtol=1e-12):
+                return True
+    return False
+
+
+def _finite_scene(
+    name: str,
+    model: Any,
+    cloud: PointCloud,
+    horizon: np.ndarray,
+    bcs: Any,
+    sets: Mapping[str, np.ndarray],
+    times: list[float],
+    opts: dict[str, Any],
+    base: Path,
+    output: Path | None,
+) -> Scene:
+    """Build the scene Peridigm solves: Newton on the finite-kinematics force per step.
+
+    The prescribed displacements are evaluated at each step's time (``TimePath`` of
+    ``s = t / Final Time``, so that ``pdlin.solve(scene.problem)`` is at Final Time and
+    ``scene.nonlinear["times"]`` are the steps' ``s``); body forces scale with ``s`` in
+    :func:`pdlin.solve_nonlinear`, so a deck whose body force is not proportional to ``t``
+    over its steps is refused.
+    """
+    from ...operators.bc import TimePath
+
+    t_end = times[-1]
+    dirichlet_end, loads = _peridigm_bcs(bcs, sets, cloud, t_end)
+    if not dirichlet_end and not loads:
+        dirichlet: list[Dirichlet] = [Dirichlet(np.arange(cloud.n), np.zeros((cloud.n, 3)))]
+    else:
+        dirichlet = []
+        cache: dict[float, list[Dirichlet]] = {t_end: dirichlet_end}
+
+        def at(t: float) -> list[Dirichlet]:
+            if t not in cache:  # every condition of a step evaluated once
+                cache[t] = _peridigm_bcs(bcs, sets, cloud, t)[0]
+            return cache[t]
+
+        for k, d in enumerate(dirichlet_end):
+
+            def path(_x: np.ndarray, s: float, k: int = k) -> np.ndarray:
+                # s = t / Final Time: a linear solve of the problem (s = 1) is at Final Time
+                return np.asarray(at(t_end if s == 1.0 else float(s) * t_end)[k].value)
+
+            dirichlet.append(
+                Dirichlet(d.where, TimePath(path, f"deck value {k}"), components=d.components)
+            )
+    for t in times[1:-1]:
+        _, lt = _peridigm_bcs(bcs, sets, cloud, t)
+        for a, b in zip(lt, loads, strict=True):
+            if not np.allclose(a.density, (t / t_end) * np.asarray(b.density), rtol=1e-12):
+                raise SceneError(
+                    "Boundary Conditions: a Body Force that is not proportional to t over the "
+                    "load steps is not supported with finite kinematics (pdlin scales loads "
+                    f"with t / Final Time); at t = {t} it is not"
+                )
+    scene = _scene(name, model, cloud, horizon, dirichlet, loads, base, output, opts)
+    scene.time = t_end
+    # the load path in s = t / Final Time (see path above); pdlin run writes Peridigm's times
+    solve_times = [t / t_end for t in times[1:] if t > 0]
+    scene.nonlinear = {"method": "newton", "times": solve_times, "t_end": 1.0}
+    scene.steps = [(t, scene.problem) for t in times]
+    return scene
 
 
 def _peridigm_output(root: Mapping[str, Any], base: Path, name: str) -> Path | None:
