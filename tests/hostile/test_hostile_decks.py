@@ -115,7 +115,8 @@ def _qg(edits: dict | None = None, **disc: object) -> dict:
 CASES += [
     ("qg-no-norm", _qg(NeighborhoodType=None), POINTS, r"NeighborhoodType must be 'Spherical'"),
     ("qg-cylinder", _qg(TensorProduct3DMeshGenerator=None, TensorProductCylinderMeshGenerator={}),
-     POINTS, r"needs a TensorProduct3DMeshGenerator .*\['TensorProductCylinderMeshGenerator'\]"),
+     # the cylinder generator is read now (issue 34): an empty one names its first missing key
+     POINTS, r"missing deck key .*TensorProductCylinderMeshGenerator\.Inner Radius"),
     ("qg-zero-points", _qg({"Number Points X": 0}), POINTS, r"Number Points X must be an integer"),
     ("qg-float-points", _qg({"Number Points Y": 2.5}), POINTS, r"Number Points Y must be an int"),
     ("qg-negative-length", _qg({"Z Length": -1.0}), POINTS, r"Z Length must be > 0, got -1.0"),

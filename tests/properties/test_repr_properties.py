@@ -103,6 +103,16 @@ MODELS: dict[str, tuple[type, Callable[[float, float, int], Any], Callable[..., 
         ),
         lambda E, nu, n: ["PeridigmElasticPlastic(", "yield_stress='per-point'"],
     ),
+    "PeridigmCorrespondence": (
+        pdlin.models.PeridigmCorrespondence,
+        lambda E, nu, n: pdlin.models.PeridigmCorrespondence(K=E, G=E / 2, hourglass=0.02),
+        lambda E, nu, n: ["PeridigmCorrespondence(", f"K={E:g}", "hourglass=0.02"],
+    ),
+    "Hypoelastic": (
+        cst.Hypoelastic,
+        lambda E, nu, n: cst.Hypoelastic(K=E, G=E / 2),
+        lambda E, nu, n: ["Hypoelastic(", f"K={E:g}", f"G={E / 2:g}"],
+    ),
     "SaintVenantKirchhoff": (
         pdlin.SaintVenantKirchhoff,
         lambda E, nu, n: pdlin.SaintVenantKirchhoff(cst.isotropic(E, nu)),
