@@ -106,7 +106,7 @@ MODELS: dict[str, tuple[type, Callable[[float, float, int], Any], Callable[..., 
     "PeridigmCorrespondence": (
         pdlin.models.PeridigmCorrespondence,
         lambda E, nu, n: pdlin.models.PeridigmCorrespondence(K=E, G=E / 2, hourglass=0.02),
-        lambda E, nu, n: ["PeridigmCorrespondence(", f"K={E:g}", "hourglass=0.02"],
+        lambda E, nu, n: ["PeridigmCorrespondence(", f"K={E:.4g}", "hourglass=0.02"],
     ),
     "Hypoelastic": (
         cst.Hypoelastic,
