@@ -29,6 +29,8 @@ __all__ = [
     "ActiveSetWarning",
     "AccuracyWarning",
     "SlowRunWarning",
+    "InstabilityError",
+    "TimeStepWarning",
 ]
 
 
@@ -90,6 +92,14 @@ class CheckpointError(InputError):
 
     Raised by :func:`pdlin.solve_nonlinear` with ``resume=True``; the message names the
     file and, for another problem, which parts of it differ.
+    """
+
+
+class InstabilityError(ConvergenceError):
+    """An explicit time integration became unstable (non-finite or exploding fields).
+
+    Raised by :func:`pdlin.dynamics.solve_explicit` before a NaN or an infinity can
+    reach a result; the message names the step, the time, the time step and its estimate.
     """
 
 
@@ -164,4 +174,13 @@ class SlowRunWarning(UserWarning):
 
     The limit is ``pdlin.resources.LONG_RUN_SECONDS``; the message gives the estimate
     and its sizes (points, bonds, nonzeros).
+    """
+
+
+class TimeStepWarning(UserWarning):
+    """A given explicit time step exceeds the estimated stable one.
+
+    Issued by :func:`pdlin.dynamics.solve_explicit`; the message gives both steps and the
+    estimate's method.  Promote it to an error with
+    ``warnings.simplefilter("error", TimeStepWarning)``.
     """

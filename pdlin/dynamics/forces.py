@@ -1,0 +1,346 @@
+"""Internal forces of explicit dynamics, with a mask of broken bonds.
+
+:func:`force_kernel` returns an object with ``force(u, alive)`` and ``energy(u, alive)``
+for a model on fixed (intact, pre-cracked) bonds.  Broken bonds are masked, never
+removed: the influence weights, the weighted volumes and XOSB's corrected ``ω^h``,
+``ω^d`` stay those of the intact bonds (as in Peridigm's damage models and the XOSB
+paper of Liu, Chen & Skelton, §5.3, where ``λ`` is not recomputed after breaking).
+
+* :class:`pdlin.BondBased`: the pair force ``k_b s_b |ξ|`` along the bond
+  (``k_b = model.bond_stiffness``), linearized or the exact PMB stretch;
+  energy ``¼ Σ_b k_b (s_b |ξ_b|)²`` over directed bonds.
+* :class:`pdlin.LPS`, :class:`pdlin.XOSB`: the ordinary state-based force state of
+  the model (``linearization='energy'`` or ``'paper'``) with the dilatation and the
+  deviatoric sums over the surviving bonds; energy ``Σ_i V_i W_i``
+  (``W_i = κθ²/2 + μ Σ_j ω̃^d (e^d)² V_j``, Liu, Chen & Skelton, Eq. 22).
+* any other model: ``model.respond`` on the intact bonds (no damage).
+
+With every bond alive each kernel equals the model's own ``internal_force`` to
+round-off (``tests/unit/test_explicit.py``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError, ModelError
+from ..geometry.bonds import Bonds
+from ..geometry.cloud import PointCloud
+from ..models.bond_based import BondBased
+from ..models.ordinary_state import OrdinaryStateBased
+
+__all__ = ["force_kernel", "BondKernel", "StateKernel", "GenericKernel"]
+
+
+def _measure(cloud: PointCloud) -> float:
+    """Out-of-plane measure: thickness (2D), cross-section (1D), 1 (3D)."""
+    return 1.0 if cloud.dim == 3 else float(cloud.thickness)
+
+
+def _scatter(i: np.ndarray, vec: np.ndarray, n: int) -> np.ndarray:
+    d = vec.shape[1]
+    f = np.empty((n, d))
+    for a in range(d):
+        f[:, a] = np.bincount(i, weights=vec[:, a], minlength=n)
+    return f
+
+
+class _Geometry:
+    """Bond arrays read once (compact bonds compute them on every access)."""
+
+    def __init__(self, cloud: PointCloud, bonds: Bonds) -> None:
+        self.n = cloud.n
+        self.d = cloud.dim
+        self.i = np.asarray(bonds.i)
+        self.j = np.asarray(bonds.j)
+        self.xi = np.asarray(bonds.xi, dtype=float)
+        self.length = np.asarray(bonds.length, dtype=float)
+        self.unit = self.xi / self.length[:, None]
+        self.reverse = np.asarray(bonds.reverse)
+
+    def extension(self, u: np.ndarray, linear: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Bond extension ``e`` and direction: ``n·η`` and ``n``, or ``|y| - |ξ|`` and ``y/|y|``."""
+        eta = u[self.j] - u[self.i]
+        if linear:
+            return np.einsum("ij,ij->i", self.unit, eta), self.unit
+        y = self.xi + eta
+        ly = np.sqrt(np.einsum("ij,ij->i", y, y))
+        if np.any(ly <= 0):
+            raise InputError("u collapses a bond to zero length; the force is undefined")
+        return ly - self.length, y / ly[:, None]
+
+    def stretch(self, u: np.ndarray) -> np.ndarray:
+        """Exact stretch ``(|ξ + η| - |ξ|) / |ξ|`` per directed bond."""
+        y = self.xi + (u[self.j] - u[self.i])
+        return np.sqrt(np.einsum("ij,ij->i", y, y)) / self.length - 1.0
+
+
+class BondKernel:
+    """Bond-based force with a bond mask (see the module docstring).
+
+    Parameters
+    ----------
+    model : BondBased
+        The model.
+    cloud : PointCloud
+        The points.
+    bonds : Bonds
+        The intact bonds.
+    linear : bool
+        Linearized stretch (True) or the exact PMB stretch along the deformed bond.
+    """
+
+    conservative = True
+    damage = True
+
+    def __init__(self, model: BondBased, cloud: PointCloud, bonds: Bonds, linear: bool) -> None:
+        self.geo = _Geometry(cloud, bonds)
+        self.k = np.asarray(model.bond_stiffness(cloud, bonds), dtype=float)
+        self.linear = linear
+
+    def force(self, u: np.ndarray, alive: np.ndarray | None) -> np.ndarray:
+        """Return the nodal internal force ``(n, d)``.
+
+        Parameters
+        ----------
+        u : (n, d) ndarray
+            Displacement.
+        alive : (n_bonds,) ndarray of float or None
+            1 for a surviving bond, 0 for a broken one (None: all alive).
+
+        Returns
+        -------
+        (n, d) ndarray
+        """
+        g = self.geo
+        e, m = g.extension(u, self.linear)
+        k = self.k if alive is None else self.k * alive
+        return _scatter(g.i, (k * e)[:, None] * m, g.n)
+
+    def energy(self, u: np.ndarray, alive: np.ndarray | None) -> float:
+        """Return the strain energy ``¼ Σ_b k_b e_b²`` (directed bonds).
+
+        Parameters
+        ----------
+        u : (n, d) ndarray
+            Displacement.
+        alive : (n_bonds,) ndarray of float or None
+            Bond mask.
+
+        Returns
+        -------
+        float
+        """
+        e, _ = self.geo.extension(u, self.linear)
+        k = self.k if alive is None else self.k * alive
+        return float(0.25 * np.dot(k, e * e))
+
+
+class StateKernel:
+    """Ordinary state-based (LPS, XOSB) force with a bond mask (see the module docstring).
+
+    Parameters
+    ----------
+    model : LPS or XOSB
+        The model.
+    cloud : PointCloud
+        The points.
+    bonds : Bonds
+        The intact bonds (the weights are computed on them once).
+    linear : bool
+        Linearized extension along the reference direction (True) or the exact one.
+    """
+
+    damage = True
+
+    def __init__(
+        self, model: OrdinaryStateBased, cloud: PointCloud, bonds: Bonds, linear: bool
+    ) -> None:
+        g = self.geo = _Geometry(cloud, bonds)
+        self.linear = linear
+        self.variant = model.linearization
+        self.conservative = self.variant == "energy"
+        w = model.weights(cloud, bonds)
+        kappa, mu = model.moduli(g.d)
+        vol = np.asarray(cloud.volumes, dtype=float)
+        meas = _measure(cloud)
+        kap = np.broadcast_to(np.asarray(kappa, dtype=float), (g.n,)).astype(float)
+        mub = np.broadcast_to(np.asarray(mu, dtype=float), (g.n,))[g.i]
+        vj = np.asarray(bonds.volume_j, dtype=float)
+        r = g.length
+        self.vj = vj
+        self.w = vol[g.i] * vj * meas
+        self.a = w.omega_h * r * vj
+        self.c = 2.0 * mub * w.omega_d_force
+        self.kh = kap[g.i] * w.omega_h_force * r
+        self.kth = kap[g.i] * w.omega_h * r
+        self.kV = kap * vol * meas
+        sf = model.surface_factors(cloud, bonds)
+        if sf is not None:
+            alpha = np.asarray(sf.dilatation, dtype=float)
+            self.c = self.c * sf.bond
+            self.kh = self.kh * alpha[g.i]
+            self.kth = self.kth * alpha[g.i]
+            self.kV = self.kV * alpha
+
+    def _state(
+        self, u: np.ndarray, alive: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        g = self.geo
+        e, m = g.extension(u, self.linear)
+        a = self.a if alive is None else self.a * alive
+        theta = np.bincount(g.i, weights=a * e, minlength=g.n)
+        ed = e - theta[g.i] * g.length / g.d
+        return e, m, theta, ed
+
+    def force(self, u: np.ndarray, alive: np.ndarray | None) -> np.ndarray:
+        """Return the nodal internal force ``(n, d)``.
+
+        Parameters
+        ----------
+        u : (n, d) ndarray
+            Displacement.
+        alive : (n_bonds,) ndarray of float or None
+            1 for a surviving bond, 0 for a broken one (None: all alive).
+
+        Returns
+        -------
+        (n, d) ndarray
+        """
+        g = self.geo
+        _, m, theta, ed = self._state(u, alive)
+        thb = theta[g.i]
+        cd = self.c * ed if alive is None else self.c * alive * ed
+        if self.variant == "paper":
+            t = self.kh * thb + cd
+        else:
+            z = np.bincount(g.i, weights=cd * g.length * self.vj, minlength=g.n)
+            t = (self.kth * thb + cd) - (self.a / self.vj / g.d) * z[g.i]
+        if alive is not None:
+            t = t * alive
+        tw = self.w * t
+        tw = tw + tw[g.reverse]
+        return _scatter(g.i, tw[:, None] * m, g.n)
+
+    def energy(self, u: np.ndarray, alive: np.ndarray | None) -> float:
+        """Return ``Σ_i V_i W_i``, ``W_i = κθ²/2 + ½ Σ_j c (e^d)² V_j`` on the surviving bonds.
+
+        Parameters
+        ----------
+        u : (n, d) ndarray
+            Displacement.
+        alive : (n_bonds,) ndarray of float or None
+            Bond mask.
+
+        Returns
+        -------
+        float
+        """
+        _, _, theta, ed = self._state(u, alive)
+        c = self.c if alive is None else self.c * alive
+        return float(0.5 * np.dot(self.kV, theta * theta) + 0.5 * np.dot(self.w * c, ed * ed))
+
+
+class GenericKernel:
+    """Any model: ``model.respond`` on the intact bonds (elastic, no damage, no history).
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    cloud : PointCloud
+        The points.
+    bonds : Bonds
+        The bonds.
+    linear : bool
+        Ignored for models with ``nonlinear = True`` (their ``respond`` decides).
+    """
+
+    conservative = False
+    damage = False
+
+    def __init__(self, model: Any, cloud: PointCloud, bonds: Bonds, linear: bool) -> None:
+        self.model, self.cloud, self.bonds = model, cloud, bonds
+        self.state = model.initial_state(cloud, bonds)
+        self.linear = linear
+
+    def force(self, u: np.ndarray, alive: np.ndarray | None) -> np.ndarray:
+        """Return the nodal internal force ``(n, d)``.
+
+        Parameters
+        ----------
+        u : (n, d) ndarray
+            Displacement.
+        alive : None
+            Must be None (this kernel has no damage).
+
+        Returns
+        -------
+        (n, d) ndarray
+        """
+        if getattr(self.model, "nonlinear", False):
+            resp = self.model.respond(self.cloud, self.bonds, u, self.state)
+            return np.asarray(resp.force, dtype=float).reshape(u.shape)
+        f = self.model.internal_force(self.cloud, self.bonds, u, linear=self.linear)
+        return np.asarray(f, dtype=float).reshape(u.shape)
+
+    energy = None
+
+
+def force_kernel(
+    model: Any, cloud: PointCloud, bonds: Bonds, *, linear: bool
+) -> BondKernel | StateKernel | GenericKernel:
+    """Return the force kernel of ``model`` on ``bonds`` (see the module docstring).
+
+    Parameters
+    ----------
+    model : Model
+        Any pdlin model; :class:`pdlin.BondBased`, :class:`pdlin.LPS` and
+        :class:`pdlin.XOSB` get kernels with bond damage.
+    cloud : PointCloud
+        The points.
+    bonds : Bonds
+        The intact (pre-cracked) bonds.
+    linear : bool
+        Linearized kinematics (True) or the exact stretch / extension along the deformed
+        bond (False).
+
+    Returns
+    -------
+    BondKernel or StateKernel or GenericKernel
+        An object with ``force(u, alive)``, ``energy`` (a method, or None) and the flags
+        ``damage`` (bond masks supported) and ``conservative``.
+
+    Raises
+    ------
+    ModelError
+        A history-dependent model (a ``material`` with an initial state), which explicit
+        dynamics does not commit.
+
+    Examples
+    --------
+    >>> import numpy as np, pdlin
+    >>> cloud = pdlin.grid((6, 4), spacing=0.1)
+    >>> bonds = pdlin.find_bonds(cloud, ratio=2.015)
+    >>> model = pdlin.LPS(E=1.0, nu=0.25)
+    >>> kern = force_kernel(model, cloud, bonds, linear=True)
+    >>> u = np.random.default_rng(0).normal(size=(24, 2))
+    >>> ref = model.internal_force(cloud, bonds, u)
+    >>> bool(np.allclose(kern.force(u, None), ref, rtol=1e-13, atol=1e-15))
+    True
+    """
+    if isinstance(model, BondBased):
+        if model.kinematics == "finite":
+            linear = False
+        return BondKernel(model, cloud, bonds, linear)
+    if isinstance(model, OrdinaryStateBased):
+        return StateKernel(model, cloud, bonds, linear)
+    kern = GenericKernel(model, cloud, bonds, linear)
+    if kern.state:
+        raise ModelError(
+            f"{type(model).__name__} has a history state ({', '.join(sorted(kern.state))}); "
+            "explicit dynamics supports elastic models only"
+        )
+    return kern
