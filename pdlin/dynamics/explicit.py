@@ -67,6 +67,9 @@ class ExplicitResult:
         Per step: kinetic energy of the free DOFs, strain energy, work of the external
         forces and of the reactions at the prescribed DOFs (trapezoidal), energy released
         by broken bonds (cumulative).
+    verlet : (s + 1,) ndarray
+        ``(Δt²/8) Σ_free f²/m`` per step (``f`` the total force): velocity Verlet conserves
+        ``energy - verlet`` exactly for linear elastic forces (:attr:`modified_energy`).
     broken : (s + 1,) ndarray of int
         Broken directed bonds (cumulative).
     dt : float
@@ -95,6 +98,7 @@ class ExplicitResult:
     strain: np.ndarray
     external_work: np.ndarray
     dissipated: np.ndarray
+    verlet: np.ndarray
     broken: np.ndarray
     dt: float
     estimate: TimeStepEstimate | None
@@ -113,6 +117,21 @@ class ExplicitResult:
     def energy(self) -> np.ndarray:
         """Energy balance per step: ``kinetic + strain + dissipated - external_work``."""
         return self.kinetic + self.strain + self.dissipated - self.external_work
+
+    @property
+    def modified_energy(self) -> np.ndarray:
+        """Return the energy velocity Verlet conserves exactly for linear forces, per step.
+
+        ``energy - verlet``: from ``v_{n+1} - v_n = ½Δt M⁻¹(f_n + f_{n+1})`` and
+        ``u_{n+1} - u_n = Δt v_n + ½Δt² M⁻¹f_n``, the kinetic energy changes by the
+        trapezoidal work of the forces plus ``(Δt²/8) Δ(fᵀM⁻¹f)``; for linear symmetric
+        forces the trapezoidal work is the exact change of the strain energy.
+
+        Returns
+        -------
+        (s + 1,) ndarray
+        """
+        return self.energy - self.verlet
 
     def summary(self) -> dict[str, Any]:
         """Return a plain-data summary (for the command line).
@@ -469,7 +488,7 @@ def solve_explicit(
     >>> prob = pdlin.StaticProblem(pdlin.BondBased(E=1.0), cloud, ratio=3.015)
     >>> res = solve_explicit(prob, 2.0, density=1.0, u0=1e-3 * cloud.points)
     >>> res.steps, round(res.dt / res.estimate.dt, 3)
-    (149, 0.9)
+    (71, 0.9)
     >>> bool(res.summary()["energy_drift"] < 1e-2), bool(np.isfinite(res.u).all())
     (True, True)
     """
@@ -544,6 +563,7 @@ class _Run:
             "strain": [self._strain(u, 0.0)],
             "external_work": [0.0],
             "dissipated": [0.0],
+            "verlet": [self._verlet()],
             "broken": [0.0 if self.alive is None else float(np.sum(self.alive == 0))],
         }
         self.frames: list[tuple[float, np.ndarray, np.ndarray, np.ndarray | None]] = []
@@ -564,6 +584,11 @@ class _Run:
     def _kinetic(self) -> float:
         st = self.st
         return float(0.5 * np.sum(st.mdof[st.free] * self.v[st.free] ** 2))
+
+    def _verlet(self) -> float:
+        st = self.st
+        f = (self.f_int + st.f_ext)[st.free]
+        return float(self.dt * self.dt / 8.0 * np.sum(f * f / st.mdof[st.free]))
 
     def _strain(self, u: np.ndarray, trapezoid: float) -> float:
         energy = self.st.kernel.energy
@@ -622,6 +647,7 @@ class _Run:
         h["strain"].append(self._strain(self.u, h["strain"][-1] + internal))
         h["external_work"].append(h["external_work"][-1] + work)
         h["dissipated"].append(h["dissipated"][-1] + released)
+        h["verlet"].append(self._verlet())
         h["broken"].append(0.0 if self.alive is None else float(np.sum(self.alive == 0)))
         self._check_growth()
 
@@ -706,6 +732,7 @@ class _Run:
             strain=np.asarray(h["strain"]),
             external_work=np.asarray(h["external_work"]),
             dissipated=np.asarray(h["dissipated"]),
+            verlet=np.asarray(h["verlet"]),
             broken=np.asarray(h["broken"], dtype=np.int64),
             dt=self.dt,
             estimate=self.est,

@@ -215,6 +215,7 @@ LAYERS: dict[str, int] = {
     "pdlin.system": 4,
     "pdlin.solvers": 5,
     "pdlin.backends": 5,
+    "pdlin.dynamics": 5,  # explicit dynamics: beside the solvers, a driver of its own
     "pdlin.static": 6,
     "pdlin.nonlinear": 6,
     "pdlin.fracture": 6,
