@@ -34,6 +34,7 @@ GALLERY = [
     "cp_single_crystal",
     "damage_plate",
     "graded_bar",
+    "impact_bar",
     "lps_cube",
     "peridigm_exodus_bar",
     "peridigm_two_materials",

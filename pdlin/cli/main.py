@@ -193,6 +193,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         prog(f"fastest configuration meeting the target: {chosen}")
     else:
         scene = _load(args)
+    if getattr(scene, "explicit", None) is not None:  # [solver] kind = "explicit"
+        from .explicit import run_explicit
+
+        return run_explicit(args, scene, prog)
     if args.resume and scene.nonlinear is None:
         raise PdlinError("--resume needs a nonlinear scene with solver.checkpoint")
     _check_run_outputs(args, scene)

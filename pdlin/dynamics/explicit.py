@@ -114,6 +114,16 @@ class ExplicitResult:
         return int(self.step_times.size - 1)
 
     @property
+    def n_steps(self) -> int:
+        """Number of stored frames (what a scene's ``[[check]]`` ``step`` counts)."""
+        return int(self.times.size)
+
+    @property
+    def frame_steps(self) -> np.ndarray:
+        """Time-step index of every stored frame, ``(k,)``."""
+        return np.rint(self.times / self.dt).astype(np.int64)
+
+    @property
     def energy(self) -> np.ndarray:
         """Energy balance per step: ``kinetic + strain + dissipated - external_work``."""
         return self.kinetic + self.strain + self.dissipated - self.external_work
@@ -199,7 +209,7 @@ class ExplicitResult:
         from ..io.results import write_series
 
         frames = [self.fields(k) for k in range(self.times.size)]
-        return write_series(path, self.problem.cloud, self.times, frames)
+        return write_series(path, self.problem.cloud, self.times.tolist(), frames)
 
     def __repr__(self) -> str:
         """Return steps, time step, damage and drift (no arrays)."""
@@ -726,7 +736,7 @@ class _Run:
             times=np.array([f[0] for f in frames]),
             u=np.stack([f[1] for f in frames]),
             v=np.stack([f[2] for f in frames]),
-            damage=None if self.alive is None else np.stack([f[3] for f in frames]),
+            damage=None if self.alive is None else np.stack([np.asarray(f[3]) for f in frames]),
             step_times=np.arange(self.k + 1) * self.dt,
             kinetic=np.asarray(h["kinetic"]),
             strain=np.asarray(h["strain"]),

@@ -357,7 +357,9 @@ class _Outcome:
         self.scene = scene
         self.result = result
         self.kind = (
-            "damage"
+            "explicit"  # pdlin.dynamics.ExplicitResult: its frames are the steps
+            if hasattr(result, "step_times")
+            else "damage"
             if hasattr(result, "first_break")
             else "nonlinear"
             if hasattr(result, "homogenized_stress")
@@ -389,6 +391,11 @@ class _Outcome:
             if name == "reaction":
                 return scale * np.asarray(st.reactions)
             return _static_field(st, name, scale)
+        if self.kind == "explicit":
+            if name == "damage" and r.damage is not None:
+                return np.asarray(r.damage[step])
+            if name != "damage":
+                raise SceneError(f"{where}: explicit runs give displacement and damage")
         if self.kind == "nonlinear":
             if name == "reaction":
                 return np.asarray(r.reactions[step])
@@ -446,9 +453,12 @@ def _value(check: Check, out: _Outcome) -> CheckResult:
     step = _step_index(check, n_steps) if out.kind != "static" else -1
     r = out.result
     if name == "broken_bonds" or name == "first_break_load":
-        if out.kind != "damage":
+        if out.kind == "explicit" and name == "broken_bonds":
+            c = float(r.broken[r.frame_steps[step]])
+        elif out.kind != "damage":
             raise SceneError(f"{check.where}: {name!r} needs a damage run ([damage] table)")
-        c = float(r.broken[step]) if name == "broken_bonds" else float(r.first_break)
+        else:
+            c = float(r.broken[step]) if name == "broken_bonds" else float(r.first_break)
     elif check.quantity.startswith("homogenized_stress_"):
         if out.kind != "nonlinear" or r.homogenized_stress is None:
             raise SceneError(f"{check.where}: {check.quantity!r} needs a nonlinear run")

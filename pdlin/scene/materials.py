@@ -40,6 +40,7 @@ _MATERIAL = {
     "micromodulus",
     "calibration",
     "stiffness",
+    "density",  # mass density (explicit dynamics, pdlin.scene.explicit)
 }
 _CP_KEYS = ("slip", "orientation", "elastic", "hardening", "shear", "polycrystal")
 _POLYCRYSTAL = {"grains", "seed"}

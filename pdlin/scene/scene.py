@@ -25,7 +25,7 @@ from ..geometry.cloud import PointCloud, from_image, grid
 from ..geometry.influence import INFLUENCE_FUNCTIONS
 from ..models.base import Model
 from ..models.bond_based import BondBased
-from ..operators.bc import BodyForce, Dirichlet, TotalForce, shadow_layer
+from ..operators.bc import BodyForce, Dirichlet, TimePath, TotalForce, shadow_layer
 from ..problem import StaticProblem
 from ._keys import number, read_toml, require, scene_keys
 from .materials import (
@@ -101,6 +101,7 @@ _DIRICHLET = {
     "translation",
     "center",
     "velocity_gradient",
+    "velocity",  # a prescribed velocity: the path u = v t (explicit dynamics)
 }
 _LOAD = {"type", "set", "box", "points", "force", "density"}
 _SHADOW = {"F", "depth", "faces", "translation", "mode"}
@@ -133,6 +134,8 @@ _SOLVER = {
     "backend",
     "petsc_options",
     *_NONLINEAR_KEYS,
+    # [solver] kind = "explicit" (pdlin.scene.explicit)
+    *("kind", "safety", "time_step", "kinematics", "output_every", "checkpoint_every"),
 }
 _OUTPUT = {"path", "fields", "homogenized"}
 
@@ -186,6 +189,9 @@ class Scene:
     #: work loading deferred to the run (a ``[subregion]`` scene's coarse solve and cut),
     #: done once by :meth:`prepare`; None when there is none left
     pending: Callable[[Scene], None] | None = field(default=None, repr=False, compare=False)
+    #: ``[solver] kind = "explicit"``: the keywords of :func:`pdlin.dynamics.solve_explicit`
+    #: (``pdlin.scene.explicit``); None for other scenes
+    explicit: dict[str, Any] | None = None
 
     def prepare(self) -> Scene:
         """Do the work loading deferred to the run, once, and return the scene.
@@ -384,7 +390,15 @@ def _where(cfg: Mapping[str, Any], cloud: PointCloud, key: str) -> Any:
 
 
 def _dirichlet(bc: Mapping[str, Any], where: Any, key: str) -> Dirichlet:
-    """One ``[[dirichlet]]`` table as a :class:`Dirichlet` (value, F or velocity_gradient)."""
+    """One ``[[dirichlet]]`` table as a :class:`Dirichlet` (value, F, velocity[_gradient])."""
+    if "velocity" in bc:
+        clash = [k for k in ("value", "F", "translation", "velocity_gradient") if k in bc]
+        if clash:
+            raise SceneError(f"{key} takes 'velocity' or '{clash[0]}', not both")
+        vel = as_float_array(bc["velocity"], f"{key}.velocity")
+        return Dirichlet(
+            where, TimePath(lambda x, t: vel * t, f"{vel.tolist()} t"), bc.get("components")
+        )
     if "velocity_gradient" in bc:
         clash = [k for k in ("value", "F", "translation") if k in bc]
         if clash:
@@ -468,6 +482,19 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         raise
     except PdlinError as exc:
         raise SceneError(f"invalid scene: {exc}") from exc
+    kind = scfg.get("kind", "static")
+    if kind == "explicit":
+        from .explicit import explicit_scene
+
+        scene = explicit_scene(top, base, problem, scfg, ocfg)
+        scene.blocks = blocks
+        return scene
+    if kind != "static":
+        raise SceneError(f"solver.kind must be 'static' or 'explicit', got {kind!r}")
+    stray = [k for k in ("safety", "time_step", "kinematics", "output_every") if k in scfg]
+    stray += ["checkpoint_every"] if "checkpoint_every" in scfg else []
+    if stray:
+        raise SceneError(f"solver.{stray[0]} needs [solver] kind = 'explicit'")
     scene = _scene(top, base, problem, n_real, calibration, scfg, ocfg)
     scene.blocks = blocks
     return scene
