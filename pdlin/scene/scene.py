@@ -491,8 +491,8 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         return scene
     if kind != "static":
         raise SceneError(f"solver.kind must be 'static' or 'explicit', got {kind!r}")
-    stray = [k for k in ("safety", "time_step", "kinematics", "output_every") if k in scfg]
-    stray += ["checkpoint_every"] if "checkpoint_every" in scfg else []
+    explicit_only = ("safety", "time_step", "kinematics", "output_every", "checkpoint_every")
+    stray = [k for k in explicit_only if k in scfg]
     if stray:
         raise SceneError(f"solver.{stray[0]} needs [solver] kind = 'explicit'")
     scene = _scene(top, base, problem, n_real, calibration, scfg, ocfg)
