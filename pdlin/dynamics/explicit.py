@@ -565,14 +565,12 @@ class _Run:
         vf[st.dofs] = (st.prescribed(cloud, dt) - g0) / dt
         self.u, self.v = u, v
         self.alive = None if st.s0 is None else np.ones(st.s0.size)
-        if st.s0 is not None:
-            self._break(u)
-        self.f_int = self._force(u)
+        self.f_int, energy, released = self._evaluate(u)
         self.hist: dict[str, list[float]] = {
             "kinetic": [self._kinetic()],
-            "strain": [self._strain(u, 0.0)],
+            "strain": [0.0 if energy is None else energy],
             "external_work": [0.0],
-            "dissipated": [0.0],
+            "dissipated": [released],
             "verlet": [self._verlet()],
             "broken": [0.0 if self.alive is None else float(np.sum(self.alive == 0))],
         }
@@ -584,12 +582,13 @@ class _Run:
         self.put_in = 0.0
 
     # -- pieces of a step ------------------------------------------------------
-    def _force(self, u: np.ndarray) -> np.ndarray:
-        f = self.st.kernel.force(u, self.alive)
+    def _evaluate(self, u: np.ndarray) -> tuple[np.ndarray, float | None, float]:
+        """Break the bonds beyond s0, then the force, the strain energy and the energy released."""
+        f, energy, released = self.st.kernel.evaluate(u, self.alive, self.st.s0)
         if not np.all(np.isfinite(f)):
             bad = int(np.flatnonzero(~np.isfinite(f).all(axis=1))[0])
             self._unstable(f"the internal force is not finite at point {bad}")
-        return f
+        return f, energy, released
 
     def _kinetic(self) -> float:
         st = self.st
@@ -599,22 +598,6 @@ class _Run:
         st = self.st
         f = (self.f_int + st.f_ext)[st.free]
         return float(self.dt * self.dt / 8.0 * np.sum(f * f / st.mdof[st.free]))
-
-    def _strain(self, u: np.ndarray, trapezoid: float) -> float:
-        energy = self.st.kernel.energy
-        return trapezoid if energy is None else float(energy(u, self.alive))
-
-    def _break(self, u: np.ndarray) -> float:
-        """Break the bonds stretched beyond s0; return the energy they held."""
-        assert self.alive is not None and self.st.s0 is not None
-        geo = self.st.kernel.geo
-        new = (self.alive > 0) & (geo.stretch(u) > self.st.s0)
-        if not new.any():
-            return 0.0
-        new |= new[geo.reverse]
-        before = self.st.kernel.energy(u, self.alive)
-        self.alive[new] = 0.0
-        return float(before - self.st.kernel.energy(u, self.alive))
 
     def _frame(self) -> None:
         dmg = None if self.alive is None else self.st.damage(self.bi, self.alive)
@@ -640,8 +623,7 @@ class _Run:
         t_new = (self.k + 1) * dt
         uf = self.u.reshape(-1)
         uf[st.dofs] = st.prescribed(cloud, t_new)
-        released = 0.0 if self.alive is None else self._break(self.u)
-        f_new = self._force(self.u)
+        f_new, energy, released = self._evaluate(self.u)
         acc = (f_new + st.f_ext) / st.mdof
         self.v[free] += 0.5 * dt * acc[free]
         vf = self.v.reshape(-1)
@@ -654,7 +636,7 @@ class _Run:
         self.k += 1
         h = self.hist
         h["kinetic"].append(self._kinetic())
-        h["strain"].append(self._strain(self.u, h["strain"][-1] + internal))
+        h["strain"].append(h["strain"][-1] + internal if energy is None else energy)
         h["external_work"].append(h["external_work"][-1] + work)
         h["dissipated"].append(h["dissipated"][-1] + released)
         h["verlet"].append(self._verlet())

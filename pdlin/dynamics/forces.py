@@ -62,7 +62,8 @@ class _Geometry:
 
     def extension(self, u: np.ndarray, linear: bool) -> tuple[np.ndarray, np.ndarray]:
         """Bond extension ``e`` and direction: ``n·η`` and ``n``, or ``|y| - |ξ|`` and ``y/|y|``."""
-        eta = u[self.j] - u[self.i]
+        eta = np.take(u, self.j, axis=0)
+        eta -= np.take(u, self.i, axis=0)
         if linear:
             return np.einsum("ij,ij->i", self.unit, eta), self.unit
         y = self.xi + eta
@@ -73,8 +74,20 @@ class _Geometry:
 
     def stretch(self, u: np.ndarray) -> np.ndarray:
         """Exact stretch ``(|ξ + η| - |ξ|) / |ξ|`` per directed bond."""
-        y = self.xi + (u[self.j] - u[self.i])
+        y = np.take(u, self.j, axis=0)
+        y -= np.take(u, self.i, axis=0)
+        y += self.xi
         return np.sqrt(np.einsum("ij,ij->i", y, y)) / self.length - 1.0
+
+    def broken_now(
+        self, u: np.ndarray, e: np.ndarray, linear: bool, alive: np.ndarray, s0: np.ndarray
+    ) -> np.ndarray | None:
+        """Bonds (both directions) of ``alive`` whose exact stretch exceeds ``s0``, or None."""
+        s = e / self.length if not linear else self.stretch(u)
+        new = (alive > 0) & (s > s0)
+        if not new.any():
+            return None
+        return new | new[self.reverse]
 
 
 class BondKernel:
@@ -118,6 +131,42 @@ class BondKernel:
         e, m = g.extension(u, self.linear)
         k = self.k if alive is None else self.k * alive
         return _scatter(g.i, (k * e)[:, None] * m, g.n)
+
+    def evaluate(
+        self, u: np.ndarray, alive: np.ndarray | None, s0: np.ndarray | None = None
+    ) -> tuple[np.ndarray, float, float]:
+        """Break the bonds stretched beyond ``s0``, then return force and strain energy.
+
+        One pass over the bonds: the extension gives the stretch, the force and the energy.
+
+        Parameters
+        ----------
+        u : (n, d) ndarray
+            Displacement.
+        alive : (n_bonds,) ndarray of float or None
+            Bond mask, updated in place (broken bonds set to 0).
+        s0 : (n_bonds,) ndarray, optional
+            Critical stretch per bond (None: no breaking).
+
+        Returns
+        -------
+        force : (n, d) ndarray
+        energy : float
+            Strain energy after the breaking.
+        released : float
+            Strain energy the broken bonds held.
+        """
+        g = self.geo
+        e, m = g.extension(u, self.linear)
+        released = 0.0
+        if s0 is not None and alive is not None:
+            new = g.broken_now(u, e, self.linear, alive, s0)
+            if new is not None:
+                released = float(0.25 * np.dot(self.k[new] * alive[new], e[new] ** 2))
+                alive[new] = 0.0
+        k = self.k if alive is None else self.k * alive
+        tb = k * e
+        return _scatter(g.i, tb[:, None] * m, g.n), float(0.25 * np.dot(tb, e)), released
 
     def energy(self, u: np.ndarray, alive: np.ndarray | None) -> float:
         """Return the strain energy ``¼ Σ_b k_b e_b²`` (directed bonds).
@@ -188,12 +237,73 @@ class StateKernel:
     def _state(
         self, u: np.ndarray, alive: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        e, m = self.geo.extension(u, self.linear)
+        theta, ed = self._dilatation(e, alive)
+        return e, m, theta, ed
+
+    def _dilatation(self, e: np.ndarray, alive: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         g = self.geo
-        e, m = g.extension(u, self.linear)
         a = self.a if alive is None else self.a * alive
         theta = np.bincount(g.i, weights=a * e, minlength=g.n)
-        ed = e - theta[g.i] * g.length / g.d
-        return e, m, theta, ed
+        ed = e - np.take(theta, g.i) * g.length / g.d
+        return theta, ed
+
+    def _energy_of(self, theta: np.ndarray, ed: np.ndarray, alive: np.ndarray | None) -> float:
+        c = self.c if alive is None else self.c * alive
+        return float(0.5 * np.dot(self.kV, theta * theta) + 0.5 * np.dot(self.w * c, ed * ed))
+
+    def _force_of(
+        self, m: np.ndarray, theta: np.ndarray, ed: np.ndarray, alive: np.ndarray | None
+    ) -> np.ndarray:
+        g = self.geo
+        thb = np.take(theta, g.i)
+        cd = self.c * ed if alive is None else self.c * alive * ed
+        if self.variant == "paper":
+            t = self.kh * thb + cd
+        else:
+            z = np.bincount(g.i, weights=cd * g.length * self.vj, minlength=g.n)
+            t = (self.kth * thb + cd) - (self.a / self.vj / g.d) * np.take(z, g.i)
+        if alive is not None:
+            t = t * alive
+        tw = self.w * t
+        tw = tw + np.take(tw, g.reverse)
+        return _scatter(g.i, tw[:, None] * m, g.n)
+
+    def evaluate(
+        self, u: np.ndarray, alive: np.ndarray | None, s0: np.ndarray | None = None
+    ) -> tuple[np.ndarray, float, float]:
+        """Break the bonds stretched beyond ``s0``, then return force and strain energy.
+
+        Parameters
+        ----------
+        u : (n, d) ndarray
+            Displacement.
+        alive : (n_bonds,) ndarray of float or None
+            Bond mask, updated in place (broken bonds set to 0).
+        s0 : (n_bonds,) ndarray, optional
+            Critical stretch per bond (None: no breaking).
+
+        Returns
+        -------
+        force : (n, d) ndarray
+        energy : float
+            Strain energy after the breaking.
+        released : float
+            Strain energy lost by the breaking (the energy at ``u`` before minus after).
+        """
+        g = self.geo
+        e, m = g.extension(u, self.linear)
+        released = 0.0
+        if s0 is not None and alive is not None:
+            new = g.broken_now(u, e, self.linear, alive, s0)
+            if new is not None:
+                before = self._energy_of(*self._dilatation(e, alive), alive)
+                alive[new] = 0.0
+                theta, ed = self._dilatation(e, alive)
+                released = before - self._energy_of(theta, ed, alive)
+                return self._force_of(m, theta, ed, alive), before - released, released
+        theta, ed = self._dilatation(e, alive)
+        return self._force_of(m, theta, ed, alive), self._energy_of(theta, ed, alive), released
 
     def force(self, u: np.ndarray, alive: np.ndarray | None) -> np.ndarray:
         """Return the nodal internal force ``(n, d)``.
@@ -209,20 +319,8 @@ class StateKernel:
         -------
         (n, d) ndarray
         """
-        g = self.geo
         _, m, theta, ed = self._state(u, alive)
-        thb = theta[g.i]
-        cd = self.c * ed if alive is None else self.c * alive * ed
-        if self.variant == "paper":
-            t = self.kh * thb + cd
-        else:
-            z = np.bincount(g.i, weights=cd * g.length * self.vj, minlength=g.n)
-            t = (self.kth * thb + cd) - (self.a / self.vj / g.d) * z[g.i]
-        if alive is not None:
-            t = t * alive
-        tw = self.w * t
-        tw = tw + tw[g.reverse]
-        return _scatter(g.i, tw[:, None] * m, g.n)
+        return self._force_of(m, theta, ed, alive)
 
     def energy(self, u: np.ndarray, alive: np.ndarray | None) -> float:
         """Return ``Σ_i V_i W_i``, ``W_i = κθ²/2 + ½ Σ_j c (e^d)² V_j`` on the surviving bonds.
@@ -239,8 +337,7 @@ class StateKernel:
         float
         """
         _, _, theta, ed = self._state(u, alive)
-        c = self.c if alive is None else self.c * alive
-        return float(0.5 * np.dot(self.kV, theta * theta) + 0.5 * np.dot(self.w * c, ed * ed))
+        return self._energy_of(theta, ed, alive)
 
 
 class GenericKernel:
@@ -285,6 +382,29 @@ class GenericKernel:
             return np.asarray(resp.force, dtype=float).reshape(u.shape)
         f = self.model.internal_force(self.cloud, self.bonds, u, linear=self.linear)
         return np.asarray(f, dtype=float).reshape(u.shape)
+
+    def evaluate(
+        self, u: np.ndarray, alive: np.ndarray | None, s0: np.ndarray | None = None
+    ) -> tuple[np.ndarray, None, float]:
+        """Return the force, no energy (the driver integrates the work) and nothing released.
+
+        Parameters
+        ----------
+        u : (n, d) ndarray
+            Displacement.
+        alive : None
+            Must be None.
+        s0 : None
+            Must be None.
+
+        Returns
+        -------
+        force : (n, d) ndarray
+        energy : None
+        released : float
+            0.
+        """
+        return self.force(u, alive), None, 0.0
 
     energy = None
 
