@@ -60,7 +60,7 @@ def problem(h: float, model: str) -> pdlin.StaticProblem:
     )
 
 
-def measure(res: "pdlin.dynamics.ExplicitResult", h: float) -> dict[str, float]:
+def measure(res: pdlin.dynamics.ExplicitResult, h: float) -> dict[str, float]:
     """Initiation time and crack angles from the damage frames."""
     x, y = res.problem.cloud.points.T
     out: dict[str, float] = {}
@@ -115,21 +115,27 @@ def main() -> None:
     wall = time.perf_counter() - t0
     m = measure(res, h)
     nb = res.bonds.n_bonds
-    print(f"# {args.model}, h = {h * 1e3:g} mm, {prob.cloud.n:,} points, {nb:,} bonds, "
-          f"dt = {dt * 1e9:g} ns (stable estimate {res.estimate.dt * 1e9:.1f} ns), "
-          f"{res.steps:,} steps in {wall:.1f} s ({res.steps * nb / res.timings['steps'] / 1e6:.1f} "
-          "M bond updates/s)")
-    print(f"critical stretch {float(res.critical_stretch.min()):.5g}; broken bonds "
-          f"{int(res.broken[-1]):,}; initiation {m['initiation_us']:.1f} us")
+    print(
+        f"# {args.model}, h = {h * 1e3:g} mm, {prob.cloud.n:,} points, {nb:,} bonds, "
+        f"dt = {dt * 1e9:g} ns (stable estimate {res.estimate.dt * 1e9:.1f} ns), "
+        f"{res.steps:,} steps in {wall:.1f} s ({res.steps * nb / res.timings['steps'] / 1e6:.1f} "
+        "M bond updates/s)"
+    )
+    print(
+        f"critical stretch {float(res.critical_stretch.min()):.5g}; broken bonds "
+        f"{int(res.broken[-1]):,}; initiation {m['initiation_us']:.1f} us"
+    )
     print("| t (us) | upper angle (deg) | lower angle (deg) | rows upper / lower |")
     print("|---|---|---|---|")
     for k, t in enumerate(res.times):
         up, lo = m.get(f"upper_angle_{k}"), m.get(f"lower_angle_{k}")
         if up is None and lo is None:
             continue
-        print(f"| {t * 1e6:.1f} | {up if up is None else f'{up:.1f}'} | "
-              f"{lo if lo is None else f'{lo:.1f}'} | {m[f'upper_rows_{k}']} / "
-              f"{m[f'lower_rows_{k}']} |")
+        print(
+            f"| {t * 1e6:.1f} | {up if up is None else f'{up:.1f}'} | "
+            f"{lo if lo is None else f'{lo:.1f}'} | {m[f'upper_rows_{k}']} / "
+            f"{m[f'lower_rows_{k}']} |"
+        )
     if args.output:
         print("wrote", res.write(args.output))
 
