@@ -25,6 +25,7 @@ MODULES = [
     "pdlin.system",
     "pdlin.solvers",
     "pdlin.fracture",
+    "pdlin.dynamics",
     "pdlin.submodeling",
     "pdlin.fields",
     "pdlin.constitutive",
