@@ -24,7 +24,7 @@ from pdlin.scene.scene import builtin_scene, list_builtin_scenes, scene_from_dic
 
 #: scenes taking more than a few seconds (multi-second AMG solves in 3D, 30 nonlinear load
 #: steps of a 625-point polycrystal)
-SLOW = {"bar", "bar_energy", "cp_shear", "cp_compression"}
+SLOW = {"bar", "bar_energy", "cp_shear", "cp_compression", "kalthoff_winkler"}
 GALLERY = [
     "anisotropic_block",
     "bar",
@@ -35,6 +35,7 @@ GALLERY = [
     "damage_plate",
     "graded_bar",
     "impact_bar",
+    "kalthoff_winkler",
     "lps_cube",
     "peridigm_exodus_bar",
     "peridigm_two_materials",

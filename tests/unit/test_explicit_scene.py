@@ -113,3 +113,13 @@ def test_pdlin_run_writes_the_series_and_resumes(tmp_path, monkeypatch, capsys):
     assert second["resumed_from"] == 125 and second["steps"] == 150
     b = np.load(tmp_path / "b.npz")
     assert np.array_equal(b["displacement"][:26], a["displacement"])
+
+
+@pytest.mark.slow  # ~20 s each: 3,200 XOSB points, 260 steps
+def test_kalthoff_winkler_checks_fail_with_the_printed_fracture_energy():
+    data = copy.deepcopy(builtin_scene("kalthoff_winkler")[0])
+    assert all(r.passed for r in _checks(data))
+    # the paper's printed G0 = 222,170 J/m^2: no crack grows (its erratum)
+    data["damage"]["G0"] = 222170.0
+    res = _checks(data)
+    assert not res[1].passed and not res[2].passed
