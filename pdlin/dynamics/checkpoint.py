@@ -33,14 +33,12 @@ PARTS = {
     "model": "model and material parameters",
     "mass": "densities",
     "conditions": "boundary conditions and loads",
-    "run": "time step, kinematics, critical stretch or output interval",
+    "run": "time step, kinematics or critical stretch",
 }
 _UNREADABLE = (OSError, ValueError, KeyError, IndexError, EOFError, zipfile.BadZipFile)
 
 
-def fingerprint(
-    problem: StaticProblem, st: Any, dt: float, linear: bool, every: int
-) -> dict[str, str]:
+def fingerprint(problem: StaticProblem, st: Any, dt: float, linear: bool) -> dict[str, str]:
     """Return the digests a checkpoint is checked against, one per part of ``PARTS``.
 
     Parameters
@@ -54,8 +52,6 @@ def fingerprint(
         The time step.
     linear : bool
         The kinematics.
-    every : int
-        Steps between stored frames.
 
     Returns
     -------
@@ -72,7 +68,7 @@ def fingerprint(
         "conditions": digest(
             st.dofs, st.prescribed(cloud, 0.0), st.prescribed(cloud, dt), st.f_ext
         ),
-        "run": digest(float(dt), bool(linear), st.s0, int(every)),
+        "run": digest(float(dt), bool(linear), st.s0),
     }
 
 

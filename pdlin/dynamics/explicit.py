@@ -463,7 +463,8 @@ def solve_explicit(
         Steps between checkpoints.
     resume : bool
         Continue from ``checkpoint`` (refused if it was written for another problem, time
-        step or damage); the result is bitwise that of an uninterrupted run.
+        step or damage), also to a later ``t_end``; the state is bitwise that of an
+        uninterrupted run (the frames stored before the checkpoint keep their interval).
     progress : callable, optional
         Called with a line at the start, every ``progress_every`` seconds and at the end.
     progress_every : float, optional
@@ -527,7 +528,7 @@ def solve_explicit(
     )
     ck_every = integer(checkpoint_every, "checkpoint_every", minimum=1)
     st = _setup(problem, density, bool(linear), critical_stretch, G0)
-    fp = fingerprint(problem, st, step, bool(linear), every)
+    fp = fingerprint(problem, st, step, bool(linear))
     ck = None if checkpoint is None else ExplicitCheckpoint(Path(checkpoint), fp)
     run = _Run(problem, st, step, est, u, v)
     if ck is not None and resume:

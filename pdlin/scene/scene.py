@@ -482,6 +482,8 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         raise
     except PdlinError as exc:
         raise SceneError(f"invalid scene: {exc}") from exc
+    if "density" in top.get("material", {}):  # the mass density (explicit dynamics)
+        number(top["material"]["density"], "material.density", positive=True)
     kind = scfg.get("kind", "static")
     if kind == "explicit":
         from .explicit import explicit_scene

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 import pdlin
-from pdlin.operators import TimePath
 from pdlin.dynamics import (
     estimate_time_step,
     force_kernel,
@@ -25,6 +24,7 @@ from pdlin.errors import (
     ShapeError,
     TimeStepWarning,
 )
+from pdlin.operators import TimePath
 
 
 def _plate(model, shape=(12, 6), ratio=2.015, **kw):
@@ -363,3 +363,15 @@ def test_nodal_masses_per_material():
     cloud = pdlin.grid((2, 2), spacing=0.5, thickness=0.1)
     rho = np.array([1.0, 1.0, 8.0, 8.0])
     assert nodal_masses(cloud, rho).tolist() == [0.025, 0.025, 0.2, 0.2]
+
+
+def test_resume_to_a_later_end_with_the_default_frame_interval(tmp_path):
+    prob = _plate(pdlin.BondBased(E=1.0))
+    u0 = _random(prob.cloud.n, 2)
+    ck = tmp_path / "ck.npz"
+    first = solve_explicit(prob, 3.0, 0.01, density=1.0, u0=u0, checkpoint=ck)
+    later = solve_explicit(prob, 5.0, 0.01, density=1.0, u0=u0, checkpoint=ck, resume=True)
+    full = solve_explicit(prob, 5.0, 0.01, density=1.0, u0=u0)
+    assert later.resumed_from == first.steps == 300 and later.steps == full.steps == 500
+    assert np.array_equal(later.u[-1], full.u[-1]) and np.array_equal(later.v[-1], full.v[-1])
+    assert np.array_equal(later.kinetic, full.kinetic)

@@ -123,3 +123,10 @@ def test_kalthoff_winkler_checks_fail_with_the_printed_fracture_energy():
     data["damage"]["G0"] = 222170.0
     res = _checks(data)
     assert not res[1].passed and not res[2].passed
+
+
+def test_a_static_scene_checks_material_density():
+    data = copy.deepcopy(builtin_scene("damage_plate")[0])
+    data["material"]["density"] = -1.0
+    with pytest.raises(SceneError, match="material.density must be > 0"):
+        scene_from_dict(data)
