@@ -375,3 +375,24 @@ def test_resume_to_a_later_end_with_the_default_frame_interval(tmp_path):
     assert later.resumed_from == first.steps == 300 and later.steps == full.steps == 500
     assert np.array_equal(later.u[-1], full.u[-1]) and np.array_equal(later.v[-1], full.v[-1])
     assert np.array_equal(later.kinetic, full.kinetic)
+
+
+def test_a_checkpoint_that_cannot_be_written_raises_and_names_the_file(tmp_path):
+    from pdlin.errors import CheckpointWriteError
+
+    ck = tmp_path / "missing-folder" / "ck.npz"
+    prob = _plate(pdlin.BondBased(E=1.0))
+    with pytest.raises(CheckpointWriteError, match="missing-folder"):
+        solve_explicit(prob, 1.0, density=1.0, checkpoint=ck)
+
+
+def test_summary_and_repr():
+    prob = _plate(pdlin.BondBased(E=1.0))
+    res = solve_explicit(prob, 1.0, density=1.0, u0=_random(72, 2))
+    s = res.summary()
+    assert s["steps"] == res.steps and s["dt_estimate"] == res.estimate.dt
+    exact = estimate_time_step(prob.model, prob.cloud, prob.get_bonds(), 1.0, method="lanczos")
+    # the plain balance oscillates by at most (omega_max dt)^2 / 4 of the energy
+    assert s["max_damage"] is None and s["energy_drift"] < (2 * res.dt / exact.dt) ** 2 / 4
+    assert repr(res).startswith("ExplicitResult(steps=")
+    assert res.n_steps == res.times.size and res.frame_steps[-1] == res.steps
