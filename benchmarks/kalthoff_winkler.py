@@ -13,6 +13,8 @@ Measured from the damage field (frames every ``--frame`` us):
 
 * initiation: the first frame with a point of damage > 0.35 more than one spacing beyond
   a notch tip (x > 50 mm + h, away from the notch line);
+* right edge: the first frame with damage at x > 90 mm, |y| < 30 mm (the paper: about
+  48 us);
 * angle: a straight line fitted through the most damaged point (damage > 0.35) of every
   row of points 5-30 mm beyond the tip (upper crack: y - 25 mm in [5, 30] mm; lower:
   mirrored), the angle of that line to the x axis.
@@ -67,6 +69,10 @@ def measure(res: pdlin.dynamics.ExplicitResult, h: float) -> dict[str, float]:
     beyond = (x > TIP + h) & (np.abs(np.abs(y) - 0.025) < 0.06)
     grown = [(k, t) for k, t in enumerate(res.times) if np.any(res.damage[k][beyond] > 0.35)]
     out["initiation_us"] = 1e6 * grown[0][1] if grown else float("nan")
+    # first damage at the centre of the right edge (x > 90 mm, |y| < 30 mm)
+    edge = (x > 0.09) & (np.abs(y) < 0.03)
+    hit = [t for k, t in enumerate(res.times) if np.any(res.damage[k][edge] > 0)]
+    out["right_edge_us"] = 1e6 * hit[0] if hit else float("nan")
     for name, sign in (("upper", 1.0), ("lower", -1.0)):
         dy = sign * y - 0.025
         rows = np.unique(np.round(dy[(dy >= 5e-3) & (dy <= 30e-3)], 9))
@@ -123,7 +129,8 @@ def main() -> None:
     )
     print(
         f"critical stretch {float(res.critical_stretch.min()):.5g}; broken bonds "
-        f"{int(res.broken[-1]):,}; initiation {m['initiation_us']:.1f} us"
+        f"{int(res.broken[-1]):,}; initiation {m['initiation_us']:.1f} us; first damage at "
+        f"the right edge {m['right_edge_us']:.1f} us"
     )
     print("| t (us) | upper angle (deg) | lower angle (deg) | rows upper / lower |")
     print("|---|---|---|---|")
