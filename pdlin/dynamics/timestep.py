@@ -9,9 +9,10 @@ nodal masses ``ρ_i V_i``).  Three estimates of ``Δt_c = 2/ω_max``:
   Kilic & Madenci 2010), so ``Δt = 2 / sqrt(max_i Σ_j |K_ij| / M_i)`` is stable for every
   model, symmetric or not, and for stress points and other controls too, whose ``K``
   it reads;
-* ``'silling-askari'`` (:class:`pdlin.BondBased` only): Silling & Askari (2005),
-  Eq. (29)'s bound ``Δt < sqrt(2ρ / Σ_p V_p C_p)`` per point, ``C_p`` the bond's
-  micromodulus over its length (pdlin's ``k_b / (V_i V_p)``);
+* ``'silling-askari'`` (:class:`pdlin.BondBased` only): Silling & Askari (2005)'s
+  von Neumann bound of the bond-based explicit scheme, ``Δt < sqrt(2ρ / Σ_p V_p C_p)``
+  per point, ``C_p`` the bond's micromodulus over its length (pdlin's
+  ``k_b / (V_i V_p)``);
 * ``'lanczos'`` (symmetric models): ``λ_max(M^-½ K M^-½)`` by Lanczos iterations
   (scipy's ``eigsh``) -- the exact linear limit, not a bound.
 
