@@ -6,7 +6,8 @@ The keys (``docs/dynamics.md``, "Scenes"):
   ``time_step`` (``'gershgorin'``, ``'silling-askari'``, ``'lanczos'``), ``kinematics``
   (``'small'`` or ``'finite'``), ``output_every``, ``checkpoint``, ``checkpoint_every``,
   ``progress_every``;
-* ``[material] density`` (required): the mass density;
+* ``[material] density`` (required), or ``density`` in each ``[[block]]``'s material: the
+  mass density;
 * ``[damage]``: ``critical_stretch`` or ``G0`` (bonds break during the time steps);
 * ``[[dirichlet]] velocity = [...]``: a prescribed velocity (the path ``u = v t``).
 
@@ -19,6 +20,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from ..dynamics.timestep import TIME_STEP_METHODS
 from ..errors import SceneError
@@ -43,8 +46,32 @@ EXPLICIT_KEYS = {
 _DAMAGE_KEYS = {"critical_stretch", "G0"}
 
 
+def _block_densities(top: Mapping[str, Any], blocks: list[Any], n: int) -> np.ndarray:
+    """One density per point from the materials of the ``[[block]]`` tables."""
+    rho = np.empty(n)
+    named = top.get("materials", {})
+    for k, blk in enumerate(blocks):
+        mat = top["block"][k]["material"]
+        key = f"block[{k}].material"
+        if isinstance(mat, str):
+            key, mat = f"materials.{mat}", named[mat]
+        if "density" not in mat:
+            raise SceneError(
+                f"{key}.density is required by [solver] kind = 'explicit' (the mass density "
+                "of the block's material)"
+            )
+        rho[np.asarray(blk.points, dtype=np.int64)] = number(
+            mat["density"], f"{key}.density", positive=True
+        )
+    return rho
+
+
 def explicit_options(
-    top: Mapping[str, Any], scfg: Mapping[str, Any], problem: StaticProblem, base: Path
+    top: Mapping[str, Any],
+    scfg: Mapping[str, Any],
+    problem: StaticProblem,
+    base: Path,
+    blocks: list[Any] | None = None,
 ) -> dict[str, Any]:
     """Return the :func:`pdlin.dynamics.solve_explicit` keywords of an explicit scene.
 
@@ -58,11 +85,14 @@ def explicit_options(
         Its problem.
     base : Path
         Folder of the scene (relative checkpoint paths).
+    blocks : list of Block, optional
+        The scene's ``[[block]]`` materials: each gives the density of its points.
 
     Returns
     -------
     dict
-        ``t_end``, ``density`` and the options given.
+        ``t_end``, ``density`` (a number, or one per point with blocks) and the options
+        given.
 
     Raises
     ------
@@ -95,14 +125,18 @@ def explicit_options(
     if problem.symmetry:
         raise SceneError("[solver] kind = 'explicit' cannot be combined with [[symmetry]] planes")
     material = top.get("material", {})
-    if "density" not in material:
+    if blocks is not None:
+        density: Any = _block_densities(top, blocks, problem.cloud.n)
+    elif "density" not in material:
         raise SceneError(
             "material.density is required by [solver] kind = 'explicit' (the mass density, "
             "e.g. 8000.0 kg/m^3 for steel)"
         )
+    else:
+        density = number(material["density"], "material.density", positive=True)
     opts: dict[str, Any] = {
         "t_end": number(require(scfg, "t_end", "solver"), "solver.t_end", positive=True),
-        "density": number(material["density"], "material.density", positive=True),
+        "density": density,
     }
     if "dt" in scfg:
         opts["dt"] = number(scfg["dt"], "solver.dt", positive=True)
@@ -158,6 +192,7 @@ def explicit_scene(
     problem: StaticProblem,
     scfg: Mapping[str, Any],
     ocfg: Mapping[str, Any],
+    blocks: list[Any] | None = None,
 ) -> Any:
     """Build the :class:`~pdlin.scene.Scene` of an explicit-dynamics scene.
 
@@ -171,6 +206,8 @@ def explicit_scene(
         Its problem.
     scfg, ocfg : Mapping
         Its ``[solver]`` and ``[output]`` tables.
+    blocks : list of Block, optional
+        Its ``[[block]]`` materials (their densities).
 
     Returns
     -------
@@ -184,7 +221,7 @@ def explicit_scene(
     """
     from .scene import Scene, _checks
 
-    opts = explicit_options(top, scfg, problem, base)
+    opts = explicit_options(top, scfg, problem, base, blocks)
     extra = sorted(set(ocfg) - {"path"})
     if extra:
         raise SceneError(

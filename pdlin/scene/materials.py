@@ -315,7 +315,7 @@ def _calibrated_model(
 # blocks: per-block materials ([[block]] tables of scenes, Blocks of Peridigm / PeriLab decks)
 # --------------------------------------------------------------------------------------
 #: keys of a block's material ([materials.<name>] or an inline table)
-_BLOCK_MATERIAL = {*_ISO_KEYS, "plane", "model"}
+_BLOCK_MATERIAL = {*_ISO_KEYS, "plane", "model", "density"}  # density: explicit dynamics
 _BLOCK = {"set", "box", "points", "material", "horizon"}
 
 

@@ -488,7 +488,7 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
     if kind == "explicit":
         from .explicit import explicit_scene
 
-        scene = explicit_scene(top, base, problem, scfg, ocfg)
+        scene = explicit_scene(top, base, problem, scfg, ocfg, blocks)
         scene.blocks = blocks
         return scene
     if kind != "static":

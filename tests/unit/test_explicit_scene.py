@@ -130,3 +130,25 @@ def test_a_static_scene_checks_material_density():
     data["material"]["density"] = -1.0
     with pytest.raises(SceneError, match="material.density must be > 0"):
         scene_from_dict(data)
+
+
+def test_blocks_give_one_density_per_point():
+    data = _data()
+    del data["material"]
+    data["materials"] = {
+        "steel": {"E": 200e9, "density": 8000.0},
+        "light": {"E": 200e9, "density": 2000.0},
+    }
+    data["block"] = [
+        {"box": [[0.0], [0.5]], "material": "steel"},
+        {"box": [[0.5], [1.0]], "material": "light"},
+    ]
+    sc = scene_from_dict(data)
+    rho = sc.explicit["density"]
+    x = sc.problem.cloud.points[:, 0]
+    assert rho.shape == (400,) and set(rho[x < 0.5]) == {8000.0} and set(rho[x > 0.5]) == {2000.0}
+    res = solve_explicit(sc.problem, **{**sc.explicit, "t_end": 2e-5})
+    assert np.isfinite(res.u).all()
+    del data["materials"]["light"]["density"]
+    with pytest.raises(SceneError, match="materials.light.density is required"):
+        scene_from_dict(data)
