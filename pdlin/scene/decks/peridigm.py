@@ -174,6 +174,7 @@ _PD_TOP = {
     "Solver": "",
     "Output": "",
     "Compute Class Parameters": "output computations (pdlin writes its own fields)",
+    "Damage Models": "",
 }
 _PD_DISC = {
     "Type": "",
@@ -370,7 +371,8 @@ def _quickgrid_cloud(disc: Mapping[str, Any]) -> tuple[PointCloud, dict[str, Any
         if why and k in disc:
             _note(f"{key}.{k}", why)
     norm = disc.get("NeighborhoodType")
-    if norm != "Spherical":
+    cube = norm is None and gens[0] == "TensorProduct3DMeshGenerator"
+    if norm != "Spherical" and not cube:
         raise SceneError(
             f"{key}.NeighborhoodType must be 'Spherical' (without it QuickGrid bonds a cube of "
             f"cells, which pdlin does not read), got {norm!r}"
@@ -401,6 +403,12 @@ def _quickgrid_cloud(disc: Mapping[str, Any]) -> tuple[PointCloud, dict[str, Any
     # QuickGrid: xSpec.getCellSize() * ySpec.getCellSize() * zSpec.getCellSize()
     vol = (length[0] / counts[0]) * (length[1] / counts[1]) * (length[2] / counts[2])
     cloud = _cloud(points, np.full(points.shape[0], vol), gkey)
+    if cube:  # QuickGrid's NoOpNorm: the whole cell box (read by Verlet decks only)
+        return cloud, {
+            "blocks": {"block_1": np.arange(cloud.n)},
+            "node_sets": {},
+            "cube": (np.array(origin), np.array(length) / np.array(counts), np.array(counts)),
+        }
     return cloud, {
         "blocks": {"block_1": np.arange(cloud.n)},
         "node_sets": {},
@@ -1054,6 +1062,12 @@ KINEMATICS = ("auto", "finite", "linear")
 
 def _peridigm(deck: Mapping[str, Any], base: Path, name: str, kinematics: str = "auto") -> Scene:
     root = _table(deck, "Peridigm")
+    numbered = sorted(k for k in root if re.fullmatch(r"Output\d+", k))
+    if numbered and "Output" not in root:
+        # Peridigm's OutputManagerContainer writes every "Output<N>" list; pdlin the first
+        root = {k: v for k, v in root.items() if k not in numbered[1:]}
+        root["Output"] = root.pop(numbered[0])
+        _note(f"Peridigm.{numbered[0]}", f"read as Output (not written: {numbered[1:]})")
     _unknown(root, _PD_TOP, "Peridigm", "Peridigm deck")
     for k in ("Verbose", "Compute Class Parameters"):
         if k in root:
@@ -1065,14 +1079,27 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str, kinematics: str = 
     omit = _peridigm_discretization_keys(disc)
     cloud, extra = _peridigm_cloud(disc, base)
     blocks_pts: dict[str, np.ndarray] = extra["blocks"]
+    verlet = isinstance(root["Solver"], Mapping) and "Verlet" in root["Solver"]
     model, horizon, blocks, alpha, finite_model = _peridigm_blocks(
-        root, disc.get("Horizon"), blocks_pts, cloud.n
+        _without_damage(root) if verlet else root, disc.get("Horizon"), blocks_pts, cloud.n
     )
+    if "cube" in extra and not verlet:
+        raise SceneError(
+            "Discretization.NeighborhoodType must be 'Spherical' (without it QuickGrid bonds a "
+            "cube of cells, which pdlin reads for Solver.Verlet decks only), got None"
+        )
+    if "Damage Models" in root and not verlet:
+        raise SceneError(
+            "Peridigm.Damage Models: damage is supported with Solver.Verlet only (explicit "
+            "dynamics with critical stretch), not with quasi-static solvers"
+        )
 
     # Peridigm runs a deck without Boundary Conditions (no constraint, no load: u = 0)
     n = cloud.n
     bcs = root.get("Boundary Conditions", {})
     sets = _peridigm_node_sets(bcs, base, n, extra["node_sets"])
+    if verlet:
+        return _verlet(root, name, model, cloud, horizon, blocks, sets, disc, extra, omit, base)
     times = _peridigm_solver(root["Solver"])
     at_rest = [Dirichlet(np.arange(n), np.zeros((n, cloud.dim)))]
 
@@ -1087,20 +1114,7 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str, kinematics: str = 
     if dirichlet is at_rest:
         _note("Boundary Conditions", "none (no constraint, no load): u = 0 on every point")
     output = _peridigm_output(root, base, name)
-    filters: list[Callable[[np.ndarray, np.ndarray], np.ndarray]] = []
-    if extra.get("strict_sphere"):
-        filters.append(_strict_sphere(float(horizon[0])))
-    if "cylinder" in extra:  # QuickGrid's cylinder: its cell window and sphere
-        filters.append(_cylinder_window(extra["cylinder"], float(horizon[0]), "Blocks"))
-    if "Bond Filters" in disc:
-        filters += peridigm_bond_filters(disc["Bond Filters"], "Discretization.Bond Filters")
-    if omit == "All" and len(blocks_pts) > 1:
-        filters.append(_omit_between_blocks(cloud.points, blocks_pts))
-    # Peridigm keeps points whose horizon reaches no other point (Number_Of_Neighbors 0,
-    # its MultipleHorizons deck): pdlin.solve holds them at rest (pdlin.constraints)
-    opts: dict[str, Any] = {"allow_isolated": True}
-    if filters:
-        opts["exclude"] = _any_of(filters)
+    opts = _bond_options(cloud, horizon, disc, extra, omit)
     finite = _finite_kinematics(kinematics, finite_model, len(times) - 1)
     if finite and kinematics == "auto" and dirichlet is at_rest:
         finite = False  # nothing prescribed, nothing applied: u = 0 under either kinematics
@@ -1140,6 +1154,96 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str, kinematics: str = 
         ]  # fmt: skip
         scene.steps = [*steps, (times[-1], scene.problem)]
     return scene
+
+
+def _bond_options(
+    cloud: PointCloud, horizon: np.ndarray, disc: Mapping[str, Any], extra: Any, omit: str
+) -> dict[str, Any]:
+    """The ``find_bonds`` options of a deck: QuickGrid's sphere, bond filters, omitted pairs."""
+    blocks_pts: dict[str, np.ndarray] = extra["blocks"]
+    filters: list[Callable[[np.ndarray, np.ndarray], np.ndarray]] = []
+    if extra.get("strict_sphere"):
+        filters.append(_strict_sphere(float(horizon[0])))
+    if "cylinder" in extra:  # QuickGrid's cylinder: its cell window and sphere
+        filters.append(_cylinder_window(extra["cylinder"], float(horizon[0]), "Blocks"))
+    if "Bond Filters" in disc:
+        filters += peridigm_bond_filters(disc["Bond Filters"], "Discretization.Bond Filters")
+    if omit == "All" and len(blocks_pts) > 1:
+        filters.append(_omit_between_blocks(cloud.points, blocks_pts))
+    # Peridigm keeps points whose horizon reaches no other point (Number_Of_Neighbors 0,
+    # its MultipleHorizons deck): pdlin.solve holds them at rest (pdlin.constraints)
+    opts: dict[str, Any] = {"allow_isolated": True}
+    if filters:
+        opts["exclude"] = _any_of(filters)
+    return opts
+
+
+def _without_damage(root: Mapping[str, Any]) -> dict[str, Any]:
+    """The deck with the blocks' ``Damage Model`` keys removed (read by the Verlet mapping)."""
+    blocks = {
+        k: ({kk: vv for kk, vv in b.items() if kk != "Damage Model"} if isinstance(b, Mapping) else b)
+        for k, b in _table(root["Blocks"], "Blocks").items()
+    }
+    return {**root, "Blocks": blocks}
+
+
+def _verlet(
+    root: Mapping[str, Any],
+    name: str,
+    model: Any,
+    cloud: PointCloud,
+    horizon: np.ndarray,
+    blocks: list[Block],
+    sets: dict[str, np.ndarray],
+    disc: Mapping[str, Any],
+    extra: Any,
+    omit: str,
+    base: Path,
+) -> Scene:
+    """A ``Solver.Verlet`` deck: explicit dynamics (:mod:`.peridigm_verlet`)."""
+    from .peridigm_verlet import verlet_scene
+
+    kinds = {b.model for b in blocks if b.points.size}
+    kind = next(iter(kinds)) if len(kinds) == 1 else "mixed"
+    if kind == "lps" and any(
+        "Thermal Expansion Coefficient" in m or _plastic_material(m)
+        for m in _table(root["Materials"], "Materials").values()
+    ):
+        kind = "thermal or plastic"
+    output = _peridigm_output(root, base, name)
+    opts = _bond_options(cloud, horizon, disc, extra, omit)
+    if "cube" in extra:
+        opts["cube"] = _cube_window(extra["cube"], float(horizon[0]))
+    return verlet_scene(root, name, model, kind, cloud, horizon, blocks, sets, opts, base, output)
+
+
+def _cube_window(cube: Any, horizon: float) -> tuple[float, Any]:
+    """QuickGrid's cube neighbourhood: search radius and ``find_bonds`` exclude.
+
+    Without ``NeighborhoodType: Spherical`` QuickGrid (``TensorProduct3DMeshGenerator``,
+    ``NoOpNormFunction``) bonds every cell within the one-sided cell horizons
+    ``reach(δ / h_a)`` (``Spec1D::getCellNeighborhoodSize``) on each axis ``a``: a box of
+    cells, whose corners may lie farther than δ.
+    """
+    origin, cell, counts = cube
+    reach = np.array([_cell_reach(horizon, float(c), int(n)) for c, n in zip(cell, counts)])
+
+    def exclude(xi: np.ndarray, xj: np.ndarray) -> np.ndarray:
+        a = np.floor((xi - origin) / cell)
+        b = np.floor((xj - origin) / cell)
+        return np.any(np.abs(a - b) > reach, axis=1)
+
+    radius = float(np.linalg.norm(reach * cell)) * (1 + 1e-9)
+    return max(radius, 1e-300), exclude
+
+
+def _plastic_material(mat: Any) -> bool:
+    """An ``Elastic Plastic`` material with plasticity (a history state)."""
+    return (
+        isinstance(mat, Mapping)
+        and mat.get("Material Model") == "Elastic Plastic"
+        and not _flag(mat.get("Disable Plasticity", False), "Disable Plasticity")
+    )
 
 
 def _peridigm_discretization_keys(disc: Mapping[str, Any]) -> str:
