@@ -253,7 +253,12 @@ def test_boundary_condition_errors_name_the_key(bar_dir, edit, pattern):
     "where, key, value, pattern",
     [
         ("Peridigm", "Contact", {}, r"Peridigm.Contact: not supported"),
-        ("Peridigm", "Damage Models", {}, r"Peridigm.Damage Models: not supported"),
+        (
+            "Peridigm",
+            "Damage Models",
+            {},
+            r"Peridigm.Damage Models: damage is supported with Solver.Verlet only",
+        ),
         (
             "Discretization",
             "Type",
@@ -329,7 +334,8 @@ def test_boundary_condition_errors_name_the_key(bar_dir, edit, pattern):
         ("Block", "Block Names", "block_2", r"Block Names: 'block_2' is not in the discretization"),
         ("Block", "Material", "Other", r"Material: 'Other' is not defined under Materials"),
         ("Block", "Damage Model", "D", r"Blocks.My Block.Damage Model: not supported"),
-        ("Solver", "Verlet", {"Safety Factor": 0.8}, r"Solver.Verlet: not supported"),
+        # a Verlet list beside QuasiStatic: the Verlet solver reads no QuasiStatic list
+        ("Solver", "Verlet", {"Safety Factor": 0.8}, r"Solver.QuasiStatic: not supported"),
         ("Solver", "Final Time", -1.0, r"Solver.Final Time must exceed Initial Time"),
         ("QuasiStatic", "Number of Load Steps", 0, r"Number of Load Steps must be an integer >= 1"),
         ("QuasiStatic", "Bogus Key", 1, r"Solver.QuasiStatic.Bogus Key: not supported"),

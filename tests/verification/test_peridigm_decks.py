@@ -239,7 +239,6 @@ def test_deck_is_the_linearization_of_peridigms_nonlinear_problem(folder, deck, 
 
 # decks of Peridigm's test folders outside the static subset: refused by key path
 OUTSIDE = [
-    ("Body_Force", "Body_Force_Explicit.xml", r"^Solver\.Verlet: not supported"),
     ("Contact_2x1x1", "Contact_2x1x1.xml", r"^Peridigm\.Contact: not supported"),
     (
         "LinearLPSBar",
