@@ -115,7 +115,9 @@ def test_verlet_deck_matches_its_gold_file(folder, deck, comp):
     # velocities of the free DOFs (pdlin gives prescribed DOFs their path's velocity)
     free = scene.problem.cloud.n * 3
     mask = np.ones(free, dtype=bool)
-    mask[pdlin.constraints.resolve_dirichlet(scene.problem.cloud, scene.problem.dirichlet)[0]] = False
+    mask[pdlin.constraints.resolve_dirichlet(scene.problem.cloud, scene.problem.dirichlet)[0]] = (
+        False
+    )
     if mask.any():
         vg = gold["Velocity"].reshape(len(gold["time"]), -1)[:, mask]
         vp = res.v.reshape(res.times.size, -1)[:, mask]
@@ -125,7 +127,9 @@ def test_verlet_deck_matches_its_gold_file(folder, deck, comp):
 def test_bond_breaking_deck_breaks_the_bond_peridigm_breaks():
     """``BondBreakingInitialVelocity``: one bond (two directions) breaks, as in the gold."""
     scene, res = _run("BondBreakingInitialVelocity", "BondBreakingInitialVelocity.xml")
-    with netCDF4.Dataset(DATA / "BondBreakingInitialVelocity" / "BondBreakingInitialVelocity_gold.e") as ds:
+    with netCDF4.Dataset(
+        DATA / "BondBreakingInitialVelocity" / "BondBreakingInitialVelocity_gold.e"
+    ) as ds:
         names = list(netCDF4.chartostring(ds.variables["name_elem_var"][:]))
         dmg = np.asarray(ds.variables[f"vals_elem_var{names.index('Damage') + 1}eb1"][:])
     # the gold Damage (Peridigm's point order, which is QuickGrid's and pdlin's): of the two
@@ -183,10 +187,12 @@ def test_verlet_deck_mapping():
     ("edit", "pattern"),
     [
         (
-            lambda r: r["Materials"]["My Elastic Material"].update(
-                {"Material Model": "Elastic Correspondence", "Hourglass Coefficient": 0.02}
-            )
-            or r["Materials"]["My Elastic Material"].pop("Apply Shear Correction Factor"),
+            lambda r: (
+                r["Materials"]["My Elastic Material"].update(
+                    {"Material Model": "Elastic Correspondence", "Hourglass Coefficient": 0.02}
+                )
+                or r["Materials"]["My Elastic Material"].pop("Apply Shear Correction Factor")
+            ),
             r"'correspondence' materials are not supported with Solver\.Verlet",
         ),
         (
@@ -211,8 +217,10 @@ def test_verlet_deck_mapping():
             r"a Body Force that changes in time is not supported",
         ),
         (
-            lambda r: r.update({"Damage Models": {"D": {"Damage Model": "Interface Aware"}}})
-            or r["Blocks"]["My Group of Blocks"].update({"Damage Model": "D"}),
+            lambda r: (
+                r.update({"Damage Models": {"D": {"Damage Model": "Interface Aware"}}})
+                or r["Blocks"]["My Group of Blocks"].update({"Damage Model": "D"})
+            ),
             r"Damage Models\.D\.Damage Model: 'Interface Aware' is not supported",
         ),
         (
@@ -252,4 +260,6 @@ def test_damage_and_cube_neighbourhoods_stay_refused_in_static_decks(tmp_path):
 def test_two_solver_deck_is_refused():
     """``Compression_QS_Explicit_3x2x2`` chains a QuasiStatic and a Verlet solver."""
     with pytest.raises(SceneError, match=r"^Peridigm\.Solver\d: not supported"):
-        pdlin.read_deck(DATA / "Compression_QS_Explicit_3x2x2" / "Compression_QS_Explicit_3x2x2.xml")
+        pdlin.read_deck(
+            DATA / "Compression_QS_Explicit_3x2x2" / "Compression_QS_Explicit_3x2x2.xml"
+        )

@@ -1159,7 +1159,7 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str, kinematics: str = 
 def _bond_options(
     cloud: PointCloud, horizon: np.ndarray, disc: Mapping[str, Any], extra: Any, omit: str
 ) -> dict[str, Any]:
-    """The ``find_bonds`` options of a deck: QuickGrid's sphere, bond filters, omitted pairs."""
+    """Return the ``find_bonds`` options of a deck (QuickGrid's sphere, filters, omitted pairs)."""
     blocks_pts: dict[str, np.ndarray] = extra["blocks"]
     filters: list[Callable[[np.ndarray, np.ndarray], np.ndarray]] = []
     if extra.get("strict_sphere"):
@@ -1179,9 +1179,13 @@ def _bond_options(
 
 
 def _without_damage(root: Mapping[str, Any]) -> dict[str, Any]:
-    """The deck with the blocks' ``Damage Model`` keys removed (read by the Verlet mapping)."""
+    """Return the deck without the blocks' ``Damage Model`` keys (the Verlet mapping reads them)."""
     blocks = {
-        k: ({kk: vv for kk, vv in b.items() if kk != "Damage Model"} if isinstance(b, Mapping) else b)
+        k: (
+            {kk: vv for kk, vv in b.items() if kk != "Damage Model"}
+            if isinstance(b, Mapping)
+            else b
+        )
         for k, b in _table(root["Blocks"], "Blocks").items()
     }
     return {**root, "Blocks": blocks}
@@ -1200,7 +1204,7 @@ def _verlet(
     omit: str,
     base: Path,
 ) -> Scene:
-    """A ``Solver.Verlet`` deck: explicit dynamics (:mod:`.peridigm_verlet`)."""
+    """Build the scene of a ``Solver.Verlet`` deck: explicit dynamics (``peridigm_verlet``)."""
     from .peridigm_verlet import verlet_scene
 
     kinds = {b.model for b in blocks if b.points.size}
@@ -1226,7 +1230,9 @@ def _cube_window(cube: Any, horizon: float) -> tuple[float, Any]:
     cells, whose corners may lie farther than δ.
     """
     origin, cell, counts = cube
-    reach = np.array([_cell_reach(horizon, float(c), int(n)) for c, n in zip(cell, counts)])
+    reach = np.array(
+        [_cell_reach(horizon, float(c), int(n)) for c, n in zip(cell, counts, strict=True)]
+    )
 
     def exclude(xi: np.ndarray, xj: np.ndarray) -> np.ndarray:
         a = np.floor((xi - origin) / cell)
@@ -1238,7 +1244,7 @@ def _cube_window(cube: Any, horizon: float) -> tuple[float, Any]:
 
 
 def _plastic_material(mat: Any) -> bool:
-    """An ``Elastic Plastic`` material with plasticity (a history state)."""
+    """Return whether a material is ``Elastic Plastic`` with plasticity (a history state)."""
     return (
         isinstance(mat, Mapping)
         and mat.get("Material Model") == "Elastic Plastic"

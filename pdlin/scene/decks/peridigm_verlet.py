@@ -74,7 +74,7 @@ def _steps(solver: Mapping[str, Any]) -> tuple[float, float, int]:
 
 
 def _material_of(root: Mapping[str, Any], blk: Block) -> tuple[str, Mapping[str, Any]]:
-    """The material name and the ``Blocks`` entry of a scene block."""
+    """Return the material name and the ``Blocks`` entry of a scene block."""
     entry = root["Blocks"][blk.key.split(".", 1)[1]]
     return str(entry["Material"]), entry
 
@@ -234,6 +234,38 @@ def verlet_scene(
     ------
     SceneError
         Keys or physics outside the mapping, named by their key path.
+
+    Examples
+    --------
+    ``pdlin.read_deck`` calls it for a deck with ``Solver.Verlet``:
+
+    >>> import pathlib, tempfile, pdlin
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (d / "bar.yaml").write_text('''
+    ... Peridigm:
+    ...   Discretization:
+    ...     Type: PdQuickGrid
+    ...     NeighborhoodType: Spherical
+    ...     TensorProduct3DMeshGenerator: {X Origin: 0.0, Y Origin: 0.0, Z Origin: 0.0,
+    ...       X Length: 4.0, Y Length: 1.0, Z Length: 1.0,
+    ...       Number Points X: 4, Number Points Y: 1, Number Points Z: 1}
+    ...   Materials:
+    ...     Steel: {Material Model: Elastic, Density: 7800.0, Bulk Modulus: 130.0e9,
+    ...             Shear Modulus: 78.0e9}
+    ...   Blocks:
+    ...     All: {Block Names: block_1, Material: Steel, Horizon: 1.5}
+    ...   Boundary Conditions:
+    ...     Node Set End: "4"
+    ...     Kick: {Type: Initial Velocity, Node Set: Node Set End, Coordinate: x, Value: "1.0"}
+    ...   Solver: {Initial Time: 0.0, Final Time: 5.0e-5, Verlet: {Fixed dt: 1.0e-5}}
+    ... ''')
+    >>> scene = pdlin.read_deck(d / "bar.yaml")
+    >>> scene.explicit["dt"], scene.explicit["t_end"], scene.explicit["v0"][3].tolist()
+    (1e-05, 5e-05, [1.0, 0.0, 0.0])
+    >>> from pdlin.dynamics import solve_explicit
+    >>> res = solve_explicit(scene.problem, **scene.explicit)
+    >>> res.steps, bool(res.u[-1, 0, 0] > 0)
+    (5, True)
     """
     from ...models import LPS
     from ._common import _problem
