@@ -279,3 +279,47 @@ def test_two_solver_deck_is_refused():
         pdlin.read_deck(
             DATA / "Compression_QS_Explicit_3x2x2" / "Compression_QS_Explicit_3x2x2.xml"
         )
+
+
+def _peridigm_elastic_force(cloud, bonds, K, G, u, alive):
+    """Peridigm's ``Elastic`` force with bond damage, written out from ``elastic.cxx``.
+
+    Per directed bond ``(i, j)``: ``ζ = |ξ|``, ``Y = ξ + u_j - u_i``, ``e = |Y| - ζ``, weighted
+    volume of the intact family ``m_i = Σ ζ² V_j``, dilatation over the unbroken bonds
+    ``θ_i = 3/m_i Σ (1 - d) ζ e V_j``, scalar force
+    ``t = (1 - d) (3 K θ_i ζ / m_i + 15 μ / m_i (e - θ_i ζ / 3))`` along ``Y/|Y|``;
+    ``f_i += t V_j Y/|Y|``, ``f_j -= t V_i Y/|Y|`` (force densities), times ``V_i``.
+    """
+    i, j = np.asarray(bonds.i), np.asarray(bonds.j)
+    x, vol = cloud.points, np.asarray(cloud.volumes)
+    xi = x[j] - x[i]
+    zeta = np.linalg.norm(xi, axis=1)
+    Y = xi + u[j] - u[i]
+    dY = np.linalg.norm(Y, axis=1)
+    e = dY - zeta
+    m = np.bincount(i, weights=zeta**2 * vol[j], minlength=cloud.n)
+    theta = 3.0 / m * np.bincount(i, weights=alive * zeta * e * vol[j], minlength=cloud.n)
+    t = alive * (3 * K * theta[i] * zeta / m[i] + 15 * G / m[i] * (e - theta[i] * zeta / 3))
+    M = Y / dY[:, None]
+    fd = np.zeros((cloud.n, 3))
+    np.add.at(fd, i, (t * vol[j])[:, None] * M)
+    np.add.at(fd, j, -(t * vol[i])[:, None] * M)
+    return fd * vol[:, None]
+
+
+def test_elastic_force_with_broken_bonds_is_peridigms():
+    """The Verlet decks' ``Elastic`` kernel with a partly broken family is ``elastic.cxx``'s."""
+    cloud = pdlin.grid((5, 4, 3), spacing=0.1)
+    bonds = pdlin.find_bonds(cloud, ratio=2.015)
+    K, G = 130e9, 60e9
+    model = pdlin.LPS(K=K, G=G, peridigm=True, linearization="paper")
+    kern = force_kernel(model, cloud, bonds, linear=False)
+    rng = np.random.default_rng(7)
+    u = 5e-3 * rng.normal(size=(cloud.n, 3))
+    broken = rng.random(bonds.n_bonds) < 0.3
+    broken = broken | broken[np.asarray(bonds.reverse)]  # Peridigm breaks both directions
+    alive = (~broken).astype(float)
+    ref = _peridigm_elastic_force(cloud, bonds, K, G, u, alive)
+    mine = kern.force(u, alive.copy())
+    assert 0.2 < broken.mean() < 0.6
+    assert np.abs(mine - ref).max() <= 1e-12 * np.abs(ref).max()
