@@ -323,3 +323,33 @@ def test_elastic_force_with_broken_bonds_is_peridigms():
     mine = kern.force(u, alive.copy())
     assert 0.2 < broken.mean() < 0.6
     assert np.abs(mine - ref).max() <= 1e-12 * np.abs(ref).max()
+
+
+def test_prescribed_displacement_adds_increments_to_the_initial_displacement(tmp_path):
+    """Peridigm's ``DirichletIncrementBC`` (``Peridigm_BoundaryCondition.cpp``) in Verlet runs.
+
+    The prescribed DOF's velocity is ``(g(t) - g(t - Δt)) / Δt``, so the displacement is the
+    initial displacement plus ``g(t) - g(t0)``: 2e-5 + (1e-3 * 5e-5 - 1e-3 * 0) here, and a
+    value nonzero at ``t0`` (``1 + 1e-3 t``) is not applied at once.
+    """
+    import yaml
+
+    deck = yaml.safe_load((DATA / "Compression_2x1x1" / "Compression_2x1x1.yaml").read_text())
+    bcs = deck["Peridigm"]["Boundary Conditions"]
+    bcs["Initial Velocity Min X Face"] = {
+        "Type": "Initial Displacement",
+        "Node Set": "Min X Node Set",
+        "Coordinate": "x",
+        "Value": "2.0e-5",
+    }
+    bcs["Pull"] = {
+        "Type": "Prescribed Displacement",
+        "Node Set": "Min X Node Set",
+        "Coordinate": "x",
+        "Value": "1.0 + 1.0e-3*t",
+    }
+    p = tmp_path / "deck.yaml"
+    p.write_text(yaml.safe_dump(deck))
+    scene = pdlin.read_deck(p)
+    res = solve_explicit(scene.problem, **scene.explicit)
+    np.testing.assert_allclose(res.u[:, 0, 0], 2.0e-5 + 1.0e-3 * res.times, rtol=1e-12, atol=0)

@@ -177,11 +177,15 @@ def _conditions(
         else:
             g0 = value(t0)
 
-            def path(_x: Any, t: float, value: Any = value, g0: Any = g0) -> np.ndarray:
-                # DirichletIncrementBC: u changes by the increments of the value from t0;
-                # held after the run's end (pdlin validates paths at t = 1, which may lie
-                # far past a deck's Final Time: exp(0.0953 t / 1e-8) overflows there)
-                return (value(t0 + min(float(t), t1 - t0)) - g0)[:, None]
+            def path(
+                _x: Any, t: float, value: Any = value, g0: Any = g0, idx: Any = idx, c: int = c
+            ) -> np.ndarray:
+                # DirichletIncrementBC: u changes by the increments of the value from t0,
+                # from the initial displacement; held after the run's end (pdlin validates
+                # paths at t = 1, which may lie far past a deck's Final Time, where
+                # exp(0.0953 t / 1e-8) overflows)
+                inc = value(t0 + min(float(t), t1 - t0)) - g0
+                return (u0[idx, c] + inc)[:, None]
 
             dirichlet.append(Dirichlet(idx, TimePath(path, f"{key}.Value"), components=[c]))
     return dirichlet, loads, u0, v0
