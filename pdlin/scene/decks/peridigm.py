@@ -1068,6 +1068,9 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str, kinematics: str = 
         root = {k: v for k, v in root.items() if k not in numbered[1:]}
         root["Output"] = root.pop(numbered[0])
         _note(f"Peridigm.{numbered[0]}", f"read as Output (not written: {numbered[1:]})")
+    chained = sorted(k for k in root if re.fullmatch(r"Solver\d+", k))
+    if chained and "Solver" not in root:
+        return _chained_solvers(root, chained, base, name)
     _unknown(root, _PD_TOP, "Peridigm", "Peridigm deck")
     for k in ("Verbose", "Compute Class Parameters"):
         if k in root:
@@ -1241,6 +1244,58 @@ def _cube_window(cube: Any, horizon: float) -> tuple[float, Any]:
 
     radius = float(np.linalg.norm(reach * cell)) * (1 + 1e-9)
     return max(radius, 1e-300), exclude
+
+
+def _chained_solvers(root: Mapping[str, Any], solvers: list[str], base: Path, name: str) -> Scene:
+    """Build the Verlet scene of a deck that runs a quasi-static solver, then ``Verlet``.
+
+    Peridigm's ``executeSolvers`` runs ``Solver1``, ``Solver2`` in turn on the same state;
+    its quasi-static solver leaves the velocity ``Δu / Δt`` of its last load step
+    (``executeQuasiStatic``), from which the Verlet solver continues.  pdlin solves the
+    quasi-static part here (Newton, Peridigm's finite kinematics) and starts the explicit
+    run from its final displacement and that velocity.
+    """
+    from ...nonlinear import solve_nonlinear
+
+    kinds = [
+        next((k for k in ("QuasiStatic", "NOXQuasiStatic", "Verlet") if k in root[s]), None)
+        if isinstance(root[s], Mapping)
+        else None
+        for s in solvers
+    ]
+    if (
+        len(solvers) != 2
+        or kinds[0] not in ("QuasiStatic", "NOXQuasiStatic")
+        or kinds[1] != "Verlet"
+    ):
+        raise SceneError(
+            f"Peridigm.{solvers[0]}: several solvers are supported as a quasi-static solver "
+            "followed by a Verlet solver ('Solver1', 'Solver2'), got "
+            f"{dict(zip(solvers, kinds, strict=True))}"
+        )
+    rest = {k: v for k, v in root.items() if k not in solvers}
+    qs = _peridigm({**rest, "Solver": root[solvers[0]]}, base, name, "finite")
+    if qs.nonlinear is None or len(qs.nonlinear["times"]) < 2:
+        raise SceneError(
+            f"Peridigm.{solvers[0]}: the quasi-static solver before Verlet needs two or more "
+            "load steps with Peridigm's finite kinematics (its final velocity)"
+        )
+    res = solve_nonlinear(qs.problem, **qs.nonlinear)
+    t_end = float(qs.time)  # Final Time of the quasi-static solver (s = t / t_end)
+    s = qs.nonlinear["times"]
+    dt = (s[-1] - s[-2]) * t_end  # the last load step, in Peridigm's time
+    scene = _peridigm({**rest, "Solver": root[solvers[1]]}, base, name)
+    ex = scene.explicit
+    assert ex is not None
+    if np.any(ex["u0"]) or np.any(ex["v0"]):
+        raise SceneError(
+            "Boundary Conditions: initial conditions are not supported with chained solvers"
+        )
+    # in place: the prescribed paths of the Verlet scene start from this u0 (peridigm_verlet)
+    ex["u0"][...] = res.u[-1]
+    ex["v0"][...] = (res.u[-1] - res.u[-2]) / dt
+    _note(f"Peridigm.{solvers[0]}", f"solved when the deck is read ({res.u.shape[0] - 1} steps)")
+    return scene
 
 
 def _plastic_material(mat: Any) -> bool:
