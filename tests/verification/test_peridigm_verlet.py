@@ -357,3 +357,16 @@ def test_prescribed_displacement_adds_increments_to_the_initial_displacement(tmp
     res = solve_explicit(scene.problem, **scene.explicit)
     # atol: (1 + 1e-3 t) - 1 is exact to about 1e-16 (round-off of the value 1)
     np.testing.assert_allclose(res.u[:, 0, 0], 2.0e-5 + 1.0e-3 * res.times, rtol=0, atol=1e-15)
+
+
+def test_other_solver_sequences_are_refused(tmp_path):
+    import yaml
+
+    deck = yaml.safe_load((DATA / "Compression_2x1x1" / "Compression_2x1x1.yaml").read_text())
+    root = deck["Peridigm"]
+    verlet = root.pop("Solver")
+    root["Solver1"], root["Solver2"] = verlet, dict(verlet)  # Verlet then Verlet
+    p = tmp_path / "deck.yaml"
+    p.write_text(yaml.safe_dump(deck))
+    with pytest.raises(SceneError, match=r"^Peridigm\.Solver1: several solvers are supported as"):
+        pdlin.read_deck(p)
