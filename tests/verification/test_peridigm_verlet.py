@@ -370,3 +370,10 @@ def test_other_solver_sequences_are_refused(tmp_path):
     p.write_text(yaml.safe_dump(deck))
     with pytest.raises(SceneError, match=r"^Peridigm\.Solver1: several solvers are supported as"):
         pdlin.read_deck(p)
+
+
+def test_linear_kinematics_is_refused_for_verlet_decks():
+    with pytest.raises(
+        SceneError, match=r"kinematics 'linear' is not available for Solver\.Verlet"
+    ):
+        pdlin.read_deck(DATA / "Compression_2x1x1" / "Compression_2x1x1.yaml", kinematics="linear")

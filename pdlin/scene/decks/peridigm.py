@@ -1102,6 +1102,11 @@ def _peridigm(deck: Mapping[str, Any], base: Path, name: str, kinematics: str = 
     bcs = root.get("Boundary Conditions", {})
     sets = _peridigm_node_sets(bcs, base, n, extra["node_sets"])
     if verlet:
+        if kinematics not in ("auto", "finite"):
+            raise SceneError(
+                f"kinematics {kinematics!r} is not available for Solver.Verlet decks: they run "
+                "Peridigm's finite kinematics (exact extensions); use 'auto' or 'finite'"
+            )
         return _verlet(root, name, model, cloud, horizon, blocks, sets, disc, extra, omit, base)
     times = _peridigm_solver(root["Solver"])
     at_rest = [Dirichlet(np.arange(n), np.zeros((n, cloud.dim)))]
