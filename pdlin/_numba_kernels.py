@@ -1307,3 +1307,86 @@ def adr_local_fill(i0, i1, r, r_new, lam, u_new, u, du, k, local):  # pragma: no
             if d == 0.0:
                 m = np.inf
             k[i] = (r[i] - r_new[i]) / m
+
+
+@_njit(nogil=True)
+def bond_force_fill(  # pragma: no cover
+    p0, p1, u, j, indptr, xi, unit, length, k, alive, s0, linear, mask, breaking, f, out
+):
+    """Bond-based force of points ``p0:p1``, each summing its own family (owner computes).
+
+    ``pdlin.dynamics.forces.BondKernel.evaluate``'s numpy arithmetic per directed bond, in
+    its order: ``η = u_j − u_i``; linearized ``e = n·η`` (``n = ξ/|ξ|``) or exact
+    ``e = |ξ + η| − |ξ|`` along ``m = (ξ + η)/|ξ + η|``; with ``breaking`` a surviving bond
+    whose exact stretch exceeds ``s0`` gets ``alive = 0`` (``s0`` and ``alive`` symmetric
+    under bond reversal, which the caller checks, so the owner decides both directions
+    alike); ``f_i += (k alive e) m`` summed in bond order from zero (what ``np.bincount``
+    does), so ``f`` equals the numpy path's bitwise.  ``out[0]`` gets ``Σ k alive e²`` and
+    ``out[1]`` that of the bonds broken now (the caller's ``¼`` and chunk sums round
+    differently from numpy's ``dot``).  Zero-length deformed bonds set ``out[2] = 1``.
+    """
+    d = u.shape[1]
+    en = 0.0
+    rel = 0.0
+    s = 0.0
+    ly = 0.0
+    for p in range(p0, p1):
+        for a in range(d):
+            f[p, a] = 0.0
+        for b in range(indptr[p], indptr[p + 1]):
+            q = j[b]
+            y0 = 0.0
+            y1 = 0.0
+            y2 = 0.0
+            e0 = u[q, 0] - u[p, 0]
+            y0 = xi[b, 0] + e0
+            ly2 = y0 * y0
+            e1 = 0.0
+            e2 = 0.0
+            if d > 1:
+                e1 = u[q, 1] - u[p, 1]
+                y1 = xi[b, 1] + e1
+                ly2 = ly2 + y1 * y1
+            if d > 2:
+                e2 = u[q, 2] - u[p, 2]
+                y2 = xi[b, 2] + e2
+                ly2 = ly2 + y2 * y2
+            if linear:
+                e = unit[b, 0] * e0
+                if d > 1:
+                    e = e + unit[b, 1] * e1
+                if d > 2:
+                    e = e + unit[b, 2] * e2
+                m0 = unit[b, 0]
+                m1 = unit[b, 1] if d > 1 else 0.0
+                m2 = unit[b, 2] if d > 2 else 0.0
+                if breaking:
+                    ly = np.sqrt(ly2)
+                    s = ly / length[b] - 1.0
+            else:
+                ly = np.sqrt(ly2)
+                if ly <= 0.0:
+                    out[2] = 1.0
+                    return
+                e = ly - length[b]
+                m0 = y0 / ly
+                m1 = y1 / ly
+                m2 = y2 / ly
+                s = e / length[b]
+            kb = k[b]
+            if mask:
+                al = alive[b]
+                if breaking and al > 0.0 and s > s0[b]:
+                    rel += (kb * al) * (e * e)
+                    alive[b] = 0.0
+                    al = 0.0
+                kb = kb * al
+            tb = kb * e
+            en += tb * e
+            f[p, 0] += tb * m0
+            if d > 1:
+                f[p, 1] += tb * m1
+            if d > 2:
+                f[p, 2] += tb * m2
+    out[0] = en
+    out[1] = rel

@@ -47,6 +47,19 @@ def _scatter(i: np.ndarray, vec: np.ndarray, n: int) -> np.ndarray:
     return f
 
 
+def _rowdot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Return the row-wise dot ``Σ_k a_k b_k`` summed left to right.
+
+    ``einsum`` pairs the terms in an order of its own (``(a_0 b_0 + a_2 b_2) + a_1 b_1`` for
+    three columns in numpy 2.4); the compiled pass sums left to right, and so must this one
+    to give the same bits.
+    """
+    out = a[:, 0] * b[:, 0]
+    for k in range(1, a.shape[1]):
+        out += a[:, k] * b[:, k]
+    return out
+
+
 class _Geometry:
     """Bond arrays read once (compact bonds compute them on every access)."""
 
@@ -65,9 +78,9 @@ class _Geometry:
         eta = np.take(u, self.j, axis=0)
         eta -= np.take(u, self.i, axis=0)
         if linear:
-            return np.einsum("ij,ij->i", self.unit, eta), self.unit
+            return _rowdot(self.unit, eta), self.unit
         y = self.xi + eta
-        ly = np.sqrt(np.einsum("ij,ij->i", y, y))
+        ly = np.sqrt(_rowdot(y, y))
         if np.any(ly <= 0):
             raise InputError("u collapses a bond to zero length; the force is undefined")
         return ly - self.length, y / ly[:, None]
@@ -77,7 +90,7 @@ class _Geometry:
         y = np.take(u, self.j, axis=0)
         y -= np.take(u, self.i, axis=0)
         y += self.xi
-        return np.sqrt(np.einsum("ij,ij->i", y, y)) / self.length - 1.0
+        return np.sqrt(_rowdot(y, y)) / self.length - 1.0
 
     def broken_now(
         self, u: np.ndarray, e: np.ndarray, linear: bool, alive: np.ndarray, s0: np.ndarray
@@ -90,8 +103,32 @@ class _Geometry:
         return new | new[self.reverse]
 
 
+#: bonds per chunk of the compiled bond-based pass (fixed: the bits do not depend on threads)
+_CHUNK_BONDS = 1 << 15
+
+
+def _compiled_kernels(n_bonds: int, compiled: bool | None) -> Any:
+    """Return pdlin's numba kernels for a force pass over ``n_bonds`` bonds, or None (numpy).
+
+    ``compiled=None`` decides by size: a time loop repeats the pass thousands of times, so
+    from ``2^16`` bonds on (``use_numba(16 n_bonds)``) the compiled pass pays for numba's
+    import; ``True`` uses them whenever numba is installed, ``False`` never.
+    """
+    from .._kernels import compiled_kernels, use_numba
+
+    if compiled is None:
+        return compiled_kernels() if use_numba(16 * n_bonds) else None
+    return compiled_kernels() if compiled else None
+
+
 class BondKernel:
     """Bond-based force with a bond mask (see the module docstring).
+
+    With numba installed (and ``compiled`` not False) :meth:`evaluate` and :meth:`force`
+    run one compiled pass on pdlin's threads (:func:`pdlin.set_num_threads`): each point
+    sums its own family in bond order (chunks of points, no atomics), so the force is
+    bitwise the numpy path's for any thread count; the strain energy and the released
+    energy are summed per chunk and differ from numpy's ``dot`` by round-off only.
 
     Parameters
     ----------
@@ -103,15 +140,79 @@ class BondKernel:
         The intact bonds.
     linear : bool
         Linearized stretch (True) or the exact PMB stretch along the deformed bond.
+    compiled : bool or None
+        Use the numba pass: None (by size), True (whenever numba is installed), False.
     """
 
     conservative = True
     damage = True
 
-    def __init__(self, model: BondBased, cloud: PointCloud, bonds: Bonds, linear: bool) -> None:
-        self.geo = _Geometry(cloud, bonds)
+    def __init__(
+        self,
+        model: BondBased,
+        cloud: PointCloud,
+        bonds: Bonds,
+        linear: bool,
+        compiled: bool | None = None,
+    ) -> None:
+        self.geo = g = _Geometry(cloud, bonds)
         self.k = np.asarray(model.bond_stiffness(cloud, bonds), dtype=float)
         self.linear = linear
+        self.kern = _compiled_kernels(g.i.size, compiled)
+        if self.kern is not None:
+            from .._threads import ptr_chunks
+
+            ptr = np.asarray(bonds.indptr, dtype=np.int64)
+            self.indptr = ptr
+            self.chunks = ptr_chunks(ptr, _CHUNK_BONDS)
+            self.xi_c = np.ascontiguousarray(g.xi)
+            self.unit_c = np.ascontiguousarray(g.unit)
+            self.j_c = np.ascontiguousarray(g.j)
+            self.none = np.zeros(1)
+            self._symmetric: dict[str, Any] = {"s0": None, "alive": None}
+
+    def _symmetric_mask(self, name: str, arr: np.ndarray) -> bool:
+        """Whether ``arr`` (``s0`` or ``alive``) is symmetric under bond reversal (cached)."""
+        if self._symmetric[name] is arr:
+            return True
+        ok = bool(np.array_equal(arr, arr[self.geo.reverse]))
+        if ok:
+            self._symmetric[name] = arr
+        return ok
+
+    def _compiled(
+        self, u: np.ndarray, alive: np.ndarray | None, s0: np.ndarray | None
+    ) -> tuple[np.ndarray, float, float] | None:
+        """Run the compiled pass (force, energy, released); None where numpy must run."""
+        breaking = s0 is not None and alive is not None
+        mask = alive is not None
+        if alive is not None and not (
+            alive.dtype == np.float64
+            and alive.flags.c_contiguous
+            and self._symmetric_mask("alive", alive)
+        ):
+            return None
+        if s0 is not None and breaking and not self._symmetric_mask("s0", s0):
+            return None
+        from .._threads import thread_map
+
+        g, kern = self.geo, self.kern
+        uc = np.ascontiguousarray(u, dtype=float)
+        f = np.empty((g.n, g.d))
+        out = np.zeros((len(self.chunks), 3))
+        al = alive if mask else self.none
+        s0c = np.ascontiguousarray(s0, dtype=float) if breaking else self.none
+        args = (uc, self.j_c, self.indptr, self.xi_c, self.unit_c, g.length, self.k, al, s0c)
+        thread_map(
+            lambda c: kern.bond_force_fill(
+                self.chunks[c][0], self.chunks[c][1], *args,
+                self.linear, mask, breaking, f, out[c],
+            ),
+            range(len(self.chunks)),
+        )  # fmt: skip
+        if np.any(out[:, 2]):
+            raise InputError("u collapses a bond to zero length; the force is undefined")
+        return f, float(0.25 * np.sum(out[:, 0])), float(0.25 * np.sum(out[:, 1]))
 
     def force(self, u: np.ndarray, alive: np.ndarray | None) -> np.ndarray:
         """Return the nodal internal force ``(n, d)``.
@@ -127,6 +228,10 @@ class BondKernel:
         -------
         (n, d) ndarray
         """
+        if self.kern is not None:
+            res = self._compiled(u, alive, None)
+            if res is not None:
+                return res[0]
         g = self.geo
         e, m = g.extension(u, self.linear)
         k = self.k if alive is None else self.k * alive
@@ -156,6 +261,10 @@ class BondKernel:
         released : float
             Strain energy the broken bonds held.
         """
+        if self.kern is not None:
+            res = self._compiled(u, alive, s0)
+            if res is not None:
+                return res
         g = self.geo
         e, m = g.extension(u, self.linear)
         released = 0.0
@@ -410,7 +519,7 @@ class GenericKernel:
 
 
 def force_kernel(
-    model: Any, cloud: PointCloud, bonds: Bonds, *, linear: bool
+    model: Any, cloud: PointCloud, bonds: Bonds, *, linear: bool, compiled: bool | None = None
 ) -> BondKernel | StateKernel | GenericKernel:
     """Return the force kernel of ``model`` on ``bonds`` (see the module docstring).
 
@@ -426,6 +535,9 @@ def force_kernel(
     linear : bool
         Linearized kinematics (True) or the exact stretch / extension along the deformed
         bond (False).
+    compiled : bool or None
+        :class:`BondKernel`'s numba pass: None (by size: from ``2^16`` bonds with numba
+        installed), True (whenever numba is installed), False (numpy).
 
     Returns
     -------
@@ -454,7 +566,7 @@ def force_kernel(
     if isinstance(model, BondBased):
         if model.kinematics == "finite":
             linear = False
-        return BondKernel(model, cloud, bonds, linear)
+        return BondKernel(model, cloud, bonds, linear, compiled)
     if isinstance(model, OrdinaryStateBased):
         return StateKernel(model, cloud, bonds, linear)
     kern = GenericKernel(model, cloud, bonds, linear)
