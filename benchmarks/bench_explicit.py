@@ -24,6 +24,7 @@ machine wall times are upper bounds, CPU times are what the work cost.
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 import time
 from pathlib import Path
@@ -104,12 +105,12 @@ def compiled_rows(n: int, steps: int, bw: float) -> list[str]:
     for label, compiled, threads in configs:
         pdlin.set_num_threads(threads)
         kern = force_kernel(model, cloud, bonds, linear=False, compiled=compiled)
-        wall, cpu = _timed(lambda: kern.evaluate(u, alive, s0), rep if compiled else 2)
+        wall, cpu = _timed(functools.partial(kern.evaluate, u, alive, s0), rep if compiled else 2)
         del kern
-        from pdlin.dynamics import explicit, forces
+        from pdlin.dynamics import explicit
 
         orig = explicit.force_kernel
-        explicit.force_kernel = lambda *a, **k: forces.force_kernel(*a, **k, compiled=compiled)
+        explicit.force_kernel = functools.partial(force_kernel, compiled=compiled)
         try:
             nst = steps if compiled else max(2, steps // 10)
             res = solve_explicit(
