@@ -90,7 +90,10 @@ def test_lanczos_steps_on_bounded_lattices(dim):
         closed = nearest_neighbour_time_step(
             1.0, 1.0, _e_max(dim), dim, stress_points=control != "none"
         )
-        assert closed <= exact * (1 + 1e-9)  # Eqs. (14)-(15) are safe on the bounded lattice
+        if dim > 1 or control != "none":
+            # Eqs. (14)-(15) are safe on the bounded lattice; Eq. (13) in 1D without a
+            # control is not (2 h/c against the bar's 1.32 h/c, measured)
+            assert closed <= exact * (1 + 1e-9)
         out[control] = exact / unit
     if dim == 1:
         # Appendix A: h/c with stress points, also at the free ends (the bar's lowest
