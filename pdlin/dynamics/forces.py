@@ -121,6 +121,48 @@ def _compiled_kernels(n_bonds: int, compiled: bool | None) -> Any:
     return compiled_kernels() if compiled else None
 
 
+class _Compiled:
+    """Contiguous bond arrays, point chunks and mask checks of the compiled passes."""
+
+    def __init__(self, g: _Geometry, bonds: Bonds) -> None:
+        from .._threads import ptr_chunks
+
+        self.indptr = np.asarray(bonds.indptr, dtype=np.int64)
+        self.chunks = ptr_chunks(self.indptr, _CHUNK_BONDS)
+        self.xi = np.ascontiguousarray(g.xi)
+        self.unit = np.ascontiguousarray(g.unit)
+        self.j = np.ascontiguousarray(g.j)
+        self.rev = np.ascontiguousarray(g.reverse)
+        self.none = np.zeros(1)
+        self._ones: np.ndarray | None = None
+        self._checked: dict[str, Any] = {}
+
+    def ones(self) -> np.ndarray:
+        """Return an all-alive mask (read only by the passes)."""
+        if self._ones is None:
+            self._ones = np.ones(self.j.size)
+        return self._ones
+
+    def symmetric(self, name: str, arr: np.ndarray) -> bool:
+        """Whether ``arr`` is symmetric under bond reversal (cached for this array object)."""
+        if self._checked.get(name) is arr:
+            return True
+        ok = bool(np.array_equal(arr, arr[self.rev]))
+        if ok:
+            self._checked[name] = arr
+        return ok
+
+    def mask_ok(self, alive: np.ndarray, binary: bool = False) -> bool:
+        """Whether the passes may use ``alive`` (float64, contiguous, symmetric, 0/1)."""
+        if not (alive.dtype == np.float64 and alive.flags.c_contiguous):
+            return False
+        if self._checked.get("alive") is alive:
+            return True
+        if binary and not bool(np.all((alive == 0.0) | (alive == 1.0))):
+            return False
+        return self.symmetric("alive", alive)
+
+
 class BondKernel:
     """Bond-based force with a bond mask (see the module docstring).
 
@@ -160,55 +202,32 @@ class BondKernel:
         self.linear = linear
         self.kern = _compiled_kernels(g.i.size, compiled)
         if self.kern is not None:
-            from .._threads import ptr_chunks
-
-            ptr = np.asarray(bonds.indptr, dtype=np.int64)
-            self.indptr = ptr
-            self.chunks = ptr_chunks(ptr, _CHUNK_BONDS)
-            self.xi_c = np.ascontiguousarray(g.xi)
-            self.unit_c = np.ascontiguousarray(g.unit)
-            self.j_c = np.ascontiguousarray(g.j)
-            self.none = np.zeros(1)
-            self._symmetric: dict[str, Any] = {"s0": None, "alive": None}
-
-    def _symmetric_mask(self, name: str, arr: np.ndarray) -> bool:
-        """Whether ``arr`` (``s0`` or ``alive``) is symmetric under bond reversal (cached)."""
-        if self._symmetric[name] is arr:
-            return True
-        ok = bool(np.array_equal(arr, arr[self.geo.reverse]))
-        if ok:
-            self._symmetric[name] = arr
-        return ok
+            self.fast = _Compiled(g, bonds)
 
     def _compiled(
         self, u: np.ndarray, alive: np.ndarray | None, s0: np.ndarray | None
     ) -> tuple[np.ndarray, float, float] | None:
         """Run the compiled pass (force, energy, released); None where numpy must run."""
+        fast, g, kern = self.fast, self.geo, self.kern
         breaking = s0 is not None and alive is not None
         mask = alive is not None
-        if alive is not None and not (
-            alive.dtype == np.float64
-            and alive.flags.c_contiguous
-            and self._symmetric_mask("alive", alive)
-        ):
+        if alive is not None and not fast.mask_ok(alive):
             return None
-        if s0 is not None and breaking and not self._symmetric_mask("s0", s0):
+        if s0 is not None and breaking and not fast.symmetric("s0", s0):
             return None
         from .._threads import thread_map
 
-        g, kern = self.geo, self.kern
         uc = np.ascontiguousarray(u, dtype=float)
         f = np.empty((g.n, g.d))
-        out = np.zeros((len(self.chunks), 3))
-        al = alive if mask else self.none
-        s0c = np.ascontiguousarray(s0, dtype=float) if breaking else self.none
-        args = (uc, self.j_c, self.indptr, self.xi_c, self.unit_c, g.length, self.k, al, s0c)
+        out = np.zeros((len(fast.chunks), 3))
+        al = alive if alive is not None else fast.none
+        s0c = np.ascontiguousarray(s0, dtype=float) if breaking else fast.none
+        args = (uc, fast.j, fast.indptr, fast.xi, fast.unit, g.length, self.k, al, s0c)
         thread_map(
             lambda c: kern.bond_force_fill(
-                self.chunks[c][0], self.chunks[c][1], *args,
-                self.linear, mask, breaking, f, out[c],
+                *fast.chunks[c], *args, self.linear, mask, breaking, f, out[c],
             ),
-            range(len(self.chunks)),
+            range(len(fast.chunks)),
         )  # fmt: skip
         if np.any(out[:, 2]):
             raise InputError("u collapses a bond to zero length; the force is undefined")
@@ -309,12 +328,26 @@ class StateKernel:
         The intact bonds (the weights are computed on them once).
     linear : bool
         Linearized extension along the reference direction (True) or the exact one.
+    compiled : bool or None
+        Use the numba passes: None (by size), True (whenever numba is installed), False.
+
+    Notes
+    -----
+    With numba, :meth:`evaluate` and :meth:`force` run three compiled passes over the points
+    (dilatation and breaking; the force scalar of each bond; the nodal sum over
+    ``t_b + t_rev(b)``), each point working on its own family: the force and the bond mask
+    equal the numpy path's bitwise, the energies to round-off.
     """
 
     damage = True
 
     def __init__(
-        self, model: OrdinaryStateBased, cloud: PointCloud, bonds: Bonds, linear: bool
+        self,
+        model: OrdinaryStateBased,
+        cloud: PointCloud,
+        bonds: Bonds,
+        linear: bool,
+        compiled: bool | None = None,
     ) -> None:
         g = self.geo = _Geometry(cloud, bonds)
         self.linear = linear
@@ -342,6 +375,58 @@ class StateKernel:
             self.kh = self.kh * alpha[g.i]
             self.kth = self.kth * alpha[g.i]
             self.kV = self.kV * alpha
+        self.kern = _compiled_kernels(g.i.size, compiled)
+        if self.kern is not None:
+            self.fast = _Compiled(g, bonds)
+
+    def _compiled(
+        self, u: np.ndarray, alive: np.ndarray | None, s0: np.ndarray | None
+    ) -> tuple[np.ndarray, float, float] | None:
+        """Run the compiled passes (force, energy, released); None where numpy must run."""
+        fast, g, kern = self.fast, self.geo, self.kern
+        breaking = s0 is not None and alive is not None
+        if alive is not None and not fast.mask_ok(alive, binary=True):
+            return None
+        if s0 is not None and breaking and not fast.symmetric("s0", s0):
+            return None
+        from .._threads import thread_map
+
+        uc = np.ascontiguousarray(u, dtype=float)
+        nb = g.i.size
+        al = alive if alive is not None else fast.ones()
+        s0c = np.ascontiguousarray(s0, dtype=float) if breaking else fast.none
+        e, ed, tw = np.empty(nb), np.empty(nb), np.empty(nb)
+        broke = np.empty(nb, dtype=np.uint8)
+        theta, z = np.empty(g.n), np.empty(g.n)
+        out = np.zeros((len(fast.chunks), 3))
+        geo = (uc, fast.j, fast.indptr, fast.xi, fast.unit, g.length)
+        energy_variant = self.variant != "paper"
+        thread_map(
+            lambda c: kern.state_dilatation_fill(
+                *fast.chunks[c], *geo, self.a, self.c, self.vj, self.w, self.kV, al, s0c,
+                self.linear, breaking, energy_variant, e, ed, broke, theta, z, out[c],
+            ),
+            range(len(fast.chunks)),
+        )  # fmt: skip
+        if np.any(out[:, 2]):
+            raise InputError("u collapses a bond to zero length; the force is undefined")
+        thread_map(
+            lambda c: kern.state_force_fill(
+                *fast.chunks[c], fast.indptr, self.a, self.c, self.kth, self.kh, self.vj,
+                self.w, al, g.d, energy_variant, theta, z, ed, tw,
+            ),
+            range(len(fast.chunks)),
+        )  # fmt: skip
+        f = np.empty((g.n, g.d))
+        thread_map(
+            lambda c: kern.state_scatter_fill(
+                *fast.chunks[c], *geo, fast.rev, self.linear, tw, f
+            ),
+            range(len(fast.chunks)),
+        )  # fmt: skip
+        after = float(np.sum(out[:, 0]))
+        released = float(np.sum(out[:, 1])) - after if breaking else 0.0
+        return f, after, released
 
     def _state(
         self, u: np.ndarray, alive: np.ndarray | None
@@ -400,6 +485,10 @@ class StateKernel:
         released : float
             Strain energy lost by the breaking (the energy at ``u`` before minus after).
         """
+        if self.kern is not None:
+            res = self._compiled(u, alive, s0)
+            if res is not None:
+                return res
         g = self.geo
         e, m = g.extension(u, self.linear)
         released = 0.0
@@ -428,6 +517,10 @@ class StateKernel:
         -------
         (n, d) ndarray
         """
+        if self.kern is not None:
+            res = self._compiled(u, alive, None)
+            if res is not None:
+                return res[0]
         _, m, theta, ed = self._state(u, alive)
         return self._force_of(m, theta, ed, alive)
 
@@ -568,7 +661,7 @@ def force_kernel(
             linear = False
         return BondKernel(model, cloud, bonds, linear, compiled)
     if isinstance(model, OrdinaryStateBased):
-        return StateKernel(model, cloud, bonds, linear)
+        return StateKernel(model, cloud, bonds, linear, compiled)
     kern = GenericKernel(model, cloud, bonds, linear)
     if kern.state:
         raise ModelError(

@@ -142,3 +142,89 @@ def test_solve_explicit_same_bits(monkeypatch):
     assert np.array_equal(a.u, b.u) and np.array_equal(a.v, b.v)
     assert np.array_equal(a.alive, b.alive)
     np.testing.assert_allclose(b.strain, a.strain, rtol=1e-12, atol=1e-12 * a.strain.max())
+
+
+# -- state-based (LPS, XOSB) --------------------------------------------------------------
+
+STATE_MODELS = {
+    "lps": lambda pl: pdlin.LPS(E=3.0, nu=0.25, **pl),
+    "xosb": lambda pl: pdlin.XOSB(E=3.0, nu=0.25, **pl),
+    "xosb-paper": lambda pl: pdlin.XOSB(E=3.0, nu=0.25, linearization="paper", **pl),
+}
+
+
+def _state_pair(name, dim, linear):
+    cloud = pdlin.grid(SHAPES[dim], spacing=0.1)
+    bonds = pdlin.find_bonds(cloud, ratio=3.015)
+    model = STATE_MODELS[name]({"plane": "strain"} if dim == 2 else {})
+    a = force_kernel(model, cloud, bonds, linear=linear, compiled=False)
+    b = force_kernel(model, cloud, bonds, linear=linear, compiled=True)
+    assert a.kern is None and b.kern is not None
+    return a, b, cloud, bonds
+
+
+@pytest.mark.parametrize("name", sorted(STATE_MODELS))
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("linear", [True, False])
+def test_state_force_and_breaking_bitwise_equal_to_numpy(name, dim, linear):
+    a, b, cloud, bonds = _state_pair(name, dim, linear)
+    u = _u(cloud)
+    assert np.array_equal(a.force(u, None), b.force(u, None))
+    rev = np.asarray(bonds.reverse)
+    cut = np.random.default_rng(2).random(bonds.n_bonds) < 0.2
+    alive = np.where(cut | cut[rev], 0.0, 1.0)
+    fa, ea, _ = a.evaluate(u, alive.copy(), None)
+    fb, eb, _ = b.evaluate(u, alive.copy(), None)
+    assert np.array_equal(fa, fb)
+    assert eb == pytest.approx(ea, rel=1e-13)  # chunk sums against numpy's dot
+    s0 = np.full(bonds.n_bonds, 0.05)
+    al_a, al_b = np.ones(bonds.n_bonds), np.ones(bonds.n_bonds)
+    fa, ea, ra = a.evaluate(u, al_a, s0)
+    fb, eb, rb = b.evaluate(u, al_b, s0)
+    assert 0 < np.sum(al_a == 0) < bonds.n_bonds
+    assert np.array_equal(al_a, al_b) and np.array_equal(fa, fb)
+    assert eb == pytest.approx(ea, rel=1e-13)
+    assert rb == pytest.approx(ra, rel=1e-12)
+
+
+def test_state_threads_do_not_change_the_bits():
+    _, b, cloud, bonds = _state_pair("xosb", 3, False)
+    u = _u(cloud)
+    s0 = np.full(bonds.n_bonds, 0.05)
+    out = []
+    for n in (1, 2):
+        pdlin.set_num_threads(n)
+        alive = np.ones(bonds.n_bonds)
+        out.append((*b.evaluate(u, alive, s0), alive))
+    for x, y in zip(out[0], out[1], strict=True):
+        assert np.array_equal(x, y)
+
+
+def test_state_fractional_mask_falls_back_to_numpy():
+    a, b, cloud, bonds = _state_pair("lps", 2, True)
+    u = _u(cloud)
+    alive = np.full(bonds.n_bonds, 0.5)  # not 0/1: the compiled passes decline it
+    assert b._compiled(u, alive, None) is None
+    assert np.array_equal(a.force(u, alive), b.force(u, alive))
+
+
+def test_solve_explicit_lps_same_bits(monkeypatch):
+    from pdlin.dynamics import explicit
+    from pdlin.operators import TimePath
+
+    cloud = pdlin.grid(SHAPES[2], spacing=0.1)
+    bonds = pdlin.find_bonds(cloud, ratio=3.015)
+    model = pdlin.LPS(E=3.0, nu=0.25, plane="strain")
+    pull = pdlin.Dirichlet("x+", TimePath(lambda x, t: 0.2 * t), components="x")
+    prob = pdlin.StaticProblem(model, cloud, bonds, dirichlet=[pdlin.Dirichlet("x-", 0.0), pull])
+    runs = []
+    for compiled in (False, True):
+        monkeypatch.setattr(
+            explicit, "force_kernel", functools.partial(force_kernel, compiled=compiled)
+        )
+        runs.append(solve_explicit(prob, 1.0, density=1.0, critical_stretch=0.02))
+    a, b = runs
+    assert a.steps == b.steps > 10 and int(a.broken[-1]) > 0
+    assert np.array_equal(a.u, b.u) and np.array_equal(a.v, b.v)
+    assert np.array_equal(a.alive, b.alive)
+    np.testing.assert_allclose(b.strain, a.strain, rtol=1e-12, atol=1e-12 * a.strain.max())
