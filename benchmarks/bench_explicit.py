@@ -14,7 +14,9 @@ cached rows) over the bandwidth measured here by a numpy copy of a 256 MB array 
 write).  ``step`` is one whole velocity-Verlet step of :func:`pdlin.dynamics.solve_explicit`
 (the force pass plus the O(points) vector updates and energy bookkeeping).
 
-**All models, numpy** (``--models``): bond-based, LPS, XOSB in 2D and 3D, as before.
+**All models** (``--models``): bond-based, LPS, XOSB in 2D and 3D on numpy (force, with
+the damage test, whole step), and the compiled pass with the damage test on pdlin's
+threads (wall / CPU ms, and bond updates per CPU second).
 
 Run ``python benchmarks/bench_explicit.py`` (a few minutes; about 2.5 GB at 10^7 bonds
 for the numpy pass) or ``--quick``.  The header gives the load average: on a shared
@@ -73,6 +75,22 @@ def _timed(fn, repeat: int) -> tuple[float, float]:
     return t.wall / repeat, t.cpu / repeat
 
 
+def _step_time(prob: pdlin.StaticProblem, u: np.ndarray, steps: int, compiled: bool) -> float:
+    """Wall seconds per Verlet step of ``solve_explicit`` with the damage test."""
+    from pdlin.dynamics import explicit
+
+    orig = explicit.force_kernel
+    explicit.force_kernel = functools.partial(force_kernel, compiled=compiled)
+    try:
+        res = solve_explicit(
+            prob, steps * 1e-9, 1e-9, density=8000.0, critical_stretch=1.0, check_dt=False,
+            output_every=10**6, u0=u,
+        )  # fmt: skip
+    finally:
+        explicit.force_kernel = orig
+    return res.timings["steps"] / res.steps
+
+
 def bandwidth() -> float:
     """STREAM-like copy bandwidth in bytes/s: ``np.copyto`` of 256 MB (read + write), best of 5."""
     a = np.ones(1 << 25)
@@ -107,19 +125,7 @@ def compiled_rows(n: int, steps: int, bw: float) -> list[str]:
         kern = force_kernel(model, cloud, bonds, linear=False, compiled=compiled)
         wall, cpu = _timed(functools.partial(kern.evaluate, u, alive, s0), rep if compiled else 2)
         del kern
-        from pdlin.dynamics import explicit
-
-        orig = explicit.force_kernel
-        explicit.force_kernel = functools.partial(force_kernel, compiled=compiled)
-        try:
-            nst = steps if compiled else max(2, steps // 10)
-            res = solve_explicit(
-                prob, nst * 1e-9, 1e-9, density=8000.0, critical_stretch=1.0,
-                check_dt=False, output_every=10**6, u0=u,
-            )  # fmt: skip
-        finally:
-            explicit.force_kernel = orig
-        t_s = res.timings["steps"] / res.steps
+        t_s = _step_time(prob, u, steps if compiled else max(2, steps // 10), compiled)
         rows.append(
             f"| {nb:,} | {cloud.n:,} | {label} | {threads} | {wall * 1e3:.1f} | "
             f"{cpu * 1e3:.1f} | {nb / wall / 1e6:.1f} | {nb / cpu / 1e6:.1f} | "
@@ -158,15 +164,15 @@ def main() -> None:
     cases = [("bond", 2, 200), ("lps", 2, 200), ("xosb", 2, 200), ("bond", 3, 30), ("lps", 3, 30)]
     print(
         "\n| model | dim | points | bonds | force ms | M bond/s | +damage ms | step ms | "
-        "M bond/s (step) | GB/s implied |"
+        "M bond/s (step) | GB/s implied | numba +damage wall / CPU ms | numba M bond/s (CPU) |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name, dim, n in cases:
         print(measure(name, dim, n, args.steps), flush=True)
 
 
 def measure(name: str, dim: int, n: int, steps: int) -> str:
-    """Measure one configuration on numpy and return its Markdown row."""
+    """Measure one configuration (numpy, and numba where installed) and return its row."""
     cloud = pdlin.grid((n,) * dim, spacing=1e-3)
     prob = pdlin.StaticProblem(_model(name, dim), cloud, ratio=3.015)
     bonds = prob.get_bonds()
@@ -179,16 +185,20 @@ def measure(name: str, dim: int, n: int, steps: int) -> str:
     rep = max(3, int(2e6 // nb))
     t_f = _time(lambda: kern.evaluate(u, alive, None), rep)
     t_d = _time(lambda: kern.evaluate(u, alive, s0), rep)
-    dt = 1e-9
-    res = solve_explicit(
-        prob, steps * dt, dt, density=8000.0, critical_stretch=1.0, check_dt=False,
-        output_every=10**6, u0=u,
-    )  # fmt: skip
-    t_s = res.timings["steps"] / res.steps
+    t_s = _step_time(prob, u, steps, False)
     gbs = BYTES_PER_BOND[name] * nb / t_f / 1e9
+    from pdlin._kernels import numba_enabled
+
+    fast = "–"
+    if numba_enabled():
+        kc = force_kernel(prob.model, cloud, bonds, linear=False, compiled=True)
+        wall, cpu = _timed(functools.partial(kc.evaluate, u, alive, s0), rep)
+        fast = f"{wall * 1e3:.2f} / {cpu * 1e3:.2f} | {nb / cpu / 1e6:.1f}"
+    else:
+        fast += " | –"
     return (
         f"| {name} | {dim} | {cloud.n:,} | {nb:,} | {t_f * 1e3:.2f} | {nb / t_f / 1e6:.1f} | "
-        f"{t_d * 1e3:.2f} | {t_s * 1e3:.2f} | {nb / t_s / 1e6:.1f} | {gbs:.2f} |"
+        f"{t_d * 1e3:.2f} | {t_s * 1e3:.2f} | {nb / t_s / 1e6:.1f} | {gbs:.2f} | {fast} |"
     )
 
 
