@@ -1392,48 +1392,6 @@ def bond_force_fill(  # pragma: no cover
     out[1] = rel
 
 
-@_njit(nogil=True, inline="always")
-def _extension(u, p, q, b, xi, unit, length, linear, d):  # pragma: no cover
-    """Return extension, exact stretch, ``|ξ + η|`` and direction of bond ``b`` (``p -> q``).
-
-    As ``pdlin.dynamics.forces`` computes them, in its order.
-    """
-    y0 = 0.0
-    y1 = 0.0
-    y2 = 0.0
-    e0 = u[q, 0] - u[p, 0]
-    y0 = xi[b, 0] + e0
-    ly2 = y0 * y0
-    e1 = 0.0
-    e2 = 0.0
-    if d > 1:
-        e1 = u[q, 1] - u[p, 1]
-        y1 = xi[b, 1] + e1
-        ly2 = ly2 + y1 * y1
-    if d > 2:
-        e2 = u[q, 2] - u[p, 2]
-        y2 = xi[b, 2] + e2
-        ly2 = ly2 + y2 * y2
-    ly = np.sqrt(ly2)
-    if linear:
-        e = unit[b, 0] * e0
-        if d > 1:
-            e = e + unit[b, 1] * e1
-        if d > 2:
-            e = e + unit[b, 2] * e2
-        s = ly / length[b] - 1.0
-        m0 = unit[b, 0]
-        m1 = unit[b, 1] if d > 1 else 0.0
-        m2 = unit[b, 2] if d > 2 else 0.0
-    else:
-        e = ly - length[b]
-        s = e / length[b]
-        m0 = y0 / ly
-        m1 = y1 / ly
-        m2 = y2 / ly
-    return e, s, ly, m0, m1, m2
-
-
 @_njit(nogil=True)
 def state_dilatation_fill(  # pragma: no cover
     p0,
@@ -1478,10 +1436,38 @@ def state_dilatation_fill(  # pragma: no cover
         th = 0.0
         th0 = 0.0
         for b in range(indptr[p], indptr[p + 1]):
-            e, s, ly, m0, m1, m2 = _extension(u, p, j[b], b, xi, unit, length, linear, d)
-            if not linear and ly <= 0.0:
-                out[2] = 1.0
-                return
+            # the extension and the exact stretch as forces.py computes them, in its order
+            # (written out: an inlined helper returning a tuple ran 2.5x slower)
+            q = j[b]
+            e0 = u[q, 0] - u[p, 0]
+            y0 = xi[b, 0] + e0
+            ly2 = y0 * y0
+            e1 = 0.0
+            e2 = 0.0
+            if d > 1:
+                e1 = u[q, 1] - u[p, 1]
+                y1 = xi[b, 1] + e1
+                ly2 = ly2 + y1 * y1
+            if d > 2:
+                e2 = u[q, 2] - u[p, 2]
+                y2 = xi[b, 2] + e2
+                ly2 = ly2 + y2 * y2
+            if linear:
+                e = unit[b, 0] * e0
+                if d > 1:
+                    e = e + unit[b, 1] * e1
+                if d > 2:
+                    e = e + unit[b, 2] * e2
+                s = 0.0
+                if breaking:
+                    s = np.sqrt(ly2) / length[b] - 1.0
+            else:
+                ly = np.sqrt(ly2)
+                if ly <= 0.0:
+                    out[2] = 1.0
+                    return
+                e = ly - length[b]
+                s = e / length[b]
             e_out[b] = e
             al = alive[b]
             th0 += (a[b] * al) * e
@@ -1543,7 +1529,26 @@ def state_scatter_fill(  # pragma: no cover
         for a in range(d):
             f[p, a] = 0.0
         for b in range(indptr[p], indptr[p + 1]):
-            e, s, ly, m0, m1, m2 = _extension(u, p, j[b], b, xi, unit, length, linear, d)
+            q = j[b]
+            y1 = 0.0
+            y2 = 0.0
+            y0 = xi[b, 0] + (u[q, 0] - u[p, 0])
+            ly2 = y0 * y0
+            if d > 1:
+                y1 = xi[b, 1] + (u[q, 1] - u[p, 1])
+                ly2 = ly2 + y1 * y1
+            if d > 2:
+                y2 = xi[b, 2] + (u[q, 2] - u[p, 2])
+                ly2 = ly2 + y2 * y2
+            if linear:
+                m0 = unit[b, 0]
+                m1 = unit[b, 1] if d > 1 else 0.0
+                m2 = unit[b, 2] if d > 2 else 0.0
+            else:
+                ly = np.sqrt(ly2)
+                m0 = y0 / ly
+                m1 = y1 / ly
+                m2 = y2 / ly
             t = tw[b] + tw[rev[b]]
             f[p, 0] += t * m0
             if d > 1:
