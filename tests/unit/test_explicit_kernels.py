@@ -2,7 +2,8 @@
 
 The compiled pass repeats the numpy arithmetic per bond in its order and sums each point's
 family in bond order, so forces and bond masks must be equal bit for bit, for any thread
-count and chunking; energies are chunk sums (round-off).  Skipped without numba.
+count and chunking; energies are chunk sums (round-off).  Skipped without numba (or with
+``PDLIN_NUMBA=0``).
 """
 
 from __future__ import annotations
@@ -13,10 +14,12 @@ import numpy as np
 import pytest
 
 import pdlin
+from pdlin._kernels import numba_enabled
 from pdlin.dynamics import force_kernel, forces, solve_explicit
 from pdlin.errors import InputError
 
-pytest.importorskip("numba")
+if not numba_enabled():  # numba missing or PDLIN_NUMBA=0
+    pytest.skip("the compiled passes need numba", allow_module_level=True)
 
 SHAPES = {1: (40,), 2: (14, 9), 3: (7, 6, 5)}
 
