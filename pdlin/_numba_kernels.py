@@ -1307,3 +1307,251 @@ def adr_local_fill(i0, i1, r, r_new, lam, u_new, u, du, k, local):  # pragma: no
             if d == 0.0:
                 m = np.inf
             k[i] = (r[i] - r_new[i]) / m
+
+
+@_njit(nogil=True)
+def bond_force_fill(  # pragma: no cover
+    p0, p1, u, j, indptr, xi, unit, length, k, alive, s0, linear, mask, breaking, f, out
+):
+    """Bond-based force of points ``p0:p1``, each summing its own family (owner computes).
+
+    ``pdlin.dynamics.forces.BondKernel.evaluate``'s numpy arithmetic per directed bond, in
+    its order: ``η = u_j − u_i``; linearized ``e = n·η`` (``n = ξ/|ξ|``) or exact
+    ``e = |ξ + η| − |ξ|`` along ``m = (ξ + η)/|ξ + η|``; with ``breaking`` a surviving bond
+    whose exact stretch exceeds ``s0`` gets ``alive = 0`` (``s0`` and ``alive`` symmetric
+    under bond reversal, which the caller checks, so the owner decides both directions
+    alike); ``f_i += (k alive e) m`` summed in bond order from zero (what ``np.bincount``
+    does), so ``f`` equals the numpy path's bitwise.  ``out[0]`` gets ``Σ k alive e²`` and
+    ``out[1]`` that of the bonds broken now (the caller's ``¼`` and chunk sums round
+    differently from numpy's ``dot``).  Zero-length deformed bonds set ``out[2] = 1``.
+    """
+    d = u.shape[1]
+    en = 0.0
+    rel = 0.0
+    s = 0.0
+    ly = 0.0
+    for p in range(p0, p1):
+        for a in range(d):
+            f[p, a] = 0.0
+        for b in range(indptr[p], indptr[p + 1]):
+            q = j[b]
+            y0 = 0.0
+            y1 = 0.0
+            y2 = 0.0
+            e0 = u[q, 0] - u[p, 0]
+            y0 = xi[b, 0] + e0
+            ly2 = y0 * y0
+            e1 = 0.0
+            e2 = 0.0
+            if d > 1:
+                e1 = u[q, 1] - u[p, 1]
+                y1 = xi[b, 1] + e1
+                ly2 = ly2 + y1 * y1
+            if d > 2:
+                e2 = u[q, 2] - u[p, 2]
+                y2 = xi[b, 2] + e2
+                ly2 = ly2 + y2 * y2
+            if linear:
+                e = unit[b, 0] * e0
+                if d > 1:
+                    e = e + unit[b, 1] * e1
+                if d > 2:
+                    e = e + unit[b, 2] * e2
+                m0 = unit[b, 0]
+                m1 = unit[b, 1] if d > 1 else 0.0
+                m2 = unit[b, 2] if d > 2 else 0.0
+                if breaking:
+                    ly = np.sqrt(ly2)
+                    s = ly / length[b] - 1.0
+            else:
+                ly = np.sqrt(ly2)
+                if ly <= 0.0:
+                    out[2] = 1.0
+                    return
+                e = ly - length[b]
+                m0 = y0 / ly
+                m1 = y1 / ly
+                m2 = y2 / ly
+                s = e / length[b]
+            kb = k[b]
+            if mask:
+                al = alive[b]
+                if breaking and al > 0.0 and s > s0[b]:
+                    rel += (kb * al) * (e * e)
+                    alive[b] = 0.0
+                    al = 0.0
+                kb = kb * al
+            tb = kb * e
+            en += tb * e
+            f[p, 0] += tb * m0
+            if d > 1:
+                f[p, 1] += tb * m1
+            if d > 2:
+                f[p, 2] += tb * m2
+    out[0] = en
+    out[1] = rel
+
+
+@_njit(nogil=True)
+def state_dilatation_fill(  # pragma: no cover
+    p0,
+    p1,
+    u,
+    j,
+    indptr,
+    xi,
+    unit,
+    length,
+    a,
+    c,
+    vj,
+    w,
+    kV,
+    alive,
+    s0,
+    linear,
+    breaking,
+    energy_variant,
+    e_out,
+    ed_out,
+    broke,
+    theta,
+    z,
+    out,
+):
+    """First pass of the state-based (LPS, XOSB) force: points ``p0:p1``.
+
+    ``pdlin.dynamics.forces.StateKernel``'s numpy arithmetic in its order: extension ``e``
+    (stored), breaking (``alive`` set to 0 where the exact stretch exceeds ``s0``; symmetric
+    masks, checked by the caller), ``θ_i = Σ (a alive) e`` and ``θ`` with the mask before
+    the breaking, ``e^d = e − θ_i |ξ| / d`` (stored), ``z_i = Σ ((c alive) e^d) |ξ| V_j``
+    (``linearization='energy'``), and per chunk ``out[0]`` = strain energy ``Σ κV θ²/2 +
+    Σ w (c alive) (e^d)²/2`` (``w = V_i V_j``) after the breaking, ``out[1]`` the same before it.
+    Collapsed bonds (exact kinematics) set ``out[2] = 1``.
+    """
+    d = u.shape[1]
+    en = 0.0
+    en0 = 0.0
+    for p in range(p0, p1):
+        th = 0.0
+        th0 = 0.0
+        for b in range(indptr[p], indptr[p + 1]):
+            # the extension and the exact stretch as forces.py computes them, in its order
+            # (written out: an inlined helper returning a tuple ran 2.5x slower)
+            q = j[b]
+            e0 = u[q, 0] - u[p, 0]
+            y0 = xi[b, 0] + e0
+            ly2 = y0 * y0
+            e1 = 0.0
+            e2 = 0.0
+            if d > 1:
+                e1 = u[q, 1] - u[p, 1]
+                y1 = xi[b, 1] + e1
+                ly2 = ly2 + y1 * y1
+            if d > 2:
+                e2 = u[q, 2] - u[p, 2]
+                y2 = xi[b, 2] + e2
+                ly2 = ly2 + y2 * y2
+            if linear:
+                e = unit[b, 0] * e0
+                if d > 1:
+                    e = e + unit[b, 1] * e1
+                if d > 2:
+                    e = e + unit[b, 2] * e2
+                s = 0.0
+                if breaking:
+                    s = np.sqrt(ly2) / length[b] - 1.0
+            else:
+                ly = np.sqrt(ly2)
+                if ly <= 0.0:
+                    out[2] = 1.0
+                    return
+                e = ly - length[b]
+                s = e / length[b]
+            e_out[b] = e
+            al = alive[b]
+            th0 += (a[b] * al) * e
+            broke[b] = 0
+            if breaking and al > 0.0 and s > s0[b]:
+                broke[b] = 1
+                alive[b] = 0.0
+                al = 0.0
+            th += (a[b] * al) * e
+        theta[p] = th
+        zp = 0.0
+        wp = 0.0
+        wp0 = 0.0
+        for b in range(indptr[p], indptr[p + 1]):
+            ed = e_out[b] - th * length[b] / d
+            ed_out[b] = ed
+            ca = c[b] * alive[b]
+            cd = ca * ed
+            if energy_variant:
+                zp += cd * length[b] * vj[b]
+            wp += w[b] * ca * ed * ed
+            if breaking:
+                ed0 = e_out[b] - th0 * length[b] / d
+                wp0 += w[b] * (c[b] * (alive[b] + broke[b])) * ed0 * ed0
+        z[p] = zp
+        en += kV[p] * th * th + wp
+        en0 += kV[p] * th0 * th0 + wp0
+    out[0] = 0.5 * en
+    out[1] = 0.5 * en0
+
+
+@_njit(nogil=True)
+def state_force_fill(  # pragma: no cover
+    p0, p1, indptr, a, c, kth, kh, vj, w, alive, dim, energy_variant, theta, z, ed, tw
+):
+    """Second pass: the weighted force scalar ``tw_b = w t_b`` of the bonds of ``p0:p1``.
+
+    ``t = (kth θ_i + (c alive) e^d) − (a / V_j / d) z_i`` (``'energy'``) or ``kh θ_i + (c alive)
+    e^d`` (``'paper'``), times ``alive``, as forces.py's ``_force_of`` in its order.
+    """
+    for p in range(p0, p1):
+        for b in range(indptr[p], indptr[p + 1]):
+            al = alive[b]
+            cd = c[b] * al * ed[b]
+            if energy_variant:
+                t = (kth[b] * theta[p] + cd) - (a[b] / vj[b] / dim) * z[p]
+            else:
+                t = kh[b] * theta[p] + cd
+            tw[b] = w[b] * (t * al)
+
+
+@_njit(nogil=True)
+def state_scatter_fill(  # pragma: no cover
+    p0, p1, u, j, indptr, xi, unit, length, rev, linear, tw, f
+):
+    """Third pass: ``f_i = Σ_b (tw_b + tw_rev(b)) m_b`` in bond order from zero."""
+    d = u.shape[1]
+    for p in range(p0, p1):
+        for a in range(d):
+            f[p, a] = 0.0
+        for b in range(indptr[p], indptr[p + 1]):
+            q = j[b]
+            y1 = 0.0
+            y2 = 0.0
+            y0 = xi[b, 0] + (u[q, 0] - u[p, 0])
+            ly2 = y0 * y0
+            if d > 1:
+                y1 = xi[b, 1] + (u[q, 1] - u[p, 1])
+                ly2 = ly2 + y1 * y1
+            if d > 2:
+                y2 = xi[b, 2] + (u[q, 2] - u[p, 2])
+                ly2 = ly2 + y2 * y2
+            if linear:
+                m0 = unit[b, 0]
+                m1 = unit[b, 1] if d > 1 else 0.0
+                m2 = unit[b, 2] if d > 2 else 0.0
+            else:
+                ly = np.sqrt(ly2)
+                m0 = y0 / ly
+                m1 = y1 / ly
+                m2 = y2 / ly
+            t = tw[b] + tw[rev[b]]
+            f[p, 0] += t * m0
+            if d > 1:
+                f[p, 1] += t * m1
+            if d > 2:
+                f[p, 2] += t * m2

@@ -17,6 +17,11 @@ paper of Liu, Chen & Skelton, §5.3, where ``λ`` is not recomputed after breaki
 
 With every bond alive each kernel equals the model's own ``internal_force`` to
 round-off (``tests/unit/test_explicit.py``).
+
+With numba installed the bond-based and state-based passes run compiled (``pdlin._numba_kernels``:
+``bond_force_fill``, ``state_*_fill``) on pdlin's threads, each point on its own family,
+from ``2^16`` bonds on or with ``compiled=True``: forces and bond masks bitwise equal to
+this module's numpy arithmetic, energies to round-off (``tests/unit/test_explicit_kernels.py``).
 """
 
 from __future__ import annotations
@@ -47,6 +52,19 @@ def _scatter(i: np.ndarray, vec: np.ndarray, n: int) -> np.ndarray:
     return f
 
 
+def _rowdot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Return the row-wise dot ``Σ_k a_k b_k`` summed left to right.
+
+    ``einsum`` pairs the terms in an order of its own (``(a_0 b_0 + a_2 b_2) + a_1 b_1`` for
+    three columns in numpy 2.4); the compiled pass sums left to right, and so must this one
+    to give the same bits.
+    """
+    out = a[:, 0] * b[:, 0]
+    for k in range(1, a.shape[1]):
+        out += a[:, k] * b[:, k]
+    return out
+
+
 class _Geometry:
     """Bond arrays read once (compact bonds compute them on every access)."""
 
@@ -65,9 +83,9 @@ class _Geometry:
         eta = np.take(u, self.j, axis=0)
         eta -= np.take(u, self.i, axis=0)
         if linear:
-            return np.einsum("ij,ij->i", self.unit, eta), self.unit
+            return _rowdot(self.unit, eta), self.unit
         y = self.xi + eta
-        ly = np.sqrt(np.einsum("ij,ij->i", y, y))
+        ly = np.sqrt(_rowdot(y, y))
         if np.any(ly <= 0):
             raise InputError("u collapses a bond to zero length; the force is undefined")
         return ly - self.length, y / ly[:, None]
@@ -77,7 +95,7 @@ class _Geometry:
         y = np.take(u, self.j, axis=0)
         y -= np.take(u, self.i, axis=0)
         y += self.xi
-        return np.sqrt(np.einsum("ij,ij->i", y, y)) / self.length - 1.0
+        return np.sqrt(_rowdot(y, y)) / self.length - 1.0
 
     def broken_now(
         self, u: np.ndarray, e: np.ndarray, linear: bool, alive: np.ndarray, s0: np.ndarray
@@ -90,8 +108,74 @@ class _Geometry:
         return new | new[self.reverse]
 
 
+#: bonds per chunk of the compiled bond-based pass (fixed: the bits do not depend on threads)
+_CHUNK_BONDS = 1 << 15
+
+
+def _compiled_kernels(n_bonds: int, compiled: bool | None) -> Any:
+    """Return pdlin's numba kernels for a force pass over ``n_bonds`` bonds, or None (numpy).
+
+    ``compiled=None`` decides by size: a time loop repeats the pass thousands of times, so
+    from ``2^16`` bonds on (``use_numba(16 n_bonds)``) the compiled pass pays for numba's
+    import; ``True`` uses them whenever numba is installed, ``False`` never.
+    """
+    from .._kernels import compiled_kernels, use_numba
+
+    if compiled is None:
+        return compiled_kernels() if use_numba(16 * n_bonds) else None
+    return compiled_kernels() if compiled else None
+
+
+class _Compiled:
+    """Contiguous bond arrays, point chunks and mask checks of the compiled passes."""
+
+    def __init__(self, g: _Geometry, bonds: Bonds) -> None:
+        from .._threads import ptr_chunks
+
+        self.indptr = np.asarray(bonds.indptr, dtype=np.int64)
+        self.chunks = ptr_chunks(self.indptr, _CHUNK_BONDS)
+        self.xi = np.ascontiguousarray(g.xi)
+        self.unit = np.ascontiguousarray(g.unit)
+        self.j = np.ascontiguousarray(g.j)
+        self.rev = np.ascontiguousarray(g.reverse)
+        self.none = np.zeros(1)
+        self._ones: np.ndarray | None = None
+        self._checked: dict[str, Any] = {}
+
+    def ones(self) -> np.ndarray:
+        """Return an all-alive mask (read only by the passes)."""
+        if self._ones is None:
+            self._ones = np.ones(self.j.size)
+        return self._ones
+
+    def symmetric(self, name: str, arr: np.ndarray) -> bool:
+        """Whether ``arr`` is symmetric under bond reversal (cached for this array object)."""
+        if self._checked.get(name) is arr:
+            return True
+        ok = bool(np.array_equal(arr, arr[self.rev]))
+        if ok:
+            self._checked[name] = arr
+        return ok
+
+    def mask_ok(self, alive: np.ndarray, binary: bool = False) -> bool:
+        """Whether the passes may use ``alive`` (float64, contiguous, symmetric, 0/1)."""
+        if not (alive.dtype == np.float64 and alive.flags.c_contiguous):
+            return False
+        if self._checked.get("alive") is alive:
+            return True
+        if binary and not bool(np.all((alive == 0.0) | (alive == 1.0))):
+            return False
+        return self.symmetric("alive", alive)
+
+
 class BondKernel:
     """Bond-based force with a bond mask (see the module docstring).
+
+    With numba installed (and ``compiled`` not False) :meth:`evaluate` and :meth:`force`
+    run one compiled pass on pdlin's threads (:func:`pdlin.set_num_threads`): each point
+    sums its own family in bond order (chunks of points, no atomics), so the force is
+    bitwise the numpy path's for any thread count; the strain energy and the released
+    energy are summed per chunk and differ from numpy's ``dot`` by round-off only.
 
     Parameters
     ----------
@@ -103,15 +187,56 @@ class BondKernel:
         The intact bonds.
     linear : bool
         Linearized stretch (True) or the exact PMB stretch along the deformed bond.
+    compiled : bool or None
+        Use the numba pass: None (by size), True (whenever numba is installed), False.
     """
 
     conservative = True
     damage = True
 
-    def __init__(self, model: BondBased, cloud: PointCloud, bonds: Bonds, linear: bool) -> None:
-        self.geo = _Geometry(cloud, bonds)
+    def __init__(
+        self,
+        model: BondBased,
+        cloud: PointCloud,
+        bonds: Bonds,
+        linear: bool,
+        compiled: bool | None = None,
+    ) -> None:
+        self.geo = g = _Geometry(cloud, bonds)
         self.k = np.asarray(model.bond_stiffness(cloud, bonds), dtype=float)
         self.linear = linear
+        self.kern = _compiled_kernels(g.i.size, compiled)
+        if self.kern is not None:
+            self.fast = _Compiled(g, bonds)
+
+    def _compiled(
+        self, u: np.ndarray, alive: np.ndarray | None, s0: np.ndarray | None
+    ) -> tuple[np.ndarray, float, float] | None:
+        """Run the compiled pass (force, energy, released); None where numpy must run."""
+        fast, g, kern = self.fast, self.geo, self.kern
+        breaking = s0 is not None and alive is not None
+        mask = alive is not None
+        if alive is not None and not fast.mask_ok(alive):
+            return None
+        if s0 is not None and breaking and not fast.symmetric("s0", s0):
+            return None
+        from .._threads import thread_map
+
+        uc = np.ascontiguousarray(u, dtype=float)
+        f = np.empty((g.n, g.d))
+        out = np.zeros((len(fast.chunks), 3))
+        al = alive if alive is not None else fast.none
+        s0c = np.ascontiguousarray(s0, dtype=float) if breaking else fast.none
+        args = (uc, fast.j, fast.indptr, fast.xi, fast.unit, g.length, self.k, al, s0c)
+        thread_map(
+            lambda c: kern.bond_force_fill(
+                *fast.chunks[c], *args, self.linear, mask, breaking, f, out[c],
+            ),
+            range(len(fast.chunks)),
+        )  # fmt: skip
+        if np.any(out[:, 2]):
+            raise InputError("u collapses a bond to zero length; the force is undefined")
+        return f, float(0.25 * np.sum(out[:, 0])), float(0.25 * np.sum(out[:, 1]))
 
     def force(self, u: np.ndarray, alive: np.ndarray | None) -> np.ndarray:
         """Return the nodal internal force ``(n, d)``.
@@ -127,6 +252,10 @@ class BondKernel:
         -------
         (n, d) ndarray
         """
+        if self.kern is not None:
+            res = self._compiled(u, alive, None)
+            if res is not None:
+                return res[0]
         g = self.geo
         e, m = g.extension(u, self.linear)
         k = self.k if alive is None else self.k * alive
@@ -156,6 +285,10 @@ class BondKernel:
         released : float
             Strain energy the broken bonds held.
         """
+        if self.kern is not None:
+            res = self._compiled(u, alive, s0)
+            if res is not None:
+                return res
         g = self.geo
         e, m = g.extension(u, self.linear)
         released = 0.0
@@ -200,12 +333,26 @@ class StateKernel:
         The intact bonds (the weights are computed on them once).
     linear : bool
         Linearized extension along the reference direction (True) or the exact one.
+    compiled : bool or None
+        Use the numba passes: None (by size), True (whenever numba is installed), False.
+
+    Notes
+    -----
+    With numba, :meth:`evaluate` and :meth:`force` run three compiled passes over the points
+    (dilatation and breaking; the force scalar of each bond; the nodal sum over
+    ``t_b + t_rev(b)``), each point working on its own family: the force and the bond mask
+    equal the numpy path's bitwise, the energies to round-off.
     """
 
     damage = True
 
     def __init__(
-        self, model: OrdinaryStateBased, cloud: PointCloud, bonds: Bonds, linear: bool
+        self,
+        model: OrdinaryStateBased,
+        cloud: PointCloud,
+        bonds: Bonds,
+        linear: bool,
+        compiled: bool | None = None,
     ) -> None:
         g = self.geo = _Geometry(cloud, bonds)
         self.linear = linear
@@ -233,6 +380,58 @@ class StateKernel:
             self.kh = self.kh * alpha[g.i]
             self.kth = self.kth * alpha[g.i]
             self.kV = self.kV * alpha
+        self.kern = _compiled_kernels(g.i.size, compiled)
+        if self.kern is not None:
+            self.fast = _Compiled(g, bonds)
+
+    def _compiled(
+        self, u: np.ndarray, alive: np.ndarray | None, s0: np.ndarray | None
+    ) -> tuple[np.ndarray, float, float] | None:
+        """Run the compiled passes (force, energy, released); None where numpy must run."""
+        fast, g, kern = self.fast, self.geo, self.kern
+        breaking = s0 is not None and alive is not None
+        if alive is not None and not fast.mask_ok(alive, binary=True):
+            return None
+        if s0 is not None and breaking and not fast.symmetric("s0", s0):
+            return None
+        from .._threads import thread_map
+
+        uc = np.ascontiguousarray(u, dtype=float)
+        nb = g.i.size
+        al = alive if alive is not None else fast.ones()
+        s0c = np.ascontiguousarray(s0, dtype=float) if breaking else fast.none
+        e, ed, tw = np.empty(nb), np.empty(nb), np.empty(nb)
+        broke = np.empty(nb, dtype=np.uint8)
+        theta, z = np.empty(g.n), np.empty(g.n)
+        out = np.zeros((len(fast.chunks), 3))
+        geo = (uc, fast.j, fast.indptr, fast.xi, fast.unit, g.length)
+        energy_variant = self.variant != "paper"
+        thread_map(
+            lambda c: kern.state_dilatation_fill(
+                *fast.chunks[c], *geo, self.a, self.c, self.vj, self.w, self.kV, al, s0c,
+                self.linear, breaking, energy_variant, e, ed, broke, theta, z, out[c],
+            ),
+            range(len(fast.chunks)),
+        )  # fmt: skip
+        if np.any(out[:, 2]):
+            raise InputError("u collapses a bond to zero length; the force is undefined")
+        thread_map(
+            lambda c: kern.state_force_fill(
+                *fast.chunks[c], fast.indptr, self.a, self.c, self.kth, self.kh, self.vj,
+                self.w, al, g.d, energy_variant, theta, z, ed, tw,
+            ),
+            range(len(fast.chunks)),
+        )  # fmt: skip
+        f = np.empty((g.n, g.d))
+        thread_map(
+            lambda c: kern.state_scatter_fill(
+                *fast.chunks[c], *geo, fast.rev, self.linear, tw, f
+            ),
+            range(len(fast.chunks)),
+        )  # fmt: skip
+        after = float(np.sum(out[:, 0]))
+        released = float(np.sum(out[:, 1])) - after if breaking else 0.0
+        return f, after, released
 
     def _state(
         self, u: np.ndarray, alive: np.ndarray | None
@@ -291,6 +490,10 @@ class StateKernel:
         released : float
             Strain energy lost by the breaking (the energy at ``u`` before minus after).
         """
+        if self.kern is not None:
+            res = self._compiled(u, alive, s0)
+            if res is not None:
+                return res
         g = self.geo
         e, m = g.extension(u, self.linear)
         released = 0.0
@@ -319,6 +522,10 @@ class StateKernel:
         -------
         (n, d) ndarray
         """
+        if self.kern is not None:
+            res = self._compiled(u, alive, None)
+            if res is not None:
+                return res[0]
         _, m, theta, ed = self._state(u, alive)
         return self._force_of(m, theta, ed, alive)
 
@@ -410,7 +617,7 @@ class GenericKernel:
 
 
 def force_kernel(
-    model: Any, cloud: PointCloud, bonds: Bonds, *, linear: bool
+    model: Any, cloud: PointCloud, bonds: Bonds, *, linear: bool, compiled: bool | None = None
 ) -> BondKernel | StateKernel | GenericKernel:
     """Return the force kernel of ``model`` on ``bonds`` (see the module docstring).
 
@@ -426,6 +633,9 @@ def force_kernel(
     linear : bool
         Linearized kinematics (True) or the exact stretch / extension along the deformed
         bond (False).
+    compiled : bool or None
+        :class:`BondKernel`'s numba pass: None (by size: from ``2^16`` bonds with numba
+        installed), True (whenever numba is installed), False (numpy).
 
     Returns
     -------
@@ -454,9 +664,9 @@ def force_kernel(
     if isinstance(model, BondBased):
         if model.kinematics == "finite":
             linear = False
-        return BondKernel(model, cloud, bonds, linear)
+        return BondKernel(model, cloud, bonds, linear, compiled)
     if isinstance(model, OrdinaryStateBased):
-        return StateKernel(model, cloud, bonds, linear)
+        return StateKernel(model, cloud, bonds, linear, compiled)
     kern = GenericKernel(model, cloud, bonds, linear)
     if kern.state:
         raise ModelError(
