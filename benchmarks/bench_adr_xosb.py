@@ -86,7 +86,8 @@ def main() -> None:
     print(f"# XOSB plate with a hole, linearization {args.linearization!r}, 1 pdlin thread")
     print(
         "| particles | e_l | ADR iterations | final e₁ | direct wall / CPU s | ADR wall / CPU s "
-        "| time ratio ADR/direct wall / CPU | max\\|Δu\\|/max\\|u\\| | bound e_l‖r⁰‖/σ_min | peak RSS MB |"
+        "| time ratio ADR/direct wall / CPU | max\\|Δu\\|/max\\|u\\| | bound e_l‖r⁰‖/σ_min "
+        "| peak RSS MB |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for size in args.sizes:
