@@ -131,10 +131,11 @@ def _roughness(res: Any, points: np.ndarray, m: int) -> float:
     return float(np.median(hf[lo:hi, lo:hi]))
 
 
-def _homogenized_yy(res: Any, points: np.ndarray) -> np.ndarray:
+def _mean_yy(res: Any, points: np.ndarray) -> np.ndarray:
+    """Mean σ_yy per step over the inner 18 x 18 points (outside the layer for every δ ≤ 3h)."""
     ij = _grid_index(points)
-    real = np.all((ij >= 0) & (ij < N), axis=1)
-    return np.asarray(res.stress[:, real, 1, 1].mean(axis=1))
+    inner = np.all((ij >= 3) & (ij < N - 3), axis=1)
+    return np.asarray(res.stress[:, inner, 1, 1].mean(axis=1))
 
 
 @pytest.mark.slow
@@ -145,7 +146,8 @@ def test_polycrystal_weights_suppress_roughness_and_delta_trend():
         sc = _scene(m, control)
         res = pdlin.solve_nonlinear(sc.problem, steps=30, t_end=30.0, method="auto")
         rough[m, control] = _roughness(res, sc.cloud.points, m)
-        syy[m, control] = _homogenized_yy(res, sc.cloud.points)
+        syy[m, control] = _mean_yy(res, sc.cloud.points)
+        print(m, control, rough[m, control], syy[m, control][[9, 29]], int(res.iterations.sum()))
     ho = {m: rough[m, "higher_order"] for m in (1, 2, 3)}
     # the paper's Sec. III.B: zero-energy modes suppressed at every long-range horizon, where
     # ω = 1/|ξ| oscillates; measured 2026-11-28: none / HO = 5.5 (2h) and 10.9 (3h)
@@ -154,8 +156,8 @@ def test_polycrystal_weights_suppress_roughness_and_delta_trend():
     # "larger horizon interactions make the results more stable" (Sec. III.B): measured median
     # roughness 6.2e-2 (h), 4.3e-2 (2h), 3.7e-2 (3h)
     assert ho[3] < ho[2] < ho[1], ho
-    # "stable across different horizon sizes" (Sec. III.B, Conclusions): homogenized σ_yy of 2h
-    # and 3h within 5 % of δ = h at steps 10 and 30 (measured ≤ 5 %, the scene's checks)
+    # "stable across different horizon sizes" (Sec. III.B, Conclusions): mean σ_yy over the
+    # points real at every δ, 2h and 3h within 5 % of δ = h at steps 10 and 30
     for m in (2, 3):
         for k in (9, 29):
             ref = syy[1, "higher_order"][k]
