@@ -1,4 +1,4 @@
-"""The 3D soft precipitate of Javaheri, Luo, Lakshmanan & Sundararaghavan (2022), Sec. III.C, at 48³.
+"""The 3D soft precipitate of Javaheri, Luo, Lakshmanan & Sundararaghavan (2022), Sec. III.C, 48³.
 
 The paper's size: a 3 mm cube of 48³ particles (h = 62.5 µm) of transversely isotropic Mg
 (Sec. III.C: C11 = 59.3, C12 = 25.7, C13 = 21.4, C33 = 61.5, C44 = 16.4 GPa) with a central sphere
