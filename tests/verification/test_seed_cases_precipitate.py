@@ -18,6 +18,7 @@ import pytest
 
 import pdlin
 from pdlin.constitutive import transversely_isotropic
+from pdlin.models import shadow_problem
 
 # reference values (independent implementation, 48³, µm): raw / filt / dev per weight set
 REFERENCE_48 = {
@@ -35,7 +36,7 @@ def _centreline(m: int, control: str, n: int = 48) -> tuple[float, float, float]
     bonds = pdlin.find_bonds(cloud, ratio=float(m))
     model = pdlin.Correspondence({0: C, 1: 0.1 * C}, control=control)
     F = np.eye(3) + 0.02 * np.diag([1.0, -0.5, -0.5])
-    prob = pdlin.shadow_problem(model, cloud, bonds, F)
+    prob = shadow_problem(model, cloud, bonds, F)
     res = pdlin.solve(prob, rtol=1e-10)
     ij = np.rint(cloud.points / h - 0.5).astype(int)
     row = np.flatnonzero((ij[:, 1] == n // 2) & (ij[:, 2] == n // 2))
