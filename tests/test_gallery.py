@@ -24,12 +24,13 @@ from pdlin.scene.scene import builtin_scene, list_builtin_scenes, scene_from_dic
 
 #: scenes taking more than a few seconds (multi-second AMG solves in 3D, 30 nonlinear load
 #: steps of a 625-point polycrystal)
-SLOW = {"bar", "bar_energy", "cp_shear", "cp_compression", "kalthoff_winkler"}
+SLOW = {"bar", "bar_energy", "cp_shear", "cp_compression", "kalthoff_winkler", "cp_higher_order"}
 GALLERY = [
     "anisotropic_block",
     "bar",
     "bar_energy",
     "cp_compression",
+    "cp_higher_order",
     "cp_shear",
     "cp_single_crystal",
     "damage_plate",
