@@ -26,6 +26,7 @@ import numpy as np
 
 from .._validation import as_float_array, integer
 from ..errors import InputError, InputTypeError, ShapeError
+from .linear import SOLVERS
 
 __all__ = [
     "METHODS",
@@ -224,8 +225,8 @@ def check_keywords(kw: dict[str, Any]) -> int | None:
         The keywords by name (``method``, ``rtol``, ``e_l``, ``floor``, ``maxiter``,
         ``max_cutbacks``, ``fallback_cutbacks``, ``relax``, ``progress_every``,
         ``snapshot_every``, ``damping``, ``c0``, ``polish``, ``adr_stall``,
-        ``newton_backoff``, ``forcing``, ``globalization``, ``adr_maxiter``, ``resume``,
-        ``checkpoint``).
+        ``newton_backoff``, ``linear_solver``, ``forcing``, ``globalization``,
+        ``adr_maxiter``, ``resume``, ``checkpoint``).
 
     Returns
     -------
@@ -273,7 +274,12 @@ def check_keywords(kw: dict[str, Any]) -> int | None:
         isinstance(adr_stall, bool) or not isinstance(adr_stall, int) or adr_stall < 1
     ):
         raise InputError(f"adr_stall must be an integer >= 1 (ADR iterations), got {adr_stall!r}")
-    for name, allowed in (("forcing", FORCINGS), ("globalization", GLOBALIZATIONS)):
+    solvers = (*SOLVERS, KRYLOV)
+    for name, allowed in (
+        ("forcing", FORCINGS),
+        ("globalization", GLOBALIZATIONS),
+        ("linear_solver", solvers),
+    ):
         if kw[name] not in allowed:
             raise InputError(f"{name} must be one of {allowed}, got {kw[name]!r}")
     if not isinstance(kw["newton_backoff"], bool):
