@@ -275,7 +275,7 @@ def newton_step(
         instead of ``linear_solver``.
     forcing : {'fixed', 'eisenstat-walker'}
         The Krylov tolerance with ``krylov``: ``linear_rtol``, or Eisenstat & Walker's
-        (1996) choice 2 (:class:`~pdlin.solvers.newton_krylov.ForcingTerm`).
+        (1996) choice 2 (``pdlin.solvers.newton_krylov.ForcingTerm``).
 
     Returns
     -------

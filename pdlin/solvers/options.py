@@ -85,7 +85,7 @@ class NewtonOptions:
         Krylov tolerance of ``'krylov'``: 1e-10, or Eisenstat & Walker's (1996) choice 2.
     globalization : {'line-search', 'ptc'}
         Backtracking line search, or pseudo-transient continuation with the ADR density
-        as the shift (:func:`pdlin.solvers.ptc.ptc_step`).
+        as the shift (``pdlin.solvers.ptc.ptc_step``).
     """
 
     rtol: float = 1e-8

@@ -316,7 +316,9 @@ def test_newton_elastic_steps_take_one_iteration(eta):
     for k in elastic:
         assert res.iterations[k] == 1, (k, res.iterations)
     if eta == 0.002:  # the old path, still selectable: two iterations in step 1
-        old = pdlin.solve_nonlinear(prob, steps=1, t_end=4.0, method="newton", predictor="tangent")
+        old = pdlin.solve_nonlinear(
+            prob, times=[1.0], t_end=4.0, method="newton", predictor="tangent"
+        )
         assert old.iterations.tolist() == [2]
 
 
