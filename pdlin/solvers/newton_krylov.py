@@ -45,7 +45,7 @@ class ForcingTerm:
     Eisenstat & Walker (1996), choice 2: ``η_k = γ (‖r_k‖ / ‖r_{k-1}‖)^α`` with
     ``γ = 0.9``, ``α = 2``, safeguarded by ``γ η_{k-1}^α`` when that exceeds 0.1, capped at
     ``eta_max`` and never below the tolerance that already meets Newton's own target
-    (``½ rtol · scale / ‖r_k‖``: no over-solving), except where ``‖r_k‖² <= 0.1 rtol``
+    (``½ rtol · scale / ‖r_k‖``: no over-solving), except where ``‖r_k‖² <= rtol``
     (relative): quadratic convergence ends there, and the solve is taken to that
     tolerance so that the iteration is the last (at 10⁵ particles an elastic step took
     two iterations without this, the first one's linear residual above ``rtol``).
@@ -118,7 +118,7 @@ class ForcingTerm:
             eta = min(eta, self.eta_max)
         if norm > 0.0:
             enough = 0.5 * target / norm  # meets the iteration's own target
-            if norm * norm <= 0.1 * target:
+            if norm * norm <= target:
                 # quadratic convergence would end below the target now: solve the last
                 # iteration that far, not a second one for the linear residual's sake
                 eta = min(eta, enough)

@@ -68,10 +68,10 @@ log = logging.getLogger(__name__)
 #: state (measured, benchmarks/README.md: 1 doubled the 100² shear run, 3 or more left a
 #: 50² compression path stalling at one kink through 15 cut-backs)
 _RESTART_ELASTIC = 2
-#: the largest relative residual ``‖r(u₁)‖ / force scale`` of the first-order tangent
-#: predictor at which the second-order predictor adds its term (measured,
-#: benchmarks/README.md: elastic steps leave 3e-3, plastic ones 4e-2-1e-1, where the
-#: term doubled the Newton iterations of 50² polycrystal runs)
+#: the largest ``‖r(u₁)‖`` of the first-order tangent predictor, relative to the force
+#: increment it predicted, at which the second-order predictor adds its term (measured,
+#: benchmarks/README.md: the elastic step 1 of the polycrystal leaves 3e-3; in plastic
+#: increments the term, a chord step, did not help)
 _SECOND_ORDER_MAX = 1e-2
 #: ``result.methods`` entry of a load step that Newton failed and ADR finished
 FELL_BACK = "adr (newton failed)"
@@ -275,7 +275,9 @@ class _Predictor:
         linear part cancels), and ``K_T Δu₂ = r(u₁)`` with the same matrix (one force
         evaluation without tangent and one more solve with the kept factorization or
         preconditioner) gives ``u₁ + Δu₂``, the start of the quadratic Taylor expansion
-        of the load path.
+        of the load path; only where the increment is nearly linear, ``‖r(u₁)‖`` at most
+        1e-2 of the force increment (the largest change of the reactions or of the free
+        forces between ``u_c`` and ``u₁``).
         """
         sysm = self.system
         resp = sysm.respond(u_c, state, tangent=True)
@@ -304,12 +306,14 @@ class _Predictor:
         self.calls += int(at.calls)
         r1 = sysm.residual(None, factor=factor, f_int=at.force)
         r1[sysm.dofs] = 0.0
-        f = np.ravel(at.force)
-        scale = max(
-            factor * float(np.linalg.norm(sysm.f_ext)),
-            float(np.linalg.norm(f[sysm.dofs])) if sysm.dofs.size else 0.0,
+        # how far from linear the increment is: the residual left against the force
+        # increment the linear solve predicted (its reactions' change, and the load's)
+        df = np.ravel(at.force) - np.ravel(resp.force)
+        increment = max(
+            float(np.linalg.norm(df[sysm.dofs])) if sysm.dofs.size else 0.0,
+            float(np.linalg.norm(df[sysm.free])),
         )
-        if not (np.linalg.norm(r1) <= _SECOND_ORDER_MAX * scale):  # also NaN: not smooth
+        if not (np.linalg.norm(r1) <= _SECOND_ORDER_MAX * increment):  # also NaN
             return u1
         try:
             return u1 + self._solve(A, r1, setup)

@@ -45,7 +45,7 @@ def test_eisenstat_walker_choice_2():
     assert f.eta(0.01, 1e-8) == pytest.approx(0.9 * 0.01**2)  # 9e-5
     assert f.eta(0.009, 1e-8) == 1e-2  # 0.9 * 0.9**2 = 0.73, capped
     assert f.eta(2e-3, 1e-8) == 1e-2  # 0.9 * (2e-3/9e-3)^2 = 0.044, capped
-    # ‖r‖² <= 0.1 rtol: the last iteration, solved to ½ rtol / ‖r‖ = 2.5e-4 (not eta0 = 1e-3)
+    # ‖r‖² <= rtol: the last iteration, solved to ½ rtol / ‖r‖ = 2.5e-4 (not eta0 = 1e-3)
     g = ForcingTerm("eisenstat-walker", fixed=1e-12, eta0=1e-3, eta_max=1e-2)
     assert g.eta(2e-5, 1e-8) == pytest.approx(2.5e-4)
     f.reset()
