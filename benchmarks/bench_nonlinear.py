@@ -46,6 +46,15 @@ seconds on a shared machine, one BLAS thread; nothing is asserted):
    window): time, iterations, Newton polish iterations, steps polished, cut-backs and the
    largest homogenized-stress difference between the two.
 
+9. **Newton's linear solver and globalization** (``--sections krylov``, only on request):
+   on ``--krylov-size`` (default 100: 10⁴ particles), shear, control ``--krylov-control``,
+   ``--krylov-steps`` load steps, each of ``--krylov-methods``: direct LU with line search
+   (the old path), ``linear_solver='krylov'`` (GMRES, one AMG hierarchy of the symmetrized
+   elastic tangent per run) with a fixed tolerance and with Eisenstat-Walker forcing, and
+   pseudo-transient continuation (``globalization='ptc'``, ADR density as the shift):
+   steps passed, Newton iterations (linear solves), GMRES iterations, cut-backs, ADR
+   fallbacks, wall / CPU seconds, peak RSS.
+
 Every run is a forked child process (its peak RSS is the run's); B1 gives its CPU seconds
 beside the wall seconds, and the header the load average, usable cores and BLAS threads.
 ``--quick`` (the default when no size is given) runs 15 x 15 and 25 x 25 only, about 2
@@ -511,6 +520,108 @@ def table_polish(sizes: list[int], loads: list[str], methods: list[str], steps: 
 
 
 # ---------------------------------------------------------------------------------------
+# Newton's linear solver (direct / AMG-GMRES with forcing) and globalization
+
+#: the variants of the 'krylov' table: solve_nonlinear keywords
+KRYLOV_METHODS: dict[str, dict[str, Any]] = {
+    "newton-direct": {"method": "newton"},
+    "newton-krylov": {"method": "newton", "linear_solver": "krylov"},
+    "newton-krylov-ew": {
+        "method": "newton",
+        "linear_solver": "krylov",
+        "forcing": "eisenstat-walker",
+    },
+    "ptc-krylov-ew": {
+        "method": "newton",
+        "linear_solver": "krylov",
+        "forcing": "eisenstat-walker",
+        "globalization": "ptc",
+        "maxiter": 60,
+    },
+    "auto-direct": {"method": "auto"},
+    "auto-krylov-ew": {"method": "auto", "linear_solver": "krylov", "forcing": "eisenstat-walker"},
+}
+
+
+def _krylov_run(n: int, steps: int, control: str, kw: dict[str, Any]) -> dict[str, Any]:
+    """One run of the 'krylov' table; GMRES iterations counted from the solver's log."""
+    import logging
+
+    class _Count(logging.Handler):
+        solves = iterations = 0
+
+        def emit(self, record: logging.LogRecord) -> None:
+            if str(record.msg).startswith("Krylov solve"):
+                self.solves += 1
+                self.iterations += int(record.args[1])  # type: ignore[index]
+
+    counter = _Count()
+    lg = logging.getLogger("pdlin.solvers.newton_krylov")
+    lg.addHandler(counter)
+    lg.setLevel(logging.DEBUG)
+    prob, _ = problem(n, "shear", control)
+    done: list[str] = []
+    t0, c0 = time.perf_counter(), time.process_time()
+    failed = ""
+    res = None
+    try:
+        res = pdlin.solve_nonlinear(
+            prob,
+            times=np.arange(1.0, steps + 1.0),
+            t_end=30.0,
+            keep_states=False,
+            progress=lambda m: done.append(m) if m.startswith("step ") else None,
+            **kw,
+        )
+    except pdlin.errors.ConvergenceError as exc:
+        failed = str(exc)[:90]
+    out = {
+        "done": len(done),
+        "failed": failed,
+        "wall": time.perf_counter() - t0,
+        "cpu": time.process_time() - c0,
+        "solves": counter.solves,
+        "gmres": counter.iterations,
+        "peak_mb": _peak_mb(),
+    }
+    if res is not None:
+        out.update(
+            newton=int(res.iterations.sum()),
+            cutbacks=int(res.cutbacks.sum()),
+            fallbacks=sum("adr" in m for m in res.methods),
+            sxy=float(res.homogenized_stress[-1, 0, 1]),
+        )
+    return out
+
+
+def table_krylov(n: int, steps: int, control: str, methods: list[str]) -> None:
+    """Newton's linear solver and globalization on the n x n polycrystal in shear."""
+    print(
+        f"\n## Newton's linear solver and globalization: {n}² = {n * n:,} particles, shear, "
+        f"control {control}, {steps} load steps\n"
+    )
+    head = (
+        "| method | steps passed | Newton it (solves) | GMRES it | cut-backs | ADR fallbacks | "
+        "wall / CPU s | peak RSS MB | σ_xy last (MPa) |"
+    )
+    _print_head(head)
+    for m in methods:
+        r = forked(_krylov_run, n, steps, control, KRYLOV_METHODS[m])
+        if isinstance(r, str):
+            print(f"| {m} | failed: {r} |")
+            continue
+        passed = f"{r['done']}/{steps}" + (f" ({r['failed']})" if r["failed"] else "")
+        print(
+            f"| {m} | {passed} | {r.get('newton', '-')} | {r['gmres']:,} | "
+            f"{r.get('cutbacks', '-')} | {r.get('fallbacks', '-')} | {r['wall']:.1f} / "
+            f"{r['cpu']:.1f} | {r['peak_mb']:.0f} | "
+            + (f"{r['sxy']:.4f}" if "sxy" in r else "-")
+            + " |",
+            flush=True,
+        )
+
+
+# ---------------------------------------------------------------------------------------
 # B2 accuracy-cost
 
 
@@ -782,7 +893,18 @@ def main(argv: list[str] | None = None) -> int:
         "--sections",
         nargs="+",
         default=["b1", "aim", "profile", "big", "b2", "t20"],
-        choices=["b1", "aim", "profile", "big", "b2", "t20", "predictors", "damping", "polish"],
+        choices=[
+            "b1",
+            "aim",
+            "profile",
+            "big",
+            "b2",
+            "t20",
+            "predictors",
+            "damping",
+            "polish",
+            "krylov",
+        ],
         help="tables to print ('predictors' and 'damping' only on request)",
     )
     ap.add_argument(
@@ -817,6 +939,16 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument(
         "--damping-control", default="penalty:0.1", help="control of 'damping' (as --big-control)"
+    )
+    ap.add_argument("--krylov-size", type=int, default=100, help="grid side of 'krylov'")
+    ap.add_argument("--krylov-steps", type=int, default=30, help="load steps of 'krylov'")
+    ap.add_argument("--krylov-control", default="none", help="control of 'krylov'")
+    ap.add_argument(
+        "--krylov-methods",
+        nargs="+",
+        default=list(KRYLOV_METHODS),
+        choices=list(KRYLOV_METHODS),
+        help="variants of 'krylov'",
     )
     mode = ap.add_mutually_exclusive_group()
     mode.add_argument(
@@ -867,6 +999,8 @@ def main(argv: list[str] | None = None) -> int:
         table_t20(25, 6 if quick else 12)
     if "polish" in args.sections:
         table_polish(args.sizes, args.loads, args.methods, args.steps)
+    if "krylov" in args.sections:
+        table_krylov(args.krylov_size, args.krylov_steps, args.krylov_control, args.krylov_methods)
     if "damping" in args.sections:
         table_damping(
             args.damping_size,

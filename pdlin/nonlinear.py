@@ -227,6 +227,8 @@ def solve_nonlinear(
     newton_backoff: bool = True,
     linear_solver: str = "auto",
     relax: int = 0,
+    forcing: str = "fixed",
+    globalization: str = "line-search",
     e_l: float = 1e-6,
     density: Any = "gershgorin",
     density_safety: float = 1.1,
@@ -299,7 +301,9 @@ def solve_nonlinear(
         it; while the retry fails the hold doubles, 1, 2, 4, ... load steps, and
         after it converges the next larger size is held likewise), inner linear
         solver
-        ('auto': direct up to 2·10⁵ DOFs in 2D / 3·10⁴ in 3D, then AMG-Krylov).
+        ('auto': direct up to 2·10⁵ DOFs in 2D / 3·10⁴ in 3D, then AMG-Krylov;
+        'krylov': GMRES preconditioned by one AMG hierarchy of the symmetrized elastic
+        tangent, built once per run and reused by every iteration and step).
     fallback_cutbacks : int
         ``method='auto'``: Newton's halvings in a load step that follows an
         ADR fallback, one fewer for every further consecutive fallback step
@@ -331,6 +335,15 @@ def solve_nonlinear(
         iterations).  It lets ``method='newton'`` through stalls it would fail;
         with ``'auto'`` it was not faster than the ADR fallback in the measured
         runs (docs/nonlinear.md), hence off by default.
+    forcing : {'fixed', 'eisenstat-walker'}
+        Newton with ``linear_solver='krylov'``: the tolerance of each GMRES solve, 1e-10
+        or Eisenstat & Walker's (1996) choice 2 (loose far from the solution, tight
+        near it: inexact Newton).
+    globalization : {'line-search', 'ptc'}
+        Newton's globalization: backtracking line search with the watchdog
+        (``line_search``), or pseudo-transient continuation, ``(K_T + Λ/τ) du = r`` with
+        ``Λ`` ADR's Gershgorin density of the elastic tangent and ``τ`` growing as
+        ``‖r‖`` falls (Kelley & Keyes 1998); ``maxiter`` counts its linear solves.
     e_l, density, density_safety, dt, damping, c0, adr_maxiter, floor
         ADR: target of the relative criteria e₁, e₂ (Luo, Ramazani &
         Sundararaghavan 2017, Eqs. 19-20);
@@ -470,6 +483,8 @@ def solve_nonlinear(
         line_search=line_search,
         linear_solver=linear_solver,
         relax=relax,
+        forcing=forcing,
+        globalization=globalization,
     )
     adr = ADROptions(
         e_l=e_l,

@@ -25,6 +25,7 @@ from .._progress import linear_progress
 from ..errors import ConvergenceError, ModelError, NonFiniteError
 from .adr import _adr_run, _gershgorin
 from .linear import solve_linear
+from .newton_krylov import ForcingTerm, KrylovDirection
 from .outcome import StepFailed, StepOutcome, _force_scale, _linear_solver, _residual, _respond
 
 __all__ = ["newton_step"]
@@ -43,8 +44,13 @@ def _direction(
     direct_cache: dict[str, Any] | None,
     progress: Callable[[str], None] | None,
     it: int,
+    krylov: KrylovDirection | None = None,
 ) -> np.ndarray:
-    """Solve ``K_T du = r`` for the Newton direction (``du = 0`` on prescribed DOFs)."""
+    """Solve ``K_T du = r`` for the Newton direction (``du = 0`` on prescribed DOFs).
+
+    With ``krylov``, by its GMRES to ``linear_rtol`` (the forcing term) instead of
+    ``solver``.
+    """
     if K is None:
         raise ModelError(
             f"{type(system.model).__name__}.respond(tangent=True) returned no tangent; "
@@ -53,6 +59,13 @@ def _direction(
     A = system.eliminate_matrix(sp.bsr_array(K) if sp.issparse(K) else K)
     b = np.array(r)
     b[system.dofs] = 0.0
+    if krylov is not None:
+        try:
+            du = krylov.solve(A, b, linear_rtol)[0]
+        except (ConvergenceError, NonFiniteError) as exc:
+            raise StepFailed(f"Newton: linear solve failed at iteration {it}: {exc}") from exc
+        du[system.dofs] = 0.0
+        return du
     try:
         lin = solve_linear(
             A,
@@ -192,6 +205,8 @@ def newton_step(
     stall: float = 0.5,
     progress: Callable[[str], None] | None = None,
     progress_every: float = 60.0,
+    krylov: KrylovDirection | None = None,
+    forcing: str = "fixed",
 ) -> StepOutcome:
     """Run Newton-Raphson with a consistent tangent and backtracking line search.
 
@@ -255,6 +270,12 @@ def newton_step(
         seconds, a failing try minutes).
     progress_every : float
         Seconds between progress lines.
+    krylov : KrylovDirection, optional
+        Solve each Newton system by its GMRES (AMG of the elastic tangent, reused)
+        instead of ``linear_solver``.
+    forcing : {'fixed', 'eisenstat-walker'}
+        The Krylov tolerance with ``krylov``: ``linear_rtol``, or Eisenstat & Walker's
+        (1996) choice 2 (``pdlin.solvers.newton_krylov.ForcingTerm``).
 
     Returns
     -------
@@ -280,6 +301,7 @@ def newton_step(
     relaxed = 0
     last_relax = 0
     nonmonotone_left = int(nonmonotone)
+    eta = ForcingTerm(forcing if krylov is not None else "fixed", fixed=linear_rtol)
     for it in range(maxiter + 1):
         norm = float(np.linalg.norm(r))
         if not math.isfinite(norm):
@@ -301,7 +323,8 @@ def newton_step(
         if it == maxiter:
             break
         K = resp.tangent
-        du = _direction(system, K, r, solver, linear_rtol, direct_cache, progress, it)
+        lin_rtol = eta.eta(rel, rtol)
+        du = _direction(system, K, r, solver, lin_rtol, direct_cache, progress, it, krylov)
         stalled = False
         how = "accepted"
         # the full step's tangent is wanted unless it is likely the last iteration

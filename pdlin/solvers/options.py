@@ -26,10 +26,14 @@ import numpy as np
 
 from .._validation import as_float_array, integer
 from ..errors import InputError, InputTypeError, ShapeError
+from .linear import SOLVERS
 
 __all__ = [
     "METHODS",
     "PREDICTORS",
+    "GLOBALIZATIONS",
+    "FORCINGS",
+    "KRYLOV",
     "NewtonOptions",
     "ADROptions",
     "StepControl",
@@ -40,7 +44,21 @@ __all__ = [
 #: the load-step drivers of :func:`pdlin.solve_nonlinear`
 METHODS = ("newton", "adr", "auto")
 #: the starts of a load step
-PREDICTORS = ("auto", "affine", "tangent", "committed-tangent", "extrapolate", "previous")
+PREDICTORS = (
+    "auto",
+    "affine",
+    "tangent",
+    "second-order",
+    "committed-tangent",
+    "extrapolate",
+    "previous",
+)
+#: Newton's globalizations: backtracking line search, or pseudo-transient continuation
+GLOBALIZATIONS = ("line-search", "ptc")
+#: Newton's forcing terms (the Krylov tolerance of ``linear_solver='krylov'``)
+FORCINGS = ("fixed", "eisenstat-walker")
+#: the linear solver of Newton that keeps one AMG hierarchy of the elastic tangent
+KRYLOV = "krylov"
 #: what ``resume`` accepts
 _RESUME = (False, True, "branch")
 
@@ -58,9 +76,16 @@ class NewtonOptions:
     line_search : bool
         Backtracking on or off.
     linear_solver : str
-        Inner linear solver ('auto': direct up to 2·10⁵ DOFs in 2D / 3·10⁴ in 3D).
+        Inner linear solver ('auto': direct up to 2·10⁵ DOFs in 2D / 3·10⁴ in 3D;
+        'krylov': GMRES with one AMG hierarchy of the symmetrized elastic tangent, built
+        once per run).
     relax : int
         ADR iterations at a stall (0: off).
+    forcing : {'fixed', 'eisenstat-walker'}
+        Krylov tolerance of ``'krylov'``: 1e-10, or Eisenstat & Walker's (1996) choice 2.
+    globalization : {'line-search', 'ptc'}
+        Backtracking line search, or pseudo-transient continuation with the ADR density
+        as the shift (``pdlin.solvers.ptc.ptc_step``).
     """
 
     rtol: float = 1e-8
@@ -68,6 +93,8 @@ class NewtonOptions:
     line_search: bool = True
     linear_solver: str = "auto"
     relax: int = 0
+    forcing: str = "fixed"
+    globalization: str = "line-search"
 
 
 @dataclass(frozen=True)
@@ -163,6 +190,12 @@ class StepControl:
                 linear_solver=newton.linear_solver,
                 relax=newton.relax,
             )
+            # only when not the default: checkpoints written before these options existed
+            # keep their fingerprint
+            if newton.forcing != "fixed":
+                out.update(forcing=newton.forcing)
+            if newton.globalization != "line-search":
+                out.update(globalization=newton.globalization)
         if method == "auto":
             out.update(fallback_cutbacks=self.fallback_cutbacks, newton_backoff=self.newton_backoff)
         if method != "newton":
@@ -192,7 +225,8 @@ def check_keywords(kw: dict[str, Any]) -> int | None:
         The keywords by name (``method``, ``rtol``, ``e_l``, ``floor``, ``maxiter``,
         ``max_cutbacks``, ``fallback_cutbacks``, ``relax``, ``progress_every``,
         ``snapshot_every``, ``damping``, ``c0``, ``polish``, ``adr_stall``,
-        ``newton_backoff``, ``adr_maxiter``, ``resume``, ``checkpoint``).
+        ``newton_backoff``, ``linear_solver``, ``forcing``, ``globalization``,
+        ``adr_maxiter``, ``resume``, ``checkpoint``).
 
     Returns
     -------
@@ -240,6 +274,14 @@ def check_keywords(kw: dict[str, Any]) -> int | None:
         isinstance(adr_stall, bool) or not isinstance(adr_stall, int) or adr_stall < 1
     ):
         raise InputError(f"adr_stall must be an integer >= 1 (ADR iterations), got {adr_stall!r}")
+    solvers = (*SOLVERS, KRYLOV)
+    for name, allowed in (
+        ("forcing", FORCINGS),
+        ("globalization", GLOBALIZATIONS),
+        ("linear_solver", solvers),
+    ):
+        if kw[name] not in allowed:
+            raise InputError(f"{name} must be one of {allowed}, got {kw[name]!r}")
     if not isinstance(kw["newton_backoff"], bool):
         raise InputTypeError(f"newton_backoff must be True or False, got {kw['newton_backoff']!r}")
     adr_maxiter = kw["adr_maxiter"]

@@ -28,7 +28,7 @@ import scipy.linalg
 import scipy.sparse as sp
 
 from ..constraints import eliminate_dirichlet
-from ..errors import ConvergenceError, InputError, TrialStateWarning
+from ..errors import ConvergenceError, InputError, NonFiniteError, TrialStateWarning
 from ..operators.bc import TimePath
 from ..system import ConstrainedSystem
 from .adr import adr_density, adr_step
@@ -44,10 +44,12 @@ from .checkpoint import (
     _write_atomic_npz,
     _write_snapshots,
 )
-from .linear import solve_linear
+from .linear import SolverSetup, solve_linear
 from .newton import newton_step
-from .options import PREDICTORS, ADROptions, NewtonOptions, StepControl
+from .newton_krylov import KrylovDirection
+from .options import KRYLOV, PREDICTORS, ADROptions, NewtonOptions, StepControl
 from .outcome import StepFailed, StepOutcome, _linear_solver
+from .ptc import ptc_step
 
 __all__ = [
     "FELL_BACK",
@@ -66,6 +68,11 @@ log = logging.getLogger(__name__)
 #: state (measured, benchmarks/README.md: 1 doubled the 100² shear run, 3 or more left a
 #: 50² compression path stalling at one kink through 15 cut-backs)
 _RESTART_ELASTIC = 2
+#: the largest ``‖r(u₁)‖`` of the first-order tangent predictor, relative to the force
+#: increment it predicted, at which the second-order predictor adds its term (measured,
+#: benchmarks/README.md: the elastic step 1 of the polycrystal leaves 3e-3; in plastic
+#: increments the term, a chord step, did not help)
+_SECOND_ORDER_MAX = 1e-2
 #: ``result.methods`` entry of a load step that Newton failed and ADR finished
 FELL_BACK = "adr (newton failed)"
 #: ``result.methods`` entry of a load step that ``auto`` gave to ADR without trying Newton
@@ -177,6 +184,8 @@ class _Predictor:
         self.kind = kind
         self.path = path
         self.calls = 0
+        # the GMRES of linear_solver='krylov' (set by the load stepping)
+        self.krylov: KrylovDirection | None = None
         # the state at the start of the last converged increment, whose end is the
         # committed solution: the continuation tangent's state (None before the first)
         self.prev_state: dict[str, np.ndarray] | None = None
@@ -200,8 +209,10 @@ class _Predictor:
     def resolved(self, driver: str) -> str:
         """Return the predictor a driver uses.
 
-        'auto' is the tangent one for Newton (half the iterations of the affine map on
-        plastic polycrystals) and, for ADR when the paths share a velocity gradient,
+        'auto' is the second-order tangent one for Newton (the tangent predictor, half
+        the iterations of the affine map on plastic polycrystals, plus its second-order
+        term where the first-order one leaves a nearly linear residual: elastic steps
+        in one iteration) and, for ADR when the paths share a velocity gradient,
         the incremental affine map ``u⁰ = exp(L Δt)(X + u) - X`` (pdlin's default: the
         paper of Luo, Ramazani & Sundararaghavan 2017 does not state its start).
         """
@@ -209,7 +220,7 @@ class _Predictor:
             return self.kind
         if driver == "adr" and self.path is not None:
             return "affine"
-        return "tangent"
+        return "tangent" if driver == "adr" else "second-order"
 
     def __call__(
         self,
@@ -232,6 +243,8 @@ class _Predictor:
             u0 = ((X + u_c.reshape(X.shape)) @ E.T - X).reshape(-1)
         elif kind == "tangent":
             u0 = self._tangent(u_c, self.prev_state or state, factor, values)
+        elif kind == "second-order":
+            u0 = self._tangent(u_c, self.prev_state or state, factor, values, state)
         elif kind == "committed-tangent":
             u0 = self._tangent(u_c, state, factor, values)
         elif kind == "extrapolate" and u_p is not None and t_p is not None and t_c > t_p:
@@ -242,7 +255,12 @@ class _Predictor:
         return u0
 
     def _tangent(
-        self, u_c: np.ndarray, state: dict[str, np.ndarray], factor: float, values: np.ndarray
+        self,
+        u_c: np.ndarray,
+        state: dict[str, np.ndarray],
+        factor: float,
+        values: np.ndarray,
+        second: dict[str, np.ndarray] | None = None,
     ) -> np.ndarray:
         """``u_c + Δu`` with ``K_T(u_c) Δu = r(u_c)`` and the prescribed increment imposed.
 
@@ -251,6 +269,15 @@ class _Predictor:
         tangent), or from the state at the start of the last converged increment (the
         consistent tangent at that increment's end, which carries its active sets on
         into the next step; the force is the committed one up to the step tolerance).
+
+        With ``second`` (the committed state of the increment), the second-order term
+        is added: ``u₁ = u_c + Δu`` leaves ``r(u₁) = ½ f''[Δu, Δu] + O(|Δu|³)`` (the
+        linear part cancels), and ``K_T Δu₂ = r(u₁)`` with the same matrix (one force
+        evaluation without tangent and one more solve with the kept factorization or
+        preconditioner) gives ``u₁ + Δu₂``, the start of the quadratic Taylor expansion
+        of the load path; only where the increment is nearly linear, ``‖r(u₁)‖`` at most
+        1e-2 of the force increment (the largest change of the reactions or of the free
+        forces between ``u_c`` and ``u₁``).
         """
         sysm = self.system
         resp = sysm.respond(u_c, state, tangent=True)
@@ -262,21 +289,54 @@ class _Predictor:
             sp.bsr_array(resp.tangent), r, sysm.dofs, values - u_c[sysm.dofs], inplace=True
         )
         b[sysm.dofs] = 0.0
-        solver = _linear_solver(sysm, self.linear_solver)
+        setup = SolverSetup()
         try:
-            lin = solve_linear(
-                A,
-                b,
-                solver,
-                rtol=1e-10,
-                near_null=sysm.near_null() if solver.startswith("amg") else None,
-                blocksize=sysm.dim,
-                symmetric=sysm.symmetric,
-            )
+            u1 = u_c + self._solve(A, b, setup)
         except ConvergenceError as exc:
             log.info("tangent predictor failed (%s); starting from the last solution", exc)
             return u_c.copy()
-        return u_c + lin.x
+        if second is None:
+            return u1
+        u1[sysm.dofs] = values
+        try:
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                at = sysm.respond(u1, second)
+        except NonFiniteError:
+            return u1
+        self.calls += int(at.calls)
+        r1 = sysm.residual(None, factor=factor, f_int=at.force)
+        r1[sysm.dofs] = 0.0
+        # how far from linear the increment is: the residual left against the force
+        # increment the linear solve predicted (its reactions' change, and the load's)
+        df = np.ravel(at.force) - np.ravel(resp.force)
+        increment = max(
+            float(np.linalg.norm(df[sysm.dofs])) if sysm.dofs.size else 0.0,
+            float(np.linalg.norm(df[sysm.free])),
+        )
+        if not (np.linalg.norm(r1) <= _SECOND_ORDER_MAX * increment):  # also NaN
+            return u1
+        try:
+            return u1 + self._solve(A, r1, setup)
+        except ConvergenceError as exc:
+            log.info("second-order predictor term failed (%s); first order kept", exc)
+            return u1
+
+    def _solve(self, A: Any, b: np.ndarray, setup: SolverSetup) -> np.ndarray:
+        """Solve the predictor's system (``setup`` keeps the factorization for a second)."""
+        sysm = self.system
+        if self.linear_solver == KRYLOV and self.krylov is not None:
+            return self.krylov.solve(A, b, 1e-8)[0]
+        solver = _linear_solver(sysm, self.linear_solver)
+        return solve_linear(
+            A,
+            b,
+            solver,
+            rtol=1e-10,
+            near_null=sysm.near_null() if solver.startswith("amg") else None,
+            blocksize=sysm.dim,
+            symmetric=sysm.symmetric,
+            setup=setup,
+        ).x
 
 
 def _check_committed(u: np.ndarray, state: Any, k: int, t: float) -> None:
@@ -478,6 +538,9 @@ class LoadStepper:
         self.backoff: dict[str, Any] = {"frac": 1.0, "until": -1, "hold": 0}
         self.lam0: dict[str, np.ndarray] = {}
         self.direct_cache: dict[str, Any] = {}  # the tangent's factorization, reused
+        # linear_solver='krylov': one AMG hierarchy of the elastic tangent for the run
+        self.krylov = KrylovDirection(system, state0) if newton.linear_solver == KRYLOV else None
+        predictor.krylov = self.krylov
         self.snap_path = (
             None
             if checkpoint is None
@@ -589,6 +652,24 @@ class LoadStepper:
         are this increment's.
         """
         opts = self.newton
+        if opts.globalization == "ptc":
+            if "ptc" not in self.lam0:
+                self.lam0["ptc"] = adr_density(self.system, self.state0, None, dt=1.0, safety=1.1)
+            return ptc_step(
+                self.system,
+                u0,
+                st,
+                factor=t_new / self.te,
+                density=self.lam0["ptc"],
+                rtol=opts.rtol,
+                maxiter=opts.maxiter,
+                krylov=self.krylov,
+                forcing=opts.forcing,
+                linear_solver=opts.linear_solver,
+                direct_cache=self.direct_cache,
+                progress=self._in_step(t_new),
+                progress_every=self.progress_every,
+            )
         return newton_step(
             self.system,
             u0,
@@ -603,6 +684,8 @@ class LoadStepper:
             relax_density=self._relax_density(),
             progress=self._in_step(t_new),
             progress_every=self.progress_every,
+            krylov=self.krylov,
+            forcing=opts.forcing,
         )
 
     def _adr_density(self, st: dict[str, np.ndarray], u0: np.ndarray) -> np.ndarray:
