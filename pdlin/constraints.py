@@ -294,7 +294,7 @@ def thermal_load(
 ) -> np.ndarray:
     """Nodal thermal load ``(n*dim,)`` of a temperature change: ``K u = f_ext + f_th``.
 
-    The eigenstrain load of :func:`pdlin.models.thermal.thermal_force` (flat), added to
+    The eigenstrain load of ``pdlin.models.thermal.thermal_force`` (flat), added to
     the loads of the constrained system.
 
     Parameters
@@ -318,7 +318,7 @@ def thermal_load(
     InputError
         Without bonds (a distributed driver that finds its own).
     ModelError
-        For a model without thermal expansion (see :mod:`pdlin.models.thermal`).
+        For a model without thermal expansion (see ``pdlin.models.thermal``).
 
     Examples
     --------

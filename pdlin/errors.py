@@ -98,7 +98,7 @@ class CheckpointError(InputError):
 class InstabilityError(ConvergenceError):
     """An explicit time integration became unstable (non-finite or exploding fields).
 
-    Raised by :func:`pdlin.dynamics.solve_explicit` before a NaN or an infinity can
+    Raised by ``pdlin.dynamics.solve_explicit`` before a NaN or an infinity can
     reach a result; the message names the step, the time, the time step and its estimate.
     """
 
@@ -180,7 +180,7 @@ class SlowRunWarning(UserWarning):
 class TimeStepWarning(UserWarning):
     """A given explicit time step exceeds the estimated stable one.
 
-    Issued by :func:`pdlin.dynamics.solve_explicit`; the message gives both steps and the
+    Issued by ``pdlin.dynamics.solve_explicit``; the message gives both steps and the
     estimate's method.  Promote it to an error with
     ``warnings.simplefilter("error", TimeStepWarning)``.
     """

@@ -107,7 +107,7 @@ class StaticProblem:
         ``horizon``, ``bonds`` or ``bond_options["ratio"]``.
     thermal : ThermalExpansion, optional
         A temperature change and thermal expansion coefficient
-        (:class:`pdlin.models.thermal.ThermalExpansion`): the free thermal strain is an
+        (``pdlin.models.thermal.ThermalExpansion``): the free thermal strain is an
         eigenstrain, its load ``f_th`` joins the loads (``K u = f_ext + f_th``) and the
         result's strain and stress are the mechanical ones (thermal part removed).
         Not with symmetry planes.

@@ -85,11 +85,11 @@ class PeridigmElasticPlastic(LPS):
     Ordinary state-based elastic-perfectly-plastic model of Mitchell (2011,
     SAND2011-3166) as Peridigm implements it (``elastic_plastic.cxx``): the deviatoric
     force state is bounded by the yield surface ``‖t^d‖² / 2 = ψ_0`` (see
-    :func:`peridigm_yield_value`), the bonds' deviatoric plastic extensions are the
+    ``peridigm_yield_value``), the bonds' deviatoric plastic extensions are the
     committed state (``state["edp"]``, one per directed bond; ``state["lambda"]`` the
     accumulated plastic multiplier per point).  Without yielding the force is Peridigm's
     ``Elastic`` one with finite kinematics (:class:`PeridigmElastic`).  Its linearization at
-    ``u = 0`` is ``LPS(K=, G=, peridigm=True)`` (which :meth:`stiffness` gives); nonlinear
+    ``u = 0`` is ``LPS(K=, G=, peridigm=True)`` (which ``stiffness`` gives); nonlinear
     solves go through :meth:`respond`.  3D only (Peridigm's decks are 3D).
 
     Parameters

@@ -192,7 +192,7 @@ class Scene:
     #: work loading deferred to the run (a ``[subregion]`` scene's coarse solve and cut),
     #: done once by :meth:`prepare`; None when there is none left
     pending: Callable[[Scene], None] | None = field(default=None, repr=False, compare=False)
-    #: ``[solver] kind = "explicit"``: the keywords of :func:`pdlin.dynamics.solve_explicit`
+    #: ``[solver] kind = "explicit"``: the keywords of ``pdlin.dynamics.solve_explicit``
     #: (``pdlin.scene.explicit``); None for other scenes
     explicit: dict[str, Any] | None = None
 

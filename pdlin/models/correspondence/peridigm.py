@@ -110,7 +110,7 @@ class PeridigmCorrespondence(Correspondence):
     hourglass : float
         Peridigm's ``Hourglass Coefficient`` ``C_hg >= 0`` (0: no hourglass force).
     max_bytes : int, optional
-        Memory budget of the assembly plan (see :class:`Correspondence`).
+        Memory budget of the assembly plan (see ``Correspondence``).
 
     Examples
     --------
@@ -256,7 +256,7 @@ class PeridigmCorrespondence(Correspondence):
         """Return the force, trial state, tangent and Cauchy stress at ``u``.
 
         The correspondence response of the hypoelastic material
-        (:meth:`Correspondence.respond`) plus Peridigm's hourglass force and its tangent.
+        (``Correspondence.respond``) plus Peridigm's hourglass force and its tangent.
 
         Parameters
         ----------
@@ -267,14 +267,14 @@ class PeridigmCorrespondence(Correspondence):
         u : (n, 3) array_like
             Nodal displacement.
         state : dict of str -> ndarray
-            Committed state (:meth:`initial_state` or a committed trial state).
+            Committed state (``initial_state`` or a committed trial state).
         tangent : bool
             Whether to compute ``K_T``.
 
         Returns
         -------
         Response
-            As :meth:`Correspondence.respond`.
+            As ``Correspondence.respond``.
         """
         r = super().respond(cloud, bonds, u, state, tangent=tangent)
         if self.hourglass > 0:
@@ -329,7 +329,7 @@ class PeridigmCorrespondence(Correspondence):
         Returns
         -------
         dict
-            As :meth:`Correspondence.describe`, with ``hourglass`` and the moduli.
+            As ``Correspondence.describe``, with ``hourglass`` and the moduli.
         """
         out = super().describe()
         out.update(
