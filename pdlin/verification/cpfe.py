@@ -486,7 +486,8 @@ def crystal_plasticity_fem(
              max_cutbacks=max_cutbacks, fallback_cutbacks=fallback_cutbacks, relax=0,
              progress_every=60.0, snapshot_every=300.0, damping=None, c0=1.0, polish=None,
              adr_stall=None, newton_backoff=True, adr_maxiter=None, resume=False,
-             checkpoint=None)
+             checkpoint=None, forcing="fixed", globalization="line-search",
+             linear_solver=linear_solver)
     )  # fmt: skip
     for bc in problem.dirichlet:
         if not isinstance(bc.where, str):
