@@ -170,6 +170,60 @@ class NonlinearResult:
             ("time (s)", float(self.timings.get("total", np.nan))),
         ]
 
+    @classmethod
+    def from_run(
+        cls,
+        problem: StaticProblem,
+        run: Any,
+        times: np.ndarray,
+        t_end: float,
+        timings: dict[str, Any],
+        t_start: float,
+        cols: dict[str, Any],
+        **extra: Any,
+    ) -> NonlinearResult:
+        """Build the result of a finished load-step run.
+
+        Parameters
+        ----------
+        problem : StaticProblem
+            The solved problem.
+        run : LoadStepper
+            The run (its system, committed states and their steps).
+        times : (k,) ndarray
+            The load-step times.
+        t_end : float
+            The time at which the load factor is 1.
+        timings : dict
+            Seconds so far (``'setup'``); ``'steps'`` and ``'total'`` are added.
+        t_start : float
+            ``time.perf_counter()`` at the start of the run.
+        cols : dict
+            The per-step columns (:func:`~pdlin.solvers.stepping.history_arrays`).
+        **extra
+            Further fields (``resumed_from``).
+
+        Returns
+        -------
+        NonlinearResult
+            The result.
+        """
+        timings["steps"] = cols.pop("step_time")
+        timings["total"] = time.perf_counter() - t_start
+        return cls(
+            problem=problem,
+            system=run.system,
+            times=times,
+            factors=times / t_end,
+            states=run.states,
+            state_steps=run.state_steps,
+            relaxations=cols.pop("relaxations"),
+            polishes=cols.pop("polishes"),
+            timings=timings,
+            **extra,
+            **cols,
+        )
+
     def __repr__(self) -> str:
         """Sizes, steps, drivers, iterations and residual (no arrays, no memory address)."""
         names = {"max residual": "max_residual", "time (s)": "seconds"}
@@ -519,18 +573,6 @@ def solve_nonlinear(
     for k in range(run.start, tt.size):
         run.step(k)
     cols = history_arrays(run.records)
-    timings["steps"] = cols.pop("step_time")
-    timings["total"] = time.perf_counter() - t_start
-    return NonlinearResult(
-        problem=problem,
-        system=system,
-        times=tt,
-        factors=tt / te,
-        states=run.states,
-        state_steps=run.state_steps,
-        relaxations=cols.pop("relaxations"),
-        polishes=cols.pop("polishes"),
-        timings=timings,
-        resumed_from=run.start,
-        **cols,
+    return NonlinearResult.from_run(
+        problem, run, tt, te, timings, t_start, cols, resumed_from=run.start
     )

@@ -531,17 +531,4 @@ def crystal_plasticity_fem(
         [dataclasses.replace(r, stress=None, homogenized_stress=None) for r in records]
     )
     cols.update(stress=stress, homogenized_stress=hom)
-    timings["steps"] = cols.pop("step_time")
-    timings["total"] = time.perf_counter() - t_start
-    return NonlinearResult(
-        problem=problem,
-        system=system,
-        times=tt,
-        factors=tt / te,
-        states=run.states,
-        state_steps=run.state_steps,
-        relaxations=cols.pop("relaxations"),
-        polishes=cols.pop("polishes"),
-        timings=timings,
-        **cols,
-    )
+    return NonlinearResult.from_run(problem, run, tt, te, timings, t_start, cols)
