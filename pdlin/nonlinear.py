@@ -199,7 +199,7 @@ class NonlinearResult:
         t_start : float
             ``time.perf_counter()`` at the start of the run.
         cols : dict
-            The per-step columns (:func:`~pdlin.solvers.stepping.history_arrays`).
+            The per-step columns (``pdlin.solvers.stepping.history_arrays``).
         **extra
             Further fields (``resumed_from``).
 
