@@ -33,15 +33,6 @@ import bench_nonlinear as bn  # noqa: E402
 from _context import header, timed  # noqa: E402
 
 
-def high_frequency(u: np.ndarray, points: np.ndarray, n: int, h: float) -> np.ndarray:
-    """``|u_i - mean of the four grid neighbours| / h`` at the interior points of the grid."""
-    ij = np.rint((points - points.min(axis=0)) / h).astype(int)
-    grid = np.zeros((n, n, u.shape[1]))
-    grid[ij[:, 0], ij[:, 1]] = u
-    avg = 0.25 * (grid[2:, 1:-1] + grid[:-2, 1:-1] + grid[1:-1, 2:] + grid[1:-1, :-2])
-    return np.asarray(np.linalg.norm(grid[1:-1, 1:-1] - avg, axis=2).ravel() / h)
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=50, help="grid points per side (default 50)")
@@ -85,7 +76,7 @@ def main() -> None:
         except pdlin.errors.ConvergenceError as exc:
             print(f"| {control} | failed: {str(exc)[:120]} | | | | | | | |", flush=True)
             continue
-        hf = [high_frequency(res.u[k], prob.cloud.points, args.n, h) for k in (0, -1)]
+        hf = [bn.high_frequency(res.u[k], prob.cloud.points, args.n, h) for k in (0, -1)]
         q = [
             "/".join(f"{v:.1e}" for v in (np.median(a), np.quantile(a, 0.99), a.max())) for a in hf
         ]

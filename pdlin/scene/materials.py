@@ -177,7 +177,7 @@ def _crystal_plasticity(material: Mapping[str, Any], cloud: PointCloud) -> Any:
         else:
             _, orientation = voronoi_polycrystal(cloud, grains, seed=seed)
     kw: dict[str, Any] = {}
-    for key in ("elastic", "hardening", "shear"):
+    for key in ("elastic", "hardening", "shear", "rate_exponent", "reference_rate"):
         if key in material:
             kw[key] = material[key]
     return CrystalPlasticity(material.get("slip", "planar-2"), orientation=orientation, **kw)

@@ -91,6 +91,10 @@ def _respond(system: Any, u: np.ndarray, committed: Any, what: str, tangent: boo
             return system.respond(u, committed, tangent=tangent)
     except NonFiniteError as exc:
         raise StepFailed(f"{what}: non-finite constitutive response ({exc})") from exc
+    except StepFailed:
+        raise
+    except ConvergenceError as exc:  # e.g. a rate-dependent slip update that did not converge
+        raise StepFailed(f"{what}: the constitutive update failed ({exc})") from exc
 
 
 def _residual(system: Any, resp: Any, factor: float) -> np.ndarray:

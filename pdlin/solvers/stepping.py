@@ -501,6 +501,8 @@ class LoadStepper:
         snapshot_every: float,
     ) -> None:
         self.system, self.tt, self.te = system, times, t_end
+        material = getattr(getattr(system, "model", None), "material", None)
+        self.rate_dependent = bool(getattr(material, "rate_dependent", False))
         self.control, self.newton, self.adr = control, newton, adr
         self.pred = predictor
         self.state0 = state0
@@ -816,8 +818,9 @@ class LoadStepper:
         while t_target - self.t_cur > 1e-12 * span:
             last = t_target - self.t_cur <= inc * (1.0 + 1e-9)
             target = t_target if last else self.t_cur + inc
+            st_in = self._timed(cur_state, target - self.t_cur)
             try:
-                out = step_fn(target, cur_u, cur_state)
+                out = step_fn(target, cur_u, st_in)
             except StepFailed as exc:
                 cnt.add(exc.outcome)
                 cnt.cutbacks += 1
@@ -841,7 +844,7 @@ class LoadStepper:
             if damp is not None and out.damping is not None:
                 damp.append(out.damping)
             self.u_prev, self.t_prev = cur_u, self.t_cur
-            pred.converged(cur_state)
+            pred.converged(st_in)
             cur_u, cur_state, self.t_cur = out.u, out.response.state, target
             if (
                 driver == "adr"
@@ -862,6 +865,17 @@ class LoadStepper:
                 inc = min(inc, max(0.5 * backoff["frac"] * span, smallest))
         self.inc_frac[driver] = inc / span
         return out, "", cnt, (cur_u, cur_state)
+
+    def _timed(self, state: dict[str, np.ndarray], dt: float) -> dict[str, np.ndarray]:
+        """Return ``state`` with the increment's time step ``state["dt"]`` (rate-dependent).
+
+        A material with ``rate_dependent = True`` (``CrystalPlasticity(rate_exponent=...)``)
+        reads the time increment of the update from its committed state; the driver adds
+        it per increment (cut-backs included), never to a committed state.
+        """
+        if not self.rate_dependent:
+            return state
+        return {**state, "dt": np.asarray(float(dt))}
 
     # -- one load step ----------------------------------------------------------------
 
