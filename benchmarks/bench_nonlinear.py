@@ -55,6 +55,13 @@ seconds on a shared machine, one BLAS thread; nothing is asserted):
    steps passed, Newton iterations (linear solves), GMRES iterations, cut-backs, ADR
    fallbacks, wall / CPU seconds, peak RSS.
 
+10. **The goal** (``--sections goal``, only on request): the ``--goal-size`` (316: 10⁵)
+    polycrystal, 30 shear steps, for each of ``--goal-rates`` (power-law exponent of
+    ``CrystalPlasticity(rate_exponent=...)`` with the applied rate as reference rate, or
+    ``none``: rate independent) x ``--goal-controls`` x ``--goal-methods``, each run
+    stopped after ``--goal-budget`` seconds (30 min): steps done, wall / CPU s, iterations,
+    cut-backs, ADR fallbacks, peak RSS, last σ_xy and the zero-energy-mode measure.
+
 Every run is a forked child process (its peak RSS is the run's); B1 gives its CPU seconds
 beside the wall seconds, and the header the load average, usable cores and BLAS threads.
 ``--quick`` (the default when no size is given) runs 15 x 15 and 25 x 25 only, about 2
@@ -508,6 +515,66 @@ def table_big(n: int, steps: int, load: str, **opts: Any) -> None:
 
 
 # ---------------------------------------------------------------------------------------
+# the issue's goal: the 10⁵ polycrystal end to end, one row per method x control x material
+
+
+def _material_name(rate: float | None) -> str:
+    return "rate-independent" if rate is None else f"power law n = {rate:g}"
+
+
+def table_goal(
+    n: int,
+    methods: list[str],
+    controls: list[str],
+    rates: list[float | None],
+    steps: int,
+    budget: float,
+) -> None:
+    """The n² polycrystal in shear, ``steps`` load steps, per material, control and method.
+
+    Each run is a forked child stopped after its first step beyond ``budget`` s (the
+    remaining steps are then not run: "k/30 (budget)"). Columns: steps done, wall and CPU
+    seconds, Newton / ADR iterations, cut-backs, steps that fell back to ADR, peak RSS, the
+    homogenized σ_xy of the last step done and the zero-energy-mode measure ``hf`` (median /
+    99 % / max of |u_i − mean of its 4 neighbours| / h) of the last step done.
+    """
+    print(
+        f"\n## Goal: {n}² = {n * n:,} particles, shear, {steps} steps, budget {budget:.0f} s "
+        "per run\n"
+    )
+    head = (
+        "| material | control | method | steps | wall s | CPU s | iterations | cut-backs | "
+        "ADR fallbacks | peak RSS MB | σ_xy last (MPa) | hf median / 99 % / max |"
+    )
+    _print_head(head)
+    for rate in rates:
+        for control in controls:
+            for m in methods:
+                print(f"    {_material_name(rate)}, {control}, {m}:", flush=True)
+                r = forked(
+                    run, n, "shear", m, steps, budget, control=control, rate=rate, verbose=True
+                )
+                lead = f"| {_material_name(rate)} | {control} | {m} |"
+                if isinstance(r, str):
+                    print(f"{lead} failed: {r} |", flush=True)
+                    continue
+                done = int(r["done"])
+                tag = "" if done == steps else " (budget)"
+                if "failed" in r:
+                    tag = f" (failed: {r['failed']})"
+                hf = r["hf"]
+                fb = sum(1 for x in r["methods"] if str(x).startswith("adr"))
+                print(
+                    f"{lead} {done}/{steps}{tag} | {r['wall']:.0f} | {r['cpu']:.0f} | "
+                    f"{int(r['iterations'].sum()):,} | {int(r['cutbacks'].sum())} | "
+                    f"{fb if m != 'adr' else '-'} | {r['peak_mb']:.0f} | "
+                    f"{float(r['hom'][done - 1][0, 1]) if done else float('nan'):.3f} | "
+                    f"{np.median(hf):.1e} / {np.quantile(hf, 0.99):.1e} / {hf.max():.2f} |",
+                    flush=True,
+                )
+
+
+# ---------------------------------------------------------------------------------------
 # Newton polish of stalled ADR increments: the same runs with polish off and on
 
 
@@ -911,6 +978,25 @@ def main(argv: list[str] | None = None) -> int:
         help="zero-energy-mode control of the 10⁵ run: none (the paper's), stress_points, "
         "penalty or penalty:C (coefficient C; the end-to-end run uses penalty:0.1)",
     )
+    ap.add_argument("--goal-size", type=int, default=316, help="grid side of 'goal' (10⁵)")
+    ap.add_argument(
+        "--goal-methods", nargs="+", default=["auto", "newton", "adr"], help="methods of 'goal'"
+    )
+    ap.add_argument(
+        "--goal-controls",
+        nargs="+",
+        default=["penalty:0.1", "none"],
+        help="controls of 'goal' (as --big-control)",
+    )
+    ap.add_argument(
+        "--goal-rates",
+        nargs="+",
+        default=["100", "none"],
+        help="power-law exponents of 'goal' ('none': the rate-independent model)",
+    )
+    ap.add_argument(
+        "--goal-budget", type=float, default=1800.0, help="seconds per 'goal' run (30 min)"
+    )
     ap.add_argument("--b2-size", type=int, default=25)
     ap.add_argument(
         "--b2-steps",
@@ -934,8 +1020,9 @@ def main(argv: list[str] | None = None) -> int:
             "damping",
             "polish",
             "krylov",
+            "goal",
         ],
-        help="tables to print ('predictors' and 'damping' only on request)",
+        help="tables to print ('predictors', 'damping', 'goal', ... only on request)",
     )
     ap.add_argument(
         "--predictors",
@@ -1029,6 +1116,11 @@ def main(argv: list[str] | None = None) -> int:
         table_t20(25, 6 if quick else 12)
     if "polish" in args.sections:
         table_polish(args.sizes, args.loads, args.methods, args.steps)
+    if "goal" in args.sections:
+        rates = [None if r == "none" else float(r) for r in args.goal_rates]
+        table_goal(
+            args.goal_size, args.goal_methods, args.goal_controls, rates, 30, args.goal_budget
+        )
     if "krylov" in args.sections:
         table_krylov(args.krylov_size, args.krylov_steps, args.krylov_control, args.krylov_methods)
     if "damping" in args.sections:

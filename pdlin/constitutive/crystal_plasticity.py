@@ -262,6 +262,8 @@ _NUMBA_MIN_POINTS = _UPDATE_CHUNK
 #: Newton iterations of the rate-dependent slip update per point (far from the root each
 #: iteration lowers ln|τ/s| by about 1/n: a trial 50 % over the resistance at n = 100 takes ≈ 40)
 _RATE_MAXITER = 200
+#: points from which the local Newton of the power law runs compiled (numba installed)
+_RATE_NUMBA_MIN_POINTS = 256
 
 
 def compiles_kernels(n_points: int) -> bool:
@@ -1080,6 +1082,7 @@ class CrystalPlasticity:
         active: NDArray[np.bool_] | None = None,
         sign: FloatArray | None = None,
         dt: float | None = None,
+        g0: FloatArray | None = None,
     ) -> dict[str, Any]:
         """Run the return mapping on a batch (real or complex ``Fc``).
 
@@ -1102,7 +1105,7 @@ class CrystalPlasticity:
         else:
             sgn = np.array(sign, dtype=np.float64)
         if self.rate_dependent and active is None:
-            return self._rate_map(Fc, Fp_n, s_n, H, Ce, tau_tr, dt)
+            return self._rate_map(Fc, Fp_n, s_n, H, Ce, tau_tr, dt, g0)
         b = sgn * tau_tr - s_n
         if active is None:
             act = b.real > 0.0
@@ -1160,6 +1163,7 @@ class CrystalPlasticity:
         Ce: FloatArray,
         tau_tr: FloatArray,
         dt: float | None,
+        g0: FloatArray | None = None,
     ) -> dict[str, Any]:
         """Backward-Euler update of the power-law slip rule (``rate_exponent``).
 
@@ -1179,7 +1183,7 @@ class CrystalPlasticity:
                     "drivers set it; got a state without 'dt'"
                 )
             dt = 0.0
-        g, jac, dphi = self._rate_solve(tau_tr, s_n, H, Ael, self.reference_rate * dt)
+        g, jac, dphi = self._rate_solve(tau_tr, s_n, H, Ael, self.reference_rate * dt, g0=g0)
         sgn = np.where(g < 0.0, -1.0, 1.0)
         dgam = np.abs(g)
         Fp, Fp_inv, Fe, Tbar = self._final_state(Fc, Fp_n, dgam, sgn)
@@ -1203,15 +1207,23 @@ class CrystalPlasticity:
         }
 
     def _rate_solve(
-        self, tau_tr: FloatArray, s_n: FloatArray, H: FloatArray, Ael: FloatArray, k: float
+        self,
+        tau_tr: FloatArray,
+        s_n: FloatArray,
+        H: FloatArray,
+        Ael: FloatArray,
+        k: float,
+        g0: FloatArray | None = None,
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Solve ``r(g) = g − k φ(τ_tr − A_el g, s_n + H|g|) = 0`` per point by Newton.
 
-        From ``g = 0`` (the residual of one system is increasing and concave in ``g``
-        from there, so Newton approaches the root monotonically from below), all
-        points at once, each point dropping out when its correction is below
-        ``1e-12 max|g| + 1e-300``; after ``_RATE_MAXITER`` iterations the update raises
-        :class:`~pdlin.errors.ConvergenceError` (the drivers cut the increment back).
+        From ``g0`` (the committed increment: in steady flow the next one is close), and
+        at the points where that fails from ``g = 0`` (the residual of one system is
+        increasing and concave in ``g`` from there, so Newton approaches the root
+        monotonically from below). A point is converged when its correction is below
+        ``1e-12 max|g| + 1e-300``; a point that does not converge in ``_RATE_MAXITER``
+        iterations from ``g = 0`` raises :class:`~pdlin.errors.ConvergenceError` (the
+        drivers cut the increment back).
 
         Returns
         -------
@@ -1223,51 +1235,111 @@ class CrystalPlasticity:
             ``k ∂φ^α/∂τ^α`` at the solution.
         """
         m, N = tau_tr.shape
-        nexp = float(self.rate_exponent)  # type: ignore[arg-type]
         g = np.zeros((m, N))
         jac = np.broadcast_to(np.eye(N), (m, N, N)).copy()
         dphi = np.zeros((m, N))
         if k == 0.0 or m == 0:
             return g, jac, dphi
+        if m >= _RATE_NUMBA_MIN_POINTS:
+            from .._kernels import compiled_kernels
+
+            mod = compiled_kernels()
+            if mod is not None:
+                warm = g0 is not None and bool(np.any(g0 != 0.0))
+                fail = np.zeros(m, dtype=np.bool_)
+                mod.cp_rate_fill(
+                    0, m,
+                    np.ascontiguousarray(tau_tr), np.ascontiguousarray(s_n),
+                    np.ascontiguousarray(H), np.ascontiguousarray(Ael),
+                    float(k), float(self.rate_exponent),  # type: ignore[arg-type]
+                    np.ascontiguousarray(g0 if warm else g), warm, _RATE_MAXITER,
+                    g, jac, dphi, fail,
+                )  # fmt: skip
+                if fail.any():
+                    self._rate_failed(int(fail.sum()), m)
+                return g, jac, dphi
+        every = np.arange(m)
+        bad = every
+        if g0 is not None and np.any(g0 != 0.0):
+            g[:] = g0
+            bad = self._rate_newton(g, jac, dphi, tau_tr, s_n, H, Ael, k, every)
+            g[bad] = 0.0
+        if bad.size:
+            left = self._rate_newton(g, jac, dphi, tau_tr, s_n, H, Ael, k, bad)
+            if left.size:
+                self._rate_failed(left.size, m)
+        return g, jac, dphi
+
+    def _rate_failed(self, bad: int, m: int) -> None:
+        raise ConvergenceError(
+            "CrystalPlasticity: the rate-dependent slip update did not converge in "
+            f"{_RATE_MAXITER} Newton iterations at {bad} of {m} point(s) (or left a slip "
+            "increment |Δγ| > 1): the strain increment is too large for rate_exponent = "
+            f"{self.rate_exponent:g}; cut the load step"
+        )
+
+    def _rate_newton(
+        self,
+        g: FloatArray,
+        jac: FloatArray,
+        dphi: FloatArray,
+        tau_tr: FloatArray,
+        s_n: FloatArray,
+        H: FloatArray,
+        Ael: FloatArray,
+        k: float,
+        pos: NDArray[np.intp],
+    ) -> NDArray[np.intp]:
+        """Newton iterations of :meth:`_rate_solve` on the points ``pos`` (``g`` in place).
+
+        Returns the points that did not converge (or left ``|g| ≤ 1``, or overflowed).
+        The working arrays are re-gathered only when the unconverged set has halved.
+        """
+        nexp = float(self.rate_exponent)  # type: ignore[arg-type]
+        N = g.shape[1]
         eyeN = np.eye(N)
-        pos = np.arange(m)
+        failed: list[NDArray[np.intp]] = []
+        sub = pos
+        gp, Ap, Hp, tt, sn = g[sub], Ael[sub], H[sub], tau_tr[sub], s_n[sub]
+        live = np.ones(sub.size, dtype=bool)
         for _ in range(_RATE_MAXITER):
-            gp, Ap, Hp = g[pos], Ael[pos], H[pos]
-            tau = tau_tr[pos] - (Ap @ gp[:, :, None])[:, :, 0]
-            s = s_n[pos] + (Hp @ np.abs(gp)[:, :, None])[:, :, 0]
+            idx = np.flatnonzero(live)
+            if idx.size == 0:
+                break
+            if 2 * idx.size < live.size:  # compress the working arrays
+                g[sub] = gp
+                sub = sub[idx]
+                gp, Ap, Hp, tt, sn = gp[idx], Ap[idx], Hp[idx], tt[idx], sn[idx]
+                live = np.ones(sub.size, dtype=bool)
+                idx = np.arange(sub.size)
+            G, A_, H_ = gp[idx], Ap[idx], Hp[idx]
+            tau = tt[idx] - (A_ @ G[:, :, None])[:, :, 0]
+            s = sn[idx] + (H_ @ np.abs(G)[:, :, None])[:, :, 0]
             x = np.abs(tau) / s
             with np.errstate(over="ignore", invalid="ignore"):  # checked right below
                 xn1 = x ** (nexp - 1.0)
                 phi = np.where(tau < 0.0, -1.0, 1.0) * xn1 * x
-            if not np.all(np.isfinite(phi)):
-                raise ConvergenceError(
-                    "CrystalPlasticity: the rate-dependent slip update overflowed "
-                    f"(|tau/s|^{nexp:g} not finite): the strain increment is too large"
-                )
-            r = gp - k * phi
+            r = G - k * phi
             dp = k * nexp * xn1 / s  # k ∂φ/∂τ
-            sg = np.where(gp != 0.0, np.sign(gp), np.where(tau < 0.0, -1.0, 1.0))
-            J = eyeN + dp[:, :, None] * Ap + (k * nexp * phi / s)[:, :, None] * Hp * sg[:, None, :]
-            jac[pos], dphi[pos] = J, dp
-            step = _solve(J, -r)
-            g[pos] = gp + step
-            if not np.all(np.abs(g[pos]) <= 1.0):  # also NaN: a singular J
-                raise ConvergenceError(
-                    "CrystalPlasticity: the rate-dependent slip update left a slip increment "
-                    "|Δγ| > 1 (or not finite) in one update: the strain increment is too large"
+            sg = np.where(G != 0.0, np.sign(G), np.where(tau < 0.0, -1.0, 1.0))
+            with np.errstate(over="ignore", invalid="ignore"):
+                J = (
+                    eyeN
+                    + dp[:, :, None] * A_
+                    + (k * nexp * phi / s)[:, :, None] * H_ * sg[:, None, :]
                 )
-            small = np.max(np.abs(step), axis=1) <= 1e-12 * np.max(np.abs(g[pos]), axis=1) + 1e-300
-            if small.all():
-                break
-            pos = pos[~small]
-        else:
-            raise ConvergenceError(
-                f"CrystalPlasticity: the rate-dependent slip update did not converge in "
-                f"{_RATE_MAXITER} Newton iterations at {pos.size} of {m} point(s): the "
-                "strain increment is too large for rate_exponent = "
-                f"{nexp:g}; cut the load step"
-            )
-        return g, jac, dphi
+                step = _solve(J, -r)
+                G = G + step
+            jac[sub[idx]], dphi[sub[idx]] = J, dp
+            gp[idx] = G
+            wild = ~(np.max(np.abs(G), axis=1) <= 1.0)  # also NaN / inf
+            if wild.any():
+                failed.append(sub[idx[wild]])
+            done = np.max(np.abs(step), axis=1) <= 1e-12 * np.max(np.abs(G), axis=1) + 1e-300
+            live[idx[done | wild]] = False
+        g[sub] = gp
+        failed.append(sub[live])
+        return np.concatenate(failed)
 
     def _plastic_floor(self, state_n: Mapping[str, Any]) -> float:
         """Slip increment above which a point counts as plastic (``state["plastic"]``).
@@ -1797,7 +1869,11 @@ class CrystalPlasticity:
         s_n = np.asarray(state_n["s"], dtype=np.float64)
         H = self._hardening_matrix(s_n)
         Fc = _mm(_mm(_T(R0), f), R0)
-        out = self._return_map(Fc, Fp_n, s_n, H, dt=_time_increment(state_n))
+        g0 = None
+        if self.rate_dependent and "sign" in state_n and "dgamma" in state_n:
+            # the committed increment starts the local Newton of the power law
+            g0 = np.asarray(state_n["sign"]) * np.asarray(state_n["dgamma"])
+        out = self._return_map(Fc, Fp_n, s_n, H, dt=_time_increment(state_n), g0=g0)
         P = _mm(_mm(R0, out["P"]), _T(R0))
         dgam = out["dgamma"].real
         sgn = out["sgn"]

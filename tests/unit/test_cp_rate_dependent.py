@@ -146,3 +146,34 @@ def test_newton_carries_the_rate_dependent_polycrystal():
     fine = run(np.arange(0.5, 12.01, 0.5))
     s12, f12 = res.homogenized_stress[-1, 0, 1], fine.homogenized_stress[-1, 0, 1]
     assert abs(s12 - f12) <= 1e-2 * abs(f12)
+
+
+def test_compiled_local_newton_matches_numpy(monkeypatch):
+    """The numba per-point Newton solves the same equations as the numpy path."""
+    pytest.importorskip("numba")
+    from pdlin.constitutive import crystal_plasticity as cpmod
+
+    rng = np.random.default_rng(7)
+    for slip in ("planar-2", "fcc"):
+        mat = CrystalPlasticity(slip, rate_exponent=40, reference_rate=0.002)
+        d, n = mat.dim, 400  # above _RATE_NUMBA_MIN_POINTS: the compiled kernel
+        ori = rng.uniform(-1, 1, n) if d == 2 else rng.uniform(0, 2, (n, 3))
+        L = rng.normal(size=(d, d)) * (1.0 if d == 2 else 0.3)
+        st = mat.initial_state(n, ori)
+        out = {}
+        for k in range(1, 5):
+            F = np.broadcast_to(expm((0.002 if d == 2 else 0.0005) * k * L), (n, d, d))
+            st_in = {**st, "dt": np.asarray(1.0)}
+            out["numba"] = mat.update(F, st_in, tangent=True)
+            with monkeypatch.context() as mp:
+                mp.setattr(cpmod, "_RATE_NUMBA_MIN_POINTS", 10**9)
+                out["numpy"] = mat.update(F, st_in, tangent=True)
+            st = out["numba"][1]
+        (Pa, sa, Da), (Pb, sb, Db) = out["numba"], out["numpy"]
+        assert np.any(sa["plastic"])
+        # both stop at corrections below 1e-12 |Δγ|: the same solution to ≈ 1e-12
+        np.testing.assert_allclose(
+            sa["dgamma"], sb["dgamma"], rtol=0, atol=1e-11 * sa["dgamma"].max()
+        )
+        np.testing.assert_allclose(Pa, Pb, rtol=0, atol=1e-9 * np.abs(Pb).max())
+        np.testing.assert_allclose(Da, Db, rtol=0, atol=1e-8 * np.abs(Db).max())
