@@ -16,6 +16,7 @@ Usage::
     python benchmarks/bench_cp_controls.py --n 50 --load shear --controls none stress_points penalty
     python benchmarks/bench_cp_controls.py --n 100 --load shear --controls penalty
     python benchmarks/bench_cp_controls.py --controls penalty:0.1 penalty:0.3   # coefficients
+    python benchmarks/bench_cp_controls.py --rate 100 --method newton   # power-law slip rule
 """
 
 from __future__ import annotations
@@ -46,15 +47,22 @@ def main() -> None:
     )
     ap.add_argument("--steps", type=int, default=30)
     ap.add_argument("--threads", type=int, default=1, help="pdlin threads (default 1)")
+    ap.add_argument(
+        "--rate",
+        type=float,
+        help="power-law exponent of CrystalPlasticity(rate_exponent=...) (default: none, the "
+        "paper's rate-independent model)",
+    )
     args = ap.parse_args()
     pdlin.set_num_threads(args.threads)
-    base, h = bn.problem(args.n, args.load)
+    base, h = bn.problem(args.n, args.load, rate=args.rate)
     material = base.model.material
     comp = (0, 1) if args.load == "shear" else (1, 1)
     header()
     print(
         f"# {args.n}² = {args.n**2} particles, {args.load}, {args.method}, {args.steps} steps, "
-        f"{args.threads} pdlin thread(s)"
+        f"{args.threads} pdlin thread(s), "
+        + ("rate independent" if args.rate is None else f"power law n = {args.rate:g}")
     )
     print(
         "| control | wall s / CPU s | iterations | max it/step | cut-backs | fallbacks "

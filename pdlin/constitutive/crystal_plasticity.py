@@ -1009,7 +1009,9 @@ class CrystalPlasticity:
         entered by re-activation), ``pruned`` (potentially active systems left inactive),
         ``reactivated`` (re-activation passes, one entering system each), ``unsettled``
         (1 where the active-set search did not settle, see ``max_passes``) and, in 2D,
-        the lattice spin sum ``theta_rate`` (Σ θ̇ Δt, radians).
+        the lattice spin sum ``theta_rate`` (Σ θ̇ Δt, radians).  With ``rate_exponent``
+        every loaded system slips a little: ``plastic`` marks the points where some
+        ``Δγ^α > 1e-3 γ̇₀ Δt``.
 
         Parameters
         ----------
@@ -1617,7 +1619,8 @@ class CrystalPlasticity:
             Deformation gradient (sample frame) at the current iterate.
         state_n : dict
             Committed state (:meth:`initial_state` or a previous ``state_new``); not
-            modified.
+            modified.  With ``rate_exponent`` also ``state_n["dt"]``, the time increment
+            of the update (a number >= 0; the load-step drivers add it).
         tangent : bool
             Also return the consistent tangent ``dP/dF``.
 

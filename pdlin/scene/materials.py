@@ -30,6 +30,8 @@ _MATERIAL = {
     "hardening",
     "shear",
     "polycrystal",
+    "rate_exponent",
+    "reference_rate",
     "E",
     "nu",
     "K",
@@ -42,7 +44,16 @@ _MATERIAL = {
     "stiffness",
     "density",  # mass density (explicit dynamics, pdlin.scene.explicit)
 }
-_CP_KEYS = ("slip", "orientation", "elastic", "hardening", "shear", "polycrystal")
+_CP_KEYS = (
+    "slip",
+    "orientation",
+    "elastic",
+    "hardening",
+    "shear",
+    "polycrystal",
+    "rate_exponent",
+    "reference_rate",
+)
 _POLYCRYSTAL = {"grains", "seed"}
 #: isotropic constants a material table may give (any two; per phase tables allowed)
 _ISO_KEYS = ("E", "nu", "K", "G", "lam", "mu")

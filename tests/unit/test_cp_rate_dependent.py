@@ -177,3 +177,56 @@ def test_compiled_local_newton_matches_numpy(monkeypatch):
         )
         np.testing.assert_allclose(Pa, Pb, rtol=0, atol=1e-9 * np.abs(Pb).max())
         np.testing.assert_allclose(Da, Db, rtol=0, atol=1e-8 * np.abs(Db).max())
+
+
+SCENE = """
+name = "cp_rate"
+[geometry]
+type = "grid"
+shape = [8, 8]
+spacing = 0.125
+[material]
+type = "crystal-plasticity"
+orientation = 0.2617993877991494
+rate_exponent = 100
+reference_rate = 0.002
+[model]
+type = "correspondence"
+[horizon]
+ratio = 1.0
+influence = "constant"
+[[dirichlet]]
+set = "boundary"
+velocity_gradient = [[0.0, 0.002], [0.002, 0.0]]
+[solver]
+nonlinear = "newton"
+steps = 6
+t_end = 6.0
+"""
+
+
+def test_scene_keys_and_bitwise_resume(tmp_path):
+    from pdlin.scene import load_scene
+
+    path = tmp_path / "cp_rate.toml"
+    path.write_text(SCENE)
+    sc = load_scene(path)
+    mat = sc.problem.model.material
+    assert (mat.rate_exponent, mat.reference_rate) == (100.0, 0.002)
+    full = pdlin.solve_nonlinear(sc.problem, steps=6, t_end=6.0, method="newton")
+    assert np.any(full.state["plastic"])  # θ = 15° yields at step 3 (material-point tables)
+    # killed after 4 steps, resumed to 6: the increments' dt (and the predictor's state of the
+    # last increment) come back from the checkpoint, so the run continues bitwise
+    ck = tmp_path / "run.npz"
+    pdlin.solve_nonlinear(
+        sc.problem, times=[1.0, 2.0, 3.0, 4.0], t_end=6.0, method="newton", checkpoint=ck
+    )
+    res = pdlin.solve_nonlinear(
+        sc.problem, steps=6, t_end=6.0, method="newton", checkpoint=ck, resume=True
+    )
+    assert res.resumed_from == 4
+    np.testing.assert_array_equal(res.u, full.u)
+    bad = path.read_text().replace("rate_exponent = 100", "rate_exponent = 0.5")
+    path.write_text(bad)
+    with pytest.raises(InputError, match="rate_exponent must be a finite number >= 1"):
+        load_scene(path)
