@@ -77,6 +77,7 @@ _TOP = {
     "materials",  # [materials.<name>]: named materials of the [[block]] tables
     "deck",  # a Peridigm / PeriLab input deck instead of geometry, material, ...
     "thermal",  # [thermal] alpha, temperature_change: the thermal eigenstrain load
+    "compare",  # [compare.cpfe]: the CPFE comparator beside a CP scene (pdlin.scene.compare)
 }
 #: top-level keys of a scene that runs an input deck ([deck] path = ...)
 _DECK_TOP = {"name", "deck", "solver", "output", "check", "about"}
@@ -195,6 +196,9 @@ class Scene:
     #: ``[solver] kind = "explicit"``: the keywords of ``pdlin.dynamics.solve_explicit``
     #: (``pdlin.scene.explicit``); None for other scenes
     explicit: dict[str, Any] | None = None
+    #: ``[compare]`` options (``{"cpfe": {...}}``, :func:`pdlin.scene.compare.compare_options`):
+    #: a second discretization ``pdlin run`` solves beside the scene's own; None: none
+    compare: dict[str, Any] | None = None
 
     def prepare(self) -> Scene:
         """Do the work loading deferred to the run, once, and return the scene.
@@ -489,6 +493,11 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         number(top["material"]["density"], "material.density", positive=True)
     kind = scfg.get("kind", "static")
     if kind == "explicit":
+        if "compare" in top:
+            raise SceneError(
+                "compare.cpfe compares quasi-static crystal-plasticity load steps; remove it "
+                "or solver.kind = 'explicit'"
+            )
         from .explicit import explicit_scene
 
         scene = explicit_scene(top, base, problem, scfg, ocfg, blocks)
@@ -809,6 +818,9 @@ def _scene(
                 "(displacement and damage; the series of every step): remove output.fields"
             )
         _check_output_fields(ocfg["fields"], problem.model)
+    from .compare import compare_options
+
+    compare = compare_options(top.get("compare"), problem, nonlinear, n_real, base)
     return Scene(
         name=str(top.get("name", "scene")),
         problem=problem,
@@ -827,6 +839,7 @@ def _scene(
         homogenized=None if hom is None else (Path(hom) if Path(hom).is_absolute() else base / hom),
         backend=str(scfg.get("backend", "scipy")),
         petsc_options=None if "petsc_options" not in scfg else dict(scfg["petsc_options"]),
+        compare=compare,
     )
 
 
