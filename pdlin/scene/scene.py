@@ -87,7 +87,16 @@ _DAMAGE = {"critical_stretch", "G0", "steps", "max_resolves"}
 _ABOUT = {"description", "runtime"}
 _SUBREGION = {"box", "coarse", "layer"}
 _GEOM = {
-    "grid": {"type", "shape", "spacing", "origin", "thickness", "ghost_layers", "holes"},
+    "grid": {
+        "type",
+        "shape",
+        "spacing",
+        "origin",
+        "thickness",
+        "ghost_layers",
+        "holes",
+        "inclusions",
+    },
     "mesh": {"type", "path", "thickness", "dim", "volume"},
     "image": {"type", "path", "data", "spacing", "origin", "void", "thickness", "ghost_layers"},
 }
@@ -312,6 +321,41 @@ def _holes(cloud: PointCloud, holes: Any) -> PointCloud:
     return cloud.subset(np.flatnonzero(~inside))
 
 
+def _inclusions(cloud: PointCloud, items: Any) -> PointCloud:
+    """Give the grid points inside circular / spherical inclusions their phase id.
+
+    ``inclusions = [{center = [...], radius = r, phase = 1}]``: the points with
+    ``|X - center| <= r`` get ``phase`` (later entries win); the others keep phase 0.  Per
+    phase constants (``material.E = {"0" = ..., "1" = ...}``, ``material.stiffness.scale``)
+    then apply, as to the phases of an image.
+    """
+    if not isinstance(items, list):
+        raise SceneError(
+            "geometry.inclusions must be an array of tables {center = [...], radius = r, "
+            f"phase = k}}, got {items!r}"
+        )
+    phase = np.array(cloud.material, dtype=np.int64, copy=True)
+    for k, inc in enumerate(items):  # a handful of inclusions, vectorized over points
+        key = f"geometry.inclusions[{k}]"
+        inc = scene_keys(inc, {"center", "radius", "phase"}, key)
+        r = number(require(inc, "radius", key), f"{key}.radius", positive=True)
+        c = require(inc, "center", key)
+        if not isinstance(c, list) or len(c) != cloud.dim:
+            raise SceneError(f"{key}.center must list {cloud.dim} coordinates, got {c!r}")
+        centre = [number(v, f"{key}.center[{j}]") for j, v in enumerate(c)]
+        ph = require(inc, "phase", key)
+        if isinstance(ph, bool) or not isinstance(ph, int) or ph < 1:
+            raise SceneError(f"{key}.phase must be an integer >= 1 (0 is the matrix), got {ph!r}")
+        mine = np.linalg.norm(cloud.points - np.asarray(centre), axis=1) <= r
+        if not mine.any():
+            raise SceneError(
+                f"{key} (at ({', '.join(f'{v:g}' for v in centre)}), radius {r:g}) holds no "
+                f"point of the grid ({_span(cloud)}); move it into the body or enlarge it"
+            )
+        phase[mine] = ph
+    return cloud.replace(material=phase)
+
+
 def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
     if not isinstance(cfg, Mapping):
         raise SceneError(f"geometry must be a table, got {type(cfg).__name__}")
@@ -330,6 +374,8 @@ def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
         for k, v in enumerate(spacing if isinstance(spacing, list) else [spacing]):
             number(v, "geometry.spacing" + (f"[{k}]" if isinstance(spacing, list) else ""))
         cloud = grid(shape, spacing, cfg.get("origin"), thickness=thickness)
+        if "inclusions" in cfg:
+            cloud = _inclusions(cloud, cfg["inclusions"])
         return _holes(cloud, cfg["holes"]) if "holes" in cfg else cloud
     if kind == "mesh":
         path = _resolve_path(require(cfg, "path", "geometry"), base, "geometry.path")
@@ -1056,9 +1102,21 @@ def _problem_scene(top: Mapping[str, Any], base: Path) -> Scene:
         raise
     except (PdlinError, TypeError) as exc:
         raise SceneError(f"problem ({name}): {exc}") from exc
-    scfg = scene_keys(top.get("solver", {}), {"name", "rtol", "maxiter"}, "solver")
+    # the linear-solve keys, and the load-step keys of solve_nonlinear (an ADR run of the
+    # bundled problem, e.g. Liu, Chen & Skelton's plate: solver.nonlinear = "adr")
+    keys = {"name", "rtol", "maxiter", "nonlinear", *_NONLINEAR_KEYS}
+    scfg = scene_keys(top.get("solver", {}), keys, "solver")
     _solver_options(scfg)
-    ocfg = scene_keys(top.get("output", {}), {"path", "fields"}, "output")
+    nonlinear = _nonlinear_options(scfg, case.problem, base)
+    ocfg = scene_keys(top.get("output", {}), {"path", "fields", "homogenized"}, "output")
+    hom = ocfg.get("homogenized")
+    if hom is not None and (nonlinear is None or not isinstance(hom, str)):
+        raise SceneError(
+            "output.homogenized must be a path string of a nonlinear solve "
+            f"([solver] nonlinear = ...), got {hom!r}"
+        )
+    if "fields" in ocfg and nonlinear is not None:
+        raise SceneError("output.fields selects the fields of a static run; remove it")
     out = ocfg.get("path")
     if out is not None and not isinstance(out, str):
         raise SceneError(f"output.path must be a path string, got {out!r}")
@@ -1077,6 +1135,8 @@ def _problem_scene(top: Mapping[str, Any], base: Path) -> Scene:
         checks=_checks(top),
         case=case,
         about=_about(top),
+        nonlinear=nonlinear,
+        homogenized=None if hom is None else (Path(hom) if Path(hom).is_absolute() else base / hom),
     )
 
 
