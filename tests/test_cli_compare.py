@@ -192,3 +192,28 @@ def test_compare_outputs_checked_before_the_solve(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "compare.cpfe.output" in err and "fe.vtk" in err
     assert not (tmp_path / "sc_homogenized.csv").exists()  # refused before the CPPD run
+
+
+def test_gap_summary_is_json_without_nan(capsys):
+    from types import SimpleNamespace
+
+    from pdlin.cli.compare import cpfe_summary, print_cpfe
+
+    # CPFE sigma_xy = 0 at step 1 (no relative gap there), 10 at step 2, CPPD 9: -10 %
+    hf = np.array([[[0.0, 0.0], [0.0, 0.0]], [[0.0, 10.0], [10.0, 0.0]]])
+    hp = np.array([[[0.0, 0.5], [0.5, 0.0]], [[0.0, 9.0], [9.0, 0.0]]])
+    fe = SimpleNamespace(
+        homogenized_stress=hf, iterations=np.array([1, 2]), cutbacks=np.array([0, 0]),
+        timings={"setup": 0.1, "total": 0.5}, times=np.array([1.0, 2.0]),
+    )  # fmt: skip
+    cppd = SimpleNamespace(homogenized_stress=hp)
+    cfg = {"integration": "fbar", "method": "auto", "component": None, "tolerance": 0.05}
+    scene = SimpleNamespace(compare={"cpfe": cfg})
+    s = cpfe_summary(scene, cppd, fe, Path("a.pvd"), Path("a.csv"))
+    text = json.dumps(s, allow_nan=False)  # strict JSON
+    assert s["component"] == "xy" and s["gap"]["relative"] == [None, -0.1]
+    assert s["max_relative_gap"] == pytest.approx(0.1) and s["passed"] is False
+    assert json.loads(text)["gap"]["difference"] == [0.5, -1.0]
+    print_cpfe(s)
+    out = capsys.readouterr().out
+    assert "CPPD below CPFE at 1 of 1 step(s)" in out and "- FAIL within 0.05" in out
