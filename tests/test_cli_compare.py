@@ -157,8 +157,6 @@ def _with(edit, text: str = SCENE) -> dict:
          r"compare.cpfe.output must be a path string, got 3"),
         (lambda d: d["compare"]["cpfe"].update(component="zz"),
          r"compare.cpfe.component must be two of the axes 'xy'"),
-        (lambda d: d["geometry"].update(ghost_layers=1),
-         r"compare.cpfe .*remove geometry.ghost_layers \(the scene has 24 ghost point"),
         (lambda d: d["geometry"].update(holes=[{"center": [0.5, 0.5], "radius": 0.1}]),
          r"compare.cpfe needs a complete 2D or 3D pixel grid .*got points without a lattice"),
         (lambda d: d["dirichlet"][0].update(set="x-") or d["dirichlet"].append(
@@ -217,3 +215,41 @@ def test_gap_summary_is_json_without_nan(capsys):
     print_cpfe(s)
     out = capsys.readouterr().out
     assert "CPPD below CPFE at 1 of 1 step(s)" in out and "- FAIL within 0.05" in out
+
+
+def test_ghost_layer_scene_compares_on_its_real_pixels(tmp_path, capsys):
+    # the gallery's single crystal (10 x 10 pixels + one ghost ring), 5 steps: the ghosts and
+    # their 'ghost' condition are dropped for the elements; a homogeneous path, so both
+    # discretizations give the material point (docs/crystal_plasticity.md)
+    from pdlin.constitutive import material_point
+    from pdlin.scene.compare import cpfe_problem
+    from pdlin.scene.scene import builtin_scene
+
+    text = builtin_scene("cp_single_crystal")[1]
+    text = text[: text.index("[[check]]")]  # its checks are of 30 steps
+    text = text.replace("steps = 30", "steps = 5").replace("t_end = 30.0", "t_end = 5.0")
+    text += "\n[compare.cpfe]\ntolerance = 1e-10\n"
+    scene = _write(tmp_path, text)
+    assert main(["run", str(scene), "--json", "-q", "-o", str(tmp_path / "r.pvd")]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    sc = load_scene(scene)
+    prob = cpfe_problem(sc)
+    assert sc.problem.cloud.n == 144 and prob.cloud.n == 100  # 44 ghosts dropped
+    assert [bc.where for bc in prob.dirichlet] == ["boundary"]
+    ref = crystal_plasticity_fem(prob, **cpfe_keywords(sc))
+    got = np.array(summary["cpfe"]["homogenized_stress"])
+    np.testing.assert_allclose(got, ref.homogenized_stress, rtol=1e-12, atol=1e-12)
+    mp = material_point(sc.problem.model.material, "shear", steps=5)
+    np.testing.assert_allclose(got, mp.stress[:, 0], rtol=0, atol=1e-10 * np.abs(got).max())
+    assert summary["cpfe"]["passed"] and summary["cpfe"]["max_relative_gap"] < 1e-10
+
+
+def test_ghost_layers_refused_without_the_real_grid():
+    from pdlin.scene.compare import compare_options
+
+    d = _data()
+    d["geometry"]["ghost_layers"] = 1
+    del d["compare"]
+    sc = scene_from_dict(d)
+    with pytest.raises(SceneError, match=r"remove geometry.ghost_layers \(the scene has 24 ghost"):
+        compare_options({"cpfe": True}, sc.problem, sc.nonlinear, 25, Path("."))

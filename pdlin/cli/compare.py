@@ -118,20 +118,21 @@ def run_cpfe(scene: Any, series: Path, prog: Any) -> tuple[Any, Path, Path, floa
         Seconds spent writing.
     """
     from ..io.results import write_series
-    from ..scene.compare import cpfe_keywords
+    from ..scene.compare import cpfe_keywords, cpfe_problem
     from ..verification.cpfe import crystal_plasticity_fem
     from .main import _size, _write_progress
 
     kw = cpfe_keywords(scene)
     prog(f"CPFE comparator: {kw['integration']} Q4/Hex8 elements on the pixels, {kw['method']}")
-    result = crystal_plasticity_fem(scene.problem, progress=prog, **kw)
+    problem = cpfe_problem(scene)  # a ghost-layer scene: its real pixels
+    result = crystal_plasticity_fem(problem, progress=prog, **kw)
     out, csv_path = cpfe_paths(scene, series)
     prog(f"writing {out}")
     t_write = time.perf_counter()
     n_gauss = result.system.disc.mesh.n_gauss
     with _write_progress(out, prog):
         times = [float(t) for t in result.times]
-        written = write_series(out, scene.cloud, times, _element_fields(result, n_gauss))
+        written = write_series(out, problem.cloud, times, _element_fields(result, n_gauss))
     _write_csv(csv_path, result)
     t_write = time.perf_counter() - t_write
     prog(f"wrote {_size(Path(written))} and {csv_path} in {t_write:.1f} s")

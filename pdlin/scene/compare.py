@@ -49,6 +49,7 @@ __all__ = [
     "CPFE_KEYS",
     "compare_options",
     "cpfe_keywords",
+    "cpfe_problem",
     "homogenized_gap",
     "stress_component",
 ]
@@ -109,8 +110,46 @@ def stress_component(name: Any, dim: int, key: str) -> tuple[int, int]:
     return i, j
 
 
-def _cpfe_applies(problem: Any, nonlinear: Mapping[str, Any] | None, n_real: int) -> None:
-    """Raise a SceneError naming why the CPFE comparator cannot run on the scene."""
+def _real_grid_problem(problem: Any, n_real: int, real_cloud: Any) -> Any:
+    """Return the scene's problem on its real pixels: ghosts and their conditions dropped.
+
+    The ghost layer gives the peridynamic boundary points complete families; the elements
+    on the pixels need none, and their nodes on the outer ring carry the ``boundary`` path.
+    """
+    import copy
+
+    from ..models.correspondence import Correspondence
+    from ..problem import StaticProblem
+
+    pts = np.asarray(problem.cloud.points)[:n_real]
+    if real_cloud is None or real_cloud.n != n_real or not np.allclose(pts, real_cloud.points):
+        raise SceneError(  # pragma: no cover - ghost_layer keeps the real points first
+            "compare.cpfe: the real points of the ghost-layer scene are not its grid"
+        )
+    material = copy.copy(problem.model.material)
+    ori = np.asarray(material.orientation)
+    if ori.ndim and ori.shape[0] == problem.cloud.n:  # per point: the real points' rows
+        material.orientation = ori[:n_real]
+    bcs = [bc for bc in problem.dirichlet if bc.where != "ghost"]
+    h = problem.horizon
+    if np.ndim(h):  # per point (the elements do not use it; the problem keeps it)
+        h = np.asarray(h)[:n_real]
+    return StaticProblem(
+        Correspondence(material=material),
+        real_cloud,
+        horizon=h,
+        dirichlet=bcs,
+        bond_options=dict(problem.bond_options or {}),
+    )
+
+
+def _cpfe_applies(
+    problem: Any, nonlinear: Mapping[str, Any] | None, n_real: int, real_cloud: Any = None
+) -> Any:
+    """Return the problem the comparator solves, or raise a SceneError naming why it cannot.
+
+    A ghost-layer scene gives the problem on its real pixels (``real_cloud``).
+    """
     from ..constitutive import CrystalPlasticity
 
     if nonlinear is None:
@@ -125,13 +164,15 @@ def _cpfe_applies(problem: Any, nonlinear: Mapping[str, Any] | None, n_real: int
             "compare.cpfe needs material.type = 'crystal-plasticity' (a CrystalPlasticity "
             f"material of a correspondence model), got {got}"
         )
-    cloud = problem.cloud
     if problem.cloud.n != n_real:
-        raise SceneError(
-            "compare.cpfe builds its elements on the pixels of the grid: remove "
-            f"geometry.ghost_layers (the scene has {cloud.n - n_real} ghost point(s), a "
-            "peridynamic boundary device the elements do not need)"
-        )
+        if real_cloud is None:
+            raise SceneError(
+                "compare.cpfe builds its elements on the pixels of the grid: remove "
+                f"geometry.ghost_layers (the scene has {problem.cloud.n - n_real} ghost "
+                "point(s), a peridynamic boundary device the elements do not need)"
+            )
+        problem = _real_grid_problem(problem, n_real, real_cloud)
+    cloud = problem.cloud
     lat = getattr(cloud, "lattice", None)
     if lat is None or lat.index is not None or cloud.dim not in (2, 3):
         raise SceneError(
@@ -153,6 +194,7 @@ def _cpfe_applies(problem: Any, nonlinear: Mapping[str, Any] | None, n_real: int
         )
     if problem.symmetry:
         raise SceneError("compare.cpfe does not support [[symmetry]] planes")
+    return problem
 
 
 def compare_options(
@@ -161,6 +203,7 @@ def compare_options(
     nonlinear: Mapping[str, Any] | None,
     n_real: int,
     base: Path,
+    real_cloud: Any = None,
 ) -> dict[str, Any] | None:
     """Check a scene's ``[compare]`` table; return its options (None: no table).
 
@@ -176,12 +219,16 @@ def compare_options(
         Number of real (not ghost) points.
     base : Path
         The scene's folder (relative output paths).
+    real_cloud : PointCloud, optional
+        The grid of the real points of a ghost-layer scene (the comparator's pixels; its
+        ``ghost`` conditions are dropped).  Without it, ghost points are refused.
 
     Returns
     -------
     dict or None
         ``{"cpfe": {...}}`` with ``integration``, ``method``, ``output``,
-        ``homogenized``, ``tolerance``, ``component`` (None when not given).
+        ``homogenized``, ``tolerance``, ``component`` (None when not given) and
+        ``problem``, the problem the comparator solves (:func:`cpfe_problem`).
 
     Raises
     ------
@@ -239,8 +286,9 @@ def compare_options(
     comp = cfg.get("component")
     if comp is not None:
         stress_component(comp, problem.cloud.dim, "compare.cpfe.component")
-    _cpfe_applies(problem, nonlinear, n_real)
+    fe_problem = _cpfe_applies(problem, nonlinear, n_real, real_cloud)
     out["cpfe"] = {
+        "problem": fe_problem,
         "integration": integration,
         "method": method,
         "output": paths["output"],
@@ -255,8 +303,8 @@ def cpfe_keywords(scene: Any) -> dict[str, Any]:
     """Return the keyword arguments of ``crystal_plasticity_fem`` for a scene's comparison.
 
     The scene's load steps and Newton options, the ``[compare.cpfe]`` integration rule
-    and method: ``crystal_plasticity_fem(scene.problem, **cpfe_keywords(scene))`` is the
-    run ``pdlin run`` makes.
+    and method: ``crystal_plasticity_fem(cpfe_problem(scene), **cpfe_keywords(scene))``
+    is the run ``pdlin run`` makes.
 
     Parameters
     ----------
@@ -289,6 +337,43 @@ def cpfe_keywords(scene: Any) -> dict[str, Any]:
     kw["integration"] = cmp["cpfe"]["integration"]
     kw["method"] = cmp["cpfe"]["method"]
     return kw
+
+
+def cpfe_problem(scene: Any) -> Any:
+    """Return the problem the CPFE comparator of a scene solves.
+
+    The scene's problem, or for a ghost-layer scene the same body on its real pixels (the
+    ghosts and their ``ghost`` conditions dropped; the orientations of the real points).
+
+    Parameters
+    ----------
+    scene : Scene
+        A scene with a ``[compare.cpfe]`` table.
+
+    Returns
+    -------
+    StaticProblem
+        ``crystal_plasticity_fem(cpfe_problem(scene), **cpfe_keywords(scene))`` is the run
+        ``pdlin run`` makes.
+
+    Raises
+    ------
+    SceneError
+        The scene has no ``[compare.cpfe]`` table.
+
+    Examples
+    --------
+    >>> from pdlin.scene.scene import builtin_scene, scene_from_dict
+    >>> data, _ = builtin_scene("cp_single_crystal")
+    >>> data["compare"] = {"cpfe": True}
+    >>> sc = scene_from_dict(data)
+    >>> sc.problem.cloud.n, cpfe_problem(sc).cloud.n      # 10 x 10 pixels + 44 ghosts
+    (144, 100)
+    """
+    cmp = getattr(scene, "compare", None)
+    if not cmp or "cpfe" not in cmp:
+        raise SceneError("the scene has no [compare.cpfe] table")
+    return cmp["cpfe"]["problem"] or scene.problem
 
 
 def homogenized_gap(cppd: Any, cpfe: Any, component: tuple[int, int]) -> dict[str, np.ndarray]:

@@ -866,7 +866,10 @@ def _scene(
         _check_output_fields(ocfg["fields"], problem.model)
     from .compare import compare_options
 
-    compare = compare_options(top.get("compare"), problem, nonlinear, n_real, base)
+    real = None
+    if "compare" in top and problem.cloud.n != n_real:  # ghost layers: the real pixels
+        real = _geometry(top["geometry"], base)
+    compare = compare_options(top.get("compare"), problem, nonlinear, n_real, base, real)
     return Scene(
         name=str(top.get("name", "scene")),
         problem=problem,
