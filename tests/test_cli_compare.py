@@ -253,3 +253,28 @@ def test_ghost_layers_refused_without_the_real_grid():
     sc = scene_from_dict(d)
     with pytest.raises(SceneError, match=r"remove geometry.ghost_layers \(the scene has 24 ghost"):
         compare_options({"cpfe": True}, sc.problem, sc.nonlinear, 25, Path("."))
+
+
+def test_tradeoff_cpfe_reference_uses_the_compare_table_and_real_pixels():
+    from pdlin.scene.scene import builtin_scene
+    from pdlin.scene.tradeoff import tradeoff_from_dict
+
+    # the ghost-layer single crystal: before, the comparator refused its cloud (ghosts); now
+    # it runs on the 10 x 10 real pixels and both give the material point (error ~1e-13)
+    data, _ = builtin_scene("cp_single_crystal")
+    data.pop("check")
+    data["solver"].update(steps=3, t_end=3.0)
+    data["tradeoff"] = {"reference": "cpfe", "sweep": {"method": ["newton"]}}
+    (row,) = tradeoff_from_dict(data).run(memory="none").table
+    assert row["status"] == "ok" and row["error"] < 1e-10
+    # a [compare.cpfe] table sets the comparator's integration rule: full integration is
+    # stiffer than F-bar on a polycrystal, so the error against it differs
+    poly = _data(POLY)
+    poly["solver"].update(steps=3, t_end=3.0)
+    errs = []
+    for rule in ("fbar", "full"):
+        poly["compare"] = {"cpfe": {"integration": rule}}
+        poly["tradeoff"] = {"reference": "cpfe", "sweep": {"method": ["newton"]}}
+        (row,) = tradeoff_from_dict(poly).run(memory="none").table
+        errs.append(row["error"])
+    assert errs[0] != pytest.approx(errs[1], rel=1e-3)
