@@ -108,6 +108,8 @@ def test_examples_lists_name_description_checks_and_runtime(capsys):
     assert main(["examples"]) == 0
     text = capsys.readouterr().out
     assert "lps_cube" in text and "verifies: strain_zz vs uniaxial stress" in text
+    fcc = next(r for r in rows if r["name"] == "cp_fcc_shear")
+    assert fcc["verifies"].endswith("; homogenized stress vs CPFE (fbar elements)")
 
 
 # --- perturbed physics makes the checks fail ---------------------------------------------

@@ -675,7 +675,11 @@ def _cmd_examples(args: argparse.Namespace) -> int:
         data, _ = builtin_scene(name)
         about = data.get("about", {})
         checks = parse_checks(data["check"]) if "check" in data else []
-        verifies = "; ".join(f"{c.quantity} vs {c.source}" for c in checks) or "-"
+        parts = [f"{c.quantity} vs {c.source}" for c in checks]
+        cpfe = data.get("compare", {}).get("cpfe")
+        if isinstance(cpfe, dict) and "tolerance" in cpfe:  # [compare.cpfe] with a tolerance
+            parts.append(f"homogenized stress vs CPFE ({cpfe.get('integration', 'fbar')} elements)")
+        verifies = "; ".join(parts) or "-"
         rows.append(
             {
                 "name": name,
