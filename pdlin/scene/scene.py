@@ -205,7 +205,7 @@ class Scene:
     #: ``[solver] kind = "explicit"``: the keywords of ``pdlin.dynamics.solve_explicit``
     #: (``pdlin.scene.explicit``); None for other scenes
     explicit: dict[str, Any] | None = None
-    #: ``[compare]`` options (``{"cpfe": {...}}``, :func:`pdlin.scene.compare.compare_options`):
+    #: ``[compare]`` options (``{"cpfe": {...}}``, ``pdlin.scene.compare.compare_options``):
     #: a second discretization ``pdlin run`` solves beside the scene's own; None: none
     compare: dict[str, Any] | None = None
 
