@@ -168,6 +168,12 @@ def _check_run_outputs(args: argparse.Namespace, scene: Any) -> None:
         _check_out(out, SERIES_SUFFIXES, f"{what} (a nonlinear run's time series)")
         csv_path = _homogenized_path(args, scene, out)
         _check_out(csv_path, (".csv",), "output.homogenized")
+        if getattr(scene, "compare", None):
+            from .compare import cpfe_paths
+
+            fe_out, fe_csv = cpfe_paths(scene, out)
+            _check_out(fe_out, SERIES_SUFFIXES, "compare.cpfe.output (the CPFE time series)")
+            _check_out(fe_csv, (".csv",), "compare.cpfe.homogenized")
     else:
         out = Path(args.output) if args.output else (scene.output or Path(f"{scene.name}.vtu"))
         _check_out(out, SUPPORTED_SUFFIXES, what)
@@ -445,6 +451,13 @@ def _run_nonlinear(args: argparse.Namespace, scene: Any, prog: Any) -> int:
     if result.homogenized_stress is not None:
         summary["final_homogenized_stress"] = result.homogenized_stress[-1].tolist()
     checks = _checks(scene, result, summary, prog)
+    cmp = None
+    if getattr(scene, "compare", None):
+        from .compare import cpfe_summary, run_cpfe
+
+        fe, fe_series, fe_csv, fe_write = run_cpfe(scene, series, prog)
+        cmp = summary["cpfe"] = cpfe_summary(scene, result, fe, fe_series, fe_csv)
+        cmp["timings"]["write"] = round(fe_write, 4)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
@@ -461,8 +474,17 @@ def _run_nonlinear(args: argparse.Namespace, scene: Any, prog: Any) -> int:
             )
         print(_timings_line(summary))
         print(f"results      {series} (time series), {csv_path} (homogenized)")
+        if cmp is not None:
+            from .compare import print_cpfe
+
+            print_cpfe(cmp)
         _print_checks(checks)
-    return _check_status(args, checks)
+    status = _check_status(args, checks)
+    if cmp is not None and cmp.get("passed") is False:
+        if not args.json:
+            print("the CPPD vs CPFE comparison FAILED its tolerance", file=sys.stderr)
+        return 5 if args.strict else status
+    return status
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
@@ -653,7 +675,11 @@ def _cmd_examples(args: argparse.Namespace) -> int:
         data, _ = builtin_scene(name)
         about = data.get("about", {})
         checks = parse_checks(data["check"]) if "check" in data else []
-        verifies = "; ".join(f"{c.quantity} vs {c.source}" for c in checks) or "-"
+        parts = [f"{c.quantity} vs {c.source}" for c in checks]
+        cpfe = data.get("compare", {}).get("cpfe")
+        if isinstance(cpfe, dict) and "tolerance" in cpfe:  # [compare.cpfe] with a tolerance
+            parts.append(f"homogenized stress vs CPFE ({cpfe.get('integration', 'fbar')} elements)")
+        verifies = "; ".join(parts) or "-"
         rows.append(
             {
                 "name": name,

@@ -151,8 +151,25 @@ def _correspondence(
                 f"material.stiffness and material.{given[0]} exclude each other "
                 "(give a Voigt stiffness or isotropic constants)"
             )
-        C = target_from_table(material["stiffness"], "material.stiffness")
-        return Correspondence(C, plane=plane, **opts)
+        table = material["stiffness"]
+        scale = table.get("scale") if isinstance(table, Mapping) else None
+        if scale is not None:
+            table = {k: v for k, v in table.items() if k != "scale"}
+        C = target_from_table(table, "material.stiffness")
+        if scale is None:
+            return Correspondence(C, plane=plane, **opts)
+        factor = per_phase(scale, cloud, "material.stiffness.scale")
+        if not isinstance(scale, Mapping):
+            raise SceneError(
+                "material.stiffness.scale must be a table of per-phase factors "
+                f'{{"0" = 1.0, "1" = 0.1}}, got {scale!r}'
+            )
+        phases = np.unique(np.asarray(cloud.material))
+        by_phase = {int(p): float(factor[np.flatnonzero(cloud.material == p)[0]]) for p in phases}
+        bad = {p: f for p, f in by_phase.items() if not (np.isfinite(f) and f > 0)}
+        if bad:
+            raise SceneError(f"material.stiffness.scale must be > 0 per phase, got {bad}")
+        return Correspondence({p: f * C for p, f in by_phase.items()}, plane=plane, **opts)
     iso = _isotropic(material, cloud, "correspondence", minimum=1 if cloud.dim == 1 else 2)
     return Correspondence(**iso, plane=plane, **opts)
 

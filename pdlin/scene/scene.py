@@ -77,6 +77,7 @@ _TOP = {
     "materials",  # [materials.<name>]: named materials of the [[block]] tables
     "deck",  # a Peridigm / PeriLab input deck instead of geometry, material, ...
     "thermal",  # [thermal] alpha, temperature_change: the thermal eigenstrain load
+    "compare",  # [compare.cpfe]: the CPFE comparator beside a CP scene (pdlin.scene.compare)
 }
 #: top-level keys of a scene that runs an input deck ([deck] path = ...)
 _DECK_TOP = {"name", "deck", "solver", "output", "check", "about"}
@@ -86,7 +87,16 @@ _DAMAGE = {"critical_stretch", "G0", "steps", "max_resolves"}
 _ABOUT = {"description", "runtime"}
 _SUBREGION = {"box", "coarse", "layer"}
 _GEOM = {
-    "grid": {"type", "shape", "spacing", "origin", "thickness", "ghost_layers", "holes"},
+    "grid": {
+        "type",
+        "shape",
+        "spacing",
+        "origin",
+        "thickness",
+        "ghost_layers",
+        "holes",
+        "inclusions",
+    },
     "mesh": {"type", "path", "thickness", "dim", "volume"},
     "image": {"type", "path", "data", "spacing", "origin", "void", "thickness", "ghost_layers"},
 }
@@ -195,6 +205,9 @@ class Scene:
     #: ``[solver] kind = "explicit"``: the keywords of ``pdlin.dynamics.solve_explicit``
     #: (``pdlin.scene.explicit``); None for other scenes
     explicit: dict[str, Any] | None = None
+    #: ``[compare]`` options (``{"cpfe": {...}}``, ``pdlin.scene.compare.compare_options``):
+    #: a second discretization ``pdlin run`` solves beside the scene's own; None: none
+    compare: dict[str, Any] | None = None
 
     def prepare(self) -> Scene:
         """Do the work loading deferred to the run, once, and return the scene.
@@ -308,6 +321,41 @@ def _holes(cloud: PointCloud, holes: Any) -> PointCloud:
     return cloud.subset(np.flatnonzero(~inside))
 
 
+def _inclusions(cloud: PointCloud, items: Any) -> PointCloud:
+    """Give the grid points inside circular / spherical inclusions their phase id.
+
+    ``inclusions = [{center = [...], radius = r, phase = 1}]``: the points with
+    ``|X - center| <= r`` get ``phase`` (later entries win); the others keep phase 0.  Per
+    phase constants (``material.E = {"0" = ..., "1" = ...}``, ``material.stiffness.scale``)
+    then apply, as to the phases of an image.
+    """
+    if not isinstance(items, list):
+        raise SceneError(
+            "geometry.inclusions must be an array of tables {center = [...], radius = r, "
+            f"phase = k}}, got {items!r}"
+        )
+    phase = np.array(cloud.material, dtype=np.int64, copy=True)
+    for k, inc in enumerate(items):  # a handful of inclusions, vectorized over points
+        key = f"geometry.inclusions[{k}]"
+        inc = scene_keys(inc, {"center", "radius", "phase"}, key)
+        r = number(require(inc, "radius", key), f"{key}.radius", positive=True)
+        c = require(inc, "center", key)
+        if not isinstance(c, list) or len(c) != cloud.dim:
+            raise SceneError(f"{key}.center must list {cloud.dim} coordinates, got {c!r}")
+        centre = [number(v, f"{key}.center[{j}]") for j, v in enumerate(c)]
+        ph = require(inc, "phase", key)
+        if isinstance(ph, bool) or not isinstance(ph, int) or ph < 1:
+            raise SceneError(f"{key}.phase must be an integer >= 1 (0 is the matrix), got {ph!r}")
+        mine = np.linalg.norm(cloud.points - np.asarray(centre), axis=1) <= r
+        if not mine.any():
+            raise SceneError(
+                f"{key} (at ({', '.join(f'{v:g}' for v in centre)}), radius {r:g}) holds no "
+                f"point of the grid ({_span(cloud)}); move it into the body or enlarge it"
+            )
+        phase[mine] = ph
+    return cloud.replace(material=phase)
+
+
 def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
     if not isinstance(cfg, Mapping):
         raise SceneError(f"geometry must be a table, got {type(cfg).__name__}")
@@ -326,6 +374,8 @@ def _geometry(cfg: Mapping[str, Any], base: Path) -> PointCloud:
         for k, v in enumerate(spacing if isinstance(spacing, list) else [spacing]):
             number(v, "geometry.spacing" + (f"[{k}]" if isinstance(spacing, list) else ""))
         cloud = grid(shape, spacing, cfg.get("origin"), thickness=thickness)
+        if "inclusions" in cfg:
+            cloud = _inclusions(cloud, cfg["inclusions"])
         return _holes(cloud, cfg["holes"]) if "holes" in cfg else cloud
     if kind == "mesh":
         path = _resolve_path(require(cfg, "path", "geometry"), base, "geometry.path")
@@ -489,6 +539,11 @@ def scene_from_dict(data: Mapping[str, Any], base_dir: str | Path | None = None)
         number(top["material"]["density"], "material.density", positive=True)
     kind = scfg.get("kind", "static")
     if kind == "explicit":
+        if "compare" in top:
+            raise SceneError(
+                "compare.cpfe compares quasi-static crystal-plasticity load steps; remove it "
+                "or solver.kind = 'explicit'"
+            )
         from .explicit import explicit_scene
 
         scene = explicit_scene(top, base, problem, scfg, ocfg, blocks)
@@ -809,6 +864,12 @@ def _scene(
                 "(displacement and damage; the series of every step): remove output.fields"
             )
         _check_output_fields(ocfg["fields"], problem.model)
+    from .compare import compare_options
+
+    real = None
+    if "compare" in top and problem.cloud.n != n_real:  # ghost layers: the real pixels
+        real = _geometry(top["geometry"], base)
+    compare = compare_options(top.get("compare"), problem, nonlinear, n_real, base, real)
     return Scene(
         name=str(top.get("name", "scene")),
         problem=problem,
@@ -827,6 +888,7 @@ def _scene(
         homogenized=None if hom is None else (Path(hom) if Path(hom).is_absolute() else base / hom),
         backend=str(scfg.get("backend", "scipy")),
         petsc_options=None if "petsc_options" not in scfg else dict(scfg["petsc_options"]),
+        compare=compare,
     )
 
 
@@ -1043,9 +1105,21 @@ def _problem_scene(top: Mapping[str, Any], base: Path) -> Scene:
         raise
     except (PdlinError, TypeError) as exc:
         raise SceneError(f"problem ({name}): {exc}") from exc
-    scfg = scene_keys(top.get("solver", {}), {"name", "rtol", "maxiter"}, "solver")
+    # the linear-solve keys, and the load-step keys of solve_nonlinear (an ADR run of the
+    # bundled problem, e.g. Liu, Chen & Skelton's plate: solver.nonlinear = "adr")
+    keys = {"name", "rtol", "maxiter", "nonlinear", *_NONLINEAR_KEYS}
+    scfg = scene_keys(top.get("solver", {}), keys, "solver")
     _solver_options(scfg)
-    ocfg = scene_keys(top.get("output", {}), {"path", "fields"}, "output")
+    nonlinear = _nonlinear_options(scfg, case.problem, base)
+    ocfg = scene_keys(top.get("output", {}), {"path", "fields", "homogenized"}, "output")
+    hom = ocfg.get("homogenized")
+    if hom is not None and (nonlinear is None or not isinstance(hom, str)):
+        raise SceneError(
+            "output.homogenized must be a path string of a nonlinear solve "
+            f"([solver] nonlinear = ...), got {hom!r}"
+        )
+    if "fields" in ocfg and nonlinear is not None:
+        raise SceneError("output.fields selects the fields of a static run; remove it")
     out = ocfg.get("path")
     if out is not None and not isinstance(out, str):
         raise SceneError(f"output.path must be a path string, got {out!r}")
@@ -1064,6 +1138,8 @@ def _problem_scene(top: Mapping[str, Any], base: Path) -> Scene:
         checks=_checks(top),
         case=case,
         about=_about(top),
+        nonlinear=nonlinear,
+        homogenized=None if hom is None else (Path(hom) if Path(hom).is_absolute() else base / hom),
     )
 
 

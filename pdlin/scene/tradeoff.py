@@ -126,7 +126,8 @@ class SceneSweep:
         """
         from .scene import scene_from_dict
 
-        sc = scene_from_dict(self.scene_data(**params), self.base_dir)
+        data = self.scene_data(**params)
+        sc = scene_from_dict(data, self.base_dir)
         kw: dict[str, Any] = {"solver": sc.solver, "rtol": sc.rtol}
         if sc.maxiter is not None:
             kw["maxiter"] = sc.maxiter
@@ -167,7 +168,9 @@ class SceneSweep:
                 nl.setdefault("maxiter", sc.maxiter)
             ref_nl = None
             if self.options.get("reference") == "cpfe":
-                ref_nl = _cpfe_reference(sc.problem, nl)
+                if sc.compare is None:  # the comparator's defaults and its checks
+                    sc = scene_from_dict({**data, "compare": {"cpfe": {}}}, self.base_dir)
+                ref_nl = _cpfe_reference(sc, nl)
             return TradeoffCase(sc.problem, {}, h=h, nonlinear=nl, reference=ref_nl)
         if self.options.get("reference") == "cpfe":
             raise SceneError("tradeoff.reference = 'cpfe' applies to nonlinear scenes only")
@@ -201,18 +204,29 @@ class SceneSweep:
         return tradeoff(self.factory, self.grid, **opts)
 
 
-def _cpfe_reference(problem: Any, nl: Mapping[str, Any]) -> Callable[[], np.ndarray]:
-    """Return the CPFE homogenized stress history of ``problem`` as a callable (``cpfe``).
+def _cpfe_reference(scene: Any, nl: Mapping[str, Any]) -> Callable[[], np.ndarray]:
+    """Return the CPFE homogenized stress history of a scene as a callable (``cpfe``).
 
-    Q4 / Hex8 F-bar elements centred on the particles (``pdlin.verification.cpfe``), the
-    scene's load steps and Newton tolerance.
+    Q4 / Hex8 elements centred on the particles (``pdlin.verification.cpfe``) on the
+    scene's real pixels (``pdlin.scene.compare.cpfe_problem``), its ``[compare.cpfe]``
+    integration rule and method (default F-bar, ``auto``), the load steps and Newton
+    tolerance of the sweep point.
     """
+    from .compare import cpfe_problem
+
+    problem = cpfe_problem(scene)
+    cfg = scene.compare["cpfe"]
 
     def reference() -> np.ndarray:
         from ..verification.cpfe import crystal_plasticity_fem
 
         keys = ("steps", "t_end", "times", "rtol", "maxiter")
-        res = crystal_plasticity_fem(problem, method="auto", **{k: nl[k] for k in keys if k in nl})
+        res = crystal_plasticity_fem(
+            problem,
+            integration=cfg["integration"],
+            method=cfg["method"],
+            **{k: nl[k] for k in keys if k in nl},
+        )
         return np.asarray(res.homogenized_stress)
 
     return reference
