@@ -230,3 +230,24 @@ def test_scene_keys_and_bitwise_resume(tmp_path):
     path.write_text(bad)
     with pytest.raises(InputError, match="rate_exponent must be a finite number >= 1"):
         load_scene(path)
+
+
+def test_the_documented_large_scene_runs_reduced(tmp_path):
+    """The 10⁵ scene of docs/crystal_plasticity.md, on a 20 x 20 grid for 4 steps."""
+    import re
+    from pathlib import Path
+
+    from pdlin.scene.scene import scene_from_dict, tomllib
+
+    page = Path(__file__).resolve().parents[2] / "docs" / "crystal_plasticity.md"
+    block = re.search(r'```toml\n(name = "cp_shear_large".*?)```', page.read_text(), re.S)
+    assert block is not None
+    data = tomllib.loads(block.group(1))
+    assert data["geometry"]["shape"] == [316, 316]  # the documented size: 99,856 particles
+    data["geometry"].update(shape=[20, 20], spacing=1.0 / 20)
+    data["solver"].update(steps=4, t_end=4.0)
+    data["solver"].pop("checkpoint")
+    sc = scene_from_dict(data, base_dir=tmp_path)
+    assert sc.problem.model.material.rate_exponent == 100.0
+    res = pdlin.solve_nonlinear(sc.problem, steps=4, t_end=4.0, method="newton")
+    assert np.all(res.cutbacks == 0) and np.any(res.state["plastic"])
