@@ -8,7 +8,6 @@ of the homogenized curves is printed per step (``pdlin.scene.compare``).
 
 from __future__ import annotations
 
-import csv
 import time
 from pathlib import Path
 from typing import Any
@@ -67,31 +66,9 @@ def _write_csv(path: Path, result: Any) -> Path:
 
     The mean F is the volume average of the element F (Gauss-weighted in each element).
     """
-    from ..io.output import staging
+    from ..io.results import write_homogenized_csv
 
-    d = result.homogenized_stress.shape[-1]
-    disc = result.system.disc
-    w = disc.mesh.volumes
-    ij = [f"{i + 1}{j + 1}" for i in range(d) for j in range(d)]
-    header = ["step", "time", "factor"]
-    header += [f"sigma_{c}" for c in ij] + [f"F_{c}" for c in ij]
-    header += ["method", "iterations", "cutbacks"]
-    rows = []
-    for k in range(result.n_steps):
-        F = disc.deformation_gradient(result.u[k])
-        Fm = np.einsum("e,eab->ab", w, F) / w.sum()
-        rows.append(
-            [k + 1, f"{result.times[k]:.10g}", f"{result.factors[k]:.10g}"]
-            + [f"{v:.10g}" for v in result.homogenized_stress[k].ravel()]
-            + [f"{v:.12g}" for v in Fm.ravel()]
-            + [result.methods[k], int(result.iterations[k]), int(result.cutbacks[k])]
-        )
-    with staging(path) as st:
-        with open(st.main, "w", newline="") as fh:
-            wr = csv.writer(fh)
-            wr.writerow(header)
-            wr.writerows(rows)
-    return path
+    return write_homogenized_csv(path, result, weights=result.system.disc.mesh.volumes)
 
 
 def run_cpfe(scene: Any, series: Path, prog: Any) -> tuple[Any, Path, Path, float]:

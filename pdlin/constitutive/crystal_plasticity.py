@@ -1138,7 +1138,27 @@ class CrystalPlasticity:
                     passes[idx] = npass
             dgam[idx] = dg
             act[idx] = a_
-        # step 6: Fp = (I + Σ Δγ sgn S₀) Fp_n, Fe = F Fp⁻¹, T̄ = 𝓛[½(FeᵀFe − I)]
+        return self._mapped(
+            Fc, Fp_n, Ce, dgam, sgn, act, (trial & ~act).sum(axis=1), passes, unsettled
+        )
+
+    def _mapped(
+        self,
+        Fc: NDArray[Any],
+        Fp_n: FloatArray,
+        Ce: NDArray[Any],
+        dgam: NDArray[Any],
+        sgn: NDArray[Any],
+        act: NDArray[np.bool_],
+        pruned: NDArray[Any],
+        passes: NDArray[Any],
+        unsettled: NDArray[np.bool_],
+    ) -> dict[str, Any]:
+        """Return the final state of slip increments ``dgam`` (signs ``sgn``) as a dict.
+
+        Step 6 of the Appendix: ``Fᵖ = (I + Σ Δγ sgn S₀) Fᵖ_n``, ``Fᵉ = F Fᵖ⁻¹``,
+        ``T̄ = 𝓛[½(FᵉᵀFᵉ − I)]``, ``P = Fᵉ T̄ Fᵖ⁻ᵀ``.
+        """
         Fp, Fp_inv, Fe, Tbar = self._final_state(Fc, Fp_n, dgam, sgn)
         P = _mm(_mm(Fe, Tbar), _T(Fp_inv))
         return {
@@ -1151,7 +1171,7 @@ class CrystalPlasticity:
             "dgamma": dgam,
             "sgn": sgn,
             "active": act,
-            "pruned": (trial & ~act).sum(axis=1),
+            "pruned": pruned,
             "reactivated": passes,
             "unsettled": unsettled,
         }
@@ -1187,26 +1207,13 @@ class CrystalPlasticity:
             dt = 0.0
         g, jac, dphi = self._rate_solve(tau_tr, s_n, H, Ael, self.reference_rate * dt, g0=g0)
         sgn = np.where(g < 0.0, -1.0, 1.0)
-        dgam = np.abs(g)
-        Fp, Fp_inv, Fe, Tbar = self._final_state(Fc, Fp_n, dgam, sgn)
-        P = _mm(_mm(Fe, Tbar), _T(Fp_inv))
         zero = np.zeros(m, dtype=np.int64)
-        return {
-            "P": P,
-            "Fp": Fp,
-            "Fp_inv": Fp_inv,
-            "Ce": Ce,
-            "Fe": Fe,
-            "Tbar": Tbar,
-            "dgamma": dgam,
-            "sgn": sgn,
-            "active": np.ones(g.shape, dtype=bool),
-            "pruned": zero,
-            "reactivated": zero,
-            "unsettled": np.zeros(m, dtype=bool),
-            "rate_jacobian": jac,
-            "rate_dphi": dphi,
-        }
+        out = self._mapped(
+            Fc, Fp_n, Ce, np.abs(g), sgn, np.ones(g.shape, dtype=bool), zero, zero,
+            np.zeros(m, dtype=bool),
+        )  # fmt: skip
+        out.update(rate_jacobian=jac, rate_dphi=dphi)
+        return out
 
     def _rate_solve(
         self,

@@ -376,7 +376,7 @@ def write_series(
     return p
 
 
-def write_homogenized_csv(path: str | Path, result: Any) -> Path:
+def write_homogenized_csv(path: str | Path, result: Any, *, weights: Any = None) -> Path:
     """Write the homogenized (volume-averaged) response per load step as CSV.
 
     Columns: ``step, time, factor``, the volume-averaged Cauchy stress
@@ -390,6 +390,9 @@ def write_homogenized_csv(path: str | Path, result: Any) -> Path:
     result : NonlinearResult
         A :func:`pdlin.solve_nonlinear` result (stress columns are NaN when it holds
         no homogenized stress).
+    weights : array_like, optional
+        Weights of the mean F, one per row of ``result.system.disc.deformation_gradient``
+        (default the points' volumes; the CPFE comparator passes its element volumes).
 
     Returns
     -------
@@ -408,7 +411,7 @@ def write_homogenized_csv(path: str | Path, result: Any) -> Path:
         raise InputError(f"homogenized output must end with .csv, got {str(p)!r}")
     d = result.u.shape[2]
     system = result.system
-    w = np.asarray(system.cloud.volumes, dtype=float)
+    w = np.asarray(system.cloud.volumes if weights is None else weights, dtype=float)
     ij = [f"{i + 1}{j + 1}" for i in range(d) for j in range(d)]
     header = ["step", "time", "factor"]
     header += [f"sigma_{c}" for c in ij] + [f"F_{c}" for c in ij]
@@ -416,7 +419,7 @@ def write_homogenized_csv(path: str | Path, result: Any) -> Path:
     rows = []
     for k in range(result.n_steps):
         F = system.disc.deformation_gradient(result.u[k])
-        Fm = np.einsum("i,iab->ab", w, F) / w.sum()
+        Fm = np.einsum("e,eab->ab", w, F) / w.sum()
         sig = (
             result.homogenized_stress[k]
             if result.homogenized_stress is not None

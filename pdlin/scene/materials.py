@@ -22,8 +22,8 @@ from ._keys import number, require, scene_keys
 
 __all__ = ["MODELS", "Block", "blocks_per_point", "per_phase"]
 
-_MATERIAL = {
-    "type",
+#: keys of a crystal-plasticity material table
+_CP_KEYS = (
     "slip",
     "orientation",
     "elastic",
@@ -32,6 +32,10 @@ _MATERIAL = {
     "polycrystal",
     "rate_exponent",
     "reference_rate",
+)
+_MATERIAL = {
+    "type",
+    *_CP_KEYS,
     "E",
     "nu",
     "K",
@@ -44,16 +48,6 @@ _MATERIAL = {
     "stiffness",
     "density",  # mass density (explicit dynamics, pdlin.scene.explicit)
 }
-_CP_KEYS = (
-    "slip",
-    "orientation",
-    "elastic",
-    "hardening",
-    "shear",
-    "polycrystal",
-    "rate_exponent",
-    "reference_rate",
-)
 _POLYCRYSTAL = {"grains", "seed"}
 #: isotropic constants a material table may give (any two; per phase tables allowed)
 _ISO_KEYS = ("E", "nu", "K", "G", "lam", "mu")
