@@ -20,7 +20,9 @@ import pdlin
 from pdlin.constitutive import transversely_isotropic
 from pdlin.models import shadow_problem
 
-# reference values (independent implementation, 48³, µm): raw / filt / dev per weight set
+# reference values (independent implementation, 48³, µm): raw / filt / dev per weight set.
+# HO 3h (5.04 / 1.17 / 7.67) is not here: 824 CPU s and 8.5 GB peak RSS in pdlin, beyond the slow
+# tier; benchmarks/bench_precipitate.py --rows ho3 compares it (docs/weights.md's table)
 REFERENCE_48 = {
     (1, "higher_order"): (4.82, 1.62, 7.73),
     (2, "higher_order"): (4.71, 1.30, 7.84),
