@@ -263,7 +263,11 @@ def _child(conn: Any, fn: Any, args: tuple[Any, ...], kw: dict[str, Any]) -> Non
     try:
         conn.send(("ok", fn(*args, **kw)))
     except Exception as exc:  # noqa: BLE001 - report any failure as a table row
-        conn.send(("error", f"{type(exc).__name__}: {str(exc)[:160]}"))
+        import traceback
+
+        last = traceback.extract_tb(exc.__traceback__)[-1]
+        where = f" (at {Path(last.filename).name}:{last.lineno})"
+        conn.send(("error", f"{type(exc).__name__}: {str(exc)[:160]}{where}"))
     conn.close()
 
 
