@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 __all__ = [
+    "fork_call",
     "Context",
     "Timing",
     "backend_label",
@@ -348,3 +349,36 @@ def speedup_flag(k: int, load: float | None = None, cores: int | None = None) ->
     if load > free:
         return f"unreliable (load {load:.2f} > free cores {free})"
     return ""
+
+
+def _fork_child(conn: Any, fn: Any, args: tuple[Any, ...], kw: dict[str, Any]) -> None:
+    try:
+        conn.send(("ok", fn(*args, **kw)))
+    except Exception as exc:  # noqa: BLE001 - report any failure as a table row
+        import traceback
+        from pathlib import Path
+
+        last = traceback.extract_tb(exc.__traceback__)[-1]
+        where = f" (at {Path(last.filename).name}:{last.lineno})"
+        conn.send(("error", f"{type(exc).__name__}: {str(exc)[:160]}{where}"))
+    conn.close()
+
+
+def fork_call(fn: Any, *args: Any, **kw: Any) -> Any:
+    """Run ``fn(*args, **kw)`` in a forked child (its own peak RSS); errors come back as str.
+
+    The error string names the exception, its message and the line that raised it.
+    """
+    import multiprocessing as mp
+
+    ctx = mp.get_context("fork")
+    parent, child = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_fork_child, args=(child, fn, args, kw))
+    proc.start()
+    child.close()
+    try:
+        status, value = parent.recv()
+    except EOFError:
+        status, value = "error", f"child died (exit code {proc.exitcode})"
+    proc.join()
+    return value if status == "ok" else str(value)

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import argparse
 import cProfile
-import multiprocessing as mp
 import re
 import resource
 import sys
@@ -53,7 +52,7 @@ PARTS = {
 }
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _context import header  # noqa: E402
+from _context import fork_call, header  # noqa: E402
 
 
 def problem(n: int, grains: int, eta: float) -> pdlin.StaticProblem:
@@ -183,20 +182,10 @@ def run(
     }
 
 
-def _child(conn: Any, *args: Any) -> None:
-    conn.send(run(*args))
-    conn.close()
-
-
 def forked(*args: Any) -> dict[str, Any]:
-    """:func:`run` in a forked child (its own peak RSS)."""
-    ctx = mp.get_context("fork")
-    parent, child = ctx.Pipe(duplex=False)
-    p = ctx.Process(target=_child, args=(child, *args))
-    p.start()
-    out = parent.recv()
-    p.join()
-    return dict(out)
+    """:func:`run` in a forked child (its own peak RSS); a failure as ``{"failed": ...}``."""
+    out = fork_call(run, *args)
+    return {"failed": out} if isinstance(out, str) else dict(out)
 
 
 def main() -> None:

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import copy
-import multiprocessing as mp
 import resource
 import sys
 import time
@@ -43,7 +42,7 @@ import pdlin
 from pdlin.scene.scene import builtin_scene, scene_from_dict
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _context import header  # noqa: E402
+from _context import fork_call, header  # noqa: E402
 
 #: row -> (δ/h, control)
 ROWS = {"h": (1, "higher_order"), "ho2": (2, "higher_order"), "ho3": (3, "higher_order"),
@@ -125,23 +124,10 @@ def run(row: str, n: int) -> dict[str, Any]:
     return out
 
 
-def _child(conn: Any, *args: Any) -> None:
-    try:
-        conn.send(run(*args))
-    except Exception as exc:  # report, never hang the parent
-        conn.send({"failed": f"{type(exc).__name__}: {str(exc)[:200]}"})
-    conn.close()
-
-
 def forked(*args: Any) -> dict[str, Any]:
-    """:func:`run` in a forked child (its own peak RSS)."""
-    ctx = mp.get_context("fork")
-    parent, child = ctx.Pipe(duplex=False)
-    p = ctx.Process(target=_child, args=(child, *args))
-    p.start()
-    out = parent.recv()
-    p.join()
-    return dict(out)
+    """:func:`run` in a forked child (its own peak RSS); a failure as ``{"failed": ...}``."""
+    out = fork_call(run, *args)
+    return {"failed": out} if isinstance(out, str) else dict(out)
 
 
 def main() -> None:

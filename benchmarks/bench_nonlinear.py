@@ -77,7 +77,6 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import cProfile  # noqa: E402
-import multiprocessing as mp  # noqa: E402
 import pstats  # noqa: E402
 import resource  # noqa: E402
 import shutil  # noqa: E402
@@ -92,7 +91,7 @@ import scipy.sparse as sp  # noqa: E402
 import scipy.sparse.linalg as spla  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _context import header  # noqa: E402
+from _context import fork_call, header  # noqa: E402
 
 import pdlin  # noqa: E402
 
@@ -259,31 +258,8 @@ def high_frequency(u: np.ndarray, points: np.ndarray, n: int, h: float) -> np.nd
     return np.asarray(np.linalg.norm(grid[1:-1, 1:-1] - avg, axis=2).ravel() / h)
 
 
-def _child(conn: Any, fn: Any, args: tuple[Any, ...], kw: dict[str, Any]) -> None:
-    try:
-        conn.send(("ok", fn(*args, **kw)))
-    except Exception as exc:  # noqa: BLE001 - report any failure as a table row
-        import traceback
-
-        last = traceback.extract_tb(exc.__traceback__)[-1]
-        where = f" (at {Path(last.filename).name}:{last.lineno})"
-        conn.send(("error", f"{type(exc).__name__}: {str(exc)[:160]}{where}"))
-    conn.close()
-
-
-def forked(fn: Any, *args: Any, **kw: Any) -> Any:
-    """Run ``fn(*args, **kw)`` in a forked child (its own peak RSS); errors come back as str."""
-    ctx = mp.get_context("fork")
-    parent, child = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(child, fn, args, kw))
-    proc.start()
-    child.close()
-    try:
-        status, value = parent.recv()
-    except EOFError:
-        status, value = "error", f"child died (exit code {proc.exitcode})"
-    proc.join()
-    return value if status == "ok" else str(value)
+#: ``fn(*args, **kw)`` in a forked child (its own peak RSS); errors come back as str
+forked = fork_call
 
 
 # ---------------------------------------------------------------------------------------

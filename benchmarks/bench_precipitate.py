@@ -25,7 +25,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import multiprocessing as mp
 import resource
 import sys
 import time
@@ -39,7 +38,7 @@ from pdlin.constitutive import transversely_isotropic
 from pdlin.models import shadow_problem
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _context import header  # noqa: E402
+from _context import fork_call, header  # noqa: E402
 
 #: row -> (δ/h, control, influence)
 ROWS = {
@@ -99,23 +98,10 @@ def centreline(row: str, n: int) -> dict[str, Any]:
     }
 
 
-def _child(conn: Any, *args: Any) -> None:
-    try:
-        conn.send(centreline(*args))
-    except Exception as exc:  # report, never hang the parent
-        conn.send({"failed": f"{type(exc).__name__}: {str(exc)[:200]}"})
-    conn.close()
-
-
 def forked(*args: Any) -> dict[str, Any]:
-    """:func:`centreline` in a forked child (its own peak RSS)."""
-    ctx = mp.get_context("fork")
-    parent, child = ctx.Pipe(duplex=False)
-    p = ctx.Process(target=_child, args=(child, *args))
-    p.start()
-    out = parent.recv()
-    p.join()
-    return dict(out)
+    """:func:`centreline` in a forked child (its own peak RSS); a failure as ``{"failed": ...}``."""
+    out = fork_call(centreline, *args)
+    return {"failed": out} if isinstance(out, str) else dict(out)
 
 
 def main() -> None:
