@@ -280,7 +280,11 @@ class _Predictor:
         forces between ``u_c`` and ``u₁``).
         """
         sysm = self.system
-        resp = sysm.respond(u_c, state, tangent=True)
+        try:
+            resp = sysm.respond(u_c, state, tangent=True)
+        except (NonFiniteError, ConvergenceError) as exc:
+            log.info("tangent predictor failed (%s); starting from the last solution", exc)
+            return u_c.copy()
         self.calls += int(resp.calls)
         if resp.tangent is None:  # a model without a tangent: keep the last solution
             return u_c.copy()
@@ -301,7 +305,10 @@ class _Predictor:
         try:
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
                 at = sysm.respond(u1, second)
-        except NonFiniteError:
+        except (NonFiniteError, ConvergenceError):
+            # the response at the first-order point failed (a non-finite stress, a
+            # constitutive update that did not converge there): keep the first order, from
+            # which Newton's own evaluation fails the increment if it must (a cut-back)
             return u1
         self.calls += int(at.calls)
         r1 = sysm.residual(None, factor=factor, f_int=at.force)

@@ -251,3 +251,19 @@ def test_the_documented_large_scene_runs_reduced(tmp_path):
     assert sc.problem.model.material.rate_exponent == 100.0
     res = pdlin.solve_nonlinear(sc.problem, steps=4, t_end=4.0, method="newton")
     assert np.all(res.cutbacks == 0) and np.any(res.state["plastic"])
+
+
+def test_a_failed_update_at_the_predictor_cuts_back():
+    """The second-order predictor's evaluation at u₁ may fail the local Newton (found at 10⁵).
+
+    One load step of 10x the paper's increment: the trial stress is ≈ 4 s, beyond what the
+    power law's local Newton (n = 200) solves from Δγ = 0 in its 200 iterations; the
+    increment is cut back instead of the run failing.
+    """
+    cloud = pdlin.grid((6, 6), spacing=1 / 6)
+    bonds = pdlin.find_bonds(cloud, ratio=1.0, influence="constant")
+    mat = CrystalPlasticity(rate_exponent=200, reference_rate=0.02)
+    bc = pdlin.Dirichlet.velocity_gradient("boundary", 0.02 * SHEAR)
+    prob = pdlin.StaticProblem(pdlin.Correspondence(material=mat), cloud, bonds, dirichlet=[bc])
+    res = pdlin.solve_nonlinear(prob, times=[1.0, 2.0], t_end=2.0, method="newton")
+    assert res.cutbacks.sum() >= 1 and np.any(res.state["plastic"])
