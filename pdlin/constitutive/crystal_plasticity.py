@@ -45,6 +45,7 @@ from ..errors import (
     ConvergenceError,
     InputError,
     InputTypeError,
+    NonFiniteError,
     ShapeError,
 )
 from .tensors import (
@@ -298,6 +299,14 @@ def _rows_of(state: Mapping[str, Any], idx: NDArray[np.intp], n: int) -> dict[st
         k: (v[idx] if isinstance(v, np.ndarray) and v.ndim and len(v) == n else v)
         for k, v in state.items()
     }
+
+
+def _degenerate(exc: ZeroDivisionError) -> NonFiniteError:
+    """Return the error of a compiled update that divided by zero (numpy gives inf / nan)."""
+    return NonFiniteError(
+        "CrystalPlasticity: the compiled update divided by zero at a degenerate deformation "
+        f"gradient (e.g. det F = 0): P would not be finite ({exc})"
+    )
 
 
 def _time_increment(state: Mapping[str, Any]) -> float | None:
@@ -1781,7 +1790,10 @@ class CrystalPlasticity:
                 t_outs = (st["Fp"], st["dgamma"], st["sign"])
                 tkern(c[0], c[1], *t_ins, *t_outs, *consts, D)
 
-        thread_map(run, even_chunks(n, _UPDATE_CHUNK))
+        try:
+            thread_map(run, even_chunks(n, _UPDATE_CHUNK))
+        except ZeroDivisionError as exc:  # numba raises where numpy gives inf / nan
+            raise _degenerate(exc) from exc
         state: dict[str, FloatArray] = {
             "Fp": st["Fp"],
             "s": st["s"],
@@ -1861,9 +1873,13 @@ class CrystalPlasticity:
             P, mat, pair, pair, pair, pair, one, one, one, pair, one, one, mat, one, one, bad,
         )  # fmt: skip
         kern = mod.cp_planar_fill
-        thread_map(
-            lambda c: kern(c[0], c[1], *ins, *consts, *outs, False), even_chunks(n, _UPDATE_CHUNK)
-        )
+        try:
+            thread_map(
+                lambda c: kern(c[0], c[1], *ins, *consts, *outs, False),
+                even_chunks(n, _UPDATE_CHUNK),
+            )
+        except ZeroDivisionError as exc:  # numba raises where numpy gives inf / nan
+            raise _degenerate(exc) from exc
         idx = np.flatnonzero(bad)
         if idx.size:  # singular active-set matrices: numpy's pseudo-inverse path
             P[idx] = self._update_points(f[idx], _rows_of(state_n, idx, n), False)[0]

@@ -267,3 +267,12 @@ def test_a_failed_update_at_the_predictor_cuts_back():
     prob = pdlin.StaticProblem(pdlin.Correspondence(material=mat), cloud, bonds, dirichlet=[bc])
     res = pdlin.solve_nonlinear(prob, times=[1.0, 2.0], t_end=2.0, method="newton")
     assert res.cutbacks.sum() >= 1 and np.any(res.state["plastic"])
+
+
+def test_compiled_update_at_a_degenerate_f_is_a_non_finite_error():
+    """numba raises ZeroDivisionError where numpy gives inf / nan (found by the 10⁵ ADR run)."""
+    pytest.importorskip("numba")
+    cp = CrystalPlasticity()  # planar double slip, pruning: the compiled kernel from 8,192 points
+    n = 8192
+    with pytest.raises(pdlin.errors.NonFiniteError, match="degenerate deformation gradient"):
+        cp.update(np.zeros((n, 2, 2)), cp.initial_state(n))
